@@ -1,0 +1,47 @@
+// noisemond configuration: a TOML file (every field has a default that runs the simulated engine) plus
+// command-line overrides. systemd/noisemond.toml documents every field.
+#pragma once
+
+#include <cstdint>
+#include <stdexcept>
+#include <string>
+
+#include "drivers/sim_source.hpp"
+#include "model/block_params.hpp"
+
+namespace noisemon::daemon {
+
+struct LcmConfig {
+  std::string url;  // empty: LCM's default (udpm://239.255.76.67:7667?ttl=0)
+  std::string report_channel = "NOISEMON_CYCLE";
+  std::string status_channel = "NOISEMON_STATUS";
+  std::string raw_channel = "NOISEMON_RAW";
+  std::string operating_point_channel = "NOISEMON_OP";
+  bool publish_raw = true;
+  bool publish_operating_point = true;
+};
+
+struct Config {
+  std::string source = "sim";
+  std::int64_t cycles = 0;          // stop after this many cycles; 0 = until SIGINT/SIGTERM
+  std::string log_level = "info";
+  bool live = false;                // print one line per cycle on stdout
+  LcmConfig lcm;
+  std::string model_name = "linear";// the preset the model parameters start from
+  model::BlockParams model = model::preset("linear");
+  double acoustic_delay_s = -1;     // < 0: radius / speed of sound, as the source reports it
+  double ring_seconds = 2.0;        // capacity of each driver ring buffer
+  drivers::SimConfig sim;
+};
+
+// A configuration error; what() names the file and the field.
+struct ConfigError : std::runtime_error {
+  using std::runtime_error::runtime_error;
+};
+
+// Reads a TOML file over the defaults. Unknown keys, wrong types and out-of-range values are errors.
+Config load_config(const std::string& path);
+// Parses TOML text (for tests); `origin` names the text in error messages.
+Config parse_config(const std::string& text, const std::string& origin);
+
+}  // namespace noisemon::daemon

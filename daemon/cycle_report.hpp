@@ -1,0 +1,46 @@
+// The per-cycle result inside the daemon: a plain struct that travels through a lock-free ring from the
+// processing thread to the LCM thread, where it becomes a noisemon::cycle_report_t.
+#pragma once
+
+#include <cstdint>
+
+#include "drivers/source.hpp"
+
+namespace noisemon::daemon {
+
+inline constexpr std::size_t kMaxBands = 32;
+inline constexpr std::size_t kMaxMics = drivers::SampleBlock::kMaxChannels;
+
+// Bits of CycleReport::band_flags and ::flags; the same values as the LCM constants in msgs/cycle_report_t.lcm.
+enum BandFlag : std::int8_t { kBandNyquistCut = 1, kBandSlow = 2, kBandSettling = 4 };
+enum CycleFlag : std::int32_t {
+  kCycleSettling = 1,
+  kCycleGap = 2,
+  kCycleNoOperatingPoint = 4,
+  kCycleLengthOdd = 8,
+};
+
+struct CycleReport {
+  std::int64_t utime = 0;           // instant of the cycle's first frame (crank angle -360 deg)
+  std::int64_t window_end_utime = 0;// end of the cycle's acoustic window (for latency)
+  std::int64_t cycle = 0;
+  double duration_s = 0;
+  drivers::OperatingPoint op;
+  double lpa_measured_db = 0, lpa_predicted_db = 0;
+  double lwa_measured_db = 0, lwa_predicted_db = 0;
+  double radius_m = 0;
+  std::uint16_t nbands = 0;
+  float band_hz[kMaxBands] = {};
+  float spl_a_measured_db[kMaxBands] = {};
+  float spl_a_predicted_db[kMaxBands] = {};
+  float cpl_db[kMaxBands] = {};
+  float att_measured_db[kMaxBands] = {};
+  float att_predicted_db[kMaxBands] = {};
+  std::int8_t band_flags[kMaxBands] = {};
+  std::uint16_t nmics = 0;
+  float mic_lpa_db[kMaxMics] = {};
+  std::int32_t flags = 0;
+  float processing_ms = 0;
+};
+
+}  // namespace noisemon::daemon

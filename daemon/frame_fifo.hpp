@@ -1,0 +1,75 @@
+// A preallocated FIFO of multichannel frames indexed by their position on the 40 kHz grid.
+// Used by the processing thread only (single-threaded): it keeps each stream's recent frames until the other
+// streams catch up, so frames of one instant can be combined. Gaps in the index are filled by holding the
+// last frame (zeros at the start) and reported to the caller.
+#pragma once
+
+#include <algorithm>
+#include <cstdint>
+#include <stdexcept>
+#include <vector>
+
+namespace noisemon::daemon {
+
+class FrameFifo {
+ public:
+  FrameFifo(std::size_t channels, std::size_t capacity_frames)
+      : channels_(channels), capacity_(capacity_frames), data_(channels * capacity_frames, 0.0), last_(channels, 0.0) {}
+
+  std::size_t channels() const { return channels_; }
+  bool started() const { return started_; }
+  std::int64_t begin_index() const { return begin_; }           // index of the oldest frame held
+  std::int64_t end_index() const { return begin_ + static_cast<std::int64_t>(size_); }  // one past the newest
+  std::size_t size() const { return size_; }
+
+  // Appends frames whose first frame has grid index `first`. Frames already present are skipped; a gap before
+  // `first` is filled by holding the last frame. Returns the number of frames filled in. Throws
+  // std::length_error when the FIFO would overflow (the caller consumes too slowly).
+  std::size_t append(std::int64_t first, const double* frames, std::size_t n) {
+    std::size_t filled = 0;
+    if (!started_) {
+      begin_ = first;
+      started_ = true;
+    }
+    std::int64_t end = end_index();
+    if (first > end) {
+      filled = static_cast<std::size_t>(first - end);
+      for (std::size_t i = 0; i < filled; ++i) push(last_.data());
+    }
+    std::size_t skip = first < end ? static_cast<std::size_t>(std::min<std::int64_t>(end - first, n)) : 0;
+    for (std::size_t i = skip; i < n; ++i) push(frames + i * channels_);
+    return filled;
+  }
+  // Pointer to the frame with grid index `index` (must be within [begin_index, end_index)).
+  const double* frame(std::int64_t index) const {
+    const std::size_t pos = (head_ + static_cast<std::size_t>(index - begin_)) % capacity_;
+    return &data_[pos * channels_];
+  }
+  // Drops every frame with index < `index`.
+  void drop_before(std::int64_t index) {
+    if (index <= begin_) return;
+    const std::size_t n = static_cast<std::size_t>(std::min<std::int64_t>(index - begin_, static_cast<std::int64_t>(size_)));
+    head_ = (head_ + n) % capacity_;
+    size_ -= n;
+    begin_ += static_cast<std::int64_t>(n);
+    if (size_ == 0) begin_ = index;
+  }
+
+ private:
+  void push(const double* f) {
+    if (size_ == capacity_) throw std::length_error("FrameFifo: capacity exceeded");
+    const std::size_t pos = (head_ + size_) % capacity_;
+    std::copy(f, f + channels_, &data_[pos * channels_]);
+    std::copy(f, f + channels_, last_.begin());
+    ++size_;
+  }
+
+  std::size_t channels_, capacity_;
+  std::vector<double> data_;
+  std::vector<double> last_;
+  std::size_t head_ = 0, size_ = 0;
+  std::int64_t begin_ = 0;
+  bool started_ = false;
+};
+
+}  // namespace noisemon::daemon

@@ -1,0 +1,306 @@
+#include "daemon/pipeline.hpp"
+
+#include <spdlog/spdlog.h>
+
+#include <chrono>
+#include <cmath>
+#include <lcm/lcm-cpp.hpp>
+#include <mutex>
+
+#include "daemon/cycle_processor.hpp"
+#include "daemon/report_messages.hpp"
+#include "noisemon/status_t.hpp"
+
+namespace noisemon::daemon {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+std::int64_t now_utime() {
+  return std::chrono::duration_cast<std::chrono::microseconds>(std::chrono::system_clock::now().time_since_epoch()).count();
+}
+
+struct RawItem {
+  std::int8_t stream;
+  drivers::SampleBlock block;
+};
+
+// Mean and maximum of values added since the last take.
+struct Stat {
+  double sum = 0, max = 0;
+  std::int64_t n = 0;
+  void add(double v) {
+    sum += v;
+    max = std::max(max, v);
+    ++n;
+  }
+};
+
+}  // namespace
+
+struct Pipeline::Impl {
+  Config config;
+  std::unique_ptr<drivers::Source> source;
+  ReportHook on_report;
+  drivers::StreamInfo info;
+
+  std::size_t ring_blocks;
+  drivers::BlockRing pressure_ring, mic_ring;
+  drivers::OperatingPointRing op_ring;
+  dsp::SpscRing<CycleReport> report_ring{256};
+  dsp::SpscRing<RawItem> raw_ring{512};
+  dsp::SpscRing<drivers::OperatingPoint> op_publish_ring{64};
+
+  std::unique_ptr<lcm::LCM> lcm;
+  std::thread processing, publishing;
+  std::atomic<drivers::ThreadState> processing_state{drivers::ThreadState::kIdle};
+  std::atomic<drivers::ThreadState> publishing_state{drivers::ThreadState::kIdle};
+  std::atomic<bool> drain{false};        // drivers stopped: process what is left, then exit
+  std::atomic<bool> processing_done{false};
+  std::atomic<bool> failed{false};
+  mutable std::mutex failure_mutex;
+  std::string failure;
+  std::atomic<std::int64_t> cycles_dropped{0};
+  std::atomic<std::int64_t> reports_queued{0};
+  std::atomic<std::uint64_t> report_overruns{0};
+  Clock::time_point started;
+
+  static std::size_t blocks_for(double seconds) {
+    return static_cast<std::size_t>(std::ceil(seconds * drivers::kPipelineRateHz / 128.0));  // room even for half-full blocks
+  }
+
+  Impl(const Config& c, std::unique_ptr<drivers::Source> s, ReportHook hook)
+      : config(c),
+        source(std::move(s)),
+        on_report(std::move(hook)),
+        info(source->info()),
+        ring_blocks(blocks_for(c.ring_seconds)),
+        pressure_ring(ring_blocks),
+        mic_ring(ring_blocks),
+        op_ring(256) {}
+
+  void fail(const std::string& why) {
+    {
+      std::lock_guard lock(failure_mutex);
+      if (failure.empty()) failure = why;
+    }
+    failed = true;
+  }
+
+  void run_processing(std::atomic<std::int64_t>& published);
+  void run_publishing(std::atomic<std::int64_t>& published);
+  noisemon::status_t make_status(std::int64_t published, const Stat& latency, const Stat& processing) const;
+};
+
+void Pipeline::Impl::run_processing(std::atomic<std::int64_t>& published) {
+  processing_state = drivers::ThreadState::kRunning;
+  try {
+    ProcessorConfig pc;
+    pc.model = config.model;
+    pc.acoustic_delay_s = config.acoustic_delay_s;
+    pc.fifo_seconds = std::max(4.0, 2 * config.ring_seconds);
+    const std::int64_t limit = config.cycles;
+    CycleProcessor processor(pc, info, [&](const CycleReport& r) {
+      if (limit > 0 && reports_queued.load() >= limit) return;
+      if (!report_ring.push(r)) {
+        ++report_overruns;
+        ++cycles_dropped;
+        return;
+      }
+      ++reports_queued;
+    });
+    spdlog::info("processing: acoustic delay {} frames, {} microphones, model k1={:.3g} k3={:.3g} b1={:.3g} b3={:.3g}",
+                 processor.delay_frames(), info.mic_count, config.model.k1, config.model.k3, config.model.b1, config.model.b3);
+    std::int64_t dropped_seen = 0;
+    while (true) {
+      const bool draining = drain.load(std::memory_order_acquire);
+      bool any = false;
+      drivers::OperatingPoint op;
+      while (op_ring.read(&op, 1) == 1) {
+        processor.set_operating_point(op);
+        if (config.lcm.publish_operating_point) op_publish_ring.push(op);
+      }
+      // Alternate between the streams so neither runs far ahead of the other.
+      for (int i = 0; i < 8; ++i) {
+        bool got = false;
+        if (const drivers::SampleBlock* b = pressure_ring.front()) {
+          processor.add_pressure(*b);
+          if (config.lcm.publish_raw) raw_ring.push(RawItem{0, *b});
+          pressure_ring.consume(1);
+          got = true;
+        }
+        if (const drivers::SampleBlock* b = mic_ring.front()) {
+          processor.add_mics(*b);
+          if (config.lcm.publish_raw) raw_ring.push(RawItem{1, *b});
+          mic_ring.consume(1);
+          got = true;
+        }
+        if (!got) break;
+        any = true;
+      }
+      processor.process();
+      const std::int64_t dropped = processor.counters().cycles_dropped;
+      if (dropped != dropped_seen) {
+        cycles_dropped += dropped - dropped_seen;
+        dropped_seen = dropped;
+      }
+      if (config.cycles > 0 && reports_queued.load() >= config.cycles) break;
+      if (!any) {
+        if (draining) break;  // drivers are joined and the rings are empty
+        std::this_thread::sleep_for(std::chrono::microseconds(500));
+      }
+    }
+    processing_state = drivers::ThreadState::kStopped;
+  } catch (const std::exception& e) {
+    processing_state = drivers::ThreadState::kFailed;
+    fail(std::string("processing thread: ") + e.what());
+    spdlog::error("processing thread failed: {}", e.what());
+  }
+  processing_done = true;
+  (void)published;
+}
+
+noisemon::status_t Pipeline::Impl::make_status(std::int64_t published, const Stat& latency, const Stat& processing) const {
+  noisemon::status_t s;
+  s.utime = now_utime();
+  s.uptime_s = std::chrono::duration<double>(Clock::now() - started).count();
+  s.source = source->name();
+  for (const drivers::DriverThreadStatus& t : source->thread_status()) {
+    s.thread_name.push_back(t.name);
+    s.thread_state.push_back(static_cast<std::int8_t>(t.state));
+    s.thread_error.push_back(t.error);
+  }
+  s.thread_name.push_back("processing");
+  s.thread_state.push_back(static_cast<std::int8_t>(processing_state.load()));
+  s.thread_error.push_back(processing_state.load() == drivers::ThreadState::kFailed ? failure : "");
+  s.thread_name.push_back("lcm");
+  s.thread_state.push_back(static_cast<std::int8_t>(publishing_state.load()));
+  s.thread_error.push_back("");
+  s.nthreads = static_cast<std::int16_t>(s.thread_name.size());
+  auto ring = [&](const char* name, double fill, std::uint64_t overruns) {
+    s.ring_name.push_back(name);
+    s.ring_fill.push_back(static_cast<float>(fill));
+    s.ring_overruns.push_back(static_cast<std::int64_t>(overruns));
+  };
+  ring("pressure", pressure_ring.fill_fraction(), pressure_ring.overrun_events());
+  ring("mics", mic_ring.fill_fraction(), mic_ring.overrun_events());
+  ring("operating_point", op_ring.fill_fraction(), op_ring.overrun_events());
+  ring("reports", report_ring.fill_fraction(), report_ring.overrun_events());
+  ring("raw_publish", raw_ring.fill_fraction(), raw_ring.overrun_events());
+  s.nrings = static_cast<std::int16_t>(s.ring_name.size());
+  s.cycles_published = published;
+  s.cycles_dropped = cycles_dropped.load();
+  s.latency_ms_mean = latency.n ? static_cast<float>(latency.sum / latency.n) : 0.f;
+  s.latency_ms_max = static_cast<float>(latency.max);
+  s.processing_ms_mean = processing.n ? static_cast<float>(processing.sum / processing.n) : 0.f;
+  s.processing_ms_max = static_cast<float>(processing.max);
+  return s;
+}
+
+void Pipeline::Impl::run_publishing(std::atomic<std::int64_t>& published) {
+  publishing_state = drivers::ThreadState::kRunning;
+  try {
+    Stat latency, processing;
+    auto next_status = Clock::now() + std::chrono::seconds(1);
+    while (true) {
+      bool any = false;
+      CycleReport r;
+      while (report_ring.read(&r, 1) == 1) {
+        const noisemon::cycle_report_t msg = to_message(r);
+        lcm->publish(config.lcm.report_channel, &msg);
+        ++published;
+        latency.add(1e-3 * static_cast<double>(now_utime() - r.window_end_utime));
+        processing.add(r.processing_ms);
+        if (on_report) on_report(r);
+        any = true;
+      }
+      RawItem raw;
+      for (int i = 0; i < 64 && raw_ring.read(&raw, 1) == 1; ++i) {
+        const noisemon::raw_block_t msg = to_message(raw.block, raw.stream, info.epoch_utime);
+        lcm->publish(config.lcm.raw_channel, &msg);
+        any = true;
+      }
+      drivers::OperatingPoint op;
+      while (op_publish_ring.read(&op, 1) == 1) {
+        const noisemon::operating_point_t msg = to_message(op);
+        lcm->publish(config.lcm.operating_point_channel, &msg);
+      }
+      const bool done = processing_done.load(std::memory_order_acquire);
+      if (Clock::now() >= next_status || (done && !any)) {
+        const noisemon::status_t s = make_status(published.load(), latency, processing);
+        lcm->publish(config.lcm.status_channel, &s);
+        latency = Stat{};
+        processing = Stat{};
+        next_status += std::chrono::seconds(1);
+      }
+      if (!any) {
+        if (done && report_ring.empty() && raw_ring.empty()) break;
+        std::this_thread::sleep_for(std::chrono::microseconds(500));
+      }
+    }
+    publishing_state = drivers::ThreadState::kStopped;
+  } catch (const std::exception& e) {
+    publishing_state = drivers::ThreadState::kFailed;
+    fail(std::string("LCM thread: ") + e.what());
+  }
+}
+
+Pipeline::Pipeline(const Config& config, std::unique_ptr<drivers::Source> source, ReportHook on_report)
+    : impl_(std::make_unique<Impl>(config, std::move(source), std::move(on_report))) {}
+
+Pipeline::~Pipeline() { stop(); }
+
+void Pipeline::start() {
+  Impl& d = *impl_;
+  d.lcm = std::make_unique<lcm::LCM>(d.config.lcm.url);
+  if (!d.lcm->good())
+    throw std::runtime_error("cannot open LCM at '" + (d.config.lcm.url.empty() ? std::string("default URL") : d.config.lcm.url) +
+                             "': the network needs a multicast route (see README, 'LCM and multicast')");
+  d.started = Clock::now();
+  drivers::Streams streams{&d.pressure_ring, &d.mic_ring, &d.op_ring};
+  d.processing = std::thread([this] { impl_->run_processing(published_); });
+  d.publishing = std::thread([this] { impl_->run_publishing(published_); });
+  try {
+    d.source->start(streams);
+  } catch (...) {
+    d.drain = true;
+    d.processing.join();
+    d.publishing.join();
+    throw;
+  }
+  spdlog::info("source '{}' started: {} microphones, acoustic delay {:.2f} ms", d.source->name(), d.info.mic_count,
+               1e3 * d.info.acoustic_delay_s);
+}
+
+void Pipeline::stop() {
+  Impl& d = *impl_;
+  if (!d.processing.joinable() && !d.publishing.joinable()) return;
+  d.source->stop();
+  d.drain = true;
+  if (d.processing.joinable()) d.processing.join();
+  if (d.publishing.joinable()) d.publishing.join();
+  spdlog::info("stopped: {} cycles published, {} dropped", published_.load(), d.cycles_dropped.load());
+}
+
+bool Pipeline::ready() const { return impl_->source->running(); }
+
+bool Pipeline::finished() const {
+  const Impl& d = *impl_;
+  if (d.failed) return true;
+  for (const auto& t : d.source->thread_status())
+    if (t.state == drivers::ThreadState::kFailed) return true;
+  return d.config.cycles > 0 && published_.load() >= d.config.cycles;
+}
+
+std::string Pipeline::failure() const {
+  const Impl& d = *impl_;
+  {
+    std::lock_guard lock(d.failure_mutex);
+    if (!d.failure.empty()) return d.failure;
+  }
+  for (const auto& t : d.source->thread_status())
+    if (t.state == drivers::ThreadState::kFailed) return "driver thread '" + t.name + "': " + t.error;
+  return {};
+}
+
+}  // namespace noisemon::daemon

@@ -1,0 +1,89 @@
+#include "daemon/report_messages.hpp"
+
+#include <cmath>
+#include <cstdio>
+
+namespace noisemon::daemon {
+
+noisemon::cycle_report_t to_message(const CycleReport& r) {
+  noisemon::cycle_report_t m;
+  m.utime = r.utime;
+  m.cycle = r.cycle;
+  m.duration_s = r.duration_s;
+  m.speed_rpm = r.op.speed_rpm;
+  m.load_nm = r.op.load_nm;
+  m.soi_deg_btdc = r.op.soi_deg_btdc;
+  m.rail_pressure_bar = r.op.rail_pressure_bar;
+  m.motored = r.op.motored;
+  m.lpa_measured_db = r.lpa_measured_db;
+  m.lpa_predicted_db = r.lpa_predicted_db;
+  m.lwa_measured_db = r.lwa_measured_db;
+  m.lwa_predicted_db = r.lwa_predicted_db;
+  m.radius_m = r.radius_m;
+  m.nbands = static_cast<std::int16_t>(r.nbands);
+  m.band_hz.assign(r.band_hz, r.band_hz + r.nbands);
+  m.spl_a_measured_db.assign(r.spl_a_measured_db, r.spl_a_measured_db + r.nbands);
+  m.spl_a_predicted_db.assign(r.spl_a_predicted_db, r.spl_a_predicted_db + r.nbands);
+  m.cpl_db.assign(r.cpl_db, r.cpl_db + r.nbands);
+  m.att_measured_db.assign(r.att_measured_db, r.att_measured_db + r.nbands);
+  m.att_predicted_db.assign(r.att_predicted_db, r.att_predicted_db + r.nbands);
+  m.band_flags.assign(r.band_flags, r.band_flags + r.nbands);
+  m.nmics = static_cast<std::int16_t>(r.nmics);
+  m.mic_lpa_db.assign(r.mic_lpa_db, r.mic_lpa_db + r.nmics);
+  m.flags = r.flags;
+  m.processing_ms = r.processing_ms;
+  return m;
+}
+
+noisemon::operating_point_t to_message(const drivers::OperatingPoint& op) {
+  noisemon::operating_point_t m;
+  m.utime = op.utime;
+  m.speed_rpm = op.speed_rpm;
+  m.load_nm = op.load_nm;
+  m.soi_deg_btdc = op.soi_deg_btdc;
+  m.rail_pressure_bar = op.rail_pressure_bar;
+  m.motored = op.motored;
+  return m;
+}
+
+noisemon::raw_block_t to_message(const drivers::SampleBlock& b, std::int8_t stream, std::int64_t epoch_utime) {
+  noisemon::raw_block_t m;
+  m.epoch_utime = epoch_utime;
+  m.first_index = b.first_index;
+  m.utime = epoch_utime + static_cast<std::int64_t>(std::llround(static_cast<double>(b.first_index) * 1e6 / drivers::kPipelineRateHz));
+  m.stream = stream;
+  m.sample_rate_hz = drivers::kPipelineRateHz;
+  m.channels = static_cast<std::int16_t>(b.channels);
+  m.frames = static_cast<std::int16_t>(b.frames);
+  m.data.resize(b.frames);
+  for (std::uint32_t f = 0; f < b.frames; ++f) m.data[f].assign(b.data + f * b.channels, b.data + (f + 1) * b.channels);
+  return m;
+}
+
+std::string cycle_flags_text(std::int32_t flags) {
+  if (flags == 0) return "ok";
+  std::string s;
+  auto add = [&](std::int32_t bit, const char* name) {
+    if (flags & bit) s += (s.empty() ? "" : ",") + std::string(name);
+  };
+  add(noisemon::cycle_report_t::CYCLE_SETTLING, "settling");
+  add(noisemon::cycle_report_t::CYCLE_GAP, "gap");
+  add(noisemon::cycle_report_t::CYCLE_NO_OPERATING_POINT, "no-op");
+  add(noisemon::cycle_report_t::CYCLE_LENGTH_ODD, "odd-length");
+  return s;
+}
+
+std::string cycle_line_header() {
+  return "   cycle   speed     SOI   Lp(A) meas   pred    LW(A) meas   pred    pred-meas  flags\n"
+         "           rpm   degBTDC      dB(A)  dB(A)         dB(A)  dB(A)           dB";
+}
+
+std::string cycle_line(const noisemon::cycle_report_t& r) {
+  char buf[256];
+  std::snprintf(buf, sizeof buf, "%8lld %7.1f %7.1f %12.2f %6.2f %13.2f %6.2f %12.2f  %s", static_cast<long long>(r.cycle),
+                r.speed_rpm, r.soi_deg_btdc, r.lpa_measured_db, r.lpa_predicted_db, r.lwa_measured_db, r.lwa_predicted_db,
+                r.lpa_predicted_db - r.lpa_measured_db, cycle_flags_text(r.flags).c_str());
+  return buf;
+}
+
+}  // namespace noisemon::daemon

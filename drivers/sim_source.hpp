@@ -1,0 +1,52 @@
+// The virtual engine: the daemon's embedded default source, so noisemond runs with no hardware.
+//
+// Driver threads (paced to the wall clock):
+//  - encoder + pressure: crank kinematics with small speed fluctuation, an encoder with configurable
+//    resolution and a once-per-cycle reference; cylinder pressure from a single-zone model sampled on every
+//    encoder edge; resampled (NonuniformResampler) to 40 kHz -> Streams::pressure.
+//  - microphones: the "true" block model driven by the true pressure, acoustic delay, small per-microphone
+//    differences and a background noise floor, sampled at the card rate (51.2 kHz) and resampled
+//    (RationalResampler) to 40 kHz -> Streams::mics.
+//  - operating point: speed, load, injection timing at 10 Hz -> Streams::operating_point.
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "drivers/source.hpp"
+#include "model/block_params.hpp"
+
+namespace noisemon::drivers {
+
+struct SimConfig {
+  // Operating point (thesis conditions: idle 3050 rpm / 0 N m, full load 3450 rpm; SOI 12..24 deg BTDC).
+  double speed_rpm = 3050.0;
+  double load_nm = 0.0;
+  double full_load_nm = 20.0;          // load at which the fuelling is full; sets the injected fuel mass
+  double soi_deg_btdc = 18.0;
+  bool motored = false;
+  double speed_fluctuation = 0.01;     // peak relative speed ripple within a cycle
+  double cycle_variation = 0.03;       // relative cycle-to-cycle variation of the heat release
+  // Encoder.
+  double encoder_resolution_deg = 0.1;
+  // Acoustics.
+  std::uint32_t mic_count = 10;
+  std::vector<std::array<double, 3>> mic_positions_m;  // empty: thesis Table 3.1
+  double radius_m = 1.75;
+  double speed_of_sound_m_s = 343.0;
+  double mic_rate_hz = 51200.0;
+  double mic_gain_spread_db = 0.3;       // per-microphone gain differences (deterministic from seed)
+  double background_noise_db = 40.0;     // per-microphone background, unweighted broadband Lp, dB re 20 uPa
+  model::BlockParams true_block = model::preset("linear");  // the engine's "true" structural response
+  std::uint64_t seed = 1;
+};
+
+// Thesis Table 3.1 microphone positions (m).
+std::vector<std::array<double, 3>> thesis_mic_positions();
+
+std::unique_ptr<Source> make_sim_source(const SimConfig& config);
+
+}  // namespace noisemon::drivers

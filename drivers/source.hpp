@@ -1,0 +1,90 @@
+// The one interface every acquisition source implements (sim, comedi, socketcan, replay).
+//
+// A source owns its driver threads. Each thread resamples its stream to the common 40 kHz grid and pushes
+// fixed-size blocks into a lock-free ring; everything downstream of the rings is identical for all sources.
+//
+// Time base: frame index k of every 40 kHz stream is the instant epoch_utime + k * 25 us, where epoch_utime
+// is the source's session epoch (StreamInfo::epoch_utime). Streams are aligned by index, never by arrival.
+#pragma once
+
+#include <array>
+#include <atomic>
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "dsp/spsc_ring.hpp"
+
+namespace noisemon::drivers {
+
+inline constexpr double kPipelineRateHz = 40000.0;
+
+// A block of consecutive frames of one stream, channels interleaved: data[frame * channels + channel].
+struct SampleBlock {
+  static constexpr std::size_t kMaxFrames = 256;
+  static constexpr std::size_t kMaxChannels = 16;
+  std::int64_t first_index = 0;  // frame index on the 40 kHz grid of the first frame
+  std::uint32_t frames = 0;
+  std::uint32_t channels = 0;
+  double data[kMaxFrames * kMaxChannels];
+};
+
+// Pressure stream channels.
+inline constexpr std::uint32_t kPressureChannel = 0;  // cylinder pressure, Pa (absolute)
+inline constexpr std::uint32_t kCrankChannel = 1;     // crank angle, degrees in [-360, 360), 0 = firing TDC
+inline constexpr std::uint32_t kPressureStreamChannels = 2;
+
+struct OperatingPoint {
+  std::int64_t utime = 0;
+  double speed_rpm = 0.0;
+  double load_nm = 0.0;
+  double soi_deg_btdc = 0.0;      // start of injection, degrees before firing TDC
+  double rail_pressure_bar = 0.0; // NaN when unknown
+  bool motored = false;
+};
+
+using BlockRing = dsp::SpscRing<SampleBlock>;
+using OperatingPointRing = dsp::SpscRing<OperatingPoint>;
+
+// The rings a source writes into; owned by the daemon, handed to Source::start.
+struct Streams {
+  BlockRing* pressure = nullptr;  // kPressureStreamChannels channels
+  BlockRing* mics = nullptr;      // StreamInfo::mic_count channels, Pa
+  OperatingPointRing* operating_point = nullptr;
+};
+
+struct StreamInfo {
+  std::int64_t epoch_utime = 0;  // utime of frame index 0
+  std::uint32_t mic_count = 0;
+  std::vector<std::array<double, 3>> mic_positions_m;  // one per microphone
+  double radius_m = 1.75;         // measurement hemisphere radius
+  double acoustic_delay_s = 0.0;  // engine-to-microphone propagation time the processing should remove
+};
+
+enum class ThreadState : std::uint8_t { kIdle = 0, kRunning = 1, kStopped = 2, kFailed = 3 };
+
+struct DriverThreadStatus {
+  std::string name;
+  ThreadState state = ThreadState::kIdle;
+  std::uint64_t blocks_written = 0;
+  std::string error;  // empty unless kFailed
+};
+
+class Source {
+ public:
+  virtual ~Source() = default;
+  virtual std::string name() const = 0;
+  // Valid after construction (before start): stream layout and time base.
+  virtual StreamInfo info() const = 0;
+  // Starts the driver threads; they push into the given rings until stop(). Throws on a device error.
+  virtual void start(const Streams& streams) = 0;
+  // Stops and joins the driver threads. Idempotent.
+  virtual void stop() = 0;
+  // True once every driver thread has produced data (used for the systemd READY notification).
+  virtual bool running() const = 0;
+  // A snapshot of every driver thread's state (safe from any thread).
+  virtual std::vector<DriverThreadStatus> thread_status() const = 0;
+};
+
+}  // namespace noisemon::drivers

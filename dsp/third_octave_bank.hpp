@@ -1,0 +1,50 @@
+// IEC 61260-1 base-10 one-third-octave filter bank, nominal 20 Hz ... 20 kHz.
+//
+// Streaming, multichannel: process() takes interleaved frames and accumulates, per channel and band, the
+// sum of squared band outputs; take_mean_square() returns the mean square since the previous call and
+// restarts the accumulation. Filter state is kept across calls (a band's output never restarts at a cycle
+// boundary). No allocation after construction.
+#pragma once
+
+#include <cstddef>
+#include <memory>
+#include <vector>
+
+namespace noisemon::dsp {
+
+struct ThirdOctaveBand {
+  double nominal_hz = 0;      // IEC 61260-1 nominal mid-band frequency (20, 25, 31.5, ... 20000)
+  double exact_mid_hz = 0;    // 1000 * 10^(x/10)
+  double lower_edge_hz = 0;   // exact_mid * 10^(-1/20)
+  double upper_edge_hz = 0;   // exact_mid * 10^(+1/20)
+  bool nyquist_cut = false;   // the upper edge lies at or above fs/2: the band is truncated
+  double response_time_s = 0; // roughly how long the band filter takes to settle (its group delay scale)
+};
+
+class ThirdOctaveBank {
+ public:
+  // fs_hz: input sample rate (the pipeline uses 40 kHz); channels: interleaved channel count.
+  ThirdOctaveBank(double fs_hz, std::size_t channels);
+  ~ThirdOctaveBank();
+  ThirdOctaveBank(ThirdOctaveBank&&) noexcept;
+  ThirdOctaveBank& operator=(ThirdOctaveBank&&) noexcept;
+
+  const std::vector<ThirdOctaveBand>& bands() const;
+  std::size_t band_count() const;
+  std::size_t channels() const;
+  double sample_rate_hz() const;
+
+  // in: frames * channels() values, interleaved.
+  void process(const double* in, std::size_t frames);
+  // out: channels() * band_count() values, out[channel * band_count() + band] = mean square of the band
+  // output since the last take (0 when nothing was processed). Restarts the accumulation.
+  void take_mean_square(double* out);
+  // Clears filter state and accumulators.
+  void reset();
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace noisemon::dsp

@@ -1,0 +1,67 @@
+// Per-cycle processing time of the whole processing stage (CycleProcessor) for 11 input channels: cylinder
+// pressure + ten microphones, i.e. block model on the pressure and 1/3-octave bands on 12 channels
+// (pressure, prediction, ten microphones), levels, A-weighting and the report.
+#include <benchmark/benchmark.h>
+
+#include <cmath>
+#include <numbers>
+#include <random>
+
+#include "daemon/cycle_processor.hpp"
+
+using namespace noisemon;
+
+namespace {
+
+constexpr double kFs = 40000.0;
+
+void BM_CycleProcessing(benchmark::State& state) {
+  const int cycle_frames = static_cast<int>(state.range(0));  // 1574 = 3050 rpm, 1391 = 3450 rpm
+  drivers::StreamInfo info;
+  info.mic_count = 10;
+  info.acoustic_delay_s = 1.75 / 343.0;
+  daemon::ProcessorConfig pc;
+  pc.model = model::preset(state.range(1) ? "nl_damper" : "linear");
+  std::int64_t reports = 0;
+  daemon::CycleProcessor p(pc, info, [&](const daemon::CycleReport&) { ++reports; });
+
+  // One second of realistic-looking input, reused: a pressure pulse per cycle and noisy microphones.
+  std::mt19937 rng(1);
+  std::normal_distribution<double> noise(0.0, 0.5);
+  const std::int64_t blocks = 160;  // 160 x 256 frames = 1.024 s
+  std::vector<drivers::SampleBlock> pb(blocks), mb(blocks);
+  for (std::int64_t b = 0; b < blocks; ++b) {
+    pb[b].frames = mb[b].frames = 256;
+    pb[b].channels = 2;
+    mb[b].channels = 10;
+    for (int f = 0; f < 256; ++f) {
+      const std::int64_t k = b * 256 + f;
+      const double x = static_cast<double>(k % cycle_frames) / cycle_frames - 0.5;  // cycle phase, 0 = TDC
+      pb[b].data[f * 2] = 1e5 + 6e6 * std::exp(-x * x / (2 * 0.02 * 0.02));
+      pb[b].data[f * 2 + 1] = -360.0 + 720.0 * (x + 0.5);
+      for (int m = 0; m < 10; ++m) mb[b].data[f * 10 + m] = noise(rng);
+    }
+  }
+  std::int64_t offset = 0, frames = 0;
+  for (auto _ : state) {
+    for (std::int64_t b = 0; b < blocks; ++b) {
+      pb[b].first_index = mb[b].first_index = offset + b * 256;
+      // Keep the crank channel continuous across repetitions.
+      p.add_pressure(pb[b]);
+      p.add_mics(mb[b]);
+      p.process();
+    }
+    offset += blocks * 256;
+    frames += blocks * 256;
+  }
+  const double seconds_of_data = static_cast<double>(frames) / kFs;
+  state.counters["cycles"] = static_cast<double>(reports);
+  state.counters["us_per_cycle"] = benchmark::Counter(static_cast<double>(reports) * 1e-6, benchmark::Counter::kIsRate | benchmark::Counter::kInvert);
+  state.counters["x_realtime"] = benchmark::Counter(seconds_of_data, benchmark::Counter::kIsRate);
+}
+
+}  // namespace
+
+BENCHMARK(BM_CycleProcessing)->Args({1574, 0})->Args({1574, 1})->Args({1391, 0})->Unit(benchmark::kMillisecond);
+
+BENCHMARK_MAIN();

@@ -1,0 +1,205 @@
+// CycleProcessor against analytic references: streams synthesised from tones whose band levels and whose
+// response through eq. 4.1 are known in closed form; microphones delayed by the acoustic delay.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <complex>
+#include <numbers>
+#include <vector>
+
+#include "daemon/cycle_processor.hpp"
+
+using namespace noisemon;
+
+namespace {
+
+constexpr double kFs = 40000.0;
+constexpr double kPi = std::numbers::pi;
+constexpr int kCycleFrames = 1600;  // 0.04 s per 720 deg: 3000 rpm
+constexpr int kDelayFrames = 200;   // 5 ms acoustic delay
+constexpr std::uint32_t kMics = 3;
+
+// Eq. 4.1 written out from the thesis constants (independent of model/).
+std::complex<double> eq_4_1(double f) {
+  const double ka = 11.885, wb = 2 * kPi * 100, zeta = 0.35, wn = 2 * kPi * 5000;
+  const std::complex<double> s(0, 2 * kPi * f);
+  return ka * (s + wb) / (s * s + 2 * zeta * wn * s + wn * wn);
+}
+
+// IEC 61672-1 A-weighting at the exact mid-band frequencies used below (from the standard's formula).
+double a_weight(double f) {
+  const double f1 = 20.598997, f2 = 107.65265, f3 = 737.86223, f4 = 12194.217;
+  const double f2s = f * f;
+  const double ra = f4 * f4 * f2s * f2s / ((f2s + f1 * f1) * std::sqrt((f2s + f2 * f2) * (f2s + f3 * f3)) * (f2s + f4 * f4));
+  return 20 * std::log10(ra) + 2.000;
+}
+
+double level(double amplitude) { return 20 * std::log10(amplitude / std::sqrt(2.0) / 20e-6); }
+
+struct Tone {
+  double f, amplitude;
+  bool gated;  // present only in even cycles (smoothly switched inside the cycle)
+};
+
+// Gate: 1 inside even cycles, with raised-cosine ramps well inside the cycle, 0 in odd cycles.
+double gate(std::int64_t k) {
+  const std::int64_t c = k / kCycleFrames;
+  if (c % 2) return 0.0;
+  const double x = static_cast<double>(k % kCycleFrames) / kCycleFrames;
+  const double ramp = 0.1;
+  if (x < ramp) return 0.5 - 0.5 * std::cos(kPi * x / ramp);
+  if (x > 1 - ramp) return 0.5 - 0.5 * std::cos(kPi * (1 - x) / ramp);
+  return 1.0;
+}
+
+class Synth {
+ public:
+  explicit Synth(std::vector<Tone> tones) : tones_(std::move(tones)) {}
+  double pressure(std::int64_t k) const {
+    double p = 1e5;
+    for (const Tone& t : tones_) p += (t.gated ? gate(k) : 1.0) * t.amplitude * std::sin(2 * kPi * t.f * k / kFs);
+    return p;
+  }
+  // Microphone m at frame k hears the block output of frame k - delay (steady-state tone response).
+  double mic(std::int64_t k, std::uint32_t m) const {
+    const std::int64_t src = k - kDelayFrames;
+    double y = 0;
+    for (const Tone& t : tones_) {
+      const std::complex<double> h = eq_4_1(t.f);
+      const double g = t.gated ? (src >= 0 ? gate(src) : 0.0) : 1.0;
+      y += g * t.amplitude * std::abs(h) * std::sin(2 * kPi * t.f * src / kFs + std::arg(h));
+    }
+    return gain(m) * y;
+  }
+  // Gains whose mean square is exactly 1: the energy average equals the block output.
+  static double gain(std::uint32_t m) {
+    static const double g[kMics] = {std::sqrt(0.8), std::sqrt(1.0), std::sqrt(1.2)};
+    return g[m];
+  }
+
+ private:
+  std::vector<Tone> tones_;
+};
+
+double crank(std::int64_t k) { return -360.0 + 720.0 * static_cast<double>(k % kCycleFrames) / kCycleFrames; }
+
+struct Run {
+  std::vector<daemon::CycleReport> reports;
+  daemon::ProcessorCounters counters;
+  std::vector<dsp::ThirdOctaveBand> bands;
+};
+
+// Feeds `seconds` of synthetic streams in 256-frame blocks; `drop_mic_block` (>= 0) is lost on the way.
+Run run(const Synth& s, double seconds, std::int64_t drop_mic_block = -1) {
+  drivers::StreamInfo info;
+  info.epoch_utime = 1'000'000;
+  info.mic_count = kMics;
+  info.radius_m = 1.75;
+  info.acoustic_delay_s = kDelayFrames / kFs;
+  daemon::ProcessorConfig pc;
+  pc.model = model::preset("linear");
+  Run out;
+  daemon::CycleProcessor p(pc, info, [&](const daemon::CycleReport& r) { out.reports.push_back(r); });
+  const std::int64_t total = static_cast<std::int64_t>(seconds * kFs);
+  drivers::SampleBlock pb, mb;
+  for (std::int64_t b = 0; b * 256 < total; ++b) {
+    pb.first_index = mb.first_index = b * 256;
+    pb.frames = mb.frames = 256;
+    pb.channels = drivers::kPressureStreamChannels;
+    mb.channels = kMics;
+    for (int f = 0; f < 256; ++f) {
+      const std::int64_t k = b * 256 + f;
+      pb.data[f * 2 + drivers::kPressureChannel] = s.pressure(k);
+      pb.data[f * 2 + drivers::kCrankChannel] = crank(k);
+      for (std::uint32_t m = 0; m < kMics; ++m) mb.data[f * kMics + m] = s.mic(k, m);
+    }
+    p.add_pressure(pb);
+    if (b != drop_mic_block) p.add_mics(mb);
+    p.process();
+  }
+  out.counters = p.counters();
+  out.bands = p.bands();
+  return out;
+}
+
+std::size_t band_index(const std::vector<dsp::ThirdOctaveBand>& bands, double nominal) {
+  for (std::size_t i = 0; i < bands.size(); ++i)
+    if (bands[i].nominal_hz == nominal) return i;
+  ADD_FAILURE() << "no band " << nominal;
+  return 0;
+}
+
+}  // namespace
+
+TEST(CycleProcessor, SteadyTonesMatchAnalyticLevels) {
+  const Synth s({{1000.0, 2000.0, false}, {5000.0, 300.0, false}});
+  const Run r = run(s, 1.2);
+  // Cycles start at frames 1600, 3200, ...; the last is complete once its microphone window has arrived.
+  ASSERT_GE(r.reports.size(), 25u);
+  const std::size_t b1k = band_index(r.bands, 1000), b5k = band_index(r.bands, 5000);
+  for (const auto& c : r.reports) {
+    EXPECT_NEAR(c.duration_s, kCycleFrames / kFs, 1e-9);
+    EXPECT_NEAR(c.op.speed_rpm, 3000.0, 1e-6);
+    EXPECT_EQ(c.nmics, kMics);
+    if (c.cycle < 5) continue;  // let the filters settle
+    // Cylinder pressure level of each tone.
+    EXPECT_NEAR(c.cpl_db[b1k], level(2000.0), 0.15);
+    EXPECT_NEAR(c.cpl_db[b5k], level(300.0), 0.15);
+    // Predicted and measured A-weighted band levels: tone through eq. 4.1, then A-weighting.
+    for (auto [b, f, a] : {std::tuple{b1k, 1000.0, 2000.0}, std::tuple{b5k, 5000.0, 300.0}}) {
+      const double expected = level(a * std::abs(eq_4_1(f))) + a_weight(r.bands[b].exact_mid_hz);
+      EXPECT_NEAR(c.spl_a_predicted_db[b], expected, 0.15) << "band " << f;
+      EXPECT_NEAR(c.spl_a_measured_db[b], expected, 0.15) << "band " << f;
+      EXPECT_NEAR(c.att_measured_db[b], c.cpl_db[b] - expected, 0.2);
+    }
+    // Overall Lp(A): the energy sum of both tones' A-weighted levels; LW(A) adds 10 log10(2 pi r^2).
+    const double expected_lpa =
+        10 * std::log10(std::pow(10, (level(2000 * std::abs(eq_4_1(1000))) + a_weight(r.bands[b1k].exact_mid_hz)) / 10) +
+                        std::pow(10, (level(300 * std::abs(eq_4_1(5000))) + a_weight(r.bands[b5k].exact_mid_hz)) / 10));
+    EXPECT_NEAR(c.lpa_measured_db, expected_lpa, 0.2);
+    EXPECT_NEAR(c.lpa_predicted_db, expected_lpa, 0.2);
+    EXPECT_NEAR(c.lwa_measured_db - c.lpa_measured_db, 10 * std::log10(2 * kPi * 1.75 * 1.75), 1e-9);
+    // Per-microphone levels follow the microphone gains (0.8, 1.0, 1.2 in mean square).
+    EXPECT_NEAR(c.mic_lpa_db[2] - c.mic_lpa_db[0], 10 * std::log10(1.2 / 0.8), 0.05);
+  }
+  EXPECT_EQ(r.counters.cycles_dropped, 0);
+}
+
+TEST(CycleProcessor, MicrophoneWindowIsShiftedByTheAcousticDelay) {
+  // A 5 kHz tone only in even cycles: with the delay removed, the microphones' level in every cycle follows the
+  // pressure's. Without the shift 1/8 of the burst would land in the odd cycles (only ~9 dB down).
+  const Synth s({{5000.0, 500.0, true}});
+  const Run r = run(s, 1.2);
+  const std::size_t b5k = band_index(r.bands, 5000);
+  int even = 0, odd = 0;
+  for (const auto& c : r.reports) {
+    if (c.cycle < 5) continue;
+    // Report cycle n covers source cycle n + 1 (the first boundary is at frame 1600).
+    const bool on = (c.cycle + 1) % 2 == 0;
+    if (on) {
+      ++even;
+      EXPECT_NEAR(c.spl_a_measured_db[b5k], c.spl_a_predicted_db[b5k], 0.2);
+    } else {
+      ++odd;
+      // Off cycles: the burst's level is far below the on level in both channels.
+      EXPECT_LT(c.spl_a_measured_db[b5k], level(500 * std::abs(eq_4_1(5000))) - 25.0);
+    }
+  }
+  EXPECT_GT(even, 5);
+  EXPECT_GT(odd, 5);
+}
+
+TEST(CycleProcessor, LostBlockDropsOnlyTheCyclesItTouches) {
+  const Synth s({{1000.0, 2000.0, false}});
+  const Run clean = run(s, 1.2);
+  const Run lossy = run(s, 1.2, 60);  // frames 15360..15615 of the microphones are lost
+  EXPECT_GE(lossy.counters.cycles_dropped, 1);
+  EXPECT_LE(lossy.counters.cycles_dropped, 2);
+  EXPECT_EQ(lossy.counters.gap_frames, 256);
+  EXPECT_EQ(lossy.reports.size() + static_cast<std::size_t>(lossy.counters.cycles_dropped), clean.reports.size());
+  // Published cycles keep their index; the dropped index is missing.
+  for (const auto& c : lossy.reports) {
+    const std::int64_t first = c.cycle * kCycleFrames + kCycleFrames;
+    EXPECT_FALSE(first <= 15360 - kDelayFrames + 256 && first + kCycleFrames > 15360 - kDelayFrames) << c.cycle;
+  }
+}

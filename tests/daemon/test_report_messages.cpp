@@ -1,0 +1,106 @@
+// The LCM messages: what the daemon publishes decodes to the same values with LCM's C++ decoder and with the
+// Python classes lcm-gen generates for other tools (a second, independent decoder).
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstdio>
+#include <fstream>
+#include <memory>
+#include <sstream>
+
+#include "daemon/report_messages.hpp"
+
+using namespace noisemon;
+
+namespace {
+
+daemon::CycleReport sample_report() {
+  daemon::CycleReport r;
+  r.utime = 1'700'000'000'123'456;
+  r.cycle = 42;
+  r.duration_s = 0.039344;
+  r.op.speed_rpm = 3050.0;
+  r.op.load_nm = 0.0;
+  r.op.soi_deg_btdc = 18.0;
+  r.op.rail_pressure_bar = NAN;
+  r.lpa_measured_db = 84.25;
+  r.lpa_predicted_db = 84.0;
+  r.lwa_measured_db = 97.09;
+  r.lwa_predicted_db = 96.84;
+  r.radius_m = 1.75;
+  r.nbands = 31;
+  for (int b = 0; b < 31; ++b) {
+    r.band_hz[b] = static_cast<float>(20 * std::pow(10.0, b / 10.0));
+    r.cpl_db[b] = 200.0f - b;
+    r.spl_a_measured_db[b] = 50.0f + b;
+    r.spl_a_predicted_db[b] = 51.0f + b;
+    r.att_measured_db[b] = r.cpl_db[b] - r.spl_a_measured_db[b];
+    r.att_predicted_db[b] = r.cpl_db[b] - r.spl_a_predicted_db[b];
+  }
+  r.band_flags[30] = daemon::kBandNyquistCut;
+  r.nmics = 10;
+  for (int m = 0; m < 10; ++m) r.mic_lpa_db[m] = 84.0f + 0.1f * m;
+  r.flags = daemon::kCycleSettling;
+  return r;
+}
+
+std::string run_command(const std::string& cmd) {
+  std::unique_ptr<FILE, int (*)(FILE*)> pipe(popen(cmd.c_str(), "r"), pclose);
+  std::string out;
+  char buf[4096];
+  while (pipe && fgets(buf, sizeof buf, pipe.get())) out += buf;
+  return out;
+}
+
+}  // namespace
+
+TEST(ReportMessages, FlagConstantsMatchTheMessageDefinition) {
+  EXPECT_EQ(daemon::kBandNyquistCut, +noisemon::cycle_report_t::BAND_NYQUIST_CUT);
+  EXPECT_EQ(daemon::kBandSlow, +noisemon::cycle_report_t::BAND_SLOW);
+  EXPECT_EQ(daemon::kBandSettling, +noisemon::cycle_report_t::BAND_SETTLING);
+  EXPECT_EQ(daemon::kCycleSettling, +noisemon::cycle_report_t::CYCLE_SETTLING);
+  EXPECT_EQ(daemon::kCycleGap, +noisemon::cycle_report_t::CYCLE_GAP);
+  EXPECT_EQ(daemon::kCycleNoOperatingPoint, +noisemon::cycle_report_t::CYCLE_NO_OPERATING_POINT);
+  EXPECT_EQ(daemon::kCycleLengthOdd, +noisemon::cycle_report_t::CYCLE_LENGTH_ODD);
+}
+
+TEST(ReportMessages, CycleReportRoundTripsThroughLcmEncoding) {
+  const noisemon::cycle_report_t m = daemon::to_message(sample_report());
+  std::vector<std::uint8_t> buf(static_cast<std::size_t>(m.getEncodedSize()));
+  ASSERT_EQ(m.encode(buf.data(), 0, static_cast<int>(buf.size())), static_cast<int>(buf.size()));
+  noisemon::cycle_report_t back;
+  ASSERT_EQ(back.decode(buf.data(), 0, static_cast<int>(buf.size())), static_cast<int>(buf.size()));
+  EXPECT_EQ(back.cycle, 42);
+  EXPECT_EQ(back.nbands, 31);
+  EXPECT_FLOAT_EQ(back.att_measured_db[5], 200.0f - 5 - (50.0f + 5));
+  EXPECT_EQ(back.band_flags[30], +noisemon::cycle_report_t::BAND_NYQUIST_CUT);
+  EXPECT_TRUE(std::isnan(back.rail_pressure_bar));
+}
+
+TEST(ReportMessages, RawBlockStaysUnderTheLcmFragmentLimit) {
+  drivers::SampleBlock b;
+  b.first_index = 123456;
+  b.frames = drivers::SampleBlock::kMaxFrames;
+  b.channels = drivers::SampleBlock::kMaxChannels;
+  for (std::size_t i = 0; i < b.frames * b.channels; ++i) b.data[i] = static_cast<double>(i);
+  const noisemon::raw_block_t m = daemon::to_message(b, noisemon::raw_block_t::STREAM_MICS, 1'000'000);
+  // LCM 1.3.1 fragments UDP datagrams above 64 KB; the largest raw block must fit with the channel name.
+  EXPECT_LT(m.getEncodedSize() + 64, 65000);
+  EXPECT_EQ(m.utime, 1'000'000 + 123456 * 25);  // 25 us per frame at 40 kHz
+  EXPECT_DOUBLE_EQ(m.data[3][5], 3.0 * b.channels + 5);
+}
+
+TEST(ReportMessages, PythonDecoderReadsWhatTheDaemonEncodes) {
+  const std::string python_dir = NOISEMON_BINARY_DIR "/msgs/gen/python";
+  if (run_command("python3 -c 'print(1)' 2>/dev/null") != "1\n") GTEST_SKIP() << "python3 not available";
+  const noisemon::cycle_report_t m = daemon::to_message(sample_report());
+  std::vector<std::uint8_t> buf(static_cast<std::size_t>(m.getEncodedSize()));
+  m.encode(buf.data(), 0, static_cast<int>(buf.size()));
+  const std::string path = ::testing::TempDir() + "/cycle_report.bin";
+  std::ofstream(path, std::ios::binary).write(reinterpret_cast<const char*>(buf.data()), static_cast<std::streamsize>(buf.size()));
+  const std::string out = run_command("PYTHONPATH=" + python_dir +
+                                      " python3 -c \"import noisemon; m = noisemon.cycle_report_t.decode(open('" + path +
+                                      "','rb').read()); print(m.cycle, m.nbands, round(m.lpa_measured_db, 3), "
+                                      "round(m.cpl_db[3], 3), m.band_flags[30], m.nmics, round(m.mic_lpa_db[9], 3))\"");
+  EXPECT_EQ(out, "42 31 84.25 197.0 1 10 84.9\n");
+}
