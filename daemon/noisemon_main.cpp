@@ -19,6 +19,8 @@ int main(int argc, char** argv) {
       ->check(CLI::NonNegativeNumber);
   w->add_option("--csv", watch.csv_path, "also write one CSV row per report to this file");
   w->add_flag("--bands", watch.bands, "also print each report's 1/3-octave spectra");
+  w->add_flag("--status", watch.status, "print the daemon's 1 Hz status messages instead (threads, rings, counters)");
+  w->add_option("--status-channel", watch.status_channel, "channel of the status messages")->capture_default_str();
 
   try {
     app.parse(argc, argv);

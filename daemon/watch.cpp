@@ -11,6 +11,7 @@
 #include <lcm/lcm-cpp.hpp>
 
 #include "daemon/report_messages.hpp"
+#include "noisemon/status_t.hpp"
 
 namespace noisemon::daemon {
 namespace {
@@ -37,6 +38,32 @@ void print_bands(const noisemon::cycle_report_t& r) {
   for (int b = 0; b < r.nbands; ++b)
     std::printf("    %9.1f %8.1f %12.1f %11.1f %9.1f %9.1f  %d\n", r.band_hz[b], r.cpl_db[b], r.spl_a_measured_db[b],
                 r.spl_a_predicted_db[b], r.att_measured_db[b], r.att_predicted_db[b], r.band_flags[b]);
+}
+
+const char* thread_state_name(std::int8_t s) {
+  switch (s) {
+    case noisemon::status_t::THREAD_IDLE: return "idle";
+    case noisemon::status_t::THREAD_RUNNING: return "running";
+    case noisemon::status_t::THREAD_STOPPED: return "stopped";
+    case noisemon::status_t::THREAD_FAILED: return "FAILED";
+  }
+  return "?";
+}
+
+void print_status(const noisemon::status_t& s) {
+  std::printf("status  source=%s uptime=%.1fs published=%lld dropped=%lld latency=%.1f/%.1fms processing=%.3f/%.3fms\n",
+              s.source.c_str(), s.uptime_s, static_cast<long long>(s.cycles_published),
+              static_cast<long long>(s.cycles_dropped), s.latency_ms_mean, s.latency_ms_max, s.processing_ms_mean,
+              s.processing_ms_max);
+  std::printf("  threads:");
+  for (int i = 0; i < s.nthreads; ++i) {
+    std::printf(" %s=%s", s.thread_name[i].c_str(), thread_state_name(s.thread_state[i]));
+    if (!s.thread_error[i].empty()) std::printf("(%s)", s.thread_error[i].c_str());
+  }
+  std::printf("\n  rings:");
+  for (int i = 0; i < s.nrings; ++i)
+    std::printf(" %s=%.0f%%/%lld overruns", s.ring_name[i].c_str(), 100.0 * s.ring_fill[i], static_cast<long long>(s.ring_overruns[i]));
+  std::printf("\n");
 }
 
 }  // namespace
@@ -73,7 +100,21 @@ int run_watch(const WatchOptions& o) {
     ++received;
     last = std::chrono::steady_clock::now();
   };
-  lcm.subscribe(o.channel, &Handler::on, &handler);
+  struct StatusHandler {
+    std::function<void(const noisemon::status_t*)> fn;
+    void on(const lcm::ReceiveBuffer*, const std::string&, const noisemon::status_t* s) { fn(s); }
+  } status_handler;
+  status_handler.fn = [&](const noisemon::status_t* s) {
+    if (o.count > 0 && received >= o.count) return;
+    print_status(*s);
+    std::fflush(stdout);
+    ++received;
+    last = std::chrono::steady_clock::now();
+  };
+  if (o.status)
+    lcm.subscribe(o.status_channel, &StatusHandler::on, &status_handler);
+  else
+    lcm.subscribe(o.channel, &Handler::on, &handler);
 
   std::signal(SIGINT, on_signal);
   std::signal(SIGTERM, on_signal);
@@ -82,7 +123,7 @@ int run_watch(const WatchOptions& o) {
     const int ready = ::poll(&pfd, 1, 100);
     if (ready > 0) lcm.handle();
     if (o.timeout_s > 0 && std::chrono::duration<double>(std::chrono::steady_clock::now() - last).count() > o.timeout_s) {
-      std::fprintf(stderr, "noisemon watch: no report on %s for %.1f s\n", o.channel.c_str(), o.timeout_s);
+      std::fprintf(stderr, "noisemon watch: nothing on %s for %.1f s\n", (o.status ? o.status_channel : o.channel).c_str(), o.timeout_s);
       return 2;
     }
   }

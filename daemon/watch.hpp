@@ -13,6 +13,8 @@ struct WatchOptions {
   double timeout_s = 0;          // exit with an error when no report arrives for this long (0 = wait forever)
   std::string csv_path;          // also write one CSV row per report
   bool bands = false;            // also print the band spectra of each report
+  bool status = false;           // print the 1 Hz status messages instead of cycle reports
+  std::string status_channel = "NOISEMON_STATUS";
 };
 
 // Returns the process exit code.

@@ -172,3 +172,26 @@ TEST(EndToEnd, SigintPublishesTheLastCompleteCycleAndExitsCleanly) {
   s >> last_cycle;
   EXPECT_EQ(last_cycle, rows.back().cycle);
 }
+
+TEST(EndToEnd, StatusIsPublishedEverySecondWithHealthyThreads) {
+  require_namespace();
+  const std::string out = ::testing::TempDir() + "/status.txt";
+  const pid_t daemon = spawn({NOISEMOND_PATH, "--lcm", kLcmUrl}, "/dev/null");
+  const auto t0 = std::chrono::steady_clock::now();
+  const pid_t watch = spawn({NOISEMON_PATH, "watch", "--status", "--lcm", kLcmUrl, "--count", "3", "--timeout", "5"}, out);
+  EXPECT_EQ(wait_for(watch, std::chrono::seconds(15)), 0);
+  const double elapsed = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  kill(daemon, SIGTERM);
+  EXPECT_EQ(wait_for(daemon, std::chrono::seconds(10)), 0);
+  EXPECT_GE(elapsed, 1.5);  // three messages at 1 Hz take at least two periods
+  std::ifstream in(out);
+  std::stringstream text;
+  text << in.rdbuf();
+  const std::string s = text.str();
+  EXPECT_NE(s.find("source=sim"), std::string::npos) << s;
+  EXPECT_NE(s.find("processing=running"), std::string::npos) << s;
+  EXPECT_NE(s.find("lcm=running"), std::string::npos) << s;
+  EXPECT_EQ(s.find("FAILED"), std::string::npos) << s;
+  EXPECT_NE(s.find("pressure="), std::string::npos) << s;
+  EXPECT_NE(s.find("mics="), std::string::npos) << s;
+}
