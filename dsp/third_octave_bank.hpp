@@ -1,9 +1,13 @@
-// IEC 61260-1 base-10 one-third-octave filter bank, nominal 20 Hz ... 20 kHz.
+// IEC 61260-1 base-10 one-third-octave filter bank, nominal 20 Hz ... 20 kHz, class 1 (8th-order
+// Butterworth band-passes, multirate: lower octaves run decimated by powers of two).
 //
 // Streaming, multichannel: process() takes interleaved frames and accumulates, per channel and band, the
 // sum of squared band outputs; take_mean_square() returns the mean square since the previous call and
 // restarts the accumulation. Filter state is kept across calls (a band's output never restarts at a cycle
 // boundary). No allocation after construction.
+//
+// A decimated band (1 sample per 2^k frames) averages its own samples since the last take; if takes come
+// closer together than its sample spacing and none arrived, the band repeats its previous value.
 #pragma once
 
 #include <cstddef>
@@ -17,8 +21,10 @@ struct ThirdOctaveBand {
   double exact_mid_hz = 0;    // 1000 * 10^(x/10)
   double lower_edge_hz = 0;   // exact_mid * 10^(-1/20)
   double upper_edge_hz = 0;   // exact_mid * 10^(+1/20)
-  bool nyquist_cut = false;   // the upper edge lies at or above fs/2: the band is truncated
-  double response_time_s = 0; // roughly how long the band filter takes to settle (its group delay scale)
+  bool nyquist_cut = false;   // the upper edge lies at or above fs/2: the band is truncated (measured as a
+                              // high-pass from the lower edge up to fs/2)
+  double response_time_s = 0; // settling time: after a step in the input the band level stays within 0.5 dB
+                              // of its final value from here on (3.5 group delays at mid-band)
 };
 
 class ThirdOctaveBank {
@@ -37,7 +43,7 @@ class ThirdOctaveBank {
   // in: frames * channels() values, interleaved.
   void process(const double* in, std::size_t frames);
   // out: channels() * band_count() values, out[channel * band_count() + band] = mean square of the band
-  // output since the last take (0 when nothing was processed). Restarts the accumulation.
+  // output since the last take (0 when nothing was processed since then). Restarts the accumulation.
   void take_mean_square(double* out);
   // Clears filter state and accumulators.
   void reset();

@@ -83,14 +83,14 @@ class Synth {
 
 double crank(std::int64_t k) { return -360.0 + 720.0 * static_cast<double>(k % kCycleFrames) / kCycleFrames; }
 
-struct Run {
+struct RunResult {
   std::vector<daemon::CycleReport> reports;
   daemon::ProcessorCounters counters;
   std::vector<dsp::ThirdOctaveBand> bands;
 };
 
 // Feeds `seconds` of synthetic streams in 256-frame blocks; `drop_mic_block` (>= 0) is lost on the way.
-Run run(const Synth& s, double seconds, std::int64_t drop_mic_block = -1) {
+RunResult run(const Synth& s, double seconds, std::int64_t drop_mic_block = -1) {
   drivers::StreamInfo info;
   info.epoch_utime = 1'000'000;
   info.mic_count = kMics;
@@ -98,7 +98,7 @@ Run run(const Synth& s, double seconds, std::int64_t drop_mic_block = -1) {
   info.acoustic_delay_s = kDelayFrames / kFs;
   daemon::ProcessorConfig pc;
   pc.model = model::preset("linear");
-  Run out;
+  RunResult out;
   daemon::CycleProcessor p(pc, info, [&](const daemon::CycleReport& r) { out.reports.push_back(r); });
   const std::int64_t total = static_cast<std::int64_t>(seconds * kFs);
   drivers::SampleBlock pb, mb;
@@ -133,7 +133,7 @@ std::size_t band_index(const std::vector<dsp::ThirdOctaveBand>& bands, double no
 
 TEST(CycleProcessor, SteadyTonesMatchAnalyticLevels) {
   const Synth s({{1000.0, 2000.0, false}, {5000.0, 300.0, false}});
-  const Run r = run(s, 1.2);
+  const RunResult r = run(s, 1.2);
   // Cycles start at frames 1600, 3200, ...; the last is complete once its microphone window has arrived.
   ASSERT_GE(r.reports.size(), 25u);
   const std::size_t b1k = band_index(r.bands, 1000), b5k = band_index(r.bands, 5000);
@@ -169,7 +169,7 @@ TEST(CycleProcessor, MicrophoneWindowIsShiftedByTheAcousticDelay) {
   // A 5 kHz tone only in even cycles: with the delay removed, the microphones' level in every cycle follows the
   // pressure's. Without the shift 1/8 of the burst would land in the odd cycles (only ~9 dB down).
   const Synth s({{5000.0, 500.0, true}});
-  const Run r = run(s, 1.2);
+  const RunResult r = run(s, 1.2);
   const std::size_t b5k = band_index(r.bands, 5000);
   int even = 0, odd = 0;
   for (const auto& c : r.reports) {
@@ -191,8 +191,8 @@ TEST(CycleProcessor, MicrophoneWindowIsShiftedByTheAcousticDelay) {
 
 TEST(CycleProcessor, LostBlockDropsOnlyTheCyclesItTouches) {
   const Synth s({{1000.0, 2000.0, false}});
-  const Run clean = run(s, 1.2);
-  const Run lossy = run(s, 1.2, 60);  // frames 15360..15615 of the microphones are lost
+  const RunResult clean = run(s, 1.2);
+  const RunResult lossy = run(s, 1.2, 60);  // frames 15360..15615 of the microphones are lost
   EXPECT_GE(lossy.counters.cycles_dropped, 1);
   EXPECT_LE(lossy.counters.cycles_dropped, 2);
   EXPECT_EQ(lossy.counters.gap_frames, 256);
