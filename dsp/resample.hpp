@@ -46,8 +46,9 @@ class NonuniformResampler {
   NonuniformResampler& operator=(NonuniformResampler&&) noexcept;
 
   // t: n strictly increasing sample times (s); x: n * channels interleaved values.
-  // Writes at most max_out frames to out, returns frames written; first index via next_output_index()
-  // before the call.
+  // Writes at most max_out frames to out, returns frames written. The index of the first frame written is
+  // next_output_index() after the call minus the count returned (before the first call the start is unknown).
+  // Output that does not fit is kept (up to 8192 frames) and emitted by later calls, which may pass n = 0.
   std::size_t process(const double* t, const double* x, std::size_t n, double* out, std::size_t max_out);
   std::int64_t next_output_index() const;
   double passband_edge_hz() const;

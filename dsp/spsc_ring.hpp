@@ -95,7 +95,11 @@ class SpscRing {
 
   // Either side (approximate while the other side runs).
   std::size_t size() const noexcept {
-    return head_.load(std::memory_order_acquire) - tail_.load(std::memory_order_acquire);
+    // Tail first: the head read afterwards is never behind it (reading head first lets the consumer pass
+    // the stale head, and the unsigned difference wraps to ~2^64). Both sides may move in between, so clamp.
+    const std::size_t tail = tail_.load(std::memory_order_acquire);
+    const std::size_t used = head_.load(std::memory_order_acquire) - tail;
+    return used < capacity_ ? used : capacity_;
   }
   bool empty() const noexcept { return size() == 0; }
   double fill_fraction() const noexcept { return static_cast<double>(size()) / static_cast<double>(capacity_); }
