@@ -1,0 +1,204 @@
+// The virtual engine source: three driver threads paced to the wall clock around the generators of
+// sim_generators.hpp. Each thread computes its stream up to the end of the next ~5 ms chunk of simulated
+// time, then sleeps until that instant arrives on the wall clock; ring writes never wait (a full ring drops the
+// block and counts an overrun).
+#include "drivers/sim_source.hpp"
+
+#include <atomic>
+#include <chrono>
+#include <cmath>
+#include <limits>
+#include <mutex>
+#include <stdexcept>
+#include <thread>
+
+#include "drivers/sim_generators.hpp"
+
+namespace noisemon::drivers {
+
+std::vector<std::array<double, 3>> thesis_mic_positions() {
+  // Thesis Table 3.1 (x, y, z in m), hemisphere r = 1.75 m over the reflecting floor.
+  return {{-1.35, 0.78, 0.79}, {0.00, 1.73, 0.26},  {0.00, 1.16, 1.31},  {1.00, -0.58, 1.31}, {0.00, 0.00, 1.75},
+          {1.35, 0.78, 0.79},  {1.50, -0.87, 0.26}, {0.00, -1.16, 1.31}, {-1.00, -0.58, 1.31}, {-1.50, -0.87, 0.26}};
+}
+
+namespace {
+
+constexpr double kChunkS = 0.005;             // generation chunk of the sample streams
+constexpr double kOperatingPointPeriodS = 0.1;  // 10 Hz
+constexpr double kMaxCatchUpS = 0.05;         // simulated time per loop pass when behind (keeps stop() prompt)
+
+std::int64_t wall_utime() {
+  return std::chrono::duration_cast<std::chrono::microseconds>(std::chrono::system_clock::now().time_since_epoch())
+      .count();
+}
+
+void validate(const SimConfig& c) {
+  auto fail = [](const std::string& what) { throw std::invalid_argument("sim source: " + what); };
+  if (!(c.speed_rpm > 0.0 && c.speed_rpm <= 10000.0)) fail("speed_rpm must be in (0, 10000]");
+  if (!(c.speed_fluctuation >= 0.0 && c.speed_fluctuation < 0.2)) fail("speed_fluctuation must be in [0, 0.2)");
+  if (!(c.cycle_variation >= 0.0 && c.cycle_variation < 0.2)) fail("cycle_variation must be in [0, 0.2)");
+  if (!(c.soi_deg_btdc >= 0.0 && c.soi_deg_btdc <= 60.0)) fail("soi_deg_btdc must be in [0, 60]");
+  if (!(c.load_nm >= 0.0) || !(c.full_load_nm > 0.0)) fail("load_nm must be >= 0 and full_load_nm > 0");
+  if (!(c.encoder_resolution_deg >= 0.01 && c.encoder_resolution_deg <= 6.0)) fail("encoder_resolution_deg must be in [0.01, 6]");
+  if (c.mic_count == 0 || c.mic_count > SampleBlock::kMaxChannels) fail("mic_count must be in [1, 16]");
+  if (c.mic_positions_m.empty() && c.mic_count > thesis_mic_positions().size())
+    fail("mic_positions_m must be given for more than 10 microphones");
+  if (!c.mic_positions_m.empty() && c.mic_positions_m.size() != c.mic_count)
+    fail("mic_positions_m must have mic_count entries");
+  if (!(c.radius_m > 0.0) || !(c.speed_of_sound_m_s > 0.0)) fail("radius_m and speed_of_sound_m_s must be positive");
+  if (!(c.mic_rate_hz >= 8000.0 && c.mic_rate_hz == std::round(c.mic_rate_hz))) fail("mic_rate_hz must be a whole number >= 8000");
+  if (!(c.mic_gain_spread_db >= 0.0 && c.mic_gain_spread_db <= 6.0)) fail("mic_gain_spread_db must be in [0, 6]");
+}
+
+class SimSource final : public Source {
+ public:
+  explicit SimSource(const SimConfig& config) : config_(config), epoch_utime_(wall_utime()) {
+    validate(config_);
+    info_.epoch_utime = epoch_utime_;
+    info_.mic_count = config_.mic_count;
+    info_.mic_positions_m = config_.mic_positions_m;
+    if (info_.mic_positions_m.empty()) {
+      info_.mic_positions_m = thesis_mic_positions();
+      info_.mic_positions_m.resize(config_.mic_count);
+    }
+    info_.radius_m = config_.radius_m;
+    info_.acoustic_delay_s = config_.radius_m / config_.speed_of_sound_m_s;
+    for (std::size_t i = 0; i < kThreads; ++i) threads_[i].name = kNames[i];
+  }
+  ~SimSource() override { stop(); }
+
+  std::string name() const override { return "sim"; }
+  StreamInfo info() const override { return info_; }
+
+  void start(const Streams& streams) override {
+    if (started_) throw std::logic_error("sim source: start() while running; stop() first");
+    if (!streams.pressure || !streams.mics || !streams.operating_point)
+      throw std::invalid_argument("sim source: start() needs all three rings");
+    // First frame: the next grid-aligned instant from now (never before the epoch).
+    const double now_s = 1e-6 * static_cast<double>(wall_utime() - epoch_utime_);
+    const double t_first = std::ceil(std::max(now_s, 0.0) / sim::kGridAlignS) * sim::kGridAlignS;
+    // Generators are built here (allocation happens now, not in the threads).
+    auto pressure = std::make_unique<sim::PressureGenerator>(config_, t_first);
+    auto mics = std::make_unique<sim::MicGenerator>(config_, t_first);
+    stop_.store(false);
+    for (auto& t : threads_) {
+      t.state.store(ThreadState::kRunning);
+      t.blocks.store(0);
+      std::lock_guard lock(error_mutex_);
+      t.error.clear();
+    }
+    started_ = true;
+    threads_[0].thread = std::thread([this, g = std::move(pressure), ring = streams.pressure, t_first]() mutable {
+      run_stream(threads_[0], *g, *ring, t_first);
+    });
+    threads_[1].thread = std::thread([this, g = std::move(mics), ring = streams.mics, t_first]() mutable {
+      run_stream(threads_[1], *g, *ring, t_first);
+    });
+    threads_[2].thread = std::thread([this, ring = streams.operating_point, t_first] {
+      run_operating_point(threads_[2], *ring, t_first);
+    });
+  }
+
+  void stop() override {
+    stop_.store(true);
+    for (auto& t : threads_) {
+      if (t.thread.joinable()) t.thread.join();
+      ThreadState running = ThreadState::kRunning;
+      t.state.compare_exchange_strong(running, ThreadState::kStopped);
+    }
+    started_ = false;
+  }
+
+  bool running() const override {
+    for (const auto& t : threads_)
+      if (t.state.load() != ThreadState::kRunning || t.blocks.load() == 0) return false;
+    return true;
+  }
+
+  std::vector<DriverThreadStatus> thread_status() const override {
+    std::vector<DriverThreadStatus> out;
+    std::lock_guard lock(error_mutex_);
+    for (const auto& t : threads_) out.push_back({t.name, t.state.load(), t.blocks.load(), t.error});
+    return out;
+  }
+
+ private:
+  static constexpr std::size_t kThreads = 3;
+  static constexpr const char* kNames[kThreads] = {"sim.encoder_pressure", "sim.microphones", "sim.operating_point"};
+
+  struct Worker {
+    std::string name;
+    std::thread thread;
+    std::atomic<ThreadState> state{ThreadState::kIdle};
+    std::atomic<std::uint64_t> blocks{0};
+    std::string error;  // guarded by error_mutex_
+  };
+
+  // Sleeps until simulated time t_s arrives on the wall clock.
+  void sleep_until_sim(double t_s) const {
+    const auto target = std::chrono::system_clock::time_point(
+        std::chrono::microseconds(epoch_utime_ + static_cast<std::int64_t>(std::llround(t_s * 1e6))));
+    std::this_thread::sleep_until(target);
+  }
+  double sim_now_s() const { return 1e-6 * static_cast<double>(wall_utime() - epoch_utime_); }
+
+  void fail(Worker& w, const std::exception& e) {
+    {
+      std::lock_guard lock(error_mutex_);
+      w.error = e.what();
+    }
+    w.state.store(ThreadState::kFailed);
+  }
+
+  template <class Generator>
+  void run_stream(Worker& w, Generator& gen, BlockRing& ring, double t_first) {
+    try {
+      double t = t_first;
+      while (!stop_.load(std::memory_order_relaxed)) {
+        // Next chunk end; when behind the wall clock, catch up in bounded passes.
+        t = std::max(t + kChunkS, std::min(sim_now_s(), t + kMaxCatchUpS));
+        gen.advance(t, ring);
+        w.blocks.store(gen.blocks_written(), std::memory_order_relaxed);
+        sleep_until_sim(t);
+      }
+    } catch (const std::exception& e) {
+      fail(w, e);
+    }
+  }
+
+  void run_operating_point(Worker& w, OperatingPointRing& ring, double t_first) {
+    try {
+      const model::CrankKinematics kin = sim::crank_kinematics(config_);
+      const double window = kOperatingPointPeriodS;
+      for (double t = t_first; !stop_.load(std::memory_order_relaxed); t += kOperatingPointPeriodS) {
+        sleep_until_sim(t);
+        OperatingPoint op;
+        op.utime = epoch_utime_ + std::llround(t * 1e6);
+        // Speed as a tachometer measures it: mean over the last window from the crank angle.
+        op.speed_rpm = (kin.theta_deg(t) - kin.theta_deg(t - window)) / (6.0 * window);
+        op.load_nm = config_.load_nm;
+        op.soi_deg_btdc = config_.soi_deg_btdc;
+        op.rail_pressure_bar = std::numeric_limits<double>::quiet_NaN();
+        op.motored = config_.motored;
+        if (ring.push(op)) w.blocks.fetch_add(1, std::memory_order_relaxed);
+      }
+    } catch (const std::exception& e) {
+      fail(w, e);
+    }
+  }
+
+  SimConfig config_;
+  std::int64_t epoch_utime_;
+  StreamInfo info_;
+  std::array<Worker, kThreads> threads_;
+  std::atomic<bool> stop_{false};
+  bool started_ = false;
+  mutable std::mutex error_mutex_;
+};
+
+}  // namespace
+
+std::unique_ptr<Source> make_sim_source(const SimConfig& config) { return std::make_unique<SimSource>(config); }
+
+}  // namespace noisemon::drivers
