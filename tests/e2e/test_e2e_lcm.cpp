@@ -9,11 +9,18 @@
 #include <chrono>
 #include <cmath>
 #include <cstdlib>
+#include <cstring>
 #include <fstream>
 #include <sstream>
 #include <string>
 #include <thread>
 #include <vector>
+
+#include "dsp/levels.hpp"
+#include "dsp/third_octave_bank.hpp"
+#include "dsp/weighting.hpp"
+#include "model/block_model.hpp"
+#include "model/engine_cycle.hpp"
 
 namespace {
 
@@ -127,6 +134,41 @@ Session run_session(const std::string& name, const std::string& model, const std
   return s;
 }
 
+// The expected gap, computed offline without the daemon, its sim, resamplers, rings or LCM: the sim's default
+// nominal cycle (3050 rpm, SOI 18 deg, no load), repeated at constant speed and sampled at 40 kHz, drives both
+// block models; the difference of their A-weighted overall levels is what the daemon should report as
+// predicted - measured when the engine's true block is `true_block` and the daemon's model is linear.
+double offline_lpa_difference(const std::string& true_block) {
+  constexpr double fs = 40000.0, rpm = 3050.0;
+  noisemon::model::EngineCycle cycle;
+  cycle.compute(noisemon::model::OperatingCondition{});
+  noisemon::model::BlockModel linear(noisemon::model::preset("linear"), fs);
+  noisemon::model::BlockModel truth(noisemon::model::preset(true_block), fs);
+  noisemon::dsp::ThirdOctaveBank bank(fs, 2);
+  const std::size_t n = static_cast<std::size_t>(1.6 * fs), settle = static_cast<std::size_t>(0.8 * fs);
+  std::vector<double> u(n), y_lin(n), y_true(n), frames(2 * n);
+  for (std::size_t k = 0; k < n; ++k) {
+    const double theta = -360.0 + 6.0 * rpm * static_cast<double>(k) / fs;
+    u[k] = cycle.pressure_pa(std::fmod(theta + 360.0, 720.0) - 360.0);
+  }
+  linear.process(u.data(), y_lin.data(), n);
+  truth.process(u.data(), y_true.data(), n);
+  for (std::size_t k = 0; k < n; ++k) {
+    frames[2 * k] = y_lin[k];
+    frames[2 * k + 1] = y_true[k];
+  }
+  bank.process(frames.data(), settle);
+  std::vector<double> ms(2 * bank.band_count());
+  bank.take_mean_square(ms.data());
+  bank.process(frames.data() + 2 * settle, n - settle);
+  bank.take_mean_square(ms.data());
+  double sum[2] = {0, 0};
+  for (int c = 0; c < 2; ++c)
+    for (std::size_t b = 0; b < bank.band_count(); ++b)
+      sum[c] += ms[c * bank.band_count() + b] * std::pow(10.0, noisemon::dsp::a_weighting_db(bank.bands()[b].exact_mid_hz) / 10);
+  return 10 * std::log10(sum[0] / sum[1]);
+}
+
 }  // namespace
 
 TEST(EndToEnd, MeasuredAndPredictedAgreeWhenTheModelIsTheTrueBlock) {
@@ -195,3 +237,25 @@ TEST(EndToEnd, StatusIsPublishedEverySecondWithHealthyThreads) {
   EXPECT_NE(s.find("pressure="), std::string::npos) << s;
   EXPECT_NE(s.find("mics="), std::string::npos) << s;
 }
+
+class ModelMismatch : public ::testing::TestWithParam<std::pair<const char*, double>> {};
+
+TEST_P(ModelMismatch, PredictedMinusMeasuredIsTheOfflineGap) {
+  require_namespace();
+  const auto [true_block, tolerance_db] = GetParam();
+  const double expected = offline_lpa_difference(true_block);
+  ASSERT_GT(std::abs(expected), 0.3) << "the presets must differ audibly for this test to mean anything";
+  const Session s = run_session(std::string("mismatch_") + true_block, "linear", true_block, 50);
+  EXPECT_EQ(s.daemon_status, 0);
+  ASSERT_GE(s.rows.size(), 50u);
+  double mean = 0;
+  for (const Row& r : s.rows) mean += (r.lpa_pred - r.lpa_meas) / static_cast<double>(s.rows.size());
+  std::printf("%s: predicted - measured %.3f dB over %zu cycles, offline %.3f dB\n", true_block, mean, s.rows.size(), expected);
+  EXPECT_NEAR(mean, expected, tolerance_db) << true_block;
+  for (const Row& r : s.rows) EXPECT_NEAR(r.lpa_pred - r.lpa_meas, expected, 2 * tolerance_db) << "cycle " << r.cycle;
+}
+
+// nl_damper is the thesis's best model and close to the linear one (~0.6 dB); the nonlinear spring is far off.
+INSTANTIATE_TEST_SUITE_P(Presets, ModelMismatch,
+                         ::testing::Values(std::pair{"nl_damper", 0.2}, std::pair{"nl_spring_damper", 0.5}),
+                         [](const auto& info) { return std::string(info.param.first); });
