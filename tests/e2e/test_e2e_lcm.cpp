@@ -2,6 +2,8 @@
 // LCM multicast; a separate `noisemon watch` process receives the cycle reports and writes them to CSV.
 #include <gtest/gtest.h>
 #include <sched.h>
+#include <sys/socket.h>
+#include <sys/un.h>
 #include <signal.h>
 #include <sys/wait.h>
 #include <unistd.h>
@@ -259,3 +261,48 @@ TEST_P(ModelMismatch, PredictedMinusMeasuredIsTheOfflineGap) {
 INSTANTIATE_TEST_SUITE_P(Presets, ModelMismatch,
                          ::testing::Values(std::pair{"nl_damper", 0.2}, std::pair{"nl_spring_damper", 0.5}),
                          [](const auto& info) { return std::string(info.param.first); });
+
+TEST(EndToEnd, SystemdHearsReadyOnceDriversRunAndStoppingOnSigterm) {
+  require_namespace();
+  // Play systemd's part: a datagram socket named by NOTIFY_SOCKET, as for a Type=notify unit.
+  const std::string path = ::testing::TempDir() + "/notify.sock";
+  std::remove(path.c_str());
+  const int fd = socket(AF_UNIX, SOCK_DGRAM | SOCK_CLOEXEC, 0);
+  ASSERT_GE(fd, 0);
+  sockaddr_un addr{};
+  addr.sun_family = AF_UNIX;
+  std::snprintf(addr.sun_path, sizeof addr.sun_path, "%s", path.c_str());
+  ASSERT_EQ(bind(fd, reinterpret_cast<sockaddr*>(&addr), sizeof addr), 0);
+  timeval tv{10, 0};
+  setsockopt(fd, SOL_SOCKET, SO_RCVTIMEO, &tv, sizeof tv);
+  setenv("NOTIFY_SOCKET", path.c_str(), 1);
+  const pid_t daemon = spawn({NOISEMOND_PATH, "--lcm", kLcmUrl}, "/dev/null");
+  unsetenv("NOTIFY_SOCKET");
+  char buf[512] = {};
+  const ssize_t n = recv(fd, buf, sizeof buf - 1, 0);
+  ASSERT_GT(n, 0) << "no notification within 10 s";
+  EXPECT_NE(std::string(buf, static_cast<std::size_t>(n)).find("READY=1"), std::string::npos);
+  kill(daemon, SIGTERM);
+  const ssize_t m = recv(fd, buf, sizeof buf - 1, 0);
+  ASSERT_GT(m, 0);
+  EXPECT_NE(std::string(buf, static_cast<std::size_t>(m)).find("STOPPING=1"), std::string::npos);
+  EXPECT_EQ(wait_for(daemon, std::chrono::seconds(10)), 0);
+  close(fd);
+}
+
+TEST(EndToEnd, MissingMulticastRouteIsAClearError) {
+  require_namespace();
+  // A fresh namespace of its own has no multicast route: the daemon must say what failed and exit 1.
+  const std::string log = ::testing::TempDir() + "/badlcm.txt";
+  const pid_t pid = fork();
+  if (pid == 0) {
+    if (!std::freopen(log.c_str(), "w", stderr) || unshare(CLONE_NEWNET) != 0) _exit(126);
+    execl(NOISEMOND_PATH, NOISEMOND_PATH, static_cast<char*>(nullptr));
+    _exit(127);
+  }
+  EXPECT_EQ(wait_for(pid, std::chrono::seconds(10)), 1);
+  std::ifstream in(log);
+  std::stringstream text;
+  text << in.rdbuf();
+  EXPECT_NE(text.str().find("cannot open LCM"), std::string::npos) << text.str();
+}
