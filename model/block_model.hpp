@@ -24,7 +24,8 @@ class BlockModel {
   // u: n input samples (Pa); y: n output samples (Pa); streaming, one output per input. The band-limited
   // interpolator needs a few future samples, so the output lags: counting samples from the last reset(),
   // output sample j is the model output at the instant of input sample j - latency_samples() (the first
-  // latency_samples() outputs are the response to zero input). In-place (u == y) is allowed.
+  // latency_samples() outputs describe instants before the first input; they carry only the interpolator's
+  // small pre-ringing of the first samples). In-place (u == y) is allowed.
   void process(const double* u, double* y, std::size_t n);
   std::size_t latency_samples() const;
   // Zero state (z = z' = 0, filters cleared).
