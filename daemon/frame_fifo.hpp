@@ -13,8 +13,10 @@ namespace noisemon::daemon {
 
 class FrameFifo {
  public:
+  // capacity_frames is rounded up to a power of two (indexing by mask, not division).
   FrameFifo(std::size_t channels, std::size_t capacity_frames)
-      : channels_(channels), capacity_(capacity_frames), data_(channels * capacity_frames, 0.0), last_(channels, 0.0) {}
+      : channels_(channels), capacity_(round_up_pow2(capacity_frames)), mask_(capacity_ - 1),
+        data_(channels * capacity_, 0.0), last_(channels, 0.0) {}
 
   std::size_t channels() const { return channels_; }
   bool started() const { return started_; }
@@ -36,20 +38,29 @@ class FrameFifo {
       filled = static_cast<std::size_t>(first - end);
       for (std::size_t i = 0; i < filled; ++i) push(last_.data());
     }
-    std::size_t skip = first < end ? static_cast<std::size_t>(std::min<std::int64_t>(end - first, n)) : 0;
-    for (std::size_t i = skip; i < n; ++i) push(frames + i * channels_);
+    const std::size_t skip = first < end ? static_cast<std::size_t>(std::min<std::int64_t>(end - first, n)) : 0;
+    const std::size_t count = n - skip;
+    if (count == 0) return filled;
+    if (size_ + count > capacity_) throw std::length_error("FrameFifo: capacity exceeded");
+    const double* src = frames + skip * channels_;
+    const std::size_t pos = (head_ + size_) & mask_;
+    const std::size_t first_part = std::min(count, capacity_ - pos);
+    std::copy(src, src + first_part * channels_, &data_[pos * channels_]);
+    std::copy(src + first_part * channels_, src + count * channels_, data_.begin());
+    std::copy(src + (count - 1) * channels_, src + count * channels_, last_.begin());
+    size_ += count;
     return filled;
   }
   // Pointer to the frame with grid index `index` (must be within [begin_index, end_index)).
   const double* frame(std::int64_t index) const {
-    const std::size_t pos = (head_ + static_cast<std::size_t>(index - begin_)) % capacity_;
+    const std::size_t pos = (head_ + static_cast<std::size_t>(index - begin_)) & mask_;
     return &data_[pos * channels_];
   }
   // Drops every frame with index < `index`.
   void drop_before(std::int64_t index) {
     if (index <= begin_) return;
     const std::size_t n = static_cast<std::size_t>(std::min<std::int64_t>(index - begin_, static_cast<std::int64_t>(size_)));
-    head_ = (head_ + n) % capacity_;
+    head_ = (head_ + n) & mask_;
     size_ -= n;
     begin_ += static_cast<std::int64_t>(n);
     if (size_ == 0) begin_ = index;
@@ -58,13 +69,19 @@ class FrameFifo {
  private:
   void push(const double* f) {
     if (size_ == capacity_) throw std::length_error("FrameFifo: capacity exceeded");
-    const std::size_t pos = (head_ + size_) % capacity_;
+    const std::size_t pos = (head_ + size_) & mask_;
     std::copy(f, f + channels_, &data_[pos * channels_]);
     std::copy(f, f + channels_, last_.begin());
     ++size_;
   }
 
-  std::size_t channels_, capacity_;
+  static std::size_t round_up_pow2(std::size_t n) {
+    std::size_t p = 1;
+    while (p < n) p <<= 1;
+    return p;
+  }
+
+  std::size_t channels_, capacity_, mask_;
   std::vector<double> data_;
   std::vector<double> last_;
   std::size_t head_ = 0, size_ = 0;
