@@ -17,6 +17,13 @@ namespace noisemon::daemon {
 namespace {
 
 volatile std::sig_atomic_t g_stop = 0;
+
+// Adapts a callable to LCM's member-function subscription.
+template <class Message>
+struct Handler {
+  std::function<void(const Message*)> fn;
+  void on(const lcm::ReceiveBuffer*, const std::string&, const Message* m) { fn(m); }
+};
 void on_signal(int) { g_stop = 1; }
 
 void write_csv_header(std::ostream& out) {
@@ -86,10 +93,7 @@ int run_watch(const WatchOptions& o) {
   }
   std::int64_t received = 0;
   auto last = std::chrono::steady_clock::now();
-  struct Handler {
-    std::function<void(const noisemon::cycle_report_t*)> fn;
-    void on(const lcm::ReceiveBuffer*, const std::string&, const noisemon::cycle_report_t* r) { fn(r); }
-  } handler;
+  Handler<noisemon::cycle_report_t> handler;
   handler.fn = [&](const noisemon::cycle_report_t* r) {
     if (o.count > 0 && received >= o.count) return;
     if (received % 40 == 0) std::printf("%s\n", cycle_line_header().c_str());
@@ -100,10 +104,7 @@ int run_watch(const WatchOptions& o) {
     ++received;
     last = std::chrono::steady_clock::now();
   };
-  struct StatusHandler {
-    std::function<void(const noisemon::status_t*)> fn;
-    void on(const lcm::ReceiveBuffer*, const std::string&, const noisemon::status_t* s) { fn(s); }
-  } status_handler;
+  Handler<noisemon::status_t> status_handler;
   status_handler.fn = [&](const noisemon::status_t* s) {
     if (o.count > 0 && received >= o.count) return;
     print_status(*s);
@@ -112,9 +113,9 @@ int run_watch(const WatchOptions& o) {
     last = std::chrono::steady_clock::now();
   };
   if (o.status)
-    lcm.subscribe(o.status_channel, &StatusHandler::on, &status_handler);
+    lcm.subscribe(o.status_channel, &Handler<noisemon::status_t>::on, &status_handler);
   else
-    lcm.subscribe(o.channel, &Handler::on, &handler);
+    lcm.subscribe(o.channel, &Handler<noisemon::cycle_report_t>::on, &handler);
 
   std::signal(SIGINT, on_signal);
   std::signal(SIGTERM, on_signal);
