@@ -31,11 +31,12 @@ int run(int argc, char** argv) {
   bool live = false;
   app.add_option("--config", config_path, "TOML configuration file (default: built-in defaults, simulated engine)")
       ->check(CLI::ExistingFile);
-  app.add_option("--source", source, "acquisition source, overrides [daemon] source (sim)");
+  app.add_option("--source", source, "acquisition source, overrides [daemon] source (sim)")->check(CLI::IsMember({"sim"}));
   app.add_option("--lcm", lcm_url, "LCM URL, overrides [lcm] url (e.g. udpm://239.255.76.67:7667?ttl=0)");
   app.add_option("--cycles", cycles, "stop after publishing N cycles (0 = run until SIGINT/SIGTERM)")->check(CLI::NonNegativeNumber);
   app.add_flag("--live", live, "print one line per cycle on stdout (predicted and measured Lp(A), LW(A))");
-  app.add_option("--log-level", log_level, "trace, debug, info, warn, error, critical or off");
+  app.add_option("--log-level", log_level, "trace, debug, info, warn, error, critical or off")
+      ->check(CLI::IsMember({"trace", "debug", "info", "warn", "error", "critical", "off"}));
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
