@@ -8,15 +8,18 @@
 // IEC 61260-1 class 1 as an analogue filter, but the bilinear warping thins its lower skirt in the top
 // band of every stage (59.3 dB at G^-3, limit 60) and far more in the 12.5 and 16 kHz bands at 40 kHz.
 //
-// Inner loops run over channels (padded to a multiple of kLaneAlign) with a band's coefficients
-// broadcast, so they vectorise across channels. Double precision throughout: the bank must resolve
-// 70+ dB stop-band attenuation and 0.01 dB pass-band levels, and double is fast enough (see
-// tests/bench/bench_third_octave_bank.cpp).
+// Channels (padded to a multiple of kLaneAlign) are the SIMD lanes: a kernel runs one band over a block
+// with a vector of channels' states in registers and the band's coefficients broadcast. Filter states,
+// coefficients and the stage signals are single precision (8 channels per AVX2 vector, twice as many as
+// double): the multirate design keeps every pole well away from z = 1, so float round-off stays far
+// below the 70 dB stop-band limits and 0.01 dB level accuracy (the class 1 and level tests measure it).
+// Squares are summed in float over short runs only, and the runs in double, so long takes stay exact.
 #include "dsp/third_octave_bank.hpp"
 
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <cstring>
 #include <stdexcept>
 
 #include "dsp/iir_design.hpp"
@@ -39,22 +42,30 @@ constexpr std::size_t kDecimatorSections = kDecimatorOrder / 2;
 // edges <= 0.145 * this rate) lies above 0.355; what lies between aliases above those bands.
 constexpr double kDecimatorStopRatio = 0.35;
 constexpr double kDecimatorAttenDb = 90;
-constexpr std::size_t kLaneAlign = 4;
-constexpr std::size_t kBlockFrames = 256;  // stage-0 frames per internal block
+constexpr std::size_t kLaneAlign = 8;  // one AVX2 vector of floats
+constexpr std::size_t kBlockFrames = 256;    // stage-0 frames per internal block
+constexpr std::size_t kPartialSamples = 32;  // squares summed in float before going into the double sum
 // A band's settling time is taken as this many group delays (mid-band, through the whole path): after a
 // step the band level of these filters stays within 0.5 dB from 2.3 - 2.9 group delays on (measured).
 constexpr double kSettleGroupDelays = 3.5;
 // States below this are flushed to zero after every block: after the input stops they would otherwise
-// decay into subnormal numbers, which x86 handles two orders of magnitude slower.
-constexpr double kFlushBelow = 1e-200;
+// decay into subnormal numbers (below 1.2e-38 in float; their squares get there from 1e-19 on), which x86
+// handles two orders of magnitude slower. Far below any physical pressure (hearing threshold 2e-5 Pa).
+constexpr float kFlushBelow = 1e-15f;
 
 // A band filter with the section gains pulled out: section s is (1 + c1 z^-1 + c2 z^-2) / (1 + a1 z^-1
 // + a2 z^-2); the accumulated squares are scaled by gain2 (the squared product of the section gains) at
-// the take. For the band-passes c1 = 0 and c2 = -1, which the kernel exploits.
+// the take. The numerators are fixed by the design and built into the kernels: c1 = 0, c2 = -1 for the
+// band-passes (zeros at z = 1 and z = -1), c1 = -2, c2 = 1 for the high-pass (double zero at z = 1).
 struct BandFilter {
   bool band_pass = true;
-  double c1[kBandSections], c2[kBandSections], a1[kBandSections], a2[kBandSections];
+  float a1[kBandSections], a2[kBandSections];
   double gain2 = 1;
+};
+
+// A decimator section in single precision (same convention as Biquad).
+struct FloatBiquad {
+  float b0, b1, b2, a1, a2;
 };
 
 struct Stage {
@@ -62,94 +73,161 @@ struct Stage {
   std::vector<std::size_t> bands;  // output band indices handled here
   std::size_t lanes = 0;           // bands.size() * padded channels
   std::vector<BandFilter> filters; // per band
-  std::vector<double> state;       // per band and section: 2 rows of padded channels
+  std::vector<float> state;        // per band and section: 2 rows of padded channels
   std::vector<double> acc, held;   // per lane: sum of squares since the take; last mean square
+  std::vector<float> part;         // per lane: sum of squares of the current float run (see filter_band)
   std::int64_t count = 0;          // samples accumulated since the take (shared by the stage's bands)
   bool has_output = false;         // at least one sample was produced since construction / reset
   // Decimator feeding the next stage (empty on the last stage).
-  std::vector<Biquad> decimator;
-  std::vector<double> dec_state;   // per section: 2 rows of padded channels
+  std::vector<Biquad> decimator;            // as designed (for the group delay)
+  std::vector<FloatBiquad> dec_sections;   // as run
+  std::vector<float> dec_state;    // per section: 2 rows of padded channels
   int phase = 0;                   // 0: the next sample is kept for the next stage
-  std::vector<double> in;          // this stage's input for the current block, padded channels per frame
+  std::vector<float> in;           // this stage's input for the current block, padded channels per frame
 };
 
 std::size_t round_up(std::size_t n, std::size_t a) { return (n + a - 1) / a * a; }
 
-// The kernels get an AVX2 clone picked at load time where the CPU has it (x86-64 only).
+// The kernels get an AVX2 + FMA clone picked at load time where the CPU has it (x86-64 only).
 #if defined(__x86_64__) && defined(__GNUC__)
-#define NOISEMON_KERNEL_CLONES __attribute__((target_clones("avx2", "default")))
+#define NOISEMON_KERNEL_CLONES __attribute__((target_clones("arch=x86-64-v3", "default")))
 #else
 #define NOISEMON_KERNEL_CLONES
 #endif
+// Kernel helpers are forced inline so that they are compiled for the clone that calls them.
+#define NOISEMON_INLINE inline __attribute__((always_inline))
 
-// One band filter over n frames of a stage's input (P padded channels per frame). The inner loop runs
-// over channels with the coefficients broadcast, so it vectorises across channels.
-template <bool kBandPass>
-inline void filter_band(const BandFilter& f, const double* in, std::size_t n, std::size_t P, double* __restrict z,
-                        double* __restrict acc) {
-  const BandFilter q = f;
-  for (std::size_t i = 0; i < n; ++i) {
-    const double* __restrict x = in + i * P;
-#pragma GCC ivdep
-    for (std::size_t l = 0; l < P; ++l) {
-      double v = x[l];
-      for (int s = 0; s < kBandSections; ++s) {
-        double* zs = z + 2 * s * P;
-        const double y = v + zs[l];
-        if constexpr (kBandPass) {
-          zs[l] = zs[P + l] - q.a1[s] * y;
-          zs[P + l] = -v - q.a2[s] * y;
-        } else {
-          zs[l] = q.c1[s] * v - q.a1[s] * y + zs[P + l];
-          zs[P + l] = q.c2[s] * v - q.a2[s] * y;
-        }
-        v = y;
-      }
-      acc[l] += v * v;
+// kLaneAlign channels as one vector (GCC vector extension; lowered to narrower vectors without AVX). Only
+// used inside always-inline helpers, never across a call, so the AVX argument-passing ABI note is moot.
+#pragma GCC diagnostic ignored "-Wpsabi"
+typedef float Vf __attribute__((vector_size(kLaneAlign * sizeof(float))));
+
+NOISEMON_INLINE Vf load(const float* p) {
+  Vf v;
+  std::memcpy(&v, p, sizeof v);
+  return v;
+}
+NOISEMON_INLINE void store(float* p, Vf v) { std::memcpy(p, &v, sizeof v); }
+
+// The kernels walk the frames with the states and sums of squares of kV vectors of channels held in
+// registers: through memory, every frame would wait for the previous frame's stores. Two vectors at a
+// time give the out-of-order core two independent recursions to overlap. Squares are summed in float
+// over runs of kPartialSamples samples of the stage (counted from the take, so the split does not
+// depend on how the input is chunked) and each run's sum is added to the double sum.
+template <int kV, bool kBandPass>
+NOISEMON_INLINE void filter_band_lanes(const BandFilter& q, const float* in, std::size_t n, std::size_t P, float* z,
+                                       float* part, double* acc, std::size_t run) {
+  Vf z0[kV][kBandSections], z1[kV][kBandSections], sq[kV];
+  for (int v = 0; v < kV; ++v) {
+    for (int s = 0; s < kBandSections; ++s) {
+      z0[v][s] = load(z + 2 * s * P + v * kLaneAlign);
+      z1[v][s] = load(z + (2 * s + 1) * P + v * kLaneAlign);
     }
+    sq[v] = load(part + v * kLaneAlign);
+  }
+  for (std::size_t i = 0; i < n; ++i) {
+    for (int v = 0; v < kV; ++v) {
+      Vf x = load(in + i * P + v * kLaneAlign);
+      for (int s = 0; s < kBandSections; ++s) {
+        const Vf y = x + z0[v][s];
+        if constexpr (kBandPass) {
+          z0[v][s] = z1[v][s] - q.a1[s] * y;
+          z1[v][s] = -x - q.a2[s] * y;
+        } else {  // high-pass: c1 = -2, c2 = 1
+          z0[v][s] = z1[v][s] - (x + x) - q.a1[s] * y;
+          z1[v][s] = x - q.a2[s] * y;
+        }
+        x = y;
+      }
+      sq[v] += x * x;
+    }
+    if (++run == kPartialSamples) {
+      run = 0;
+      for (int v = 0; v < kV; ++v) {
+        for (std::size_t l = 0; l < kLaneAlign; ++l) acc[v * kLaneAlign + l] += sq[v][l];
+        sq[v] = Vf{};
+      }
+    }
+  }
+  for (int v = 0; v < kV; ++v) {
+    for (int s = 0; s < kBandSections; ++s) {
+      store(z + 2 * s * P + v * kLaneAlign, z0[v][s]);
+      store(z + (2 * s + 1) * P + v * kLaneAlign, z1[v][s]);
+    }
+    store(part + v * kLaneAlign, sq[v]);
   }
 }
 
-NOISEMON_KERNEL_CLONES void filter_band_pass(const BandFilter& f, const double* in, std::size_t n, std::size_t P,
-                                             double* z, double* acc) {
-  filter_band<true>(f, in, n, P, z, acc);
+// One band filter over n frames of a stage's input (P padded channels per frame, P a multiple of
+// kLaneAlign); state z: 2 rows of P per section; part, acc: P partial and total sums of squares; run:
+// samples already in part.
+template <bool kBandPass>
+NOISEMON_INLINE void filter_band(const BandFilter& f, const float* in, std::size_t n, std::size_t P, float* z,
+                                 float* part, double* acc, std::size_t run) {
+  const BandFilter q = f;
+  std::size_t l = 0;
+  for (; l + 2 * kLaneAlign <= P; l += 2 * kLaneAlign)
+    filter_band_lanes<2, kBandPass>(q, in + l, n, P, z + l, part + l, acc + l, run);
+  if (l < P) filter_band_lanes<1, kBandPass>(q, in + l, n, P, z + l, part + l, acc + l, run);
 }
 
-NOISEMON_KERNEL_CLONES void filter_band_general(const BandFilter& f, const double* in, std::size_t n, std::size_t P,
-                                                double* z, double* acc) {
-  filter_band<false>(f, in, n, P, z, acc);
+NOISEMON_KERNEL_CLONES void filter_band_pass(const BandFilter& f, const float* in, std::size_t n, std::size_t P,
+                                             float* z, float* part, double* acc, std::size_t run) {
+  filter_band<true>(f, in, n, P, z, part, acc, run);
 }
 
-// Decimator over n frames: low-pass every frame (state z: 2 rows of P per section) and keep every second
-// one, starting with the current phase, as rows of out_rows. Returns the kept frames; updates phase.
-NOISEMON_KERNEL_CLONES std::size_t decimate(const Biquad* sections, const double* in, std::size_t n, std::size_t P,
-                                            double* z, double* out_rows, int& phase) {
-  Biquad q[kDecimatorSections];
-  std::copy_n(sections, kDecimatorSections, q);
+NOISEMON_KERNEL_CLONES void filter_high_pass(const BandFilter& f, const float* in, std::size_t n, std::size_t P,
+                                             float* z, float* part, double* acc, std::size_t run) {
+  filter_band<false>(f, in, n, P, z, part, acc, run);
+}
+
+template <int kV>
+NOISEMON_INLINE void decimate_lanes(const FloatBiquad* q, const float* in, std::size_t n, std::size_t P, float* z,
+                                    float* out_rows, int phase) {
+  Vf z0[kV][kDecimatorSections], z1[kV][kDecimatorSections];
+  for (int v = 0; v < kV; ++v)
+    for (std::size_t s = 0; s < kDecimatorSections; ++s) {
+      z0[v][s] = load(z + 2 * s * P + v * kLaneAlign);
+      z1[v][s] = load(z + (2 * s + 1) * P + v * kLaneAlign);
+    }
   std::size_t m = 0;
   for (std::size_t i = 0; i < n; ++i) {
-    const double* __restrict x = in + i * P;
-    double* __restrict out = out_rows + m * P;  // written every frame, advanced only when kept
-#pragma GCC ivdep
-    for (std::size_t l = 0; l < P; ++l) {
-      double v = x[l];
+    for (int v = 0; v < kV; ++v) {
+      Vf x = load(in + i * P + v * kLaneAlign);
       for (std::size_t s = 0; s < kDecimatorSections; ++s) {
-        double* zs = z + 2 * s * P;
-        const double y = q[s].b0 * v + zs[l];
-        zs[l] = q[s].b1 * v - q[s].a1 * y + zs[P + l];
-        zs[P + l] = q[s].b2 * v - q[s].a2 * y;
-        v = y;
+        const Vf y = q[s].b0 * x + z0[v][s];
+        z0[v][s] = q[s].b1 * x - q[s].a1 * y + z1[v][s];
+        z1[v][s] = q[s].b2 * x - q[s].a2 * y;
+        x = y;
       }
-      out[l] = v;
+      if (phase == 0) store(out_rows + m * P + v * kLaneAlign, x);
     }
     if (phase == 0) ++m;
     phase ^= 1;
   }
-  return m;
+  for (int v = 0; v < kV; ++v)
+    for (std::size_t s = 0; s < kDecimatorSections; ++s) {
+      store(z + 2 * s * P + v * kLaneAlign, z0[v][s]);
+      store(z + (2 * s + 1) * P + v * kLaneAlign, z1[v][s]);
+    }
 }
 
-void flush_tiny(std::vector<double>& v) {
-  for (double& x : v) x = std::abs(x) < kFlushBelow ? 0.0 : x;
+// Decimator over n frames: low-pass every frame (state z: 2 rows of P per section) and keep every second
+// one, starting with the current phase, as rows of out_rows. Returns the kept frames; updates phase.
+NOISEMON_KERNEL_CLONES std::size_t decimate(const FloatBiquad* sections, const float* in, std::size_t n,
+                                            std::size_t P, float* z, float* out_rows, int& phase) {
+  FloatBiquad q[kDecimatorSections];
+  std::copy_n(sections, kDecimatorSections, q);
+  std::size_t l = 0;
+  for (; l + 2 * kLaneAlign <= P; l += 2 * kLaneAlign) decimate_lanes<2>(q, in + l, n, P, z + l, out_rows + l, phase);
+  if (l < P) decimate_lanes<1>(q, in + l, n, P, z + l, out_rows + l, phase);
+  const std::size_t kept = (n + (phase == 0 ? 1 : 0)) / 2;
+  if (n % 2 == 1) phase ^= 1;
+  return kept;
+}
+
+void flush_tiny(std::vector<float>& v) {
+  for (float& x : v) x = std::abs(x) < kFlushBelow ? 0.0f : x;
 }
 
 }  // namespace
@@ -198,8 +276,9 @@ ThirdOctaveBank::Impl::Impl(double fs_hz, std::size_t ch) : fs(fs_hz), channels(
     for (std::size_t b = 0; b < bands.size(); ++b)
       if (stage_of[b] == k) st.bands.push_back(b);
     st.lanes = st.bands.size() * padded;
-    st.state.assign(static_cast<std::size_t>(kBandSections) * 2 * st.lanes, 0.0);
+    st.state.assign(static_cast<std::size_t>(kBandSections) * 2 * st.lanes, 0.0f);
     st.acc.assign(st.lanes, 0.0);
+    st.part.assign(st.lanes, 0.0f);
     st.held.assign(st.lanes, 0.0);
     for (std::size_t j = 0; j < st.bands.size(); ++j) {
       const ThirdOctaveBand& b = bands[st.bands[j]];
@@ -210,10 +289,11 @@ ThirdOctaveBank::Impl::Impl(double fs_hz, std::size_t ch) : fs(fs_hz), channels(
       f.band_pass = !b.nyquist_cut;
       double gain = 1;
       for (int i = 0; i < kBandSections; ++i) {
-        f.c1[i] = sec[i].b1 / sec[i].b0;
-        f.c2[i] = sec[i].b2 / sec[i].b0;
-        f.a1[i] = sec[i].a1;
-        f.a2[i] = sec[i].a2;
+        const double c1 = sec[i].b1 / sec[i].b0, c2 = sec[i].b2 / sec[i].b0;
+        if (c1 != (f.band_pass ? 0.0 : -2.0) || c2 != (f.band_pass ? -1.0 : 1.0))
+          throw std::logic_error("ThirdOctaveBank: band filter numerator differs from the kernel's");
+        f.a1[i] = static_cast<float>(sec[i].a1);
+        f.a2[i] = static_cast<float>(sec[i].a2);
         gain *= sec[i].b0;
       }
       f.gain2 = gain * gain;
@@ -222,9 +302,12 @@ ThirdOctaveBank::Impl::Impl(double fs_hz, std::size_t ch) : fs(fs_hz), channels(
     if (k + 1 < nstages) {
       st.decimator = chebyshev2_lowpass(kDecimatorOrder, kDecimatorStopRatio * st.rate_hz, kDecimatorAttenDb,
                                         st.rate_hz);
-      st.dec_state.assign(st.decimator.size() * 2 * padded, 0.0);
+      for (const Biquad& q : st.decimator)
+        st.dec_sections.push_back({static_cast<float>(q.b0), static_cast<float>(q.b1), static_cast<float>(q.b2),
+                                   static_cast<float>(q.a1), static_cast<float>(q.a2)});
+      st.dec_state.assign(st.decimator.size() * 2 * padded, 0.0f);
     }
-    st.in.assign(((kBlockFrames >> k) + 2) * padded, 0.0);  // a block never brings more
+    st.in.assign(((kBlockFrames >> k) + 2) * padded, 0.0f);  // a block never brings more
   }
 
   // Settling time: group delay at mid-band of the decimators on the way down plus the band filter.
@@ -241,19 +324,21 @@ ThirdOctaveBank::Impl::Impl(double fs_hz, std::size_t ch) : fs(fs_hz), channels(
 void ThirdOctaveBank::Impl::run_bands(Stage& st, std::size_t n) {
   const std::size_t P = padded;
   for (std::size_t j = 0; j < st.bands.size(); ++j) {
-    double* z = st.state.data() + j * kBandSections * 2 * P;
+    float* z = st.state.data() + j * kBandSections * 2 * P;
+    float* part = st.part.data() + j * P;
     double* acc = st.acc.data() + j * P;
+    const auto run = static_cast<std::size_t>(st.count) % kPartialSamples;
     if (st.filters[j].band_pass)
-      filter_band_pass(st.filters[j], st.in.data(), n, P, z, acc);
+      filter_band_pass(st.filters[j], st.in.data(), n, P, z, part, acc, run);
     else
-      filter_band_general(st.filters[j], st.in.data(), n, P, z, acc);
+      filter_high_pass(st.filters[j], st.in.data(), n, P, z, part, acc, run);
   }
   st.count += static_cast<std::int64_t>(n);
   if (n > 0) st.has_output = true;
 }
 
 std::size_t ThirdOctaveBank::Impl::run_decimator(Stage& st, std::size_t n, Stage& next) {
-  return decimate(st.decimator.data(), st.in.data(), n, padded, st.dec_state.data(), next.in.data(), st.phase);
+  return decimate(st.dec_sections.data(), st.in.data(), n, padded, st.dec_state.data(), next.in.data(), st.phase);
 }
 
 void ThirdOctaveBank::Impl::process(const double* in, std::size_t frames) {
@@ -261,9 +346,9 @@ void ThirdOctaveBank::Impl::process(const double* in, std::size_t frames) {
   processed_since_take = true;
   while (frames > 0) {
     const std::size_t n0 = std::min(frames, kBlockFrames);
-    double* dst = stages[0].in.data();
-    for (std::size_t i = 0; i < n0; ++i)
-      std::copy_n(in + i * channels, channels, dst + i * padded);  // padding lanes stay zero
+    float* dst = stages[0].in.data();
+    for (std::size_t i = 0; i < n0; ++i)  // to float; padding lanes stay zero
+      for (std::size_t c = 0; c < channels; ++c) dst[i * padded + c] = static_cast<float>(in[i * channels + c]);
     std::size_t n = n0;
     for (std::size_t k = 0; k < stages.size() && n > 0; ++k) {
       Stage& st = stages[k];
@@ -282,6 +367,8 @@ void ThirdOctaveBank::Impl::process(const double* in, std::size_t frames) {
 void ThirdOctaveBank::Impl::take(double* out) {
   const std::size_t nb = bands.size();
   for (Stage& st : stages) {
+    for (std::size_t l = 0; l < st.lanes; ++l) st.acc[l] += st.part[l];
+    std::fill(st.part.begin(), st.part.end(), 0.0f);
     for (std::size_t j = 0; j < st.bands.size(); ++j) {
       for (std::size_t c = 0; c < channels; ++c) {
         const std::size_t l = j * padded + c;
@@ -299,10 +386,11 @@ void ThirdOctaveBank::Impl::take(double* out) {
 
 void ThirdOctaveBank::Impl::reset() {
   for (Stage& st : stages) {
-    std::fill(st.state.begin(), st.state.end(), 0.0);
+    std::fill(st.state.begin(), st.state.end(), 0.0f);
     std::fill(st.acc.begin(), st.acc.end(), 0.0);
+    std::fill(st.part.begin(), st.part.end(), 0.0f);
     std::fill(st.held.begin(), st.held.end(), 0.0);
-    std::fill(st.dec_state.begin(), st.dec_state.end(), 0.0);
+    std::fill(st.dec_state.begin(), st.dec_state.end(), 0.0f);
     st.count = 0;
     st.has_output = false;
     st.phase = 0;
