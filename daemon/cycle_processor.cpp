@@ -25,6 +25,14 @@ std::int64_t utime_of(std::int64_t epoch, double frames) {
 
 }  // namespace
 
+// Adds the processing thread's CPU time spent in one call to cpu_spent_s_ (idle polling is not counted).
+struct CycleProcessor::CpuScope {
+  explicit CpuScope(double& sink) : sink_(sink), start_(thread_cpu_seconds()) {}
+  ~CpuScope() { sink_ += thread_cpu_seconds() - start_; }
+  double& sink_;
+  double start_;
+};
+
 CycleProcessor::CycleProcessor(const ProcessorConfig& config, const drivers::StreamInfo& info, Sink sink)
     : config_(config),
       info_(info),
@@ -45,7 +53,6 @@ CycleProcessor::CycleProcessor(const ProcessorConfig& config, const drivers::Str
     throw std::invalid_argument("CycleProcessor: microphone count must be 1.." + std::to_string(kMaxMics));
   if (bank_.band_count() > kMaxBands) throw std::logic_error("CycleProcessor: too many bands");
   mean_square_.assign((2 + mics_) * bank_.band_count(), 0.0);
-  cpu_mark_s_ = thread_cpu_seconds();
 }
 
 CycleProcessor::~CycleProcessor() = default;
@@ -56,6 +63,7 @@ void CycleProcessor::note_gap(std::int64_t from, std::int64_t to) {
 }
 
 void CycleProcessor::add_pressure(const drivers::SampleBlock& block) {
+  CpuScope cpu(cpu_spent_s_);
   if (block.channels != drivers::kPressureStreamChannels)
     throw std::invalid_argument("CycleProcessor: pressure block with " + std::to_string(block.channels) + " channels");
   const std::int64_t end_before = pressure_.started() ? pressure_.end_index() : block.first_index;
@@ -93,6 +101,7 @@ void CycleProcessor::predict(std::int64_t first, const drivers::SampleBlock& blo
 }
 
 void CycleProcessor::add_mics(const drivers::SampleBlock& block) {
+  CpuScope cpu(cpu_spent_s_);
   if (block.channels != mics_)
     throw std::invalid_argument("CycleProcessor: microphone block with " + std::to_string(block.channels) +
                                 " channels, expected " + std::to_string(mics_));
@@ -107,6 +116,7 @@ void CycleProcessor::set_operating_point(const drivers::OperatingPoint& op) {
 }
 
 void CycleProcessor::process() {
+  CpuScope cpu(cpu_spent_s_);
   if (!pressure_.started() || !mics_fifo_.started() || !predicted_.started()) return;
   if (next_ == INT64_MIN) {
     next_ = std::max({pressure_.begin_index(), predicted_.begin_index(), mics_fifo_.begin_index() - delay_frames_});
@@ -149,10 +159,9 @@ void CycleProcessor::finish_cycle(std::int64_t end_index) {
   bank_.take_mean_square(mean_square_.data());
   const std::int64_t start = cycle_start_;
   cycle_start_ = end_index;
-  if (start == INT64_MIN) {  // frames before the first boundary only warm the filters up
-    cpu_mark_s_ = thread_cpu_seconds();
-    return;
-  }
+  const double cpu_s = cpu_spent_s_;  // calls completed since the previous cycle; the current call counts for the next
+  cpu_spent_s_ = 0;
+  if (start == INT64_MIN) return;  // frames before the first boundary only warm the filters up
 
   bool gap = false;
   std::int64_t last_gap_end = INT64_MIN;
@@ -170,7 +179,6 @@ void CycleProcessor::finish_cycle(std::int64_t end_index) {
   last_duration_s_ = duration;
   if (gap) {
     ++counters_.cycles_dropped;
-    cpu_mark_s_ = thread_cpu_seconds();
     return;
   }
 
@@ -227,9 +235,7 @@ void CycleProcessor::finish_cycle(std::int64_t end_index) {
   r.lwa_predicted_db = dsp::sound_power_level_db(r.lpa_predicted_db, info_.radius_m);
   for (std::size_t m = 0; m < mics_; ++m) r.mic_lpa_db[m] = static_cast<float>(dsp::level_db(mic_sum[m]));
 
-  const double now = thread_cpu_seconds();
-  r.processing_ms = static_cast<float>(1e3 * (now - cpu_mark_s_));
-  cpu_mark_s_ = now;
+  r.processing_ms = static_cast<float>(1e3 * cpu_s);
   sink_(r);
 }
 

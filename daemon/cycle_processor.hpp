@@ -85,7 +85,8 @@ class CycleProcessor {
   double last_duration_s_ = 0;
   drivers::OperatingPoint op_;
   bool have_op_ = false;
-  double cpu_mark_s_ = 0;
+  double cpu_spent_s_ = 0;  // CPU time spent in add_*/process since the last cycle was finished
+  struct CpuScope;
   ProcessorCounters counters_;
 };
 

@@ -147,7 +147,7 @@ void Pipeline::Impl::run_processing(std::atomic<std::int64_t>& published) {
       if (config.cycles > 0 && reports_queued.load() >= config.cycles) break;
       if (!any) {
         if (draining) break;  // drivers are joined and the rings are empty
-        std::this_thread::sleep_for(std::chrono::microseconds(500));
+        std::this_thread::sleep_for(std::chrono::milliseconds(1));
       }
     }
     processing_state = drivers::ThreadState::kStopped;

@@ -157,10 +157,12 @@ class SimSource final : public Source {
       double t = t_first;
       while (!stop_.load(std::memory_order_relaxed)) {
         // Next chunk end; when behind the wall clock, catch up in bounded passes.
+        // Like a real device, a chunk is delivered only once its last instant has passed on the wall clock.
         t = std::max(t + kChunkS, std::min(sim_now_s(), t + kMaxCatchUpS));
+        sleep_until_sim(t);
+        if (stop_.load(std::memory_order_relaxed)) break;
         gen.advance(t, ring);
         w.blocks.store(gen.blocks_written(), std::memory_order_relaxed);
-        sleep_until_sim(t);
       }
     } catch (const std::exception& e) {
       fail(w, e);
