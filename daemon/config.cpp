@@ -139,6 +139,7 @@ Config parse_table(const toml::table& root, const std::string& origin) {
   l.string("status_channel", c.lcm.status_channel);
   l.string("raw_channel", c.lcm.raw_channel);
   l.string("operating_point_channel", c.lcm.operating_point_channel);
+  l.string("session_channel", c.lcm.session_channel);
   l.boolean("publish_raw", c.lcm.publish_raw);
   l.boolean("publish_operating_point", c.lcm.publish_operating_point);
   l.reject_unknown();

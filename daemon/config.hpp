@@ -17,6 +17,7 @@ struct LcmConfig {
   std::string status_channel = "NOISEMON_STATUS";
   std::string raw_channel = "NOISEMON_RAW";
   std::string operating_point_channel = "NOISEMON_OP";
+  std::string session_channel = "NOISEMON_SESSION";
   bool publish_raw = true;
   bool publish_operating_point = true;
 };

@@ -3,6 +3,8 @@
 
 #include <cstdio>
 
+#include "daemon/config.hpp"
+#include "daemon/replay.hpp"
 #include "daemon/watch.hpp"
 
 int main(int argc, char** argv) {
@@ -22,6 +24,17 @@ int main(int argc, char** argv) {
   w->add_flag("--status", watch.status, "print the daemon's 1 Hz status messages instead (threads, rings, counters)");
   w->add_option("--status-channel", watch.status_channel, "channel of the status messages")->capture_default_str();
 
+  ReplayOptions replay;
+  std::string replay_config, replay_model;
+  CLI::App* r = app.add_subcommand("replay", "run a raw LCM log (lcm-logger of noisemond's channels) through the processing");
+  r->add_option("LOG", replay.log_path, "LCM log holding NOISEMON_SESSION, NOISEMON_RAW and NOISEMON_OP")->required()->check(CLI::ExistingFile);
+  r->add_option("--out", replay.out_log, "write the cycle reports to this LCM log");
+  r->add_option("--csv", replay.csv_path, "write one CSV row per cycle to this file");
+  r->add_flag("--realtime", replay.realtime, "pace the events at their recorded times (default: as fast as possible)");
+  r->add_option("--config", replay_config, "noisemond TOML configuration for the model and channel names")->check(CLI::ExistingFile);
+  r->add_option("--model", replay_model, "model preset, overrides [model] preset (linear, nl_damper, nl_spring_damper, nl_spring_damper_opt)");
+  r->add_flag("!--no-progress", replay.progress, "no progress bar");
+
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
@@ -29,6 +42,16 @@ int main(int argc, char** argv) {
   }
   try {
     if (w->parsed()) return run_watch(watch);
+    if (r->parsed()) {
+      if (!replay_config.empty()) replay.config = load_config(replay_config);
+      if (!replay_model.empty()) replay.config.model = noisemon::model::preset(replay_model);
+      const ReplaySummary s = run_replay(replay);
+      std::fprintf(stderr, "noisemon replay: %lld events, %lld raw blocks, %lld cycles reported, %lld dropped, %lld events of other channels, %lld damaged events skipped\n",
+                   static_cast<long long>(s.events), static_cast<long long>(s.raw_blocks), static_cast<long long>(s.reports),
+                   static_cast<long long>(s.cycles_dropped), static_cast<long long>(s.skipped_unknown),
+                   static_cast<long long>(s.skipped_damaged));
+      return 0;
+    }
   } catch (const std::exception& e) {
     std::fprintf(stderr, "noisemon: %s\n", e.what());
     return 1;

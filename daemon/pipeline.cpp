@@ -202,6 +202,12 @@ void Pipeline::Impl::run_publishing(std::atomic<std::int64_t>& published) {
   try {
     Stat latency, processing;
     auto next_status = Clock::now() + std::chrono::seconds(1);
+    // The session (time base, microphones) goes out before any raw block, then each second for late loggers.
+    auto publish_session = [&] {
+      const noisemon::session_t session = to_message(info, source->name(), now_utime());
+      lcm->publish(config.lcm.session_channel, &session);
+    };
+    publish_session();
     while (true) {
       bool any = false;
       CycleReport r;
@@ -227,6 +233,7 @@ void Pipeline::Impl::run_publishing(std::atomic<std::int64_t>& published) {
       }
       const bool done = processing_done.load(std::memory_order_acquire);
       if (Clock::now() >= next_status || (done && !any)) {
+        publish_session();
         const noisemon::status_t s = make_status(published.load(), latency, processing);
         lcm->publish(config.lcm.status_channel, &s);
         latency = Stat{};

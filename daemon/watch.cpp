@@ -26,20 +26,6 @@ struct Handler {
 };
 void on_signal(int) { g_stop = 1; }
 
-void write_csv_header(std::ostream& out) {
-  out << "cycle,utime,speed_rpm,load_nm,soi_deg_btdc,motored,lpa_measured_db,lpa_predicted_db,lwa_measured_db,"
-         "lwa_predicted_db,flags\n";
-}
-
-void write_csv_row(std::ostream& out, const noisemon::cycle_report_t& r) {
-  char buf[512];
-  std::snprintf(buf, sizeof buf, "%lld,%lld,%.3f,%.3f,%.3f,%d,%.4f,%.4f,%.4f,%.4f,%d\n", static_cast<long long>(r.cycle),
-                static_cast<long long>(r.utime), r.speed_rpm, r.load_nm, r.soi_deg_btdc, r.motored ? 1 : 0,
-                r.lpa_measured_db, r.lpa_predicted_db, r.lwa_measured_db, r.lwa_predicted_db, r.flags);
-  out << buf;
-  out.flush();
-}
-
 void print_bands(const noisemon::cycle_report_t& r) {
   std::printf("      band Hz   CPL dB   meas dB(A)  pred dB(A)  att meas  att pred  flags\n");
   for (int b = 0; b < r.nbands; ++b)
@@ -89,7 +75,7 @@ int run_watch(const WatchOptions& o) {
       std::fprintf(stderr, "noisemon watch: cannot write %s\n", o.csv_path.c_str());
       return 1;
     }
-    write_csv_header(csv);
+    csv << cycle_csv_header();
   }
   std::int64_t received = 0;
   auto last = std::chrono::steady_clock::now();
@@ -100,7 +86,7 @@ int run_watch(const WatchOptions& o) {
     std::printf("%s\n", cycle_line(*r).c_str());
     if (o.bands) print_bands(*r);
     std::fflush(stdout);
-    if (csv.is_open()) write_csv_row(csv, *r);
+    if (csv.is_open()) csv << cycle_csv_row(*r) << std::flush;
     ++received;
     last = std::chrono::steady_clock::now();
   };

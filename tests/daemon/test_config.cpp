@@ -36,6 +36,7 @@ TEST(Config, DocumentedDefaultFileEqualsBuiltInDefaults) {
   EXPECT_EQ(file.lcm.status_channel, def.lcm.status_channel);
   EXPECT_EQ(file.lcm.raw_channel, def.lcm.raw_channel);
   EXPECT_EQ(file.lcm.operating_point_channel, def.lcm.operating_point_channel);
+  EXPECT_EQ(file.lcm.session_channel, def.lcm.session_channel);
   EXPECT_EQ(file.lcm.publish_raw, def.lcm.publish_raw);
   EXPECT_EQ(file.model.k1, def.model.k1);
   EXPECT_EQ(file.model.b1, def.model.b1);

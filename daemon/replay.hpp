@@ -1,0 +1,34 @@
+// `noisemon replay`: runs a raw LCM log (as lcm-logger records noisemond's NOISEMON_RAW, NOISEMON_OP and
+// NOISEMON_SESSION channels) through the same processing as the live daemon (CycleProcessor), as fast as the
+// machine allows or at the recorded speed, and writes the cycle reports to an LCM log and/or CSV.
+#pragma once
+
+#include <cstdint>
+#include <string>
+
+#include "daemon/config.hpp"
+
+namespace noisemon::daemon {
+
+struct ReplayOptions {
+  std::string log_path;
+  std::string out_log;   // cycle reports as an LCM log (channel config.lcm.report_channel); empty: none
+  std::string csv_path;  // one row per cycle; empty: none
+  bool realtime = false; // pace events at their recorded times
+  bool progress = true;  // progress bar on stderr when it is a terminal
+  Config config;         // model parameters and channel names
+};
+
+struct ReplaySummary {
+  std::int64_t events = 0;
+  std::int64_t raw_blocks = 0;
+  std::int64_t reports = 0;
+  std::int64_t cycles_dropped = 0;
+  std::int64_t skipped_unknown = 0;  // events on channels replay does not read
+  std::int64_t skipped_damaged = 0;  // events on known channels that did not decode
+};
+
+// Throws std::runtime_error naming the file (and event) when the log cannot be replayed.
+ReplaySummary run_replay(const ReplayOptions& options);
+
+}  // namespace noisemon::daemon
