@@ -47,9 +47,7 @@ int run(int argc, char** argv) {
   spdlog::set_default_logger(logger);
 
   daemon::Config config = config_path.empty() ? daemon::Config{} : daemon::load_config(config_path);
-  if (!source.empty()) {
-    config.source = source;
-  }
+  if (!source.empty()) config.source = source;
   if (!lcm_url.empty()) config.lcm.url = lcm_url;
   if (cycles >= 0) config.cycles = cycles;
   if (live) config.live = true;
@@ -72,7 +70,6 @@ int run(int argc, char** argv) {
   pipeline.start();
 
   bool notified = false;
-  int signal_number = 0;
   while (!pipeline.finished()) {
     if (!notified && pipeline.ready()) {
       sd_notify(0, "READY=1\nSTATUS=acquiring");
@@ -82,7 +79,6 @@ int run(int argc, char** argv) {
     const timespec timeout{0, 100'000'000};
     const int sig = sigtimedwait(&stop_signals, nullptr, &timeout);
     if (sig > 0) {
-      signal_number = sig;
       spdlog::info("{} received: finishing the last complete cycle", sig == SIGINT ? "SIGINT" : "SIGTERM");
       break;
     }
@@ -93,7 +89,6 @@ int run(int argc, char** argv) {
     spdlog::error("{}", why);
     return 1;
   }
-  (void)signal_number;
   return 0;
 }
 

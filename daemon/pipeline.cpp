@@ -87,12 +87,12 @@ struct Pipeline::Impl {
     failed = true;
   }
 
-  void run_processing(std::atomic<std::int64_t>& published);
+  void run_processing();
   void run_publishing(std::atomic<std::int64_t>& published);
   noisemon::status_t make_status(std::int64_t published, const Stat& latency, const Stat& processing) const;
 };
 
-void Pipeline::Impl::run_processing(std::atomic<std::int64_t>& published) {
+void Pipeline::Impl::run_processing() {
   processing_state = drivers::ThreadState::kRunning;
   try {
     ProcessorConfig pc;
@@ -157,7 +157,6 @@ void Pipeline::Impl::run_processing(std::atomic<std::int64_t>& published) {
     spdlog::error("processing thread failed: {}", e.what());
   }
   processing_done = true;
-  (void)published;
 }
 
 noisemon::status_t Pipeline::Impl::make_status(std::int64_t published, const Stat& latency, const Stat& processing) const {
@@ -265,7 +264,7 @@ void Pipeline::start() {
                              "': the network needs a multicast route (see README, 'LCM and multicast')");
   d.started = Clock::now();
   drivers::Streams streams{&d.pressure_ring, &d.mic_ring, &d.op_ring};
-  d.processing = std::thread([this] { impl_->run_processing(published_); });
+  d.processing = std::thread([this] { impl_->run_processing(); });
   d.publishing = std::thread([this] { impl_->run_publishing(published_); });
   try {
     d.source->start(streams);
