@@ -125,7 +125,7 @@ Config parse_table(const toml::table& root, const std::string& origin) {
 
   TableReader d(top.table("daemon"), "daemon", origin);
   d.string("source", c.source);
-  if (c.source != "sim") d.fail("source", "unknown source '" + c.source + "' (this build knows: sim)");
+  if (c.source != "sim" && c.source != "lcm") d.fail("source", "unknown source '" + c.source + "' (this build knows: sim, lcm)");
   d.integer("cycles", c.cycles, 0, INT64_MAX);
   d.string("log_level", c.log_level);
   static const std::set<std::string> levels{"trace", "debug", "info", "warn", "error", "critical", "off"};

@@ -13,6 +13,7 @@
 #include "daemon/config.hpp"
 #include "daemon/pipeline.hpp"
 #include "daemon/report_messages.hpp"
+#include "drivers/lcm_source.hpp"
 #include "drivers/sim_source.hpp"
 
 namespace {
@@ -21,7 +22,16 @@ using namespace noisemon;
 
 std::unique_ptr<drivers::Source> make_source(const daemon::Config& c) {
   if (c.source == "sim") return drivers::make_sim_source(c.sim);
-  throw daemon::ConfigError("unknown source '" + c.source + "' (this build knows: sim)");
+  if (c.source == "lcm") {
+    drivers::LcmSourceConfig l;
+    l.url = c.lcm.url;
+    l.raw_channel = c.lcm.raw_channel;
+    l.operating_point_channel = c.lcm.operating_point_channel;
+    l.session_channel = c.lcm.session_channel;
+    spdlog::info("lcm source: waiting for {} (start lcm-logplayer now)", l.session_channel);
+    return drivers::make_lcm_source(l);
+  }
+  throw daemon::ConfigError("unknown source '" + c.source + "' (this build knows: sim, lcm)");
 }
 
 int run(int argc, char** argv) {
@@ -31,7 +41,7 @@ int run(int argc, char** argv) {
   bool live = false;
   app.add_option("--config", config_path, "TOML configuration file (default: built-in defaults, simulated engine)")
       ->check(CLI::ExistingFile);
-  app.add_option("--source", source, "acquisition source, overrides [daemon] source (sim)")->check(CLI::IsMember({"sim"}));
+  app.add_option("--source", source, "acquisition source, overrides [daemon] source (sim, lcm)")->check(CLI::IsMember({"sim", "lcm"}));
   app.add_option("--lcm", lcm_url, "LCM URL, overrides [lcm] url (e.g. udpm://239.255.76.67:7667?ttl=0)");
   app.add_option("--cycles", cycles, "stop after publishing N cycles (0 = run until SIGINT/SIGTERM)")->check(CLI::NonNegativeNumber);
   app.add_flag("--live", live, "print one line per cycle on stdout (predicted and measured Lp(A), LW(A))");
@@ -52,6 +62,11 @@ int run(int argc, char** argv) {
   if (cycles >= 0) config.cycles = cycles;
   if (live) config.live = true;
   if (!log_level.empty()) config.log_level = log_level;
+  if (config.source == "lcm") {
+    // The streams come from the bus: publishing them again would feed them back to ourselves.
+    config.lcm.publish_raw = false;
+    config.lcm.publish_operating_point = false;
+  }
   spdlog::set_level(spdlog::level::from_str(config.log_level));
 
   // Signals are taken synchronously by this thread; every thread started below inherits the mask.

@@ -203,6 +203,7 @@ void Pipeline::Impl::run_publishing(std::atomic<std::int64_t>& published) {
     auto next_status = Clock::now() + std::chrono::seconds(1);
     // The session (time base, microphones) goes out before any raw block, then each second for late loggers.
     auto publish_session = [&] {
+      if (!config.lcm.publish_raw) return;  // the session describes the raw streams
       const noisemon::session_t session = to_message(info, source->name(), now_utime());
       lcm->publish(config.lcm.session_channel, &session);
     };

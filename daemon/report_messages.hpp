@@ -1,4 +1,5 @@
-// Conversions between the daemon's internal structs and the LCM message types, and the one-line text form of
+// Conversion of the daemon's cycle report to its LCM message (the stream messages are in
+// drivers/stream_messages.hpp), and the one-line text form of
 // a cycle report that `noisemond --live` and `noisemon watch` print.
 #pragma once
 
@@ -6,20 +7,13 @@
 
 #include "daemon/cycle_report.hpp"
 #include "noisemon/cycle_report_t.hpp"
-#include "noisemon/operating_point_t.hpp"
-#include "noisemon/raw_block_t.hpp"
-#include "noisemon/session_t.hpp"
+#include "drivers/stream_messages.hpp"
 
 namespace noisemon::daemon {
 
 noisemon::cycle_report_t to_message(const CycleReport& r);
-noisemon::operating_point_t to_message(const drivers::OperatingPoint& op);
-noisemon::raw_block_t to_message(const drivers::SampleBlock& b, std::int8_t stream, std::int64_t epoch_utime);
-noisemon::session_t to_message(const drivers::StreamInfo& info, const std::string& source, std::int64_t utime);
-// Back from the messages a log holds (replay). Throw std::invalid_argument naming what does not fit.
-drivers::StreamInfo from_message(const noisemon::session_t& m);
-drivers::SampleBlock from_message(const noisemon::raw_block_t& m);
-drivers::OperatingPoint from_message(const noisemon::operating_point_t& m);
+using drivers::from_message;
+using drivers::to_message;
 
 // CSV form of cycle reports (noisemon watch --csv, noisemon replay --csv).
 std::string cycle_csv_header();

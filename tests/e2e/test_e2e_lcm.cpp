@@ -307,7 +307,7 @@ TEST(EndToEnd, MissingMulticastRouteIsAClearError) {
   EXPECT_NE(text.str().find("cannot open LCM"), std::string::npos) << text.str();
 }
 
-TEST(EndToEnd, LcmLoggerRecordingReplaysToTheLiveReports) {
+TEST(EndToEnd, LcmLoggerRecordingReplaysToTheLiveReportsOfflineAndThroughLcmLogplayer) {
   require_namespace();
   const std::string dir = ::testing::TempDir();
   const std::string log = dir + "/session.lcmlog", live = dir + "/live.csv", replayed = dir + "/replayed.csv";
@@ -332,6 +332,21 @@ TEST(EndToEnd, LcmLoggerRecordingReplaysToTheLiveReports) {
   sb << b.rdbuf();
   EXPECT_EQ(read_csv(live).size(), 40u);
   EXPECT_EQ(sa.str(), sb.str());  // same cycles, same numbers, to the last printed digit
+
+  // The real-tool round trip: lcm-logplayer plays the recorded streams into a daemon whose source is `lcm`.
+  const std::string played = dir + "/played.csv";
+  const pid_t from_bus = spawn({NOISEMOND_PATH, "--source", "lcm", "--lcm", kLcmUrl, "--cycles", "40"}, "/dev/null");
+  std::this_thread::sleep_for(std::chrono::milliseconds(500));
+  const pid_t watch2 = spawn({NOISEMON_PATH, "watch", "--lcm", kLcmUrl, "--count", "40", "--timeout", "30", "--csv", played}, "/dev/null");
+  std::this_thread::sleep_for(std::chrono::milliseconds(300));
+  const pid_t player = spawn({"/usr/bin/lcm-logplayer", "--lcm-url", kLcmUrl, "-e", "NOISEMON_(RAW|OP|SESSION)", log}, "/dev/null");
+  EXPECT_EQ(wait_for(player, std::chrono::seconds(30)), 0);
+  EXPECT_EQ(wait_for(watch2, std::chrono::seconds(30)), 0);
+  EXPECT_EQ(wait_for(from_bus, std::chrono::seconds(30)), 0);
+  std::ifstream c(played);
+  std::stringstream sc;
+  sc << c.rdbuf();
+  EXPECT_EQ(sa.str(), sc.str());  // the live reports again, from the played-back recording
 
   // A log cut off in the middle still replays what it holds, without error.
   const std::string cut = dir + "/cut.lcmlog";

@@ -1,0 +1,110 @@
+#include "drivers/lcm_source.hpp"
+
+#include <atomic>
+#include <chrono>
+#include <lcm/lcm-cpp.hpp>
+#include <mutex>
+#include <thread>
+
+#include "drivers/stream_messages.hpp"
+
+namespace noisemon::drivers {
+namespace {
+
+class LcmSource final : public Source {
+ public:
+  explicit LcmSource(const LcmSourceConfig& c) : config_(c), lcm_(c.url) {
+    const std::string where = "'" + c.session_channel + "' at " + (c.url.empty() ? std::string("LCM's default URL") : c.url);
+    if (!lcm_.good()) throw std::runtime_error("lcm source: cannot open LCM " + where + " (is there a multicast route?)");
+    lcm_.subscribe(c.session_channel, &LcmSource::on_session, this);
+    lcm_.subscribe(c.raw_channel, &LcmSource::on_raw, this);
+    lcm_.subscribe(c.operating_point_channel, &LcmSource::on_operating_point, this);
+    const auto deadline = std::chrono::steady_clock::now() + std::chrono::duration<double>(c.session_timeout_s);
+    while (!have_session_ && std::chrono::steady_clock::now() < deadline) lcm_.handleTimeout(100);
+    if (!have_session_)
+      throw std::runtime_error("lcm source: no noisemon.session_t on " + where + " within " +
+                               std::to_string(c.session_timeout_s) + " s (start lcm-logplayer, or a daemon publishing raw blocks)");
+  }
+  ~LcmSource() override { stop(); }
+
+  std::string name() const override { return "lcm"; }
+  StreamInfo info() const override { return info_; }
+
+  void start(const Streams& streams) override {
+    streams_ = streams;
+    stop_ = false;
+    state_ = ThreadState::kRunning;
+    thread_ = std::thread([this] {
+      try {
+        while (!stop_.load(std::memory_order_relaxed)) lcm_.handleTimeout(50);
+        state_ = ThreadState::kStopped;
+      } catch (const std::exception& e) {
+        std::lock_guard lock(error_mutex_);
+        error_ = e.what();
+        state_ = ThreadState::kFailed;
+      }
+    });
+  }
+  void stop() override {
+    stop_ = true;
+    if (thread_.joinable()) thread_.join();
+  }
+  bool running() const override { return blocks_.load() > 0; }
+  std::vector<DriverThreadStatus> thread_status() const override {
+    DriverThreadStatus s;
+    s.name = "lcm.receive";
+    s.state = state_.load();
+    s.blocks_written = blocks_.load();
+    std::lock_guard lock(error_mutex_);
+    s.error = error_;
+    return {s};
+  }
+
+ private:
+  void on_session(const lcm::ReceiveBuffer*, const std::string&, const noisemon::session_t* m) {
+    if (have_session_) return;  // the first session fixes the time base; repeats are the same session
+    info_ = from_message(*m);
+    have_session_ = true;
+  }
+  void on_raw(const lcm::ReceiveBuffer*, const std::string&, const noisemon::raw_block_t* m) {
+    if (!streams_.pressure) return;  // before start(): nothing to feed yet
+    SampleBlock& b = block_;
+    try {
+      b = from_message(*m);
+    } catch (const std::invalid_argument&) {
+      ++damaged_;
+      return;
+    }
+    BlockRing* ring = m->stream == noisemon::raw_block_t::STREAM_PRESSURE ? streams_.pressure
+                      : m->stream == noisemon::raw_block_t::STREAM_MICS   ? streams_.mics
+                                                                           : nullptr;
+    if (!ring) {
+      ++damaged_;
+      return;
+    }
+    ring->write(&b, 1);  // a full ring counts the overrun itself
+    ++blocks_;
+  }
+  void on_operating_point(const lcm::ReceiveBuffer*, const std::string&, const noisemon::operating_point_t* m) {
+    if (streams_.operating_point) streams_.operating_point->push(from_message(*m));
+  }
+
+  LcmSourceConfig config_;
+  lcm::LCM lcm_;
+  StreamInfo info_;
+  bool have_session_ = false;
+  Streams streams_;
+  SampleBlock block_;
+  std::thread thread_;
+  std::atomic<bool> stop_{false};
+  std::atomic<ThreadState> state_{ThreadState::kIdle};
+  std::atomic<std::uint64_t> blocks_{0}, damaged_{0};
+  mutable std::mutex error_mutex_;
+  std::string error_;
+};
+
+}  // namespace
+
+std::unique_ptr<Source> make_lcm_source(const LcmSourceConfig& config) { return std::make_unique<LcmSource>(config); }
+
+}  // namespace noisemon::drivers
