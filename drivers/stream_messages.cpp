@@ -1,6 +1,7 @@
 #include "drivers/stream_messages.hpp"
 
 #include <cmath>
+#include <algorithm>
 #include <stdexcept>
 
 namespace noisemon::drivers {
@@ -25,8 +26,8 @@ noisemon::raw_block_t to_message(const SampleBlock& b, std::int8_t stream, std::
   m.sample_rate_hz = kPipelineRateHz;
   m.channels = static_cast<std::int16_t>(b.channels);
   m.frames = static_cast<std::int16_t>(b.frames);
-  m.data.resize(b.frames);
-  for (std::uint32_t f = 0; f < b.frames; ++f) m.data[f].assign(b.data + f * b.channels, b.data + (f + 1) * b.channels);
+  m.nsamples = static_cast<std::int32_t>(b.frames * b.channels);
+  m.data.assign(b.data, b.data + m.nsamples);
   return m;
 }
 
@@ -72,8 +73,10 @@ SampleBlock from_message(const noisemon::raw_block_t& m) {
   b.first_index = m.first_index;
   b.frames = static_cast<std::uint32_t>(m.frames);
   b.channels = static_cast<std::uint32_t>(m.channels);
-  for (std::uint32_t f = 0; f < b.frames; ++f)
-    for (std::uint32_t c = 0; c < b.channels; ++c) b.data[f * b.channels + c] = m.data[f][c];
+  if (m.nsamples != m.frames * m.channels || m.data.size() != static_cast<std::size_t>(m.nsamples))
+    throw std::invalid_argument("raw block holds " + std::to_string(m.nsamples) + " samples, expected frames x channels = " +
+                                std::to_string(m.frames * m.channels));
+  std::copy(m.data.begin(), m.data.end(), b.data);
   return b;
 }
 

@@ -87,7 +87,7 @@ TEST(ReportMessages, RawBlockStaysUnderTheLcmFragmentLimit) {
   // LCM 1.3.1 fragments UDP datagrams above 64 KB; the largest raw block must fit with the channel name.
   EXPECT_LT(m.getEncodedSize() + 64, 65000);
   EXPECT_EQ(m.utime, 1'000'000 + 123456 * 25);  // 25 us per frame at 40 kHz
-  EXPECT_DOUBLE_EQ(m.data[3][5], 3.0 * b.channels + 5);
+  EXPECT_DOUBLE_EQ(m.data[3 * b.channels + 5], 3.0 * b.channels + 5);  // frame 3, channel 5
 }
 
 TEST(ReportMessages, PythonDecoderReadsWhatTheDaemonEncodes) {
