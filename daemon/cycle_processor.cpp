@@ -12,6 +12,7 @@ namespace {
 
 constexpr double kFs = drivers::kPipelineRateHz;
 constexpr std::size_t kChunkFrames = 512;
+constexpr std::size_t kModelPrimeFrames = 4096;  // 0.1 s: many time constants of the block model's modes
 
 double thread_cpu_seconds() {
   timespec ts{};
@@ -94,6 +95,14 @@ void CycleProcessor::add_pressure(const drivers::SampleBlock& block) {
 }
 
 void CycleProcessor::predict(std::int64_t first, const drivers::SampleBlock& block) {
+  if (!model_primed_) {
+    // The engine did not start with our first sample: settle the model at the first pressure (its static
+    // equilibrium) instead of hitting it with a step from zero, whose ringing would spill into the first cycle.
+    std::fill(model_in_.begin(), model_in_.end(), block.data[drivers::kPressureChannel]);
+    for (std::size_t done = 0; done < kModelPrimeFrames; done += model_in_.size())
+      model_.process(model_in_.data(), model_out_.data(), model_in_.size());
+    model_primed_ = true;
+  }
   for (std::uint32_t f = 0; f < block.frames; ++f) model_in_[f] = block.data[f * block.channels + drivers::kPressureChannel];
   model_.process(model_in_.data(), model_out_.data(), block.frames);
   // Output j of the model describes the instant of input j - latency.

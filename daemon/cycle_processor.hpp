@@ -68,6 +68,7 @@ class CycleProcessor {
   FrameFifo predicted_;  // model output, indexed by the instant it describes
   FrameFifo mics_fifo_;
   std::vector<double> model_in_, model_out_;
+  bool model_primed_ = false;
 
   dsp::ThirdOctaveBank bank_;  // channels: pressure, predicted, mic 1..M
   std::vector<double> chunk_;  // combined frames waiting for the bank
