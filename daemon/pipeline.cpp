@@ -16,10 +16,6 @@ namespace {
 
 using Clock = std::chrono::steady_clock;
 
-std::int64_t now_utime() {
-  return std::chrono::duration_cast<std::chrono::microseconds>(std::chrono::system_clock::now().time_since_epoch()).count();
-}
-
 struct RawItem {
   std::int8_t stream;
   drivers::SampleBlock block;
@@ -161,7 +157,7 @@ void Pipeline::Impl::run_processing() {
 
 noisemon::status_t Pipeline::Impl::make_status(std::int64_t published, const Stat& latency, const Stat& processing) const {
   noisemon::status_t s;
-  s.utime = now_utime();
+  s.utime = drivers::wall_utime();
   s.uptime_s = std::chrono::duration<double>(Clock::now() - started).count();
   s.source = source->name();
   for (const drivers::DriverThreadStatus& t : source->thread_status()) {
@@ -204,7 +200,7 @@ void Pipeline::Impl::run_publishing(std::atomic<std::int64_t>& published) {
     // The session (time base, microphones) goes out before any raw block, then each second for late loggers.
     auto publish_session = [&] {
       if (!config.lcm.publish_raw) return;  // the session describes the raw streams
-      const noisemon::session_t session = to_message(info, source->name(), now_utime());
+      const noisemon::session_t session = to_message(info, source->name(), drivers::wall_utime());
       lcm->publish(config.lcm.session_channel, &session);
     };
     publish_session();
@@ -215,7 +211,7 @@ void Pipeline::Impl::run_publishing(std::atomic<std::int64_t>& published) {
         const noisemon::cycle_report_t msg = to_message(r);
         lcm->publish(config.lcm.report_channel, &msg);
         ++published;
-        latency.add(1e-3 * static_cast<double>(now_utime() - r.window_end_utime));
+        latency.add(1e-3 * static_cast<double>(drivers::wall_utime() - r.window_end_utime));
         processing.add(r.processing_ms);
         if (on_report) on_report(r);
         any = true;

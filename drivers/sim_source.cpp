@@ -28,11 +28,6 @@ constexpr double kChunkS = 0.005;             // generation chunk of the sample 
 constexpr double kOperatingPointPeriodS = 0.1;  // 10 Hz
 constexpr double kMaxCatchUpS = 0.05;         // simulated time per loop pass when behind (keeps stop() prompt)
 
-std::int64_t wall_utime() {
-  return std::chrono::duration_cast<std::chrono::microseconds>(std::chrono::system_clock::now().time_since_epoch())
-      .count();
-}
-
 void validate(const SimConfig& c) {
   auto fail = [](const std::string& what) { throw std::invalid_argument("sim source: " + what); };
   if (!(c.speed_rpm > 0.0 && c.speed_rpm <= 10000.0)) fail("speed_rpm must be in (0, 10000]");

@@ -1,5 +1,7 @@
 #include "drivers/socketcan_reader.hpp"
 
+#include "drivers/source.hpp"
+
 #include <cerrno>
 #include <cstring>
 #include <ctime>
@@ -15,12 +17,6 @@
 
 namespace noisemon::drivers {
 namespace {
-
-std::int64_t now_utime() {
-  timespec ts{};
-  clock_gettime(CLOCK_REALTIME, &ts);
-  return static_cast<std::int64_t>(ts.tv_sec) * 1000000 + ts.tv_nsec / 1000;
-}
 
 }  // namespace
 
@@ -80,7 +76,7 @@ CanReadResult SocketCanReader::read(int timeout_ms, ReceivedCanFrame& out) {
   bool have_drops = false;
   std::uint32_t drops = 0;
   if (!parse_can_ancillary(msg, utime, have_drops, drops)) {
-    utime = now_utime();
+    utime = wall_utime();
     ++stats_.fallback_timestamps;
   }
   if (have_drops) stats_.kernel_drops = drops;

@@ -9,6 +9,7 @@
 
 #include <array>
 #include <atomic>
+#include <chrono>
 #include <cstdint>
 #include <memory>
 #include <string>
@@ -19,6 +20,11 @@
 namespace noisemon::drivers {
 
 inline constexpr double kPipelineRateHz = 40000.0;
+
+// The wall clock as an LCM utime: microseconds since 1970.
+inline std::int64_t wall_utime() {
+  return std::chrono::duration_cast<std::chrono::microseconds>(std::chrono::system_clock::now().time_since_epoch()).count();
+}
 
 // A block of consecutive frames of one stream, channels interleaved: data[frame * channels + channel].
 struct SampleBlock {
