@@ -5,7 +5,8 @@ packages=(
   build-essential cmake pkg-config ninja-build
   libeigen3-dev libspdlog-dev libfmt-dev libtomlplusplus-dev libcli11-dev
   liblcm-dev liblcm-bin liblcm-java libglib2.0-dev default-jdk-headless
-  libcomedi-dev libsystemd-dev
+  libcomedi-dev libsystemd-dev libsndfile1-dev nlohmann-json3-dev libceres-dev
+  clang libclang-rt-14-dev
   libgtest-dev libgmock-dev libbenchmark-dev
   iproute2 util-linux python3
 )

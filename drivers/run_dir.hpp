@@ -1,0 +1,56 @@
+// The run directory: DESIGN.md's interchange format for recordings from other systems.
+//
+//   run.json      condition (name, speed_rpm, load_nm, soi_deg_btdc, rail_pressure_bar|null, motored),
+//                 pressure {file, units: bar|Pa}, mics {file, units: Pa, positions_m[M][3], radius_m}
+//   pressure.csv  header `time_s,crank_deg,pressure`; one row per encoder sample, crank_deg unwrapped,
+//                 0 = firing TDC of the first cycle (cycle k spans [720k - 360, 720k + 360))
+//   mics.wav      M-channel IEEE-float WAV in Pa; its t = 0 is pressure.csv's time_s = 0
+//
+// Reading checks everything a recording from another system can get wrong and throws RunDirError naming the
+// file, the position (line, key, channel) and what was expected. Unknown JSON keys are ignored.
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <filesystem>
+#include <optional>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+namespace noisemon::drivers {
+
+struct RunCondition {
+  std::string name;                        // e.g. "idle_mi12"
+  double speed_rpm = 0.0;
+  double load_nm = 0.0;
+  double soi_deg_btdc = 0.0;
+  std::optional<double> rail_pressure_bar; // null in run.json when unknown
+  bool motored = false;
+};
+
+struct RunDir {
+  RunCondition condition;
+  // Pressure on the encoder's samples (uneven in time), converted to Pa on reading.
+  std::vector<double> time_s;
+  std::vector<double> crank_deg;            // unwrapped, strictly increasing
+  std::vector<double> pressure_pa;
+  // Microphones (absent: mic_count == 0 and the run has no "mics" entry).
+  double mic_rate_hz = 0.0;
+  std::uint32_t mic_count = 0;
+  std::vector<float> mic_pa;                // frame-major: mic_pa[frame * mic_count + mic]
+  std::vector<std::array<double, 3>> mic_positions_m;
+  double radius_m = 1.75;
+};
+
+struct RunDirError : std::runtime_error {
+  using std::runtime_error::runtime_error;
+};
+
+// Reads DIR/run.json and the files it names (paths relative to DIR).
+RunDir read_run_dir(const std::filesystem::path& dir);
+// Writes DIR/run.json, DIR/pressure.csv (pressure in `pressure_units`, "bar" or "Pa") and, when the run has
+// microphones, DIR/mics.wav (32-bit float). Creates DIR; throws RunDirError naming the file on failure.
+void write_run_dir(const std::filesystem::path& dir, const RunDir& run, const std::string& pressure_units = "bar");
+
+}  // namespace noisemon::drivers
