@@ -6,6 +6,8 @@
 #include <stdexcept>
 #include <string>
 
+#include "drivers/can_source.hpp"
+#include "drivers/comedi_source.hpp"
 #include "drivers/sim_source.hpp"
 #include "model/block_params.hpp"
 
@@ -20,10 +22,11 @@ struct LcmConfig {
   std::string session_channel = "NOISEMON_SESSION";
   bool publish_raw = true;
   bool publish_operating_point = true;
+  double session_timeout_s = 30.0;  // source "lcm": how long to wait for the session message
 };
 
 struct Config {
-  std::string source = "sim";
+  std::string source = "sim";       // sim, lcm, comedi
   std::int64_t cycles = 0;          // stop after this many cycles; 0 = until SIGINT/SIGTERM
   std::string log_level = "info";
   bool live = false;                // print one line per cycle on stdout
@@ -33,6 +36,9 @@ struct Config {
   double acoustic_delay_s = -1;     // < 0: radius / speed of sound, as the source reports it
   double ring_seconds = 2.0;        // capacity of each driver ring buffer
   drivers::SimConfig sim;
+  drivers::ComediSourceConfig comedi;  // [comedi]: the DAQ hardware (source = "comedi")
+  drivers::CanSourceConfig can;        // [can]: operating points from CAN; when configured, they replace the
+                                       // source's own (any source)
 };
 
 // A configuration error; what() names the file and the field.

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <ctime>
+#include <limits>
 
 #include "dsp/levels.hpp"
 #include "dsp/weighting.hpp"
@@ -50,8 +51,9 @@ CycleProcessor::CycleProcessor(const ProcessorConfig& config, const drivers::Str
       bank_(kFs, 2 + info.mic_count),
       chunk_((2 + info.mic_count) * kChunkFrames),
       mean_square_((2 + info.mic_count) * 64) {
-  if (info.mic_count == 0 || info.mic_count > kMaxMics)
-    throw std::invalid_argument("CycleProcessor: microphone count must be 1.." + std::to_string(kMaxMics));
+  // 0 microphones: a pressure-only recording (an imported cycle table); measured levels are then NaN.
+  if (info.mic_count > kMaxMics)
+    throw std::invalid_argument("CycleProcessor: microphone count must be 0.." + std::to_string(kMaxMics));
   if (bank_.band_count() > kMaxBands) throw std::logic_error("CycleProcessor: too many bands");
   mean_square_.assign((2 + mics_) * bank_.band_count(), 0.0);
 }
@@ -111,6 +113,7 @@ void CycleProcessor::predict(std::int64_t first, const drivers::SampleBlock& blo
 
 void CycleProcessor::add_mics(const drivers::SampleBlock& block) {
   CpuScope cpu(cpu_spent_s_);
+  if (mics_ == 0) throw std::invalid_argument("CycleProcessor: microphone block for a stream without microphones");
   if (block.channels != mics_)
     throw std::invalid_argument("CycleProcessor: microphone block with " + std::to_string(block.channels) +
                                 " channels, expected " + std::to_string(mics_));
@@ -126,12 +129,15 @@ void CycleProcessor::set_operating_point(const drivers::OperatingPoint& op) {
 
 void CycleProcessor::process() {
   CpuScope cpu(cpu_spent_s_);
-  if (!pressure_.started() || !mics_fifo_.started() || !predicted_.started()) return;
+  const bool with_mics = mics_ > 0;
+  if (!pressure_.started() || (with_mics && !mics_fifo_.started()) || !predicted_.started()) return;
   if (next_ == INT64_MIN) {
-    next_ = std::max({pressure_.begin_index(), predicted_.begin_index(), mics_fifo_.begin_index() - delay_frames_});
+    next_ = std::max(pressure_.begin_index(), predicted_.begin_index());
+    if (with_mics) next_ = std::max(next_, mics_fifo_.begin_index() - delay_frames_);
     settle_from_ = next_;
   }
-  const std::int64_t end = std::min({pressure_.end_index(), predicted_.end_index(), mics_fifo_.end_index() - delay_frames_});
+  std::int64_t end = std::min(pressure_.end_index(), predicted_.end_index());
+  if (with_mics) end = std::min(end, mics_fifo_.end_index() - delay_frames_);
   const std::size_t channels = 2 + mics_;
   for (; next_ < end; ++next_) {
     const double* p = pressure_.frame(next_);
@@ -146,14 +152,16 @@ void CycleProcessor::process() {
     double* out = &chunk_[chunk_frames_ * channels];
     out[0] = p[drivers::kPressureChannel];
     out[1] = predicted_.frame(next_)[0];
-    const double* m = mics_fifo_.frame(next_ + delay_frames_);
-    std::copy(m, m + mics_, out + 2);
+    if (with_mics) {
+      const double* m = mics_fifo_.frame(next_ + delay_frames_);
+      std::copy(m, m + mics_, out + 2);
+    }
     if (++chunk_frames_ == kChunkFrames) flush_chunk();
   }
   // Keep what later combined frames still need.
   pressure_.drop_before(next_);
   predicted_.drop_before(next_);
-  mics_fifo_.drop_before(next_ + delay_frames_);
+  if (with_mics) mics_fifo_.drop_before(next_ + delay_frames_);
 }
 
 void CycleProcessor::flush_chunk() {
@@ -203,6 +211,7 @@ void CycleProcessor::finish_cycle(std::int64_t end_index) {
   r.nmics = static_cast<std::uint16_t>(mics_);
   if (!have_op_) r.flags |= kCycleNoOperatingPoint;
   if (odd) r.flags |= kCycleLengthOdd;
+  if (mics_ == 0) r.flags |= kCycleNoMics;
 
   const double settled_s = static_cast<double>(start - settle_from_) / kFs;
   const auto& bands = bank_.bands();
@@ -219,8 +228,9 @@ void CycleProcessor::finish_cycle(std::int64_t end_index) {
       mic_ms_mean += msm;
       mic_sum[m] += msm * std::pow(10.0, aw / 10.0);
     }
-    mic_ms_mean /= static_cast<double>(mics_);  // energy average over microphones
-    const double meas_a = dsp::level_db(mic_ms_mean) + aw;
+    // Energy average over microphones; without microphones nothing was measured: NaN, never a number.
+    const double meas_a = mics_ > 0 ? dsp::level_db(mic_ms_mean / static_cast<double>(mics_)) + aw
+                                    : std::numeric_limits<double>::quiet_NaN();
     meas_sum += dsp::mean_square_from_level(meas_a);
     pred_sum += dsp::mean_square_from_level(pred_a);
     r.band_hz[b] = static_cast<float>(bands[b].nominal_hz);

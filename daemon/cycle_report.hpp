@@ -18,6 +18,7 @@ enum CycleFlag : std::int32_t {
   kCycleGap = 2,
   kCycleNoOperatingPoint = 4,
   kCycleLengthOdd = 8,
+  kCycleNoMics = 16,  // pressure-only stream: measured levels and attenuation are NaN
 };
 
 struct CycleReport {

@@ -4,7 +4,9 @@
 #include <cstdio>
 
 #include "daemon/config.hpp"
+#include "daemon/import_export_cli.hpp"
 #include "daemon/replay.hpp"
+#include "daemon/sim_command.hpp"
 #include "daemon/watch.hpp"
 
 int main(int argc, char** argv) {
@@ -35,6 +37,9 @@ int main(int argc, char** argv) {
   r->add_option("--model", replay_model, "model preset, overrides [model] preset (linear, nl_damper, nl_spring_damper, nl_spring_damper_opt)");
   r->add_flag("!--no-progress", replay.progress, "no progress bar");
 
+  ImportExportCommands import_export(app);
+  SimCommand sim(app);
+
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
@@ -42,12 +47,14 @@ int main(int argc, char** argv) {
   }
   try {
     if (w->parsed()) return run_watch(watch);
+    if (const int status = import_export.run(); status >= 0) return status;
+    if (const int status = sim.run(); status >= 0) return status;
     if (r->parsed()) {
       if (!replay_config.empty()) replay.config = load_config(replay_config);
       if (!replay_model.empty()) replay.config.model = noisemon::model::preset(replay_model);
       const ReplaySummary s = run_replay(replay);
-      std::fprintf(stderr, "noisemon replay: %lld events, %lld raw blocks, %lld cycles reported, %lld dropped, %lld events of other channels, %lld damaged events skipped\n",
-                   static_cast<long long>(s.events), static_cast<long long>(s.raw_blocks), static_cast<long long>(s.reports),
+      std::fprintf(stderr, "noisemon replay: %lld session(s), %lld events, %lld raw blocks, %lld cycles reported, %lld dropped, %lld events of other channels, %lld damaged events skipped\n",
+                   static_cast<long long>(s.sessions), static_cast<long long>(s.events), static_cast<long long>(s.raw_blocks), static_cast<long long>(s.reports),
                    static_cast<long long>(s.cycles_dropped), static_cast<long long>(s.skipped_unknown),
                    static_cast<long long>(s.skipped_damaged));
       return 0;

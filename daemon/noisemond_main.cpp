@@ -13,26 +13,11 @@
 #include "daemon/config.hpp"
 #include "daemon/pipeline.hpp"
 #include "daemon/report_messages.hpp"
-#include "drivers/lcm_source.hpp"
-#include "drivers/sim_source.hpp"
+#include "daemon/sources.hpp"
 
 namespace {
 
 using namespace noisemon;
-
-std::unique_ptr<drivers::Source> make_source(const daemon::Config& c) {
-  if (c.source == "sim") return drivers::make_sim_source(c.sim);
-  if (c.source == "lcm") {
-    drivers::LcmSourceConfig l;
-    l.url = c.lcm.url;
-    l.raw_channel = c.lcm.raw_channel;
-    l.operating_point_channel = c.lcm.operating_point_channel;
-    l.session_channel = c.lcm.session_channel;
-    spdlog::info("lcm source: waiting for {} (start lcm-logplayer now)", l.session_channel);
-    return drivers::make_lcm_source(l);
-  }
-  throw daemon::ConfigError("unknown source '" + c.source + "' (this build knows: sim, lcm)");
-}
 
 int run(int argc, char** argv) {
   CLI::App app{"noisemond - engine-noise monitor: predicted and measured dB(A) per engine cycle over LCM"};
@@ -41,7 +26,8 @@ int run(int argc, char** argv) {
   bool live = false;
   app.add_option("--config", config_path, "TOML configuration file (default: built-in defaults, simulated engine)")
       ->check(CLI::ExistingFile);
-  app.add_option("--source", source, "acquisition source, overrides [daemon] source (sim, lcm)")->check(CLI::IsMember({"sim", "lcm"}));
+  app.add_option("--source", source, "acquisition source, overrides [daemon] source: sim (virtual engine), lcm (raw blocks on the bus), comedi (DAQ card, see [comedi])")
+      ->check(CLI::IsMember({"sim", "lcm", "comedi"}));
   app.add_option("--lcm", lcm_url, "LCM URL, overrides [lcm] url (e.g. udpm://239.255.76.67:7667?ttl=0)");
   app.add_option("--cycles", cycles, "stop after publishing N cycles (0 = run until SIGINT/SIGTERM)")->check(CLI::NonNegativeNumber);
   app.add_flag("--live", live, "print one line per cycle on stdout (predicted and measured Lp(A), LW(A))");
@@ -81,7 +67,7 @@ int run(int argc, char** argv) {
     std::cout << daemon::cycle_line_header() << std::endl;
     hook = [](const daemon::CycleReport& r) { std::cout << daemon::cycle_line(daemon::to_message(r)) << std::endl; };
   }
-  daemon::Pipeline pipeline(config, make_source(config), hook);
+  daemon::Pipeline pipeline(config, daemon::make_source(config), hook);
   pipeline.start();
 
   bool notified = false;

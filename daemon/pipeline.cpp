@@ -189,6 +189,11 @@ noisemon::status_t Pipeline::Impl::make_status(std::int64_t published, const Sta
   s.latency_ms_max = static_cast<float>(latency.max);
   s.processing_ms_mean = processing.n ? static_cast<float>(processing.sum / processing.n) : 0.f;
   s.processing_ms_max = static_cast<float>(processing.max);
+  for (const drivers::DriverCounter& c : source->counters()) {
+    s.counter_name.push_back(c.name);
+    s.counter_value.push_back(c.value);
+  }
+  s.ncounters = static_cast<std::int16_t>(s.counter_name.size());
   return s;
 }
 

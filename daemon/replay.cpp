@@ -14,14 +14,15 @@
 
 #include "daemon/cycle_processor.hpp"
 #include "daemon/report_messages.hpp"
+#include "drivers/lcm_log_reader.hpp"
 
 namespace noisemon::daemon {
 namespace {
 
 // Decodes one event's payload; false when it does not decode (a damaged or foreign event).
 template <class Message>
-bool decode(const lcm::LogEvent& e, Message& m) {
-  return m.decode(e.data, 0, e.datalen) == e.datalen;
+bool decode(const drivers::LcmLogEvent& e, Message& m) {
+  return drivers::decode_message(e.data, static_cast<std::size_t>(e.datalen), m);
 }
 
 class Progress {
@@ -50,10 +51,7 @@ class Progress {
 }  // namespace
 
 ReplaySummary run_replay(const ReplayOptions& o) {
-  struct stat st {};
-  if (stat(o.log_path.c_str(), &st) != 0) throw std::runtime_error(o.log_path + ": cannot open log file");
-  lcm::LogFile log(o.log_path, "r");
-  if (!log.good()) throw std::runtime_error(o.log_path + ": cannot open log file");
+  drivers::LcmLogReader log(o.log_path);
   std::unique_ptr<lcm::LogFile> out;
   if (!o.out_log.empty()) {
     out = std::make_unique<lcm::LogFile>(o.out_log, "w");
@@ -69,11 +67,12 @@ ReplaySummary run_replay(const ReplayOptions& o) {
   const LcmConfig& ch = o.config.lcm;
   ReplaySummary sum;
   std::optional<drivers::StreamInfo> info;
+  std::string condition;  // of the current session
   std::unique_ptr<CycleProcessor> processor;
   std::vector<char> encoded;
   const auto sink = [&](const CycleReport& r) {
     const noisemon::cycle_report_t m = to_message(r);
-    if (csv.is_open()) csv << cycle_csv_row(m);
+    if (csv.is_open()) csv << cycle_csv_row(m, condition);
     if (out) {
       encoded.resize(static_cast<std::size_t>(m.getEncodedSize()));
       m.encode(encoded.data(), 0, static_cast<int>(encoded.size()));
@@ -82,15 +81,22 @@ ReplaySummary run_replay(const ReplayOptions& o) {
     }
     ++sum.reports;
   };
-  const auto skip_damaged = [&](const lcm::LogEvent& e) {
+  const auto skip_damaged = [&](const drivers::LcmLogEvent& e, const char* why = "does not decode as the expected type") {
     if (sum.skipped_damaged++ < 10)
-      spdlog::warn("{}: event {} on {} does not decode as the expected type: skipped", o.log_path, e.eventnum, e.channel);
+      spdlog::warn("{}: event {} on {}: {}: skipped", o.log_path, e.eventnum, e.channel, why);
+  };
+  // A session ends: its last, unfinished cycle is not reported.
+  const auto end_session = [&] {
+    if (processor) sum.cycles_dropped += processor->counters().cycles_dropped;
+    processor.reset();
   };
 
-  Progress progress(o.progress, static_cast<long>(st.st_size));
+  Progress progress(o.progress, static_cast<long>(log.size()));
   std::int64_t first_utime = 0;
   const auto wall_start = std::chrono::steady_clock::now();
-  while (const lcm::LogEvent* e = log.readNextEvent()) {
+  drivers::LcmLogEvent event;
+  const drivers::LcmLogEvent* e = &event;
+  while (log.next(event)) {
     ++sum.events;
     if (o.realtime) {
       if (sum.events == 1) first_utime = e->timestamp;
@@ -102,12 +108,22 @@ ReplaySummary run_replay(const ReplayOptions& o) {
         skip_damaged(*e);
         continue;
       }
-      if (!processor) {
-        try {
-          info = from_message(m);
-        } catch (const std::invalid_argument& err) {
-          throw std::runtime_error(o.log_path + ": event " + std::to_string(e->eventnum) + ": " + err.what());
-        }
+      drivers::StreamInfo next;
+      try {
+        next = from_message(m);
+      } catch (const std::invalid_argument& err) {
+        skip_damaged(*e, err.what());
+        continue;
+      }
+      // The daemon repeats its session message every second; a new epoch (or layout, or condition) is a new run
+      // and gets a fresh processor: the previous run's filter and model states must not leak into it.
+      const bool same = processor && info && info->epoch_utime == next.epoch_utime &&
+                        info->mic_count == next.mic_count && condition == m.condition;
+      if (!same) {
+        end_session();
+        ++sum.sessions;
+        info = next;
+        condition = m.condition;
         ProcessorConfig pc;
         pc.model = o.config.model;
         pc.acoustic_delay_s = o.config.acoustic_delay_s;
@@ -122,21 +138,23 @@ ReplaySummary run_replay(const ReplayOptions& o) {
       if (!processor)
         throw std::runtime_error(o.log_path + ": event " + std::to_string(e->eventnum) + ": raw block before any " +
                                  ch.session_channel + " message (was the log started with the daemon's channels?)");
-      drivers::SampleBlock b;
-      try {
-        b = from_message(m);
-      } catch (const std::invalid_argument& err) {
-        skip_damaged(*e);
+      // A block that contradicts its session or itself is skipped: the processor then sees lost samples and
+      // drops the cycles they touch instead of reporting wrong numbers.
+      if (const std::string why = drivers::raw_block_problem(m, *info); !why.empty()) {
+        skip_damaged(*e, why.c_str());
         continue;
       }
+      const drivers::SampleBlock b = from_message(m);
       ++sum.raw_blocks;
-      if (m.stream == noisemon::raw_block_t::STREAM_PRESSURE)
-        processor->add_pressure(b);
-      else if (m.stream == noisemon::raw_block_t::STREAM_MICS)
-        processor->add_mics(b);
-      else
-        skip_damaged(*e);
-      processor->process();
+      try {
+        if (m.stream == noisemon::raw_block_t::STREAM_PRESSURE)
+          processor->add_pressure(b);
+        else
+          processor->add_mics(b);
+        processor->process();
+      } catch (const std::exception& err) {
+        throw std::runtime_error(o.log_path + ": event " + std::to_string(e->eventnum) + ": " + err.what());
+      }
     } else if (e->channel == ch.operating_point_channel) {
       noisemon::operating_point_t m;
       if (!decode(*e, m)) {
@@ -147,11 +165,18 @@ ReplaySummary run_replay(const ReplayOptions& o) {
     } else {
       ++sum.skipped_unknown;
     }
-    progress.update(std::ftell(log.getFilePtr()), sum.reports);
+    progress.update(static_cast<long>(log.position()), sum.reports);
   }
   progress.finish();
+  if (log.damaged() > 0) {
+    // Stretches of the file that were no event at all (damaged framing, a log cut short): one each.
+    spdlog::warn("{}: {} damaged stretch(es) of {} bytes skipped, the first at byte {}{}", o.log_path, log.damaged(),
+                 log.damaged_bytes(), log.first_damage_offset(), log.truncated() ? " (the log ends inside an event)" : "");
+    sum.events += log.damaged();
+    sum.skipped_damaged += log.damaged();
+  }
   if (!processor) throw std::runtime_error(o.log_path + ": no " + ch.session_channel + " message: nothing to replay");
-  sum.cycles_dropped = processor->counters().cycles_dropped;
+  end_session();
   return sum;
 }
 

@@ -21,6 +21,7 @@ struct ReplayOptions {
 
 struct ReplaySummary {
   std::int64_t events = 0;
+  std::int64_t sessions = 0;         // runs: a new epoch starts a fresh processor (cycle numbers restart at 0)
   std::int64_t raw_blocks = 0;
   std::int64_t reports = 0;
   std::int64_t cycles_dropped = 0;

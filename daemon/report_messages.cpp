@@ -44,15 +44,25 @@ noisemon::cycle_report_t to_message(const CycleReport& r) {
 
 std::string cycle_csv_header() {
   return "cycle,utime,speed_rpm,load_nm,soi_deg_btdc,motored,lpa_measured_db,lpa_predicted_db,lwa_measured_db,"
-         "lwa_predicted_db,flags\n";
+         "lwa_predicted_db,flags,condition\n";
 }
 
-std::string cycle_csv_row(const noisemon::cycle_report_t& r) {
+std::string cycle_csv_row(const noisemon::cycle_report_t& r, const std::string& condition) {
   char buf[512];
-  std::snprintf(buf, sizeof buf, "%lld,%lld,%.3f,%.3f,%.3f,%d,%.4f,%.4f,%.4f,%.4f,%d\n", static_cast<long long>(r.cycle),
+  std::snprintf(buf, sizeof buf, "%lld,%lld,%.3f,%.3f,%.3f,%d,%.4f,%.4f,%.4f,%.4f,%d,", static_cast<long long>(r.cycle),
                 static_cast<long long>(r.utime), r.speed_rpm, r.load_nm, r.soi_deg_btdc, r.motored ? 1 : 0,
                 r.lpa_measured_db, r.lpa_predicted_db, r.lwa_measured_db, r.lwa_predicted_db, r.flags);
-  return buf;
+  std::string row = buf;
+  // RFC 4180 quoting when the name needs it.
+  if (condition.find_first_of(",\"\r\n") == std::string::npos) {
+    row += condition;
+  } else {
+    row += '"';
+    for (char c : condition) row += c == '"' ? std::string("\"\"") : std::string(1, c);
+    row += '"';
+  }
+  row += '\n';
+  return row;
 }
 
 std::string cycle_flags_text(std::int32_t flags) {
@@ -65,6 +75,7 @@ std::string cycle_flags_text(std::int32_t flags) {
   add(noisemon::cycle_report_t::CYCLE_GAP, "gap");
   add(noisemon::cycle_report_t::CYCLE_NO_OPERATING_POINT, "no-op");
   add(noisemon::cycle_report_t::CYCLE_LENGTH_ODD, "odd-length");
+  add(noisemon::cycle_report_t::CYCLE_NO_MICS, "no-mics");
   return s;
 }
 
@@ -73,11 +84,24 @@ std::string cycle_line_header() {
          "           rpm   degBTDC      dB(A)  dB(A)         dB(A)  dB(A)           dB";
 }
 
+namespace {
+// A level right-aligned in `width` columns; "n/a" when it was not measured (NaN: no microphones).
+std::string level_text(double db, int width) {
+  char buf[32];
+  if (std::isnan(db))
+    std::snprintf(buf, sizeof buf, "%*s", width, "n/a");
+  else
+    std::snprintf(buf, sizeof buf, "%*.2f", width, db);
+  return buf;
+}
+}  // namespace
+
 std::string cycle_line(const noisemon::cycle_report_t& r) {
   char buf[256];
-  std::snprintf(buf, sizeof buf, "%8lld %7.1f %7.1f %12.2f %6.2f %13.2f %6.2f %12.2f  %s", static_cast<long long>(r.cycle),
-                r.speed_rpm, r.soi_deg_btdc, r.lpa_measured_db, r.lpa_predicted_db, r.lwa_measured_db, r.lwa_predicted_db,
-                r.lpa_predicted_db - r.lpa_measured_db, cycle_flags_text(r.flags).c_str());
+  std::snprintf(buf, sizeof buf, "%8lld %7.1f %7.1f %s %s %s %s %s  %s", static_cast<long long>(r.cycle), r.speed_rpm,
+                r.soi_deg_btdc, level_text(r.lpa_measured_db, 12).c_str(), level_text(r.lpa_predicted_db, 6).c_str(),
+                level_text(r.lwa_measured_db, 13).c_str(), level_text(r.lwa_predicted_db, 6).c_str(),
+                level_text(r.lpa_predicted_db - r.lpa_measured_db, 12).c_str(), cycle_flags_text(r.flags).c_str());
   return buf;
 }
 

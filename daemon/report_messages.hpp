@@ -15,9 +15,11 @@ noisemon::cycle_report_t to_message(const CycleReport& r);
 using drivers::from_message;
 using drivers::to_message;
 
-// CSV form of cycle reports (noisemon watch --csv, noisemon replay --csv).
+// CSV form of cycle reports (noisemon watch --csv, noisemon replay --csv). The last column is the run's
+// condition name (session_t::condition; empty for a live daemon). Levels that were not measured (no
+// microphones) are written as "nan".
 std::string cycle_csv_header();
-std::string cycle_csv_row(const noisemon::cycle_report_t& r);
+std::string cycle_csv_row(const noisemon::cycle_report_t& r, const std::string& condition = "");
 
 // Column header and one line per cycle: cycle, speed, SOI, measured/predicted Lp(A) and LW(A), difference.
 std::string cycle_line_header();

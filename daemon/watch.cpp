@@ -57,6 +57,12 @@ void print_status(const noisemon::status_t& s) {
   for (int i = 0; i < s.nrings; ++i)
     std::printf(" %s=%.0f%%/%lld overruns", s.ring_name[i].c_str(), 100.0 * s.ring_fill[i], static_cast<long long>(s.ring_overruns[i]));
   std::printf("\n");
+  if (s.ncounters > 0) {
+    std::printf("  counters:");
+    for (int i = 0; i < s.ncounters; ++i)
+      std::printf(" %s=%lld", s.counter_name[i].c_str(), static_cast<long long>(s.counter_value[i]));
+    std::printf("\n");
+  }
 }
 
 }  // namespace

@@ -1,7 +1,9 @@
 #include "drivers/comedi_device.hpp"
 
+#include <poll.h>
 #include <unistd.h>
 
+#include <array>
 #include <cerrno>
 #include <cmath>
 #include <cstdlib>
@@ -19,6 +21,39 @@ std::string where(const std::string& device_path, unsigned subdevice) {
 
 std::string comedi_error() { return comedi_strerror(comedi_errno()); }
 
+// Overrun bookkeeping shared by the read loops: count, back off (doubling per consecutive overrun), re-arm.
+class OverrunRecovery {
+ public:
+  explicit OverrunRecovery(const ReadLoopConfig& config) : config_(config), backoff_(config.initial_backoff) {}
+  void on_data() {
+    consecutive_ = 0;
+    backoff_ = config_.initial_backoff;
+  }
+  // After an EPIPE: false (with result.failed and message set) when acquisition cannot go on.
+  bool recover(ReadLoopResult& result, const std::string& name, const std::function<bool()>& restart) {
+    ++result.overruns;
+    if (++consecutive_ > config_.max_consecutive_overruns) {
+      result.failed = true;
+      result.message = "buffer overrun on " + name + ": gave up after " +
+                       std::to_string(config_.max_consecutive_overruns) + " consecutive restarts";
+      return false;
+    }
+    std::this_thread::sleep_for(backoff_);
+    backoff_ = std::min(backoff_ * 2, config_.max_backoff);
+    if (!restart()) {
+      result.failed = true;
+      result.message = "buffer overrun on " + name + ": restarting acquisition failed";
+      return false;
+    }
+    return true;
+  }
+
+ private:
+  const ReadLoopConfig& config_;
+  std::chrono::microseconds backoff_;
+  unsigned consecutive_ = 0;
+};
+
 }  // namespace
 
 ReadLoopResult run_read_loop(int fd, std::span<std::byte> buffer,
@@ -27,15 +62,13 @@ ReadLoopResult run_read_loop(int fd, std::span<std::byte> buffer,
                              const ReadLoopConfig& config, const ReadFunction& read_fn) {
   ReadLoopResult result;
   const std::string name = where(config.device_path, config.subdevice);
-  auto backoff = config.initial_backoff;
-  unsigned consecutive_overruns = 0;
+  OverrunRecovery recovery(config);
   while (!stop.load(std::memory_order_relaxed)) {
     const ssize_t n = read_fn ? read_fn(fd, buffer.data(), buffer.size()) : ::read(fd, buffer.data(), buffer.size());
     if (n > 0) {
       result.bytes += static_cast<std::uint64_t>(n);
       on_bytes(buffer.data(), static_cast<std::size_t>(n));
-      consecutive_overruns = 0;
-      backoff = config.initial_backoff;
+      recovery.on_data();
       continue;
     }
     if (n == 0) {
@@ -50,22 +83,71 @@ ReadLoopResult run_read_loop(int fd, std::span<std::byte> buffer,
       return result;
     }
     // EPIPE: the card's buffer overran and comedi stopped the command; re-arm after a backoff.
-    ++result.overruns;
-    if (++consecutive_overruns > config.max_consecutive_overruns) {
-      result.failed = true;
-      result.message = "buffer overrun on " + name + ": gave up after " +
-                       std::to_string(config.max_consecutive_overruns) + " consecutive restarts";
-      return result;
-    }
-    std::this_thread::sleep_for(backoff);
-    backoff = std::min(backoff * 2, config.max_backoff);
-    if (!restart()) {
-      result.failed = true;
-      result.message = "buffer overrun on " + name + ": restarting acquisition failed";
-      return result;
-    }
+    if (!recovery.recover(result, name, restart)) return result;
   }
   result.message = "stopped reading " + name;
+  return result;
+}
+
+ReadLoopResult run_group_read_loop(std::span<ReadStream> streams, const std::function<void()>& after_pass,
+                                   const std::function<bool()>& restart, const std::atomic<bool>& stop,
+                                   const ReadLoopConfig& config, int poll_ms) {
+  ReadLoopResult result;
+  OverrunRecovery recovery(config);
+  constexpr std::size_t kMaxStreams = 8;
+  if (streams.empty() || streams.size() > kMaxStreams)
+    throw std::invalid_argument("run_group_read_loop: 1.." + std::to_string(kMaxStreams) + " streams");
+  std::array<bool, kMaxStreams> ended{};
+  std::array<pollfd, kMaxStreams> pfd{};
+  std::string names;
+  for (const ReadStream& s : streams) names += (names.empty() ? "" : ", ") + s.where;
+  while (!stop.load(std::memory_order_relaxed)) {
+    std::size_t open = 0;
+    for (std::size_t i = 0; i < streams.size(); ++i) {
+      pfd[i] = {ended[i] ? -1 : streams[i].fd, POLLIN, 0};
+      open += ended[i] ? 0 : 1;
+    }
+    if (open == 0) {
+      result.message = "end of stream on " + names;
+      return result;
+    }
+    const int ready = ::poll(pfd.data(), streams.size(), poll_ms);
+    if (ready < 0) {
+      if (errno == EINTR) continue;
+      result.failed = true;
+      result.message = "poll error on " + names + ": " + std::strerror(errno);
+      return result;
+    }
+    bool overrun = false;
+    std::string overrun_name;
+    for (std::size_t i = 0; i < streams.size() && !overrun; ++i) {
+      if (ended[i] || pfd[i].revents == 0) continue;
+      ReadStream& s = streams[i];
+      const ssize_t n = s.read_fn ? s.read_fn(s.fd, s.buffer.data(), s.buffer.size())
+                                  : ::read(s.fd, s.buffer.data(), s.buffer.size());
+      if (n > 0) {
+        result.bytes += static_cast<std::uint64_t>(n);
+        s.on_bytes(s.buffer.data(), static_cast<std::size_t>(n));
+        recovery.on_data();
+      } else if (n == 0) {
+        ended[i] = true;
+      } else if (errno == EPIPE) {
+        overrun = true;
+        overrun_name = s.where;
+      } else if (errno != EINTR && errno != EAGAIN) {
+        result.failed = true;
+        result.message = "read error on " + s.where + ": " + std::strerror(errno);
+        return result;
+      }
+    }
+    if (after_pass) after_pass();
+    if (overrun) {
+      // The whole group restarts together, so every member begins again at the same encoder edge.
+      if (!recovery.recover(result, overrun_name, restart)) return result;
+      ended.fill(false);
+    }
+  }
+  result.message = "stopped reading " + names;
   return result;
 }
 
@@ -77,14 +159,14 @@ std::vector<unsigned> pack_channel_list(const std::vector<ComediChannelConfig>& 
 }
 
 comedi_cmd external_scan_command(unsigned subdevice, unsigned external_trigger, unsigned* chanlist,
-                                 unsigned chanlist_len) {
+                                 unsigned chanlist_len, int start_trigger, unsigned convert_src) {
   comedi_cmd cmd{};
   cmd.subdev = subdevice;
-  cmd.start_src = TRIG_NOW;
-  cmd.start_arg = 0;
+  cmd.start_src = start_trigger >= 0 ? TRIG_EXT : TRIG_NOW;
+  cmd.start_arg = start_trigger >= 0 ? static_cast<unsigned>(start_trigger) : 0;
   cmd.scan_begin_src = TRIG_EXT;
   cmd.scan_begin_arg = external_trigger;
-  cmd.convert_src = TRIG_TIMER;
+  cmd.convert_src = convert_src;
   cmd.convert_arg = 0;  // fastest; command_test raises it to the card's minimum
   cmd.scan_end_src = TRIG_COUNT;
   cmd.scan_end_arg = chanlist_len;
@@ -159,6 +241,24 @@ ComediDevice::ComediDevice(ComediAcquisitionConfig config) : config_(std::move(c
       }
     }
     for (const auto& ch : config_.channels) {
+      if (ch.counter_mode >= 0 &&
+          comedi_set_counter_mode(dev_, subdevice_, ch.channel, static_cast<unsigned>(ch.counter_mode)) < 0) {
+        if (calibration) comedi_cleanup_calibration(calibration);
+        throw std::runtime_error("cannot set counter mode " + std::to_string(ch.counter_mode) + " of channel " +
+                                 std::to_string(ch.channel) + " on " + where(config_.device_path, subdevice_) +
+                                 ": " + comedi_error());
+      }
+      if (ch.raw_counts) {
+        const lsampl_t maxdata = comedi_get_maxdata(dev_, subdevice_, ch.channel);
+        if (maxdata == 0) {
+          if (calibration) comedi_cleanup_calibration(calibration);
+          throw std::runtime_error("invalid counter channel " + std::to_string(ch.channel) + " on " +
+                                   where(config_.device_path, subdevice_));
+        }
+        // Identity on the count: range [0, maxdata] over maxdata steps.
+        conversions_.push_back(linear_conversion(0.0, static_cast<double>(maxdata), maxdata, 1.0));
+        continue;
+      }
       comedi_polynomial_t poly{};
       const bool soft = calibration && comedi_get_softcal_converter(subdevice_, ch.channel, ch.range,
                                                                     COMEDI_TO_PHYSICAL, calibration, &poly) == 0;
@@ -208,7 +308,8 @@ void ComediDevice::build_command() {
     cmd_.stop_src = TRIG_NONE;  // continuous
     cmd_.stop_arg = 0;
   } else {
-    cmd_ = external_scan_command(subdevice_, config_.external_trigger, chanlist_.data(), n);
+    cmd_ = external_scan_command(subdevice_, config_.external_trigger, chanlist_.data(), n, config_.start_trigger,
+                                 config_.convert_src);
   }
   settle_command(cmd_, [this](comedi_cmd& c) { return comedi_command_test(dev_, &c); }, config_.device_path,
                  subdevice_);

@@ -1,8 +1,8 @@
 // A comedi DAQ subdevice running a streaming command, and the read loop that drains its file descriptor.
 //
 // ComediDevice holds the libcomedi calls: open, check the subdevice can stream (SDF_CMD), read its sample
-// width and calibration, build and settle the command, start/restart/cancel. run_read_loop is independent of
-// libcomedi (an fd, a read function and a restart callback) so the device path and tests share it.
+// width and calibration, build and settle the command, start/restart/cancel. The read loops are independent of
+// libcomedi (fds, read functions and a restart callback) so the device path and tests share them.
 #pragma once
 
 #include <comedilib.h>
@@ -49,6 +49,25 @@ ReadLoopResult run_read_loop(int fd, std::span<std::byte> buffer,
                              const std::function<bool()>& restart, const std::atomic<bool>& stop,
                              const ReadLoopConfig& config, const ReadFunction& read_fn = {});
 
+// One descriptor of a group read together (e.g. the pressure input and the encoder counter, both clocked by
+// the encoder edge, whose scans must pair up).
+struct ReadStream {
+  int fd = -1;
+  std::span<std::byte> buffer;
+  std::function<void(const std::byte*, std::size_t)> on_bytes;
+  ReadFunction read_fn;  // empty: ::read
+  std::string where;     // "device subdevice N", for messages
+};
+
+// Polls the group (poll_ms timeout, so stop is seen without a cancel), reads each ready descriptor once per
+// pass and then calls after_pass (e.g. to deliver what the bytes completed). EPIPE on any member is one
+// overrun of the group: count, back off as above, and restart() re-arms every member (the scans must pair up
+// again). Ends at stop, on a read error (naming the member), or once every member reached end of stream.
+// config.device_path/subdevice are unused here: each member names itself.
+ReadLoopResult run_group_read_loop(std::span<ReadStream> streams, const std::function<void()>& after_pass,
+                                   const std::function<bool()>& restart, const std::atomic<bool>& stop,
+                                   const ReadLoopConfig& config, int poll_ms = 100);
+
 // ---- command construction --------------------------------------------------------------------------------
 
 enum class ScanClock : std::uint8_t {
@@ -61,6 +80,8 @@ struct ComediChannelConfig {
   unsigned range = 0;
   unsigned aref = AREF_GROUND;
   double si_per_volt = 1.0;  // from microphone_pa_per_volt / pressure_pa_per_volt / charge_pressure_pa_per_volt
+  bool raw_counts = false;   // counter channels: deliver the raw count (no range, no calibration)
+  int counter_mode = -1;     // >= 0: comedi_set_counter_mode bits applied before the command (card-specific)
 };
 
 struct ComediAcquisitionConfig {
@@ -70,16 +91,19 @@ struct ComediAcquisitionConfig {
   ScanClock clock = ScanClock::kTimed;
   double scan_rate_hz = 51200.0;     // kTimed
   unsigned external_trigger = 0;     // kExternal: scan_begin_arg (trigger input number, driver-specific)
+  int start_trigger = -1;            // kExternal: >= 0 starts on that external trigger (start_src TRIG_EXT)
+  unsigned convert_src = TRIG_TIMER; // kExternal: TRIG_TIMER (fastest the card allows), TRIG_NOW or TRIG_FOLLOW
   bool use_soft_calibration = true;  // when the subdevice is SDF_SOFT_CALIBRATED and a calibration file exists
 };
 
 // Channel list entries CR_PACK(channel, range, aref) in configuration order.
 std::vector<unsigned> pack_channel_list(const std::vector<ComediChannelConfig>& channels);
 
-// Fields of an externally clocked scan command: start now, scan_begin TRIG_EXT, conversions as fast as the
-// card allows (convert TRIG_TIMER 0, raised by command_test), run until cancelled.
+// Fields of an externally clocked scan command: start now (or on external trigger start_trigger >= 0),
+// scan_begin TRIG_EXT, conversions as fast as the card allows (convert TRIG_TIMER 0, raised by command_test;
+// or convert_src TRIG_NOW / TRIG_FOLLOW), run until cancelled.
 comedi_cmd external_scan_command(unsigned subdevice, unsigned external_trigger, unsigned* chanlist,
-                                 unsigned chanlist_len);
+                                 unsigned chanlist_len, int start_trigger = -1, unsigned convert_src = TRIG_TIMER);
 
 // Runs test until it returns 0 (at most max_passes). Throws std::runtime_error naming the device, the
 // subdevice and the command fields it could not settle, or the errno of a failing test.
@@ -96,6 +120,7 @@ class ComediDevice {
   ComediDevice(const ComediDevice&) = delete;
   ComediDevice& operator=(const ComediDevice&) = delete;
 
+  const std::string& device_path() const { return config_.device_path; }
   unsigned subdevice() const { return subdevice_; }
   SampleWidth sample_width() const { return width_; }
   // Raw -> SI per configured channel (calibration x sensor sensitivity), for a ScanDecoder.

@@ -16,6 +16,7 @@
 #include <optional>
 #include <stdexcept>
 #include <string>
+#include <string_view>
 #include <vector>
 
 namespace noisemon::drivers {
@@ -41,6 +42,20 @@ struct RunDir {
   std::vector<float> mic_pa;                // frame-major: mic_pa[frame * mic_count + mic]
   std::vector<std::array<double, 3>> mic_positions_m;
   double radius_m = 1.75;
+  double acoustic_delay_s = -1.0;           // engine-to-microphone delay; < 0: radius_m / 343 m/s
+};
+
+// The contents of run.json, checked (what parse_run_json returns).
+struct RunManifest {
+  RunCondition condition;
+  std::string pressure_file;               // relative to the run directory (or absolute)
+  double pressure_to_pa = 1e5;             // 1e5 for "bar", 1 for "Pa"
+  bool has_mics = false;
+  std::string mics_file;
+  std::vector<std::array<double, 3>> mic_positions_m;
+  double radius_m = 1.75;
+  double acoustic_delay_s = -1.0;
+  std::optional<double> full_scale_pa;     // PCM WAVs only: the Pa of digital full scale
 };
 
 struct RunDirError : std::runtime_error {
@@ -49,6 +64,21 @@ struct RunDirError : std::runtime_error {
 
 // Reads DIR/run.json and the files it names (paths relative to DIR).
 RunDir read_run_dir(const std::filesystem::path& dir);
+
+// The pieces of read_run_dir, callable on bytes (`file` is the name used in messages):
+RunManifest parse_run_json(std::string_view text, const std::string& file);
+// Fills run.time_s, crank_deg, pressure_pa (pressure column times to_pa).
+void parse_pressure_csv(std::string_view text, const std::string& file, double to_pa, RunDir& run);
+// Fills run.mic_rate_hz, mic_count, mic_pa. The WAV must hold `channels` channels of IEEE float (or PCM when
+// full_scale_pa is given: PCM full scale = that many Pa) at a rate of at least 40 kHz that resamples to 40 kHz.
+void read_mics_wav(const std::filesystem::path& file, std::uint32_t channels, std::optional<double> full_scale_pa,
+                   RunDir& run);
+void parse_mics_wav(const std::uint8_t* data, std::size_t size, const std::string& file, std::uint32_t channels,
+                    std::optional<double> full_scale_pa, RunDir& run);
+
+// Encoder steps a crank-angle gap may span (larger gaps are an error; smaller ones are filled by
+// interpolation when the run is resampled to 40 kHz).
+inline constexpr double kMaxCrankGapSteps = 4.0;
 // Writes DIR/run.json, DIR/pressure.csv (pressure in `pressure_units`, "bar" or "Pa") and, when the run has
 // microphones, DIR/mics.wav (32-bit float). Creates DIR; throws RunDirError naming the file on failure.
 void write_run_dir(const std::filesystem::path& dir, const RunDir& run, const std::string& pressure_units = "bar");

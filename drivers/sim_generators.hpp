@@ -12,10 +12,12 @@
 #include <cstdint>
 #include <vector>
 
+#include "drivers/block_writer.hpp"
 #include "drivers/sim_source.hpp"
 #include "dsp/resample.hpp"
 #include "model/block_model.hpp"
 #include "model/engine_cycle.hpp"
+#include "model/virtual_engine.hpp"
 
 namespace noisemon::drivers::sim {
 
@@ -46,23 +48,11 @@ class EngineCycleCache {
   bool valid_ = false;
 };
 
-// Fills SampleBlocks frame by frame and writes each full block (and the partial one on flush) to the ring;
-// a failed write is an overrun, counted by the ring.
-class BlockWriter {
- public:
-  explicit BlockWriter(std::uint32_t channels) { block_.channels = channels; }
-  // Frame `index` must follow the previous one; returns the slot for its channels.
-  double* frame(std::int64_t index, BlockRing& ring);
-  void flush(BlockRing& ring);
-  std::uint64_t blocks_written() const { return written_; }
-
- private:
-  SampleBlock block_{};
-  std::uint64_t written_ = 0;
-};
+using drivers::BlockWriter;
 
 // Encoder + pressure: an edge every encoder_resolution_deg at the instant theta(t) reaches it, the cylinder
-// pressure at the edge, NonuniformResampler to 40 kHz; the crank channel is theta(k / 40 kHz) wrapped.
+// pressure at the edge (plus the transducer_noise effect), NonuniformResampler to 40 kHz; the crank channel is
+// theta(k / 40 kHz) wrapped.
 class PressureGenerator {
  public:
   PressureGenerator(const SimConfig& config, double t_first_s);
@@ -80,27 +70,31 @@ class PressureGenerator {
   std::int64_t first_index_;
   std::size_t batch_;       // edges per resampler call
   std::vector<double> t_, x_, out_;
+  model::Effects effects_;  // transducer_noise is added at each edge (counter-based on the edge index)
+  std::uint64_t seed_;
+  double edge_rate_hz_;     // mean edge rate: the bandwidth the transducer noise density is spread over
 };
 
-// Pink background noise (Kellet's refined filter on Gaussian white noise) at a given rms.
-class PinkNoise {
+// The virtual engine's acoustic side for a configuration: thesis microphone layout unless given, the configured
+// true block, spread, floor and effects, the mean pressure of the nominal cycle (so the AC coupling starts
+// settled). input_rate_hz: rate of the pressure feed; the microphones come out at config.mic_rate_hz.
+model::VirtualEngineConfig virtual_engine_config(const SimConfig& config, double input_rate_hz);
+
+// The true engine as a model::PressureFeed: cylinder pressure and unwrapped crank angle at t0 + i / rate.
+class EngineFeed final : public model::PressureFeed {
  public:
-  PinkNoise(double rms, std::uint64_t seed);
-  double next();
+  EngineFeed(const SimConfig& config, double t0_s, double rate_hz);
+  void fill(std::int64_t first, double* pressure_pa, double* crank_deg, std::size_t n) override;
 
  private:
-  double gaussian();
-  std::array<std::uint64_t, 4> s_{};
-  double spare_ = 0.0;
-  bool has_spare_ = false;
-  double scale_;
-  std::array<double, 7> b_{};
+  model::CrankKinematics kin_;
+  EngineCycleCache cache_;
+  double t0_, rate_;
 };
 
-// Microphones: the true pressure on a grid at twice the card rate drives the true block model; its output,
-// AC-coupled (2 Hz high-pass, as microphone and card), is decimated to the card rate; each microphone takes
-// it delayed by its distance / c (whole card samples) and scaled by its gain; the card stream is resampled
-// to 40 kHz and each channel gets its pink background noise.
+// Microphones: model::VirtualEngine fed with the true pressure at twice the card rate renders the card-rate
+// microphone frames (true block, effects, acoustic delay, per-microphone spread, floor); the card stream is
+// resampled to 40 kHz.
 class MicGenerator {
  public:
   MicGenerator(const SimConfig& config, double t_first_s);
@@ -108,36 +102,21 @@ class MicGenerator {
   std::uint64_t blocks_written() const { return writer_.blocks_written(); }
   std::int64_t first_index() const { return first_index_; }
   // Per-microphone gain (linear, energy mean 1) and delay (s), for tests and logs.
-  const std::vector<double>& gains() const { return gains_; }
-  std::vector<double> delays_s() const;
+  const std::vector<double>& gains() const { return engine_.spread_gains(); }
+  std::vector<double> delays_s() const { return engine_.delays_s(); }
 
  private:
-  void make_fine(std::int64_t n_end);
-  void make_card(std::int64_t m_end);
-
-  double fine_rate_, card_rate_;
+  double card_rate_;
   double t0_;                  // sim time of fine index 0, card index 0 and local 40 kHz index 0
   std::int64_t index0_;        // global 40 kHz index of local index 0
   std::int64_t first_index_;
   std::uint32_t mics_;
-  model::CrankKinematics kin_;
-  EngineCycleCache cache_;
-  model::BlockModel block_;
-  std::size_t latency_left_;   // block-model outputs still to drop (response before fine index 0)
-  double hp_a_, hp_x_, hp_y_;  // AC coupling
-  dsp::RationalResampler to_card_;
+  EngineFeed feed_;
+  model::VirtualEngine engine_;
   dsp::RationalResampler to_pipeline_;
-  std::vector<double> gains_;
-  std::vector<std::int64_t> delay_card_;  // per mic, card samples
-  std::int64_t min_delay_card_;
-  std::vector<double> card_line_;         // single-channel card-rate signal, circular
-  std::size_t card_mask_;
-  std::int64_t fine_next_ = 0;            // next fine index to generate
-  std::int64_t card_avail_ = 0;           // card samples of the common signal produced
   std::int64_t card_next_ = 0;            // next card frame of the microphones
-  std::vector<PinkNoise> noise_;
   BlockWriter writer_;
-  std::vector<double> u_, y_, card_tmp_, mic_card_, out_;
+  std::vector<double> mic_card_, out_;
 };
 
 }  // namespace noisemon::drivers::sim

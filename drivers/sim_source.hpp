@@ -6,7 +6,8 @@
 //    encoder edge; resampled (NonuniformResampler) to 40 kHz -> Streams::pressure.
 //  - microphones: the "true" block model driven by the true pressure, acoustic delay, small per-microphone
 //    differences and a background noise floor, sampled at the card rate (51.2 kHz) and resampled
-//    (RationalResampler) to 40 kHz -> Streams::mics.
+//    (RationalResampler) to 40 kHz -> Streams::mics. The acoustic side is model::VirtualEngine, with the
+//    configured effects.
 //  - operating point: speed, load, injection timing at 10 Hz -> Streams::operating_point.
 #pragma once
 
@@ -18,6 +19,7 @@
 
 #include "drivers/source.hpp"
 #include "model/block_params.hpp"
+#include "model/effects.hpp"
 
 namespace noisemon::drivers {
 
@@ -39,8 +41,9 @@ struct SimConfig {
   double speed_of_sound_m_s = 343.0;
   double mic_rate_hz = 51200.0;
   double mic_gain_spread_db = 0.3;       // per-microphone gain differences (deterministic from seed)
-  double background_noise_db = 40.0;     // per-microphone background, unweighted broadband Lp, dB re 20 uPa
+  double background_noise_db = 40.0;     // per-microphone pink floor, unweighted Lp up to 20 kHz, dB re 20 uPa
   model::BlockParams true_block = model::preset("linear");  // the engine's "true" structural response
+  model::Effects effects;             // effects injected into the true engine (model/effects.hpp); none by default
   std::uint64_t seed = 1;
 };
 

@@ -77,6 +77,12 @@ struct DriverThreadStatus {
   std::string error;  // empty unless kFailed
 };
 
+// A named event count of a driver (overruns, restarts, error frames, ...), shown in the status message.
+struct DriverCounter {
+  std::string name;  // "<source>.<what>", e.g. "comedi.pressure.overruns"
+  std::int64_t value = 0;
+};
+
 class Source {
  public:
   virtual ~Source() = default;
@@ -91,6 +97,8 @@ class Source {
   virtual bool running() const = 0;
   // A snapshot of every driver thread's state (safe from any thread).
   virtual std::vector<DriverThreadStatus> thread_status() const = 0;
+  // A snapshot of the driver's event counters (safe from any thread). Sources without any return none.
+  virtual std::vector<DriverCounter> counters() const { return {}; }
 };
 
 }  // namespace noisemon::drivers

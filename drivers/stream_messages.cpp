@@ -2,6 +2,7 @@
 
 #include <cmath>
 #include <algorithm>
+#include <cstdint>
 #include <stdexcept>
 
 namespace noisemon::drivers {
@@ -31,8 +32,10 @@ noisemon::raw_block_t to_message(const SampleBlock& b, std::int8_t stream, std::
   return m;
 }
 
-noisemon::session_t to_message(const StreamInfo& info, const std::string& source, std::int64_t utime) {
+noisemon::session_t to_message(const StreamInfo& info, const std::string& source, std::int64_t utime,
+                               const std::string& condition) {
   noisemon::session_t m;
+  m.condition = condition;
   m.utime = utime;
   m.epoch_utime = info.epoch_utime;
   m.source = source;
@@ -51,8 +54,13 @@ noisemon::session_t to_message(const StreamInfo& info, const std::string& source
 StreamInfo from_message(const noisemon::session_t& m) {
   if (m.sample_rate_hz != kPipelineRateHz)
     throw std::invalid_argument("session sample rate " + std::to_string(m.sample_rate_hz) + " Hz, expected 40000");
-  if (m.nmics < 1 || m.nmics > static_cast<int>(SampleBlock::kMaxChannels))
-    throw std::invalid_argument("session with " + std::to_string(m.nmics) + " microphones");
+  if (m.nmics < 0 || m.nmics > static_cast<int>(SampleBlock::kMaxChannels))
+    throw std::invalid_argument("session with " + std::to_string(m.nmics) + " microphones (0.." +
+                                std::to_string(SampleBlock::kMaxChannels) + " expected)");
+  // The delay becomes a frame offset: bounded (as run.json's 0..1 s) so that it stays an offset.
+  if (!(m.radius_m > 0) || !std::isfinite(m.radius_m) || !(m.acoustic_delay_s >= 0 && m.acoustic_delay_s <= 1))
+    throw std::invalid_argument("session with radius " + std::to_string(m.radius_m) + " m and acoustic delay " +
+                                std::to_string(m.acoustic_delay_s) + " s (positive radius, delay 0..1 s expected)");
   StreamInfo info;
   info.epoch_utime = m.epoch_utime;
   info.mic_count = static_cast<std::uint32_t>(m.nmics);
@@ -89,6 +97,95 @@ OperatingPoint from_message(const noisemon::operating_point_t& m) {
   op.rail_pressure_bar = m.rail_pressure_bar;
   op.motored = m.motored;
   return op;
+}
+
+namespace {
+
+std::int32_t be32(const std::uint8_t* p) {
+  return static_cast<std::int32_t>((std::uint32_t{p[0]} << 24) | (std::uint32_t{p[1]} << 16) | (std::uint32_t{p[2]} << 8) | p[3]);
+}
+std::int16_t be16(const std::uint8_t* p) { return static_cast<std::int16_t>((p[0] << 8) | p[1]); }
+
+// A string field at pos: int32 length (including the terminating NUL) then the bytes. Advances pos.
+bool skip_string(const std::uint8_t* d, std::size_t size, std::size_t& pos) {
+  if (size - pos < 4) return false;
+  const std::int32_t len = be32(d + pos);
+  pos += 4;
+  if (len < 1 || static_cast<std::size_t>(len) > size - pos || d[pos + static_cast<std::size_t>(len) - 1] != 0) return false;
+  pos += static_cast<std::size_t>(len);
+  return true;
+}
+
+template <class Message>
+bool decode_exact(const void* data, std::size_t size, Message& m) {
+  if (size > static_cast<std::size_t>(INT32_MAX)) return false;
+  try {
+    return m.decode(data, 0, static_cast<int>(size)) == static_cast<int>(size);
+  } catch (const std::exception&) {
+    return false;
+  }
+}
+
+}  // namespace
+
+bool decode_message(const void* data, std::size_t size, noisemon::session_t& m) {
+  // fingerprint, utime, epoch_utime, source, sample_rate_hz, radius_m, acoustic_delay_s, nmics, positions, condition
+  const auto* d = static_cast<const std::uint8_t*>(data);
+  std::size_t pos = 24;
+  if (size < pos || !skip_string(d, size, pos)) return false;
+  pos += 24;
+  if (size < pos + 2) return false;
+  const std::int16_t nmics = be16(d + pos);
+  pos += 2;
+  if (nmics < 0 || static_cast<std::size_t>(nmics) * 24 > size - pos) return false;
+  pos += static_cast<std::size_t>(nmics) * 24;
+  if (!skip_string(d, size, pos) || pos != size) return false;
+  return decode_exact(data, size, m);
+}
+
+bool decode_message(const void* data, std::size_t size, noisemon::raw_block_t& m) {
+  // fingerprint, utime, epoch_utime, first_index, stream (1), sample_rate_hz, channels (2), frames (2), nsamples
+  constexpr std::size_t kNsamplesAt = 8 + 8 + 8 + 8 + 1 + 8 + 2 + 2;
+  const auto* d = static_cast<const std::uint8_t*>(data);
+  if (size < kNsamplesAt + 4) return false;
+  const std::int32_t n = be32(d + kNsamplesAt);
+  if (n < 0 || static_cast<std::size_t>(n) * 8 != size - kNsamplesAt - 4) return false;
+  return decode_exact(data, size, m);
+}
+
+bool decode_message(const void* data, std::size_t size, noisemon::operating_point_t& m) {
+  return decode_exact(data, size, m);
+}
+
+std::string raw_block_problem(const noisemon::raw_block_t& m, const StreamInfo& info) {
+  if (m.sample_rate_hz != kPipelineRateHz) return "sample rate " + std::to_string(m.sample_rate_hz) + " Hz, expected 40000";
+  if (m.frames < 0 || m.frames > static_cast<int>(SampleBlock::kMaxFrames) || m.channels < 1 ||
+      m.channels > static_cast<int>(SampleBlock::kMaxChannels) || m.nsamples != m.frames * m.channels ||
+      m.data.size() != static_cast<std::size_t>(m.nsamples))
+    return "block of " + std::to_string(m.frames) + " frames x " + std::to_string(m.channels) + " channels holding " +
+           std::to_string(m.nsamples) + " samples";
+  if (m.epoch_utime != info.epoch_utime) return "block of another session (epoch " + std::to_string(m.epoch_utime) + ")";
+  if (m.first_index < -(std::int64_t{1} << 50) || m.first_index > (std::int64_t{1} << 50) ||
+      m.utime != m.epoch_utime + static_cast<std::int64_t>(std::llround(static_cast<double>(m.first_index) * 1e6 / kPipelineRateHz)))
+    return "utime does not match first_index (a damaged field)";
+  std::size_t expected;
+  if (m.stream == noisemon::raw_block_t::STREAM_PRESSURE)
+    expected = kPressureStreamChannels;
+  else if (m.stream == noisemon::raw_block_t::STREAM_MICS)
+    expected = info.mic_count;
+  else
+    return "unknown stream " + std::to_string(m.stream);
+  if (static_cast<std::size_t>(m.channels) != expected)
+    return std::string(m.stream == noisemon::raw_block_t::STREAM_PRESSURE ? "pressure" : "microphone") + " block with " +
+           std::to_string(m.channels) + " channels, expected " + std::to_string(expected);
+  for (double v : m.data)
+    if (!std::isfinite(v)) return "non-finite sample";
+  if (m.stream == noisemon::raw_block_t::STREAM_PRESSURE)
+    for (std::int16_t f = 0; f < m.frames; ++f) {
+      const double c = m.data[static_cast<std::size_t>(f) * kPressureStreamChannels + kCrankChannel];
+      if (c < -360.0 || c > 360.0) return "crank angle outside [-360, 360] deg";
+    }
+  return "";
 }
 
 }  // namespace noisemon::drivers

@@ -14,9 +14,26 @@ namespace noisemon::drivers {
 
 noisemon::operating_point_t to_message(const OperatingPoint& op);
 noisemon::raw_block_t to_message(const SampleBlock& b, std::int8_t stream, std::int64_t epoch_utime);
-noisemon::session_t to_message(const StreamInfo& info, const std::string& source, std::int64_t utime);
-// Back from the messages. Throw std::invalid_argument naming what does not fit.
+// condition: the run's condition name (session_t::condition), "" when unknown.
+noisemon::session_t to_message(const StreamInfo& info, const std::string& source, std::int64_t utime,
+                               const std::string& condition = "");
+// Back from the messages. Throw std::invalid_argument naming what does not fit. A session may have 0
+// microphones (a pressure-only recording); its condition name is session_t::condition.
 StreamInfo from_message(const noisemon::session_t& m);
+
+// Decode an LCM payload of exactly `size` bytes; false when it is not a well-formed message of that type (wrong
+// fingerprint, short, or array/string lengths that do not fit the payload). The lengths are checked before
+// decoding because the generated decoders trust them (a damaged length would allocate gigabytes or read past
+// the buffer). Never throws.
+bool decode_message(const void* data, std::size_t size, noisemon::session_t& m);
+bool decode_message(const void* data, std::size_t size, noisemon::raw_block_t& m);
+bool decode_message(const void* data, std::size_t size, noisemon::operating_point_t& m);
+
+// Why a decoded raw block cannot be used as part of the session `info` ("" when it can): a sample rate other
+// than 40 kHz, frames/channels out of range or not matching nsamples, another session's epoch, a utime that
+// contradicts first_index (a damaged field), an unknown stream, a channel count its stream does not have,
+// non-finite samples, a crank angle outside [-360, 360]. from_message() then succeeds on it.
+std::string raw_block_problem(const noisemon::raw_block_t& m, const StreamInfo& info);
 SampleBlock from_message(const noisemon::raw_block_t& m);
 OperatingPoint from_message(const noisemon::operating_point_t& m);
 

@@ -40,9 +40,6 @@ const Mat3 kRadauA{{
     {(16.0 - kSqrt6) / 36.0, (16.0 + kSqrt6) / 36.0, 1.0 / 9.0},
 }};
 
-// Longest integration step (s): 40 kHz runs one step per sample; slower rates are subdivided.
-constexpr double kMaxStepS = 25e-6;
-
 // Fractional-delay interpolator: kTaps samples around the interval [n, n+1], Kaiser window.
 constexpr int kTaps = 32;
 constexpr double kKaiserBeta = 9.0;
@@ -96,6 +93,19 @@ void design_fractional_delay(double phase, double* w) {
   for (int i = 0; i < kTaps; ++i) w[i] /= sum;
 }
 
+// Input weights for the value at n + phase (same tap layout) for any interpolation mode; sample n is tap
+// -kFirstTapOffset. Held and ramped inputs keep the band-limited mode's latency, so alignment is unchanged.
+void design_input_weights(InputInterpolation mode, double phase, double* w) {
+  if (mode == InputInterpolation::band_limited) return design_fractional_delay(phase, w);
+  std::fill(w, w + kTaps, 0.0);
+  if (mode == InputInterpolation::zero_order_hold) {
+    w[-kFirstTapOffset] = 1.0;
+  } else {
+    w[-kFirstTapOffset] = 1.0 - phase;
+    w[1 - kFirstTapOffset] = phase;
+  }
+}
+
 // Four partial sums: breaks the add-latency chain (the compiler may not reassociate it itself).
 double dot_taps(const double* w, const double* x) {
   static_assert(kTaps % 4 == 0);
@@ -136,6 +146,7 @@ const Vec3 kRadauD{-(13.0 + 7.0 * kSqrt6) / 3.0, (-13.0 + 7.0 * kSqrt6) / 3.0, -
 
 struct BlockModel::Impl {
   BlockParams p;
+  BlockModelOptions opt;
   double fs = 0.0;
   int base_steps = 1;  // integration steps per input sample when no refinement is needed
   double inv_m = 0.0;
@@ -167,7 +178,7 @@ struct BlockModel::Impl {
   double v_prev = 0;
   Vec3 V_prev{};
 
-  Impl(const BlockParams& params, double fs_hz);
+  Impl(const BlockParams& params, double fs_hz, const BlockModelOptions& options);
   void setup_linear_map();
   void reset();
   void advance_sample();
@@ -178,16 +189,19 @@ struct BlockModel::Impl {
   void advance_interval(int level, int index);
 };
 
-BlockModel::Impl::Impl(const BlockParams& params, double fs_hz)
+BlockModel::Impl::Impl(const BlockParams& params, double fs_hz, const BlockModelOptions& options)
     : p(params),
+      opt(options),
       fs(fs_hz),
-      base_steps(std::max(1, static_cast<int>(std::ceil(1.0 / (fs_hz * kMaxStepS) - 1e-9)))),
+      base_steps(std::max(1, static_cast<int>(std::ceil(1.0 / (fs_hz * options.max_step_s) - 1e-9)))),
       inv_m(1.0 / params.m),
       vpeak_decay(std::exp(-1.0 / (fs_hz * kVelocityScaleMemoryS))),
       refine_tokens(kRefineStepsPerSample * kRefineBurstS * fs_hz),
       refine_cap(refine_tokens) {
   if (!(fs_hz > 0 && std::isfinite(fs_hz)) || !(params.m > 0))
     throw std::invalid_argument("BlockModel: needs a positive sample rate and mass");
+  if (!(options.max_step_s > 0) || 1.0 / (fs_hz * options.max_step_s) > 1e5)
+    throw std::invalid_argument("BlockModel: max_step_s must be positive and at most 1e5 steps per sample");
   for (int d = 0; d <= kMaxLevel; ++d) tab.emplace_back(1.0 / (fs * base_steps * (1 << d)));
 
   const std::array<double, 4> nodes{0.0, kRadauC[0], kRadauC[1], 1.0};
@@ -213,7 +227,7 @@ BlockModel::Impl::Impl(const BlockParams& params, double fs_hz)
       for (int i = 0; i < kStages; ++i) {
         const double phase = (j + kRadauC[i]) / n;
         if (phase < 1.0)
-          design_fractional_delay(phase, &taps[taps_offset[d] + static_cast<std::size_t>((j * kStages + i) * kTaps)]);
+          design_input_weights(opt.input, phase, &taps[taps_offset[d] + static_cast<std::size_t>((j * kStages + i) * kTaps)]);
       }
   }
   hist.assign(2 * kTaps, 0.0);
@@ -257,11 +271,12 @@ void BlockModel::Impl::reset() {
 double BlockModel::Impl::input_at(int level, int index, int stage) const {
   const double* window = &hist[pos];
   const int n = base_steps << level;
-  if (stage == kStages - 1 && index == n - 1) return window[1 - kFirstTapOffset];  // sample n + 1
+  if (stage == kStages - 1 && index == n - 1)  // sample n + 1 (a held input still has sample n's value)
+    return window[(opt.input == InputInterpolation::zero_order_hold ? 0 : 1) - kFirstTapOffset];
   if (level <= kTabulatedLevels)
     return dot_taps(&taps[taps_offset[level] + static_cast<std::size_t>((index * kStages + stage) * kTaps)], window);
   std::array<double, kTaps> w;  // deep refinement is rare: design the weights on the spot
-  design_fractional_delay((index + kRadauC[stage]) / n, w.data());
+  design_input_weights(opt.input, (index + kRadauC[stage]) / n, w.data());
   return dot_taps(w.data(), window);
 }
 
@@ -407,7 +422,8 @@ void BlockModel::Impl::advance_interval(int level, int index) {
   if (level < kMaxLevel) {
     const double scale = p.c1 * std::max({vpeak, std::fabs(v), std::fabs(V[2])});
     double det = 1.0;
-    const bool refine = refine_tokens >= 2.0 && !(local_error(t, V, det) <= kRelTol * scale * det);
+    const bool refine =
+        opt.refine && refine_tokens >= 2.0 && !(local_error(t, V, det) <= kRelTol * scale * det);
     if (!ok || refine) {
       refine_tokens -= 2.0;  // may go negative after Newton failures: the budget catches up later
       advance_interval(level + 1, 2 * index);
@@ -444,7 +460,10 @@ void BlockModel::Impl::advance_sample() {
   if (std::fabs(v) < kFlushBelow) v = 0.0;
 }
 
-BlockModel::BlockModel(const BlockParams& params, double fs_hz) : impl_(std::make_unique<Impl>(params, fs_hz)) {}
+BlockModel::BlockModel(const BlockParams& params, double fs_hz)
+    : impl_(std::make_unique<Impl>(params, fs_hz, BlockModelOptions{})) {}
+BlockModel::BlockModel(const BlockParams& params, double fs_hz, const BlockModelOptions& options)
+    : impl_(std::make_unique<Impl>(params, fs_hz, options)) {}
 BlockModel::~BlockModel() = default;
 BlockModel::BlockModel(BlockModel&&) noexcept = default;
 BlockModel& BlockModel::operator=(BlockModel&&) noexcept = default;
@@ -463,6 +482,14 @@ void BlockModel::process(const double* u, double* y, std::size_t n) {
 
 std::size_t BlockModel::latency_samples() const { return static_cast<std::size_t>(kTaps / 2 - 1); }
 void BlockModel::reset() { impl_->reset(); }
+void BlockModel::set_state(double z, double v) {
+  impl_->z = z;
+  impl_->v = v;
+  impl_->last_level = -1;  // the Newton start guess from the last step no longer applies
+}
+double BlockModel::position() const { return impl_->z; }
+double BlockModel::velocity() const { return impl_->v; }
+const BlockModelOptions& BlockModel::options() const { return impl_->opt; }
 const BlockParams& BlockModel::params() const { return impl_->p; }
 double BlockModel::sample_rate_hz() const { return impl_->fs; }
 

@@ -58,6 +58,51 @@ TEST(Config, DocumentedDefaultFileEqualsBuiltInDefaults) {
   EXPECT_EQ(file.sim.background_noise_db, def.sim.background_noise_db);
   EXPECT_EQ(file.sim.seed, def.sim.seed);
   EXPECT_EQ(file.sim.true_block.k1, def.sim.true_block.k1);
+  EXPECT_EQ(file.lcm.session_timeout_s, def.lcm.session_timeout_s);
+  // [comedi] and [can] are documented as commented-out examples: the file leaves their defaults.
+  EXPECT_EQ(file.comedi.pressure.device, def.comedi.pressure.device);
+  EXPECT_EQ(file.comedi.encoder.subdevice, def.comedi.encoder.subdevice);
+  EXPECT_EQ(file.comedi.mics.channels.size(), def.comedi.mics.channels.size());
+  EXPECT_EQ(file.comedi.phase, def.comedi.phase);
+  EXPECT_FALSE(file.can.configured());
+  EXPECT_TRUE(file.can.map.signals().empty());
+}
+
+TEST(Config, HardwareExampleFileIsAValidComediAndCanConfiguration) {
+  const Config c = load_config(NOISEMON_SOURCE_DIR "/systemd/noisemond.comedi.toml");
+  EXPECT_EQ(c.source, "comedi");
+  EXPECT_EQ(c.comedi.pressure.device, "/dev/comedi0");
+  EXPECT_EQ(c.comedi.pressure.channel.aref, static_cast<unsigned>(AREF_DIFF));
+  EXPECT_EQ(c.comedi.pressure.start_trigger, 1);
+  EXPECT_DOUBLE_EQ(c.comedi.pressure.peg_pa, 101325.0);
+  EXPECT_EQ(c.comedi.encoder.device, "/dev/comedi1");
+  EXPECT_EQ(c.comedi.encoder.counts_per_rev, 3600u);
+  ASSERT_EQ(c.comedi.mics.channels.size(), 10u);
+  EXPECT_EQ(c.comedi.mics.channels[9].channel, 9u);
+  EXPECT_EQ(c.comedi.mics.channels[9].aref, static_cast<unsigned>(AREF_DIFF));  // one value for all channels
+  ASSERT_EQ(c.comedi.mics.sensitivity_mv_per_pa.size(), 10u);
+  EXPECT_DOUBLE_EQ(c.comedi.mics.sensitivity_mv_per_pa[3], 48.8);
+  EXPECT_EQ(c.can.interface, "can0");
+  ASSERT_EQ(c.can.map.signals().size(), 5u);
+  // The acquisitions the source would open from it: pressure in Pa per volt through 16.2 pC/bar x 5 mV/pC.
+  const auto a = noisemon::drivers::comedi_acquisitions(c.comedi);
+  ASSERT_EQ(a.size(), 3u);
+  EXPECT_NEAR(a[0].channels[0].si_per_volt, 1e5 / (16.2 * 5.0 * 1e-3), 1e-6);
+  EXPECT_NEAR(a[2].channels[3].si_per_volt, 1.0 / 48.8e-3, 1e-9);
+}
+
+TEST(Config, ComediAndCanErrorsNameFileAndKey) {
+  EXPECT_NE(error_of("[comedi.pressure]\nchanel = 1\n").find("test.toml:2: unknown key 'comedi.pressure.chanel'"), std::string::npos);
+  EXPECT_NE(error_of("[comedi.pressure]\naref = \"earth\"\n").find("comedi.pressure.aref: unknown value 'earth'"), std::string::npos);
+  EXPECT_NE(error_of("[comedi.encoder]\ntimestamp_bits = 48\n").find("comedi.encoder.timestamp_bits: value 48 out of range"), std::string::npos);
+  EXPECT_NE(error_of("[comedi.mics]\nchannels = [0, 1]\nsensitivity_mv_per_pa = [50.0]\n").find("comedi.mics.sensitivity_mv_per_pa: has 1 entries but there are 2 channels"), std::string::npos);
+  EXPECT_NE(error_of("[comedi]\nphase = \"crank\"\n").find("comedi.phase"), std::string::npos);
+  EXPECT_NE(error_of("[can]\ninterface = \"can0\"\n").find("can.interface: no [[can.signal]] entries"), std::string::npos);
+  EXPECT_NE(error_of("[can]\npace = \"slow\"\n").find("can.pace"), std::string::npos);
+  EXPECT_NE(error_of("[can]\ncandump = \"x.log\"\n[[can.signal]]\nfield = \"speed_rpm\"\nid = 1\nstart_bit = 0\nlength = 99\nbyte_order = \"intel\"\n")
+                .find("test.toml: can.signal[0].length"), std::string::npos);
+  EXPECT_NE(error_of("[lcm]\nsession_timeout_s = 0\n").find("lcm.session_timeout_s"), std::string::npos);
+  EXPECT_EQ(error_of("[daemon]\nsource = \"comedi\"\n"), "");  // devices are checked when the source opens them
 }
 
 TEST(Config, PresetAndOverridesAreApplied) {

@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "daemon/cycle_processor.hpp"
+#include "daemon/report_messages.hpp"
 
 using namespace noisemon;
 
@@ -202,4 +203,63 @@ TEST(CycleProcessor, LostBlockDropsOnlyTheCyclesItTouches) {
     const std::int64_t first = c.cycle * kCycleFrames + kCycleFrames;
     EXPECT_FALSE(first <= 15360 - kDelayFrames + 256 && first + kCycleFrames > 15360 - kDelayFrames) << c.cycle;
   }
+}
+
+TEST(CycleProcessor, PressureOnlyStreamReportsCplAndPredictionsAndSaysNothingWasMeasured) {
+  // No microphones (an imported cycle table): the same tones as above, pressure stream only.
+  const Synth s({{1000.0, 2000.0, false}, {5000.0, 300.0, false}});
+  drivers::StreamInfo info;
+  info.epoch_utime = 1'000'000;
+  info.mic_count = 0;
+  daemon::ProcessorConfig pc;
+  pc.model = model::preset("linear");
+  std::vector<daemon::CycleReport> reports;
+  daemon::CycleProcessor p(pc, info, [&](const daemon::CycleReport& r) { reports.push_back(r); });
+  drivers::SampleBlock pb;
+  pb.channels = drivers::kPressureStreamChannels;
+  pb.frames = 256;
+  for (std::int64_t b = 0; b * 256 < static_cast<std::int64_t>(1.2 * kFs); ++b) {
+    pb.first_index = b * 256;
+    for (int f = 0; f < 256; ++f) {
+      pb.data[f * 2 + drivers::kPressureChannel] = s.pressure(b * 256 + f);
+      pb.data[f * 2 + drivers::kCrankChannel] = crank(b * 256 + f);
+    }
+    p.add_pressure(pb);
+    p.process();
+  }
+  // Boundaries at 1600, 3200, ... 46400: 28 closed cycles, as with microphones (no acoustic delay to wait for).
+  ASSERT_EQ(reports.size(), 28u);
+  const std::size_t b1k = band_index(p.bands(), 1000), b5k = band_index(p.bands(), 5000);
+  for (const auto& c : reports) {
+    EXPECT_TRUE(c.flags & daemon::kCycleNoMics);
+    EXPECT_EQ(c.nmics, 0);
+    EXPECT_TRUE(std::isnan(c.lpa_measured_db));
+    EXPECT_TRUE(std::isnan(c.lwa_measured_db));
+    EXPECT_TRUE(std::isfinite(c.lpa_predicted_db));
+    for (std::size_t b = 0; b < c.nbands; ++b) {
+      EXPECT_TRUE(std::isnan(c.spl_a_measured_db[b]));
+      EXPECT_TRUE(std::isnan(c.att_measured_db[b]));
+    }
+    if (c.cycle < 5) continue;
+    EXPECT_NEAR(c.cpl_db[b1k], level(2000.0), 0.15);
+    EXPECT_NEAR(c.cpl_db[b5k], level(300.0), 0.15);
+    const double expected = level(300 * std::abs(eq_4_1(5000))) + a_weight(p.bands()[b5k].exact_mid_hz);
+    EXPECT_NEAR(c.spl_a_predicted_db[b5k], expected, 0.15);
+    EXPECT_NEAR(c.att_predicted_db[b5k], c.cpl_db[b5k] - expected, 0.2);
+  }
+  // The messages and the text say so: NaN in the message and CSV, "n/a" and "no-mics" on the line.
+  const noisemon::cycle_report_t m = daemon::to_message(reports.back());
+  EXPECT_TRUE(m.flags & noisemon::cycle_report_t::CYCLE_NO_MICS);
+  EXPECT_TRUE(std::isnan(m.lpa_measured_db));
+  const std::string line = daemon::cycle_line(m);
+  EXPECT_NE(line.find("n/a"), std::string::npos) << line;
+  EXPECT_NE(line.find("no-mics"), std::string::npos) << line;
+  const std::string row = daemon::cycle_csv_row(m, "motored");
+  EXPECT_NE(row.find(",nan,"), std::string::npos) << row;
+  EXPECT_EQ(row.substr(row.size() - 9), ",motored\n");
+  // A microphone block for a stream without microphones is a usage error, not silently mixed in.
+  drivers::SampleBlock mb;
+  mb.channels = 1;
+  mb.frames = 1;
+  EXPECT_THROW(p.add_mics(mb), std::invalid_argument);
 }

@@ -1,0 +1,90 @@
+#include "daemon/band_data.hpp"
+
+#include <cmath>
+#include <filesystem>
+#include <map>
+#include <stdexcept>
+
+#include "drivers/run_dir.hpp"
+
+namespace noisemon::daemon {
+
+std::vector<LoadedRecording> load_recordings(const std::vector<std::string>& paths,
+                                             const std::function<void(const std::string&)>& note) {
+  namespace fs = std::filesystem;
+  std::vector<LoadedRecording> out;
+  std::int64_t epoch = 0;
+  for (const std::string& p : paths) {
+    std::error_code ec;
+    if (fs::is_directory(p, ec)) {
+      const drivers::RunDir run = drivers::read_run_dir(p);
+      LoadedRecording r{drivers::to_recording(run, epoch), p};
+      if (r.recording.condition.empty()) r.recording.condition = fs::path(p).filename().string();
+      epoch += 1'000'000'000;  // distinct epochs: recordings never share a time base
+      if (note) note(p + ": condition " + r.recording.condition + ", " + std::to_string(r.recording.frames()) + " frames");
+      out.push_back(std::move(r));
+    } else if (fs::is_regular_file(p, ec)) {
+      std::int64_t skipped = 0;
+      std::vector<drivers::Recording> recs = drivers::read_recordings_log(p, {}, &skipped);
+      if (note) note(p + ": " + std::to_string(recs.size()) + " recording(s)" +
+                     (skipped > 0 ? ", " + std::to_string(skipped) + " damaged event(s) skipped" : ""));
+      for (drivers::Recording& rec : recs) {
+        if (rec.condition.empty()) rec.condition = fs::path(p).stem().string();
+        out.push_back({std::move(rec), p});
+      }
+    } else {
+      throw std::runtime_error(p + ": no such run directory or LCM log");
+    }
+  }
+  if (out.empty()) throw std::runtime_error("no DATA given");
+  return out;
+}
+
+model::ConditionInfo condition_info(const drivers::Recording& rec, const std::string& fallback_name) {
+  model::ConditionInfo info;
+  info.name = rec.condition.empty() ? fallback_name : rec.condition;
+  if (!rec.operating_points.empty()) {
+    const drivers::OperatingPoint& op = rec.operating_points.front();
+    info.speed_rpm = op.speed_rpm;
+    info.load_nm = op.load_nm;
+    info.soi_deg_btdc = op.soi_deg_btdc;
+    info.motored = op.motored;
+  }
+  info.background = info.name.rfind("background", 0) == 0 || (!rec.operating_points.empty() && info.speed_rpm == 0.0 &&
+                                                               rec.operating_points.front().motored);
+  return info;
+}
+
+model::BandDataset make_band_dataset(const std::vector<LoadedRecording>& recordings, const model::DatasetOptions& options) {
+  std::vector<std::string> order;
+  std::map<std::string, std::vector<const LoadedRecording*>> groups;
+  for (const LoadedRecording& r : recordings) {
+    const std::string name = condition_info(r.recording, r.origin).name;
+    if (!groups.count(name)) order.push_back(name);
+    groups[name].push_back(&r);
+  }
+  std::vector<model::ConditionData> conds;
+  for (const std::string& name : order) {
+    const auto& group = groups[name];
+    std::vector<model::ConditionRecording> parts;
+    for (const LoadedRecording* r : group) {
+      const drivers::Recording& rec = r->recording;
+      if (rec.info.mic_count == 0) throw std::runtime_error(r->origin + ": condition " + name + " has no microphones");
+      model::ConditionRecording cr;
+      cr.pressure_pa = rec.pressure_pa;
+      cr.crank_deg = rec.crank_deg;
+      cr.mics_pa = rec.mics_pa;
+      cr.mic_count = rec.info.mic_count;
+      cr.delay_frames = std::llround(rec.info.acoustic_delay_s * model::kDatasetRateHz);
+      parts.push_back(std::move(cr));
+    }
+    try {
+      conds.push_back(model::build_condition(condition_info(group.front()->recording, name), parts, options));
+    } catch (const std::invalid_argument& e) {
+      throw std::runtime_error(group.front()->origin + ": " + e.what());
+    }
+  }
+  return model::make_dataset(std::move(conds));
+}
+
+}  // namespace noisemon::daemon

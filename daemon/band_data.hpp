@@ -1,0 +1,36 @@
+// DATA arguments of `noisemon fit` and `noisemon diagnose` -> the band dataset (model/band_dataset.hpp).
+//
+// A DATA path is a run directory (DESIGN.md interchange format: run.json + pressure.csv + mics.wav) or a raw LCM
+// log (NOISEMON_SESSION / NOISEMON_RAW / NOISEMON_OP, as noisemond publishes and `noisemon import` writes); a log
+// may hold several recordings. Recordings are grouped by condition name (run.json's condition.name, the
+// session's condition; without one, the path's name); several recordings of one condition add their cycles.
+// A condition named "background..." (or with speed 0) is an engine-off background measurement.
+#pragma once
+
+#include <functional>
+#include <string>
+#include <vector>
+
+#include "drivers/recording.hpp"
+#include "model/band_dataset.hpp"
+
+namespace noisemon::daemon {
+
+struct LoadedRecording {
+  drivers::Recording recording;
+  std::string origin;  // the path it came from (for messages)
+};
+
+// Reads every DATA path. Throws std::runtime_error naming the path and what is wrong.
+std::vector<LoadedRecording> load_recordings(const std::vector<std::string>& paths,
+                                             const std::function<void(const std::string&)>& note = {});
+
+// Groups recordings by condition and measures them (bank, cycles, coherence). Conditions keep the order of
+// their first recording.
+model::BandDataset make_band_dataset(const std::vector<LoadedRecording>& recordings,
+                                     const model::DatasetOptions& options = {});
+
+// The condition of a recording as the dataset sees it.
+model::ConditionInfo condition_info(const drivers::Recording& rec, const std::string& fallback_name);
+
+}  // namespace noisemon::daemon

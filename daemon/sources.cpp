@@ -1,0 +1,48 @@
+#include "daemon/sources.hpp"
+
+#include <spdlog/spdlog.h>
+
+#include "drivers/can_source.hpp"
+#include "drivers/combined_source.hpp"
+#include "drivers/comedi_source.hpp"
+#include "drivers/lcm_source.hpp"
+#include "drivers/sim_source.hpp"
+
+namespace noisemon::daemon {
+namespace {
+
+std::unique_ptr<drivers::Source> make_stream_source(const Config& c) {
+  if (c.source == "sim") return drivers::make_sim_source(c.sim);
+  if (c.source == "lcm") {
+    drivers::LcmSourceConfig l;
+    l.url = c.lcm.url;
+    l.raw_channel = c.lcm.raw_channel;
+    l.operating_point_channel = c.lcm.operating_point_channel;
+    l.session_channel = c.lcm.session_channel;
+    l.session_timeout_s = c.lcm.session_timeout_s;
+    spdlog::info("lcm source: waiting up to {} s for {} (start lcm-logplayer now)", l.session_timeout_s, l.session_channel);
+    return drivers::make_lcm_source(l);
+  }
+  if (c.source == "comedi") {
+    try {
+      return drivers::make_comedi_source(c.comedi);
+    } catch (const std::invalid_argument& e) {
+      throw ConfigError(std::string("comedi source: ") + e.what());
+    }
+  }
+  throw ConfigError("unknown source '" + c.source + "' (this build knows: sim, lcm, comedi)");
+}
+
+}  // namespace
+
+std::unique_ptr<drivers::Source> make_source(const Config& config) {
+  auto streams = make_stream_source(config);
+  if (!config.can.configured()) return streams;
+  auto can = drivers::make_can_source(config.can);
+  spdlog::info("operating points from {} ({} signals)",
+               config.can.candump_path.empty() ? "CAN interface " + config.can.interface : "candump log " + config.can.candump_path,
+               config.can.map.signals().size());
+  return drivers::combine_sources(std::move(streams), std::move(can));
+}
+
+}  // namespace noisemon::daemon

@@ -1,0 +1,176 @@
+// Turning decoded comedi scans into the 40 kHz streams of drivers/source.hpp, without threads or descriptors
+// (the comedi source's driver threads feed them from the read loops; tests feed them directly too).
+//
+// EdgeStreamAssembler: the encoder-clocked scans (one per encoder edge) of one or more subdevices, paired scan
+// by scan: cylinder pressure (Pa), optionally a cam sensor (V), the encoder's position counter (quadrature,
+// reset by the once-per-revolution index) and the edge's timestamp in counter timebase ticks. It unwraps the
+// crank angle, tells firing TDC from gas-exchange TDC (cam edge, or the TDC whose pressure rises more), pegs a
+// relative (piezoelectric) pressure at a crank angle if asked, and resamples the pressure from the edge times
+// to 40 kHz (dsp::NonuniformResampler) with the crank angle interpolated between edges.
+//
+// TimedStreamAssembler: the microphone scans on the card's timer, resampled from the card rate to 40 kHz
+// (dsp::RationalResampler).
+//
+// Time base: a stream's origin_utime is the host time of its first timer tick (the instant its command
+// started); epoch_utime is the source's frame 0. Nothing allocates after construction except restart()
+// (after an overrun, never on the per-sample path).
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <optional>
+#include <vector>
+
+#include "drivers/block_writer.hpp"
+#include "drivers/source.hpp"
+#include "dsp/resample.hpp"
+
+namespace noisemon::drivers {
+
+enum class PhaseSource : std::uint8_t {
+  kPressure,  // firing TDC is the TDC whose pressure rises more (compression vs gas exchange)
+  kCam,       // a cam sensor's rising edge at a known crank angle
+};
+
+enum class TimestampMode : std::uint8_t {
+  kAbsolute,  // free-running timebase count latched at each edge (counts from the command start, wraps)
+  kPeriod,    // timebase ticks since the previous edge (the first: since the command start)
+};
+
+// Where a value sits in the encoder-clocked scans: which subdevice's scan, which entry of its channel list.
+struct ScanSlot {
+  std::uint32_t stream = 0;
+  std::uint32_t channel = 0;
+};
+
+struct EdgeStreamConfig {
+  std::vector<std::uint32_t> stream_channels;  // channel-list length of each encoder-clocked subdevice, in order
+  ScanSlot pressure;                           // Pa
+  ScanSlot position;                           // raw position count
+  ScanSlot timestamp;                          // raw timebase count (TimestampMode)
+  std::optional<ScanSlot> cam;                 // V (PhaseSource::kCam)
+
+  std::uint32_t counts_per_rev = 3600;  // position counts per crank revolution
+  double index_angle_deg = 0.0;         // crank angle at position 0 (the index), degrees after a TDC
+  double timebase_hz = 80e6;
+  std::uint32_t timestamp_bits = 32;    // the timebase counter wraps at 2^bits
+  TimestampMode timestamp_mode = TimestampMode::kAbsolute;
+
+  PhaseSource phase = PhaseSource::kPressure;
+  double cam_threshold_v = 2.5;
+  double cam_edge_deg = 0.0;  // crank angle of the cam signal's rising edge, 0 = firing TDC, within +-180 deg
+
+  double peg_pa = 0.0;           // > 0: the pressure at peg_angle_deg is set to this every cycle (relative sensor)
+  double peg_angle_deg = -180.0; // intake BDC
+  double peg_window_deg = 10.0;  // mean over this crank-angle width around peg_angle_deg
+
+  std::size_t max_scan_skew = 65536;  // scans one subdevice may run ahead of another before it is an error
+};
+
+struct EdgeStreamCounters {
+  std::uint64_t edges = 0;             // paired encoder-clocked scans
+  std::uint64_t edges_before_lock = 0; // not output: cam phase (or the first pegging) not known yet
+  std::uint64_t encoder_errors = 0;    // position stepping backwards, timestamps not increasing
+  std::uint64_t phase_corrections = 0; // firing/gas-exchange TDC re-decided while running
+  std::uint64_t frames = 0;            // 40 kHz frames written
+};
+
+class EdgeStreamAssembler {
+ public:
+  // Throws std::invalid_argument for an inconsistent configuration.
+  EdgeStreamAssembler(const EdgeStreamConfig& config, std::int64_t epoch_utime);
+  ~EdgeStreamAssembler();
+
+  // Starts over at a new origin (the command was (re)started): partial scans, phase and pegging are forgotten.
+  void restart(std::int64_t origin_utime);
+  // One decoded scan of subdevice `stream` (its channel-list values, SI). Pairs it with the other subdevices'
+  // scans of the same edge. Throws std::runtime_error when one subdevice runs max_scan_skew scans ahead.
+  void add_scan(std::uint32_t stream, const double* values, BlockRing& ring);
+  // Resamples the edges gathered so far and pushes finished blocks (a partial block only when at least half
+  // full, or when `all`: at stop and before a restart).
+  void deliver(BlockRing& ring, bool all);
+
+  bool locked() const { return locked_ && peg_known_; }
+  const EdgeStreamCounters& counters() const { return counters_; }
+  std::uint64_t blocks_written() const { return writer_.blocks_written(); }
+
+ private:
+  void add_edge(std::uint64_t position, std::uint64_t ticks, double pressure, double cam, BlockRing& ring);
+  void track_phase(double psi, double pressure, double cam);
+  void vote(int phase);
+  void run_batch(BlockRing& ring);
+  double crank_at(double t);
+
+  EdgeStreamConfig config_;
+  std::int64_t epoch_utime_;
+  double origin_s_ = 0.0;  // origin - epoch, s
+
+  // Pairing: one FIFO of scans per subdevice.
+  struct Fifo {
+    std::vector<double> values;
+    std::size_t channels = 0, head = 0, count = 0;
+  };
+  std::vector<Fifo> fifos_;
+
+  // Edge state.
+  bool have_prev_ = false;
+  std::uint64_t prev_ticks_raw_ = 0, prev_position_ = 0;
+  std::uint64_t ticks_ = 0;  // unwrapped timebase count since the origin
+  std::int64_t count_ = 0;   // unwrapped position count
+  std::uint64_t tick_mask_;
+  double prev_psi_ = 0.0, prev_cam_ = 0.0;
+
+  // Phase: crank angle theta = psi + 360 * phase_, psi = position angle (TDC at multiples of 360).
+  bool locked_ = false;
+  int phase_ = 0;
+  int mismatches_ = 0;
+  struct Window { std::int64_t tdc = 0; double lo = 0, hi = 0; bool open = false, complete = false; } window_;
+  struct Tdc { std::int64_t index = 0; double rise = 0; bool valid = false; } last_tdc_;
+
+  // Pegging.
+  bool peg_known_ = false;
+  double peg_offset_ = 0.0, peg_sum_ = 0.0;
+  std::size_t peg_n_ = 0;
+
+  // Resampling.
+  dsp::NonuniformResampler resampler_;
+  std::vector<double> t_, x_, out_;
+  std::size_t batch_ = 0;
+  struct Edge { double t, theta; };
+  std::vector<Edge> history_;  // ring of recent edges for the crank-angle interpolation
+  std::uint64_t history_end_ = 0, cursor_ = 0;
+  BlockWriter writer_;
+  EdgeStreamCounters counters_;
+};
+
+class TimedStreamAssembler {
+ public:
+  // card_rate_hz: whole Hz (the resampler's ratio must be rational); throws std::invalid_argument otherwise.
+  TimedStreamAssembler(std::uint32_t channels, double card_rate_hz, std::int64_t epoch_utime);
+  ~TimedStreamAssembler();
+
+  // Starts over: card scan 0 is at origin_utime (rounded to the nearest 40 kHz frame, +-12.5 us).
+  void restart(std::int64_t origin_utime);
+  void add_scan(const double* values, BlockRing& ring);
+  void deliver(BlockRing& ring, bool all);
+  std::uint64_t frames() const { return frames_; }
+  std::uint64_t blocks_written() const { return writer_.blocks_written(); }
+
+  // Output frames dropped after each (re)start: the resampler's filter starts from silence.
+  static constexpr std::int64_t kSettleFrames = 400;
+
+ private:
+  void run_batch(BlockRing& ring);
+
+  std::uint32_t channels_;
+  double card_rate_hz_;
+  std::int64_t epoch_utime_;
+  std::int64_t first_index_ = 0;  // 40 kHz index of card scan 0
+  dsp::RationalResampler resampler_;
+  std::vector<double> in_, out_;
+  std::size_t batch_ = 0;
+  BlockWriter writer_;
+  std::uint64_t frames_ = 0;
+};
+
+}  // namespace noisemon::drivers

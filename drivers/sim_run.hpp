@@ -1,0 +1,77 @@
+// Whole runs of the virtual engine in memory, as run directories (drivers/run_dir.hpp): what `noisemon sim`
+// writes and what the diagnosis benchmark and tests generate.
+//
+//  simulate_run(spec)            the engine model's cylinder pressure on encoder samples (plus transducer_noise)
+//                                and the microphones at the card rate, from the virtual engine with the effects.
+//  simulate_acoustics(run, spec) the microphones for a GIVEN pressure (e.g. real Yanmar cycles imported from a
+//                                cycle table): the virtual engine driven by that pressure (`noisemon import
+//                                --mics sim`, `noisemon sim --pressure`).
+//
+// Time base: t = 0 is the first encoder sample of simulate_run (crank -360 deg, the start of cycle 0) and the
+// first frame of mics.wav. Both functions run the virtual engine from a pre-roll before t = 0 so the model and
+// filters have settled when the recording starts. Deterministic in (spec.seed, spec.setup_seed).
+#pragma once
+
+#include <cstdint>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "drivers/run_dir.hpp"
+#include "drivers/sim_source.hpp"
+#include "model/block_params.hpp"
+#include "model/effects.hpp"
+
+namespace noisemon::drivers {
+
+// A named operating condition.
+struct SimCondition {
+  std::string name;
+  double speed_rpm = 3050.0;
+  double load_nm = 0.0;
+  double soi_deg_btdc = 18.0;
+  bool motored = false;
+};
+
+// The thesis's conditions (ch. 4.2): idle 3050 rpm / 0 N m and full load 3450 rpm / 20 N m (the sim's full
+// fuelling), single injection at 12, 15, 18, 21, 24 deg BTDC: idle_mi12 ... idle_mi24, full_mi12 ... full_mi24;
+// plus motored_idle and motored_full (no fuel, same speeds, 0 N m, injector commanded at 18 deg BTDC). 12 in all.
+std::vector<SimCondition> thesis_conditions();
+// Names (or "all") to conditions, in the order given without repeats. Throws std::invalid_argument naming the
+// unknown name and listing the valid ones.
+std::vector<SimCondition> resolve_conditions(const std::vector<std::string>& names);
+
+struct SimRunSpec {
+  SimCondition condition;
+  int cycles = 40;                                   // whole engine cycles recorded (simulate_run)
+  model::Effects effects;
+  model::BlockParams true_block = model::preset("linear");
+  std::uint64_t seed = 1;        // this run's realisation: cycle-to-cycle variation, noise, impacts
+  std::uint64_t setup_seed = 1;  // the installation: per-microphone spread (same for every run of a campaign)
+  // Everything else (encoder resolution, speed ripple, cycle variation, microphone layout and rate, spread,
+  // floor, speed of sound). Its operating point, true block, effects and seed are replaced by the fields above.
+  SimConfig engine = default_engine();
+
+  // The sim source's defaults with a 0.2 deg encoder (as the real Yanmar records; 91.5 kHz at 3050 rpm).
+  static SimConfig default_engine();
+};
+
+// A different but reproducible seed for each condition of a campaign seeded with `seed`.
+std::uint64_t condition_seed(std::uint64_t seed, std::string_view condition_name);
+
+RunDir simulate_run(const SimRunSpec& spec);
+
+// Microphones for the pressure of `pressure_run` (its time_s, crank_deg and pressure_pa are the TRUE pressure;
+// the result's pressure has spec.effects' transducer_noise added). The run needs at least one whole cycle
+// (720 deg); its condition is kept (a speed of 0 is measured from the crank angle); spec.condition and
+// spec.cycles are ignored. Microphone positions: the run's own when it has them, else spec.engine's (thesis).
+// Existing microphone data is replaced. Throws std::invalid_argument naming what is wrong.
+RunDir simulate_acoustics(const RunDir& pressure_run, const SimRunSpec& spec);
+
+// The same for a recording on the 40 kHz grid (what `noisemon import --mics sim` holds): fills rec.mics_pa
+// (40 kHz, frames() unchanged) and the microphone layout of rec.info; the pressure is left as it is (true).
+// spec.condition is ignored: the condition comes from the recording's first operating point.
+struct Recording;
+void synthesize_recording_mics(Recording& rec, const SimRunSpec& spec);
+
+}  // namespace noisemon::drivers

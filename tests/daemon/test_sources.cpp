@@ -1,0 +1,192 @@
+// Source selection of the daemon: the lcm source's session wait ends after [lcm] session_timeout_s with an
+// error naming the channel (an in-process memq:// LCM on which nobody publishes: no network involved), a
+// missing comedi device or CAN interface is an error naming it (from make_source and from the noisemond
+// process: exit status 1, message on stderr), [can] combines with the sim, and the driver counters reach
+// `noisemon watch --status` (real processes over LCM in a private network namespace; needs root).
+#include "daemon/sources.hpp"
+
+#include <sched.h>
+#include <signal.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <gtest/gtest.h>
+
+#include <chrono>
+#include <cstdlib>
+#include <cstring>
+#include <fstream>
+#include <sstream>
+#include <thread>
+
+using noisemon::daemon::Config;
+using noisemon::daemon::make_source;
+using noisemon::daemon::parse_config;
+
+namespace {
+
+const std::string kNoisemond = std::string(NOISEMON_BINARY_DIR) + "/daemon/noisemond";
+const std::string kNoisemon = std::string(NOISEMON_BINARY_DIR) + "/daemon/noisemon";
+
+std::string write_file(const std::string& name, const std::string& text) {
+  const std::string path = ::testing::TempDir() + "/" + name;
+  std::ofstream(path) << text;
+  return path;
+}
+
+std::string read_file(const std::string& path) {
+  std::ifstream in(path);
+  std::stringstream s;
+  s << in.rdbuf();
+  return s.str();
+}
+
+// Runs a program with stdout and stderr to files; kills it after the timeout. Returns the exit status (-1: killed).
+int run(const std::vector<std::string>& args, const std::string& out, const std::string& err, std::chrono::seconds timeout) {
+  const pid_t pid = fork();
+  if (pid == 0) {
+    if (!std::freopen(out.c_str(), "w", stdout) || !std::freopen(err.c_str(), "w", stderr)) _exit(126);
+    std::vector<char*> argv;
+    for (const auto& a : args) argv.push_back(const_cast<char*>(a.c_str()));
+    argv.push_back(nullptr);
+    execv(argv[0], argv.data());
+    _exit(127);
+  }
+  const auto deadline = std::chrono::steady_clock::now() + timeout;
+  while (std::chrono::steady_clock::now() < deadline) {
+    int status = 0;
+    if (waitpid(pid, &status, WNOHANG) == pid) return WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  }
+  kill(pid, SIGKILL);
+  waitpid(pid, nullptr, 0);
+  return -1;
+}
+
+constexpr const char* kComediMissing = R"(
+[daemon]
+source = "comedi"
+[comedi.pressure]
+device = "/dev/comedi-noisemon-missing"
+sensitivity_mv_per_bar = 10.0
+[comedi.encoder]
+device = "/dev/comedi-noisemon-missing"
+subdevice = 11
+[comedi.mics]
+device = "/dev/comedi-noisemon-missing-mics"
+channels = [0, 1]
+sensitivity_mv_per_pa = 50.0
+)";
+
+constexpr const char* kSpeedSignal = R"(
+[[can.signal]]
+field = "speed_rpm"
+id = 0x0CF00400
+extended = true
+start_bit = 24
+length = 16
+byte_order = "intel"
+factor = 0.125
+)";
+
+}  // namespace
+
+TEST(Sources, LcmSourceWithoutSessionFailsAfterTheConfiguredTimeout) {
+  Config c = parse_config("[daemon]\nsource = \"lcm\"\n[lcm]\nurl = \"memq://\"\nsession_timeout_s = 0.4\n", "t");
+  const auto t0 = std::chrono::steady_clock::now();
+  try {
+    make_source(c);
+    FAIL() << "an lcm source started without a session";
+  } catch (const std::runtime_error& e) {
+    const double waited = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    const std::string what = e.what();
+    EXPECT_NE(what.find("NOISEMON_SESSION"), std::string::npos) << what;
+    EXPECT_NE(what.find("memq://"), std::string::npos) << what;
+    EXPECT_GE(waited, 0.4);
+    EXPECT_LT(waited, 2.0);
+  }
+}
+
+TEST(Sources, MissingComediDeviceIsNamed) {
+  try {
+    make_source(parse_config(kComediMissing, "t"));
+    FAIL() << "opened a missing comedi device";
+  } catch (const std::runtime_error& e) {
+    EXPECT_NE(std::string(e.what()).find("/dev/comedi-noisemon-missing"), std::string::npos) << e.what();
+  }
+}
+
+TEST(Sources, CanSectionCombinesWithTheSimAndMissingInterfaceIsNamed) {
+  const std::string log = write_file("sources.log", "(1700000000.000000) can0 0CF00400#FFFFFF405FFFFFFF\n");
+  auto s = make_source(parse_config("[can]\ncandump = \"" + log + "\"\npace = \"fast\"\n" + kSpeedSignal, "t"));
+  EXPECT_EQ(s->name(), "sim+candump");
+  EXPECT_EQ(s->info().mic_count, 10u);  // the sim's streams
+  try {
+    make_source(parse_config(std::string("[can]\ninterface = \"nmcan3\"\n") + kSpeedSignal, "t"));
+    FAIL() << "opened a missing CAN interface";
+  } catch (const std::runtime_error& e) {
+    EXPECT_NE(std::string(e.what()).find("'nmcan3'"), std::string::npos) << e.what();
+  }
+}
+
+TEST(Noisemond, MissingComediDeviceExitsNonZeroNamingIt) {
+  const std::string dir = ::testing::TempDir();
+  const std::string cfg = write_file("missing.toml", kComediMissing);
+  EXPECT_EQ(run({kNoisemond, "--config", cfg}, dir + "/missing.out", dir + "/missing.err", std::chrono::seconds(10)), 1);
+  const std::string err = read_file(dir + "/missing.err");
+  EXPECT_NE(err.find("cannot open comedi device /dev/comedi-noisemon-missing"), std::string::npos) << err;
+}
+
+TEST(Noisemond, LcmSourceWithoutSessionExitsNonZeroAfterTheTimeout) {
+  const std::string dir = ::testing::TempDir();
+  const std::string cfg = write_file("nosession.toml", "[lcm]\nsession_timeout_s = 0.3\n");
+  const auto t0 = std::chrono::steady_clock::now();
+  EXPECT_EQ(run({kNoisemond, "--config", cfg, "--source", "lcm", "--lcm", "memq://"}, dir + "/nosession.out",
+                dir + "/nosession.err", std::chrono::seconds(10)),
+            1);
+  EXPECT_LT(std::chrono::steady_clock::now() - t0, std::chrono::seconds(3));
+  const std::string err = read_file(dir + "/nosession.err");
+  EXPECT_NE(err.find("no noisemon.session_t on 'NOISEMON_SESSION'"), std::string::npos) << err;
+}
+
+TEST(Noisemond, DriverCountersAppearInWatchStatus) {
+  if (geteuid() != 0) {
+    if (const char* ci = std::getenv("CI"); ci && std::string(ci) == "true") FAIL() << "needs root for unshare -n";
+    GTEST_SKIP() << "needs root for a private network namespace (unshare -n)";
+  }
+  // The daemon and the subscriber in a private network namespace of their own: nothing leaves the machine.
+  const pid_t pid = fork();
+  if (pid == 0) {
+    if (unshare(CLONE_NEWNET) != 0 || std::system("ip link set lo up && ip route add 224.0.0.0/4 dev lo") != 0) _exit(125);
+    const std::string dir = ::testing::TempDir();
+    const std::string log = write_file("status.log",
+                                       "(1700000000.000000) can0 0CF00400#FFFFFF405FFFFFFF\n"
+                                       "garbage\n"
+                                       "(1700000000.100000) can0 0CF00400#FFFFFF00640000FF\n");
+    const std::string cfg = write_file("status.toml", "[can]\ncandump = \"" + log + "\"\n" + kSpeedSignal);
+    const std::string url = "udpm://239.255.76.67:7667?ttl=0";
+    const pid_t daemon = fork();
+    if (daemon == 0) {
+      std::freopen("/dev/null", "w", stderr);
+      execl(kNoisemond.c_str(), kNoisemond.c_str(), "--config", cfg.c_str(), "--lcm", url.c_str(), static_cast<char*>(nullptr));
+      _exit(127);
+    }
+    const int watch = run({kNoisemon, "watch", "--status", "--lcm", url, "--count", "2", "--timeout", "5"}, dir + "/status.out",
+                          dir + "/status.err", std::chrono::seconds(15));
+    kill(daemon, SIGTERM);
+    int status = 0;
+    waitpid(daemon, &status, 0);
+    _exit(watch == 0 && WIFEXITED(status) && WEXITSTATUS(status) == 0 ? 0 : 1);
+  }
+  int status = 0;
+  waitpid(pid, &status, 0);
+  ASSERT_TRUE(WIFEXITED(status));
+  ASSERT_NE(WEXITSTATUS(status), 125) << "cannot set up a private network namespace";
+  const std::string out = read_file(::testing::TempDir() + "/status.out");
+  EXPECT_EQ(WEXITSTATUS(status), 0) << out << read_file(::testing::TempDir() + "/status.err");
+  EXPECT_NE(out.find("source=sim+candump"), std::string::npos) << out;
+  EXPECT_NE(out.find("candump.replay="), std::string::npos) << out;
+  EXPECT_NE(out.find("counters:"), std::string::npos) << out;
+  EXPECT_NE(out.find("candump.malformed_lines=1"), std::string::npos) << out;
+  EXPECT_NE(out.find("candump.decoded_frames=2"), std::string::npos) << out;
+}

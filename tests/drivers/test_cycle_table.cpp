@@ -1,0 +1,164 @@
+// Cycle tables (crank angle + one pressure column per cycle) -> run directory: the angle mapping written out
+// independently from the documented rule (cycle j, table angle a -> 720 j + a - tdc; t from a constant speed),
+// the pegging row, the bad inputs, and the real Yanmar L100V tables.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstdlib>
+#include <filesystem>
+#include <string>
+
+#include "drivers/cycle_table.hpp"
+
+using namespace noisemon::drivers;
+
+namespace {
+
+// A table over [first, first + 720) in `step` steps with `cycles` columns; value(j, a) per cell; the first row
+// holds `pegging` in every column when pegging >= 0.
+std::string make_table(double first, double step, int cycles, double pegging, double (*value)(int, double)) {
+  std::string s;
+  const int rows = static_cast<int>(std::lround(720.0 / step));
+  char buf[64];
+  for (int r = 0; r < rows; ++r) {
+    const double a = first + r * step;
+    std::snprintf(buf, sizeof buf, "%.6f", a);
+    s += buf;
+    for (int j = 0; j < cycles; ++j) {
+      std::snprintf(buf, sizeof buf, "\t%.6f", r == 0 && pegging >= 0 ? pegging : value(j, a));
+      s += buf;
+    }
+    s += "\t\r\n";  // trailing tab and CRLF, as the Yanmar files have
+  }
+  return s;
+}
+
+double cell(int j, double a) { return 1.0 + j + a / 1000.0; }
+
+std::string table_error(const std::string& text) {
+  try {
+    parse_cycle_table(text, "t.txt");
+  } catch (const RunDirError& e) {
+    return e.what();
+  }
+  return "(no error)";
+}
+
+#define EXPECT_HAS(haystack, needle) EXPECT_NE((haystack).find(needle), std::string::npos) << (haystack)
+
+std::string shared_file(const std::string& name) {
+  const std::string path = std::string(NOISEMON_SHARED_DIR) + "/data/real/" + name;
+  if (!std::filesystem::exists(path)) {
+    if (std::getenv("CI")) ADD_FAILURE() << path << " missing (CI is set: the reference data must be present)";
+    return "";
+  }
+  return path;
+}
+
+}  // namespace
+
+TEST(CycleTable, WindowNotCentredOnTdcMapsToUnwrappedAnglesWithTdcAtZero) {
+  // -180 .. 539.5 deg in 0.5 deg steps, 3 cycles, a pegging value of 0.97 in the first row.
+  const CycleTable t = parse_cycle_table(make_table(-180.0, 0.5, 3, 0.97, cell), "t.txt");
+  ASSERT_EQ(t.crank_deg.size(), 1440u);
+  ASSERT_EQ(t.cycles_bar.size(), 3u);
+  CycleTableOptions o;
+  o.speed_rpm = 1200.0;  // 7200 deg/s
+  o.condition.name = "synthetic";
+  o.condition.load_nm = 5;
+  const CycleTableConversion c = cycle_table_to_run(t, o, "t.txt");
+  EXPECT_TRUE(c.pegging_row_dropped);
+  const RunDir& run = c.run;
+  ASSERT_EQ(run.crank_deg.size(), 3u * 1439u);
+  EXPECT_EQ(run.condition.speed_rpm, 1200.0);
+  EXPECT_EQ(run.condition.load_nm, 5);
+  EXPECT_EQ(run.mic_count, 0u);
+  for (int j = 0; j < 3; ++j)
+    for (int r = 1; r < 1440; ++r) {  // row 0 was the pegging row
+      const std::size_t i = static_cast<std::size_t>(j * 1439 + r - 1);
+      const double a = -180.0 + 0.5 * r;
+      const double theta = 720.0 * j + a;  // firing TDC of table cycle j at 720 j
+      ASSERT_NEAR(run.crank_deg[i], theta, 1e-9);
+      ASSERT_NEAR(run.time_s[i], (theta - (-179.5)) / 7200.0, 1e-12);
+      ASSERT_NEAR(run.pressure_pa[i], cell(j, a) * 1e5, 1e-3);
+    }
+  // The step across the dropped pegging rows is two encoder steps (filled when resampled).
+  EXPECT_NEAR(run.crank_deg[1439] - run.crank_deg[1438], 1.0, 1e-9);
+}
+
+TEST(CycleTable, TableOverZeroTo720WithTdcAt360) {
+  const CycleTable t = parse_cycle_table(make_table(0.0, 1.0, 2, -1, cell), "t.txt");
+  CycleTableOptions o;
+  o.speed_rpm = 600.0;
+  o.tdc_deg = 360.0;
+  const CycleTableConversion c = cycle_table_to_run(t, o, "t.txt");
+  EXPECT_FALSE(c.pegging_row_dropped);  // the first rows differ between cycles: samples
+  EXPECT_NEAR(c.run.crank_deg.front(), -360.0, 1e-12);
+  EXPECT_NEAR(c.run.crank_deg[360], 0.0, 1e-12);  // table 360 deg = firing TDC
+  EXPECT_NEAR(c.run.crank_deg.back(), 720.0 + 719.0 - 360.0, 1e-12);
+  EXPECT_NEAR(c.run.time_s.back(), (720.0 + 719.0) / 3600.0, 1e-12);
+}
+
+TEST(CycleTable, PeggingRowChoice) {
+  const CycleTable t = parse_cycle_table(make_table(-180.0, 1.0, 2, 0.9, cell), "t.txt");
+  CycleTableOptions o;
+  o.speed_rpm = 1000;
+  o.pegging = PeggingRow::kNone;
+  EXPECT_EQ(cycle_table_to_run(t, o, "t.txt").run.pressure_pa.size(), 2u * 720u);
+  o.pegging = PeggingRow::kFirstRow;
+  EXPECT_EQ(cycle_table_to_run(t, o, "t.txt").run.pressure_pa.size(), 2u * 719u);
+  o.speed_rpm = 0;
+  try {
+    cycle_table_to_run(t, o, "t.txt");
+    ADD_FAILURE() << "no error without a speed";
+  } catch (const RunDirError& e) {
+    EXPECT_HAS(std::string(e.what()), "t.txt: the engine speed must be given");
+  }
+}
+
+TEST(CycleTableBadInput, ErrorsNameFileLineColumnAndWhatWasExpected) {
+  std::string t = make_table(-180.0, 1.0, 2, -1, cell);
+  // Row 5 (line 5) loses a column.
+  std::size_t line5 = 0;
+  for (int i = 0; i < 4; ++i) line5 = t.find('\n', line5) + 1;
+  std::string ragged = t;
+  ragged.replace(ragged.find('\t', ragged.find('\t', line5) + 1), ragged.find('\n', line5) - ragged.find('\t', ragged.find('\t', line5) + 1) - 1, "");
+  EXPECT_HAS(table_error(ragged), "t.txt: line 5: 2 columns, expected 3 like line 1");
+  std::string bad = t;
+  bad.replace(bad.find('\t', line5) + 1, 8, "1,5");
+  EXPECT_HAS(table_error(bad), "t.txt: line 5: column 2 is \"1,5");
+  EXPECT_HAS(table_error(bad), "expected a pressure in bar");
+  std::string crank = t;
+  crank.replace(line5, crank.find('\t', line5) - line5, "-175.500000");
+  EXPECT_HAS(table_error(crank), "t.txt: line 5: crank angle -175.5 after -177, expected a uniform step of");
+  std::size_t half = 0;  // the first 360 rows only
+  for (int i = 0; i < 360; ++i) half = t.find('\n', half) + 1;
+  EXPECT_HAS(table_error(t.substr(0, half)), "t.txt: the crank column covers 360 deg (360 rows of 1 deg), expected 720 deg");
+  EXPECT_HAS(table_error("angle p1 p2\nabc 1 2\n"), "t.txt: line 2: column 1 (crank angle) is \"abc\", expected a number");
+  EXPECT_HAS(table_error("1\n2\n3\n4\n5\n6\n7\n8\n"), "t.txt: line 1: 1 column, expected the crank angle followed by");
+}
+
+TEST(CycleTable, HeaderLineAndCommentsAreSkipped) {
+  const std::string t = "# exported by a lab script\ncrank p1 p2\n" + make_table(-180.0, 1.0, 2, -1, cell);
+  const CycleTable c = parse_cycle_table(t, "t.txt");
+  EXPECT_EQ(c.crank_deg.size(), 720u);
+  EXPECT_EQ(c.first_data_line, 3u);
+}
+
+TEST(CycleTable, RealYanmarTablesParse) {
+  for (const char* name : {"yanmar_l100v_fired_18Nm.txt", "yanmar_l100v_motored.txt"}) {
+    const std::string path = shared_file(name);
+    if (path.empty()) GTEST_SKIP() << "reference data not found under " << NOISEMON_SHARED_DIR;
+    const CycleTable t = read_cycle_table(path);
+    // The data README: -180 .. 539.8 deg in 0.2 deg steps (3600 rows), 60 cycles, pegging value first.
+    ASSERT_EQ(t.crank_deg.size(), 3600u) << name;
+    EXPECT_EQ(t.cycles_bar.size(), 60u) << name;
+    EXPECT_NEAR(t.crank_deg.front(), -180.0, 1e-9);
+    EXPECT_NEAR(t.crank_deg.back(), 539.8, 1e-9);
+    CycleTableOptions o;
+    o.speed_rpm = 1799.9;
+    const CycleTableConversion c = cycle_table_to_run(t, o, path);
+    EXPECT_TRUE(c.pegging_row_dropped) << name;
+    EXPECT_EQ(c.run.crank_deg.size(), 60u * 3599u);
+  }
+}
