@@ -86,7 +86,9 @@ void CycleProcessor::add_pressure(const drivers::SampleBlock& block) {
   }
   const std::int64_t new_first = std::max(block.first_index, end_before);
   const std::int64_t skip = new_first - block.first_index;
-  if (skip < static_cast<std::int64_t>(block.frames)) {
+  if (skip == 0) {
+    predict(new_first, block);  // the usual case: all of the block is new, no copy
+  } else if (skip < static_cast<std::int64_t>(block.frames)) {
     drivers::SampleBlock fresh;
     fresh.first_index = new_first;
     fresh.channels = block.channels;

@@ -24,8 +24,8 @@ namespace noisemon::daemon {
 // The recording arrives with its pressure on the 40 kHz grid; the step must leave frames() unchanged.
 using MicSynthesizer = std::function<void(drivers::Recording&)>;
 
-// The synthesizer named on the command line ("sim"). Throws std::invalid_argument for an unknown name, and
-// std::runtime_error while the virtual engine's acoustic side is not yet available in this build.
+// The synthesizer named on the command line: "sim" (drivers::synthesize_recording_mics with the default
+// SimRunSpec). Throws std::invalid_argument for an unknown name.
 MicSynthesizer mic_synthesizer(const std::string& name);
 
 struct ImportCommon {

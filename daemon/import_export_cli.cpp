@@ -38,7 +38,7 @@ ImportExportCommands::ImportExportCommands(CLI::App& app) {
       ->needs(table);
   import_->add_option("--mics", mics_,
                       "synthesize the microphones from the imported pressure: \"sim\" (the virtual engine's "
-                      "acoustic side; coming, not yet in this build)");
+                      "acoustic side, its default ten microphones, linear block)");
   import_->add_option("--epoch-utime", dirs_.epoch_utime,
                       "utime (us since 1970) of the first run's frame 0 (default: now); later runs follow it");
   import_->add_flag("!--no-progress", dirs_.progress, "no progress display");

@@ -6,6 +6,7 @@
 #include "daemon/config.hpp"
 #include "daemon/import_export_cli.hpp"
 #include "daemon/replay.hpp"
+#include "daemon/fit_command.hpp"
 #include "daemon/sim_command.hpp"
 #include "daemon/watch.hpp"
 
@@ -39,6 +40,7 @@ int main(int argc, char** argv) {
 
   ImportExportCommands import_export(app);
   SimCommand sim(app);
+  FitCommand fit(app);
 
   try {
     app.parse(argc, argv);
@@ -49,6 +51,7 @@ int main(int argc, char** argv) {
     if (w->parsed()) return run_watch(watch);
     if (const int status = import_export.run(); status >= 0) return status;
     if (const int status = sim.run(); status >= 0) return status;
+    if (const int status = fit.run(); status >= 0) return status;
     if (r->parsed()) {
       if (!replay_config.empty()) replay.config = load_config(replay_config);
       if (!replay_model.empty()) replay.config.model = noisemon::model::preset(replay_model);

@@ -28,17 +28,19 @@ bool decode(const drivers::LcmLogEvent& e, Message& m) {
 class Progress {
  public:
   Progress(bool enabled, long total_bytes) : enabled_(enabled && isatty(STDERR_FILENO) && total_bytes > 0), total_(total_bytes) {}
-  void update(long done_bytes, std::int64_t reports) {
+  void update(long done_bytes, std::int64_t reports, bool force = false) {
     if (!enabled_) return;
     const auto now = std::chrono::steady_clock::now();
-    if (now - last_ < std::chrono::milliseconds(100)) return;
+    if (!force && now - last_ < std::chrono::milliseconds(100)) return;
     last_ = now;
     const double f = static_cast<double>(done_bytes) / static_cast<double>(total_);
     const int width = 40, filled = static_cast<int>(f * width);
     std::fprintf(stderr, "\r[%s%s] %5.1f%%  %lld cycles", std::string(filled, '#').c_str(),
                  std::string(width - filled, '.').c_str(), 100 * f, static_cast<long long>(reports));
   }
-  void finish() {
+  // The final state (not the last throttled one), then the line ends.
+  void finish(long done_bytes, std::int64_t reports) {
+    update(done_bytes, reports, true);
     if (enabled_) std::fprintf(stderr, "\n");
   }
 
@@ -96,6 +98,8 @@ ReplaySummary run_replay(const ReplayOptions& o) {
   const auto wall_start = std::chrono::steady_clock::now();
   drivers::LcmLogEvent event;
   const drivers::LcmLogEvent* e = &event;
+  // Reused for every raw block: decoding into a fresh message allocated and zeroed its samples each time.
+  noisemon::raw_block_t raw;
   while (log.next(event)) {
     ++sum.events;
     if (o.realtime) {
@@ -130,7 +134,7 @@ ReplaySummary run_replay(const ReplayOptions& o) {
         processor = std::make_unique<CycleProcessor>(pc, *info, sink);
       }
     } else if (e->channel == ch.raw_channel) {
-      noisemon::raw_block_t m;
+      noisemon::raw_block_t& m = raw;
       if (!decode(*e, m)) {
         skip_damaged(*e);
         continue;
@@ -167,7 +171,7 @@ ReplaySummary run_replay(const ReplayOptions& o) {
     }
     progress.update(static_cast<long>(log.position()), sum.reports);
   }
-  progress.finish();
+  progress.finish(static_cast<long>(log.position()), sum.reports);
   if (log.damaged() > 0) {
     // Stretches of the file that were no event at all (damaged framing, a log cut short): one each.
     spdlog::warn("{}: {} damaged stretch(es) of {} bytes skipped, the first at byte {}{}", o.log_path, log.damaged(),

@@ -11,6 +11,7 @@
 #include <filesystem>
 #include <fstream>
 #include <stdexcept>
+#include <utility>
 
 #include "daemon/params_file.hpp"
 #include "drivers/run_dir.hpp"
@@ -114,7 +115,11 @@ SimSummary run_sim(const SimOptions& o) {
     if (!fs::is_regular_file(p / "run.json")) throw std::invalid_argument("--pressure " + p.string() + ": no run.json there");
     std::string name = p.filename().string();
     if (name.empty()) name = p.parent_path().filename().string();
-    jobs.push_back({name, safe_name(name, i), {}, p.string()});
+    Job job;
+    job.name = name;
+    job.dir = safe_name(name, i);
+    job.pressure_dir = p.string();
+    jobs.push_back(std::move(job));
   }
   for (std::size_t i = 0; i < jobs.size(); ++i)
     for (std::size_t j = 0; j < i; ++j)
@@ -125,6 +130,8 @@ SimSummary run_sim(const SimOptions& o) {
     for (const auto& j : jobs)
       if (fs::exists(out / j.dir / "run.json"))
         throw std::invalid_argument("" + (out / j.dir).string() + " already holds a run; use --force to replace it");
+  if (!o.force && fs::exists(out / "truth.json"))
+    throw std::invalid_argument((out / "truth.json").string() + " already records an earlier sim; use --force to replace it");
 
   SimSummary sum;
   Progress progress(o.progress);
@@ -207,7 +214,7 @@ SimCommand::SimCommand(CLI::App& app) {
       ->capture_default_str()
       ->check(CLI::Range(0.01, 6.0));
   sim_->add_option("-o,--out", options_.out_dir, "output directory: one run directory per condition, and truth.json");
-  sim_->add_flag("--force", options_.force, "replace run directories that already exist");
+  sim_->add_flag("--force", options_.force, "replace run directories and a truth.json that already exist");
   sim_->add_flag("--list-effects", list_effects_, "print every effect (unit, meaning, default, realistic range) and exit");
   sim_->add_flag("!--no-progress", options_.progress, "no progress display");
   sim_->footer(model::effect_help_text() +
@@ -216,7 +223,11 @@ SimCommand::SimCommand(CLI::App& app) {
                "  noisemon sim --condition all --effect cubic_stiffness -o runs/k3\n"
                "  noisemon sim --condition idle_mi18 --condition full_mi18 --effect second_mode=6,hz=3150 "
                "--effect background_noise=60 --cycles 20 --seed 7 -o runs/mix\n"
-               "  noisemon sim --pressure runs/yanmar_fired --effect mechanical_noise=80 -o runs/yanmar_sim");
+               "  # real Yanmar cycles driving the virtual engine (the pressure is kept, the microphones are the sim's):\n"
+               "  noisemon import --cycles-table yanmar_l100v_fired_18Nm.txt --rpm 1799.9 --load 18 --soi 9.6 "
+               "--condition yanmar_fired -o fired.lcmlog\n"
+               "  noisemon export fired.lcmlog -o pressure/yanmar_fired\n"
+               "  noisemon sim --pressure pressure/yanmar_fired --effect mechanical_noise=80 -o runs/yanmar_sim");
 }
 
 int SimCommand::run() {

@@ -32,6 +32,11 @@ void split(std::string_view line, std::vector<std::string_view>& fields) {
   }
 }
 
+// Beyond any engine: a crank angle this large is a corrupted file, and a pressure this large would overflow
+// (or silently lose its meaning) once converted to Pa.
+constexpr double kMaxAbsCrankDeg = 1e6;
+constexpr double kMaxAbsPressureBar = 1e5;
+
 std::string fmt(double v) {
   char buf[32];
   std::snprintf(buf, sizeof buf, "%.6g", v);
@@ -77,6 +82,9 @@ CycleTable parse_cycle_table(std::string_view text, const std::string& file) {
       }
       throw RunDirError(at(line_no) + "column 1 (crank angle) is \"" + std::string(fields[0]) + "\", expected a number");
     }
+    if (std::abs(crank) > kMaxAbsCrankDeg)
+      throw RunDirError(at(line_no) + "crank angle " + fmt(crank) + " deg, expected a crank angle within +-" +
+                        fmt(kMaxAbsCrankDeg) + " deg");
     header_allowed = false;
     if (columns == 0) {
       columns = fields.size();
@@ -94,9 +102,9 @@ CycleTable parse_cycle_table(std::string_view text, const std::string& file) {
     t.crank_deg.push_back(crank);
     for (std::size_t c = 1; c < columns; ++c) {
       double p;
-      if (!parse_number(fields[c], p))
+      if (!parse_number(fields[c], p) || std::abs(p) > kMaxAbsPressureBar)
         throw RunDirError(at(line_no) + "column " + std::to_string(c + 1) + " is \"" + std::string(fields[c]) +
-                          "\", expected a pressure in bar");
+                          "\", expected a pressure in bar (within +-" + fmt(kMaxAbsPressureBar) + ")");
       t.cycles_bar[c - 1].push_back(p);
     }
   }

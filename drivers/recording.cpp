@@ -22,6 +22,7 @@ constexpr std::int64_t kResamplerEdgeFrames = 128;
 constexpr std::size_t kBlockFrames = SampleBlock::kMaxFrames;
 constexpr std::int64_t kRepeatFrames = 40000;  // session and operating point again every second
 constexpr std::size_t kMaxDamageNotes = 10;
+constexpr double kMaxRecordingSeconds = 24 * 3600;  // one import: a day of 40 kHz frames is already 3.5e9
 
 std::int64_t utime_of_index(std::int64_t epoch, std::int64_t index) {
   return epoch + static_cast<std::int64_t>(std::llround(static_cast<double>(index) * 1e6 / kFs));
@@ -380,6 +381,12 @@ Recording to_recording(const RunDir& run, std::int64_t epoch_utime) {
   if (run.mic_count > SampleBlock::kMaxChannels || (run.mic_count > 0 && (run.mic_positions_m.size() != run.mic_count ||
                                                                           run.mic_pa.size() % run.mic_count != 0)))
     throw RunDirError("run '" + run.condition.name + "': microphone data does not match its positions");
+  // Before any frame count is computed from times: absurd times would overflow it (and memory).
+  const double span_s = run.time_s.back() - run.time_s.front();
+  if (!(std::abs(run.time_s.front()) <= kMaxRecordingSeconds && span_s <= kMaxRecordingSeconds))
+    throw RunDirError("run '" + run.condition.name + "': time_s " + std::to_string(run.time_s.front()) + " .. " +
+                      std::to_string(run.time_s.back()) + " s, expected a run within " +
+                      std::to_string(static_cast<int>(kMaxRecordingSeconds)) + " s of time 0");
 
   Recording rec;
   rec.condition = run.condition.name;

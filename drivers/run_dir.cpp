@@ -231,7 +231,7 @@ RunManifest parse_run_json(std::string_view text, const std::string& file) {
   json root;
   try {
     root = json::parse(text.begin(), text.end());
-  } catch (const json::parse_error& e) {
+  } catch (const json::exception& e) {  // parse_error, and out_of_range for a number beyond double (1e999)
     throw RunDirError(file + ": not valid JSON: " + e.what());
   }
   const JsonFields f(file);
@@ -342,6 +342,10 @@ void parse_pressure_csv(std::string_view text, const std::string& file, double t
         throw RunDirError(at(line_no) + "crank_deg " + std::to_string(v[1]) + " does not increase (previous row " +
                           std::to_string(run.crank_deg.back()) + "): crank_deg must be unwrapped and increasing");
     }
+    // Far beyond any cylinder (1e5 bar): a corrupted field, which would also overflow once converted to Pa.
+    if (!(std::abs(v[2] * to_pa) <= 1e10))
+      throw RunDirError(at(line_no) + "field pressure is " + quoted(line.substr(line.rfind(',') + 1)) +
+                        ", expected a cylinder pressure within +-1e5 bar");
     run.time_s.push_back(v[0]);
     run.crank_deg.push_back(v[1]);
     run.pressure_pa.push_back(v[2] * to_pa);
@@ -411,6 +415,18 @@ RunDir read_run_dir(const std::filesystem::path& dir) {
   const std::filesystem::path csv = dir / m.pressure_file;
   parse_pressure_csv(read_text_file(csv, "the pressure file named by pressure.file in run.json"), csv.string(),
                      m.pressure_to_pa, run);
+  // The rows' mean speed must be the declared one: otherwise time_s or crank_deg is in other units (ms, rad)
+  // or rows are missing, and every frequency downstream would be silently wrong.
+  const double mean_rpm = (run.crank_deg.back() - run.crank_deg.front()) / (run.time_s.back() - run.time_s.front()) / 6.0;
+  if (!(std::abs(mean_rpm - m.condition.speed_rpm) <= kSpeedTolerance * m.condition.speed_rpm)) {
+    char buf[256];
+    std::snprintf(buf, sizeof buf,
+                  ": the rows imply %.6g rpm (crank_deg %.6g..%.6g over time_s %.9g..%.9g s), run.json's "
+                  "condition.speed_rpm is %.6g (expected within %.0f %%: time in s, crank angle in deg)",
+                  mean_rpm, run.crank_deg.front(), run.crank_deg.back(), run.time_s.front(), run.time_s.back(),
+                  m.condition.speed_rpm, 100 * kSpeedTolerance);
+    throw RunDirError(csv.string() + buf);
+  }
   if (m.has_mics) {
     read_mics_wav(dir / m.mics_file, static_cast<std::uint32_t>(m.mic_positions_m.size()), m.full_scale_pa, run);
     run.mic_positions_m = m.mic_positions_m;

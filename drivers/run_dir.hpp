@@ -79,6 +79,8 @@ void parse_mics_wav(const std::uint8_t* data, std::size_t size, const std::strin
 // Encoder steps a crank-angle gap may span (larger gaps are an error; smaller ones are filled by
 // interpolation when the run is resampled to 40 kHz).
 inline constexpr double kMaxCrankGapSteps = 4.0;
+// Largest relative difference between the pressure rows' mean speed and run.json's condition.speed_rpm.
+inline constexpr double kSpeedTolerance = 0.25;
 // Writes DIR/run.json, DIR/pressure.csv (pressure in `pressure_units`, "bar" or "Pa") and, when the run has
 // microphones, DIR/mics.wav (32-bit float). Creates DIR; throws RunDirError naming the file on failure.
 void write_run_dir(const std::filesystem::path& dir, const RunDir& run, const std::string& pressure_units = "bar");

@@ -53,7 +53,7 @@ const std::array<EffectInfo, 9> kCatalog{{
      "y += (10^(M/20) - 1) R(y), R unit-peak resonance at f2 (default 2000 Hz, Q 5); negative M: an absorber. Off: 0.",
      8.0, 3.0, 12.0, -20.0, 30.0, kSecondModeQualifiers, false},
     {"mechanical_noise", "dB(A)",
-     "crank-angle-locked impacts (piston slap, valves, injector), Leq(A) at each microphone at 3050 rpm",
+     "crank-angle-locked impacts (piston slap, valves, injector), Leq(A) at the microphones (energy mean) at 3050 rpm",
      "7 impacts per cycle at fixed crank angles (below), motored and fired alike (the injector is actuated in motored runs too); "
      "Leq +30 log10(n/3050 rpm). Off: not given.",
      75.0, 65.0, 90.0, 0.0, 160.0, {}, false},

@@ -622,4 +622,43 @@ WaveformDiagnosis diagnose_waveform(std::span<const double> u, std::span<const d
   return d;
 }
 
+namespace {
+std::vector<std::pair<std::string, double>> model_params(const WaveformModel& m, const std::vector<std::string>& free) {
+  std::vector<std::pair<std::string, double>> out;
+  for (const std::string& name : free) out.emplace_back(name, get_parameter(m, name));
+  return out;
+}
+
+WaveformReportCandidate report_candidate(const CandidateResult& c, bool second_round) {
+  WaveformReportCandidate r;
+  r.effect = c.effect;
+  r.heldout_rms = c.heldout_rms;
+  r.gap_closed_fraction = c.gap_closed_fraction;
+  r.significant = c.significant;
+  r.p_value = c.test.p_value;
+  if (c.error.empty()) r.params = model_params(c.fit.model, c.fit.free_params);
+  r.second_round = second_round;
+  r.error = c.error;
+  return r;
+}
+}  // namespace
+
+WaveformReport waveform_report(const WaveformDiagnosis& d) {
+  WaveformReport r;
+  r.baseline_model = d.baseline.start_name;
+  r.baseline_train_rms = d.baseline.train_rms;
+  r.baseline_heldout_rms = d.baseline.heldout_rms;
+  r.baseline_params = model_params(d.baseline.model, d.baseline.free_params);
+  for (const CandidateResult& c : d.candidates) r.candidates.push_back(report_candidate(c, false));
+  for (const CandidateResult& c : d.second_round) r.candidates.push_back(report_candidate(c, true));
+  r.not_applicable = d.not_applicable;
+  r.verdict = d.verdict;
+  r.also_significant = d.also_significant;
+  r.heldout_rms_before = d.heldout_rms_before;
+  r.heldout_rms_after = d.heldout_rms_after;
+  r.bands = d.bands;
+  r.amplitude = d.amplitude;
+  return r;
+}
+
 }  // namespace noisemon::model

@@ -34,6 +34,7 @@
 #include <optional>
 #include <span>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "model/waveform_fit.hpp"
@@ -127,6 +128,34 @@ struct WaveformDiagnosis {
 
 WaveformDiagnosis diagnose_waveform(std::span<const double> u, std::span<const double> y,
                                     const WaveformDiagnosisOptions& opt);
+
+// The diagnosis in DESIGN.md's report-schema shape, for `noisemon diagnose` in waveform mode. The RMS figures are
+// free-run output errors in the data's units (not dB): a writer puts them under the schema's *_rms_db keys only
+// with a "units" field beside them. Candidates best first (the diagnosis' ranking), second-round ones after.
+struct WaveformReportCandidate {
+  std::string effect;
+  double heldout_rms = 0.0;
+  double gap_closed_fraction = 0.0;
+  bool significant = false;
+  double p_value = 1.0;
+  std::vector<std::pair<std::string, double>> params;  // every parameter of the candidate's fitted model
+  bool second_round = false;                           // fitted on top of the verdict's effect
+  std::string error;                                   // the fit failed
+};
+struct WaveformReport {
+  std::string units = "data units";
+  std::string baseline_model;  // the start the baseline was fitted from (preset, "data", given name)
+  double baseline_train_rms = 0.0, baseline_heldout_rms = 0.0;
+  std::vector<std::pair<std::string, double>> baseline_params;
+  std::vector<WaveformReportCandidate> candidates;
+  std::vector<NotApplicable> not_applicable;
+  std::string verdict;                 // effect, "none" or "unexplained"
+  std::vector<std::string> also_significant;
+  double heldout_rms_before = 0.0, heldout_rms_after = 0.0;
+  std::vector<BandGap> bands;          // "where": per 1/3-octave band of the output
+  std::vector<AmplitudeGap> amplitude; // "where": against the output level
+};
+WaveformReport waveform_report(const WaveformDiagnosis& d);
 
 // One-sided block-bootstrap test that the mean of d (pooled over segments) is positive. Blocks of
 // `block_samples` neighbouring values never cross a segment; 0 chooses the length from d's correlation.

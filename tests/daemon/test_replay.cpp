@@ -1,12 +1,19 @@
-// noisemon replay on hand-made logs: what it refuses, what it skips and counts, and that it reports.
+// noisemon replay on hand-made logs: what it refuses, what it skips and counts, that it reports, and that a
+// second replay of the same log reports the same.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
+#include <fstream>
 #include <lcm/lcm-cpp.hpp>
 #include <numbers>
+#include <sstream>
+#include <vector>
 
 #include "daemon/replay.hpp"
 #include "daemon/report_messages.hpp"
+#include "noisemon/cycle_report_t.hpp"
+#include "tests/drivers/unique_temp.hpp"
 
 using namespace noisemon;
 
@@ -42,7 +49,7 @@ drivers::StreamInfo info() {
 }  // namespace
 
 TEST(Replay, RawBlockBeforeTheSessionIsAnErrorNamingFileAndEvent) {
-  const std::string path = ::testing::TempDir() + "/nosession.lcmlog";
+  const std::string path = noisemon::test::unique_temp_dir() + "/nosession.lcmlog";
   {
     lcm::LogFile log(path, "w");
     drivers::SampleBlock b;
@@ -66,10 +73,14 @@ TEST(Replay, MissingFileIsAnErrorNamingIt) {
   EXPECT_NE(error_of(o).find("/nonexistent/x.lcmlog: cannot open"), std::string::npos);
 }
 
-TEST(Replay, DamagedAndForeignEventsAreSkippedAndCountedAndCyclesStillCome) {
-  // One microphone hearing the pressure's 1 kHz tone through nothing: 40 cycles of 1000 frames.
-  const std::string path = ::testing::TempDir() + "/mixed.lcmlog";
-  const int cycle = 1000, total = 40 * cycle;
+namespace {
+
+// One microphone hearing the pressure's 1 kHz tone through nothing: 40 cycles of 1000 frames, with one damaged
+// and one foreign event after the session.
+constexpr int kCycle = 1000, kTotal = 40 * kCycle;
+
+void write_mixed_log(const std::string& path) {
+  const int cycle = kCycle, total = kTotal;
   {
     lcm::LogFile log(path, "w");
     write(log, "NOISEMON_SESSION", daemon::to_message(info(), "test", 0), 0);
@@ -95,6 +106,21 @@ TEST(Replay, DamagedAndForeignEventsAreSkippedAndCountedAndCyclesStillCome) {
       write(log, "NOISEMON_RAW", daemon::to_message(m, 1, 1'000'000), 2);
     }
   }
+}
+
+std::string read_bytes(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  std::stringstream s;
+  s << in.rdbuf();
+  return s.str();
+}
+
+}  // namespace
+
+TEST(Replay, DamagedAndForeignEventsAreSkippedAndCountedAndCyclesStillCome) {
+  const std::string path = noisemon::test::unique_temp_dir() + "/mixed.lcmlog";
+  const int total = kTotal;
+  write_mixed_log(path);
   daemon::ReplayOptions o;
   o.log_path = path;
   o.progress = false;
@@ -106,4 +132,42 @@ TEST(Replay, DamagedAndForeignEventsAreSkippedAndCountedAndCyclesStillCome) {
   // and the cycle from 39000 never closes.
   EXPECT_EQ(s.reports, 38);
   EXPECT_EQ(s.cycles_dropped, 0);
+}
+
+TEST(Replay, SameLogTwiceGivesIdenticalReports) {
+  const std::string dir = noisemon::test::unique_temp_dir();
+  const std::string path = dir + "/twice.lcmlog";
+  write_mixed_log(path);
+  std::vector<std::vector<noisemon::cycle_report_t>> reports(2);
+  std::vector<std::vector<std::int64_t>> stamps(2);
+  std::vector<std::string> csv(2);
+  for (int run = 0; run < 2; ++run) {
+    daemon::ReplayOptions o;
+    o.log_path = path;
+    o.progress = false;
+    o.out_log = dir + "/reports" + std::to_string(run) + ".lcmlog";
+    o.csv_path = dir + "/reports" + std::to_string(run) + ".csv";
+    daemon::run_replay(o);
+    csv[run] = read_bytes(o.csv_path);
+    lcm::LogFile f(o.out_log, "r");
+    while (const lcm::LogEvent* e = f.readNextEvent()) {
+      noisemon::cycle_report_t m;
+      ASSERT_EQ(m.decode(e->data, 0, e->datalen), e->datalen);
+      m.processing_ms = 0;  // the CPU time the cycle took: a measurement of this run, not of the engine
+      reports[run].push_back(m);
+      stamps[run].push_back(e->timestamp);
+    }
+  }
+  ASSERT_EQ(reports[0].size(), 38u);
+  EXPECT_EQ(csv[0], csv[1]);
+  EXPECT_EQ(std::count(csv[0].begin(), csv[0].end(), '\n'), 1 + 38);  // header and one row per cycle
+  EXPECT_EQ(stamps[0], stamps[1]);
+  ASSERT_EQ(reports[1].size(), reports[0].size());
+  for (std::size_t i = 0; i < reports[0].size(); ++i) {
+    // Byte for byte once encoded: every level, flag and operating-point field (NaN included).
+    std::vector<char> a(static_cast<std::size_t>(reports[0][i].getEncodedSize())), b(a.size());
+    reports[0][i].encode(a.data(), 0, static_cast<int>(a.size()));
+    reports[1][i].encode(b.data(), 0, static_cast<int>(b.size()));
+    EXPECT_EQ(a, b) << "cycle " << i;
+  }
 }

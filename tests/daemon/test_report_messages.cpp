@@ -9,6 +9,7 @@
 #include <sstream>
 
 #include "daemon/report_messages.hpp"
+#include "tests/drivers/unique_temp.hpp"
 
 using namespace noisemon;
 
@@ -96,7 +97,7 @@ TEST(ReportMessages, PythonDecoderReadsWhatTheDaemonEncodes) {
   const noisemon::cycle_report_t m = daemon::to_message(sample_report());
   std::vector<std::uint8_t> buf(static_cast<std::size_t>(m.getEncodedSize()));
   m.encode(buf.data(), 0, static_cast<int>(buf.size()));
-  const std::string path = ::testing::TempDir() + "/cycle_report.bin";
+  const std::string path = noisemon::test::unique_temp_dir() + "/cycle_report.bin";
   std::ofstream(path, std::ios::binary).write(reinterpret_cast<const char*>(buf.data()), static_cast<std::streamsize>(buf.size()));
   const std::string out = run_command("PYTHONPATH=" + python_dir +
                                       " python3 -c \"import noisemon; m = noisemon.cycle_report_t.decode(open('" + path +

@@ -19,6 +19,8 @@
 #include <sstream>
 #include <thread>
 
+#include "tests/drivers/unique_temp.hpp"
+
 using noisemon::daemon::Config;
 using noisemon::daemon::make_source;
 using noisemon::daemon::parse_config;
@@ -29,7 +31,7 @@ const std::string kNoisemond = std::string(NOISEMON_BINARY_DIR) + "/daemon/noise
 const std::string kNoisemon = std::string(NOISEMON_BINARY_DIR) + "/daemon/noisemon";
 
 std::string write_file(const std::string& name, const std::string& text) {
-  const std::string path = ::testing::TempDir() + "/" + name;
+  const std::string path = noisemon::test::unique_temp_dir() + "/" + name;
   std::ofstream(path) << text;
   return path;
 }
@@ -130,7 +132,7 @@ TEST(Sources, CanSectionCombinesWithTheSimAndMissingInterfaceIsNamed) {
 }
 
 TEST(Noisemond, MissingComediDeviceExitsNonZeroNamingIt) {
-  const std::string dir = ::testing::TempDir();
+  const std::string dir = noisemon::test::unique_temp_dir();
   const std::string cfg = write_file("missing.toml", kComediMissing);
   EXPECT_EQ(run({kNoisemond, "--config", cfg}, dir + "/missing.out", dir + "/missing.err", std::chrono::seconds(10)), 1);
   const std::string err = read_file(dir + "/missing.err");
@@ -138,7 +140,7 @@ TEST(Noisemond, MissingComediDeviceExitsNonZeroNamingIt) {
 }
 
 TEST(Noisemond, LcmSourceWithoutSessionExitsNonZeroAfterTheTimeout) {
-  const std::string dir = ::testing::TempDir();
+  const std::string dir = noisemon::test::unique_temp_dir();
   const std::string cfg = write_file("nosession.toml", "[lcm]\nsession_timeout_s = 0.3\n");
   const auto t0 = std::chrono::steady_clock::now();
   EXPECT_EQ(run({kNoisemond, "--config", cfg, "--source", "lcm", "--lcm", "memq://"}, dir + "/nosession.out",
@@ -155,10 +157,10 @@ TEST(Noisemond, DriverCountersAppearInWatchStatus) {
     GTEST_SKIP() << "needs root for a private network namespace (unshare -n)";
   }
   // The daemon and the subscriber in a private network namespace of their own: nothing leaves the machine.
+  const std::string dir = noisemon::test::unique_temp_dir();  // made here: the child writes where we read
   const pid_t pid = fork();
   if (pid == 0) {
     if (unshare(CLONE_NEWNET) != 0 || std::system("ip link set lo up && ip route add 224.0.0.0/4 dev lo") != 0) _exit(125);
-    const std::string dir = ::testing::TempDir();
     const std::string log = write_file("status.log",
                                        "(1700000000.000000) can0 0CF00400#FFFFFF405FFFFFFF\n"
                                        "garbage\n"
@@ -182,8 +184,8 @@ TEST(Noisemond, DriverCountersAppearInWatchStatus) {
   waitpid(pid, &status, 0);
   ASSERT_TRUE(WIFEXITED(status));
   ASSERT_NE(WEXITSTATUS(status), 125) << "cannot set up a private network namespace";
-  const std::string out = read_file(::testing::TempDir() + "/status.out");
-  EXPECT_EQ(WEXITSTATUS(status), 0) << out << read_file(::testing::TempDir() + "/status.err");
+  const std::string out = read_file(dir + "/status.out");
+  EXPECT_EQ(WEXITSTATUS(status), 0) << out << read_file(dir + "/status.err");
   EXPECT_NE(out.find("source=sim+candump"), std::string::npos) << out;
   EXPECT_NE(out.find("candump.replay="), std::string::npos) << out;
   EXPECT_NE(out.find("counters:"), std::string::npos) << out;

@@ -18,6 +18,7 @@
 #include <toml++/toml.h>
 
 #include "drivers/combined_source.hpp"
+#include "tests/drivers/unique_temp.hpp"
 
 namespace nd = noisemon::drivers;
 
@@ -107,7 +108,7 @@ const Expected kExpected[] = {{1700000000030000, 3048, 20, 18, 100, false},
                               {1700000000080000, 3200, -20, -6, 50, true}};
 
 std::string write_log() {
-  const std::string path = ::testing::TempDir() + "/can_source_fixture.log";
+  const std::string path = noisemon::test::unique_temp_dir() + "/can_source_fixture.log";
   std::ofstream(path) << kLog;
   return path;
 }

@@ -138,6 +138,24 @@ TEST(CycleTableBadInput, ErrorsNameFileLineColumnAndWhatWasExpected) {
   EXPECT_HAS(table_error("1\n2\n3\n4\n5\n6\n7\n8\n"), "t.txt: line 1: 1 column, expected the crank angle followed by");
 }
 
+TEST(CycleTableBadInput, PressureOrCrankBeyondAnyEngineIsRefusedNotOverflowed) {
+  // Found by fuzzing: 1e308 bar is a finite double but overflows to inf once converted to Pa (x 1e5); a crank
+  // angle of 1e300 would turn the step check into inf - inf. Both are corrupted cells, named as such.
+  std::string t = make_table(-180.0, 1.0, 2, -1, cell);
+  std::size_t line3 = 0;
+  for (int i = 0; i < 2; ++i) line3 = t.find('\n', line3) + 1;
+  std::string huge_p = t;
+  huge_p.replace(huge_p.find('\t', line3) + 1, 8, "1e308");
+  EXPECT_HAS(table_error(huge_p), "t.txt: line 3: column 2 is \"1e308\", expected a pressure in bar");
+  std::string huge_crank = t;
+  huge_crank.replace(line3, huge_crank.find('\t', line3) - line3, "1e300");
+  EXPECT_HAS(table_error(huge_crank), "t.txt: line 3: crank angle 1e+300 deg, expected a crank angle within");
+  // A plausible extreme (3000 bar) is still accepted.
+  std::string high = t;
+  high.replace(high.find('\t', line3) + 1, 8, "3000.000");
+  EXPECT_EQ(table_error(high), "(no error)");
+}
+
 TEST(CycleTable, HeaderLineAndCommentsAreSkipped) {
   const std::string t = "# exported by a lab script\ncrank p1 p2\n" + make_table(-180.0, 1.0, 2, -1, cell);
   const CycleTable c = parse_cycle_table(t, "t.txt");

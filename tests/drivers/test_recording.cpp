@@ -23,6 +23,7 @@
 #include "drivers/lcm_log_reader.hpp"
 #include "drivers/recording.hpp"
 #include "drivers/stream_messages.hpp"
+#include "tests/drivers/unique_temp.hpp"
 
 using namespace noisemon::drivers;
 namespace fs = std::filesystem;
@@ -101,7 +102,7 @@ Errors compare(std::int64_t first, const std::vector<double>& p, const std::vect
   return {std::sqrt(pe / pr), pmax, cmax, std::sqrt(me / mr)};
 }
 
-fs::path temp(const std::string& name) { return fs::path(::testing::TempDir()) / ("recording_" + name); }
+fs::path temp(const std::string& name) { return fs::path(noisemon::test::unique_temp_dir()) / ("recording_" + name); }
 
 std::vector<std::uint8_t> read_bytes(const fs::path& p) {
   std::ifstream in(p, std::ios::binary);

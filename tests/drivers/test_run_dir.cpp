@@ -10,6 +10,7 @@
 #include <string>
 
 #include "drivers/run_dir.hpp"
+#include "tests/drivers/unique_temp.hpp"
 
 using namespace noisemon::drivers;
 namespace fs = std::filesystem;
@@ -17,7 +18,7 @@ namespace fs = std::filesystem;
 namespace {
 
 fs::path fresh_dir(const std::string& name) {
-  const fs::path d = fs::path(::testing::TempDir()) / ("run_dir_" + name);
+  const fs::path d = fs::path(noisemon::test::unique_temp_dir()) / ("run_dir_" + name);
   fs::remove_all(d);
   fs::create_directories(d);
   return d;
@@ -123,7 +124,7 @@ TEST(RunDir, ReadsAValidRunAndIgnoresUnknownKeys) {
 
 TEST(RunDir, PressureOnlyRunHasNoMics) {
   const fs::path d = fresh_dir("pressure_only");
-  write_text(d / "run.json", R"({"condition": {"name": "m", "speed_rpm": 1800, "load_nm": 0, "soi_deg_btdc": 0,
+  write_text(d / "run.json", R"({"condition": {"name": "m", "speed_rpm": 3000, "load_nm": 0, "soi_deg_btdc": 0,
     "motored": true}, "pressure": {"file": "p.csv", "units": "Pa"}})");
   write_text(d / "p.csv", valid_csv());
   const RunDir run = read_run_dir(d);
@@ -258,6 +259,26 @@ TEST(RunDirBadInput, CsvNamedByRunJsonMissing) {
   EXPECT_HAS(e, (d / "pressure.csv").string() + ": cannot open the pressure file named by pressure.file in run.json");
 }
 
+TEST(RunDirBadInput, CsvWhoseSpeedIsNotRunJsonsNamesBothSpeeds) {
+  // time_s written in ms: every row is consistent, but the run is 1000 times too slow (3 rpm, not 3050); found
+  // by fuzzing as an absurd time span that overflowed the 40 kHz frame count.
+  const fs::path d = valid_run("csv_ms");
+  std::string ms = "time_s,crank_deg,pressure\n";
+  for (int i = 0; i < 200; ++i) {
+    const double crank = -360.0 + 0.5 * i;
+    char line[128];
+    std::snprintf(line, sizeof line, "%.9f,%.3f,1.0\n", 1000.0 * (crank / 18000.0 + 0.02), crank);
+    ms += line;
+  }
+  write_text(d / "pressure.csv", ms);
+  const std::string e = error_of(d);
+  EXPECT_HAS(e, (d / "pressure.csv").string() + ": the rows imply 3 rpm");
+  EXPECT_HAS(e, "condition.speed_rpm is 3050");
+  // Within the tolerance (3000 rows vs 3050 declared) the same rows are accepted.
+  write_text(d / "pressure.csv", valid_csv());
+  EXPECT_EQ(error_of(d), "(no error)");
+}
+
 // ---------------------------------------------------------------------------------------------- run.json
 
 TEST(RunDirBadInput, RunJsonMissingKeysNameKeyAndFile) {
@@ -298,6 +319,20 @@ TEST(RunDirBadInput, RunJsonSyntaxErrorNamesFileAndPosition) {
   EXPECT_HAS(e, "r.json: not valid JSON");
   EXPECT_HAS(e, "line 2");
   EXPECT_HAS(json_error("[1, 2]"), "r.json: expected a JSON object at the top, found an array");
+}
+
+TEST(RunDirBadInput, RunJsonNumberBeyondDoubleNamesTheFile) {
+  // Found by fuzzing: the JSON parser reports 2e308 as out_of_range, not as a parse error; it must still be a
+  // RunDirError naming the file, not an exception of another type without it.
+  const std::string e = json_error(R"({"condition": {"name": "x", "speed_rpm": 2e308}})");
+  EXPECT_HAS(e, "r.json: not valid JSON");
+  EXPECT_HAS(e, "2e308");
+}
+
+TEST(RunDirBadInput, CsvPressureBeyondAnyEngineIsRefusedNotOverflowed) {
+  // 1e304 bar is a finite double, inf once converted to Pa.
+  EXPECT_HAS(csv_error("time_s,crank_deg,pressure\n0,-360,1e304\n"),
+             "line 2: field pressure is \"1e304\", expected a cylinder pressure within");
 }
 
 TEST(RunDirBadInput, MissingRunJsonSaysItIsNotARunDirectory) {

@@ -23,6 +23,7 @@
 #include "dsp/weighting.hpp"
 #include "model/block_model.hpp"
 #include "model/engine_cycle.hpp"
+#include "tests/drivers/unique_temp.hpp"
 
 namespace {
 
@@ -108,7 +109,7 @@ std::vector<Row> read_csv(const std::string& path) {
 }
 
 std::string write_config(const std::string& name, const std::string& model, const std::string& true_block) {
-  const std::string path = ::testing::TempDir() + "/" + name + ".toml";
+  const std::string path = noisemon::test::unique_temp_dir() + "/" + name + ".toml";
   std::ofstream(path) << "[model]\npreset = \"" << model << "\"\n[sim.true_block]\npreset = \"" << true_block << "\"\n";
   return path;
 }
@@ -120,15 +121,15 @@ struct Session {
 
 // Starts the subscriber, then the daemon with --cycles; returns what the subscriber received.
 Session run_session(const std::string& name, const std::string& model, const std::string& true_block, int reports) {
-  const std::string csv = ::testing::TempDir() + "/" + name + ".csv";
+  const std::string csv = noisemon::test::unique_temp_dir() + "/" + name + ".csv";
   std::remove(csv.c_str());
   const pid_t watch = spawn({NOISEMON_PATH, "watch", "--lcm", kLcmUrl, "--count", std::to_string(reports), "--timeout", "30",
                              "--csv", csv},
-                            ::testing::TempDir() + "/" + name + ".watch.txt");
+                            noisemon::test::unique_temp_dir() + "/" + name + ".watch.txt");
   std::this_thread::sleep_for(std::chrono::milliseconds(300));  // subscribed before the first report
   const pid_t daemon = spawn({NOISEMOND_PATH, "--config", write_config(name, model, true_block), "--lcm", kLcmUrl, "--cycles",
                               std::to_string(reports + 10)},
-                             ::testing::TempDir() + "/" + name + ".daemon.txt");
+                             noisemon::test::unique_temp_dir() + "/" + name + ".daemon.txt");
   Session s;
   s.watch_status = wait_for(watch, std::chrono::seconds(60));
   s.daemon_status = wait_for(daemon, std::chrono::seconds(30));
@@ -192,10 +193,10 @@ TEST(EndToEnd, MeasuredAndPredictedAgreeWhenTheModelIsTheTrueBlock) {
 
 TEST(EndToEnd, SigintPublishesTheLastCompleteCycleAndExitsCleanly) {
   require_namespace();
-  const std::string csv = ::testing::TempDir() + "/sigint.csv";
+  const std::string csv = noisemon::test::unique_temp_dir() + "/sigint.csv";
   const pid_t watch = spawn({NOISEMON_PATH, "watch", "--lcm", kLcmUrl, "--timeout", "5", "--csv", csv}, "/dev/null");
   std::this_thread::sleep_for(std::chrono::milliseconds(300));
-  const std::string log = ::testing::TempDir() + "/sigint.daemon.txt";
+  const std::string log = noisemon::test::unique_temp_dir() + "/sigint.daemon.txt";
   const pid_t daemon = spawn({NOISEMOND_PATH, "--lcm", kLcmUrl, "--live"}, log);
   std::this_thread::sleep_for(std::chrono::seconds(3));
   kill(daemon, SIGINT);
@@ -219,7 +220,7 @@ TEST(EndToEnd, SigintPublishesTheLastCompleteCycleAndExitsCleanly) {
 
 TEST(EndToEnd, StatusIsPublishedEverySecondWithHealthyThreads) {
   require_namespace();
-  const std::string out = ::testing::TempDir() + "/status.txt";
+  const std::string out = noisemon::test::unique_temp_dir() + "/status.txt";
   const pid_t daemon = spawn({NOISEMOND_PATH, "--lcm", kLcmUrl}, "/dev/null");
   const auto t0 = std::chrono::steady_clock::now();
   const pid_t watch = spawn({NOISEMON_PATH, "watch", "--status", "--lcm", kLcmUrl, "--count", "3", "--timeout", "5"}, out);
@@ -265,7 +266,7 @@ INSTANTIATE_TEST_SUITE_P(Presets, ModelMismatch,
 TEST(EndToEnd, SystemdHearsReadyOnceDriversRunAndStoppingOnSigterm) {
   require_namespace();
   // Play systemd's part: a datagram socket named by NOTIFY_SOCKET, as for a Type=notify unit.
-  const std::string path = ::testing::TempDir() + "/notify.sock";
+  const std::string path = noisemon::test::unique_temp_dir() + "/notify.sock";
   std::remove(path.c_str());
   const int fd = socket(AF_UNIX, SOCK_DGRAM | SOCK_CLOEXEC, 0);
   ASSERT_GE(fd, 0);
@@ -293,7 +294,7 @@ TEST(EndToEnd, SystemdHearsReadyOnceDriversRunAndStoppingOnSigterm) {
 TEST(EndToEnd, MissingMulticastRouteIsAClearError) {
   require_namespace();
   // A fresh namespace of its own has no multicast route: the daemon must say what failed and exit 1.
-  const std::string log = ::testing::TempDir() + "/badlcm.txt";
+  const std::string log = noisemon::test::unique_temp_dir() + "/badlcm.txt";
   const pid_t pid = fork();
   if (pid == 0) {
     if (!std::freopen(log.c_str(), "w", stderr) || unshare(CLONE_NEWNET) != 0) _exit(126);
@@ -309,7 +310,7 @@ TEST(EndToEnd, MissingMulticastRouteIsAClearError) {
 
 TEST(EndToEnd, LcmLoggerRecordingReplaysToTheLiveReportsOfflineAndThroughLcmLogplayer) {
   require_namespace();
-  const std::string dir = ::testing::TempDir();
+  const std::string dir = noisemon::test::unique_temp_dir();
   const std::string log = dir + "/session.lcmlog", live = dir + "/live.csv", replayed = dir + "/replayed.csv";
   std::remove(log.c_str());
   // The standard recorder, started before the daemon so the log holds the whole session.

@@ -228,6 +228,7 @@ WaveformDiagnosis diagnose(const BlockParams& truth, const Multisine& in, unsign
   o.train = {{0, kTrain}};
   o.heldout = {{kTrain, kTrain + kHeld}};
   o.second_round = false;
+  o.max_iterations = 20;  // time: the matching candidate converges in < 10; a non-matching second mode crawls
   if (std::getenv("WAVEFORM_TEST_LOG")) o.log = [](const std::string& line) { std::printf("    %s\n", line.c_str()); };
   const WaveformDiagnosis r = diagnose_waveform(d.u, d.y, o);
   std::printf("verdict %s: held-out rms %.4g -> %.4g (noise %.4g), %.1f s\n", r.verdict.c_str(), r.heldout_rms_before,
