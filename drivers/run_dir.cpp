@@ -190,7 +190,8 @@ void read_sound(SNDFILE* sf, const SF_INFO& info, const std::string& file, std::
       dsp::RationalResampler probe(rate, kPipelineRateHz, 1);
     } catch (const std::invalid_argument&) {
       throw RunDirError(file + ": sample rate " + std::to_string(info.samplerate) +
-                        " Hz cannot be resampled to 40000 Hz (the ratio needs more than 4096 filter phases); "
+                        " Hz cannot be resampled to 40000 Hz (the ratio needs more than 4096 filter phases or decimates by "
+                        "more than 4096); "
                         "expected a common rate such as 44100, 48000, 51200 or 96000 Hz");
     }
   }

@@ -197,7 +197,9 @@ struct RationalResampler::Impl {
     const std::int64_t g = std::gcd(in, out);
     const auto up = static_cast<std::size_t>(out / g);
     const auto down = static_cast<std::size_t>(in / g);
+    // Both bound the filter: its length grows with up * max(1, down / up) taps.
     if (up > 4096) throw std::invalid_argument("RationalResampler: rate ratio needs more than 4096 filter phases");
+    if (down > 4096) throw std::invalid_argument("RationalResampler: rate ratio decimates by more than 4096");
     return PolyphaseFir(design_lowpass(static_cast<double>(up) * in_hz, std::min(in_hz, out_hz)), up, down,
                         channels);
   }

@@ -382,6 +382,10 @@ TEST(RunDirBadInput, WavRateTooLowOrNotResampleableNamesTheRate) {
   write_wav(d / "mics.wav", 2, 44101, SF_FORMAT_WAV | SF_FORMAT_FLOAT);
   const std::string e = error_of(d);
   EXPECT_HAS(e, (d / "mics.wav").string() + ": sample rate 44101 Hz cannot be resampled to 40000 Hz");
+  // Found by fuzzing: a huge rate whose ratio to 40 kHz is simple (up 1, down 25000) asked the resampler for a
+  // filter of billions of taps; it must be refused like the 44101 Hz file, not exhaust memory.
+  write_wav(d / "mics.wav", 2, 1000000000, SF_FORMAT_WAV | SF_FORMAT_FLOAT);
+  EXPECT_HAS(error_of(d), (d / "mics.wav").string() + ": sample rate 1000000000 Hz cannot be resampled to 40000 Hz");
 }
 
 TEST(RunDirBadInput, NotASoundFileOrTruncatedWav) {
