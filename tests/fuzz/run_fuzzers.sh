@@ -3,7 +3,7 @@
 # its seed corpus; fails on any crash, leak, timeout or out-of-memory. The suite's `fuzz_smoke` test runs it
 # with the defaults; run it by hand for longer sessions:
 #
-#   tests/fuzz/run_fuzzers.sh [--build-dir DIR] [--seconds N] [--jobs N] [--keep-going] [TARGET...]
+#   tests/fuzz/run_fuzzers.sh [--build-dir DIR] [--seconds N] [--jobs N] [TARGET...]
 #
 #   --build-dir DIR  clang build directory (default: build/fuzz); corpora, crash artifacts and logs stay in it
 #   --seconds N      fuzzing time per target (default 15)
@@ -23,7 +23,7 @@ while [ $# -gt 0 ]; do
     --build-dir) build="$2"; shift 2 ;;
     --seconds) seconds="$2"; shift 2 ;;
     --jobs) jobs="$2"; shift 2 ;;
-    -h|--help) sed -n '2,15p' "${BASH_SOURCE[0]}" | sed 's/^# \{0,1\}//'; exit 0 ;;
+    -h|--help) sed -n '2,14p' "${BASH_SOURCE[0]}" | sed 's/^# \{0,1\}//'; exit 0 ;;
     -*) echo "run_fuzzers.sh: unknown option $1 (see --help)" >&2; exit 2 ;;
     *) targets+=("fuzz_${1#fuzz_}"); shift ;;
   esac
