@@ -15,6 +15,7 @@
 #include <type_traits>
 
 #include "model/block_model.hpp"
+#include "model/effects.hpp"
 
 namespace noisemon::model {
 namespace {
@@ -32,6 +33,13 @@ constexpr double kAdditiveCeil = 1e2;
 // bound (a tenth of the noisy one), and a measurement below it agrees with the model.
 constexpr double kObservableShare = 0.1;
 constexpr double kLogBound = 3.0 * std::numbers::ln10;  // +-3 decades around the start
+// Start search of a second mode: every scored band centre from kModeSearchLowHz, as a resonance and as an
+// absorber of this gain and Q (a few dB, a few bands wide: the fit takes it from there).
+constexpr double kModeSearchLowHz = 100.0;
+constexpr double kModeSearchDb = 6.0;
+constexpr double kModeSearchQ = 4.0;
+constexpr std::size_t kModeSearchFits = 4;  // surrogate fits from the best-ranked starts, and as many from the
+                                            // bands of the largest training gap
 
 // Structural (shared) variables of the surrogate, as Jet components.
 constexpr int kStruct = 14;
@@ -559,7 +567,7 @@ std::vector<BlockParam> default_free_params(const BlockParams& start) {
 // ------------------------------------------------------------------------------------------ prediction
 
 void simulate_condition(const ConditionData& cond, const BlockParams& params, std::size_t cycles,
-                        std::vector<double>& cycle_ms, std::vector<double>* win_ms) {
+                        std::vector<double>& cycle_ms, std::vector<double>* win_ms, const ExtensionParams* mode) {
   const std::size_t total = cond.cycle_count();
   const std::size_t want = (cycles == 0 || cycles > total) ? total : cycles;
   cycle_ms.clear();
@@ -587,6 +595,13 @@ void simulate_condition(const ConditionData& cond, const BlockParams& params, st
     for (std::size_t i = 0; i < nmean; ++i) mean += y[i + lat];
     mean /= static_cast<double>(nmean);
     for (std::size_t i = 0; i < frames; ++i) y[i] = y[i + lat] - mean;
+    if (mode) {
+      Effects e;
+      e.second_mode_db = mode->mode_db;
+      e.second_mode_hz = mode->mode_hz;
+      e.second_mode_q = mode->mode_q;
+      SecondModeFilter(e, kDatasetRateHz).process(y.data(), frames);
+    }
     segment_band_powers(seg, y.data(), 1, nc, part, win_ms ? &wpart : nullptr);
     cycle_ms.insert(cycle_ms.end(), part.begin(), part.end());
     if (win_ms) win_ms->insert(win_ms->end(), wpart.begin(), wpart.end());
@@ -1267,6 +1282,87 @@ FitOutcome fit_model(const FitSetup& setup, const ExtendedModel& start) {
     }
     set_param(m.block, p, best_value);
   }
+  // A second mode not yet placed: where it sits is a global question (the objective has a local minimum near
+  // every band, and none at all in f2 while the mode's gain is 0 dB). On one anchor, rank a resonance and an
+  // absorber at every scored 1/3-octave band centre by their objective as they stand (cheap), then run the
+  // surrogate fit from the best few (and from the bands where the training gap stands out) and keep the best
+  // result as the start.
+  if (setup.extensions.second_mode && !m.on.second_mode) {
+    const Anchor an = make_anchor(*setup.data, m.block, setup.train, setup.fit_cycles, setup.extensions.locked);
+    ++anchors;
+    FitSetup rank = setup;
+    rank.evaluate_only = true;
+    std::vector<std::pair<double, ExtensionParams>> starts;
+    for (const dsp::ThirdOctaveBand& band : setup.data->bands) {
+      if (band.nyquist_cut || band.nominal_hz < kModeSearchLowHz) continue;
+      for (double gain_db : {kModeSearchDb, -kModeSearchDb}) {
+        ExtendedModel t = m;
+        t.ext.mode_hz = band.exact_mid_hz;
+        t.ext.mode_q = kModeSearchQ;
+        t.ext.mode_db = gain_db;
+        starts.emplace_back(refit_on_anchor(rank, an, t).objective, t.ext);
+      }
+    }
+    std::sort(starts.begin(), starts.end(), [](const auto& a, const auto& b) { return a.first < b.first; });
+    starts.resize(std::min<std::size_t>(kModeSearchFits, starts.size()));
+    // The ranking holds the block where the baseline left it, which has already bent towards the mode; the
+    // bands where the training gap (measured over predicted, cycle-averaged) stands out most are started from too.
+    const BandDataset& data = *setup.data;
+    const std::size_t nb = data.band_count();
+    std::vector<double> gap(nb, 0.0);
+    std::vector<int> count(nb, 0);
+    for (std::size_t i = 0; i < an.conditions.size(); ++i) {
+      const std::size_t k = an.conditions[i];
+      const ConditionData& cond = data.conditions[k];
+      const std::size_t nc = an.cycle_ms[i].size() / nb;
+      for (std::size_t b = 0; b < nb; ++b) {
+        if (!setup.scored[k][b]) continue;
+        double meas = 0.0, pred = 0.0;
+        for (std::size_t c = 0; c < nc; ++c) {
+          meas += measured_ms(cond, c, b, m);
+          pred += an.cycle_ms[i][c * nb + b];
+        }
+        if (meas > 0 && pred > 0) {
+          gap[b] += 10.0 * std::log10(meas / pred);
+          ++count[b];
+        }
+      }
+    }
+    std::vector<std::size_t> by_gap;
+    for (std::size_t b = 0; b < nb; ++b)
+      if (count[b] > 0 && data.bands[b].nominal_hz >= kModeSearchLowHz) {
+        gap[b] /= count[b];
+        by_gap.push_back(b);
+      }
+    std::sort(by_gap.begin(), by_gap.end(), [&](std::size_t a, std::size_t b) { return std::abs(gap[a]) > std::abs(gap[b]); });
+    for (std::size_t i = 0; i < std::min<std::size_t>(kModeSearchFits, by_gap.size()); ++i) {
+      ExtensionParams e = m.ext;
+      e.mode_hz = data.bands[by_gap[i]].exact_mid_hz;
+      e.mode_q = kModeSearchQ;
+      e.mode_db = std::copysign(kModeSearchDb, gap[by_gap[i]]);
+      starts.emplace_back(0.0, e);
+    }
+    double best_obj = std::numeric_limits<double>::infinity();
+    ExtensionParams best_ext = m.ext;
+    for (std::size_t i = 0; i < starts.size(); ++i) {
+      ExtendedModel t = m;
+      t.ext = starts[i].second;
+      const FitOutcome o = refit_on_anchor(setup, an, t);
+      if (o.objective < best_obj) {
+        best_obj = o.objective;
+        best_ext = o.model.ext;
+      }
+    }
+    if (setup.progress) {
+      FitProgress pr;
+      pr.anchor = anchors;
+      pr.note = "second mode starts near " + std::to_string(static_cast<int>(best_ext.mode_hz)) + " Hz";
+      setup.progress(pr);
+    }
+    m.ext.mode_hz = best_ext.mode_hz;
+    m.ext.mode_q = best_ext.mode_q;
+    m.ext.mode_db = best_ext.mode_db;
+  }
   FitOutcome out = fit_anchored(setup, m, anchors);
   out.anchors = anchors;
   return out;
@@ -1347,11 +1443,16 @@ void apply_factors(const ConditionFactors& f, const ConditionData& cond, std::ve
 
 ConditionPrediction predict_condition(const BandDataset& data, std::size_t k, const ExtendedModel& model, bool windows) {
   ConditionPrediction p;
-  simulate_condition(data.conditions[k], model.block, 0, p.cycle_ms, windows ? &p.win_ms : nullptr);
-  const ExtensionSet& on = model.on;
-  if (!(on.second_mode || on.speed || on.transducer || on.stationary || on.locked)) return p;
+  // The second mode runs in the time domain here (exact per crank window too, where a band factor is not: the
+  // spectrum inside a band differs between the combustion window and the rest of the cycle).
+  simulate_condition(data.conditions[k], model.block, 0, p.cycle_ms, windows ? &p.win_ms : nullptr,
+                     model.on.second_mode ? &model.ext : nullptr);
+  ExtendedModel rest = model;
+  rest.on.second_mode = false;
+  const ExtensionSet& on = rest.on;
+  if (!(on.speed || on.transducer || on.stationary || on.locked)) return p;
   const ConditionSpectrum spec = condition_spectrum(data, k, 0);
-  apply_factors(extension_factors(data, k, spec, model.block, model), data.conditions[k], p.cycle_ms,
+  apply_factors(extension_factors(data, k, spec, model.block, rest), data.conditions[k], p.cycle_ms,
                 windows ? &p.win_ms : nullptr, &p.upper, &p.upper_win);
   return p;
 }
