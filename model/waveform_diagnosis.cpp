@@ -556,6 +556,15 @@ WaveformDiagnosis diagnose_waveform(std::span<const double> u, std::span<const d
       d.second_round = run_round(best->fit, best_free, rest, best_held, u, y, opt);
       for (const auto& c : d.second_round)
         if (c.significant) d.also_significant.push_back(c.effect);
+      // The best model is the verdict's effect plus the best significant one fitted on top of it.
+      if (!d.second_round.empty() && d.second_round.front().significant) {
+        const CandidateResult& top = d.second_round.front();
+        d.best_model = top.fit.model;
+        d.best_steps_per_sample = top.fit.steps_per_sample;
+        best_sim = with_steps(opt.sim, top.fit.steps_per_sample);
+        d.heldout_rms_after = top.heldout_rms;
+        best_held = errors_of(d.best_model, opt.fs_hz, best_sim, u, y, opt.heldout);
+      }
     }
     d.remaining_gap = explainable_gap(d.best_model, opt.fs_hz, opt, best_sim, u, y);
   } else {
