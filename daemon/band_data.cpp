@@ -1,5 +1,6 @@
 #include "daemon/band_data.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <filesystem>
 #include <map>
@@ -14,8 +15,28 @@ std::vector<LoadedRecording> load_recordings(const std::vector<std::string>& pat
   namespace fs = std::filesystem;
   std::vector<LoadedRecording> out;
   std::int64_t epoch = 0;
+  // A directory of run directories (what `noisemon sim -o DIR` writes) stands for its runs, in name order.
+  std::vector<std::string> expanded;
   for (const std::string& p : paths) {
     std::error_code ec;
+    if (fs::is_directory(p, ec) && !fs::exists(fs::path(p) / "run.json", ec)) {
+      std::vector<std::string> runs;
+      for (const auto& e : fs::directory_iterator(p, ec))
+        if (e.is_directory() && fs::exists(e.path() / "run.json")) runs.push_back(e.path().string());
+      if (runs.empty()) throw std::runtime_error(p + ": neither a run directory (no run.json) nor a directory of them");
+      std::sort(runs.begin(), runs.end());
+      expanded.insert(expanded.end(), runs.begin(), runs.end());
+    } else {
+      expanded.push_back(p);
+    }
+  }
+  for (const std::string& p : expanded) {
+    std::error_code ec;
+    if (fs::is_regular_file(p, ec) && fs::path(p).extension() == ".json") {
+      // e.g. the truth.json beside simulated runs when DATA is a glob: not data, said and passed over.
+      if (note) note(p + ": a JSON file, not a run directory or LCM log: skipped");
+      continue;
+    }
     if (fs::is_directory(p, ec)) {
       const drivers::RunDir run = drivers::read_run_dir(p);
       LoadedRecording r{drivers::to_recording(run, epoch), p};

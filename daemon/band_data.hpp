@@ -4,7 +4,9 @@
 // log (NOISEMON_SESSION / NOISEMON_RAW / NOISEMON_OP, as noisemond publishes and `noisemon import` writes); a log
 // may hold several recordings. Recordings are grouped by condition name (run.json's condition.name, the
 // session's condition; without one, the path's name); several recordings of one condition add their cycles.
-// A condition named "background..." (or with speed 0) is an engine-off background measurement.
+// A condition named "background..." (or with speed 0) is an engine-off background measurement. A directory holding
+// run directories (no run.json of its own, as `noisemon sim -o DIR` writes) stands for all of them, in name
+// order; a .json file among the paths (the truth.json a glob picks up) is noted and skipped.
 #pragma once
 
 #include <functional>

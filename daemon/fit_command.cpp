@@ -1,7 +1,6 @@
 #include "daemon/fit_command.hpp"
 
 #include <CLI/CLI.hpp>
-#include <unistd.h>
 
 #include <algorithm>
 #include <chrono>
@@ -12,6 +11,7 @@
 #include <stdexcept>
 
 #include "daemon/band_data.hpp"
+#include "daemon/cli_support.hpp"
 #include "daemon/params_file.hpp"
 #include "drivers/waveform_csv.hpp"
 #include "model/band_fit.hpp"
@@ -22,52 +22,6 @@ namespace noisemon::daemon {
 namespace {
 
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
-
-// One progress line on stderr, rewritten in place; only when stderr is a terminal.
-class ProgressLine {
- public:
-  explicit ProgressLine(bool enabled) : on_(enabled && isatty(STDERR_FILENO)) {}
-  ~ProgressLine() { done(); }
-  void show(const std::string& text) {
-    if (!on_) return;
-    std::fprintf(stderr, "\r\033[K%s", text.c_str());
-    std::fflush(stderr);
-    shown_ = true;
-  }
-  void done() {
-    if (on_ && shown_) std::fputc('\n', stderr);
-    shown_ = false;
-  }
-
- private:
-  bool on_;
-  bool shown_ = false;
-};
-
-std::vector<std::string> split_list(const std::string& text) {
-  std::vector<std::string> out;
-  std::stringstream ss(text);
-  std::string item;
-  while (std::getline(ss, item, ',')) {
-    item.erase(0, item.find_first_not_of(" \t"));
-    item.erase(item.find_last_not_of(" \t") + 1);
-    if (!item.empty()) out.push_back(item);
-  }
-  return out;
-}
-
-std::vector<std::string> flatten(const std::vector<std::string>& items) {
-  std::vector<std::string> out;
-  for (const std::string& s : items)
-    for (std::string& t : split_list(s)) out.push_back(std::move(t));
-  return out;
-}
-
-bool is_csv(const std::string& path) {
-  std::string ext = std::filesystem::path(path).extension().string();
-  std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return std::tolower(c); });
-  return ext == ".csv";
-}
 
 std::string format_g(double v, int digits = 6) {
   char buf[64];
@@ -115,7 +69,27 @@ void print_table(std::FILE* out, const FitCommandResult& r) {
 
 std::string range_text(model::SampleRange r) { return std::to_string(r.begin) + ":" + std::to_string(r.end); }
 
-// "A:B" -> range, or a DATA name -> its file's range.
+
+// Training ranges = the complement of the held-out ones within each file.
+std::vector<model::SampleRange> complement(const std::vector<model::SampleRange>& held, const WaveformData& data) {
+  std::vector<model::SampleRange> out;
+  for (const model::SampleRange& f : data.file_ranges) {
+    std::size_t pos = f.begin;
+    std::vector<model::SampleRange> inside;
+    for (const auto& h : held)
+      if (h.end > f.begin && h.begin < f.end) inside.push_back({std::max(h.begin, f.begin), std::min(h.end, f.end)});
+    std::sort(inside.begin(), inside.end(), [](auto a, auto b) { return a.begin < b.begin; });
+    for (const auto& h : inside) {
+      if (h.begin > pos) out.push_back({pos, h.begin});
+      pos = std::max(pos, h.end);
+    }
+    if (pos < f.end) out.push_back({pos, f.end});
+  }
+  return out;
+}
+
+}  // namespace
+
 model::SampleRange parse_range(const std::string& text, const WaveformData& data, const char* option) {
   for (std::size_t f = 0; f < data.file_ranges.size(); ++f)
     if (text == data.files[f] || text == std::filesystem::path(data.files[f]).filename().string())
@@ -140,26 +114,6 @@ model::SampleRange parse_range(const std::string& text, const WaveformData& data
                            ": expected a sample range A:B (0-based, end excluded) or a DATA file name");
 }
 
-// Training ranges = the complement of the held-out ones within each file.
-std::vector<model::SampleRange> complement(const std::vector<model::SampleRange>& held, const WaveformData& data) {
-  std::vector<model::SampleRange> out;
-  for (const model::SampleRange& f : data.file_ranges) {
-    std::size_t pos = f.begin;
-    std::vector<model::SampleRange> inside;
-    for (const auto& h : held)
-      if (h.end > f.begin && h.begin < f.end) inside.push_back({std::max(h.begin, f.begin), std::min(h.end, f.end)});
-    std::sort(inside.begin(), inside.end(), [](auto a, auto b) { return a.begin < b.begin; });
-    for (const auto& h : inside) {
-      if (h.begin > pos) out.push_back({pos, h.begin});
-      pos = std::max(pos, h.end);
-    }
-    if (pos < f.end) out.push_back({pos, f.end});
-  }
-  return out;
-}
-
-}  // namespace
-
 WaveformData load_waveform_data(const std::vector<std::string>& paths, const std::vector<std::string>& train,
                                 const std::vector<std::string>& holdout, std::size_t settle, std::FILE* note) {
   WaveformData data;
@@ -172,8 +126,8 @@ WaveformData load_waveform_data(const std::vector<std::string>& paths, const std
     data.file_ranges.push_back({begin, data.u.size()});
     if (note) std::fprintf(note, "%s: %zu samples\n", path.c_str(), w.u.size());
   }
-  for (const std::string& h : flatten(holdout)) data.heldout.push_back(parse_range(h, data, "--holdout"));
-  for (const std::string& t : flatten(train)) data.train.push_back(parse_range(t, data, "--train"));
+  for (const std::string& h : flatten_lists(holdout)) data.heldout.push_back(parse_range(h, data, "--holdout"));
+  for (const std::string& t : flatten_lists(train)) data.train.push_back(parse_range(t, data, "--train"));
   if (data.heldout.empty() && data.train.empty()) {  // default split: the last file, or the last 20 % of one file
     if (data.file_ranges.size() > 1) {
       data.heldout.push_back(data.file_ranges.back());
@@ -298,7 +252,7 @@ FitCommandResult fit_band_mode(const FitCommandOptions& o, std::FILE* out) {
   const model::BandDataset data = make_band_dataset(recs);
   line.done();
 
-  const std::vector<std::string> held = flatten(o.holdout), trn = flatten(o.train);
+  const std::vector<std::string> held = flatten_lists(o.holdout), trn = flatten_lists(o.train);
   for (const auto* list : {&held, &trn})
     for (const std::string& p : *list) {
       bool any = false;
@@ -394,8 +348,8 @@ FitCommandResult run_fit(const FitCommandOptions& o, std::FILE* out) {
   check_output(o);
   std::string mode = o.mode;
   if (mode.empty()) {
-    const bool csv = std::all_of(o.data.begin(), o.data.end(), is_csv);
-    const bool none = std::none_of(o.data.begin(), o.data.end(), is_csv);
+    const bool csv = std::all_of(o.data.begin(), o.data.end(), is_csv_path);
+    const bool none = std::none_of(o.data.begin(), o.data.end(), is_csv_path);
     if (!csv && !none) throw std::runtime_error("DATA mixes .csv waveforms and band data: give --mode");
     mode = csv ? "waveform" : "band";
   }

@@ -68,6 +68,9 @@ WaveformData load_waveform_data(const std::vector<std::string>& paths, const std
                                 const std::vector<std::string>& holdout, std::size_t settle_samples,
                                 std::FILE* note = nullptr);
 
+// "A:B" (0-based, end excluded) or a DATA file name -> a range of `data`; throws naming `option` and the text.
+model::SampleRange parse_range(const std::string& text, const WaveformData& data, const char* option);
+
 // Runs the fit, prints the summary to `out`, writes options.out. Throws std::exception with a message that
 // names the file, option, parameter or condition at fault; nothing is written when the fit fails.
 FitCommandResult run_fit(const FitCommandOptions& options, std::FILE* out = stdout);

@@ -1,4 +1,4 @@
-// noisemon: the command-line tool beside the daemon (watch; replay, import, fit and diagnose come later).
+// noisemon: the command-line tool beside the daemon (watch, replay, import, export, sim, fit, diagnose).
 #include <CLI/CLI.hpp>
 
 #include <cstdio>
@@ -6,6 +6,7 @@
 #include "daemon/config.hpp"
 #include "daemon/import_export_cli.hpp"
 #include "daemon/replay.hpp"
+#include "daemon/diagnose_command.hpp"
 #include "daemon/fit_command.hpp"
 #include "daemon/sim_command.hpp"
 #include "daemon/watch.hpp"
@@ -41,6 +42,7 @@ int main(int argc, char** argv) {
   ImportExportCommands import_export(app);
   SimCommand sim(app);
   FitCommand fit(app);
+  DiagnoseCommand diagnose(app);
 
   try {
     app.parse(argc, argv);
@@ -52,6 +54,7 @@ int main(int argc, char** argv) {
     if (const int status = import_export.run(); status >= 0) return status;
     if (const int status = sim.run(); status >= 0) return status;
     if (const int status = fit.run(); status >= 0) return status;
+    if (const int status = diagnose.run(argc, argv); status >= 0) return status;
     if (r->parsed()) {
       if (!replay_config.empty()) replay.config = load_config(replay_config);
       if (!replay_model.empty()) replay.config.model = noisemon::model::preset(replay_model);

@@ -1,0 +1,68 @@
+// Small pieces the `noisemon` subcommands share: a progress line on the terminal and comma-separated option
+// lists.
+#pragma once
+
+#include <unistd.h>
+
+#include <algorithm>
+#include <cctype>
+#include <cstdio>
+#include <filesystem>
+#include <sstream>
+#include <string>
+#include <vector>
+
+namespace noisemon::daemon {
+
+// One progress line on stderr, rewritten in place; only when stderr is a terminal (never in a pipe or a log).
+class ProgressLine {
+ public:
+  explicit ProgressLine(bool enabled) : on_(enabled && isatty(STDERR_FILENO)) {}
+  ~ProgressLine() { done(); }
+  ProgressLine(const ProgressLine&) = delete;
+  ProgressLine& operator=(const ProgressLine&) = delete;
+  void show(const std::string& text) {
+    if (!on_) return;
+    std::fprintf(stderr, "\r\033[K%s", text.c_str());
+    std::fflush(stderr);
+    shown_ = true;
+  }
+  // Ends the line (the next show starts a new one).
+  void done() {
+    if (on_ && shown_) std::fputc('\n', stderr);
+    shown_ = false;
+  }
+
+ private:
+  bool on_;
+  bool shown_ = false;
+};
+
+// "a, b,c" -> {"a", "b", "c"} (blank items dropped).
+inline std::vector<std::string> split_list(const std::string& text) {
+  std::vector<std::string> out;
+  std::stringstream ss(text);
+  std::string item;
+  while (std::getline(ss, item, ',')) {
+    item.erase(0, item.find_first_not_of(" \t"));
+    item.erase(item.find_last_not_of(" \t") + 1);
+    if (!item.empty()) out.push_back(item);
+  }
+  return out;
+}
+
+// A repeated option whose values may themselves be comma-separated lists, flattened.
+inline std::vector<std::string> flatten_lists(const std::vector<std::string>& items) {
+  std::vector<std::string> out;
+  for (const std::string& s : items)
+    for (std::string& t : split_list(s)) out.push_back(std::move(t));
+  return out;
+}
+
+inline bool is_csv_path(const std::string& path) {
+  std::string ext = std::filesystem::path(path).extension().string();
+  std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return std::tolower(c); });
+  return ext == ".csv";
+}
+
+}  // namespace noisemon::daemon
