@@ -184,10 +184,13 @@ nlohmann::json diagnose_waveform(const DiagnoseOptions& o, const ReportContext& 
   std::fprintf(out, "verdict: %s  held-out RMS %.4g -> %.4g (%.0f %% closed)\n", d.verdict.c_str(), d.heldout_rms_before,
                d.heldout_rms_after, d.heldout_rms_before > 0 ? 100.0 * (1.0 - d.heldout_rms_after / d.heldout_rms_before) : 0.0);
   if (!tests.empty()) {
-    std::fprintf(out, "free-run RMS on the test sets   %12s %12s\n", "baseline", "best model");
+    std::size_t width = 28;
+    for (const auto& t : tests) width = std::max(width, t.name.size() + 18);
+    std::fprintf(out, "%-*s %12s %12s\n", static_cast<int>(width + 2), "free-run RMS on the test sets", "baseline",
+                 "best model");
     for (const auto& t : tests)
-      std::fprintf(out, "  %-28s %12.4g %12.4g\n", (t.name + " [" + std::to_string(t.range.begin) + ":" +
-                                                    std::to_string(t.range.end) + ")").c_str(),
+      std::fprintf(out, "  %-*s %12.4g %12.4g\n", static_cast<int>(width),
+                   (t.name + " [" + std::to_string(t.range.begin) + ":" + std::to_string(t.range.end) + ")").c_str(),
                    t.baseline_rms, t.best_rms);
   }
   std::fprintf(out, "%.1f s\n", d.seconds);

@@ -1441,17 +1441,18 @@ void apply_factors(const ConditionFactors& f, const ConditionData& cond, std::ve
   if (upper_win) *upper_win = cw;
 }
 
-ConditionPrediction predict_condition(const BandDataset& data, std::size_t k, const ExtendedModel& model, bool windows) {
+ConditionPrediction predict_condition(const BandDataset& data, std::size_t k, const ExtendedModel& model, bool windows,
+                                      std::size_t cycles) {
   ConditionPrediction p;
   // The second mode runs in the time domain here (exact per crank window too, where a band factor is not: the
   // spectrum inside a band differs between the combustion window and the rest of the cycle).
-  simulate_condition(data.conditions[k], model.block, 0, p.cycle_ms, windows ? &p.win_ms : nullptr,
+  simulate_condition(data.conditions[k], model.block, cycles, p.cycle_ms, windows ? &p.win_ms : nullptr,
                      model.on.second_mode ? &model.ext : nullptr);
   ExtendedModel rest = model;
   rest.on.second_mode = false;
   const ExtensionSet& on = rest.on;
   if (!(on.speed || on.transducer || on.stationary || on.locked)) return p;
-  const ConditionSpectrum spec = condition_spectrum(data, k, 0);
+  const ConditionSpectrum spec = condition_spectrum(data, k, cycles);
   apply_factors(extension_factors(data, k, spec, model.block, rest), data.conditions[k], p.cycle_ms,
                 windows ? &p.win_ms : nullptr, &p.upper, &p.upper_win);
   return p;

@@ -189,7 +189,8 @@ std::vector<double> condition_gaps(const ConditionData& condition, const std::ve
 // RMS over the finite entries.
 double rms_db(const std::vector<double>& gaps);
 
-// Prediction of every cycle of a condition by the model, exactly (time-domain at the model's block).
+// Prediction of every cycle (or of the first `cycles`) of a condition by the model, exactly (time-domain at the
+// model's block, its second mode included).
 struct ConditionPrediction {
   std::vector<double> cycle_ms;  // [c * bands + b]
   std::vector<double> win_ms;    // [(c * W + w) * bands + b]
@@ -197,6 +198,6 @@ struct ConditionPrediction {
   std::vector<char> upper_win;   // per band * W
 };
 ConditionPrediction predict_condition(const BandDataset& data, std::size_t condition, const ExtendedModel& model,
-                                      bool windows);
+                                      bool windows, std::size_t cycles = 0);
 
 }  // namespace noisemon::model

@@ -300,17 +300,17 @@ std::vector<std::vector<double>> stationary_floors(const Context& cx, const Exte
   const std::size_t nb = data.band_count();
   std::vector<std::size_t> all = cx.train_fired;
   all.insert(all.end(), cx.refs.begin(), cx.refs.end());
-  const Anchor an = make_anchor(data, model.block, all, cx.opt->fit_cycles, true);
-  // Per training condition: mean excess per band and window.
+  // Per training condition: mean excess per band and window (the exact prediction of the fit cycles: a band
+  // factor for a second mode would misplace its energy between the windows).
   std::vector<std::vector<double>> excess(all.size(), std::vector<double>(nb * kW, 0.0));
   std::vector<std::vector<double>> predicted(all.size(), std::vector<double>(nb * kW, 0.0));
   for (std::size_t i = 0; i < all.size(); ++i) {
     const std::size_t k = all[i];
     const ConditionData& d = data.conditions[k];
     const Measured ms = measured_side(d, model);
-    std::vector<double> cyc = an.cycle_ms[i], win = an.win_ms[i];
-    apply_factors(extension_factors(data, k, an.spectra[i], model.block, model), d, cyc, &win);
-    const std::size_t nc = cyc.size() / nb;
+    const ConditionPrediction pr = predict_condition(data, k, model, true, cx.opt->fit_cycles);
+    const std::vector<double>& win = pr.win_ms;
+    const std::size_t nc = pr.cycle_ms.size() / nb;
     for (std::size_t c = 0; c < nc; ++c)
       for (std::size_t b = 0; b < nb; ++b)
         for (std::size_t w = 0; w < kW; ++w) {
