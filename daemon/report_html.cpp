@@ -934,7 +934,7 @@ h2{font-size:17px;margin:0 0 8px}h3{font-size:14px;margin:14px 0 6px}
 code{font-family:ui-monospace,SFMono-Regular,Menlo,Consolas,monospace;font-size:12px;word-break:break-all}
 table{border-collapse:collapse;width:100%;font-size:13px}
 th,td{padding:3px 8px;border-bottom:1px solid #e6e8eb;text-align:right;vertical-align:top;white-space:nowrap}
-th{white-space:normal;background:#f6f8fa;font-weight:600}th:first-child,td:first-child{text-align:left}
+th{white-space:normal;background:#f6f8fa;font-weight:600}th:first-child,td:first-child{text-align:left;white-space:normal}
 table.txt td:nth-child(-n+2),table.txt th:nth-child(-n+2){text-align:left;white-space:normal}
 tr.vrow td{background:#fff4c2;font-weight:600}tr.base td{color:#57606a}
 .tag{font-size:11px;font-weight:500;padding:0 6px;border-radius:8px;background:#e7ecf3;margin-left:6px}.vt{background:#1a7f37;color:#fff}
