@@ -9,6 +9,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <sstream>
+#include <stdexcept>
 #include <string>
 #include <vector>
 
@@ -63,6 +64,23 @@ inline bool is_csv_path(const std::string& path) {
   std::string ext = std::filesystem::path(path).extension().string();
   std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return std::tolower(c); });
   return ext == ".csv";
+}
+
+// The DATA of `fit` and `diagnose`: every path must exist; the mode is `given` ("band" or "waveform") or, when
+// empty, follows from DATA (.csv files: waveform; run directories and logs: band; a mix is an error).
+inline std::string data_mode(const std::vector<std::string>& data, const std::string& given) {
+  if (data.empty()) throw std::runtime_error("no DATA given");
+  for (const std::string& p : data)
+    if (!std::filesystem::exists(p)) throw std::runtime_error(p + ": no such file or directory");
+  std::string mode = given;
+  if (mode.empty()) {
+    const bool csv = std::all_of(data.begin(), data.end(), is_csv_path);
+    const bool none = std::none_of(data.begin(), data.end(), is_csv_path);
+    if (!csv && !none) throw std::runtime_error("DATA mixes .csv waveforms and band data: give --mode");
+    mode = csv ? "waveform" : "band";
+  }
+  if (mode != "band" && mode != "waveform") throw std::runtime_error("--mode " + mode + ": expected band or waveform");
+  return mode;
 }
 
 }  // namespace noisemon::daemon

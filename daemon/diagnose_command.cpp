@@ -200,18 +200,8 @@ nlohmann::json diagnose_waveform(const DiagnoseOptions& o, const ReportContext& 
 }  // namespace
 
 DiagnoseOutcome run_diagnose(const DiagnoseOptions& o, std::FILE* out) {
-  if (o.data.empty()) throw std::runtime_error("no DATA given");
-  for (const std::string& p : o.data)
-    if (!fs::exists(p)) throw std::runtime_error(p + ": no such file or directory");
+  const std::string mode = data_mode(o.data, o.mode);
   check_out_dir(o);
-  std::string mode = o.mode;
-  if (mode.empty()) {
-    const bool csv = std::all_of(o.data.begin(), o.data.end(), is_csv_path);
-    const bool none = std::none_of(o.data.begin(), o.data.end(), is_csv_path);
-    if (!csv && !none) throw std::runtime_error("DATA mixes .csv waveforms and band data: give --mode");
-    mode = csv ? "waveform" : "band";
-  }
-  if (mode != "band" && mode != "waveform") throw std::runtime_error("--mode " + mode + ": expected band or waveform");
   ReportContext ctx;
   ctx.data = o.data;
   ctx.command = o.command_line;

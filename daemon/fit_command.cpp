@@ -342,18 +342,8 @@ FitCommandResult fit_band_mode(const FitCommandOptions& o, std::FILE* out) {
 }  // namespace
 
 FitCommandResult run_fit(const FitCommandOptions& o, std::FILE* out) {
-  if (o.data.empty()) throw std::runtime_error("no DATA given");
-  for (const std::string& p : o.data)
-    if (!std::filesystem::exists(p)) throw std::runtime_error(p + ": no such file or directory");
+  const std::string mode = data_mode(o.data, o.mode);
   check_output(o);
-  std::string mode = o.mode;
-  if (mode.empty()) {
-    const bool csv = std::all_of(o.data.begin(), o.data.end(), is_csv_path);
-    const bool none = std::none_of(o.data.begin(), o.data.end(), is_csv_path);
-    if (!csv && !none) throw std::runtime_error("DATA mixes .csv waveforms and band data: give --mode");
-    mode = csv ? "waveform" : "band";
-  }
-  if (mode != "band" && mode != "waveform") throw std::runtime_error("--mode " + mode + ": expected band or waveform");
   if (mode == "band" && o.fs_hz > 0.0) throw std::runtime_error("--fs applies to waveform mode only");
 
   FitCommandResult r = mode == "waveform" ? fit_waveform_mode(o, out) : fit_band_mode(o, out);
