@@ -5,6 +5,8 @@
 // `noisemon watch --status` (real processes over LCM in a private network namespace; needs root).
 #include "daemon/sources.hpp"
 
+#include <lcm/lcm-cpp.hpp>
+
 #include <sched.h>
 #include <signal.h>
 #include <sys/wait.h>
@@ -12,6 +14,7 @@
 
 #include <gtest/gtest.h>
 
+#include <atomic>
 #include <chrono>
 #include <cstdlib>
 #include <cstring>
@@ -19,6 +22,8 @@
 #include <sstream>
 #include <thread>
 
+#include "drivers/lcm_source.hpp"
+#include "drivers/stream_messages.hpp"
 #include "tests/drivers/unique_temp.hpp"
 
 using noisemon::daemon::Config;
@@ -191,4 +196,78 @@ TEST(Noisemond, DriverCountersAppearInWatchStatus) {
   EXPECT_NE(out.find("counters:"), std::string::npos) << out;
   EXPECT_NE(out.find("candump.malformed_lines=1"), std::string::npos) << out;
   EXPECT_NE(out.find("candump.decoded_frames=2"), std::string::npos) << out;
+}
+
+TEST(LcmSource, BlocksOfAnotherSessionAreCountedNotMixedIn) {
+  // A multi-run log played with lcm-logplayer carries a second session (another epoch) after the first: its
+  // frame indices restart on another time base, so the daemon's lcm source must not feed them into the rings
+  // of the first. Real LCM (udpm) in a private network namespace; the publisher is a second LCM instance.
+  if (geteuid() != 0) {
+    if (const char* ci = std::getenv("CI"); ci && std::string(ci) == "true") FAIL() << "needs root for unshare -n";
+    GTEST_SKIP() << "needs root for a private network namespace (unshare -n)";
+  }
+  const pid_t pid = fork();
+  if (pid == 0) {
+    if (unshare(CLONE_NEWNET) != 0 || std::system("ip link set lo up && ip route add 224.0.0.0/4 dev lo") != 0) _exit(125);
+    const std::string url = "udpm://239.255.76.67:7667?ttl=0";
+    lcm::LCM pub(url);
+    if (!pub.good()) _exit(124);
+    noisemon::drivers::StreamInfo a;
+    a.epoch_utime = 1'700'000'000'000'000;
+    const noisemon::session_t session = noisemon::drivers::to_message(a, "test", a.epoch_utime, "run_a");
+    std::atomic<bool> constructed{false};
+    std::thread announcer([&] {  // the source's constructor waits for the session
+      while (!constructed) {
+        pub.publish("NOISEMON_SESSION", &session);
+        std::this_thread::sleep_for(std::chrono::milliseconds(20));
+      }
+    });
+    noisemon::drivers::LcmSourceConfig lc;
+    lc.url = url;
+    lc.session_timeout_s = 5.0;
+    std::unique_ptr<noisemon::drivers::Source> src;
+    try {
+      src = noisemon::drivers::make_lcm_source(lc);
+    } catch (...) {
+      constructed = true;
+      announcer.join();
+      _exit(3);
+    }
+    constructed = true;
+    announcer.join();
+    noisemon::drivers::BlockRing pressure(64), mics(64);
+    noisemon::drivers::OperatingPointRing ops(16);
+    src->start({&pressure, &mics, &ops});
+    noisemon::drivers::SampleBlock b;
+    b.frames = 4;
+    b.channels = noisemon::drivers::kPressureStreamChannels;
+    for (std::size_t i = 0; i < b.frames * b.channels; ++i) b.data[i] = 1e5;
+    for (int k = 0; k < 5; ++k) {
+      b.first_index = 4 * (k % 2);
+      const std::int64_t epoch = k < 2 ? a.epoch_utime : a.epoch_utime + 60'000'000;  // blocks 2..4: the next run
+      const noisemon::raw_block_t m = noisemon::drivers::to_message(b, noisemon::raw_block_t::STREAM_PRESSURE, epoch);
+      pub.publish("NOISEMON_RAW", &m);
+    }
+    std::int64_t blocks = -1, other = -1;
+    for (int i = 0; i < 100 && blocks + other < 5; ++i) {
+      std::this_thread::sleep_for(std::chrono::milliseconds(20));
+      for (const auto& c : src->counters()) {
+        if (c.name == "lcm.blocks") blocks = c.value;
+        if (c.name == "lcm.other_session_blocks") other = c.value;
+      }
+    }
+    src->stop();
+    std::size_t in_ring = 0;
+    noisemon::drivers::SampleBlock out;
+    while (pressure.read(&out, 1) == 1) ++in_ring;
+    std::printf("blocks %lld, other session %lld, in the ring %zu\n", static_cast<long long>(blocks),
+                static_cast<long long>(other), in_ring);
+    _exit(blocks == 2 && other == 3 && in_ring == 2 ? 0 : 1);
+  }
+  int status = 0;
+  waitpid(pid, &status, 0);
+  ASSERT_TRUE(WIFEXITED(status));
+  ASSERT_NE(WEXITSTATUS(status), 125) << "cannot set up a private network namespace";
+  EXPECT_EQ(WEXITSTATUS(status), 0) << "the source fed another session's blocks, or lost its own (status "
+                                    << WEXITSTATUS(status) << ")";
 }
