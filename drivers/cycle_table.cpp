@@ -11,26 +11,54 @@ namespace {
 
 bool is_blank(char c) { return c == ' ' || c == '\t'; }
 
-bool parse_number(std::string_view field, double& out) {
+// A number; with decimal_comma, "0,969" reads as 0.969 (the European spreadsheet export, ';'-separated).
+bool parse_number(std::string_view field, double& out, bool decimal_comma = false) {
   if (!field.empty() && field.front() == '+') field.remove_prefix(1);
-  if (field.empty()) return false;
+  if (field.empty() || field.size() > 64) return false;
+  char buf[65];
+  if (decimal_comma) {
+    for (std::size_t i = 0; i < field.size(); ++i) buf[i] = field[i] == ',' ? '.' : field[i];
+    field = std::string_view(buf, field.size());
+  }
   const auto [end, ec] = std::from_chars(field.data(), field.data() + field.size(), out);
   return ec == std::errc() && end == field.data() + field.size() && std::isfinite(out);
 }
 
-// Splits a line at runs of blanks.
-void split(std::string_view line, std::vector<std::string_view>& fields) {
+// Splits a line into fields. A line with tabs or semicolons is separated by them (and by blanks, with tabs) and a
+// ',' inside a field is a decimal comma (*decimal_comma is set): the spreadsheet exports of comma-decimal
+// locales. Otherwise blanks and commas separate ("-180.0, 0.969, 0.97"). Fields are trimmed of blanks.
+void split(std::string_view line, std::vector<std::string_view>& fields, bool* decimal_comma) {
   fields.clear();
+  const bool semicolons = line.find(';') != std::string_view::npos;
+  const bool tabs = !semicolons && line.find('\t') != std::string_view::npos;
+  *decimal_comma = semicolons || tabs;
+  if (semicolons) {
+    std::size_t i = 0;
+    while (i <= line.size()) {
+      std::size_t j = line.find(';', i);
+      if (j == std::string_view::npos) j = line.size();
+      std::string_view f = line.substr(i, j - i);
+      while (!f.empty() && is_blank(f.front())) f.remove_prefix(1);
+      while (!f.empty() && is_blank(f.back())) f.remove_suffix(1);
+      if (!(f.empty() && j == line.size())) fields.push_back(f);  // a trailing ';' adds no field
+      i = j + 1;
+    }
+    return;
+  }
+  const auto is_sep = [&](char c) { return is_blank(c) || (!tabs && c == ','); };
   std::size_t i = 0;
   while (i < line.size()) {
-    while (i < line.size() && is_blank(line[i])) ++i;
+    while (i < line.size() && is_sep(line[i])) ++i;
     if (i == line.size()) break;
     std::size_t j = i;
-    while (j < line.size() && !is_blank(line[j])) ++j;
+    while (j < line.size() && !is_sep(line[j])) ++j;
     fields.push_back(line.substr(i, j - i));
     i = j;
   }
 }
+
+// Header lines (column names, units, a title) allowed before the first row of numbers.
+constexpr std::size_t kMaxHeaderLines = 20;
 
 // Beyond any engine: a crank angle this large is a corrupted file, and a pressure this large would overflow
 // (or silently lose its meaning) once converted to Pa.
@@ -58,7 +86,7 @@ CycleTable parse_cycle_table(std::string_view text, const std::string& file) {
   std::vector<std::string_view> fields;
   std::size_t columns = 0;  // including the crank column
   std::size_t pos = 0, line_no = 0, blank_line = 0;
-  bool header_allowed = true;
+  std::size_t header_lines = 0;
   const auto at = [&](std::size_t line) { return file + ": line " + std::to_string(line) + ": "; };
   while (pos < text.size()) {
     std::size_t eol = text.find('\n', pos);
@@ -67,17 +95,18 @@ CycleTable parse_cycle_table(std::string_view text, const std::string& file) {
     pos = eol + 1;
     ++line_no;
     if (!line.empty() && line.back() == '\r') line.remove_suffix(1);
-    split(line, fields);
-    if (fields.empty()) {
+    bool decimal_comma = false;
+    split(line, fields, &decimal_comma);
+    if (fields.empty() || (fields.size() == 1 && fields[0].empty())) {
       if (blank_line == 0 && columns > 0) blank_line = line_no;
       continue;
     }
-    if (fields[0].front() == '#') continue;
+    if (!fields[0].empty() && fields[0].front() == '#') continue;
     if (blank_line != 0) throw RunDirError(at(blank_line) + "empty line inside the table");
     double crank;
-    if (!parse_number(fields[0], crank)) {
-      if (header_allowed) {  // one header line of column names
-        header_allowed = false;
+    if (!parse_number(fields[0], crank, decimal_comma)) {
+      if (columns == 0 && header_lines < kMaxHeaderLines) {  // header lines: names, units, a title
+        ++header_lines;
         continue;
       }
       throw RunDirError(at(line_no) + "column 1 (crank angle) is \"" + std::string(fields[0]) + "\", expected a number");
@@ -85,7 +114,6 @@ CycleTable parse_cycle_table(std::string_view text, const std::string& file) {
     if (std::abs(crank) > kMaxAbsCrankDeg)
       throw RunDirError(at(line_no) + "crank angle " + fmt(crank) + " deg, expected a crank angle within +-" +
                         fmt(kMaxAbsCrankDeg) + " deg");
-    header_allowed = false;
     if (columns == 0) {
       columns = fields.size();
       if (columns < 2)
@@ -102,7 +130,7 @@ CycleTable parse_cycle_table(std::string_view text, const std::string& file) {
     t.crank_deg.push_back(crank);
     for (std::size_t c = 1; c < columns; ++c) {
       double p;
-      if (!parse_number(fields[c], p) || std::abs(p) > kMaxAbsPressureBar)
+      if (!parse_number(fields[c], p, decimal_comma) || std::abs(p) > kMaxAbsPressureBar)
         throw RunDirError(at(line_no) + "column " + std::to_string(c + 1) + " is \"" + std::string(fields[c]) +
                           "\", expected a pressure in bar (within +-" + fmt(kMaxAbsPressureBar) + ")");
       t.cycles_bar[c - 1].push_back(p);

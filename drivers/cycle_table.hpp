@@ -1,6 +1,7 @@
 // Cycle tables: the common export of indicating systems (AVL IndiCom, Kistler KiBox, lab heat-release scripts):
 // a text table whose first column is the crank angle over one 720-degree cycle and whose further columns are
-// consecutive cycles of cylinder pressure in bar, separated by tabs or blanks, e.g.
+// consecutive cycles of cylinder pressure in bar, separated by tabs or semicolons (a decimal comma is then allowed:
+// "-180,0;0,969", the export of comma-decimal locales), or by blanks or commas ("-180.0, 0.969"), e.g.
 //
 //   -180.0   0.969  0.969  ...      <- first row: the pegging value (the same in every cycle), see below
 //   -179.8   1.024  0.859  ...
@@ -41,7 +42,8 @@ struct CycleTable {
 
 // Reads a table; throws RunDirError naming the file, the line and column and what was expected (a numeric
 // table of at least two columns, the same number of columns on every line, crank angle increasing in a uniform
-// step covering exactly 720 degrees). One leading header line of text and lines starting with '#' are skipped.
+// step covering exactly 720 degrees). Up to 20 header lines of text before the first row of numbers (names,
+// units, a title) and lines starting with '#' are skipped.
 CycleTable read_cycle_table(const std::filesystem::path& file);
 CycleTable parse_cycle_table(std::string_view text, const std::string& file);
 

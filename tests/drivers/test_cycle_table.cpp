@@ -125,8 +125,8 @@ TEST(CycleTableBadInput, ErrorsNameFileLineColumnAndWhatWasExpected) {
   ragged.replace(ragged.find('\t', ragged.find('\t', line5) + 1), ragged.find('\n', line5) - ragged.find('\t', ragged.find('\t', line5) + 1) - 1, "");
   EXPECT_HAS(table_error(ragged), "t.txt: line 5: 2 columns, expected 3 like line 1");
   std::string bad = t;
-  bad.replace(bad.find('\t', line5) + 1, 8, "1,5");
-  EXPECT_HAS(table_error(bad), "t.txt: line 5: column 2 is \"1,5");
+  bad.replace(bad.find('\t', line5) + 1, 8, "1.5e+x");
+  EXPECT_HAS(table_error(bad), "t.txt: line 5: column 2 is \"1.5e+x");
   EXPECT_HAS(table_error(bad), "expected a pressure in bar");
   std::string crank = t;
   crank.replace(line5, crank.find('\t', line5) - line5, "-175.500000");
@@ -134,7 +134,7 @@ TEST(CycleTableBadInput, ErrorsNameFileLineColumnAndWhatWasExpected) {
   std::size_t half = 0;  // the first 360 rows only
   for (int i = 0; i < 360; ++i) half = t.find('\n', half) + 1;
   EXPECT_HAS(table_error(t.substr(0, half)), "t.txt: the crank column covers 360 deg (360 rows of 1 deg), expected 720 deg");
-  EXPECT_HAS(table_error("angle p1 p2\nabc 1 2\n"), "t.txt: line 2: column 1 (crank angle) is \"abc\", expected a number");
+  EXPECT_HAS(table_error("angle p1 p2\n1 1 2\nabc 1 2\n"), "t.txt: line 3: column 1 (crank angle) is \"abc\", expected a number");
   EXPECT_HAS(table_error("1\n2\n3\n4\n5\n6\n7\n8\n"), "t.txt: line 1: 1 column, expected the crank angle followed by");
 }
 
@@ -161,6 +161,37 @@ TEST(CycleTable, HeaderLineAndCommentsAreSkipped) {
   const CycleTable c = parse_cycle_table(t, "t.txt");
   EXPECT_EQ(c.crank_deg.size(), 720u);
   EXPECT_EQ(c.first_data_line, 3u);
+}
+
+TEST(CycleTable, SemicolonDecimalCommaCommaSeparatedAndSeveralHeaderLinesGiveTheSameNumbers) {
+  // The same two cycles written as an indicating system's exports in other locales and layouts; the values the
+  // test wrote (0.5 deg steps, p = 1 + cycle + crank / 1000 bar) must come back in every one.
+  const auto expected = [](int c, double crank) { return 1.0 + c + crank / 1000.0; };
+  std::string semi = "Kurbelwinkel;Zyklus 1;Zyklus 2\n[deg];[bar];[bar]\n";
+  std::string tabs_dc = "crank\tp1\tp2\n", commas = "# CSV\ncrank,p1,p2\n";
+  for (int r = 0; r < 1440; ++r) {
+    const double crank = -360.0 + 0.5 * r;
+    char a[96], b[96];
+    std::snprintf(a, sizeof a, "%.1f;%.4f;%.4f\n", crank, expected(0, crank), expected(1, crank));
+    std::snprintf(b, sizeof b, "%.1f, %.4f, %.4f\n", crank, expected(0, crank), expected(1, crank));
+    std::string de = a;
+    for (char& ch : de) ch = ch == '.' ? ',' : ch;  // decimal commas
+    semi += de;
+    std::string t = de;
+    for (char& ch : t) ch = ch == ';' ? '\t' : ch;
+    tabs_dc += t;
+    commas += b;
+  }
+  for (const std::string* text : {&semi, &tabs_dc, &commas}) {
+    const CycleTable t = parse_cycle_table(*text, "t.csv");
+    ASSERT_EQ(t.crank_deg.size(), 1440u);
+    ASSERT_EQ(t.cycles_bar.size(), 2u);
+    for (std::size_t r = 0; r < 1440; r += 97) {
+      EXPECT_DOUBLE_EQ(t.crank_deg[r], -360.0 + 0.5 * static_cast<double>(r));
+      for (int c = 0; c < 2; ++c) EXPECT_NEAR(t.cycles_bar[c][r], expected(c, t.crank_deg[r]), 5e-5);
+    }
+  }
+  EXPECT_EQ(parse_cycle_table(semi, "t.csv").first_data_line, 3u);  // two header lines: names and units
 }
 
 TEST(CycleTable, RealYanmarTablesParse) {
