@@ -781,7 +781,9 @@ DiagnosisResult diagnose(const BandDataset& data, const BlockParams& start, cons
       }
     }
     const double closed = 1.0 - selected->heldout_gap_db / v.heldout_rms_before_db;
-    if (closed < opt.min_closed_fraction) {
+    // Unexplained: a significant gap remains. What the best leaves within the tolerance is no such gap, however
+    // small a share of a gap barely above the tolerance it closed.
+    if (closed < opt.min_closed_fraction && selected->heldout_gap_db > opt.tolerance_db) {
       v.effect = "unexplained";
       v.also.clear();
       v.explanation = "a significant gap remains: the best candidate (" + best.name + ") closes only " +

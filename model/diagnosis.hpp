@@ -35,8 +35,8 @@
 // and the improvement is at least `min_improvement_db`. Ranking: held-out gap, best first; a simpler candidate
 // (fewer fitted parameters) ranks first when the better one does not beat it in 95 % of the replicates.
 // Verdict: `none` when the baseline's held-out gap is within `tolerance_db` (or not above its bootstrap noise);
-// otherwise the best significant candidate when it (alone or with the next significant one) closes at least
-// `min_closed_fraction` of the gap, else `unexplained`.
+// otherwise the best significant candidate when it (alone or with a second one) closes at least
+// `min_closed_fraction` of the gap or leaves no more than `tolerance_db`, else `unexplained`.
 #pragma once
 
 #include <cstddef>
