@@ -173,6 +173,8 @@ json band_report_json(const model::BandDataset& data, const model::DiagnosisResu
                         {"slope_db_per_db", number(w.amplitude_slope_db_per_db)},
                         {"cycle_slope_db_per_db", number(w.cycle_amplitude_slope_db_per_db)}};
   where["speed_slope_db_per_krpm"] = number(w.speed_slope_db_per_krpm);
+  where["soi_slope_db_per_deg"] = number(w.soi_slope_db_per_deg);
+  where["load_slope_db_per_nm"] = number(w.load_slope_db_per_nm);
   where["mics"] = w.mics;
   where["mic_offset_db"] = numbers(w.mic_offset_db);
   where["mic_gap_rms_db"] = numbers(w.mic_gap_rms_db);

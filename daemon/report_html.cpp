@@ -757,7 +757,9 @@ std::string band_sections(Page& pg, const json& r) {
               " dB/dB across held-out conditions (dashed, through their "
               "centroid); per cycle within conditions " +
               sig(num(get(amp, "cycle_slope_db_per_db")), 3) + " dB/dB; vs speed " +
-              sig(num(get(w, "speed_slope_db_per_krpm")), 3) + " dB/krpm.") +
+              sig(num(get(w, "speed_slope_db_per_krpm")), 3) + " dB/krpm, vs injection timing " +
+              sig(num(get(w, "soi_slope_db_per_deg")), 3) + " dB/deg BTDC, vs load " +
+              sig(num(get(w, "load_slope_db_per_nm")), 3) + " dB/(N m).") +
          "</div>";
   }
   const auto start = nums(get(get(w, "crank_windows"), "start_deg")), wg = nums(get(get(w, "crank_windows"), "gap_db"));

@@ -840,7 +840,7 @@ DiagnosisResult diagnose(const BandDataset& data, const BlockParams& start, cons
   }
   wh.gap = res.baseline.gaps;
   wh.gap_per_band_rms = v.band_before_db;
-  std::vector<double> speeds, cycle_x, cycle_y;
+  std::vector<double> speeds, sois, loads, cycle_x, cycle_y;
   for (std::size_t h = 0; h < cx.heldout.size(); ++h) {
     const std::size_t k = cx.heldout[h];
     const ConditionData& d = data.conditions[k];
@@ -870,6 +870,8 @@ DiagnosisResult diagnose(const BandDataset& data, const BlockParams& start, cons
     wh.att_meas.push_back(att_m);
     wh.cpl_db.push_back(cpl_b);
     speeds.push_back(d.mean_speed_rpm() / 1000.0);
+    sois.push_back(d.info.soi_deg_btdc);
+    loads.push_back(d.info.load_nm);
     // Per-cycle: mean gap over the scored bands vs the cycle's overall CPL, deviations from the condition mean.
     std::vector<double> xs, ys;
     const ConditionPrediction& p = base.preds[h];
@@ -900,6 +902,8 @@ DiagnosisResult diagnose(const BandDataset& data, const BlockParams& start, cons
   wh.amplitude_slope_db_per_db = linear_slope(wh.cpl_overall_db, wh.mean_gap_db);
   wh.cycle_amplitude_slope_db_per_db = linear_slope(cycle_x, cycle_y);
   wh.speed_slope_db_per_krpm = linear_slope(speeds, wh.mean_gap_db);
+  wh.soi_slope_db_per_deg = linear_slope(sois, wh.mean_gap_db);
+  wh.load_slope_db_per_nm = linear_slope(loads, wh.mean_gap_db);
   {
     const std::size_t M = data.conditions[cx.heldout.front()].mics;
     wh.mic_offset_db.assign(M, 0.0);

@@ -114,6 +114,8 @@ struct Where {
   double amplitude_slope_db_per_db = 0.0;         // mean gap vs CPL across held-out conditions
   double cycle_amplitude_slope_db_per_db = 0.0;   // per-cycle gap vs per-cycle CPL, within conditions (pooled)
   double speed_slope_db_per_krpm = 0.0;           // mean gap vs speed across held-out conditions
+  double soi_slope_db_per_deg = 0.0;              // mean gap vs injection timing (deg BTDC) across them
+  double load_slope_db_per_nm = 0.0;              // mean gap vs load across them (NaN: all at one value)
   std::vector<std::string> mics;                  // "mic1".. (Table 3.1 numbering)
   std::vector<double> mic_offset_db;              // per microphone: mean offset from the array, over conditions
   std::vector<double> mic_gap_rms_db;             // per microphone: thesis metric of its own curve

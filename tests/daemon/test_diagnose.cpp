@@ -119,6 +119,10 @@ TEST(Diagnose, AnEffectNoCandidateCanExpressIsUnexplained) {
   print("foreign_soi_gain=0.5", r);
   EXPECT_EQ(r.verdict.effect, "unexplained");
   EXPECT_GT(r.verdict.heldout_rms_before_db, 0.5);
+  // Where: the gap follows the injection timing at the injected 0.5 dB per degree (the baseline's tuned gain
+  // takes out the mean, not the slope).
+  std::printf("gap vs SOI %.3f dB/deg\n", r.where.soi_slope_db_per_deg);
+  EXPECT_NEAR(r.where.soi_slope_db_per_deg, 0.5, 0.1);
 }
 
 TEST(Diagnose, TwoEffectsNameTheStrongerFirstAndTheOtherIsSignificant) {
