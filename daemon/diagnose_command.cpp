@@ -265,9 +265,9 @@ DiagnoseCommand::DiagnoseCommand(CLI::App& app) {
   cmd_->footer(
       "\nExamples:\n"
       "  noisemon sim --condition all --effect second_mode -o runs/withheld\n"
-      "  noisemon diagnose runs/withheld/* -o diag                      # leave-one-condition-out\n"
-      "  noisemon diagnose runs/withheld/* --train idle --holdout full -o diag_thesis   # the thesis's protocol\n"
-      "  noisemon diagnose silverbox.csv --fs 610.35 --train 40650:105712 --holdout 105712:127400 \\\n"
+      "  noisemon diagnose runs/withheld -o diag                        # leave-one-condition-out\n"
+      "  noisemon diagnose runs/withheld --train idle --holdout full -o diag_thesis   # the thesis's protocol\n"
+      "  noisemon diagnose silverbox.csv --fs 610.3515625 --train 40650:105712 --holdout 105712:127400 \\\n"
       "      --test arrow=100:40575 -o diag_silverbox");
 }
 
