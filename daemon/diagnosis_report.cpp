@@ -80,7 +80,10 @@ json score_json(const model::ModelScore& s) {
   c["heldout_thesis_rms_db"] = number(s.heldout_thesis_rms_db);
   c["train_rms_db"] = number(s.train_rms_db);
   c["gap_closed_fraction"] = number(s.gap_closed_fraction);
-  c["significant"] = s.significant;
+  // significant: alone against the baseline, or as the verdict's second effect on top of the first.
+  c["significant"] = s.significant || s.significant_on_top;
+  c["significant_alone"] = s.significant;
+  c["significant_on_top_of_verdict"] = s.significant_on_top;
   c["improvement_db"] = number(s.improvement_db);
   c["improvement_p05_db"] = number(s.improvement_p05_db);
   c["win_fraction"] = number(s.win_fraction);

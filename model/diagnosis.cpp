@@ -738,6 +738,7 @@ DiagnosisResult diagnose(const BandDataset& data, const BlockParams& start, cons
   for (std::size_t i : order)
     if (evals[i].score.significant) sig.push_back(i);
   const ModelScore* selected = nullptr;
+  std::string candidate_partner;  // the second effect kept with the verdict's
   if (v.heldout_rms_before_db <= opt.tolerance_db || v.heldout_rms_before_db <= 2.0 * v.noise_db) {
     v.effect = "none";
     v.explanation = "the tuned baseline already agrees with the held-out conditions within the tolerance (" +
@@ -779,6 +780,7 @@ DiagnosisResult diagnose(const BandDataset& data, const BlockParams& start, cons
         selected = &res.combinations.front();
         v.also.push_back(selected->effects.back());
       }
+      candidate_partner = keep ? v.also.front() : std::string();
     }
     const double closed = 1.0 - selected->heldout_gap_db / v.heldout_rms_before_db;
     // Unexplained: a significant gap remains. What the best leaves within the tolerance is no such gap, however
@@ -794,6 +796,8 @@ DiagnosisResult diagnose(const BandDataset& data, const BlockParams& start, cons
       if (!v.also.empty()) v.explanation += " together with " + v.also.front();
     }
   }
+  for (ModelScore& c : res.candidates)
+    if (!candidate_partner.empty() && !v.also.empty() && c.name == candidate_partner) c.significant_on_top = true;
   const ModelScore& after = (selected && v.effect != "unexplained" && v.effect != "none") ? *selected : res.baseline;
   v.heldout_rms_after_db = after.heldout_gap_db;
   v.heldout_thesis_after_db = after.heldout_thesis_rms_db;

@@ -91,7 +91,8 @@ struct ModelScore {
   double improvement_db = 0.0;         // baseline gap - this gap
   double improvement_p05_db = 0.0;     // 5th percentile of the replicates
   double win_fraction = 0.0;           // share of replicates where this gap < baseline's
-  bool significant = false;
+  bool significant = false;            // alone, against the baseline
+  bool significant_on_top = false;     // the verdict's partner: significant on top of the verdict's effect
   double gap_closed_fraction = 0.0;    // 1 - gap / baseline gap
   std::vector<double> replicate_gaps;  // for the pairwise tie-break
 };

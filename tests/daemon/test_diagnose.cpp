@@ -130,10 +130,14 @@ TEST(Diagnose, TwoEffectsNameTheStrongerFirstAndTheOtherIsSignificant) {
   const model::DiagnosisResult r = run(campaign({"second_mode=10", "mic_gain=2,mic=4"}));
   print("second_mode=10 + mic_gain=2", r);
   EXPECT_EQ(r.verdict.effect, "second_mode");
-  bool other_significant = false;
+  bool other_significant = false, on_top = false;
   for (const auto& c : r.candidates)
-    if (c.name == "mic_gain") other_significant = c.significant;
+    if (c.name == "mic_gain") {
+      other_significant = c.significant;
+      on_top = c.significant_on_top;
+    }
   EXPECT_TRUE(other_significant);
+  EXPECT_TRUE(on_top);  // and significant on top of the second mode, as the verdict's partner
   ASSERT_FALSE(r.verdict.also.empty());
   EXPECT_EQ(r.verdict.also.front(), "mic_gain");
   EXPECT_GE(r.verdict.gap_closed_fraction, 0.6);
