@@ -7,6 +7,7 @@
 #include <algorithm>
 #include <cctype>
 #include <cstdio>
+#include <exception>
 #include <filesystem>
 #include <sstream>
 #include <stdexcept>
@@ -38,6 +39,18 @@ class ProgressLine {
   bool on_;
   bool shown_ = false;
 };
+
+// A subcommand's body: an exception becomes "noisemon COMMAND: message" on stderr and exit status 1.
+template <class Body>
+int exit_status_of(const char* command, Body&& body) {
+  try {
+    body();
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "noisemon %s: %s\n", command, e.what());
+    return 1;
+  }
+  return 0;
+}
 
 // "a, b,c" -> {"a", "b", "c"} (blank items dropped).
 inline std::vector<std::string> split_list(const std::string& text) {

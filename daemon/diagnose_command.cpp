@@ -274,13 +274,7 @@ DiagnoseCommand::DiagnoseCommand(CLI::App& app) {
 int DiagnoseCommand::run(int argc, char** argv) {
   if (!cmd_->parsed()) return -1;
   for (int i = 0; i < argc; ++i) options_.command_line += (i ? " " : "") + std::string(argv[i]);
-  try {
-    run_diagnose(options_);
-  } catch (const std::exception& e) {
-    std::fprintf(stderr, "noisemon diagnose: %s\n", e.what());
-    return 1;
-  }
-  return 0;
+  return exit_status_of("diagnose", [&] { run_diagnose(options_); });
 }
 
 }  // namespace noisemon::daemon

@@ -410,13 +410,7 @@ FitCommand::FitCommand(CLI::App& app) {
 
 int FitCommand::run() {
   if (!fit_->parsed()) return -1;
-  try {
-    run_fit(options_);
-  } catch (const std::exception& e) {
-    std::fprintf(stderr, "noisemon fit: %s\n", e.what());
-    return 1;
-  }
-  return 0;
+  return exit_status_of("fit", [&] { run_fit(options_); });
 }
 
 }  // namespace noisemon::daemon

@@ -13,6 +13,7 @@
 #include <stdexcept>
 #include <utility>
 
+#include "daemon/cli_support.hpp"
 #include "daemon/params_file.hpp"
 #include "drivers/run_dir.hpp"
 #include "drivers/sim_run.hpp"
@@ -236,15 +237,11 @@ int SimCommand::run() {
     std::fputs(model::effect_help_text().c_str(), stdout);
     return 0;
   }
-  try {
+  return exit_status_of("sim", [&] {
     const SimSummary s = run_sim(options_);
     std::fprintf(stderr, "noisemon sim: wrote %zu run director%s and truth.json under %s (generating %.2f s CPU, writing %.2f s)\n",
                  s.run_dirs.size(), s.run_dirs.size() == 1 ? "y" : "ies", options_.out_dir.c_str(), s.generate_s, s.write_s);
-  } catch (const std::exception& e) {
-    std::fprintf(stderr, "noisemon sim: %s\n", e.what());
-    return 1;
-  }
-  return 0;
+  });
 }
 
 }  // namespace noisemon::daemon
