@@ -19,6 +19,7 @@ constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 constexpr double kMicSpreadFloorDb = 0.1;  // robust spread of the array never taken below this
 constexpr double kMicOutlierSigmas = 3.0;
 constexpr double kPairShare = 0.2;  // a second effect must close this share of the best one's remaining gap
+constexpr double kCloseRunnerUp = 1.5;  // a runner-up within this factor of the best gap starts pairs too
 
 double db(double ratio) { return 10.0 * std::log10(ratio); }
 
@@ -752,20 +753,29 @@ DiagnosisResult diagnose(const BandDataset& data, const BlockParams& start, cons
     v.effect = best.name;
     if (order.size() > 1 && best.heldout_gap_db > opt.tolerance_db) {
       // A second effect on top of the best: tried with every other candidate, significant alone or not (one
-      // effect can hide another: a cubic spring's detuning under a cubic damper's flattening). The best pair is
-      // kept when it beats the best alone in 95 % of the replicates by at least kPairShare of the best's gap (and
-      // min_improvement_db), so that a free term riding along for a few hundredths of a dB is not named.
+      // effect can hide another: a cubic spring's detuning under a cubic damper's flattening). When the
+      // runner-up is significant and close (within kCloseRunnerUp of the best's gap) and no pair with the best
+      // closes the gap to the tolerance, the order of the two is not clear: pairs are started from the runner-up
+      // too. The best pair is kept when it beats the best single in 95 % of the replicates by at least
+      // kPairShare of its gap (and min_improvement_db), so that a free term riding along for a few hundredths of
+      // a dB is not named; of its two effects the one better alone is the verdict, the other its partner.
       constexpr std::size_t npos = static_cast<std::size_t>(-1);
       std::size_t best_pair = npos;
-      for (std::size_t i : order) {
-        if (i == sig[0]) continue;
-        say("combination " + best.name + " + " + evals[i].score.name);
-        Evaluated e = evaluate(cx, combine(specs[sig[0]], specs[i]), best.model, base_free, false);
-        compare_with(e.score, res.baseline, opt.min_improvement_db);
-        res.combinations.push_back(e.score);
-        if (best_pair == npos || e.score.heldout_gap_db < res.combinations[best_pair].heldout_gap_db)
-          best_pair = res.combinations.size() - 1;
-      }
+      auto pairs_from = [&](std::size_t first, const std::vector<std::size_t>& skip) {
+        for (std::size_t i : order) {
+          if (i == first || std::find(skip.begin(), skip.end(), i) != skip.end()) continue;
+          say("combination " + evals[first].score.name + " + " + evals[i].score.name);
+          Evaluated e = evaluate(cx, combine(specs[first], specs[i]), evals[first].score.model, base_free, false);
+          compare_with(e.score, res.baseline, opt.min_improvement_db);
+          res.combinations.push_back(e.score);
+          if (best_pair == npos || e.score.heldout_gap_db < res.combinations[best_pair].heldout_gap_db)
+            best_pair = res.combinations.size() - 1;
+        }
+      };
+      pairs_from(sig[0], {});
+      if (sig.size() > 1 && best_pair != npos && res.combinations[best_pair].heldout_gap_db > opt.tolerance_db &&
+          evals[sig[1]].score.heldout_gap_db <= kCloseRunnerUp * best.heldout_gap_db)
+        pairs_from(sig[1], {sig[0]});
       stage("combinations");
       bool keep = false;
       if (best_pair != npos) {
@@ -778,7 +788,16 @@ DiagnosisResult diagnose(const BandDataset& data, const BlockParams& start, cons
                        [](const ModelScore& a, const ModelScore& b) { return a.heldout_gap_db < b.heldout_gap_db; });
       if (keep) {
         selected = &res.combinations.front();
-        v.also.push_back(selected->effects.back());
+        // The effect better alone is named first.
+        auto alone = [&](const std::string& name) {
+          for (const Evaluated& e : evals)
+            if (e.score.name == name) return e.score.heldout_gap_db;
+          return std::numeric_limits<double>::infinity();
+        };
+        std::string first = selected->effects.front(), second = selected->effects.back();
+        if (alone(second) < alone(first)) std::swap(first, second);
+        v.effect = first;
+        v.also.push_back(second);
       }
       candidate_partner = keep ? v.also.front() : std::string();
     }
@@ -786,12 +805,13 @@ DiagnosisResult diagnose(const BandDataset& data, const BlockParams& start, cons
     // Unexplained: a significant gap remains. What the best leaves within the tolerance is no such gap, however
     // small a share of a gap barely above the tolerance it closed.
     if (closed < opt.min_closed_fraction && selected->heldout_gap_db > opt.tolerance_db) {
+      const std::string best_name = v.effect;
       v.effect = "unexplained";
       v.also.clear();
-      v.explanation = "a significant gap remains: the best candidate (" + best.name + ") closes only " +
+      v.explanation = "a significant gap remains: the best candidate (" + best_name + ") closes only " +
                       std::to_string(static_cast<int>(std::lround(100 * closed))) + " % of it";
     } else {
-      v.explanation = best.name + " closes " + std::to_string(static_cast<int>(std::lround(100 * closed))) +
+      v.explanation = v.effect + " closes " + std::to_string(static_cast<int>(std::lround(100 * closed))) +
                       " % of the held-out gap";
       if (!v.also.empty()) v.explanation += " together with " + v.also.front();
     }

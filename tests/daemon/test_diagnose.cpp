@@ -165,6 +165,27 @@ TEST(Diagnose, ThesisProtocolTrainsAtIdleAndValidatesAtFullLoad) {
   EXPECT_GT(r.baseline.heldout_thesis_rms_db, r.baseline.train_rms_db);  // extrapolation is worse than the fit
 }
 
+TEST(Diagnose, ThesisProtocolOnTheThesisNonlinearSpringDamperNamesBothCubicTerms) {
+  // The engine's true block is Table 4.1's nl_spring_damper (k3 = 1e13 and b3 = 2000, besides its own k1, b1);
+  // the diagnosis starts from the linear preset, tunes it at idle and validates at full load, as the thesis did.
+  // Alone, the cubic spring is hidden by the damper (the impact-noise extension even scores a little better than
+  // the damper): only the pair started from the close runner-up explains the extrapolation.
+  SimCampaign c;
+  c.conditions = drivers::thesis_conditions();
+  c.cycles = kCycles;
+  c.true_block = model::preset("nl_spring_damper");
+  const model::BandDataset data = simulate_band_dataset(c);
+  model::DiagnosisOptions opt;
+  opt.train = {"idle"};
+  opt.holdout = {"full"};
+  const model::DiagnosisResult r = run(data, opt);
+  print("thesis protocol, true nl_spring_damper", r);
+  EXPECT_EQ(r.verdict.effect, "cubic_damping");
+  ASSERT_EQ(r.verdict.also.size(), 1u);
+  EXPECT_EQ(r.verdict.also.front(), "cubic_stiffness");
+  EXPECT_GE(r.verdict.gap_closed_fraction, 0.6);
+}
+
 // ------------------------------------------------------------------------------------------ end to end
 
 TEST(Diagnose, CommandLineWritesTheReportSchemaFromRunDirectories) {
