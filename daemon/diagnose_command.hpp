@@ -50,7 +50,7 @@ struct DiagnoseOutcome {
   std::string json_path, html_path;
 };
 
-// Runs the diagnosis, prints the summary to `out`, writes DIR/report.json and DIR/report.html. Throws
+// Runs the diagnosis, prints the summary to `out` (nullptr: nowhere), writes DIR/report.json and DIR/report.html. Throws
 // std::exception with a message naming the file, option or condition at fault; nothing is written then.
 DiagnoseOutcome run_diagnose(const DiagnoseOptions& options, std::FILE* out = stdout);
 
