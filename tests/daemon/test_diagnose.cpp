@@ -25,6 +25,7 @@
 #include <nlohmann/json.hpp>
 
 #include "daemon/diagnose_command.hpp"
+#include "daemon/fit_command.hpp"
 #include "daemon/import_export.hpp"
 #include "daemon/sim_command.hpp"
 #include "daemon/sim_dataset.hpp"
@@ -341,6 +342,54 @@ TEST(Diagnose, RealYanmarPressureDrivesTheDiagnosisWithTheMotoredRunAsReference)
   // the candidate that explains what there is.
   const nlohmann::json mech = diagnose_with("mech", {"mechanical_noise=90"});
   EXPECT_EQ(mech["candidates"][0]["effect"], "mechanical_noise");
+}
+
+TEST(Diagnose, SilverboxFitThenWaveformDiagnosisNamesTheCubicSpringAndBeatsThePublishedBaselines) {
+  // The protocol through the commands: `noisemon fit` in waveform mode (linear model) on the real
+  // Silverbox training multisines, then `noisemon diagnose` in waveform mode from that parameter file, scoring
+  // the benchmark's extrapolating arrow test set. Independent reference: the published free-run RMS errors
+  // (data README): LSTM 2.68 mV on the arrow, the best of the published baselines. For time, both fit on
+  // 4000-sample chunks of the training record and hold out other chunks of it (never a test set).
+  const std::string csv = std::string(NOISEMON_SHARED_DIR) + "/data/real/silverbox_SNLS80mV.csv";
+  if (!std::ifstream(csv)) {
+    if (std::getenv("CI")) FAIL() << "Silverbox data missing: " << csv;
+    GTEST_SKIP() << "Silverbox data not found: " << csv;
+  }
+  const std::string dir = test::unique_temp_dir();
+  std::vector<std::string> train, held;
+  for (std::size_t b = 40650; b + 4000 <= 105712; b += 16000) train.push_back(std::to_string(b) + ":" + std::to_string(b + 4000));
+  for (std::size_t b = 40650 + 8000; b + 4000 <= 105712; b += 16000)
+    held.push_back(std::to_string(b) + ":" + std::to_string(b + 4000));
+  FitCommandOptions fo;
+  fo.data = {csv};
+  fo.fs_hz = 1e7 / 16384.0;
+  fo.train = train;
+  fo.holdout = held;
+  fo.out = dir + "/linear.toml";
+  fo.progress = false;
+  std::FILE* sink = std::fopen("/dev/null", "w");
+  const FitCommandResult fit = run_fit(fo, sink);
+  std::fclose(sink);
+  EXPECT_EQ(fit.mode, "waveform");
+
+  DiagnoseOptions o;
+  o.data = {csv};
+  o.fs_hz = fo.fs_hz;
+  o.model = fo.out;
+  o.train = train;
+  o.holdout = held;
+  o.tests = {"arrow=100:40575"};
+  o.max_iterations = 15;
+  o.out_dir = dir + "/diag";
+  o.progress = false;
+  const nlohmann::json r = run_diagnose(o, nullptr).report;
+  EXPECT_EQ(r["mode"], "waveform");
+  EXPECT_EQ(r["verdict"]["effect"], "cubic_stiffness");
+  ASSERT_EQ(r["test_sets"].size(), 1u);
+  const double base = r["test_sets"][0]["baseline_rms"].get<double>(), best = r["test_sets"][0]["best_rms"].get<double>();
+  std::printf("Silverbox arrow (extrapolating): linear %.2f mV, diagnosed model %.3f mV (LSTM 2.68 mV)\n", 1e3 * base, 1e3 * best);
+  EXPECT_LT(best, base / 3.0);
+  EXPECT_LT(1e3 * best, 2.68);
 }
 
 TEST(Diagnose, BadArgumentsAreErrorsNamingTheOptionOrPath) {
