@@ -108,4 +108,19 @@ model::BandDataset make_band_dataset(const std::vector<LoadedRecording>& recordi
   return model::make_dataset(std::move(conds));
 }
 
+model::BandDataset load_band_dataset(const std::vector<std::string>& paths, std::FILE* out, ProgressLine& line) {
+  const std::vector<LoadedRecording> recs =
+      load_recordings(paths, [&](const std::string& note) { std::fprintf(out, "%s\n", note.c_str()); });
+  line.show("measuring band spectra ...");
+  model::BandDataset data = make_band_dataset(recs);
+  line.done();
+  return data;
+}
+
+std::string condition_names(const model::BandDataset& data) {
+  std::string names;
+  for (const auto& c : data.conditions) names += (names.empty() ? "" : ", ") + c.info.name;
+  return names;
+}
+
 }  // namespace noisemon::daemon

@@ -9,10 +9,12 @@
 // order; a .json file among the paths (the truth.json a glob picks up) is noted and skipped.
 #pragma once
 
+#include <cstdio>
 #include <functional>
 #include <string>
 #include <vector>
 
+#include "daemon/cli_support.hpp"
 #include "drivers/recording.hpp"
 #include "model/band_dataset.hpp"
 
@@ -31,6 +33,12 @@ std::vector<LoadedRecording> load_recordings(const std::vector<std::string>& pat
 // their first recording.
 model::BandDataset make_band_dataset(const std::vector<LoadedRecording>& recordings,
                                      const model::DatasetOptions& options = {});
+
+// Both steps for `fit` and `diagnose`: load_recordings' notes go to `out`, the bank pass shows on `line`.
+model::BandDataset load_band_dataset(const std::vector<std::string>& paths, std::FILE* out, ProgressLine& line);
+
+// "a, b, c": the dataset's condition names, for messages.
+std::string condition_names(const model::BandDataset& data);
 
 // The condition of a recording as the dataset sees it.
 model::ConditionInfo condition_info(const drivers::Recording& rec, const std::string& fallback_name);

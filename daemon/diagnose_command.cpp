@@ -93,20 +93,12 @@ nlohmann::json diagnose_band(const DiagnoseOptions& o, const ReportContext& ctx,
         throw std::runtime_error("--candidates: unknown effect '" + c + "' (expected " + list + ")");
       }
   }
-  try {
-    if (!o.free.empty()) opt.free = model::parse_free_params(o.free);
-  } catch (const std::invalid_argument& e) {
-    throw std::runtime_error(std::string("--free: ") + e.what());
-  }
+  opt.free = parse_free_option(o.free);
   std::string model_name = o.model.empty() ? "linear" : o.model;
   const model::BlockParams start = resolve_model(model_name, &model_name);
 
   ProgressLine line(o.progress);
-  const std::vector<LoadedRecording> recs =
-      load_recordings(o.data, [&](const std::string& note) { std::fprintf(out, "%s\n", note.c_str()); });
-  line.show("measuring band spectra ...");
-  const model::BandDataset data = make_band_dataset(recs);
-  line.done();
+  const model::BandDataset data = load_band_dataset(o.data, out, line);
   std::fprintf(out, "%zu condition(s), %zu bands\n", data.conditions.size(), data.band_count());
   opt.progress = [&](const std::string& stage) { line.show("diagnose: " + stage); };
 
@@ -114,9 +106,7 @@ nlohmann::json diagnose_band(const DiagnoseOptions& o, const ReportContext& ctx,
   try {
     r = model::diagnose(data, start, model_name, opt);
   } catch (const std::invalid_argument& e) {
-    std::string names;
-    for (const auto& c : data.conditions) names += (names.empty() ? "" : ", ") + c.info.name;
-    throw std::runtime_error(std::string(e.what()) + " (the data hold " + names + ")");
+    throw std::runtime_error(std::string(e.what()) + " (the data hold " + condition_names(data) + ")");
   }
   line.done();
   print_band_summary(out, r);

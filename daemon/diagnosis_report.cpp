@@ -6,9 +6,10 @@ namespace noisemon::daemon {
 
 using nlohmann::json;
 
-json number(double v) { return std::isfinite(v) ? json(v) : json(nullptr); }
-
 namespace {
+
+// NaN and infinities -> null (JSON has neither).
+json number(double v) { return std::isfinite(v) ? json(v) : json(nullptr); }
 
 json numbers(const std::vector<double>& v) {
   json a = json::array();

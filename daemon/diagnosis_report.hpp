@@ -41,7 +41,4 @@ struct WaveformTestSet {
 nlohmann::json waveform_report_json(const model::WaveformDiagnosis& diagnosis, const std::string& units,
                                     const std::vector<WaveformTestSet>& tests, const ReportContext& context);
 
-// NaN and infinities -> null (JSON has neither).
-nlohmann::json number(double v);
-
 }  // namespace noisemon::daemon

@@ -238,31 +238,18 @@ bool matches_any(const std::vector<std::string>& patterns, const std::string& na
 
 FitCommandResult fit_band_mode(const FitCommandOptions& o, std::FILE* out) {
   const auto t0 = std::chrono::steady_clock::now();
-  std::vector<model::BlockParam> free;
-  try {
-    if (!o.free.empty()) free = model::parse_free_params(o.free);  // checked before the slow work
-  } catch (const std::invalid_argument& e) {
-    const std::string what = e.what();
-    throw std::runtime_error(what.rfind("--free", 0) == 0 ? what : "--free: " + what);
-  }
+  const std::vector<model::BlockParam> free = parse_free_option(o.free);  // checked before the slow work
   ProgressLine line(o.progress);
-  const std::vector<LoadedRecording> recs =
-      load_recordings(o.data, [&](const std::string& note) { std::fprintf(out, "%s\n", note.c_str()); });
-  line.show("measuring band spectra ...");
-  const model::BandDataset data = make_band_dataset(recs);
-  line.done();
+  const model::BandDataset data = load_band_dataset(o.data, out, line);
 
   const std::vector<std::string> held = flatten_lists(o.holdout), trn = flatten_lists(o.train);
   for (const auto* list : {&held, &trn})
     for (const std::string& p : *list) {
       bool any = false;
       for (const auto& c : data.conditions) any = any || model::condition_matches(p, c.info.name);
-      if (!any) {
-        std::string names;
-        for (const auto& c : data.conditions) names += (names.empty() ? "" : ", ") + c.info.name;
+      if (!any)
         throw std::runtime_error(std::string(list == &held ? "--holdout " : "--train ") + p +
-                                 ": matches no condition (the data hold " + names + ")");
-      }
+                                 ": matches no condition (the data hold " + condition_names(data) + ")");
     }
 
   FitCommandResult res;
@@ -340,6 +327,16 @@ FitCommandResult fit_band_mode(const FitCommandOptions& o, std::FILE* out) {
 }
 
 }  // namespace
+
+std::vector<model::BlockParam> parse_free_option(const std::string& text) {
+  if (text.empty()) return {};
+  try {
+    return model::parse_free_params(text);
+  } catch (const std::invalid_argument& e) {
+    const std::string what = e.what();
+    throw std::runtime_error(what.rfind("--free", 0) == 0 ? what : "--free: " + what);
+  }
+}
 
 FitCommandResult run_fit(const FitCommandOptions& o, std::FILE* out) {
   const std::string mode = data_mode(o.data, o.mode);

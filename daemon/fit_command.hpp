@@ -15,6 +15,7 @@
 #include <string>
 #include <vector>
 
+#include "model/band_fit.hpp"
 #include "model/block_params.hpp"
 #include "model/waveform_fit.hpp"
 
@@ -67,6 +68,9 @@ struct WaveformData {
 WaveformData load_waveform_data(const std::vector<std::string>& paths, const std::vector<std::string>& train,
                                 const std::vector<std::string>& holdout, std::size_t settle_samples,
                                 std::FILE* note = nullptr);
+
+// Band mode's --free: "k1,b1,c0" -> parameters ("" -> none: the mode's default); throws naming --free.
+std::vector<model::BlockParam> parse_free_option(const std::string& text);
 
 // "A:B" (0-based, end excluded) or a DATA file name -> a range of `data`; throws naming `option` and the text.
 model::SampleRange parse_range(const std::string& text, const WaveformData& data, const char* option);
