@@ -5,8 +5,10 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <limits>
 #include <stdexcept>
 
 #include "daemon/band_data.hpp"
@@ -17,6 +19,7 @@
 #include "daemon/report_html.hpp"
 #include "model/band_fit.hpp"
 #include "model/diagnosis.hpp"
+#include "model/pressure_floor.hpp"
 #include "model/waveform_diagnosis.hpp"
 
 namespace noisemon::daemon {
@@ -73,6 +76,35 @@ void print_band_summary(std::FILE* out, const model::DiagnosisResult& r) {
   std::fprintf(out, "%.1f s\n", r.seconds);
 }
 
+// Which pressure-chain floor each run is judged by, and the cells at a floor.
+void print_floors(std::FILE* out, const model::BandDataset& data, const model::Where& w) {
+  for (std::size_t k = 0; k < data.conditions.size() && k < w.pressure_floor_judged_by.size(); ++k) {
+    const std::string stated = std::isfinite(w.pressure_floor_stated_bar[k])
+                                   ? fmt("%.4g bar", w.pressure_floor_stated_bar[k]) : std::string("not stated");
+    const std::string est = std::isfinite(w.pressure_floor_estimated_bar[k])
+                                ? fmt("%.4g bar rms per encoder sample", w.pressure_floor_estimated_bar[k])
+                                : fmt("%.4g bar rms on the 40 kHz grid", w.pressure_floor_estimated_grid_bar[k]);
+    std::fprintf(out, "pressure floor %-16s %s; estimated %s (judged by the %s floor)\n",
+                 data.conditions[k].info.name.c_str(), stated.c_str(), est.c_str(), w.pressure_floor_judged_by[k].c_str());
+  }
+  std::fprintf(out, "microphone floor from the %s\n", w.mic_floor_source.c_str());
+  for (const std::string& line : w.floor_summary) std::fprintf(out, "  %s\n", line.c_str());
+}
+
+// --pressure-floor: the stated floor of every run replaced (bar) or ignored ("estimate").
+void override_pressure_floor(const std::string& text, model::BandDataset& data) {
+  if (text.empty()) return;
+  double bar = std::numeric_limits<double>::quiet_NaN();
+  if (text != "estimate") {
+    char* end = nullptr;
+    bar = std::strtod(text.c_str(), &end);
+    if (end == text.c_str() || *end != '\0' || !(bar >= 0.0) || !std::isfinite(bar))
+      throw std::runtime_error("--pressure-floor " + text + ": expected bar rms per encoder sample (>= 0) or 'estimate'");
+  }
+  for (model::ConditionData& d : data.conditions) d.info.pressure_floor_pa = bar * 1e5;
+  model::judge_pressure_floors(data);
+}
+
 nlohmann::json diagnose_band(const DiagnoseOptions& o, const ReportContext& ctx, std::FILE* out) {
   if (o.fs_hz > 0.0) throw std::runtime_error("--fs applies to waveform mode only");
   if (!o.tests.empty()) throw std::runtime_error("--test applies to waveform mode only");
@@ -98,7 +130,8 @@ nlohmann::json diagnose_band(const DiagnoseOptions& o, const ReportContext& ctx,
   const model::BlockParams start = resolve_model(model_name, &model_name);
 
   ProgressLine line(o.progress);
-  const model::BandDataset data = load_band_dataset(o.data, out, line);
+  model::BandDataset data = load_band_dataset(o.data, out, line);
+  override_pressure_floor(o.pressure_floor, data);
   std::fprintf(out, "%zu condition(s), %zu bands\n", data.conditions.size(), data.band_count());
   opt.progress = [&](const std::string& stage) { line.show("diagnose: " + stage); };
 
@@ -109,6 +142,7 @@ nlohmann::json diagnose_band(const DiagnoseOptions& o, const ReportContext& ctx,
     throw std::runtime_error(std::string(e.what()) + " (the data hold " + condition_names(data) + ")");
   }
   line.done();
+  print_floors(out, data, r.where);
   print_band_summary(out, r);
   return band_report_json(data, r, opt, ctx);
 }
@@ -251,6 +285,10 @@ DiagnoseCommand::DiagnoseCommand(CLI::App& app) {
   cmd_->add_option("--tolerance", options_.tolerance_db, "band mode: a held-out gap below this (dB) is `none`")
       ->capture_default_str()
       ->check(CLI::Range(0.0, 20.0));
+  cmd_->add_option("--pressure-floor", options_.pressure_floor,
+                   "band mode: the pressure chain's noise floor, bar rms per encoder sample, for every run (replaces "
+                   "run.json's pressure.noise_floor_bar), or 'estimate' to judge by the floor estimated from the quiet "
+                   "crank windows (the default where a run states none)");
   cmd_->add_option("--seed", options_.seed, "seed of the bootstrap")->capture_default_str();
   cmd_->add_flag("--force", options_.force, "replace a report already in DIR");
   cmd_->add_flag("!--no-progress", options_.progress, "no progress display");

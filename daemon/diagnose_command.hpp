@@ -40,6 +40,7 @@ struct DiagnoseOptions {
   int bootstrap = 200;
   std::uint64_t seed = 1;
   double tolerance_db = 0.5;           // band mode: a held-out gap below this is `none`
+  std::string pressure_floor;          // band mode: "" (the runs' own), "estimate", or bar rms per encoder sample
   bool force = false;                  // replace an existing report in DIR
   bool progress = true;
   std::string command_line;            // for the report's record

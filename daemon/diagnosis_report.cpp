@@ -2,6 +2,8 @@
 
 #include <cmath>
 
+#include "model/pressure_floor.hpp"
+
 namespace noisemon::daemon {
 
 using nlohmann::json;
@@ -92,6 +94,11 @@ json score_json(const model::ModelScore& s) {
   c["gap_parts"] = {{"band_ms_db2", number(s.part_band_ms)},
                     {"mic_rss_db", number(s.part_mic)},
                     {"window_ms_db2", number(s.part_window_ms)}};
+  // Which part of the baseline's gap it closes (dB of each part; negative: it makes that part worse).
+  c["closes_db"] = {{"thesis_bands", number(s.closes_band_db)},
+                    {"mic_calibration", number(s.closes_mic_db)},
+                    {"crank_windows", number(s.closes_window_db)}};
+  c["thesis_metric_worse"] = s.thesis_worse;
   c["params"] = model_params(s.model);
   return c;
 }
@@ -137,6 +144,7 @@ json band_report_json(const model::BandDataset& data, const model::DiagnosisResu
                    {"tolerance_db", o.tolerance_db},
                    {"min_closed_fraction", o.min_closed_fraction},
                    {"floor_margin_db", o.floor_margin_db},
+                   {"pressure_floor_margin_db", model::kFloorMarginDb},
                    {"fit_cycles", o.fit_cycles}};
 
   j["baseline"] = {{"model", r.model_name},
@@ -170,8 +178,19 @@ json band_report_json(const model::BandDataset& data, const model::DiagnosisResu
   where["gap_db"] = rows(w.gap);  // baseline, per held-out condition and band: measured - predicted
   where["gap_per_band_rms_db"] = numbers(w.gap_per_band_rms);
   where["gap_per_condition_rms_db"] = numbers(w.gap_per_condition_rms);
+  where["noise_dominated"] = flags(w.noise_dominated);
   where["noise_floor"] = {{"combustion_independent_db", numbers(w.floor_db)},
                           {"background_db", numbers(w.background_db)}};
+  where["floors"] = {{"pressure_judged_by", w.pressure_floor_judged_by},
+                     {"pressure_stated_bar", numbers(w.pressure_floor_stated_bar)},
+                     {"pressure_estimated_bar", numbers(w.pressure_floor_estimated_bar)},
+                     {"pressure_estimated_grid_bar", numbers(w.pressure_floor_estimated_grid_bar)},
+                     {"pressure_floor_db", rows(w.pressure_floor_db)},
+                     {"floor_limited_bands", w.floor_limited_bands},
+                     {"floor_limited_windows", w.floor_limited_windows},
+                     {"mic_floor_db", numbers(w.mic_floor_db)},
+                     {"mic_floor_source", w.mic_floor_source},
+                     {"summary", w.floor_summary}};
   where["amplitude"] = {{"cpl_overall_db", numbers(w.cpl_overall_db)},
                         {"mean_gap_db", numbers(w.mean_gap_db)},
                         {"slope_db_per_db", number(w.amplitude_slope_db_per_db)},

@@ -552,7 +552,7 @@ std::string candidates(Page& pg, const json& r, bool band) {
   const std::string u = esc(pg.units);
   const std::string head =
       band ? row({"effect", "held-out gap (dB)", "thesis metric (dB)", "train (dB)", "closed", "significant",
-                  "win fraction", "improvement, p05 (dB)", "parameters"},
+                  "win fraction", "improvement, p05 (dB)", "closes: bands / mics / windows (dB)", "parameters"},
                  "", "th")
            : row({"effect", "held-out RMS (" + u + ")", "closed", "significant", "p-value", "round", "parameters"}, "",
                  "th");
@@ -560,7 +560,7 @@ std::string candidates(Page& pg, const json& r, bool band) {
   if (const json& b = get(r, "baseline"); b.is_object()) {
     const std::string name = "<i>baseline (" + esc(text(get(b, "model"))) + ")</i>";
     body += band ? row({name, db(num(get(b, "heldout_rms_db"))), db(num(get(b, "heldout_thesis_rms_db"))),
-                        db(num(get(b, "train_rms_db"))), "", "", "", "", param_count(b)},
+                        db(num(get(b, "train_rms_db"))), "", "", "", "", "", param_count(b)},
                        "base")
                  : row({name, pg.val(num(get(b, "heldout_rms_db"))), "", "", "", "", param_count(b)}, "base");
   }
@@ -577,12 +577,19 @@ std::string candidates(Page& pg, const json& r, bool band) {
     if (&c == target) name += "<span class=\"tag vt\">verdict</span>";
     if (finite(h) && finite(after) && std::fabs(h - after) <= 1e-9 * std::fabs(after))
       name += "<span class=\"tag\">= after</span>";
+    if (flag(get(c, "thesis_metric_worse"))) name += "<span class=\"tag\">thesis metric worse</span>";
     if (const std::string e = text(get(c, "error")); !e.empty()) name += el("div", {"class", "small err"}, esc(e));
+    const json& closes = get(c, "closes_db");
+    const std::string parts = closes.is_object() ? db(num(get(closes, "thesis_bands"))) + " / " +
+                                                       db(num(get(closes, "mic_calibration"))) + " / " +
+                                                       db(num(get(closes, "crank_windows")))
+                                                 : "";
     const std::string closed = closed_cell(num(get(c, "gap_closed_fraction")));
     body +=
         band ? row({name, db(h), db(num(get(c, "heldout_thesis_rms_db"))), db(num(get(c, "train_rms_db"))), closed,
                     yesno(get(c, "significant")), fixed(num(get(c, "win_fraction")), 2),
-                    db(num(get(c, "improvement_db"))) + ", " + db(num(get(c, "improvement_p05_db"))), param_count(c)},
+                    db(num(get(c, "improvement_db"))) + ", " + db(num(get(c, "improvement_p05_db"))), parts,
+                    param_count(c)},
                    &c == target ? "vrow" : "")
              : row({name, pg.val(h), closed, yesno(get(c, "significant")), sig(num(get(c, "p_value")), 2),
                     second ? "2" : "1", param_count(c)},
@@ -592,8 +599,10 @@ std::string candidates(Page& pg, const json& r, bool band) {
   for (const json& c : get(r, "combinations")) emit(c, true);
   std::string o = table(head, body) + (any ? "" : pg.lack("candidates"));
   o += note(
-      band ? "Closed: share of the baseline's held-out gap the candidate removes. Significant: the bootstrap win "
-             "fraction and the improvement pass the thresholds in the protocol."
+      band ? "Closed: share of the baseline's held-out gap the candidate removes; closes: by how many dB it reduces "
+             "each part of the gap (the thesis band gap, the microphone-calibration residual, the crank-window gap; "
+             "negative: it makes that part worse). Significant: the bootstrap win fraction and the improvement pass "
+             "the thresholds in the protocol, and the held-out thesis metric is not worse than the baseline's."
            : "Closed: share of the held-out RMS removed (2nd-round candidates are fitted on top of the first-round "
              "winner; their share is relative to it). &ldquo;= after&rdquo; marks the model whose held-out RMS "
              "the verdict reports as after.");
@@ -622,6 +631,32 @@ std::vector<std::string> band_tips(const Series& hz, const Series& v, const std:
   for (std::size_t i = 0; i < hz.size(); ++i)
     t.push_back(sig(hz[i]) + " Hz, " + what + ": " + db(at(v, i, kNaN)) + unit);
   return t;
+}
+
+// The measurement chains' floors: which floor each run's pressure was judged by, and the cells at a floor.
+std::string floors_section(Page& pg, const json& f, const json& conds) {
+  if (!f.is_object()) return section("floors", "Floors", pg.lack("where.floors"));
+  std::string lines;
+  for (const json& l : get(f, "summary")) lines += el("li", {}, esc(text(l)));
+  const json &by = get(f, "pressure_judged_by"), &stated = get(f, "pressure_stated_bar"),
+             &est = get(f, "pressure_estimated_bar"), &bands = get(f, "floor_limited_bands"),
+             &wins = get(f, "floor_limited_windows");
+  std::string rows;
+  for (std::size_t k = 0; conds.is_array() && k < conds.size(); ++k) {
+    static const json none;
+    auto at = [&](const json& a) -> const json& { return a.is_array() && k < a.size() ? a[k] : none; };
+    rows += row({esc(text(get(conds[k], "name"))), esc(text(at(by))), sig(num(at(stated)), 3), sig(num(at(est)), 3),
+                 esc(text(at(bands))), esc(text(at(wins)))});
+  }
+  const std::string head = row({"condition", "pressure floor judged by", "stated (bar rms)", "estimated (bar rms)",
+                                "floor-limited bands", "crank-window cells at the pressure floor"},
+                               "", "th");
+  return section("floors", "Floors (never fitted, never scored)",
+                 el("ul", {}, lines) + table(head, rows, "txt") +
+                     note("Microphone floor from the " + esc(text(get(f, "mic_floor_source"))) +
+                          ". A band is floor-limited where the microphones are within the margin of the background "
+                          "runs' level, or the cylinder pressure within the margin of the pressure chain's floor (every "
+                          "prediction subtracts what that floor drives; cells within the margin are upper bounds)."));
 }
 
 // 3. Band mode: the gap map, attenuation curves, per-band gap, microphones, smaller panels, conditions.
@@ -797,6 +832,8 @@ std::string band_sections(Page& pg, const json& r) {
     p.line(hz, fl, {"combustion-independent (motored excess)", kMeasured, ""},
            band_tips(hz, fl, "combustion-independent", " dB"));
     p.line(hz, bg, {"background run", kGreen, "5 3"}, band_tips(hz, bg, "background", " dB"));
+    const auto mf = nums(get(get(w, "floors"), "mic_floor_db"));
+    if (!mf.empty()) p.line(hz, mf, {"microphone floor", kPurple, "2 2", false}, band_tips(hz, mf, "microphone floor", " dB"));
     s += "<div>" + p.svg() + (finite(extent({&bg}).first) ? "" : note("Background run: none (all null).")) + "</div>";
   }
   o += section("panels", "Gap vs level, crank angle, coherence, noise floor", el("div", {"class", "grid2"}, s));
@@ -815,6 +852,7 @@ std::string band_sections(Page& pg, const json& r) {
                                       "background", "cycles", "mics"},
                                      "", "th"),
                                  s, "txt"));
+  o += floors_section(pg, get(w, "floors"), conds);
   return o;
 }
 

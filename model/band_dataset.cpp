@@ -1,4 +1,5 @@
 #include "model/band_dataset.hpp"
+#include "model/pressure_floor.hpp"
 
 #include <unsupported/Eigen/FFT>
 
@@ -189,6 +190,7 @@ ConditionData build_condition(const ConditionInfo& info, const std::vector<Condi
       d.mic_ms.insert(d.mic_ms.end(), row + nb, row + ch * nb);
       for (std::size_t w = 0; w < kW; ++w) {
         const double* wr = &win[(c * kW + w) * ch * nb];
+        d.cpl_win_ms.insert(d.cpl_win_ms.end(), wr, wr + nb);
         for (std::size_t b = 0; b < nb; ++b) {
           double s = 0.0;
           for (std::size_t m = 0; m < M; ++m) s += wr[(1 + m) * nb + b];
@@ -292,6 +294,7 @@ BandDataset make_dataset(std::vector<ConditionData> conditions) {
       ds.line_free[k * nb + b] = f0 > 0 && first * f0 >= hi;
     }
   }
+  judge_pressure_floors(ds);
   return ds;
 }
 

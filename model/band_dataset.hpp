@@ -19,6 +19,7 @@
 
 #include <cstddef>
 #include <cstdint>
+#include <limits>
 #include <string>
 #include <vector>
 
@@ -37,6 +38,13 @@ struct ConditionInfo {
   double soi_deg_btdc = 0.0;
   bool motored = false;
   bool background = false;  // engine off: a background-noise measurement (the irreducible floor)
+  // The pressure chain: its commissioned floor, Pa rms per encoder sample (NaN: unknown, estimated from the data),
+  // and the encoder's mean sample rate in Hz (NaN: unknown, e.g. a log already on the 40 kHz grid).
+  double pressure_floor_pa = std::numeric_limits<double>::quiet_NaN();
+  double encoder_rate_hz = std::numeric_limits<double>::quiet_NaN();
+  // The floor the predictions allow for (model/pressure_floor: judge_pressure_floors): per band, the one-sided
+  // density of the pressure chain's noise in the measured pressure, Pa^2/Hz; empty: none.
+  std::vector<double> floor_density;
 };
 
 // One contiguous recording of a condition on the 40 kHz grid, as the loader hands it over.
@@ -72,6 +80,7 @@ struct ConditionData {
   std::vector<double> cpl_ms;        // [c * bands + b]  cylinder pressure
   std::vector<double> mic_ms;        // [(c * mics + m) * bands + b]
   std::vector<double> win_ms;        // [(c * W + w) * bands + b]  microphone average per crank window
+  std::vector<double> cpl_win_ms;    // [(c * W + w) * bands + b]  cylinder pressure per crank window
   std::vector<double> win_frames;    // [c * W + w]
   // Coherence with the cylinder pressure across cycles (per band, microphone-averaged; NaN with < 4 cycles):
   std::vector<double> periodic_share;      // power of the cycle-synchronous average / total power

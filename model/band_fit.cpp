@@ -16,6 +16,7 @@
 
 #include "model/block_model.hpp"
 #include "model/effects.hpp"
+#include "model/pressure_floor.hpp"
 
 namespace noisemon::model {
 namespace {
@@ -28,10 +29,14 @@ constexpr double kCompressFromHz = 400.0;   // spectrum bins merged into 1/48-oc
 constexpr double kTapFloor = 1e-8;          // band response below which a bin is left out of a band's sum
 constexpr double kAdditiveFloor = 1e-9;     // additive noise bounds, relative to the band's measured power
 constexpr double kAdditiveCeil = 1e2;
-// Transducer noise: where the fitted noise drove more than 90 % of a band's (or window's) prediction, the true
-// pressure there lies 10 dB or more under the sensor's noise: unobservable. The prediction is then only an upper
-// bound (a tenth of the noisy one), and a measurement below it agrees with the model.
-constexpr double kObservableShare = 0.1;
+// The pressure chain's noise (its judged floor, and the transducer candidate's extra): the part of a prediction
+// the noise drove is subtracted. Where the noise drove more than kFloorShare of it (the pressure is within
+// kFloorMarginDb of the noise), the clean prediction is not known well enough to compare with (the floor's
+// estimate is good to about 1 dB, 26 %): it becomes an upper bound, the subtracted value plus kFloorAllowance of
+// the noise-driven part, and a measurement below it agrees with the model.
+constexpr double kFloorShare = 0.25;  // 10^(-kFloorMarginDb / 10)
+constexpr double kFloorAllowance = 0.3;
+constexpr double kObservableShare = 0.1;  // a cell's per-cycle value is never taken below this share of the full one
 constexpr double kLogBound = 3.0 * std::numbers::ln10;  // +-3 decades around the start
 // Start search of a second mode: every scored band centre from kModeSearchLowHz, as a resonance and as an
 // absorber of this gain and Q (a few dB, a few bands wide: the fit takes it from there).
@@ -176,7 +181,7 @@ void band_sums(const Layout& L, const CondSetup& c, const T* s, const std::vecto
   T density = T(0.0);
   if (L.on.transducer) density = pow(T(10.0), s[kSTnLogD]);
   const std::size_t nbins = sp.f_hz.size();
-  const bool with_noise = noise_out && L.on.transducer;
+  const bool with_noise = noise_out && (L.on.transducer || !sp.floor.empty());
   std::vector<T> g(nbins), gn(with_noise ? nbins : 0);
   for (std::size_t j = 0; j < nbins; ++j) {
     const double w = 2.0 * kPi * sp.f_hz[j];
@@ -185,7 +190,12 @@ void band_sums(const Layout& L, const CondSetup& c, const T* s, const std::vecto
     g[j] = gj;
     // The transducer's noise in the bin, as a share of the bin's measured pressure power: what the model
     // predicts from noise alone.
-    if (with_noise) gn[j] = gj * (density * pow(T(sp.f_hz[j] / 1000.0), s[kSTnSlope]) * sp.df_hz[j] / sp.s[j]);
+    // The chain's judged floor is known; the transducer candidate fits more on top.
+    if (with_noise) {
+      T d = L.on.transducer ? density * pow(T(sp.f_hz[j] / 1000.0), s[kSTnSlope]) : T(0.0);
+      if (!sp.floor.empty()) d += sp.floor[j];
+      gn[j] = gj * (d * sp.df_hz[j] / sp.s[j]);
+    }
   }
   if (with_noise) {
     noise_out->resize(bands.size());
@@ -270,15 +280,17 @@ void condition_residuals(const Layout& L, const Values& v, const CondSetup& c, b
   std::vector<Jet> mult(c.bands.size()), sub(c.bands.size(), Jet(0.0));
   for (std::size_t i = 0; i < c.bands.size(); ++i) {
     mult[i] = sums[i] / c.f0[i] * gain;
-    // Transducer noise: the stationary part of the prediction the noise drove, as mean square.
-    if (!noise.empty()) sub[i] = c.anchor[i] * noise[i] / c.f0[i] * gain;
+    // The pressure chain's noise: the stationary part of the prediction the noise drove, as mean square (absolute:
+    // the small-signal transfer of the block drives it, whatever a nonlinear block does with the loud cycles).
+    if (!noise.empty()) sub[i] = noise[i] * gain;
   }
-  // Subtracting the noise-driven part; below the observable share the result is an upper bound (censored).
+  // Subtracting the noise-driven part; within the floor's margin the result is an upper bound (censored).
   std::vector<char> censored;
   auto minus = [&](const Jet& full, const Jet& cut) {
-    const Jet share = 1.0 - cut / full;
-    censored.push_back(share.a < kObservableShare);
-    return share.a < kObservableShare ? full * kObservableShare : full - cut;
+    const bool limited = cut.a > kFloorShare * full.a;
+    censored.push_back(limited);
+    if (!limited) return full - cut;
+    return (full.a > cut.a ? full - cut : Jet(0.0)) + kFloorAllowance * cut;
   };
   auto finish = [&](std::size_t ri, double meas, const Jet& structural, std::size_t slot, int w, double weight) {
     const bool upper = !censored.empty() && censored.back();
@@ -467,15 +479,6 @@ std::size_t next_pow2(std::size_t n) {
 }
 
 // Bands whose filter responds fast enough for the crank-angle windows of every listed condition.
-std::vector<char> window_capable(const BandDataset& data, const std::vector<std::size_t>& conds) {
-  double shortest = std::numeric_limits<double>::infinity();
-  for (std::size_t k : conds)
-    for (const CycleInfo& c : data.conditions[k].cycles) shortest = std::min(shortest, c.duration_s / static_cast<double>(kW));
-  std::vector<char> ok(data.band_count(), 0);
-  for (std::size_t b = 0; b < data.band_count(); ++b) ok[b] = data.bands[b].response_time_s <= shortest && !data.bands[b].nyquist_cut;
-  return ok;
-}
-
 double fired_mean_speed(const BandDataset& data, const std::vector<std::size_t>& conds) {
   double s = 0.0;
   int n = 0;
@@ -617,6 +620,28 @@ double band_power_response(const dsp::ThirdOctaveBand& band, double f) {
   return 1.0 / (1.0 + std::pow(x * x, 4));
 }
 
+namespace {
+// A per-band density at each bin: linear in log frequency between the bands' mid frequencies, held beyond them.
+std::vector<double> floor_per_bin(const BandDataset& data, const std::vector<double>& per_band, const std::vector<double>& f_hz) {
+  if (per_band.empty()) return {};
+  std::vector<double> out(f_hz.size());
+  const std::size_t nb = std::min(per_band.size(), data.band_count());
+  std::size_t b = 0;
+  for (std::size_t j = 0; j < f_hz.size(); ++j) {
+    const double f = f_hz[j];
+    while (b + 1 < nb && data.bands[b + 1].exact_mid_hz <= f) ++b;
+    const double lo = data.bands[b].exact_mid_hz;
+    if (f <= lo || b + 1 >= nb) {
+      out[j] = per_band[b];
+      continue;
+    }
+    const double t = std::log(f / lo) / std::log(data.bands[b + 1].exact_mid_hz / lo);
+    out[j] = (1.0 - t) * per_band[b] + t * per_band[b + 1];
+  }
+  return out;
+}
+}  // namespace
+
 ConditionSpectrum condition_spectrum(const BandDataset& data, std::size_t k, std::size_t cycles) {
   const ConditionData& cond = data.conditions[k];
   const PreparedSegment& seg = cond.segments.front();
@@ -669,6 +694,7 @@ ConditionSpectrum condition_spectrum(const BandDataset& data, std::size_t k, std
     acc_df += df;
   }
   flush();
+  sp.floor = floor_per_bin(data, cond.info.floor_density, sp.f_hz);
   sp.band_taps.resize(data.band_count());
   for (std::size_t b = 0; b < data.band_count(); ++b)
     for (std::size_t j = 0; j < sp.f_hz.size(); ++j) {
@@ -691,7 +717,7 @@ Layout make_layout(const BandDataset& data, const BlockParams& anchor, const Blo
   L.nbands = data.band_count();
   for (BlockParam p : free) L.lin_free.push_back(struct_index(p));
   if (on.stationary || on.locked) {
-    const std::vector<char> wcap = window_capable(data, conds);
+    const std::vector<char> wcap = window_capable_bands(data, conds);
     for (std::size_t b = 0; b < L.nbands; ++b) {
       double ref = 0.0;
       int n = 0;
@@ -719,7 +745,7 @@ CondSetup make_cond_setup(const BandDataset& data, const Anchor& anchor, std::si
   c.spec = &anchor.spectra[ai];
   const std::size_t nb = data.band_count();
   const std::size_t ncyc = anchor.cycle_ms[ai].size() / nb;
-  const std::vector<char> wcap = window_capable(data, setup.train);
+  const std::vector<char> wcap = window_capable_bands(data, setup.train);
   for (std::size_t b = 0; b < nb; ++b) {
     if (!setup.scored[k][b]) continue;
     double m = 0.0, a = 0.0;
@@ -940,7 +966,7 @@ ConditionFactors extension_factors(const BandDataset& data, std::size_t k, const
   for (double& x : frac) x /= tot;
   for (std::size_t b = 0; b < nb; ++b) {
     f.mult[b] = (bare[b] > 0 ? with[b] / bare[b] : 1.0) * gain;
-    if (!noise.empty() && bare[b] > 0) f.sub[b] = noise[b] / bare[b] * gain;
+    if (!noise.empty()) f.sub[b] = noise[b] * gain;
     for (std::size_t w = 0; w < kW; ++w) {
       double a = 0.0;
       if (L.on.stationary && b < e.stationary_ms.size()) a += e.stationary_ms[b];
@@ -1408,15 +1434,19 @@ void apply_factors(const ConditionFactors& f, const ConditionData& cond, std::ve
       if (windows)
         for (std::size_t w = 0; w < kW; ++w) wmean[b * kW + w] += (*win_ms)[(c * kW + w) * nb + b] / static_cast<double>(nc);
     }
-  // Censoring is decided on the condition's means (see kObservableShare).
+  // Censoring is decided on the condition's means (see kFloorShare).
   std::vector<char> cb(nb, 0), cw(nb * kW, 0);
   for (std::size_t b = 0; b < nb; ++b) {
     if (f.sub[b] == 0.0) continue;
-    cb[b] = mean[b] * f.mult[b] - mean[b] * f.sub[b] < kObservableShare * mean[b] * f.mult[b];
+    cb[b] = f.sub[b] > kFloorShare * mean[b] * f.mult[b];
     if (windows)
-      for (std::size_t w = 0; w < kW; ++w)
-        cw[b * kW + w] = wmean[b * kW + w] * f.mult[b] - mean[b] * f.sub[b] < kObservableShare * wmean[b * kW + w] * f.mult[b];
+      for (std::size_t w = 0; w < kW; ++w) cw[b * kW + w] = f.sub[b] > kFloorShare * wmean[b * kW + w] * f.mult[b];
   }
+  // A cell's value: the full prediction less the noise-driven part (never below kObservableShare of it), or, where
+  // censored, that less part plus the allowance.
+  const auto clean = [](double full, double cut, bool limited) {
+    return limited ? std::max(full - cut, 0.0) + kFloorAllowance * cut : std::max(full - cut, kObservableShare * full);
+  };
   for (std::size_t c = 0; c < nc; ++c)
     for (std::size_t b = 0; b < nb; ++b) {
       // The cycle's additive share from its own window lengths.
@@ -1427,14 +1457,11 @@ void apply_factors(const ConditionFactors& f, const ConditionData& cond, std::ve
         tot += fr;
       }
       double& x = cycle_ms[c * nb + b];
-      const double full = x * f.mult[b];
-      x = (cb[b] ? kObservableShare * full : std::max(full - mean[b] * f.sub[b], kObservableShare * full)) + add / tot;
+      x = clean(x * f.mult[b], f.sub[b], cb[b]) + add / tot;
       if (windows)
         for (std::size_t w = 0; w < kW; ++w) {
           double& y = (*win_ms)[(c * kW + w) * nb + b];
-          const double wf = y * f.mult[b];
-          y = (cw[b * kW + w] ? kObservableShare * wf : std::max(wf - mean[b] * f.sub[b], kObservableShare * wf)) +
-              f.add_win[b * kW + w];
+          y = clean(y * f.mult[b], f.sub[b], cw[b * kW + w]) + f.add_win[b * kW + w];
         }
     }
   if (upper) *upper = cb;
@@ -1451,7 +1478,8 @@ ConditionPrediction predict_condition(const BandDataset& data, std::size_t k, co
   ExtendedModel rest = model;
   rest.on.second_mode = false;
   const ExtensionSet& on = rest.on;
-  if (!(on.speed || on.transducer || on.stationary || on.locked)) return p;
+  const bool floor = !data.conditions[k].info.floor_density.empty();
+  if (!(on.speed || on.transducer || on.stationary || on.locked || floor)) return p;
   const ConditionSpectrum spec = condition_spectrum(data, k, cycles);
   apply_factors(extension_factors(data, k, spec, model.block, rest), data.conditions[k], p.cycle_ms,
                 windows ? &p.win_ms : nullptr, &p.upper, &p.upper_win);

@@ -89,6 +89,7 @@ struct ConditionSpectrum {
   std::vector<double> f_hz;   // bin frequency
   std::vector<double> df_hz;  // bin width
   std::vector<double> s;      // pressure power in the bin (Pa^2), mean removed
+  std::vector<double> floor;  // the judged floor's density in the bin (Pa^2/Hz); empty: none (ConditionInfo)
   struct Tap { std::size_t bin; double q; };  // q = W_b(f) s
   std::vector<std::vector<Tap>> band_taps;
 };
@@ -98,12 +99,12 @@ ConditionSpectrum condition_spectrum(const BandDataset& data, std::size_t condit
 double band_power_response(const dsp::ThirdOctaveBand& band, double f_hz);
 
 // The extension factors of a condition relative to the bare block (per band), given the block at `block` and
-// the anchor's block `anchor_block`: predicted = anchor_ms * mult - mean anchor_ms * sub + additive (per cycle and
+// the anchor's block `anchor_block`: predicted = anchor_ms * mult - sub + additive (per cycle and
 // window: the same factors).
 struct ConditionFactors {
   std::vector<double> mult;      // per band
-  std::vector<double> sub;       // per band: stationary part to subtract, as a share of the condition's mean
-                                 // bare prediction (transducer noise: what the noise alone drove)
+  std::vector<double> sub;       // per band: stationary part to subtract, mean square (what the pressure chain's
+                                 // noise alone drove: its judged floor and the transducer candidate's extra)
   std::vector<double> add;       // per band (cycle mean of the additive terms)
   std::vector<double> add_win;   // per band * W (window mean squares of the additive terms)
 };

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cstdio>
 #include <cmath>
 #include <limits>
 #include <numbers>
@@ -10,6 +11,7 @@
 #include <stdexcept>
 
 #include "dsp/weighting.hpp"
+#include "model/pressure_floor.hpp"
 
 namespace noisemon::model {
 namespace {
@@ -20,6 +22,7 @@ constexpr double kMicSpreadFloorDb = 0.1;  // robust spread of the array never t
 constexpr double kMicOutlierSigmas = 3.0;
 constexpr double kPairShare = 0.2;  // a second effect must close this share of the best one's remaining gap
 constexpr double kCloseRunnerUp = 1.5;  // a runner-up within this factor of the best gap starts pairs too
+constexpr double kThesisWorseDb = 0.05;  // a model this much worse on the thesis metric is never significant
 
 double db(double ratio) { return 10.0 * std::log10(ratio); }
 
@@ -108,9 +111,16 @@ struct ScoreDetail {
 };
 
 // The three parts of the held-out gap of one condition (see diagnosis.hpp).
-Parts score_condition(const ConditionData& d, const Measured& ms, const ConditionPrediction& p,
-                      const std::vector<char>& scored, const std::vector<char>& fast, const std::vector<double>& floor,
-                      const std::vector<int>* counts, ScoreDetail* detail) {
+// Which cells of a condition count: `scored` per band; window cells of the `fast` bands.
+struct CellMask {
+  const std::vector<char>& scored;
+  const std::vector<char>& fast;
+};
+
+Parts score_condition(const ConditionData& d, const Measured& ms, const ConditionPrediction& p, const CellMask& cells,
+                      const std::vector<double>& floor, const std::vector<int>* counts, ScoreDetail* detail) {
+  const std::vector<char>& scored = cells.scored;
+  const std::vector<char>& fast = cells.fast;
   const std::size_t nb = d.bands, nc = d.cycle_count();
   std::vector<double> m(nb, 0.0), q(nb, 0.0), mw(nb * kW, 0.0), qw(nb * kW, 0.0);
   double n = 0.0;
@@ -233,8 +243,13 @@ struct Context {
   const DiagnosisOptions* opt = nullptr;
   std::vector<std::size_t> train_fired, refs, heldout;
   bool loo = true;
-  std::vector<std::vector<char>> base_mask, tune_mask, floor_limited;
+  std::vector<std::vector<char>> base_mask, tune_mask, floor_limited, noise_dominated;
   std::vector<char> fast;
+  // The pressure chain's floor per condition, and the cells it limits (see pressure_floor.hpp).
+  std::vector<PressureFloor> pressure_floors;
+  std::vector<std::vector<char>> pfloor_band;  // per condition, per band: cycle-mean pressure within the margin
+  std::vector<std::vector<char>> pfloor_win;   // per condition, per band * W: the window's pressure likewise
+  CellMask cells(std::size_t k) const { return {base_mask[k], fast}; }
   std::vector<std::vector<std::vector<int>>> counts;  // [replicate][heldout][cycle]
   // Where the time goes (seconds, summed over models).
   mutable double t_fit = 0, t_folds = 0, t_heldout = 0, t_floors = 0, t_bootstrap = 0;
@@ -245,6 +260,28 @@ double since(std::chrono::steady_clock::time_point& t) {
   const double s = std::chrono::duration<double>(now - t).count();
   t = now;
   return s;
+}
+
+// The pressure chain's floor of every condition and the cells it limits: a band (or crank window) whose cycle-mean
+// pressure is less than `margin_db` above the floor's level in that band.
+void mark_pressure_floors(Context& cx, double margin_db) {
+  const BandDataset& data = *cx.data;
+  const std::size_t K = data.conditions.size(), nb = data.band_count();
+  const double margin = std::pow(10.0, margin_db / 10.0);
+  cx.pressure_floors.clear();
+  cx.pfloor_band.assign(K, std::vector<char>(nb, 0));
+  cx.pfloor_win.assign(K, std::vector<char>(nb * kW, 0));
+  for (std::size_t k = 0; k < K; ++k) {
+    cx.pressure_floors.push_back(pressure_floor(data, k));
+    const PressureFloor& f = cx.pressure_floors.back();
+    if (data.conditions[k].info.background || f.density.empty()) continue;
+    const std::vector<double> band = mean_band_cpl(data.conditions[k]), win = mean_window_cpl(data.conditions[k]);
+    for (std::size_t b = 0; b < nb; ++b) {
+      const double limit = margin * f.band_ms[b];
+      cx.pfloor_band[k][b] = band[b] < limit;
+      for (std::size_t w = 0; w < kW; ++w) cx.pfloor_win[k][b * kW + w] = cx.pfloor_band[k][b] || win[b * kW + w] < limit;
+    }
+  }
 }
 
 std::vector<std::size_t> fold_train(const Context& cx, std::size_t heldout_index) {
@@ -432,7 +469,7 @@ Evaluated evaluate(const Context& cx, const CandidateSpec& spec, const ExtendedM
     ev.preds.push_back(predict_condition(data, k, sc.fold_models[h], true));
     ev.measured.push_back(measured_side(d, sc.fold_models[h]));
     ScoreDetail det;
-    const Parts p = score_condition(d, ev.measured.back(), ev.preds.back(), cx.base_mask[k], cx.fast, ev.floors[h], nullptr, &det);
+    const Parts p = score_condition(d, ev.measured.back(), ev.preds.back(), cx.cells(k), ev.floors[h], nullptr, &det);
     sum.band_ms += p.band_ms;
     sum.mic += p.mic;
     sum.window_ms += p.window_ms;
@@ -464,8 +501,8 @@ Evaluated evaluate(const Context& cx, const CandidateSpec& spec, const ExtendedM
     double tot = 0.0;
     for (std::size_t h = 0; h < cx.heldout.size(); ++h) {
       const std::size_t k = cx.heldout[h];
-      tot += score_condition(data.conditions[k], ev.measured[h], ev.preds[h], cx.base_mask[k], cx.fast, ev.floors[h],
-                             &rep[h], nullptr).total();
+      tot += score_condition(data.conditions[k], ev.measured[h], ev.preds[h], cx.cells(k), ev.floors[h], &rep[h], nullptr)
+                 .total();
     }
     sc.replicate_gaps.push_back(std::sqrt(tot / H));
   }
@@ -486,7 +523,12 @@ void compare_with(ModelScore& m, const ModelScore& ref, double min_improvement) 
   std::sort(d.begin(), d.end());
   m.improvement_p05_db = d.empty() ? m.improvement_db : d[static_cast<std::size_t>(0.05 * static_cast<double>(d.size()))];
   m.win_fraction = d.empty() ? (m.improvement_db > 0 ? 1.0 : 0.0) : static_cast<double>(wins) / static_cast<double>(d.size());
-  m.significant = m.win_fraction >= 0.95 && m.improvement_db >= min_improvement;
+  // No part of the composite gap may crown a model that makes the held-out thesis metric worse.
+  m.thesis_worse = m.heldout_thesis_rms_db > ref.heldout_thesis_rms_db + kThesisWorseDb;
+  m.significant = m.win_fraction >= 0.95 && m.improvement_db >= min_improvement && !m.thesis_worse;
+  m.closes_band_db = std::sqrt(ref.part_band_ms) - std::sqrt(m.part_band_ms);
+  m.closes_mic_db = std::sqrt(ref.part_mic) - std::sqrt(m.part_mic);
+  m.closes_window_db = std::sqrt(ref.part_window_ms) - std::sqrt(m.part_window_ms);
 }
 
 // Share of replicates in which a beats b.
@@ -497,7 +539,14 @@ double beats(const ModelScore& a, const ModelScore& b) {
   return n > 0 ? static_cast<double>(w) / static_cast<double>(n) : (a.heldout_gap_db < b.heldout_gap_db ? 1.0 : 0.0);
 }
 
-double linear_slope(const std::vector<double>& x, const std::vector<double>& y) {
+// Least-squares slope of y over x; pairs with an unknown (NaN) member are left out.
+double linear_slope(const std::vector<double>& xs, const std::vector<double>& ys) {
+  std::vector<double> x, y;
+  for (std::size_t i = 0; i < xs.size() && i < ys.size(); ++i)
+    if (std::isfinite(xs[i]) && std::isfinite(ys[i])) {
+      x.push_back(xs[i]);
+      y.push_back(ys[i]);
+    }
   const std::size_t n = x.size();
   if (n < 2) return kNaN;
   const double mx = std::accumulate(x.begin(), x.end(), 0.0) / n, my = std::accumulate(y.begin(), y.end(), 0.0) / n;
@@ -507,6 +556,72 @@ double linear_slope(const std::vector<double>& x, const std::vector<double>& y) 
     sxx += (x[i] - mx) * (x[i] - mx);
   }
   return sxx > 0 ? sxy / sxx : kNaN;
+}
+
+// The floors in the report: per condition the pressure floor (stated or estimated) and the cells at a floor, per
+// band the microphones' floor, and one summary line per group of conditions (the name before its first '_').
+void report_floors(const Context& cx, const std::vector<double>& background_ms, Where& wh) {
+  const BandDataset& data = *cx.data;
+  const std::size_t K = data.conditions.size(), nb = data.band_count();
+  constexpr double kBar = 1e5, kRef2 = 4e-10;
+  auto level = [](double ms) { return ms > 0 ? 10.0 * std::log10(ms / kRef2) : kNaN; };
+  struct Group { std::string name; int runs = 0, bands_min = 1 << 30, bands_max = 0, windows = 0, cells = 0; double from_hz = kNaN; };
+  std::vector<Group> groups;
+  for (std::size_t k = 0; k < K; ++k) {
+    const ConditionData& d = data.conditions[k];
+    const PressureFloor& f = cx.pressure_floors[k];
+    const double enc = d.info.encoder_rate_hz;
+    wh.pressure_floor_judged_by.push_back(f.density.empty() ? "none" : f.stated ? "stated" : "estimated");
+    wh.pressure_floor_stated_bar.push_back(f.stated ? d.info.pressure_floor_pa / kBar : kNaN);
+    wh.pressure_floor_estimated_bar.push_back(f.estimated_rms_per_sample_pa(enc) / kBar);
+    wh.pressure_floor_estimated_grid_bar.push_back(f.estimated_rms_on_grid_pa(data) / kBar);
+    std::vector<double> lv(nb, kNaN);
+    for (std::size_t b = 0; b < nb && b < f.band_ms.size(); ++b) lv[b] = level(f.band_ms[b]);
+    wh.pressure_floor_db.push_back(lv);
+    int bands = 0, windows = 0;
+    double from = kNaN;
+    for (std::size_t b = 0; b < nb; ++b) {
+      if (cx.floor_limited[k][b]) {
+        ++bands;
+        if (!std::isfinite(from) || data.bands[b].nominal_hz < from) from = data.bands[b].nominal_hz;
+      }
+      if (!cx.fast[b] || !cx.base_mask[k][b]) continue;
+      for (std::size_t w = 0; w < kW; ++w) windows += cx.pfloor_win[k][b * kW + w] ? 1 : 0;
+    }
+    wh.floor_limited_bands.push_back(bands);
+    wh.floor_limited_windows.push_back(windows);
+    const std::string g = d.info.name.substr(0, d.info.name.find('_'));
+    auto it = std::find_if(groups.begin(), groups.end(), [&](const Group& x) { return x.name == g; });
+    if (it == groups.end()) it = groups.insert(groups.end(), Group{g});
+    ++it->runs;
+    it->bands_min = std::min(it->bands_min, bands);
+    it->bands_max = std::max(it->bands_max, bands);
+    it->windows += windows;
+    for (std::size_t b = 0; b < nb; ++b) it->cells += cx.fast[b] && cx.base_mask[k][b] ? static_cast<int>(kW) : 0;
+    if (std::isfinite(from) && !(it->from_hz <= from)) it->from_hz = from;
+  }
+  for (const Group& g : groups) {
+    char line[256];
+    const std::string range = g.bands_min == g.bands_max ? std::to_string(g.bands_min)
+                                                        : std::to_string(g.bands_min) + "-" + std::to_string(g.bands_max);
+    std::snprintf(line, sizeof line, "%s (%d run%s): %s of %zu bands floor-limited%s; %d of %d crank-window cells at the pressure floor",
+                  g.name.c_str(), g.runs, g.runs == 1 ? "" : "s", range.c_str(), nb,
+                  std::isfinite(g.from_hz) ? (" from " + std::to_string(static_cast<int>(g.from_hz)) + " Hz up").c_str() : "",
+                  g.windows, g.windows + g.cells);
+    wh.floor_summary.push_back(line);
+  }
+  wh.mic_floor_db.assign(nb, kNaN);
+  const bool has_bg = std::any_of(background_ms.begin(), background_ms.end(), [](double x) { return x > 0; });
+  wh.mic_floor_source = has_bg ? "background runs" : "quiet crank windows";
+  std::vector<std::vector<double>> quiet;
+  if (!has_bg)
+    for (std::size_t k : cx.train_fired) quiet.push_back(quiet_window_mic_ms(data, k));
+  for (std::size_t b = 0; b < nb; ++b) {
+    std::vector<double> v;
+    for (const auto& q : quiet)
+      if (std::isfinite(q[b])) v.push_back(q[b]);
+    wh.mic_floor_db[b] = level(has_bg ? background_ms[b] : median(v));
+  }
 }
 
 }  // namespace
@@ -638,9 +753,16 @@ DiagnosisResult diagnose(const BandDataset& data, const BlockParams& start, cons
     }
     return best;
   };
+  {
+    std::vector<std::size_t> all = cx.train_fired;
+    all.insert(all.end(), cx.heldout.begin(), cx.heldout.end());
+    cx.fast = window_capable_bands(data, all);
+  }
+  mark_pressure_floors(cx, kFloorMarginDb);
   cx.base_mask.assign(K, std::vector<char>(nb, 0));
   cx.tune_mask.assign(K, std::vector<char>(nb, 0));
   cx.floor_limited.assign(K, std::vector<char>(nb, 0));
+  cx.noise_dominated.assign(K, std::vector<char>(nb, 0));
   Where& wh = res.where;
   wh.band_notes.assign(nb, "");
   for (std::size_t b = 0; b < nb; ++b) {
@@ -651,23 +773,19 @@ DiagnosisResult diagnose(const BandDataset& data, const BlockParams& start, cons
     const std::size_t r = nearest_ref(k);
     for (std::size_t b = 0; b < nb; ++b) {
       const double m = mean_meas(k, b);
-      bool ok = !data.bands[b].nyquist_cut && !data.band_line_free(k, b) && m > 0;
-      if (!backgrounds.empty() && m < bg[b] * margin) ok = false;
-      cx.base_mask[k][b] = ok;
-      const bool fl = r < K && m < excess[r][b] * margin;
-      cx.floor_limited[k][b] = fl;
-      cx.tune_mask[k][b] = ok && !fl;
+      const bool ok = !data.bands[b].nyquist_cut && !data.band_line_free(k, b) && m > 0;
+      // At a floor: the microphones within the margin of the background runs' level, or the pressure (so the
+      // prediction) within the margin of the pressure chain's floor. Never fitted, never scored.
+      const bool at_floor = (!backgrounds.empty() && m < bg[b] * margin) || cx.pfloor_band[k][b];
+      cx.base_mask[k][b] = ok && !at_floor;
+      cx.floor_limited[k][b] = ok && at_floor;
+      // Dominated by the combustion-independent noise of the motored runs: scored (the additive candidates live
+      // there), but the baseline is not tuned on it.
+      const bool noisy = r < K && m < excess[r][b] * margin;
+      cx.noise_dominated[k][b] = noisy;
+      cx.tune_mask[k][b] = cx.base_mask[k][b] && !noisy;
       if (data.band_line_free(k, b) && wh.band_notes[b].empty()) wh.band_notes[b] = "line_free";
     }
-  }
-  {
-    std::vector<std::size_t> all = cx.train_fired;
-    all.insert(all.end(), cx.heldout.begin(), cx.heldout.end());
-    double shortest = std::numeric_limits<double>::infinity();
-    for (std::size_t k : all)
-      for (const CycleInfo& c : data.conditions[k].cycles) shortest = std::min(shortest, c.duration_s / kW);
-    cx.fast.assign(nb, 0);
-    for (std::size_t b = 0; b < nb; ++b) cx.fast[b] = data.bands[b].response_time_s <= shortest && !data.bands[b].nyquist_cut;
   }
   // Bootstrap draws (the same for every model).
   {
@@ -781,7 +899,8 @@ DiagnosisResult diagnose(const BandDataset& data, const BlockParams& start, cons
       if (best_pair != npos) {
         const ModelScore& pair = res.combinations[best_pair];
         const double gain = best.heldout_gap_db - pair.heldout_gap_db;
-        keep = beats(pair, best) >= 0.95 && gain >= std::max(opt.min_improvement_db, kPairShare * best.heldout_gap_db);
+        keep = !pair.thesis_worse && beats(pair, best) >= 0.95 &&
+               gain >= std::max(opt.min_improvement_db, kPairShare * best.heldout_gap_db);
       }
       // Best first, for the report: the pair with the smallest gap (best_pair) comes to the front.
       std::stable_sort(res.combinations.begin(), res.combinations.end(),
@@ -850,6 +969,8 @@ DiagnosisResult diagnose(const BandDataset& data, const BlockParams& start, cons
   }
   wh.scored = cx.base_mask;
   wh.floor_limited = cx.floor_limited;
+  wh.noise_dominated = cx.noise_dominated;
+  report_floors(cx, bg, wh);
   wh.floor_db.assign(nb, kNaN);
   wh.background_db.assign(nb, kNaN);
   for (std::size_t b = 0; b < nb; ++b) {

@@ -93,6 +93,9 @@ struct ModelScore {
   double win_fraction = 0.0;           // share of replicates where this gap < baseline's
   bool significant = false;            // alone, against the baseline
   bool significant_on_top = false;     // the verdict's partner: significant on top of the verdict's effect
+  bool thesis_worse = false;           // its held-out thesis metric is worse than the baseline's: never significant
+  // How much of each part of the baseline's gap it closes, dB (baseline part minus this part; negative: worse).
+  double closes_band_db = 0.0, closes_mic_db = 0.0, closes_window_db = 0.0;
   double gap_closed_fraction = 0.0;    // 1 - gap / baseline gap
   std::vector<double> replicate_gaps;  // for the pairwise tie-break
 };
@@ -102,10 +105,24 @@ struct Where {
   std::vector<std::string> conditions;            // every condition, dataset order
   std::vector<std::string> roles;                 // "train", "heldout", "train+heldout" (LOCO), "reference", "floor"
   std::vector<std::vector<char>> scored;          // per condition, per band
-  std::vector<std::vector<char>> floor_limited;   // per condition, per band: within the margin of the motored excess
+  std::vector<std::vector<char>> floor_limited;   // per condition, per band: at a floor (pressure chain or the
+                                                  // background runs), never fitted or scored
+  std::vector<std::vector<char>> noise_dominated; // per condition, per band: within the margin of the motored
+                                                  // runs' combustion-independent excess (scored, not tuned on)
   std::vector<std::string> band_notes;            // per band: "nyquist_cut", "line_free", "" ...
   std::vector<double> floor_db;                   // per band: combustion-independent level (motored excess), dB
   std::vector<double> background_db;              // per band: background-run level (NaN without one)
+  // The measurement chains' floors (model/pressure_floor.hpp), per condition (dataset order):
+  std::vector<std::string> pressure_floor_judged_by;      // "stated", "estimated" or "none"
+  std::vector<double> pressure_floor_stated_bar;          // rms per encoder sample (NaN: none stated)
+  std::vector<double> pressure_floor_estimated_bar;       // the estimate, likewise (NaN without the encoder rate)
+  std::vector<double> pressure_floor_estimated_grid_bar;  // the estimate as rms over its extent on the 40 kHz grid
+  std::vector<std::vector<double>> pressure_floor_db;     // per band: the judged floor's level, dB re 20 uPa (as CPL)
+  std::vector<int> floor_limited_bands;                   // per condition: band cells at a floor
+  std::vector<int> floor_limited_windows;                 // per condition: crank-window cells at the pressure floor
+  std::vector<double> mic_floor_db;                       // per band: the microphones' floor, dB re 20 uPa
+  std::string mic_floor_source;                           // "background runs" or "quiet crank windows"
+  std::vector<std::string> floor_summary;                 // one line per group of conditions
   // Baseline held-out gap per condition (rows: held-out conditions) and band, dB.
   std::vector<std::vector<double>> gap;
   std::vector<double> gap_per_band_rms;           // over held-out conditions

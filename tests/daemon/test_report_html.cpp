@@ -43,6 +43,8 @@ json band_report() {
                                   {"gap_closed_fraction", 0.01},
                                   {"significant", false},
                                   {"win_fraction", 0.5},
+                                  {"thesis_metric_worse", true},
+                                  {"closes_db", {{"thesis_bands", -0.25}, {"mic_calibration", 0.5}, {"crank_windows", 0.0}}},
                                   {"parameters", 14}}});
   j["combinations"] = json::array({{{"effect", "second_mode+mic_gain"},
                                     {"effects", {"second_mode", "mic_gain"}},
@@ -88,6 +90,14 @@ json band_report() {
   w["noise_floor"] = {{"combustion_independent_db", {60, 70, 80, 80, 70, 60, 50, 40, 30, 20}},
                       {"background_db", std::vector<json>(10, nullptr)}};
   w["band_notes"] = {"line_free", "", "", "", "", "", "", "", "", ""};
+  w["floors"] = {{"pressure_judged_by", {"stated", "estimated"}},
+                 {"pressure_stated_bar", {0.02, nullptr}},
+                 {"pressure_estimated_bar", {0.0213, 0.187}},
+                 {"floor_limited_bands", {2, 7}},
+                 {"floor_limited_windows", {40, 120}},
+                 {"mic_floor_db", {30, 28, 26, 24, 22, 20, 18, 16, 14, 12}},
+                 {"mic_floor_source", "quiet crank windows"},
+                 {"summary", {"cond (2 runs): 2-7 of 10 bands floor-limited from 4000 Hz up"}}};
   j["where"] = w;
   std::vector<json> before{nullptr, 0.5, 0.5, 0.5, 1.0, 1.0, 4.0, 1.0, 0.5, 0.5};  // y axis [0, 4] (step 1)
   std::vector<json> after{nullptr, 0.1, 0.1, 0.1, 0.1, 0.1, 0.2, 0.1, 0.1, 0.1};
@@ -232,6 +242,22 @@ TEST(ReportHtml, BandPageHasEverySectionAndPlot) {
   // The null gap cell is hatched and the hatch is explained.
   EXPECT_NE(html.find("cond_a, 31.5 Hz: not scored"), std::string::npos);
   EXPECT_NE(html.find("not scored (null)"), std::string::npos);
+}
+
+TEST(ReportHtml, BandPageShowsTheFloorsAndWhatEachCandidateCloses) {
+  const std::string html = report_html(band_report());
+  ASSERT_NE(html.find("id=\"floors\""), std::string::npos);
+  EXPECT_NE(html.find("<li>cond (2 runs): 2-7 of 10 bands floor-limited from 4000 Hz up</li>"), std::string::npos);
+  // Per condition: which floor judged it, stated and estimated floors, the cells at a floor.
+  EXPECT_NE(html.find("<td>cond_a</td><td>stated</td><td>0.02</td><td>0.0213</td><td>2</td><td>40</td>"),
+            std::string::npos);
+  EXPECT_NE(html.find("<td>estimated</td><td>\xE2\x80\x94</td><td>0.187</td><td>7</td><td>120</td>"), std::string::npos);
+  EXPECT_NE(html.find("Microphone floor from the quiet crank windows"), std::string::npos);
+  // A candidate that makes the thesis metric worse is marked; the parts of the gap it closes are shown.
+  EXPECT_NE(html.find("mic_gain<span class=\"tag\">thesis metric worse</span>"), std::string::npos);
+  EXPECT_NE(html.find("<td>-0.25 / 0.50 / 0.00</td>"), std::string::npos);
+  EXPECT_FALSE(svg_by_id(html, "noise-floor").empty());
+  EXPECT_NE(svg_by_id(html, "noise-floor").find("microphone floor"), std::string::npos);
 }
 
 TEST(ReportHtml, BandValuesSitWhereTheAxisMappingPutsThem) {
