@@ -10,6 +10,30 @@
 
 namespace noisemon::daemon {
 
+LoadedRecording loaded_run(const drivers::RunDir& run, std::int64_t epoch_utime, std::string origin) {
+  LoadedRecording r{drivers::to_recording(run, epoch_utime), std::move(origin)};
+  if (run.pressure_noise_floor_bar) r.pressure_floor_pa = *run.pressure_noise_floor_bar * 1e5;
+  const std::size_t n = run.time_s.size();
+  if (n >= 2) r.encoder_rate_hz = static_cast<double>(n - 1) / (run.time_s.back() - run.time_s.front());
+  return r;
+}
+
+namespace {
+
+// A run directory for the dataset: its condition must say whether the run is motored (a motored reference is
+// used differently from a fired run); unknown SOI and load are only reported, so they may stay unknown.
+LoadedRecording load_run_dir(const std::string& dir, std::int64_t epoch_utime) {
+  const drivers::RunDir run = drivers::read_run_dir(dir);
+  if (!run.condition.motored_known)
+    throw std::runtime_error(dir + ": key \"condition.motored\" is null (unknown) in run.json: the diagnosis must know "
+                             "whether the run is motored (a motored reference) or fired; set it to true or false");
+  LoadedRecording r = loaded_run(run, epoch_utime, dir);
+  if (r.recording.condition.empty()) r.recording.condition = std::filesystem::path(dir).filename().string();
+  return r;
+}
+
+}  // namespace
+
 std::vector<LoadedRecording> load_recordings(const std::vector<std::string>& paths,
                                              const std::function<void(const std::string&)>& note) {
   namespace fs = std::filesystem;
@@ -38,9 +62,7 @@ std::vector<LoadedRecording> load_recordings(const std::vector<std::string>& pat
       continue;
     }
     if (fs::is_directory(p, ec)) {
-      const drivers::RunDir run = drivers::read_run_dir(p);
-      LoadedRecording r{drivers::to_recording(run, epoch), p};
-      if (r.recording.condition.empty()) r.recording.condition = fs::path(p).filename().string();
+      LoadedRecording r = load_run_dir(p, epoch);
       epoch += 1'000'000'000;  // distinct epochs: recordings never share a time base
       if (note) note(p + ": condition " + r.recording.condition + ", " + std::to_string(r.recording.frames()) + " frames");
       out.push_back(std::move(r));
@@ -76,11 +98,18 @@ model::ConditionInfo condition_info(const drivers::Recording& rec, const std::st
   return info;
 }
 
+model::ConditionInfo condition_info(const LoadedRecording& r) {
+  model::ConditionInfo info = condition_info(r.recording, r.origin);
+  info.pressure_floor_pa = r.pressure_floor_pa;
+  info.encoder_rate_hz = r.encoder_rate_hz;
+  return info;
+}
+
 model::BandDataset make_band_dataset(const std::vector<LoadedRecording>& recordings, const model::DatasetOptions& options) {
   std::vector<std::string> order;
   std::map<std::string, std::vector<const LoadedRecording*>> groups;
   for (const LoadedRecording& r : recordings) {
-    const std::string name = condition_info(r.recording, r.origin).name;
+    const std::string name = condition_info(r).name;
     if (!groups.count(name)) order.push_back(name);
     groups[name].push_back(&r);
   }
@@ -100,7 +129,9 @@ model::BandDataset make_band_dataset(const std::vector<LoadedRecording>& recordi
       parts.push_back(std::move(cr));
     }
     try {
-      conds.push_back(model::build_condition(condition_info(group.front()->recording, name), parts, options));
+      model::ConditionInfo info = condition_info(*group.front());  // the first recording's floor and encoder
+      info.name = name;
+      conds.push_back(model::build_condition(info, parts, options));
     } catch (const std::invalid_argument& e) {
       throw std::runtime_error(group.front()->origin + ": " + e.what());
     }

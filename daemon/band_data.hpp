@@ -11,6 +11,7 @@
 
 #include <cstdio>
 #include <functional>
+#include <limits>
 #include <string>
 #include <vector>
 
@@ -23,9 +24,19 @@ namespace noisemon::daemon {
 struct LoadedRecording {
   drivers::Recording recording;
   std::string origin;  // the path it came from (for messages)
+  // What only a run directory tells (NaN: unknown, as for a raw LCM log): the pressure chain's commissioned
+  // noise floor, Pa rms per encoder sample (run.json's pressure.noise_floor_bar), and the encoder's mean
+  // sample rate, Hz (pressure.csv's rows).
+  double pressure_floor_pa = std::numeric_limits<double>::quiet_NaN();
+  double encoder_rate_hz = std::numeric_limits<double>::quiet_NaN();
 };
 
-// Reads every DATA path. Throws std::runtime_error naming the path and what is wrong.
+// A run directory's contents as a loaded recording (its time base at epoch_utime). Its unknown SOI and load
+// stay NaN; an unknown `motored` is not checked here (load_recordings refuses it).
+LoadedRecording loaded_run(const drivers::RunDir& run, std::int64_t epoch_utime, std::string origin);
+
+// Reads every DATA path. Throws std::runtime_error naming the path and what is wrong; a run directory whose
+// condition.motored is null (unknown) is refused: the diagnosis must know whether a run is a motored reference.
 std::vector<LoadedRecording> load_recordings(const std::vector<std::string>& paths,
                                              const std::function<void(const std::string&)>& note = {});
 
@@ -40,7 +51,9 @@ model::BandDataset load_band_dataset(const std::vector<std::string>& paths, std:
 // "a, b, c": the dataset's condition names, for messages.
 std::string condition_names(const model::BandDataset& data);
 
-// The condition of a recording as the dataset sees it.
+// The condition of a recording as the dataset sees it (unknown load and SOI: NaN).
 model::ConditionInfo condition_info(const drivers::Recording& rec, const std::string& fallback_name);
+// The same with what the run directory told (pressure floor, encoder rate); the origin is the fallback name.
+model::ConditionInfo condition_info(const LoadedRecording& r);
 
 }  // namespace noisemon::daemon

@@ -100,6 +100,31 @@ ImportedRun describe(const std::string& source, const drivers::Recording& rec) {
   return {source, rec.condition, rec.info.epoch_utime, rec.frames(), rec.info.mic_count};
 }
 
+// A condition value for import's messages: "n/a" when unknown (NaN).
+std::string value_text(double v, const char* unit) {
+  if (std::isnan(v)) return "n/a";
+  char buf[64];
+  std::snprintf(buf, sizeof buf, "%.6g %s", v, unit);
+  return buf;
+}
+
+// What became of a run's null values (nothing to say when it has none): unknowns are n/a, a null speed is
+// measured from the encoder, a null `motored` is published as false.
+void note_unknowns(const std::string& dir, const drivers::RunCondition& c, const drivers::OperatingPoint& op,
+                   std::vector<std::string>& notes) {
+  const bool speed_null = std::isnan(c.speed_rpm);
+  if (!speed_null && !std::isnan(c.load_nm) && !std::isnan(c.soi_deg_btdc) && c.rail_pressure_bar && c.motored_known)
+    return;
+  notes.push_back(dir + ": condition '" + c.name + "' (null in run.json: n/a): speed " + value_text(op.speed_rpm, "rpm") +
+                  (speed_null ? " (speed_rpm null: measured from the encoder, mean over the run)" : "") + ", load " +
+                  value_text(c.load_nm, "N m") + ", SOI " + value_text(c.soi_deg_btdc, "deg BTDC") + ", rail pressure " +
+                  (c.rail_pressure_bar ? value_text(*c.rail_pressure_bar, "bar") : "n/a") + ", motored " +
+                  (c.motored_known ? (c.motored ? "yes" : "no") : "n/a"));
+  if (!c.motored_known)
+    notes.push_back(dir + ": condition.motored is null: published as false (the operating point's field is a boolean); "
+                          "noisemon diagnose needs it and refuses this run directory until it is true or false");
+}
+
 std::string dir_name_for(const std::string& condition, std::size_t index) {
   std::string s;
   for (char c : condition) s += (std::isalnum(static_cast<unsigned char>(c)) || c == '.' || c == '-' || c == '_') ? c : '_';
@@ -113,7 +138,13 @@ MicSynthesizer mic_synthesizer(const std::string& name) {
   if (name == "sim")
     return [](drivers::Recording& rec) {
       // The virtual engine's acoustic side driven by the imported pressure, with its default installation
-      // (thesis microphone layout, linear true block, no effects).
+      // (thesis microphone layout, linear true block, no effects). The virtual engine is set up with the run's
+      // load and SOI: an unknown one is named rather than replaced by a made-up number.
+      const drivers::OperatingPoint op = rec.operating_points.empty() ? drivers::OperatingPoint{} : rec.operating_points.front();
+      for (const auto& [value, key] : {std::pair{op.load_nm, "load_nm"}, std::pair{op.soi_deg_btdc, "soi_deg_btdc"}})
+        if (std::isnan(value))
+          throw std::invalid_argument(std::string("--mics sim: the virtual engine needs condition.") + key +
+                                      ", which is null (unknown)");
       drivers::synthesize_recording_mics(rec, drivers::SimRunSpec{});
     };
   throw std::invalid_argument("--mics " + name + ": unknown, expected \"sim\"");
@@ -135,8 +166,13 @@ ImportSummary run_import(const ImportOptions& o) {
       const drivers::RunDir run = drivers::read_run_dir(dir);
       progress.stage(prefix + " resampling to 40 kHz");
       rec = drivers::to_recording(run, epoch);
+      note_unknowns(dir, run.condition, rec.operating_points.front(), sum.notes);
     }
-    synthesize(o.synthesize_mics, rec);
+    try {
+      synthesize(o.synthesize_mics, rec);
+    } catch (const std::invalid_argument& e) {
+      throw std::runtime_error(dir + ": " + e.what());
+    }
     progress.stage(prefix + " writing");
     writer.write(rec, progress.fn());
     sum.runs.push_back(describe(dir, rec));

@@ -85,23 +85,25 @@ std::string cycle_line_header() {
 }
 
 namespace {
-// A level right-aligned in `width` columns; "n/a" when it was not measured (NaN: no microphones).
-std::string level_text(double db, int width) {
+// A number right-aligned in `width` columns with `decimals`; "n/a" when unknown (NaN: a level not measured, a
+// condition value a recording did not state).
+std::string value_text(double v, int width, int decimals = 2) {
   char buf[32];
-  if (std::isnan(db))
+  if (std::isnan(v))
     std::snprintf(buf, sizeof buf, "%*s", width, "n/a");
   else
-    std::snprintf(buf, sizeof buf, "%*.2f", width, db);
+    std::snprintf(buf, sizeof buf, "%*.*f", width, decimals, v);
   return buf;
 }
 }  // namespace
 
 std::string cycle_line(const noisemon::cycle_report_t& r) {
   char buf[256];
-  std::snprintf(buf, sizeof buf, "%8lld %7.1f %7.1f %s %s %s %s %s  %s", static_cast<long long>(r.cycle), r.speed_rpm,
-                r.soi_deg_btdc, level_text(r.lpa_measured_db, 12).c_str(), level_text(r.lpa_predicted_db, 6).c_str(),
-                level_text(r.lwa_measured_db, 13).c_str(), level_text(r.lwa_predicted_db, 6).c_str(),
-                level_text(r.lpa_predicted_db - r.lpa_measured_db, 12).c_str(), cycle_flags_text(r.flags).c_str());
+  std::snprintf(buf, sizeof buf, "%8lld %s %s %s %s %s %s %s  %s", static_cast<long long>(r.cycle),
+                value_text(r.speed_rpm, 7, 1).c_str(), value_text(r.soi_deg_btdc, 7, 1).c_str(),
+                value_text(r.lpa_measured_db, 12).c_str(), value_text(r.lpa_predicted_db, 6).c_str(),
+                value_text(r.lwa_measured_db, 13).c_str(), value_text(r.lwa_predicted_db, 6).c_str(),
+                value_text(r.lpa_predicted_db - r.lpa_measured_db, 12).c_str(), cycle_flags_text(r.flags).c_str());
   return buf;
 }
 

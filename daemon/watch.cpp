@@ -3,12 +3,14 @@
 #include <poll.h>
 
 #include <chrono>
+#include <cmath>
 #include <csignal>
 #include <cstdio>
 #include <fstream>
 #include <functional>
 #include <iostream>
 #include <lcm/lcm-cpp.hpp>
+#include <limits>
 
 #include "daemon/report_messages.hpp"
 #include "noisemon/status_t.hpp"
@@ -25,6 +27,14 @@ struct Handler {
   void on(const lcm::ReceiveBuffer*, const std::string&, const Message* m) { fn(m); }
 };
 void on_signal(int) { g_stop = 1; }
+
+// Unknown operating-point values (NaN: null in a run directory, not sent by the source) as the one positive
+// quiet NaN, so the CSV says "nan" for each (a NaN with its sign bit set would print "-nan").
+noisemon::cycle_report_t with_plain_unknowns(noisemon::cycle_report_t r) {
+  for (double* v : {&r.speed_rpm, &r.load_nm, &r.soi_deg_btdc, &r.rail_pressure_bar})
+    if (std::isnan(*v)) *v = std::numeric_limits<double>::quiet_NaN();
+  return r;
+}
 
 void print_bands(const noisemon::cycle_report_t& r) {
   std::printf("      band Hz   CPL dB   meas dB(A)  pred dB(A)  att meas  att pred  flags\n");
@@ -86,13 +96,14 @@ int run_watch(const WatchOptions& o) {
   std::int64_t received = 0;
   auto last = std::chrono::steady_clock::now();
   Handler<noisemon::cycle_report_t> handler;
-  handler.fn = [&](const noisemon::cycle_report_t* r) {
+  handler.fn = [&](const noisemon::cycle_report_t* received_report) {
     if (o.count > 0 && received >= o.count) return;
+    const noisemon::cycle_report_t r = with_plain_unknowns(*received_report);
     if (received % 40 == 0) std::printf("%s\n", cycle_line_header().c_str());
-    std::printf("%s\n", cycle_line(*r).c_str());
-    if (o.bands) print_bands(*r);
+    std::printf("%s\n", cycle_line(r).c_str());
+    if (o.bands) print_bands(r);
     std::fflush(stdout);
-    if (csv.is_open()) csv << cycle_csv_row(*r) << std::flush;
+    if (csv.is_open()) csv << cycle_csv_row(r) << std::flush;
     ++received;
     last = std::chrono::steady_clock::now();
   };

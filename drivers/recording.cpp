@@ -222,6 +222,25 @@ double speed_from_crank(const std::vector<double>& crank) {
   return seconds > 0 ? unwrapped / seconds / 6.0 : 0.0;
 }
 
+// Two values the same, unknown (NaN) included.
+bool same_value(double a, double b) { return a == b || (std::isnan(a) && std::isnan(b)); }
+
+// Repeats of the same point (noisemond sends it at 10 Hz) carry nothing new.
+std::vector<OperatingPoint> distinct_points(const std::vector<OperatingPoint>& points) {
+  std::vector<OperatingPoint> distinct;
+  for (const OperatingPoint& op : points) {
+    if (!distinct.empty()) {
+      const OperatingPoint& l = distinct.back();
+      if (same_value(l.speed_rpm, op.speed_rpm) && same_value(l.load_nm, op.load_nm) &&
+          same_value(l.soi_deg_btdc, op.soi_deg_btdc) && same_value(l.rail_pressure_bar, op.rail_pressure_bar) &&
+          l.motored == op.motored)
+        continue;
+    }
+    distinct.push_back(op);
+  }
+  return distinct;
+}
+
 class LogAssembler {
  public:
   LogAssembler(std::string name, const LogChannels& channels, LogReadStats& stats)
@@ -308,26 +327,15 @@ class LogAssembler {
         if (before) rec.operating_points.insert(rec.operating_points.begin(), *before);
         if (rec.operating_points.empty() && !s.ops.empty()) rec.operating_points.push_back(s.ops.front());
         if (rec.operating_points.empty()) {
+          // No operating point in the log: the speed is measured, the rest is unknown (never made up).
+          constexpr double kUnknown = std::numeric_limits<double>::quiet_NaN();
           OperatingPoint op;
           op.utime = u0;
           op.speed_rpm = speed_from_crank(rec.crank_deg);
-          op.rail_pressure_bar = std::numeric_limits<double>::quiet_NaN();
+          op.load_nm = op.soi_deg_btdc = op.rail_pressure_bar = kUnknown;
           rec.operating_points.push_back(op);
         }
-        // Repeats of the same point (noisemond sends it at 10 Hz) carry nothing new.
-        std::vector<OperatingPoint> distinct;
-        for (const OperatingPoint& op : rec.operating_points) {
-          if (!distinct.empty()) {
-            const OperatingPoint& l = distinct.back();
-            const bool same_rail = l.rail_pressure_bar == op.rail_pressure_bar ||
-                                   (std::isnan(l.rail_pressure_bar) && std::isnan(op.rail_pressure_bar));
-            if (l.speed_rpm == op.speed_rpm && l.load_nm == op.load_nm && l.soi_deg_btdc == op.soi_deg_btdc &&
-                same_rail && l.motored == op.motored)
-              continue;
-          }
-          distinct.push_back(op);
-        }
-        rec.operating_points = std::move(distinct);
+        rec.operating_points = distinct_points(rec.operating_points);
         out.push_back(std::move(rec));
       }
       s = SessionData{};  // free the blocks as we go
@@ -428,15 +436,20 @@ Recording to_recording(const RunDir& run, std::int64_t epoch_utime) {
     const auto m0 = static_cast<std::ptrdiff_t>((from - mics.first) * run.mic_count);
     rec.mics_pa.assign(mics.values.begin() + m0, mics.values.begin() + m0 + static_cast<std::ptrdiff_t>(frames * run.mic_count));
   }
-  OperatingPoint op;
-  op.utime = utime_of_index(epoch_utime, from);
-  op.speed_rpm = run.condition.speed_rpm;
-  op.load_nm = run.condition.load_nm;
-  op.soi_deg_btdc = run.condition.soi_deg_btdc;
-  op.rail_pressure_bar = run.condition.rail_pressure_bar.value_or(std::numeric_limits<double>::quiet_NaN());
-  op.motored = run.condition.motored;
-  rec.operating_points.push_back(op);
+  rec.operating_points.push_back(operating_point_of(run, utime_of_index(epoch_utime, from)));
   return rec;
+}
+
+OperatingPoint operating_point_of(const RunDir& run, std::int64_t utime) {
+  const RunCondition& c = run.condition;
+  OperatingPoint op;
+  op.utime = utime;
+  op.speed_rpm = std::isnan(c.speed_rpm) ? encoder_speed_rpm(run) : c.speed_rpm;
+  op.load_nm = c.load_nm;            // NaN when unknown: travels as NaN
+  op.soi_deg_btdc = c.soi_deg_btdc;
+  op.rail_pressure_bar = c.rail_pressure_bar.value_or(std::numeric_limits<double>::quiet_NaN());
+  op.motored = c.motored_known && c.motored;  // the message's boolean: false when unknown
+  return op;
 }
 
 RunDir to_run_dir(const Recording& rec) {

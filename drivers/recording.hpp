@@ -38,11 +38,16 @@ struct Recording {
 // - The crank channel is the unwrapped crank angle interpolated linearly at each 40 kHz instant, then wrapped.
 // - Both streams are cut to the stretch where both exist and the resamplers have full support (the first and
 //   last few hundred microseconds of the pressure are lost); operating_points holds one point from the
-//   run's condition. Throws RunDirError when nothing is left or the run is inconsistent.
+//   run's condition (operating_point_of). Throws RunDirError when nothing is left or the run is inconsistent.
 Recording to_recording(const RunDir& run, std::int64_t epoch_utime);
+// The operating point of a run's condition: unknown load, SOI and rail pressure stay NaN; an unknown speed
+// (NaN) is measured from the encoder (encoder_speed_rpm: the mean over the run); an unknown `motored` is
+// published as false (the message's field is a boolean; RunCondition::motored_known keeps the difference).
+OperatingPoint operating_point_of(const RunDir& run, std::int64_t utime);
 // 40 kHz -> run directory: one pressure row per frame, time_s = 0 at the recording's first frame (mics.wav's
 // t = 0), crank unwrapped from the first frame's cycle (cycle 0); mics.wav at 40 kHz. The condition's numbers
-// come from the first operating point (a run directory has one condition).
+// come from the first operating point (a run directory has one condition); unknown ones (NaN) stay unknown
+// and are written as null.
 RunDir to_run_dir(const Recording& rec);
 
 struct LogChannels {

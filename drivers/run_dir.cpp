@@ -7,6 +7,7 @@
 #include <cmath>
 #include <cstring>
 #include <fstream>
+#include <limits>
 #include <nlohmann/json.hpp>
 #include <numeric>
 #include <sstream>
@@ -82,9 +83,18 @@ class JsonFields {
   double number(const json& obj, const std::string& parent, const char* key, const char* meaning) const {
     return number(*find(obj, parent, key, true, meaning), join(parent, key), meaning);
   }
-  bool boolean(const json& obj, const std::string& parent, const char* key, const char* meaning) const {
+  // A required key whose value may be null (unknown, not applicable): NaN then.
+  double number_or_null(const json& obj, const std::string& parent, const char* key, const char* meaning) const {
     const json* v = find(obj, parent, key, true, meaning);
-    if (!v->is_boolean()) fail(join(parent, key), std::string("expected true or false (") + meaning + "), found " + json_type_name(*v));
+    if (v->is_null()) return std::numeric_limits<double>::quiet_NaN();
+    if (!v->is_number()) fail(join(parent, key), std::string("expected a number or null (") + meaning + "), found " + json_type_name(*v));
+    return number(*v, join(parent, key), meaning);
+  }
+  std::optional<bool> boolean_or_null(const json& obj, const std::string& parent, const char* key, const char* meaning) const {
+    const json* v = find(obj, parent, key, true, meaning);
+    if (v->is_null()) return std::nullopt;
+    if (!v->is_boolean())
+      fail(join(parent, key), std::string("expected true, false or null (") + meaning + "), found " + json_type_name(*v));
     return v->get<bool>();
   }
   static std::string join(const std::string& parent, const char* key) { return parent.empty() ? key : parent + "." + key; }
@@ -228,6 +238,76 @@ void read_sound(SNDFILE* sf, const SF_INFO& info, const std::string& file, std::
 
 }  // namespace
 
+namespace {
+
+RunCondition parse_condition(const JsonFields& f, const json& c) {
+  RunCondition r;
+  r.name = f.string(c, "condition", "name", "the condition's name");
+  r.speed_rpm = f.number_or_null(c, "condition", "speed_rpm", "engine speed, rpm");
+  if (!std::isnan(r.speed_rpm) && !(r.speed_rpm > 0))
+    f.fail("condition.speed_rpm", "expected a speed above 0 rpm (or null: measured from the encoder)");
+  r.load_nm = f.number_or_null(c, "condition", "load_nm", "brake torque, N m");
+  r.soi_deg_btdc = f.number_or_null(c, "condition", "soi_deg_btdc", "start of injection, degrees before firing TDC");
+  if (const json* v = f.find(c, "condition", "rail_pressure_bar", false, ""); v && !v->is_null()) {
+    r.rail_pressure_bar = f.number(*v, "condition.rail_pressure_bar", "rail pressure in bar, or null");
+    if (*r.rail_pressure_bar < 0) f.fail("condition.rail_pressure_bar", "expected a pressure >= 0 bar or null");
+  }
+  const std::optional<bool> motored =
+      f.boolean_or_null(c, "condition", "motored", "true when the engine was motored, without combustion");
+  r.motored = motored.value_or(false);
+  r.motored_known = motored.has_value();
+  return r;
+}
+
+void parse_pressure_entry(const JsonFields& f, const json& p, RunManifest& m) {
+  m.pressure_file = f.string(p, "pressure", "file", "the pressure CSV's file name");
+  const std::string units = f.string(p, "pressure", "units", "\"bar\" or \"Pa\"");
+  if (units == "bar")
+    m.pressure_to_pa = 1e5;
+  else if (units == "Pa")
+    m.pressure_to_pa = 1.0;
+  else
+    f.fail("pressure.units", "\"" + units + "\", expected \"bar\" or \"Pa\"");
+  if (const json* v = f.find(p, "pressure", "noise_floor_bar", false, ""); v && !v->is_null()) {
+    const double floor = f.number(*v, "pressure.noise_floor_bar", "noise floor, bar rms per encoder sample, or null");
+    if (!(floor >= 0))
+      f.fail("pressure.noise_floor_bar", "expected a noise floor >= 0 bar rms per encoder sample, or null (unknown)");
+    m.pressure_noise_floor_bar = floor;
+  }
+}
+
+void parse_mics_entry(const JsonFields& f, const json& mics, RunManifest& m) {
+  if (!mics.is_object()) f.fail("mics", std::string("expected an object, found ") + json_type_name(mics));
+  m.has_mics = true;
+  m.mics_file = f.string(mics, "mics", "file", "the microphones' WAV file name");
+  if (const json* u = f.find(mics, "mics", "units", false, "")) {
+    if (!u->is_string() || u->get<std::string>() != "Pa") f.fail("mics.units", "expected \"Pa\"");
+  }
+  const json* pos = f.find(mics, "mics", "positions_m", true, "one [x, y, z] per microphone, m");
+  if (!pos->is_array() || pos->empty() || pos->size() > kMaxMics)
+    f.fail("mics.positions_m", "expected an array of 1.." + std::to_string(kMaxMics) + " [x, y, z] positions in m");
+  for (std::size_t i = 0; i < pos->size(); ++i) {
+    const json& xyz = (*pos)[i];
+    const std::string key = "mics.positions_m[" + std::to_string(i) + "]";
+    if (!xyz.is_array() || xyz.size() != 3) f.fail(key, "expected [x, y, z] in m");
+    m.mic_positions_m.push_back({f.number(xyz[0], key, "x, m"), f.number(xyz[1], key, "y, m"), f.number(xyz[2], key, "z, m")});
+  }
+  if (const json* r = f.find(mics, "mics", "radius_m", false, "")) {
+    m.radius_m = f.number(*r, "mics.radius_m", "measurement radius, m");
+    if (!(m.radius_m > 0)) f.fail("mics.radius_m", "expected a radius above 0 m");
+  }
+  if (const json* d = f.find(mics, "mics", "acoustic_delay_s", false, "")) {
+    m.acoustic_delay_s = f.number(*d, "mics.acoustic_delay_s", "engine-to-microphone delay, s");
+    if (m.acoustic_delay_s < 0 || m.acoustic_delay_s > 1) f.fail("mics.acoustic_delay_s", "expected 0..1 s");
+  }
+  if (const json* fs = f.find(mics, "mics", "full_scale_pa", false, ""); fs && !fs->is_null()) {
+    m.full_scale_pa = f.number(*fs, "mics.full_scale_pa", "Pa at PCM full scale");
+    if (!(*m.full_scale_pa > 0)) f.fail("mics.full_scale_pa", "expected a value above 0 Pa");
+  }
+}
+
+}  // namespace
+
 RunManifest parse_run_json(std::string_view text, const std::string& file) {
   json root;
   try {
@@ -238,58 +318,9 @@ RunManifest parse_run_json(std::string_view text, const std::string& file) {
   const JsonFields f(file);
   if (!root.is_object()) throw RunDirError(file + ": expected a JSON object at the top, found " + json_type_name(root));
   RunManifest m;
-
-  const json& c = f.object(root, "", "condition");
-  m.condition.name = f.string(c, "condition", "name", "the condition's name");
-  m.condition.speed_rpm = f.number(c, "condition", "speed_rpm", "engine speed, rpm");
-  if (!(m.condition.speed_rpm > 0)) f.fail("condition.speed_rpm", "expected a speed above 0 rpm");
-  m.condition.load_nm = f.number(c, "condition", "load_nm", "brake torque, N m");
-  m.condition.soi_deg_btdc = f.number(c, "condition", "soi_deg_btdc", "start of injection, degrees before firing TDC");
-  if (const json* r = f.find(c, "condition", "rail_pressure_bar", false, ""); r && !r->is_null()) {
-    m.condition.rail_pressure_bar = f.number(*r, "condition.rail_pressure_bar", "rail pressure in bar, or null");
-    if (*m.condition.rail_pressure_bar < 0) f.fail("condition.rail_pressure_bar", "expected a pressure >= 0 bar or null");
-  }
-  m.condition.motored = f.boolean(c, "condition", "motored", "true when the engine was motored, without combustion");
-
-  const json& p = f.object(root, "", "pressure");
-  m.pressure_file = f.string(p, "pressure", "file", "the pressure CSV's file name");
-  const std::string units = f.string(p, "pressure", "units", "\"bar\" or \"Pa\"");
-  if (units == "bar")
-    m.pressure_to_pa = 1e5;
-  else if (units == "Pa")
-    m.pressure_to_pa = 1.0;
-  else
-    f.fail("pressure.units", "\"" + units + "\", expected \"bar\" or \"Pa\"");
-
-  if (const json* mics = f.find(root, "", "mics", false, ""); mics && !mics->is_null()) {
-    if (!mics->is_object()) f.fail("mics", std::string("expected an object, found ") + json_type_name(*mics));
-    m.has_mics = true;
-    m.mics_file = f.string(*mics, "mics", "file", "the microphones' WAV file name");
-    if (const json* u = f.find(*mics, "mics", "units", false, "")) {
-      if (!u->is_string() || u->get<std::string>() != "Pa") f.fail("mics.units", "expected \"Pa\"");
-    }
-    const json* pos = f.find(*mics, "mics", "positions_m", true, "one [x, y, z] per microphone, m");
-    if (!pos->is_array() || pos->empty() || pos->size() > kMaxMics)
-      f.fail("mics.positions_m", "expected an array of 1.." + std::to_string(kMaxMics) + " [x, y, z] positions in m");
-    for (std::size_t i = 0; i < pos->size(); ++i) {
-      const json& xyz = (*pos)[i];
-      const std::string key = "mics.positions_m[" + std::to_string(i) + "]";
-      if (!xyz.is_array() || xyz.size() != 3) f.fail(key, "expected [x, y, z] in m");
-      m.mic_positions_m.push_back({f.number(xyz[0], key, "x, m"), f.number(xyz[1], key, "y, m"), f.number(xyz[2], key, "z, m")});
-    }
-    if (const json* r = f.find(*mics, "mics", "radius_m", false, "")) {
-      m.radius_m = f.number(*r, "mics.radius_m", "measurement radius, m");
-      if (!(m.radius_m > 0)) f.fail("mics.radius_m", "expected a radius above 0 m");
-    }
-    if (const json* d = f.find(*mics, "mics", "acoustic_delay_s", false, "")) {
-      m.acoustic_delay_s = f.number(*d, "mics.acoustic_delay_s", "engine-to-microphone delay, s");
-      if (m.acoustic_delay_s < 0 || m.acoustic_delay_s > 1) f.fail("mics.acoustic_delay_s", "expected 0..1 s");
-    }
-    if (const json* fs = f.find(*mics, "mics", "full_scale_pa", false, ""); fs && !fs->is_null()) {
-      m.full_scale_pa = f.number(*fs, "mics.full_scale_pa", "Pa at PCM full scale");
-      if (!(*m.full_scale_pa > 0)) f.fail("mics.full_scale_pa", "expected a value above 0 Pa");
-    }
-  }
+  m.condition = parse_condition(f, f.object(root, "", "condition"));
+  parse_pressure_entry(f, f.object(root, "", "pressure"), m);
+  if (const json* mics = f.find(root, "", "mics", false, ""); mics && !mics->is_null()) parse_mics_entry(f, *mics, m);
   return m;
 }
 
@@ -417,9 +448,11 @@ RunDir read_run_dir(const std::filesystem::path& dir) {
   parse_pressure_csv(read_text_file(csv, "the pressure file named by pressure.file in run.json"), csv.string(),
                      m.pressure_to_pa, run);
   // The rows' mean speed must be the declared one: otherwise time_s or crank_deg is in other units (ms, rad)
-  // or rows are missing, and every frequency downstream would be silently wrong.
-  const double mean_rpm = (run.crank_deg.back() - run.crank_deg.front()) / (run.time_s.back() - run.time_s.front()) / 6.0;
-  if (!(std::abs(mean_rpm - m.condition.speed_rpm) <= kSpeedTolerance * m.condition.speed_rpm)) {
+  // or rows are missing, and every frequency downstream would be silently wrong. (A null speed is unknown: the
+  // rows' speed is then the run's.)
+  const double mean_rpm = encoder_speed_rpm(run);
+  if (!std::isnan(m.condition.speed_rpm) &&
+      !(std::abs(mean_rpm - m.condition.speed_rpm) <= kSpeedTolerance * m.condition.speed_rpm)) {
     char buf[256];
     std::snprintf(buf, sizeof buf,
                   ": the rows imply %.6g rpm (crank_deg %.6g..%.6g over time_s %.9g..%.9g s), run.json's "
@@ -434,8 +467,42 @@ RunDir read_run_dir(const std::filesystem::path& dir) {
     run.radius_m = m.radius_m;
     run.acoustic_delay_s = m.acoustic_delay_s;
   }
+  run.pressure_noise_floor_bar = m.pressure_noise_floor_bar;
   return run;
 }
+
+double encoder_speed_rpm(const RunDir& run) {
+  const std::size_t n = std::min(run.time_s.size(), run.crank_deg.size());
+  if (n < 2) return std::numeric_limits<double>::quiet_NaN();
+  return (run.crank_deg[n - 1] - run.crank_deg.front()) / (run.time_s[n - 1] - run.time_s.front()) / 6.0;
+}
+
+namespace {
+
+// Unknown (NaN) as null, as run.json spells it.
+json number_or_null(double v) { return std::isnan(v) ? json(nullptr) : json(v); }
+
+json run_json(const RunDir& run, const std::string& pressure_units) {
+  const RunCondition& c = run.condition;
+  json root;
+  root["condition"] = {{"name", c.name},
+                       {"speed_rpm", number_or_null(c.speed_rpm)},
+                       {"load_nm", number_or_null(c.load_nm)},
+                       {"soi_deg_btdc", number_or_null(c.soi_deg_btdc)},
+                       {"rail_pressure_bar", c.rail_pressure_bar ? json(*c.rail_pressure_bar) : json(nullptr)},
+                       {"motored", c.motored_known ? json(c.motored) : json(nullptr)}};
+  root["pressure"] = {{"file", "pressure.csv"}, {"units", pressure_units}};
+  if (run.pressure_noise_floor_bar) root["pressure"]["noise_floor_bar"] = *run.pressure_noise_floor_bar;
+  if (run.mic_count > 0) {
+    json positions = json::array();
+    for (const auto& p : run.mic_positions_m) positions.push_back({p[0], p[1], p[2]});
+    root["mics"] = {{"file", "mics.wav"}, {"units", "Pa"}, {"positions_m", positions}, {"radius_m", run.radius_m}};
+    if (run.acoustic_delay_s >= 0) root["mics"]["acoustic_delay_s"] = run.acoustic_delay_s;
+  }
+  return root;
+}
+
+}  // namespace
 
 void write_run_dir(const std::filesystem::path& dir, const RunDir& run, const std::string& pressure_units) {
   double from_pa;
@@ -450,28 +517,16 @@ void write_run_dir(const std::filesystem::path& dir, const RunDir& run, const st
     throw RunDirError(dir.string() + ": time, crank and pressure columns of different lengths");
   if (run.mic_count > 0 && (run.mic_positions_m.size() != run.mic_count || run.mic_pa.size() % run.mic_count != 0))
     throw RunDirError(dir.string() + ": microphone data does not match the " + std::to_string(run.mic_count) + " positions");
+  if (const auto& floor = run.pressure_noise_floor_bar; floor && !(*floor >= 0 && std::isfinite(*floor)))
+    throw RunDirError(dir.string() + ": pressure noise floor " + std::to_string(*floor) + " bar, expected a finite value >= 0");
   std::error_code ec;
   std::filesystem::create_directories(dir, ec);
   if (ec) throw RunDirError(dir.string() + ": cannot create directory (" + ec.message() + ")");
 
-  json root;
-  root["condition"] = {{"name", run.condition.name},
-                       {"speed_rpm", run.condition.speed_rpm},
-                       {"load_nm", run.condition.load_nm},
-                       {"soi_deg_btdc", run.condition.soi_deg_btdc},
-                       {"rail_pressure_bar", run.condition.rail_pressure_bar ? json(*run.condition.rail_pressure_bar) : json(nullptr)},
-                       {"motored", run.condition.motored}};
-  root["pressure"] = {{"file", "pressure.csv"}, {"units", pressure_units}};
-  if (run.mic_count > 0) {
-    json positions = json::array();
-    for (const auto& p : run.mic_positions_m) positions.push_back({p[0], p[1], p[2]});
-    root["mics"] = {{"file", "mics.wav"}, {"units", "Pa"}, {"positions_m", positions}, {"radius_m", run.radius_m}};
-    if (run.acoustic_delay_s >= 0) root["mics"]["acoustic_delay_s"] = run.acoustic_delay_s;
-  }
   {
     const auto path = dir / "run.json";
     std::ofstream out(path);
-    out << root.dump(2) << "\n";
+    out << run_json(run, pressure_units).dump(2) << "\n";
     if (!out) throw RunDirError(path.string() + ": cannot write");
   }
   {

@@ -1,7 +1,8 @@
 // The run directory: DESIGN.md's interchange format for recordings from other systems.
 //
-//   run.json      condition (name, speed_rpm, load_nm, soi_deg_btdc, rail_pressure_bar|null, motored),
-//                 pressure {file, units: bar|Pa}, mics {file, units: Pa, positions_m[M][3], radius_m}
+//   run.json      condition (name, speed_rpm, load_nm, soi_deg_btdc, rail_pressure_bar, motored; each may be
+//                 null: unknown), pressure {file, units: bar|Pa, noise_floor_bar}, mics {file, units: Pa,
+//                 positions_m[M][3], radius_m}
 //   pressure.csv  header `time_s,crank_deg,pressure`; one row per encoder sample, crank_deg unwrapped,
 //                 0 = firing TDC of the first cycle (cycle k spans [720k - 360, 720k + 360))
 //   mics.wav      M-channel IEEE-float WAV in Pa; its t = 0 is pressure.csv's time_s = 0
@@ -21,13 +22,17 @@
 
 namespace noisemon::drivers {
 
+// A run's operating point. A value that is unknown or not applicable (null in run.json) is NaN, never a
+// made-up number: a motored run's SOI (no injection), a load that was not recorded, a speed that is to be
+// measured from the encoder (encoder_speed_rpm). Code that needs an unknown value names the run and the key.
 struct RunCondition {
   std::string name;                        // e.g. "idle_mi12"
-  double speed_rpm = 0.0;
-  double load_nm = 0.0;
-  double soi_deg_btdc = 0.0;
+  double speed_rpm = 0.0;                  // NaN: unknown (measured from the encoder where a number is needed)
+  double load_nm = 0.0;                    // NaN: unknown
+  double soi_deg_btdc = 0.0;               // NaN: unknown or not applicable (motored: no injection)
   std::optional<double> rail_pressure_bar; // null in run.json when unknown
-  bool motored = false;
+  bool motored = false;                    // false when unknown (motored_known false): what a message publishes
+  bool motored_known = true;               // false: run.json's "motored" is null; ask before using `motored`
 };
 
 struct RunDir {
@@ -43,6 +48,9 @@ struct RunDir {
   std::vector<std::array<double, 3>> mic_positions_m;
   double radius_m = 1.75;
   double acoustic_delay_s = -1.0;           // engine-to-microphone delay; < 0: radius_m / 343 m/s
+  // The pressure chain's commissioned noise floor, bar rms per encoder sample (run.json
+  // "pressure.noise_floor_bar"); nullopt when absent or null: the diagnosis then estimates it from the data.
+  std::optional<double> pressure_noise_floor_bar;
 };
 
 // The contents of run.json, checked (what parse_run_json returns).
@@ -56,6 +64,7 @@ struct RunManifest {
   double radius_m = 1.75;
   double acoustic_delay_s = -1.0;
   std::optional<double> full_scale_pa;     // PCM WAVs only: the Pa of digital full scale
+  std::optional<double> pressure_noise_floor_bar;  // "pressure.noise_floor_bar" (see RunDir)
 };
 
 struct RunDirError : std::runtime_error {
@@ -76,13 +85,19 @@ void read_mics_wav(const std::filesystem::path& file, std::uint32_t channels, st
 void parse_mics_wav(const std::uint8_t* data, std::size_t size, const std::string& file, std::uint32_t channels,
                     std::optional<double> full_scale_pa, RunDir& run);
 
+// The run's mean speed from its encoder samples: crank angle travelled over the time it took (first to last
+// row), rpm; NaN with fewer than two samples.
+double encoder_speed_rpm(const RunDir& run);
+
 // Encoder steps a crank-angle gap may span (larger gaps are an error; smaller ones are filled by
 // interpolation when the run is resampled to 40 kHz).
 inline constexpr double kMaxCrankGapSteps = 4.0;
-// Largest relative difference between the pressure rows' mean speed and run.json's condition.speed_rpm.
+// Largest relative difference between the pressure rows' mean speed and run.json's condition.speed_rpm (when
+// it is known).
 inline constexpr double kSpeedTolerance = 0.25;
 // Writes DIR/run.json, DIR/pressure.csv (pressure in `pressure_units`, "bar" or "Pa") and, when the run has
-// microphones, DIR/mics.wav (32-bit float). Creates DIR; throws RunDirError naming the file on failure.
+// microphones, DIR/mics.wav (32-bit float). Unknown condition values (NaN, motored_known false) are written as
+// null, pressure.noise_floor_bar only when known. Creates DIR; throws RunDirError naming the file on failure.
 void write_run_dir(const std::filesystem::path& dir, const RunDir& run, const std::string& pressure_units = "bar");
 
 }  // namespace noisemon::drivers

@@ -3,17 +3,25 @@
 #include <cmath>
 #include <algorithm>
 #include <cstdint>
+#include <limits>
 #include <stdexcept>
 
 namespace noisemon::drivers {
+namespace {
+
+// Every unknown value (NaN) as the one positive quiet NaN: printf writes a NaN with its sign bit set (what
+// 0.0 / 0.0 gives on x86) as "-nan", and the CSV files should say "nan" for every unknown alike.
+double unknown_as_nan(double v) { return std::isnan(v) ? std::numeric_limits<double>::quiet_NaN() : v; }
+
+}  // namespace
 
 noisemon::operating_point_t to_message(const OperatingPoint& op) {
   noisemon::operating_point_t m;
   m.utime = op.utime;
-  m.speed_rpm = op.speed_rpm;
-  m.load_nm = op.load_nm;
-  m.soi_deg_btdc = op.soi_deg_btdc;
-  m.rail_pressure_bar = op.rail_pressure_bar;
+  m.speed_rpm = unknown_as_nan(op.speed_rpm);
+  m.load_nm = unknown_as_nan(op.load_nm);
+  m.soi_deg_btdc = unknown_as_nan(op.soi_deg_btdc);
+  m.rail_pressure_bar = unknown_as_nan(op.rail_pressure_bar);
   m.motored = op.motored;
   return m;
 }
@@ -91,10 +99,10 @@ SampleBlock from_message(const noisemon::raw_block_t& m) {
 OperatingPoint from_message(const noisemon::operating_point_t& m) {
   OperatingPoint op;
   op.utime = m.utime;
-  op.speed_rpm = m.speed_rpm;
-  op.load_nm = m.load_nm;
-  op.soi_deg_btdc = m.soi_deg_btdc;
-  op.rail_pressure_bar = m.rail_pressure_bar;
+  op.speed_rpm = unknown_as_nan(m.speed_rpm);
+  op.load_nm = unknown_as_nan(m.load_nm);
+  op.soi_deg_btdc = unknown_as_nan(m.soi_deg_btdc);
+  op.rail_pressure_bar = unknown_as_nan(m.rail_pressure_bar);
   op.motored = m.motored;
   return op;
 }

@@ -35,6 +35,7 @@ bool decode_message(const void* data, std::size_t size, noisemon::operating_poin
 // non-finite samples, a crank angle outside [-360, 360]. from_message() then succeeds on it.
 std::string raw_block_problem(const noisemon::raw_block_t& m, const StreamInfo& info);
 SampleBlock from_message(const noisemon::raw_block_t& m);
+// Operating points: an unknown value is NaN both ways (always the positive quiet NaN, so text says "nan").
 OperatingPoint from_message(const noisemon::operating_point_t& m);
 
 }  // namespace noisemon::drivers

@@ -16,6 +16,7 @@
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <iterator>
 #include <lcm/lcm-cpp.hpp>
 #include <algorithm>
 #include <map>
@@ -23,6 +24,7 @@
 #include <random>
 #include <sstream>
 
+#include "daemon/band_data.hpp"
 #include "daemon/import_export.hpp"
 #include "daemon/replay.hpp"
 #include "drivers/cycle_table.hpp"
@@ -491,4 +493,214 @@ TEST(ImportExport, MicsSynthesizerHookFillsAPressureOnlyImport) {
   ASSERT_EQ(recs.size(), 1u);
   EXPECT_EQ(recs[0].info.mic_count, 1u);
   EXPECT_EQ(recs[0].mics_pa.size(), recs[0].frames());
+}
+
+// ------------------------------------------------------------------------------------ run directories with nulls
+
+namespace {
+
+constexpr double kForeignRpm = 1800.0;
+
+// A pressure-only run directory as another program writes it: a 1 deg encoder at 1800 rpm with a 0.5 % speed
+// ripple once per cycle, a firing peak at every TDC, 1.2 s (18 cycles); `condition` is the condition object's
+// keys after the name, `pressure_extra` more keys of the pressure object.
+fs::path foreign_run(const std::string& name, const std::string& condition, const std::string& pressure_extra = "") {
+  const fs::path dir = temp(name);
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  std::ofstream(dir / "run.json") << R"({"condition": {"name": ")" << name << "\", " << condition << R"(},
+      "pressure": {"file": "pressure.csv", "units": "bar")" << pressure_extra << "}}";
+  std::ofstream csv(dir / "pressure.csv");
+  csv << "time_s,crank_deg,pressure\n";
+  const double omega = 6.0 * kForeignRpm, ripple = 0.005 * 720.0 / omega / (2 * kPi);
+  char row[96];
+  for (int k = 0; k <= 18 * 720; ++k) {
+    const double theta = -360.0 + k, c = theta - 720.0 * std::round(theta / 720.0);
+    const double t = k / omega + ripple * std::sin(2 * kPi * k / 720.0);
+    std::snprintf(row, sizeof row, "%.9f,%.1f,%.6f\n", t, theta, 1.0 + 50.0 * std::exp(-0.5 * c * c / 400.0));
+    csv << row;
+  }
+  return dir;
+}
+
+daemon::ImportSummary import_dir(const fs::path& dir, const fs::path& log) {
+  daemon::ImportOptions i;
+  i.run_dirs = {dir.string()};
+  i.out_log = log.string();
+  i.epoch_utime = kEpoch;
+  i.progress = false;
+  return daemon::run_import(i);
+}
+
+std::string all_notes(const daemon::ImportSummary& s) {
+  std::string out;
+  for (const std::string& n : s.notes) out += n + "\n";
+  return out;
+}
+
+std::string read_text(const fs::path& p) {
+  std::ifstream in(p);
+  return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
+}
+
+// Field `column` of every data row of a replay CSV.
+std::vector<std::string> csv_column(const fs::path& csv, std::size_t column) {
+  std::vector<std::string> out;
+  std::ifstream in(csv);
+  std::string line;
+  std::getline(in, line);
+  while (std::getline(in, line)) {
+    std::istringstream row(line);
+    std::string field;
+    for (std::size_t c = 0; c <= column; ++c) std::getline(row, field, ',');
+    out.push_back(field);
+  }
+  return out;
+}
+
+}  // namespace
+
+TEST(ImportNulls, MotoredRunWithNullSoiImportsAndReplaysWithTheSoiUnknown) {
+  const fs::path dir = foreign_run("motored_soi_null", R"("speed_rpm": 1800, "load_nm": 0, "soi_deg_btdc": null,
+                                                           "rail_pressure_bar": null, "motored": true)");
+  const fs::path log = temp("motored_soi_null.lcmlog"), csv = temp("motored_soi_null.csv");
+  const daemon::ImportSummary sum = import_dir(dir, log);
+  EXPECT_NE(all_notes(sum).find("SOI n/a"), std::string::npos) << all_notes(sum);
+  const auto reports = replay(log, csv.string());
+  ASSERT_GE(reports.size(), 15u);
+  for (const auto& r : reports) {
+    EXPECT_TRUE(std::isnan(r.soi_deg_btdc)) << "cycle " << r.cycle;
+    EXPECT_EQ(r.load_nm, 0.0);
+    EXPECT_TRUE(r.motored);
+    EXPECT_TRUE(std::isnan(r.rail_pressure_bar));
+  }
+  for (const std::string& f : csv_column(csv, 4)) EXPECT_EQ(f, "nan");  // soi_deg_btdc
+  for (const std::string& f : csv_column(csv, 3)) EXPECT_EQ(f, "0.000");
+}
+
+TEST(ImportNulls, NullLoadAndRailTravelAsUnknownTheRestAsGiven) {
+  const fs::path dir = foreign_run("load_null", R"("speed_rpm": 1800, "load_nm": null, "soi_deg_btdc": 12.5,
+                                                    "rail_pressure_bar": null, "motored": false)");
+  const fs::path log = temp("load_null.lcmlog"), csv = temp("load_null.csv");
+  const daemon::ImportSummary sum = import_dir(dir, log);
+  EXPECT_NE(all_notes(sum).find("load n/a"), std::string::npos) << all_notes(sum);
+  EXPECT_NE(all_notes(sum).find("rail pressure n/a"), std::string::npos) << all_notes(sum);
+  const auto reports = replay(log, csv.string());
+  ASSERT_GE(reports.size(), 15u);
+  for (const auto& r : reports) {
+    EXPECT_TRUE(std::isnan(r.load_nm)) << "cycle " << r.cycle;
+    EXPECT_TRUE(std::isnan(r.rail_pressure_bar));
+    EXPECT_EQ(r.soi_deg_btdc, 12.5);
+    EXPECT_FALSE(r.motored);
+  }
+  for (const std::string& f : csv_column(csv, 3)) EXPECT_EQ(f, "nan");  // load_nm
+  for (const std::string& f : csv_column(csv, 4)) EXPECT_EQ(f, "12.500");
+}
+
+TEST(ImportNulls, NullSpeedIsMeasuredFromTheEncoderAndSaidSo) {
+  const fs::path dir = foreign_run("speed_null", R"("speed_rpm": null, "load_nm": 5, "soi_deg_btdc": 10, "motored": false)");
+  const fs::path log = temp("speed_null.lcmlog");
+  const daemon::ImportSummary sum = import_dir(dir, log);
+  EXPECT_NE(all_notes(sum).find("measured from the encoder"), std::string::npos) << all_notes(sum);
+  const auto recs = drivers::read_recordings_log(log);
+  ASSERT_EQ(recs.size(), 1u);
+  ASSERT_EQ(recs[0].operating_points.size(), 1u);
+  const double rpm = recs[0].operating_points[0].speed_rpm;
+  std::printf("null speed_rpm: %.3f rpm measured from the encoder (true %.1f)\n", rpm, kForeignRpm);
+  EXPECT_NEAR(rpm, kForeignRpm, 0.005 * kForeignRpm);
+  EXPECT_NE(all_notes(sum).find("speed 1800"), std::string::npos) << all_notes(sum);
+  EXPECT_GE(replay(log).size(), 15u);
+}
+
+TEST(ImportNulls, NullMotoredImportsButTheDiagnosisLoaderRefusesTheRun) {
+  const fs::path dir = foreign_run("motored_null", R"("speed_rpm": 1800, "load_nm": 0, "soi_deg_btdc": 12, "motored": null)");
+  const fs::path log = temp("motored_null.lcmlog");
+  const daemon::ImportSummary sum = import_dir(dir, log);
+  EXPECT_NE(all_notes(sum).find("motored n/a"), std::string::npos) << all_notes(sum);
+  EXPECT_NE(all_notes(sum).find("condition.motored is null: published as false"), std::string::npos) << all_notes(sum);
+  const auto reports = replay(log);
+  ASSERT_GE(reports.size(), 15u);
+  EXPECT_FALSE(reports[0].motored);
+  try {
+    daemon::load_recordings({dir.string()});
+    ADD_FAILURE() << "the diagnosis loader took a run whose motored is unknown";
+  } catch (const std::runtime_error& e) {
+    const std::string what = e.what();
+    EXPECT_NE(what.find(dir.string()), std::string::npos) << what;
+    EXPECT_NE(what.find("condition.motored"), std::string::npos) << what;
+  }
+  // A missing key is still an error naming it and the file.
+  std::ofstream(dir / "run.json") << R"({"condition": {"name": "x", "speed_rpm": 1800, "load_nm": 0, "soi_deg_btdc": 12},
+      "pressure": {"file": "pressure.csv", "units": "bar"}})";
+  try {
+    import_dir(dir, temp("motored_missing.lcmlog"));
+    ADD_FAILURE() << "no error";
+  } catch (const drivers::RunDirError& e) {
+    EXPECT_NE(std::string(e.what()).find((dir / "run.json").string() + ": missing key \"condition.motored\""), std::string::npos)
+        << e.what();
+  }
+}
+
+TEST(ImportNulls, TheDiagnosisLoaderPassesUnknownSoiAndLoadAndTheNoiseFloor) {
+  const fs::path dir = foreign_run("loader_nulls", R"("speed_rpm": null, "load_nm": null, "soi_deg_btdc": null, "motored": true)",
+                                   R"(, "noise_floor_bar": 0.0025)");
+  const std::vector<daemon::LoadedRecording> recs = daemon::load_recordings({dir.string()});
+  ASSERT_EQ(recs.size(), 1u);
+  const model::ConditionInfo info = daemon::condition_info(recs[0]);
+  EXPECT_EQ(info.name, "loader_nulls");
+  EXPECT_TRUE(std::isnan(info.soi_deg_btdc));
+  EXPECT_TRUE(std::isnan(info.load_nm));
+  EXPECT_TRUE(info.motored);
+  EXPECT_NEAR(info.speed_rpm, kForeignRpm, 0.005 * kForeignRpm);  // measured from the encoder
+  EXPECT_NEAR(info.pressure_floor_pa, 250.0, 1e-9);                // 0.0025 bar
+  EXPECT_NEAR(info.encoder_rate_hz, 6.0 * kForeignRpm, 0.005 * 6.0 * kForeignRpm);  // 1 deg steps
+  // A raw LCM log knows no floor and no encoder.
+  const fs::path log = temp("loader_nulls.lcmlog");
+  import_dir(dir, log);
+  const std::vector<daemon::LoadedRecording> from_log = daemon::load_recordings({log.string()});
+  ASSERT_EQ(from_log.size(), 1u);
+  const model::ConditionInfo log_info = daemon::condition_info(from_log[0]);
+  EXPECT_TRUE(std::isnan(log_info.pressure_floor_pa));
+  EXPECT_TRUE(std::isnan(log_info.encoder_rate_hz));
+  EXPECT_TRUE(std::isnan(log_info.soi_deg_btdc));
+}
+
+TEST(ImportNulls, ImportThenExportKeepsNullsAsNull) {
+  const fs::path dir = foreign_run("export_nulls", R"("speed_rpm": 1800, "load_nm": null, "soi_deg_btdc": null,
+                                                       "rail_pressure_bar": null, "motored": true)");
+  const fs::path log = temp("export_nulls.lcmlog"), out = temp("export_nulls_out");
+  import_dir(dir, log);
+  fs::remove_all(out);
+  daemon::ExportOptions e;
+  e.log = log.string();
+  e.out_dir = out.string();
+  e.progress = false;
+  daemon::run_export(e);
+  const std::string text = read_text(out / "run.json");
+  for (const char* key : {"load_nm", "soi_deg_btdc", "rail_pressure_bar"})
+    EXPECT_NE(text.find("\"" + std::string(key) + "\": null"), std::string::npos) << key << " in " << text;
+  EXPECT_NE(text.find("\"motored\": true"), std::string::npos) << text;
+  const drivers::RunDir back = drivers::read_run_dir(out);
+  EXPECT_TRUE(std::isnan(back.condition.load_nm));
+  EXPECT_TRUE(std::isnan(back.condition.soi_deg_btdc));
+  EXPECT_FALSE(back.condition.rail_pressure_bar.has_value());
+  EXPECT_EQ(back.condition.speed_rpm, kForeignRpm);
+}
+
+TEST(ImportNulls, MicsSimNamesTheRunAndTheKeyItLacks) {
+  const fs::path dir = foreign_run("mics_sim_soi_null", R"("speed_rpm": 1800, "load_nm": 0, "soi_deg_btdc": null, "motored": true)");
+  daemon::ImportOptions i;
+  i.run_dirs = {dir.string()};
+  i.out_log = temp("mics_sim_soi_null.lcmlog").string();
+  i.progress = false;
+  i.synthesize_mics = daemon::mic_synthesizer("sim");
+  try {
+    daemon::run_import(i);
+    ADD_FAILURE() << "no error";
+  } catch (const std::runtime_error& e) {
+    const std::string what = e.what();
+    EXPECT_NE(what.find(dir.string()), std::string::npos) << what;
+    EXPECT_NE(what.find("condition.soi_deg_btdc"), std::string::npos) << what;
+  }
+  EXPECT_FALSE(fs::exists(i.out_log));
 }

@@ -6,12 +6,14 @@
 #include <cmath>
 #include <fstream>
 #include <lcm/lcm-cpp.hpp>
+#include <limits>
 #include <numbers>
 #include <sstream>
 #include <vector>
 
 #include "daemon/replay.hpp"
 #include "daemon/report_messages.hpp"
+#include "daemon/watch.hpp"
 #include "noisemon/cycle_report_t.hpp"
 #include "tests/drivers/unique_temp.hpp"
 
@@ -79,11 +81,13 @@ namespace {
 // and one foreign event after the session.
 constexpr int kCycle = 1000, kTotal = 40 * kCycle;
 
-void write_mixed_log(const std::string& path) {
+// op: an operating point written after the session (none when not given).
+void write_mixed_log(const std::string& path, const drivers::OperatingPoint* op = nullptr) {
   const int cycle = kCycle, total = kTotal;
   {
     lcm::LogFile log(path, "w");
     write(log, "NOISEMON_SESSION", daemon::to_message(info(), "test", 0), 0);
+    if (op) write(log, "NOISEMON_OP", daemon::to_message(*op), 0);
     std::vector<char> junk(300, 'x');
     lcm::LogEvent bad{0, 1, "NOISEMON_RAW", static_cast<std::int32_t>(junk.size()), junk.data()};
     log.writeEvent(&bad);
@@ -170,4 +174,92 @@ TEST(Replay, SameLogTwiceGivesIdenticalReports) {
     reports[1][i].encode(b.data(), 0, static_cast<int>(b.size()));
     EXPECT_EQ(a, b) << "cycle " << i;
   }
+}
+
+namespace {
+
+// The CSV's field `column` (0-based) of every data row.
+std::vector<std::string> csv_column(const std::string& csv, std::size_t column) {
+  std::vector<std::string> out;
+  std::istringstream in(csv);
+  std::string line;
+  std::getline(in, line);  // header
+  while (std::getline(in, line)) {
+    std::istringstream row(line);
+    std::string field;
+    for (std::size_t c = 0; c <= column; ++c) std::getline(row, field, ',');
+    out.push_back(field);
+  }
+  return out;
+}
+
+}  // namespace
+
+TEST(Replay, UnknownLoadAndSoiAreNaNInTheReportsNanInTheCsvAndNaOnTheWatchLines) {
+  // A motored run whose SOI does not apply and whose load was not recorded (null in its run.json).
+  const std::string dir = noisemon::test::unique_temp_dir();
+  drivers::OperatingPoint op;
+  op.utime = 0;
+  op.speed_rpm = 4800;
+  op.load_nm = std::numeric_limits<double>::quiet_NaN();
+  op.soi_deg_btdc = -std::numeric_limits<double>::quiet_NaN();  // sign bit set: still printed "nan"
+  op.rail_pressure_bar = std::numeric_limits<double>::quiet_NaN();
+  op.motored = true;
+  write_mixed_log(dir + "/unknowns.lcmlog", &op);
+  daemon::ReplayOptions o;
+  o.log_path = dir + "/unknowns.lcmlog";
+  o.progress = false;
+  o.out_log = dir + "/unknowns_reports.lcmlog";
+  o.csv_path = dir + "/unknowns.csv";
+  ASSERT_EQ(daemon::run_replay(o).reports, 38);
+  int reports = 0;
+  {
+    lcm::LogFile f(o.out_log, "r");
+    while (const lcm::LogEvent* e = f.readNextEvent()) {
+      noisemon::cycle_report_t m;
+      ASSERT_EQ(m.decode(e->data, 0, e->datalen), e->datalen);
+      EXPECT_TRUE(std::isnan(m.load_nm));
+      EXPECT_TRUE(std::isnan(m.soi_deg_btdc));
+      EXPECT_TRUE(m.motored);
+      EXPECT_NEAR(m.speed_rpm, 4800.0, 1e-9);  // measured from the cycle: 720 deg in 1000 frames at 40 kHz
+      ++reports;
+    }
+  }
+  EXPECT_EQ(reports, 38);
+  const std::string csv = read_bytes(o.csv_path);
+  for (std::size_t column : {3, 4}) {  // load_nm, soi_deg_btdc
+    const std::vector<std::string> fields = csv_column(csv, column);
+    ASSERT_EQ(fields.size(), 38u);
+    for (const std::string& f : fields) EXPECT_EQ(f, "nan") << "column " << column;
+  }
+
+  // noisemon watch reading the reports (LCM's file provider plays the replay's output log as the network).
+  daemon::WatchOptions w;
+  w.lcm_url = "file://" + o.out_log + "?speed=0";
+  w.channel = o.config.lcm.report_channel;
+  w.count = 38;
+  w.timeout_s = 10;
+  w.csv_path = dir + "/watch.csv";
+  testing::internal::CaptureStdout();
+  const int status = daemon::run_watch(w);
+  const std::string printed = testing::internal::GetCapturedStdout();
+  ASSERT_EQ(status, 0) << printed;
+  std::istringstream lines(printed);
+  std::string line;
+  int cycle_lines = 0;
+  while (std::getline(lines, line)) {
+    if (line.find("settling") == std::string::npos && line.find("ok") == std::string::npos) continue;  // headers
+    ++cycle_lines;
+    EXPECT_EQ(line.find("nan"), std::string::npos) << line;
+    // cycle, speed, then the SOI column: n/a.
+    std::istringstream fields(line);
+    std::string cycle, speed, soi;
+    fields >> cycle >> speed >> soi;
+    EXPECT_EQ(speed, "4800.0") << line;
+    EXPECT_EQ(soi, "n/a") << line;
+  }
+  EXPECT_EQ(cycle_lines, 38) << printed;
+  const std::string watch_csv = read_bytes(w.csv_path);
+  EXPECT_EQ(csv_column(watch_csv, 4), csv_column(csv, 4));  // the same "nan" as replay's CSV
+  EXPECT_EQ(csv_column(watch_csv, 3), csv_column(csv, 3));
 }

@@ -17,7 +17,9 @@
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <iterator>
 #include <lcm/lcm-cpp.hpp>
+#include <limits>
 #include <numbers>
 
 #include "drivers/lcm_log_reader.hpp"
@@ -289,6 +291,93 @@ TEST(Recording, PressureAndMicsThatDoNotOverlapAreAnError) {
   } catch (const RunDirError& e) {
     EXPECT_NE(std::string(e.what()).find("do not overlap in time"), std::string::npos) << e.what();
   }
+}
+
+TEST(RecordingUnknowns, ANullSpeedIsMeasuredFromTheEncoder) {
+  RunDir run = analytic_run(0.5);  // 2000 rpm with a 1 % ripple once per cycle
+  run.condition.speed_rpm = std::nan("");
+  const Recording rec = to_recording(run, 0);
+  ASSERT_EQ(rec.operating_points.size(), 1u);
+  const double rpm = rec.operating_points[0].speed_rpm;
+  std::printf("speed from the encoder: %.4f rpm (true mean 2000)\n", rpm);
+  EXPECT_NEAR(rpm, 2000.0, 0.005 * 2000.0);
+  EXPECT_NEAR(encoder_speed_rpm(run), rpm, 1e-9);
+}
+
+namespace {
+
+// 2.5 s at 40 kHz (the writer repeats the operating point every second) with the given point.
+Recording long_recording(const OperatingPoint& op) {
+  Recording r = small_recording("unknowns", 5'000'000);
+  r.pressure_pa.clear();
+  r.crank_deg.clear();
+  r.mics_pa.clear();
+  for (int i = 0; i < 100000; ++i) {
+    r.pressure_pa.push_back(1e5 + 1e3 * std::sin(0.01 * i));
+    r.crank_deg.push_back(wrap(-100.0 + 0.45 * i));
+    r.mics_pa.push_back(0.1 * std::cos(0.02 * i));
+  }
+  r.operating_points = {op};
+  return r;
+}
+
+std::string read_text(const fs::path& p) {
+  std::ifstream in(p);
+  return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
+}
+
+}  // namespace
+
+TEST(RecordingUnknowns, UnknownValuesTravelAsNaNThroughTheLogAndAreWrittenAsNull) {
+  RunDir run = analytic_run(0.2);
+  run.condition = {"nulls", 2000.0, std::nan(""), std::nan(""), std::nullopt, false, false};
+  const Recording rec = to_recording(run, 5'000'000);
+  ASSERT_EQ(rec.operating_points.size(), 1u);
+  OperatingPoint op = rec.operating_points[0];
+  EXPECT_TRUE(std::isnan(op.load_nm));
+  EXPECT_TRUE(std::isnan(op.soi_deg_btdc));
+  EXPECT_TRUE(std::isnan(op.rail_pressure_bar));
+  EXPECT_FALSE(op.motored);  // unknown: the boolean message says false
+  // Through a log where the point is repeated every second: NaN is not "a new value" at each repeat.
+  op.speed_rpm = 3000.0;  // the long recording's crank speed
+  op.soi_deg_btdc = -std::numeric_limits<double>::quiet_NaN();  // sign bit set, as 0.0 / 0.0 gives on x86
+  const fs::path log = temp("unknowns.lcmlog");
+  write_recordings_log(log, {long_recording(op)});
+  const std::vector<Recording> back = read_recordings_log(log);
+  ASSERT_EQ(back.size(), 1u);
+  ASSERT_EQ(back[0].operating_points.size(), 1u);
+  const OperatingPoint& b = back[0].operating_points[0];
+  EXPECT_EQ(b.speed_rpm, 3000.0);
+  EXPECT_TRUE(std::isnan(b.load_nm));
+  EXPECT_TRUE(std::isnan(b.soi_deg_btdc));
+  EXPECT_FALSE(std::signbit(b.soi_deg_btdc));  // one NaN for every unknown: printed "nan", never "-nan"
+  EXPECT_TRUE(std::isnan(b.rail_pressure_bar));
+  // Out as a run directory: null, not 0, and unknown again when read.
+  const fs::path dir = temp("unknowns_dir");
+  fs::remove_all(dir);
+  write_run_dir(dir, to_run_dir(back[0]));
+  const std::string text = read_text(dir / "run.json");
+  for (const char* key : {"load_nm", "soi_deg_btdc", "rail_pressure_bar"})
+    EXPECT_NE(text.find("\"" + std::string(key) + "\": null"), std::string::npos) << key << " in " << text;
+  const RunDir again = read_run_dir(dir);
+  EXPECT_TRUE(std::isnan(again.condition.load_nm));
+  EXPECT_TRUE(std::isnan(again.condition.soi_deg_btdc));
+  EXPECT_EQ(again.condition.speed_rpm, 3000.0);
+}
+
+TEST(RecordingUnknowns, ALogWithoutOperatingPointsHasAMeasuredSpeedAndNothingMadeUp) {
+  Recording rec = long_recording({});
+  rec.operating_points.clear();
+  const fs::path log = temp("no_op.lcmlog");
+  write_recordings_log(log, {rec});
+  const std::vector<Recording> back = read_recordings_log(log);
+  ASSERT_EQ(back.size(), 1u);
+  ASSERT_EQ(back[0].operating_points.size(), 1u);
+  const OperatingPoint& op = back[0].operating_points[0];
+  EXPECT_NEAR(op.speed_rpm, 0.45 * 40000.0 / 6.0, 1e-6);  // 0.45 deg per 40 kHz frame
+  EXPECT_TRUE(std::isnan(op.load_nm));
+  EXPECT_TRUE(std::isnan(op.soi_deg_btdc));
+  EXPECT_TRUE(std::isnan(op.rail_pressure_bar));
 }
 
 TEST(LcmLogReader, ReadsWhatLcmsOwnReaderReads) {

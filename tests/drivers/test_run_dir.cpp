@@ -6,6 +6,7 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <iterator>
 #include <numbers>
 #include <string>
 
@@ -169,6 +170,126 @@ TEST(RunDir, WriteThenReadGivesTheSameNumbers) {
   }
 }
 
+namespace {
+
+// run.json for the valid pressure.csv with the given condition (its other keys as kJson's) and pressure entry.
+std::string run_json_with(const std::string& condition, const std::string& pressure_extra = "") {
+  return R"({"condition": {"name": "other_program", )" + condition + R"(},
+             "pressure": {"file": "pressure.csv", "units": "bar")" + pressure_extra + "}}";
+}
+
+}  // namespace
+
+TEST(RunDirNulls, NullIsAcceptedForEveryConditionValueAndReadsAsUnknown) {
+  const fs::path d = valid_run("nulls");
+  write_text(d / "run.json", run_json_with(R"("speed_rpm": null, "load_nm": null, "soi_deg_btdc": null,
+                                              "rail_pressure_bar": null, "motored": null)"));
+  const RunDir run = read_run_dir(d);
+  EXPECT_TRUE(std::isnan(run.condition.speed_rpm));
+  EXPECT_TRUE(std::isnan(run.condition.load_nm));
+  EXPECT_TRUE(std::isnan(run.condition.soi_deg_btdc));
+  EXPECT_FALSE(run.condition.rail_pressure_bar.has_value());
+  EXPECT_FALSE(run.condition.motored_known);
+  EXPECT_FALSE(run.condition.motored);  // what a boolean message publishes
+  EXPECT_EQ(run.time_s.size(), 200u);   // the rows are read as always
+  // The speed, unknown, is the encoder's: 0.5 deg per 1/36000 s = 3000 rpm.
+  EXPECT_NEAR(encoder_speed_rpm(run), 3000.0, 0.01);
+}
+
+TEST(RunDirNulls, AMotoredRunWithoutSoiKeepsEverythingElse) {
+  const fs::path d = valid_run("motored_soi_null");
+  write_text(d / "run.json", run_json_with(R"("speed_rpm": 3050, "load_nm": 0, "soi_deg_btdc": null, "motored": true)"));
+  const RunDir run = read_run_dir(d);
+  EXPECT_EQ(run.condition.speed_rpm, 3050);
+  EXPECT_EQ(run.condition.load_nm, 0);
+  EXPECT_TRUE(std::isnan(run.condition.soi_deg_btdc));
+  EXPECT_TRUE(run.condition.motored_known);
+  EXPECT_TRUE(run.condition.motored);
+}
+
+TEST(RunDirNulls, ANullSpeedIsNotCheckedAgainstTheRowsButAKnownOneStillIs) {
+  // time_s in ms: 3 rpm. Declared 3050 rpm: refused (the units are wrong); declared null: the rows' speed is
+  // the run's, whatever it is (nothing to compare with).
+  const fs::path d = valid_run("speed_null");
+  std::string ms = "time_s,crank_deg,pressure\n";
+  for (int i = 0; i < 200; ++i) ms += std::to_string(1000.0 * (0.5 * i / 18000.0)) + "," + std::to_string(-360.0 + 0.5 * i) + ",1\n";
+  write_text(d / "pressure.csv", ms);
+  write_text(d / "run.json", run_json_with(R"("speed_rpm": 3050, "load_nm": 0, "soi_deg_btdc": 12, "motored": false)"));
+  EXPECT_HAS(error_of(d), "condition.speed_rpm is 3050");
+  write_text(d / "run.json", run_json_with(R"("speed_rpm": null, "load_nm": 0, "soi_deg_btdc": 12, "motored": false)"));
+  EXPECT_EQ(error_of(d), "(no error)");
+  EXPECT_NEAR(encoder_speed_rpm(read_run_dir(d)), 3.0, 0.01);
+}
+
+TEST(RunDirNulls, AMissingKeyIsStillAnErrorNamingTheKeyAndTheFile) {
+  const fs::path d = valid_run("nulls_missing");
+  for (const char* key : {"speed_rpm", "load_nm", "soi_deg_btdc", "motored"}) {
+    std::string condition;
+    for (const char* k : {"speed_rpm", "load_nm", "soi_deg_btdc", "motored"})
+      if (std::string(k) != key) condition += std::string(condition.empty() ? "" : ", ") + "\"" + k + "\": null";
+    write_text(d / "run.json", run_json_with(condition));
+    EXPECT_HAS(error_of(d), (d / "run.json").string() + ": missing key \"condition." + key + "\"");
+  }
+}
+
+TEST(RunDirNulls, UnknownValuesAreWrittenAsNullAndReadBackUnknown) {
+  const fs::path src = valid_run("nulls_write_src");
+  RunDir run = read_run_dir(src);
+  run.condition = {"written", std::nan(""), std::nan(""), std::nan(""), std::nullopt, false, false};
+  const fs::path d = fresh_dir("nulls_write");
+  write_run_dir(d, run);
+  std::ifstream in(d / "run.json");
+  const std::string text{std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
+  for (const char* key : {"speed_rpm", "load_nm", "soi_deg_btdc", "rail_pressure_bar", "motored"})
+    EXPECT_HAS(text, "\"" + std::string(key) + "\": null");
+  const RunDir back = read_run_dir(d);
+  EXPECT_TRUE(std::isnan(back.condition.speed_rpm));
+  EXPECT_TRUE(std::isnan(back.condition.load_nm));
+  EXPECT_TRUE(std::isnan(back.condition.soi_deg_btdc));
+  EXPECT_FALSE(back.condition.motored_known);
+}
+
+TEST(RunDirNoiseFloor, RoundTripsThroughWriteAndRead) {
+  const fs::path src = valid_run("floor_src");
+  RunDir run = read_run_dir(src);
+  EXPECT_FALSE(run.pressure_noise_floor_bar.has_value());  // kJson has none
+  run.pressure_noise_floor_bar = 0.0123456789;
+  const fs::path d = fresh_dir("floor");
+  write_run_dir(d, run);
+  EXPECT_EQ(read_run_dir(d).pressure_noise_floor_bar.value_or(-1), 0.0123456789);
+  run.pressure_noise_floor_bar = 0.0;  // a perfect chain is a known floor, not an unknown one
+  write_run_dir(d, run);
+  EXPECT_EQ(read_run_dir(d).pressure_noise_floor_bar.value_or(-1), 0.0);
+  run.pressure_noise_floor_bar.reset();  // unknown: not written at all
+  write_run_dir(d, run);
+  std::ifstream in(d / "run.json");
+  const std::string text{std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
+  EXPECT_EQ(text.find("noise_floor_bar"), std::string::npos) << text;
+  EXPECT_FALSE(read_run_dir(d).pressure_noise_floor_bar.has_value());
+  run.pressure_noise_floor_bar = -1e-3;
+  try {
+    write_run_dir(fresh_dir("floor_negative"), run);
+    ADD_FAILURE() << "a negative floor was written";
+  } catch (const RunDirError& e) {
+    EXPECT_HAS(std::string(e.what()), "noise floor");
+  }
+}
+
+TEST(RunDirNoiseFloor, NullAndAbsentAreUnknownBadValuesNameTheKey) {
+  const std::string condition = R"("speed_rpm": 3000, "load_nm": 0, "soi_deg_btdc": 12, "motored": false)";
+  EXPECT_FALSE(parse_run_json(run_json_with(condition), "r.json").pressure_noise_floor_bar.has_value());
+  EXPECT_FALSE(parse_run_json(run_json_with(condition, R"(, "noise_floor_bar": null)"), "r.json").pressure_noise_floor_bar.has_value());
+  EXPECT_EQ(parse_run_json(run_json_with(condition, R"(, "noise_floor_bar": 0.002)"), "r.json").pressure_noise_floor_bar.value_or(-1), 0.002);
+  EXPECT_HAS(json_error(run_json_with(condition, R"(, "noise_floor_bar": -0.002)")),
+             "r.json: key \"pressure.noise_floor_bar\": expected a noise floor >= 0 bar rms per encoder sample, or null");
+  EXPECT_HAS(json_error(run_json_with(condition, R"(, "noise_floor_bar": "2 mbar")")),
+             "r.json: key \"pressure.noise_floor_bar\": expected a number");
+  // Through read_run_dir: the run directory's file is named.
+  const fs::path d = valid_run("floor_bad");
+  write_text(d / "run.json", run_json_with(condition, R"(, "noise_floor_bar": -1)"));
+  EXPECT_HAS(error_of(d), (d / "run.json").string() + ": key \"pressure.noise_floor_bar\"");
+}
+
 // ---------------------------------------------------------------------------------------------- pressure.csv
 
 TEST(RunDirBadInput, CsvWithoutHeaderNamesFileLineAndTheExpectedHeader) {
@@ -298,9 +419,13 @@ TEST(RunDirBadInput, RunJsonMissingKeysNameKeyAndFile) {
 TEST(RunDirBadInput, RunJsonWrongTypesNameKeyAndExpectedType) {
   const std::string base = R"("pressure": {"file": "p.csv", "units": "bar"})";
   EXPECT_HAS(json_error(R"({"condition": {"name": "x", "speed_rpm": "fast", "load_nm": 0, "soi_deg_btdc": 0, "motored": false}, )" + base + "}"),
-             "r.json: key \"condition.speed_rpm\": expected a number (engine speed, rpm), found a string");
+             "r.json: key \"condition.speed_rpm\": expected a number or null (engine speed, rpm), found a string");
   EXPECT_HAS(json_error(R"({"condition": {"name": "x", "speed_rpm": 1, "load_nm": 0, "soi_deg_btdc": 0, "motored": "no"}, )" + base + "}"),
-             "key \"condition.motored\": expected true or false");
+             "key \"condition.motored\": expected true, false or null");
+  EXPECT_HAS(json_error(R"({"condition": {"name": "x", "speed_rpm": 1, "load_nm": 0, "soi_deg_btdc": "n/a", "motored": true}, )" + base + "}"),
+             "r.json: key \"condition.soi_deg_btdc\": expected a number or null (start of injection");
+  EXPECT_HAS(json_error(R"({"condition": {"name": "x", "speed_rpm": 1, "load_nm": [], "soi_deg_btdc": 0, "motored": true}, )" + base + "}"),
+             "r.json: key \"condition.load_nm\": expected a number or null (brake torque, N m), found an array");
   EXPECT_HAS(json_error(R"({"condition": {"name": 7, "speed_rpm": 1, "load_nm": 0, "soi_deg_btdc": 0, "motored": false}, )" + base + "}"),
              "key \"condition.name\": expected a string");
   EXPECT_HAS(json_error(R"({"condition": [], )" + base + "}"), "key \"condition\": expected an object, found an array");

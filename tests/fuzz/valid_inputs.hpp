@@ -71,11 +71,12 @@ inline void write_raw_log(const std::string& path, std::uint32_t mics, int cycle
 }
 
 // A run directory that belongs together: 1.5 engine cycles (60 ms) at 3000 rpm, pressure in bar every 6 crank
-// degrees, one microphone covering the same 60 ms.
+// degrees, one microphone covering the same 60 ms. Written as other programs write a motored run: null for
+// what is unknown or does not apply (load not recorded, no injection), and the pressure chain's noise floor.
 inline std::string run_json() {
-  return R"({"condition": {"name": "fuzz_seed", "speed_rpm": 3000, "load_nm": 10, "soi_deg_btdc": 12,
-               "rail_pressure_bar": null, "motored": false},
- "pressure": {"file": "pressure.csv", "units": "bar"},
+  return R"({"condition": {"name": "fuzz_seed", "speed_rpm": 3000, "load_nm": null, "soi_deg_btdc": null,
+               "rail_pressure_bar": null, "motored": true},
+ "pressure": {"file": "pressure.csv", "units": "bar", "noise_floor_bar": 0.002},
  "mics": {"file": "mics.wav", "units": "Pa", "positions_m": [[-1.35, 0.78, 0.79]], "radius_m": 1.75}}
 )";
 }
