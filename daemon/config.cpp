@@ -1,6 +1,7 @@
 #include "daemon/config.hpp"
 
 #include <cmath>
+#include <limits>
 #include <fstream>
 #include <set>
 #include <sstream>
@@ -79,6 +80,38 @@ class TableReader {
   std::string path_, origin_;
   std::set<std::string> seen_;
 };
+
+// An ADC resolution key: 0 (no converter) or 4 .. 32 bits.
+void read_adc_bits(TableReader& r, const char* key, int& bits) {
+  std::int64_t v = bits;
+  r.integer(key, v, 0, 32);
+  if (v > 0 && v < 4) r.fail(key, "expected 0 (no ADC) or 4 .. 32 bits");
+  bits = static_cast<int>(v);
+}
+
+// The realistic test cell of [sim]: pressure chain, microphone chain, gas ringing (every key documented in
+// systemd/noisemond.toml; each part has a value that switches it off).
+void read_sim_cell(TableReader& sr, drivers::SimConfig& s) {
+  constexpr double kInf = std::numeric_limits<double>::infinity();
+  auto& p = s.pressure_chain;
+  sr.number("pressure_noise_bar", p.noise_bar, 0, 100);
+  sr.number("pressure_flicker_bar", p.flicker_bar, 0, 100);
+  read_adc_bits(sr, "pressure_adc_bits", p.adc_bits);
+  sr.number("pressure_adc_min_bar", p.adc_min_bar, -1e3, 1e4);
+  sr.number("pressure_adc_max_bar", p.adc_max_bar, -1e3, 1e4);
+  if (p.adc_bits > 0 && !(p.adc_max_bar > p.adc_min_bar)) sr.fail("pressure_adc_max_bar", "must be above pressure_adc_min_bar");
+  auto& m = s.mic_chain;
+  sr.number("mic_self_noise_dba", m.self_noise_dba, -kInf, 120);
+  sr.number("mic_directivity_db", m.directivity_db, 0, 6);
+  read_adc_bits(sr, "mic_adc_bits", m.adc_bits);
+  sr.number("mic_adc_range_pa", m.adc_range_pa, 1e-3, 1e6);
+  // Given in us and ms; divided by the exact powers of ten (the result is the literal's double).
+  double gain_us = -1.0, decay_ms = -1.0;  // -1: not given
+  sr.number("gas_ringing_us", gain_us, 0, 1000);
+  if (gain_us >= 0.0) s.gas_ringing.gain_s = gain_us / 1e6;
+  sr.number("gas_ringing_decay_ms", decay_ms, 0.01, 100);
+  if (decay_ms >= 0.0) s.gas_ringing.decay_s = decay_ms / 1e3;
+}
 
 // [model] or [sim.true_block]: a preset plus optional parameter overrides.
 void read_block(TableReader& r, std::string& preset_name, model::BlockParams& p) {
@@ -366,6 +399,7 @@ Config parse_table(const toml::table& root, const std::string& origin) {
   sr.number("mic_rate_hz", s.mic_rate_hz, 40000, 1e6);
   sr.number("mic_gain_spread_db", s.mic_gain_spread_db, 0, 20);
   sr.number("background_noise_db", s.background_noise_db, -100, 200);
+  read_sim_cell(sr, s);
   std::int64_t seed = static_cast<std::int64_t>(s.seed);
   sr.integer("seed", seed, 0, INT64_MAX);
   s.seed = static_cast<std::uint64_t>(seed);

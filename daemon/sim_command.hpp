@@ -1,6 +1,8 @@
 // `noisemon sim`: run directories from the virtual engine with effects injected into the "true" engine (one
-// per condition, DESIGN.md's interchange format) and DIR/truth.json recording what was injected (for the
-// user's own checking; the diagnosis never reads it).
+// per condition, DESIGN.md's interchange format) and DIR/truth.json recording what was injected and every
+// setting of the virtual test cell (for the user's own checking; the diagnosis never reads it). The test cell is
+// realistic by default (pressure-chain floor and ADC, microphone self-noise, directivity and ADC, gas ringing);
+// each run.json records the configured pressure floor (pressure.noise_floor_bar).
 #pragma once
 
 #include <cstdint>
@@ -21,6 +23,10 @@ struct SimOptions {
   std::uint64_t seed = 1;
   std::string true_model = "linear";        // preset or parameter file (daemon/params_file.hpp)
   double encoder_deg = 0.2;
+  double pressure_floor_bar = 0.02;         // the pressure chain's white floor, bar rms per encoder sample;
+                                            // 0: an ideal pressure chain (no floor, no ADC)
+  bool ideal_cell = false;                  // no chain floors, ADCs, directivity or gas ringing at all
+  bool background_run = false;              // add the engine-off run "background"
   std::string out_dir;
   bool force = false;                       // replace existing run directories
   bool progress = true;                     // on stderr, when it is a terminal
@@ -30,6 +36,9 @@ struct SimSummary {
   std::vector<std::string> run_dirs;        // written, in order
   double generate_s = 0.0;                  // CPU time generating (without writing)
   double write_s = 0.0;
+  std::uint64_t pressure_clipped = 0;       // samples the ADCs clipped, over every run
+  std::uint64_t mic_clipped = 0;
+  std::vector<std::string> warnings;        // one per run that clipped
 };
 
 // Generates and writes every run and DIR/truth.json. Throws std::exception with a message naming the

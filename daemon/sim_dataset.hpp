@@ -23,6 +23,13 @@ struct SimCampaign {
   model::BlockParams true_block = model::preset("linear");
   std::uint64_t seed = 1;                          // per condition: drivers::condition_seed(seed, name)
   std::uint64_t setup_seed = 1;
+  // The engine and test cell of every run: encoder, pressure and microphone chains, gas ringing (realistic by
+  // default; drivers::with_ideal_cell(engine) for an ideal cell). Its operating point, true block, effects and seed
+  // are set per condition from the fields above.
+  drivers::SimConfig engine = drivers::SimRunSpec::default_engine();
+  // Adds an engine-off run named "background" (drivers::simulate_background_run on the time base of motored_idle),
+  // which the diagnosis takes as the irreducible floor of the microphones.
+  bool background_run = false;
   // Applied to each run after the sim, before conversion (a test's own effect outside the library).
   std::function<void(drivers::RunDir&)> modify;
   model::DatasetOptions dataset;

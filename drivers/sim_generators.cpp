@@ -15,7 +15,11 @@ std::int64_t to_index(double t_s, double rate_hz) { return std::llround(t_s * ra
 
 }  // namespace
 
-model::EngineCycleParams engine_params(const SimConfig&) { return model::EngineCycleParams{}; }
+model::EngineCycleParams engine_params(const SimConfig& config) {
+  model::EngineCycleParams p;
+  p.ringing = config.gas_ringing;
+  return p;
+}
 
 model::OperatingCondition operating_condition(const SimConfig& config) {
   // Fuelling saturates at full load: loads above full_load_nm get the full-load fuel.
@@ -49,14 +53,12 @@ double EngineCycleCache::pressure_pa(double theta_deg) {
 PressureGenerator::PressureGenerator(const SimConfig& config, double t_first_s)
     : kin_(crank_kinematics(config)),
       cache_(config),
+      chain_(config.pressure_chain, config.effects, config.seed),
       resampler_(kPipelineRateHz, 1),
       writer_(kPressureStreamChannels),
       resolution_deg_(config.encoder_resolution_deg),
       next_edge_(static_cast<std::int64_t>(std::ceil(kin_.theta_deg(t_first_s - kPreRollS) / config.encoder_resolution_deg))),
-      first_index_(to_index(t_first_s, kPipelineRateHz)),
-      effects_(config.effects),
-      seed_(config.seed),
-      edge_rate_hz_(6.0 * config.speed_rpm / config.encoder_resolution_deg) {
+      first_index_(to_index(t_first_s, kPipelineRateHz)) {
   // Keep each resampler call's output well inside its room, even for slow engines and coarse encoders.
   const double frames_per_edge =
       kPipelineRateHz * resolution_deg_ / (6.0 * config.speed_rpm * (1.0 - config.speed_fluctuation));
@@ -78,7 +80,7 @@ void PressureGenerator::advance(double t_end_s, BlockRing& ring) {
       ++next_edge_;
     }
     if (n == 0) break;
-    model::add_transducer_noise(effects_, edge_rate_hz_, seed_, next_edge_ - static_cast<std::int64_t>(n), x_.data(), n);
+    chain_.measure(next_edge_ - static_cast<std::int64_t>(n), x_.data(), n);
     std::int64_t k = resampler_.next_output_index();
     const std::size_t frames = resampler_.process(t_.data(), x_.data(), n, out_.data(), out_.size());
     for (std::size_t f = 0; f < frames; ++f, ++k) {
@@ -107,6 +109,8 @@ model::VirtualEngineConfig virtual_engine_config(const SimConfig& config, double
   v.speed_of_sound_m_s = config.speed_of_sound_m_s;
   v.mic_gain_spread_db = config.mic_gain_spread_db;
   v.floor_db = config.background_noise_db;
+  v.mic_chain = config.mic_chain;
+  v.pressure_chain = config.pressure_chain;
   // Cycle-mean pressure of the nominal cycle: the AC coupling starts settled on its static response.
   model::EngineCycle cycle(engine_params(config));
   cycle.compute(operating_condition(config));

@@ -50,19 +50,21 @@ class EngineCycleCache {
 
 using drivers::BlockWriter;
 
-// Encoder + pressure: an edge every encoder_resolution_deg at the instant theta(t) reaches it, the cylinder
-// pressure at the edge (plus the transducer_noise effect), NonuniformResampler to 40 kHz; the crank channel is
-// theta(k / 40 kHz) wrapped.
+// Encoder + pressure: an edge every encoder_resolution_deg at the instant theta(t) reaches it, the true cylinder
+// pressure at the edge through the pressure chain (floor, flicker, transducer_noise, ADC: counter-based on the
+// edge index), NonuniformResampler to 40 kHz; the crank channel is theta(k / 40 kHz) wrapped.
 class PressureGenerator {
  public:
   PressureGenerator(const SimConfig& config, double t_first_s);
   void advance(double t_end_s, BlockRing& ring);  // every edge before t_end_s
   std::uint64_t blocks_written() const { return writer_.blocks_written(); }
   std::int64_t first_index() const { return first_index_; }
+  std::uint64_t clipped_samples() const { return chain_.clipped_samples(); }  // encoder samples the ADC clipped
 
  private:
   model::CrankKinematics kin_;
   EngineCycleCache cache_;
+  model::PressureChain chain_;
   dsp::NonuniformResampler resampler_;
   BlockWriter writer_;
   double resolution_deg_;
@@ -70,14 +72,12 @@ class PressureGenerator {
   std::int64_t first_index_;
   std::size_t batch_;       // edges per resampler call
   std::vector<double> t_, x_, out_;
-  model::Effects effects_;  // transducer_noise is added at each edge (counter-based on the edge index)
-  std::uint64_t seed_;
-  double edge_rate_hz_;     // mean edge rate: the bandwidth the transducer noise density is spread over
 };
 
 // The virtual engine's acoustic side for a configuration: thesis microphone layout unless given, the configured
-// true block, spread, floor and effects, the mean pressure of the nominal cycle (so the AC coupling starts
-// settled). input_rate_hz: rate of the pressure feed; the microphones come out at config.mic_rate_hz.
+// true block, spread, floor, microphone and pressure chains and effects, the mean pressure of the nominal cycle
+// (so the AC coupling starts settled). input_rate_hz: rate of the pressure feed; the microphones come out at
+// config.mic_rate_hz.
 model::VirtualEngineConfig virtual_engine_config(const SimConfig& config, double input_rate_hz);
 
 // The true engine as a model::PressureFeed: cylinder pressure and unwrapped crank angle at t0 + i / rate.
@@ -93,8 +93,8 @@ class EngineFeed final : public model::PressureFeed {
 };
 
 // Microphones: model::VirtualEngine fed with the true pressure at twice the card rate renders the card-rate
-// microphone frames (true block, effects, acoustic delay, per-microphone spread, floor); the card stream is
-// resampled to 40 kHz.
+// microphone frames (true block, effects, acoustic delay, per-microphone spread and directivity, floor,
+// self-noise, ADC); the card stream is resampled to 40 kHz.
 class MicGenerator {
  public:
   MicGenerator(const SimConfig& config, double t_first_s);
@@ -104,6 +104,7 @@ class MicGenerator {
   // Per-microphone gain (linear, energy mean 1) and delay (s), for tests and logs.
   const std::vector<double>& gains() const { return engine_.spread_gains(); }
   std::vector<double> delays_s() const { return engine_.delays_s(); }
+  std::uint64_t clipped_samples() const { return engine_.mic_clipped(); }  // card samples the ADC clipped
 
  private:
   double card_rate_;

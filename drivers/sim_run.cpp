@@ -10,6 +10,7 @@
 #include "drivers/recording.hpp"
 #include "drivers/sim_generators.hpp"
 #include "dsp/resample.hpp"
+#include "model/pressure_chain.hpp"
 #include "model/random.hpp"
 #include "model/virtual_engine.hpp"
 
@@ -188,7 +189,44 @@ std::uint64_t condition_seed(std::uint64_t seed, std::string_view condition_name
   return model::rnd::key(seed, h, 0);
 }
 
-RunDir simulate_run(const SimRunSpec& spec) {
+namespace {
+
+// The microphone layout and the measured pressure of a generated run: the pressure chain on every encoder sample
+// (counter-based on the sample index), the configured floor recorded (without the transducer_noise effect: the
+// unknown a diagnosis must find).
+void finish_run(const SimRunSpec& spec, const SimConfig& config, const model::VirtualEngineConfig& vcfg,
+                const model::VirtualEngine& engine, RunDir& run, SimRunStats* stats) {
+  model::PressureChain chain(config.pressure_chain, spec.effects, spec.seed);
+  chain.measure(0, run.pressure_pa.data(), run.pressure_pa.size());
+  run.pressure_noise_floor_bar = config.pressure_chain.floor_bar();
+  run.mic_rate_hz = config.mic_rate_hz;
+  run.mic_count = static_cast<std::uint32_t>(engine.mic_count());
+  run.mic_positions_m = vcfg.mic_positions_m;
+  run.radius_m = config.radius_m;
+  run.acoustic_delay_s = config.radius_m / config.speed_of_sound_m_s;
+  if (stats) *stats = {chain.clipped_samples(), engine.mic_clipped()};
+}
+
+// The engine off as the virtual engine's feed: no pressure reaches the structure; the crank angle only clocks.
+class SilentFeed final : public model::PressureFeed {
+ public:
+  SilentFeed(const SimConfig& config, double t0_s, double rate_hz)
+      : kin_(sim::crank_kinematics(config)), t0_(t0_s), rate_(rate_hz) {}
+  void fill(std::int64_t first, double* pressure_pa, double* crank_deg, std::size_t n) override {
+    for (std::size_t i = 0; i < n; ++i) {
+      pressure_pa[i] = 0.0;
+      crank_deg[i] = kin_.theta_deg(t0_ + static_cast<double>(first + static_cast<std::int64_t>(i)) / rate_);
+    }
+  }
+
+ private:
+  model::CrankKinematics kin_;
+  double t0_, rate_;
+};
+
+}  // namespace
+
+RunDir simulate_run(const SimRunSpec& spec, SimRunStats* stats) {
   check_config(spec);
   const SimConfig config = run_config(spec);
   const double fine_rate = 2.0 * config.mic_rate_hz;
@@ -204,14 +242,40 @@ RunDir simulate_run(const SimRunSpec& spec) {
   const auto frames = static_cast<std::int64_t>(std::floor(feed.last_time_s() * config.mic_rate_hz)) + 1;
   render_mics(engine, feed, skip, frames, run);
   feed.encoder_until(std::numeric_limits<double>::infinity());
-  // The transducer chain's noise on every encoder sample (mean edge rate: the band its density spreads over).
-  model::add_transducer_noise(spec.effects, 6.0 * config.speed_rpm / config.encoder_resolution_deg, spec.seed, 0,
-                              run.pressure_pa.data(), run.pressure_pa.size());
-  run.mic_rate_hz = config.mic_rate_hz;
-  run.mic_count = static_cast<std::uint32_t>(engine.mic_count());
-  run.mic_positions_m = vcfg.mic_positions_m;
-  run.radius_m = config.radius_m;
-  run.acoustic_delay_s = config.radius_m / config.speed_of_sound_m_s;
+  finish_run(spec, config, vcfg, engine, run, stats);
+  return run;
+}
+
+RunDir simulate_background_run(const SimRunSpec& given, SimRunStats* stats) {
+  SimRunSpec spec = given;
+  spec.condition.name = std::string(kBackgroundRunName);
+  spec.condition.load_nm = 0.0;
+  spec.condition.motored = true;
+  spec.effects.mechanical_noise_dba.reset();  // impacts need a turning engine
+  check_config(spec);
+  const SimConfig config = run_config(spec);
+  const double fine_rate = 2.0 * config.mic_rate_hz;
+  RunDir run;
+  run.condition = {spec.condition.name, spec.condition.speed_rpm, 0.0, spec.condition.soi_deg_btdc, std::nullopt, true};
+  // The clock: encoder samples of spec.cycles cycles; the transducer reads the ambient (intake) pressure.
+  const model::CrankKinematics kin = sim::crank_kinematics(config);
+  const double res = config.encoder_resolution_deg, ambient = sim::engine_params(config).intake_pressure_pa;
+  const auto samples = static_cast<std::int64_t>(std::llround(720.0 * spec.cycles / res));
+  for (std::int64_t m = 0; m < samples; ++m) {
+    const double a = -360.0 + static_cast<double>(m) * res;
+    run.time_s.push_back(kin.time_s(a));
+    run.crank_deg.push_back(a);
+    run.pressure_pa.push_back(ambient);
+  }
+  model::VirtualEngineConfig vcfg = sim::virtual_engine_config(config, fine_rate);
+  vcfg.setup_seed = spec.setup_seed;
+  vcfg.mean_pressure_pa = 0.0;
+  model::VirtualEngine engine(vcfg);
+  SilentFeed feed(config, -kPreRollS, fine_rate);
+  const auto skip = static_cast<std::int64_t>(std::llround(kPreRollS * config.mic_rate_hz));
+  const auto frames = static_cast<std::int64_t>(std::floor(run.time_s.back() * config.mic_rate_hz)) + 1;
+  render_mics(engine, feed, skip, frames, run);
+  finish_run(spec, config, vcfg, engine, run, stats);
   return run;
 }
 
@@ -358,8 +422,8 @@ RunDir acoustics(const RunDir& pressure_run, const SimRunSpec& spec, double t_en
   const auto frames = static_cast<std::int64_t>(std::floor(t_end_s * config.mic_rate_hz)) + 1;
   if (frames < 1) throw std::invalid_argument(what + ": the pressure ends before t = 0");
   render_mics(engine, feed, skip, frames, run);
-  model::add_transducer_noise(spec.effects, static_cast<double>(n - 1) / (t.back() - t.front()), spec.seed, 0,
-                              run.pressure_pa.data(), n_given);
+  // The given pressure went through its own chain already: only the injected extra floor is added.
+  model::add_transducer_noise(spec.effects, spec.seed, 0, run.pressure_pa.data(), n_given);
   run.mic_rate_hz = config.mic_rate_hz;
   run.mic_count = static_cast<std::uint32_t>(engine.mic_count());
   run.mic_positions_m = vcfg.mic_positions_m;

@@ -22,6 +22,13 @@ std::vector<std::array<double, 3>> thesis_mic_positions() {
           {1.35, 0.78, 0.79},  {1.50, -0.87, 0.26}, {0.00, -1.16, 1.31}, {-1.00, -0.58, 1.31}, {-1.50, -0.87, 0.26}};
 }
 
+SimConfig with_ideal_cell(SimConfig config) {
+  config.pressure_chain = model::PressureChainConfig::ideal();
+  config.mic_chain = model::MicChainConfig::ideal();
+  config.gas_ringing = model::GasRingingParams::off();
+  return config;
+}
+
 namespace {
 
 constexpr double kChunkS = 0.005;             // generation chunk of the sample streams
@@ -44,6 +51,14 @@ void validate(const SimConfig& c) {
   if (!(c.radius_m > 0.0) || !(c.speed_of_sound_m_s > 0.0)) fail("radius_m and speed_of_sound_m_s must be positive");
   if (!(c.mic_rate_hz >= 8000.0 && c.mic_rate_hz == std::round(c.mic_rate_hz))) fail("mic_rate_hz must be a whole number >= 8000");
   if (!(c.mic_gain_spread_db >= 0.0 && c.mic_gain_spread_db <= 6.0)) fail("mic_gain_spread_db must be in [0, 6]");
+  if (!(c.gas_ringing.gain_s >= 0.0 && c.gas_ringing.gain_s <= 1e-3) || !(c.gas_ringing.decay_s > 0.0 && c.gas_ringing.decay_s <= 0.1))
+    fail("gas ringing: gain must be in [0, 1 ms] and decay in (0, 100 ms]");
+  try {
+    c.pressure_chain.validate();
+    c.mic_chain.validate();
+  } catch (const std::invalid_argument& e) {
+    fail(e.what());
+  }
 }
 
 class SimSource final : public Source {
@@ -111,6 +126,11 @@ class SimSource final : public Source {
     return true;
   }
 
+  std::vector<DriverCounter> counters() const override {
+    return {{"sim.pressure.adc_clipped", static_cast<std::int64_t>(threads_[0].clipped.load())},
+            {"sim.mics.adc_clipped", static_cast<std::int64_t>(threads_[1].clipped.load())}};
+  }
+
   std::vector<DriverThreadStatus> thread_status() const override {
     std::vector<DriverThreadStatus> out;
     std::lock_guard lock(error_mutex_);
@@ -127,6 +147,7 @@ class SimSource final : public Source {
     std::thread thread;
     std::atomic<ThreadState> state{ThreadState::kIdle};
     std::atomic<std::uint64_t> blocks{0};
+    std::atomic<std::uint64_t> clipped{0};  // ADC clipping of the stream's samples, over every session
     std::string error;  // guarded by error_mutex_
   };
 
@@ -150,6 +171,7 @@ class SimSource final : public Source {
   void run_stream(Worker& w, Generator& gen, BlockRing& ring, double t_first) {
     try {
       double t = t_first;
+      std::uint64_t clipped_seen = 0;
       while (!stop_.load(std::memory_order_relaxed)) {
         // Next chunk end; when behind the wall clock, catch up in bounded passes.
         // Like a real device, a chunk is delivered only once its last instant has passed on the wall clock.
@@ -158,6 +180,9 @@ class SimSource final : public Source {
         if (stop_.load(std::memory_order_relaxed)) break;
         gen.advance(t, ring);
         w.blocks.store(gen.blocks_written(), std::memory_order_relaxed);
+        const std::uint64_t clipped = gen.clipped_samples();
+        w.clipped.fetch_add(clipped - clipped_seen, std::memory_order_relaxed);
+        clipped_seen = clipped;
       }
     } catch (const std::exception& e) {
       fail(w, e);

@@ -2,12 +2,15 @@
 //
 // Driver threads (paced to the wall clock):
 //  - encoder + pressure: crank kinematics with small speed fluctuation, an encoder with configurable
-//    resolution and a once-per-cycle reference; cylinder pressure from a single-zone model sampled on every
-//    encoder edge; resampled (NonuniformResampler) to 40 kHz -> Streams::pressure.
+//    resolution and a once-per-cycle reference; cylinder pressure from a single-zone model with the gas ringing
+//    of the premixed burn, sampled on every encoder edge through the pressure chain (floor, flicker, ADC);
+//    resampled (NonuniformResampler) to 40 kHz -> Streams::pressure.
 //  - microphones: the "true" block model driven by the true pressure, acoustic delay, small per-microphone
-//    differences and a background noise floor, sampled at the card rate (51.2 kHz) and resampled
-//    (RationalResampler) to 40 kHz -> Streams::mics. The acoustic side is model::VirtualEngine, with the
-//    configured effects.
+//    differences and directivity, the test cell's background floor and each microphone's self-noise and ADC,
+//    sampled at the card rate (51.2 kHz) and resampled (RationalResampler) to 40 kHz -> Streams::mics. The
+//    acoustic side is model::VirtualEngine, with the configured effects.
+//  The measurement chains are realistic by default (DESIGN.md "Measurement chains are not ideal"); ADC clipping
+//  is counted in counters() ("sim.pressure.adc_clipped", "sim.mics.adc_clipped").
 //  - operating point: speed, load, injection timing at 10 Hz -> Streams::operating_point.
 #pragma once
 
@@ -20,6 +23,9 @@
 #include "drivers/source.hpp"
 #include "model/block_params.hpp"
 #include "model/effects.hpp"
+#include "model/gas_ringing.hpp"
+#include "model/mic_chain.hpp"
+#include "model/pressure_chain.hpp"
 
 namespace noisemon::drivers {
 
@@ -44,8 +50,16 @@ struct SimConfig {
   double background_noise_db = 40.0;     // per-microphone pink floor, unweighted Lp up to 20 kHz, dB re 20 uPa
   model::BlockParams true_block = model::preset("linear");  // the engine's "true" structural response
   model::Effects effects;             // effects injected into the true engine (model/effects.hpp); none by default
+  // The realistic test cell (each part documented and cited in its header; each switchable off):
+  model::PressureChainConfig pressure_chain;  // floor 0.02 bar, flicker off, 16-bit ADC over 0..250 bar
+  model::MicChainConfig mic_chain;            // self-noise 20 dB(A), directivity +-1 dB, 24-bit ADC +-800 Pa
+  model::GasRingingParams gas_ringing;        // combustion-excited gas ringing in the true pressure
   std::uint64_t seed = 1;
 };
+
+// The configuration with an ideal test cell: no pressure-chain floor or ADC, no microphone self-noise, directivity
+// or ADC, no gas ringing (the pink floor background_noise_db and the gain spread stay as configured).
+SimConfig with_ideal_cell(SimConfig config);
 
 // Thesis Table 3.1 microphone positions (m).
 std::vector<std::array<double, 3>> thesis_mic_positions();

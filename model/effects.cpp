@@ -61,10 +61,12 @@ const std::array<EffectInfo, 9> kCatalog{{
      "stationary test-cell ventilation noise, Lp(A) at each microphone (20 Hz - 20 kHz)",
      "independent per microphone; white noise through a 200 Hz first-order low-pass. Off: not given.",
      65.0, 50.0, 80.0, 0.0, 160.0, {}, false},
-    {"transducer_noise", "Pa/sqrt(Hz)",
-     "noise floor of the cylinder-pressure transducer chain, one-sided white density",
-     "added to the measured pressure only (per sample rms = M sqrt(fs/2)); not heard by the microphones. Off: 0.",
-     0.3, 0.1, 2.0, 0.0, 1.0e5, {}, false},
+    // A worn or noisy chain: the real Yanmar records carry about 0.2 bar against a good chain's 0.02 bar.
+    {"transducer_noise", "bar rms",
+     "more pressure-chain floor than configured: extra white noise, rms per encoder sample",
+     "added to the measured pressure only, in quadrature on top of the configured chain floor ([sim] pressure_noise_bar, "
+     "sim --pressure-floor), before the ADC; not heard by the microphones. Off: 0.",
+     0.05, 0.02, 0.3, 0.0, 10.0, {}, false},
     {"mic_gain", "dB",
      "one microphone channel reads M dB high (wrong sensitivity at calibration)",
      "everything the chosen microphone (default 1) records is scaled by 10^(M/20). Off: 0.",
@@ -283,7 +285,7 @@ void Effects::add(const EffectSetting& setting) {
   } else if (n == "background_noise") {
     background_noise_dba = m;
   } else if (n == "transducer_noise") {
-    transducer_noise_pa_rthz = m;
+    transducer_noise_bar = m;
   } else if (n == "mic_gain") {
     const double mic = qualifier("mic");
     if (mic != std::round(mic)) throw std::invalid_argument("effect mic_gain: mic must be a whole number");
@@ -477,13 +479,11 @@ double BackgroundNoise::next() {
   return scale_ * state_;
 }
 
-double transducer_noise_rms_pa(const Effects& effects, double sample_rate_hz) {
-  return effects.transducer_noise_pa_rthz * std::sqrt(0.5 * sample_rate_hz);
-}
+double transducer_noise_rms_pa(const Effects& effects) { return 1e5 * effects.transducer_noise_bar; }
 
-void add_transducer_noise(const Effects& effects, double sample_rate_hz, std::uint64_t seed, std::int64_t first_index,
-                          double* pressure_pa, std::size_t n) {
-  const double sigma = transducer_noise_rms_pa(effects, sample_rate_hz);
+void add_transducer_noise(const Effects& effects, std::uint64_t seed, std::int64_t first_index, double* pressure_pa,
+                          std::size_t n) {
+  const double sigma = transducer_noise_rms_pa(effects);
   if (sigma == 0.0) return;
   for (std::size_t i = 0; i < n; ++i)
     pressure_pa[i] += sigma * rnd::normal_at(seed, kStreamTransducer, static_cast<std::uint64_t>(first_index + static_cast<std::int64_t>(i)));

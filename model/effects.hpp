@@ -19,8 +19,11 @@
 //                    +30 log10(n / 3050 rpm) with speed (impact amplitude proportional to speed). Radiated by
 //                    the engine: it reaches the microphones with the acoustic delay and per-microphone spread.
 //  background_noise  stationary test-cell ventilation noise, independent at each microphone, Lp(A) M dB.
-//  transducer_noise  white noise of the pressure transducer chain, one-sided density M Pa/sqrt(Hz), added to
-//                    the MEASURED pressure only (the engine and the microphones hear the true pressure).
+//  transducer_noise  more floor than configured: white Gaussian noise of M bar rms per encoder sample added to
+//                    the MEASURED pressure only (the engine and the microphones hear the true pressure), on top
+//                    of (in quadrature with) the chain's configured floor (model/pressure_chain.hpp), before its
+//                    ADC. The configured floor is what a run directory records (pressure.noise_floor_bar); this
+//                    effect is the unknown a diagnosis must find.
 //  mic_gain          one microphone channel (default microphone 1 of Table 3.1) reads M dB high: everything it
 //                    records is scaled by 10^(M/20) (a wrong sensitivity entered at calibration).
 //  speed_dependence  the structural transfer (block + second mode) changes by M dB per 1000 rpm relative to
@@ -101,7 +104,7 @@ struct Effects {
   double second_mode_q = 5.0;
   std::optional<double> mechanical_noise_dba;  // nullopt: off
   std::optional<double> background_noise_dba;  // nullopt: off
-  double transducer_noise_pa_rthz = 0.0;
+  double transducer_noise_bar = 0.0;            // rms per encoder sample
   double mic_gain_db = 0.0;
   int mic_gain_mic = 1;                         // 1-based (Table 3.1 numbering)
   double speed_dependence_db_per_krpm = 0.0;
@@ -202,13 +205,12 @@ class BackgroundNoise {
   double scale_, alpha_, state_ = 0.0;
 };
 
-// transducer_noise: rms per sample (Pa) of white noise with the effect's one-sided density at this sample rate
-// (sigma = density * sqrt(fs / 2)); 0 when off.
-double transducer_noise_rms_pa(const Effects& effects, double sample_rate_hz);
+// transducer_noise: rms per encoder sample (Pa) of the added white noise, whatever the sample rate; 0 when off.
+double transducer_noise_rms_pa(const Effects& effects);
 // Adds the transducer noise to n pressure samples whose global sample indices start at first_index
-// (counter-based: the noise of sample i depends only on seed and i).
-void add_transducer_noise(const Effects& effects, double sample_rate_hz, std::uint64_t seed, std::int64_t first_index,
-                          double* pressure_pa, std::size_t n);
+// (counter-based: the noise of sample i depends only on seed and i; independent of the chain's own floor).
+void add_transducer_noise(const Effects& effects, std::uint64_t seed, std::int64_t first_index, double* pressure_pa,
+                          std::size_t n);
 
 // mic_gain: the linear factor of microphone `mic` (0-based) — 10^(M/20) for the chosen one, 1 otherwise.
 double mic_gain_factor(const Effects& effects, std::size_t mic);

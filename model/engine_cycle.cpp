@@ -74,7 +74,9 @@ CycleVariation draw_cycle_variation(std::uint64_t seed, std::int64_t cycle, doub
   const double a1 = 2.0 * kPi * uniform01(state);
   const double n1 = std::clamp(r1 * std::cos(a1), -4.0, 4.0);
   const double n2 = std::clamp(r1 * std::sin(a1), -4.0, 4.0);
-  return {1.0 + relative_sigma * n1, 1.0 + relative_sigma * n2};
+  CycleVariation v{1.0 + relative_sigma * n1, 1.0 + relative_sigma * n2, {}};
+  for (auto& phase : v.ringing_phase_rad) phase = 2.0 * kPi * uniform01(state);  // drawn after: n1, n2 unchanged
+  return v;
 }
 
 double friction_mep_pa(const EngineGeometry& geometry, double speed_rpm) {
@@ -149,17 +151,24 @@ EngineCycle::EngineCycle(const EngineCycleParams& params) : params_(params) {
   }
   p_.assign(nodes_, params_.intake_pressure_pa);
   dp_.assign(nodes_, 0.0);
+  pt_ = p_;
+  dpt_ = dp_;
   const std::size_t closed = evo_node_ - ivc_node_ + 1;
   closed_angle_.resize(closed);
   closed_temperature_.resize(closed);
   hrr_.resize(closed);
   htr_.resize(closed);
+  ring_scratch_.resize(2 * closed);
   for (std::size_t i = 0; i < closed; ++i) closed_angle_[i] = -360.0 + h_ * static_cast<double>(ivc_node_ + i);
   compute(OperatingCondition{.speed_rpm = 1000.0, .load_nm = 0.0, .soi_deg_btdc = 0.0, .motored = true});
 }
 
 std::span<const double> EngineCycle::closed_pressure_pa() const {
   return {p_.data() + ivc_node_, evo_node_ - ivc_node_ + 1};
+}
+
+double EngineCycle::speed_of_sound_m_s(double temperature_k) const {
+  return gas_speed_of_sound_m_s(temperature_k, params_.gas_constant_j_kg_k, params_.cv0_j_kg_k, params_.cv1_j_kg_k2);
 }
 
 double EngineCycle::internal_energy_j_kg(double temperature_k) const {
@@ -294,6 +303,33 @@ void EngineCycle::compute(const OperatingCondition& op, const CycleVariation& va
   }
   fill_open_part();
   summarise();
+  add_ringing(k.deg_per_s, variation, c);
+}
+
+// The true pressure table: the single zone plus the gas ringing of this cycle (closed part only).
+void EngineCycle::add_ringing(double deg_per_s, const CycleVariation& variation, const Combustion& c) {
+  std::copy(p_.begin(), p_.end(), pt_.begin());
+  std::copy(dp_.begin(), dp_.end(), dpt_.begin());
+  if (!c.ignited || !params_.ringing.active()) return;
+  const std::size_t closed = evo_node_ - ivc_node_ + 1;
+  const double peak_deg = c.soc + premixed_peak_fraction(params_.wiebe_a, params_.premixed_shape) * c.dur_p;
+  RingingInput in;
+  in.angle_deg = closed_angle_;
+  in.temperature_k = closed_temperature_;
+  in.deg_per_s = deg_per_s;
+  in.soc_deg = c.soc;
+  in.premixed_j = c.q_premixed;
+  in.premixed_duration_deg = c.dur_p;
+  in.wiebe_a = params_.wiebe_a;
+  in.premixed_shape = params_.premixed_shape;
+  in.volume_at_peak_m3 = params_.geometry.volume_m3(peak_deg);
+  in.bore_m = params_.geometry.bore_m;
+  in.gas_constant = params_.gas_constant_j_kg_k;
+  in.cv0 = params_.cv0_j_kg_k;
+  in.cv1 = params_.cv1_j_kg_k2;
+  in.phase_rad = variation.ringing_phase_rad;
+  summary_.ringing_amplitude_pa = add_gas_ringing(params_.ringing, in, std::span<double>(pt_).subspan(ivc_node_, closed),
+                                                  std::span<double>(dpt_).subspan(ivc_node_, closed), ring_scratch_);
 }
 
 void EngineCycle::fill_open_part() {
@@ -361,8 +397,8 @@ double EngineCycle::pressure_pa(double theta_deg) const {
   if (i >= nodes_ - 1) i = nodes_ - 2;
   const double s = u - static_cast<double>(i);
   const double s2 = s * s, s3 = s2 * s;
-  return (2 * s3 - 3 * s2 + 1) * p_[i] + (s3 - 2 * s2 + s) * h_ * dp_[i] + (-2 * s3 + 3 * s2) * p_[i + 1] +
-         (s3 - s2) * h_ * dp_[i + 1];
+  return (2 * s3 - 3 * s2 + 1) * pt_[i] + (s3 - 2 * s2 + s) * h_ * dpt_[i] + (-2 * s3 + 3 * s2) * pt_[i + 1] +
+         (s3 - s2) * h_ * dpt_[i + 1];
 }
 
 // ---------------------------------------------------------------------------------------------- kinematics

@@ -11,14 +11,20 @@
 // cylinder pressure ... increased noise").
 // Open part: intake pressure until IVC; after EVO a smooth (C1) blowdown to the exhaust pressure and, over the
 // last 20 deg, back to the intake pressure so consecutive cycles join continuously.
+// On top of the single-zone pressure: the combustion-excited gas ringing of the cylinder's acoustic modes
+// (model/gas_ringing.hpp), in pressure_pa() (the true pressure); the closed-part traces and the summary's peak
+// and rise are the single zone's.
 //
 // Angles in degrees, 0 = firing TDC; a cycle spans [-360, 360). Pressure absolute, Pa. SI units otherwise.
 #pragma once
 
+#include <array>
 #include <cstddef>
 #include <cstdint>
 #include <span>
 #include <vector>
+
+#include "model/gas_ringing.hpp"
 
 namespace noisemon::model {
 
@@ -75,6 +81,8 @@ struct EngineCycleParams {
   double diffusion_shape = 0.9;
   // Integration step of the closed part (also the resolution of the pressure table).
   double step_deg = 0.05;
+  // Gas ringing excited by the premixed burn (realistic by default; GasRingingParams::off(): none).
+  GasRingingParams ringing;
 };
 
 struct OperatingCondition {
@@ -84,13 +92,16 @@ struct OperatingCondition {
   bool motored = false;  // no fuel
 };
 
-// Per-cycle random scaling of the heat release (fuel energy) and of the ignition delay.
+// Per-cycle random scaling of the heat release (fuel energy) and of the ignition delay, and the phases of the gas
+// ringing's modes (where the charge auto-ignites first moves from cycle to cycle).
 struct CycleVariation {
   double heat_release_scale = 1.0;
   double ignition_delay_scale = 1.0;
+  std::array<double, kRingingModes> ringing_phase_rad{};
 };
 // Deterministic in (seed, cycle), so threads that evaluate the same cycle independently agree. Both scales are
-// 1 + relative_sigma * N(0, 1) (independent draws, clipped to +-4 sigma).
+// 1 + relative_sigma * N(0, 1) (independent draws, clipped to +-4 sigma); the ringing phases are uniform in
+// [0, 2 pi) whatever relative_sigma.
 CycleVariation draw_cycle_variation(std::uint64_t seed, std::int64_t cycle, double relative_sigma);
 
 // Friction mean effective pressure, Pa (Chen-Flynn form with typical small-diesel constants).
@@ -115,6 +126,7 @@ struct CycleSummary {
   double closed_work_j = 0;          // IVC..EVO, integral of p dV
   double imep_gross_pa = 0;          // compression + expansion strokes (-180..180)
   double imep_net_pa = 0;            // whole cycle
+  double ringing_amplitude_pa = 0;   // gas ringing: peak of mode (1,0) (0: none)
 };
 
 // One engine cycle. The constructor allocates every table; compute() does not allocate.
@@ -125,11 +137,14 @@ class EngineCycle {
   void compute(const OperatingCondition& op, const CycleVariation& variation = {});
 
   // Cylinder pressure at a cycle-relative angle (clamped to [-360, 360]); cubic Hermite between table nodes.
+  // The true pressure: the single zone plus the gas ringing.
   double pressure_pa(double theta_deg) const;
+  // Speed of sound of the cylinder gas at a temperature (gamma from cv(T)): what the ringing's modes follow.
+  double speed_of_sound_m_s(double temperature_k) const;
   const CycleSummary& summary() const { return summary_; }
   const EngineCycleParams& params() const { return params_; }
 
-  // Closed-part traces on the integration grid (IVC..EVO), for diagnostics and tests.
+  // Closed-part traces of the single zone on the integration grid (IVC..EVO), for diagnostics and tests.
   std::span<const double> closed_angle_deg() const { return closed_angle_; }
   std::span<const double> closed_temperature_k() const { return closed_temperature_; }
   std::span<const double> closed_pressure_pa() const;
@@ -145,6 +160,7 @@ class EngineCycle {
   Rates rates(std::size_t half_step, double temperature_k, const Constants& k, const Combustion& c) const;
   void fill_open_part();
   void summarise();
+  void add_ringing(double deg_per_s, const CycleVariation& variation, const Combustion& c);
 
   EngineCycleParams params_;
   double h_ = 0.05;                   // table and integration step, deg
@@ -152,8 +168,8 @@ class EngineCycle {
   // Geometry on the half-step grid of the whole cycle (index 2 i = node i), computed once: V, dV/dtheta, wall
   // area times V^-0.8 (Woschni's p^0.8 at fixed T), motored polytropic pressure ratio (V_ivc / V)^1.35.
   std::vector<double> vol_, dvol_, area_v08_, motored_ratio_;
-  // Whole-cycle pressure table: node i at -360 + i h.
-  std::vector<double> p_, dp_;
+  // Whole-cycle pressure table: node i at -360 + i h; single zone (p_) and with the gas ringing (pt_).
+  std::vector<double> p_, dp_, pt_, dpt_, ring_scratch_;
   std::vector<double> closed_angle_, closed_temperature_, hrr_, htr_;
   CycleSummary summary_;
 };

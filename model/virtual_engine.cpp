@@ -12,6 +12,7 @@
 #include "dsp/levels.hpp"
 #include "dsp/resample.hpp"
 #include "model/block_model.hpp"
+#include "model/adc.hpp"
 #include "model/random.hpp"
 
 namespace noisemon::model {
@@ -24,6 +25,7 @@ constexpr std::size_t kBatch = 1024;  // input samples per feed/block-model call
 enum : std::uint64_t {
   kStreamFloor = 0x3001,
   kStreamBackground = 0x3002,
+  kStreamSelfNoise = 0x3003,
 };
 
 std::size_t next_pow2(std::size_t n) {
@@ -120,6 +122,11 @@ struct VirtualEngine::Impl {
   std::int64_t frames = 0;          // output frames rendered
   std::vector<PinkNoise> floor;
   std::vector<BackgroundNoise> background;
+  std::vector<rnd::Normal> self_noise;
+  double self_noise_rms = 0.0;
+  std::vector<DirectivityFilter> directivity;
+  Adc mic_adc;
+  PressureChain pressure_chain;
   std::vector<double> u, y, crank, out_tmp;
 
   explicit Impl(const VirtualEngineConfig& c)
@@ -132,7 +139,8 @@ struct VirtualEngine::Impl {
         gain(structural_gain(c.effects, c.speed_rpm, c.soi_deg_btdc, c.motored)),
         hp_a(1.0 / (1.0 + 2.0 * kPi * c.ac_coupling_hz / c.input_rate_hz)),
         hp_x(gain * static_output_pa(block_params, c.mean_pressure_pa)),
-        mics(c.mic_positions_m.size()) {
+        mics(c.mic_positions_m.size()),
+        pressure_chain(c.pressure_chain, c.effects, c.seed) {
     const double ratio = c.input_rate_hz / c.output_rate_hz;
     if (!(c.output_rate_hz > 0.0) || !(ratio >= 1.0) || std::abs(ratio - std::round(ratio)) > 1e-9)
       throw std::invalid_argument("virtual engine: the input rate must be a whole multiple of the output rate");
@@ -163,10 +171,23 @@ struct VirtualEngine::Impl {
       background.emplace_back(*c.effects.background_noise_dba, c.output_rate_hz, rnd::key(c.seed, kStreamBackground, 0));
       for (std::size_t i = 1; i < mics; ++i) background.emplace_back(background.front(), rnd::key(c.seed, kStreamBackground, i));
     }
+    set_up_mic_chain(c);
     u.resize(kBatch);
     y.resize(kBatch);
     crank.resize(kBatch + latency);
     out_tmp.resize((to_output ? to_output->max_output_frames(kBatch) : kBatch) + 16);
+  }
+
+  // Self-noise, directivity and ADC of every microphone (model/mic_chain.hpp).
+  void set_up_mic_chain(const VirtualEngineConfig& c) {
+    c.mic_chain.validate();
+    if (c.mic_chain.has_self_noise()) {
+      self_noise_rms = self_noise_rms_pa(c.mic_chain.self_noise_dba, c.output_rate_hz);
+      for (std::size_t i = 0; i < mics; ++i) self_noise.emplace_back(rnd::key(c.seed, kStreamSelfNoise, i));
+    }
+    for (const auto& g : directivity_gains_db(mics, c.mic_chain.directivity_db, c.output_rate_hz, c.setup_seed))
+      directivity.emplace_back(g, c.output_rate_hz);
+    if (c.mic_chain.adc_bits > 0) mic_adc = Adc(c.mic_chain.adc_bits, -c.mic_chain.adc_range_pa, c.mic_chain.adc_range_pa);
   }
 
   // One input batch through the structural path into the line.
@@ -203,10 +224,11 @@ struct VirtualEngine::Impl {
       double* frame = out + f * mics;
       for (std::size_t i = 0; i < mics; ++i) {
         const std::int64_t src = frames - delay[i];
-        double v = src < 0 ? 0.0 : spread[i] * line[static_cast<std::size_t>(src) & line_mask];
+        double v = directivity[i].process(src < 0 ? 0.0 : spread[i] * line[static_cast<std::size_t>(src) & line_mask]);
         if (!floor.empty()) v += floor[i].next();
         if (!background.empty()) v += background[i].next();
-        frame[i] = mic_factor[i] * v;
+        if (!self_noise.empty()) v += self_noise_rms * self_noise[i].next();
+        frame[i] = mic_factor[i] * mic_adc.convert(v);
       }
     }
   }
@@ -221,9 +243,16 @@ std::size_t VirtualEngine::mic_count() const { return impl_->mics; }
 void VirtualEngine::render(PressureFeed& feed, double* mics, std::size_t frames) { impl_->render(feed, mics, frames); }
 std::int64_t VirtualEngine::frames_rendered() const { return impl_->frames; }
 
-void VirtualEngine::measured_pressure(std::int64_t first, const double* p_true, double* p_measured, std::size_t n) const {
+void VirtualEngine::measured_pressure(std::int64_t first, const double* p_true, double* p_measured, std::size_t n) {
   if (p_measured != p_true) std::copy(p_true, p_true + n, p_measured);
-  add_transducer_noise(impl_->cfg.effects, impl_->cfg.input_rate_hz, impl_->cfg.seed, first, p_measured, n);
+  impl_->pressure_chain.measure(first, p_measured, n);
+}
+
+std::uint64_t VirtualEngine::pressure_clipped() const { return impl_->pressure_chain.clipped_samples(); }
+std::uint64_t VirtualEngine::mic_clipped() const { return impl_->mic_adc.clipped(); }
+
+std::complex<double> VirtualEngine::directivity_response(std::size_t mic, double f_hz) const {
+  return impl_->directivity.at(mic).response(f_hz);
 }
 
 const VirtualEngineConfig& VirtualEngine::config() const { return impl_->cfg; }

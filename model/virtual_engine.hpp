@@ -6,18 +6,22 @@
 //   p_true --true block (eq. 4.13 + cubic_damping, cubic_stiffness)--> y
 //   y --second_mode--> --structural gain (speed_dependence, foreign)--> --AC coupling (2 Hz high-pass, as the
 //   microphones and the card)--> + mechanical_noise impacts (crank-angle locked) = the engine's sound at the
-//   origin --decimate to fs_out--> microphone i hears it delayed by |x_i| / c (whole output samples) and scaled
-//   by its spread gain (directivity), plus its own pink floor and background_noise; mic_gain scales everything
-//   one microphone records.
-// Measured pressure = true pressure + transducer_noise (measured_pressure()).
+//   origin --decimate to fs_out--> microphone i hears it delayed by |x_i| / c (whole output samples), scaled
+//   by its spread gain and through its directivity filter (model/mic_chain.hpp), plus the test cell's pink floor,
+//   background_noise and its own self-noise; its ADC (clipping counted), then mic_gain scales everything one
+//   microphone records.
+// Measured pressure = the pressure chain (model/pressure_chain.hpp: floor, flicker, transducer_noise, ADC) on the
+// true pressure (measured_pressure()).
 //
 // Deterministic from the seeds: `seed` for every random realisation of a run (noise, impacts), `setup_seed` for
-// the per-microphone spread gains (a property of the installation, the same for every run of a campaign).
+// the per-microphone spread gains and directivity (a property of the installation, the same for every run of a
+// campaign).
 // Streaming and allocation-free after construction; output frame j is the microphone signal at t = j / fs_out,
 // t = 0 being input sample 0.
 #pragma once
 
 #include <array>
+#include <complex>
 #include <cstddef>
 #include <cstdint>
 #include <limits>
@@ -26,6 +30,8 @@
 
 #include "model/block_params.hpp"
 #include "model/effects.hpp"
+#include "model/mic_chain.hpp"
+#include "model/pressure_chain.hpp"
 
 namespace noisemon::model {
 
@@ -39,6 +45,9 @@ struct VirtualEngineConfig {
   // Stationary floor at each microphone: pink (equal energy per octave), unweighted Lp up to 20 kHz,
   // dB re 20 uPa; -inf: none. The background_noise effect comes on top of it.
   double floor_db = 40.0;
+  // The measurement chains (realistic by default; MicChainConfig::ideal(), PressureChainConfig::ideal(): none).
+  MicChainConfig mic_chain;
+  PressureChainConfig pressure_chain;
   double ac_coupling_hz = 2.0;
   double mean_pressure_pa = 0.0;     // expected mean input: the AC coupling starts settled on its static response
   // Operating point (for the speed- and timing-dependent effects).
@@ -73,12 +82,18 @@ class VirtualEngine {
   void render(PressureFeed& feed, double* mics, std::size_t frames);
   std::int64_t frames_rendered() const;
 
-  // true + transducer_noise for input samples [first, first + n) at the input rate (counter-based noise).
-  void measured_pressure(std::int64_t first, const double* p_true, double* p_measured, std::size_t n) const;
+  // The pressure chain on the true pressure of input samples [first, first + n) at the input rate
+  // (counter-based noise: any chunking gives the same values).
+  void measured_pressure(std::int64_t first, const double* p_true, double* p_measured, std::size_t n);
+  // Samples clipped by the ADCs so far (microphones: every channel's samples).
+  std::uint64_t pressure_clipped() const;
+  std::uint64_t mic_clipped() const;
 
   const VirtualEngineConfig& config() const;
   const BlockParams& structural_block() const;     // the true block with the cubic effects
   const std::vector<double>& spread_gains() const; // per microphone, on the engine's sound
+  // Per microphone, the directivity filter's response at f (complex; 1 without directivity).
+  std::complex<double> directivity_response(std::size_t mic, double f_hz) const;
   std::vector<double> delays_s() const;            // per microphone (whole output samples)
 
  private:

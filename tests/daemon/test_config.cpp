@@ -56,6 +56,17 @@ TEST(Config, DocumentedDefaultFileEqualsBuiltInDefaults) {
   EXPECT_EQ(file.sim.mic_rate_hz, def.sim.mic_rate_hz);
   EXPECT_EQ(file.sim.mic_gain_spread_db, def.sim.mic_gain_spread_db);
   EXPECT_EQ(file.sim.background_noise_db, def.sim.background_noise_db);
+  EXPECT_EQ(file.sim.pressure_chain.noise_bar, def.sim.pressure_chain.noise_bar);
+  EXPECT_EQ(file.sim.pressure_chain.flicker_bar, def.sim.pressure_chain.flicker_bar);
+  EXPECT_EQ(file.sim.pressure_chain.adc_bits, def.sim.pressure_chain.adc_bits);
+  EXPECT_EQ(file.sim.pressure_chain.adc_min_bar, def.sim.pressure_chain.adc_min_bar);
+  EXPECT_EQ(file.sim.pressure_chain.adc_max_bar, def.sim.pressure_chain.adc_max_bar);
+  EXPECT_EQ(file.sim.mic_chain.self_noise_dba, def.sim.mic_chain.self_noise_dba);
+  EXPECT_EQ(file.sim.mic_chain.directivity_db, def.sim.mic_chain.directivity_db);
+  EXPECT_EQ(file.sim.mic_chain.adc_bits, def.sim.mic_chain.adc_bits);
+  EXPECT_EQ(file.sim.mic_chain.adc_range_pa, def.sim.mic_chain.adc_range_pa);
+  EXPECT_EQ(file.sim.gas_ringing.gain_s, def.sim.gas_ringing.gain_s);
+  EXPECT_EQ(file.sim.gas_ringing.decay_s, def.sim.gas_ringing.decay_s);
   EXPECT_EQ(file.sim.seed, def.sim.seed);
   EXPECT_EQ(file.sim.true_block.k1, def.sim.true_block.k1);
   EXPECT_EQ(file.lcm.session_timeout_s, def.lcm.session_timeout_s);
@@ -128,6 +139,49 @@ preset = "nl_spring_damper"
   EXPECT_DOUBLE_EQ(c.sim.mic_positions_m[1][1], 1.0);
   EXPECT_DOUBLE_EQ(c.sim.true_block.k1, 8.00e8);
   EXPECT_DOUBLE_EQ(c.sim.true_block.k3, 1.00e13);
+}
+
+// The realistic test cell of [sim]: the built-in defaults are the documented realistic values (DESIGN.md
+// "Measurement chains are not ideal"), every part has a key that switches it off, and bad values name the key.
+TEST(Config, SimTestCellIsRealisticByDefaultAndEveryPartSwitchesOff) {
+  const Config def;
+  EXPECT_EQ(def.sim.pressure_chain.noise_bar, 0.02);
+  EXPECT_EQ(def.sim.pressure_chain.adc_bits, 16);
+  EXPECT_EQ(def.sim.pressure_chain.adc_max_bar, 250.0);
+  EXPECT_EQ(def.sim.mic_chain.self_noise_dba, 20.0);
+  EXPECT_EQ(def.sim.mic_chain.directivity_db, 1.0);
+  EXPECT_EQ(def.sim.mic_chain.adc_bits, 24);
+  EXPECT_GT(def.sim.gas_ringing.gain_s, 0.0);
+  const Config off = parse_config(R"(
+[sim]
+pressure_noise_bar = 0
+pressure_flicker_bar = 0.01
+pressure_adc_bits = 0
+mic_self_noise_dba = -inf
+mic_directivity_db = 0
+mic_adc_bits = 0
+gas_ringing_us = 0
+gas_ringing_decay_ms = 2.5
+)", "t");
+  EXPECT_EQ(off.sim.pressure_chain.noise_bar, 0.0);
+  EXPECT_EQ(off.sim.pressure_chain.flicker_bar, 0.01);
+  EXPECT_EQ(off.sim.pressure_chain.adc_bits, 0);
+  EXPECT_FALSE(off.sim.mic_chain.has_self_noise());
+  EXPECT_EQ(off.sim.mic_chain.directivity_db, 0.0);
+  EXPECT_EQ(off.sim.mic_chain.adc_bits, 0);
+  EXPECT_FALSE(off.sim.gas_ringing.active());
+  EXPECT_DOUBLE_EQ(off.sim.gas_ringing.decay_s, 2.5e-3);
+  const Config tuned = parse_config("[sim]\npressure_noise_bar = 0.2\nmic_adc_range_pa = 200\ngas_ringing_us = 12\n", "t");
+  EXPECT_EQ(tuned.sim.pressure_chain.noise_bar, 0.2);  // the real Yanmar chain
+  EXPECT_EQ(tuned.sim.mic_chain.adc_range_pa, 200.0);
+  EXPECT_DOUBLE_EQ(tuned.sim.gas_ringing.gain_s, 12e-6);
+  EXPECT_NE(error_of("[sim]\npressure_adc_bits = 2\n").find("test.toml: sim.pressure_adc_bits: expected 0 (no ADC) or 4 .. 32"),
+            std::string::npos);
+  EXPECT_NE(error_of("[sim]\nmic_adc_bits = 40\n").find("sim.mic_adc_bits"), std::string::npos);
+  EXPECT_NE(error_of("[sim]\npressure_adc_min_bar = 10\npressure_adc_max_bar = 5\n").find("sim.pressure_adc_max_bar"),
+            std::string::npos);
+  EXPECT_NE(error_of("[sim]\npressure_noise_bar = -0.1\n").find("sim.pressure_noise_bar: value -0.1 out of range"), std::string::npos);
+  EXPECT_NE(error_of("[sim]\nmic_self_noise_dba = \"quiet\"\n").find("sim.mic_self_noise_dba: expected a number"), std::string::npos);
 }
 
 TEST(Config, ErrorsNameFileAndKey) {

@@ -3,7 +3,10 @@
 // bad options fail with errors that name what is wrong. With the real Yanmar cycles (shared data): the
 // imported fired and motored pressures drive the virtual engine; mechanical_noise is the same in both and follows
 // its documented level and speed law, and the combustion-driven sound is what eq. 4.1 (evaluated here by FFT on
-// the real pressure) predicts for each, so fired is louder than motored by what combustion adds.
+// the real pressure) predicts for each, so fired is louder than motored by what combustion adds. The realistic test
+// cell: the configured pressure floor measured in pressure.csv against an ideal chain's run and recorded in each
+// run.json (without the transducer_noise effect, which adds in quadrature on top), and the engine-off background
+// run, which the diagnosis loader takes as the floor.
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 #include <sys/wait.h>
@@ -23,6 +26,7 @@
 #include <thread>
 #include <vector>
 
+#include "daemon/band_data.hpp"
 #include "drivers/run_dir.hpp"
 #include "tests/drivers/unique_temp.hpp"
 
@@ -167,13 +171,16 @@ TEST(SimCommand, HelpAndListEffectsNameEveryDesignEffectWithItsUnit) {
     EXPECT_NE(help.out.find("  " + name + "  ["), std::string::npos) << name << " missing from sim --help";
     EXPECT_NE(list.out.find("  " + name + "  ["), std::string::npos) << name << " missing from --list-effects";
   }
-  for (const char* unit : {"[N s^3/m^3]", "[N/m^3]", "[dB(A)]", "[Pa/sqrt(Hz)]", "[dB per 1000 rpm]"})
+  for (const char* unit : {"[N s^3/m^3]", "[N/m^3]", "[dB(A)]", "[bar rms]", "[dB per 1000 rpm]"})
     EXPECT_NE(list.out.find(unit), std::string::npos) << unit;
+  for (const char* option : {"--pressure-floor", "--background-run", "--ideal-cell"})
+    EXPECT_NE(help.out.find(option), std::string::npos) << option << " missing from sim --help";
 }
 
 // mic_gain: with the same seed, the chosen microphone is exactly 10^(M/20) times its value without the effect and
-// every other channel and the pressure are unchanged; transducer_noise: pressure.csv minus the clean pressure is
-// white noise of rms density * sqrt(edge rate / 2) (the documented definition), the microphones are unchanged.
+// every other channel and the pressure are unchanged; transducer_noise: pressure.csv minus the same run without it
+// is white noise of the documented rms per encoder sample, the microphones are unchanged; the realistic run minus
+// an ideal chain's (--pressure-floor 0) is the configured floor, which run.json records.
 TEST(SimCommand, WritesRunDirectoriesThatLoadAndCarryTheInjectedEffect) {
   const fs::path base = temp("small");
   const std::vector<std::string> common{"sim", "--condition", "idle_mi18", "--cycles", "3", "--seed", "5", "--no-progress"};
@@ -186,8 +193,10 @@ TEST(SimCommand, WritesRunDirectoriesThatLoadAndCarryTheInjectedEffect) {
   ASSERT_EQ(null.status, 0) << null.err;
   const Result gain = run_noisemon(args({"--effect", "mic_gain=6,mic=3", "-o", (base / "gain").string()}));
   ASSERT_EQ(gain.status, 0) << gain.err;
-  const Result noise = run_noisemon(args({"--effect", "transducer_noise=2", "-o", (base / "noise").string()}));
+  const Result noise = run_noisemon(args({"--effect", "transducer_noise=0.1", "-o", (base / "noise").string()}));
   ASSERT_EQ(noise.status, 0) << noise.err;
+  const Result ideal = run_noisemon(args({"--pressure-floor", "0", "-o", (base / "ideal").string()}));
+  ASSERT_EQ(ideal.status, 0) << ideal.err;
 
   const RunDir a = read_run_dir(base / "null" / "idle_mi18");
   const RunDir b = read_run_dir(base / "gain" / "idle_mi18");
@@ -220,18 +229,35 @@ TEST(SimCommand, WritesRunDirectoriesThatLoadAndCarryTheInjectedEffect) {
   }
   EXPECT_EQ(b.pressure_pa, a.pressure_pa);
 
-  // Transducer noise: 2 Pa/sqrt(Hz) over the mean edge rate 6 n / 0.2 deg (91.5 kHz): rms 2 sqrt(fs / 2).
+  // Transducer noise: 0.1 bar rms per encoder sample, whatever the edge rate (quantised by the same ADC as the rest).
   ASSERT_EQ(c.pressure_pa.size(), a.pressure_pa.size());
   EXPECT_EQ(c.mic_pa, a.mic_pa);
   std::vector<double> d(a.pressure_pa.size());
   double lag1 = 0.0;
   for (std::size_t i = 0; i < d.size(); ++i) d[i] = c.pressure_pa[i] - a.pressure_pa[i];
   for (std::size_t i = 1; i < d.size(); ++i) lag1 += d[i] * d[i - 1];
-  const double rms = std::sqrt(mean_square(d)), want = 2.0 * std::sqrt(0.5 * 6.0 * 3050.0 / 0.2);
-  std::printf("transducer_noise=2: rms %.1f Pa (documented %.1f Pa), lag-1 correlation %.3f\n", rms, want,
+  const double rms = std::sqrt(mean_square(d)), want = 0.1e5;
+  std::printf("transducer_noise=0.1: rms %.1f Pa (documented %.1f Pa), lag-1 correlation %.3f\n", rms, want,
               lag1 / static_cast<double>(d.size() - 1) / (rms * rms));
   EXPECT_NEAR(rms / want, 1.0, 0.05);  // pressure.csv is written in bar with enough digits for this
   EXPECT_LT(std::abs(lag1 / static_cast<double>(d.size() - 1)) / (rms * rms), 0.05);  // white
+
+  // The configured floor: 0.02 bar white and the 16-bit step over 250 bar in quadrature, measured against the ideal
+  // chain's run (the same true pressure, gas ringing and all) and recorded in run.json; the effect is not recorded.
+  const RunDir e = read_run_dir(base / "ideal" / "idle_mi18");
+  ASSERT_EQ(e.pressure_pa.size(), a.pressure_pa.size());
+  EXPECT_EQ(e.mic_pa, a.mic_pa);  // the microphones hear the true pressure
+  for (std::size_t i = 0; i < d.size(); ++i) d[i] = a.pressure_pa[i] - e.pressure_pa[i];
+  const double step_bar = 250.0 / 65536.0, floor_bar = std::sqrt(0.02 * 0.02 + step_bar * step_bar / 12.0);
+  std::printf("pressure floor: measured %.5f bar rms per encoder sample, configured %.5f bar\n", 1e-5 * std::sqrt(mean_square(d)),
+              floor_bar);
+  EXPECT_NEAR(1e-5 * std::sqrt(mean_square(d)) / floor_bar, 1.0, 0.03);
+  ASSERT_TRUE(a.pressure_noise_floor_bar.has_value());
+  EXPECT_NEAR(*a.pressure_noise_floor_bar, floor_bar, 1e-12);
+  ASSERT_TRUE(c.pressure_noise_floor_bar.has_value());
+  EXPECT_NEAR(*c.pressure_noise_floor_bar, floor_bar, 1e-12);  // transducer_noise is the unknown: not recorded
+  ASSERT_TRUE(e.pressure_noise_floor_bar.has_value());
+  EXPECT_EQ(*e.pressure_noise_floor_bar, 0.0);
 
   // truth.json says what was injected.
   const auto truth = nlohmann::json::parse(read_text(base / "gain" / "truth.json"));
@@ -438,4 +464,81 @@ TEST(SimCommand, RealYanmarFiredAndMotoredCyclesDriveTheVirtualEngine) {
     EXPECT_GT(measured[0][b + 1] - measured[1][b + 1], 8.0) << octaves[b] << " Hz";
     EXPECT_NEAR(measured[0][b + 1] - measured[1][b + 1], predicted[0][b + 1] - predicted[1][b + 1], 1.5) << octaves[b] << " Hz";
   }
+}
+
+// --background-run: an engine-off run named "background", which the diagnosis loader takes as the floor: its
+// microphones hear only the test cell, its pressure is ambient through the chain; truth.json records the cell.
+TEST(SimCommand, BackgroundRunIsTheTestCellAloneAndLoadsAsTheDiagnosisFloor) {
+  const fs::path base = temp("background");
+  const Result r = run_noisemon({"sim", "--condition", "motored_idle", "--background-run", "--effect", "background_noise=60",
+                                 "--effect", "transducer_noise=0.1", "--cycles", "4", "--seed", "2", "--no-progress", "-o",
+                                 (base / "runs").string()});
+  ASSERT_EQ(r.status, 0) << r.err;
+  const RunDir bg = read_run_dir(base / "runs" / "background");
+  const RunDir mot = read_run_dir(base / "runs" / "motored_idle");
+  EXPECT_EQ(bg.condition.name, "background");
+  EXPECT_TRUE(bg.condition.motored);
+  ASSERT_EQ(bg.mic_count, 10u);
+  // Pressure: the ambient 1 bar read through the chain, its floor plus the injected 0.1 bar.
+  double mean = 0.0;
+  for (double p : bg.pressure_pa) mean += p / static_cast<double>(bg.pressure_pa.size());
+  std::vector<double> dev;
+  for (double p : bg.pressure_pa) dev.push_back(p - mean);
+  const double step_bar = 250.0 / 65536.0, floor_bar = std::sqrt(0.02 * 0.02 + step_bar * step_bar / 12.0);
+  const double noise_bar = 1e-5 * std::sqrt(mean_square(dev));
+  // Microphones (A-weighted, energy mean): background_noise's 60 dB(A) (the 40 dB pink floor and the 20 dB(A)
+  // self-noise add 0.03 dB) against the motored engine.
+  const auto level = [](const RunDir& run) {
+    double e = 0.0;
+    for (std::size_t m = 0; m < run.mic_count; ++m)
+      e += weighted_mean_squares(channel(run, m), run.mic_rate_hz, [](double) { return 1.0; }, {})[0] / run.mic_count;
+    return db(e);
+  };
+  std::printf("background run: pressure %.4f bar +- %.4f bar rms (floor %.4f and 0.1 in quadrature: %.4f); microphones "
+              "%.2f dB(A), the motored engine %.2f dB(A)\n", 1e-5 * mean, noise_bar, floor_bar, std::hypot(floor_bar, 0.1),
+              level(bg), level(mot));
+  EXPECT_NEAR(1e-5 * mean, 1.0, 0.01);
+  EXPECT_NEAR(noise_bar / std::hypot(floor_bar, 0.1), 1.0, 0.05);
+  EXPECT_NEAR(level(bg), 60.0, 0.5);
+  EXPECT_GT(level(mot) - level(bg), 20.0);
+  ASSERT_TRUE(bg.pressure_noise_floor_bar.has_value());
+  EXPECT_NEAR(*bg.pressure_noise_floor_bar, floor_bar, 1e-12);
+  // The diagnosis loader: a background condition beside the motored reference.
+  const auto data = noisemon::daemon::make_band_dataset(
+      noisemon::daemon::load_recordings({(base / "runs" / "background").string(), (base / "runs" / "motored_idle").string()}));
+  ASSERT_EQ(data.conditions.size(), 2u);
+  for (const auto& c : data.conditions) {
+    EXPECT_EQ(c.info.background, c.info.name == "background") << c.info.name;
+    EXPECT_GE(c.cycles.size(), 1u) << c.info.name;  // measured cycles (after the dataset's pre-roll)
+  }
+  // truth.json: every setting of the cell, the background run marked.
+  const auto truth = nlohmann::json::parse(read_text(base / "runs" / "truth.json"));
+  const auto& cell = truth.at("test_cell");
+  EXPECT_EQ(cell.at("pressure_chain").at("noise_bar"), 0.02);
+  EXPECT_EQ(cell.at("pressure_chain").at("adc_bits"), 16);
+  EXPECT_NEAR(cell.at("pressure_chain").at("floor_bar").get<double>(), floor_bar, 1e-12);
+  EXPECT_EQ(cell.at("mic_chain").at("self_noise_dba"), 20.0);
+  EXPECT_EQ(cell.at("mic_chain").at("directivity_db"), 1.0);
+  EXPECT_EQ(cell.at("mic_chain").at("adc_bits"), 24);
+  EXPECT_EQ(cell.at("gas_ringing").at("gain_us"), 6.0);
+  EXPECT_EQ(truth.at("adc_clipped").at("pressure_samples"), 0);
+  EXPECT_EQ(truth.at("adc_clipped").at("mic_samples"), 0);
+  bool marked = false;
+  for (const auto& run : truth.at("runs")) marked = marked || (run.at("dir") == "background" && run.at("background") == true);
+  EXPECT_TRUE(marked);
+  // --ideal-cell: every part off, recorded as such.
+  const Result ideal = run_noisemon({"sim", "--condition", "idle_mi12", "--ideal-cell", "--cycles", "1", "--no-progress", "-o",
+                                     (base / "ideal").string()});
+  ASSERT_EQ(ideal.status, 0) << ideal.err;
+  const auto ideal_truth = nlohmann::json::parse(read_text(base / "ideal" / "truth.json"));
+  EXPECT_EQ(ideal_truth.at("test_cell").at("ideal_cell"), true);
+  EXPECT_EQ(ideal_truth.at("test_cell").at("pressure_chain").at("floor_bar"), 0.0);
+  EXPECT_TRUE(ideal_truth.at("test_cell").at("mic_chain").at("self_noise_dba").is_null());
+  EXPECT_EQ(ideal_truth.at("test_cell").at("gas_ringing").at("gain_us"), 0.0);
+  // The loudest thesis condition does not clip the default microphone range; a clipping run says so.
+  const Result loud = run_noisemon({"sim", "--condition", "full_mi24", "--cycles", "2", "--no-progress", "-o",
+                                    (base / "loud").string()});
+  ASSERT_EQ(loud.status, 0) << loud.err;
+  EXPECT_EQ(nlohmann::json::parse(read_text(base / "loud" / "truth.json")).at("adc_clipped").at("mic_samples"), 0);
+  EXPECT_EQ(loud.err.find("clipped"), std::string::npos) << loud.err;
 }

@@ -3,6 +3,10 @@
 // evaluated at each frame's instant, the radiated level from the harmonic content of one engine cycle times
 // the block model's analytic frequency response (Parseval), the acoustic delay by cross-correlation with a
 // block model run offline on the published pressure, and the background noise's level and spectral tilt.
+// The realistic test cell is the default: the pressure channel's floor is measured as a density against the
+// configured rms per encoder sample, and ADC clipping must show in the source's counters. Tests whose reference
+// is exact get an explicitly ideal part: the pressure-channel test an ideal pressure chain, the harmonic-level
+// test no gas ringing (its random phase per cycle makes the pressure aperiodic).
 #include "drivers/sim_source.hpp"
 
 #include <gtest/gtest.h>
@@ -20,6 +24,8 @@
 
 #include <sys/resource.h>
 
+#include "drivers/sim_generators.hpp"
+#include "drivers/sim_run.hpp"
 #include "model/block_model.hpp"
 #include "model/engine_cycle.hpp"
 
@@ -62,6 +68,7 @@ struct SimRun {
   std::uint64_t overruns = 0;
   bool was_running = false;
   std::vector<nd::DriverThreadStatus> status_running, status_stopped;
+  std::vector<nd::DriverCounter> counters;
   double cpu_s = 0.0, wall_s = 0.0;
 };
 
@@ -97,6 +104,7 @@ void capture(nd::Source& src, Rings& rings, SimRun& run, double seconds) {
   run.wall_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   run.cpu_s = process_cpu_s() - cpu0;
   run.status_stopped = src.thread_status();
+  run.counters = src.counters();
   while (rings.pressure.read(&block, 1)) run.pressure.take(block);
   while (rings.mics.read(&block, 1)) run.mics.take(block);
   while (rings.ops.read(&op, 1)) run.ops.push_back(op);
@@ -124,12 +132,17 @@ double wrap_deg(double theta) {
   return w - 360.0;
 }
 
-// Engine pressure at time t with the source's seeded cycle-to-cycle variation.
+// Engine pressure at time t with the source's seeded cycle-to-cycle variation (and its gas ringing).
 struct PressureReference {
   nm::EngineCycle cycle;
   nd::SimConfig config;
   std::int64_t index = std::numeric_limits<std::int64_t>::min();
-  explicit PressureReference(const nd::SimConfig& c) : config(c) {}
+  explicit PressureReference(const nd::SimConfig& c) : cycle(params(c)), config(c) {}
+  static nm::EngineCycleParams params(const nd::SimConfig& c) {
+    nm::EngineCycleParams p;
+    p.ringing = c.gas_ringing;
+    return p;
+  }
   double at(double t) {
     const double theta = crank_deg(t, config.speed_rpm, config.speed_fluctuation);
     const auto k = static_cast<std::int64_t>(std::floor((theta + 360.0) / 720.0));
@@ -198,10 +211,17 @@ nd::SimConfig idle_config() {
   return c;
 }
 
-// One fired run shared by several tests.
+// One fired run shared by several tests (the realistic test cell).
 const SimRun& fired_run() {
   static const SimRun run = run_source(idle_config(), 1.2);
   return run;
+}
+
+std::int64_t counter(const SimRun& r, const std::string& name) {
+  for (const auto& c : r.counters)
+    if (c.name == name) return c.value;
+  ADD_FAILURE() << "no counter " << name;
+  return -1;
 }
 
 }  // namespace
@@ -255,8 +275,10 @@ TEST(SimSource, StreamsAreContiguousAlignedAndPacedWithoutOverruns) {
 }
 
 TEST(SimSource, PressureChannelIsTheEngineCycleAtEachFrame) {
-  const SimRun& r = fired_run();
-  const auto cfg = idle_config();
+  // An explicitly ideal pressure chain: the channel is the true pressure (gas ringing included), resampled.
+  nd::SimConfig cfg = idle_config();
+  cfg.pressure_chain = nm::PressureChainConfig::ideal();
+  const SimRun r = run_source(cfg, 0.8);
   PressureReference ref(cfg);
   double max_err = 0.0, sum_sq = 0.0, peak = 0.0;
   for (std::size_t f = 0; f < r.pressure.frames(); ++f) {
@@ -272,6 +294,57 @@ TEST(SimSource, PressureChannelIsTheEngineCycleAtEachFrame) {
   EXPECT_GT(peak, 60e5);
   EXPECT_LT(max_err, 1e-4 * peak);
   EXPECT_LT(rms_err, 1e-5 * peak);
+}
+
+// The realistic pressure chain on every encoder edge: the published 40 kHz channel minus the true pressure is white
+// with the density of the configured floor (rms per edge, quantisation included) spread over the edge rate.
+TEST(SimSource, PressureChannelCarriesTheConfiguredFloorPerEncoderSample) {
+  const SimRun& r = fired_run();
+  const auto cfg = idle_config();
+  PressureReference ref(cfg);
+  const std::size_t n = r.pressure.frames();
+  std::vector<double> e(n);
+  for (std::size_t f = 0; f < n; ++f)
+    e[f] = r.pressure.at(f, nd::kPressureChannel) - ref.at(static_cast<double>(r.pressure.first_index + static_cast<std::int64_t>(f)) / kFs);
+  // Welch (Hann, 4096 frames, half overlap): mean one-sided density over 1-15 kHz.
+  const std::size_t seg = 4096;
+  double wss = 0.0, sum = 0.0;
+  int count = 0, bins = 0;
+  for (std::size_t i = 0; i < seg; ++i) wss += std::pow(0.5 - 0.5 * std::cos(2.0 * kPi * i / seg), 2);
+  std::vector<double> psd(seg / 2, 0.0);
+  for (std::size_t start = 0; start + seg <= n; start += seg / 2, ++count)
+    for (std::size_t k = 1; k < seg / 2; ++k) {
+      std::complex<double> x = 0.0;
+      if (k * kFs / seg < 1000.0 || k * kFs / seg >= 15000.0) continue;
+      for (std::size_t i = 0; i < seg; ++i)
+        x += (0.5 - 0.5 * std::cos(2.0 * kPi * i / seg)) * e[start + i] * std::polar(1.0, -2.0 * kPi * k * i / seg);
+      psd[k] += 2.0 * std::norm(x) / (wss * kFs);
+    }
+  for (std::size_t k = 1; k < seg / 2; ++k)
+    if (psd[k] > 0.0) sum += psd[k] / count, ++bins;
+  const double edge_rate = 6.0 * cfg.speed_rpm / cfg.encoder_resolution_deg;
+  const double sigma = 1e5 * cfg.pressure_chain.floor_bar();
+  const double expected = 2.0 * sigma * sigma / edge_rate;  // white at rate fe: one-sided density 2 sigma^2 / fe
+  std::printf("pressure channel - true pressure: %.2f Pa^2/Hz over 1-15 kHz, the configured %.4f bar per edge at %.0f "
+              "edges/s gives %.2f\n", sum / bins, cfg.pressure_chain.floor_bar(), edge_rate, expected);
+  EXPECT_NEAR(sum / bins / expected, 1.0, 0.05);
+  EXPECT_EQ(counter(r, "sim.pressure.adc_clipped"), 0);  // nothing clips at the realistic defaults
+  EXPECT_EQ(counter(r, "sim.mics.adc_clipped"), 0);
+}
+
+TEST(SimSource, AdcClippingIsCountedNeverSilent) {
+  nd::SimConfig cfg = idle_config();
+  cfg.pressure_chain.adc_max_bar = 50.0;  // below the fired peak (~77 bar)
+  cfg.mic_chain.adc_range_pa = 5.0;       // below the engine's peaks
+  const SimRun r = run_source(cfg, 0.6);
+  double pmax = 0.0;
+  for (std::size_t f = 0; f < r.pressure.frames(); ++f) pmax = std::max(pmax, r.pressure.at(f, nd::kPressureChannel));
+  std::printf("clipping: %lld pressure edges, %lld microphone card samples; published pressure peaks at %.2f bar\n",
+              static_cast<long long>(counter(r, "sim.pressure.adc_clipped")),
+              static_cast<long long>(counter(r, "sim.mics.adc_clipped")), 1e-5 * pmax);
+  EXPECT_GT(counter(r, "sim.pressure.adc_clipped"), 100);
+  EXPECT_GT(counter(r, "sim.mics.adc_clipped"), 100);
+  EXPECT_LT(pmax, 51e5);  // the top code, up to the resampler's ringing on the flat top
 }
 
 TEST(SimSource, CrankChannelFollowsTheKinematicsAndWrapsOncePerCycle) {
@@ -346,7 +419,8 @@ TEST(SimSource, MicrophonesCarryTheBlockResponseDelayedByRadiusOverC) {
     EXPECT_NEAR(lag, expected_lag, 2.0) << "channel " << ch;
     if (ch == 99) std::printf("acoustic delay by cross-correlation: %.2f frames (radius/c: %.2f)\n", lag, expected_lag);
   }
-  // Level: energy mean over microphones equals the offline prediction's (plus the 40 dB background).
+  // Level: energy mean over microphones equals the offline prediction's (plus the 40 dB background): the
+  // directivity keeps the array's energy mean, the self-noise (20 dB(A)) is far below.
   const int delay = static_cast<int>(std::lround(expected_lag));
   double pred_ms = 0.0;
   for (std::size_t f = from; f < to; ++f) pred_ms += (pred[f] - mean) * (pred[f] - mean);
@@ -366,6 +440,7 @@ TEST(SimSource, MicLevelMatchesHarmonicResponseOfThePeriodicCycle) {
   cfg.load_nm = 20.0;
   cfg.soi_deg_btdc = 21.0;
   cfg.cycle_variation = 0.0;
+  cfg.gas_ringing = nm::GasRingingParams::off();  // its random phase per cycle would break the periodicity
   cfg.mic_gain_spread_db = 1.0;  // the energy-normalised gains must not move the mean
   const SimRun r = run_source(cfg, 1.0);
   ASSERT_TRUE(r.mics.contiguous);
@@ -402,6 +477,7 @@ TEST(SimSource, BackgroundNoiseMotoredAndFired) {
   // independent between microphones.
   nd::SimConfig loud = motored;
   loud.background_noise_db = lm + 30.0;
+  loud.mic_chain = nm::MicChainConfig::ideal();  // explicitly ideal: a ~147 dB floor would clip the card's ADC
   const SimRun rb = run_source(loud, 0.8);
   const std::size_t from = 2000, to = rb.mics.frames();
   EXPECT_NEAR(level_db(mic_mean_square(rb.mics, from, to)), loud.background_noise_db, 0.25);
@@ -447,4 +523,53 @@ TEST(SimSource, StopIsIdempotentAndRestartContinuesTheTimeBase) {
     EXPECT_THROW(running->start(r3.streams()), std::logic_error);
     std::this_thread::sleep_for(std::chrono::milliseconds(50));
   }
+}
+
+namespace {
+
+// Everything a generator writes up to t_end, advanced in the given steps (s).
+template <class Generator>
+std::vector<double> generate(const nd::SimConfig& cfg, double t_end, double step) {
+  Generator g(cfg, 0.05);
+  nd::BlockRing ring(4096);
+  std::vector<double> out;
+  nd::SampleBlock b;
+  for (double t = 0.05 + step; t < t_end + 1e-12; t += step) {
+    g.advance(std::min(t, t_end), ring);
+    while (ring.read(&b, 1)) out.insert(out.end(), b.data, b.data + static_cast<std::size_t>(b.frames) * b.channels);
+  }
+  g.advance(t_end, ring);
+  while (ring.read(&b, 1)) out.insert(out.end(), b.data, b.data + static_cast<std::size_t>(b.frames) * b.channels);
+  return out;
+}
+
+}  // namespace
+
+// The realistic cell is deterministic: the same seed gives the same bits, however the wall clock chunks the
+// generators (the pressure chain is counter-based on the encoder edge, the microphones sequential from the start).
+TEST(SimSource, RealisticCellIsBitReproducibleAndIndependentOfChunking) {
+  nd::SimConfig cfg = idle_config();
+  cfg.pressure_chain.flicker_bar = 0.01;  // every part on
+  const auto p_one = generate<nd::sim::PressureGenerator>(cfg, 0.25, 0.2);
+  const auto p_many = generate<nd::sim::PressureGenerator>(cfg, 0.25, 0.0037);
+  const auto m_one = generate<nd::sim::MicGenerator>(cfg, 0.25, 0.2);
+  const auto m_many = generate<nd::sim::MicGenerator>(cfg, 0.25, 0.0037);
+  ASSERT_GT(p_one.size(), 10000u);
+  EXPECT_EQ(p_many, p_one);
+  EXPECT_EQ(m_many, m_one);
+  nd::SimConfig other = cfg;
+  other.seed = 12;
+  EXPECT_NE(generate<nd::sim::PressureGenerator>(other, 0.25, 0.2), p_one);
+  // Whole runs (noisemon sim): the same spec, the same bits.
+  nd::SimRunSpec spec;
+  spec.condition = nd::resolve_conditions({"full_mi21"}).front();
+  spec.cycles = 2;
+  spec.effects = nm::parse_effects({"transducer_noise", "mechanical_noise"});
+  const nd::RunDir a = nd::simulate_run(spec), b = nd::simulate_run(spec);
+  EXPECT_EQ(a.pressure_pa, b.pressure_pa);
+  EXPECT_EQ(a.mic_pa, b.mic_pa);
+  spec.seed = 2;
+  const nd::RunDir c = nd::simulate_run(spec);
+  EXPECT_NE(c.pressure_pa, a.pressure_pa);
+  EXPECT_NE(c.mic_pa, a.mic_pa);
 }
