@@ -1,0 +1,486 @@
+// The independent test cell (see cell_synth.hpp). Standard library, Eigen's FFT, nlohmann-json, libsndfile only.
+#include "cell_synth.hpp"
+
+#include <sndfile.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <fstream>
+#include <numbers>
+#include <random>
+#include <stdexcept>
+
+#include <nlohmann/json.hpp>
+#include <unsupported/Eigen/FFT>
+
+namespace indep {
+namespace {
+
+using cd = std::complex<double>;
+constexpr double kPi = std::numbers::pi;
+constexpr double kPref = 20e-6;                 // Pa
+constexpr double kBarToPa = 1e5;
+constexpr double kDeviationCutoffHz = 1000;     // cycle-to-cycle deviations above it are the chain's floor
+constexpr double kMeanCutoffHz = 4000;          // the mean's content above it is kept in the combustion window only
+constexpr double kFiredLoadNm = 18.0;           // the record's operating point
+constexpr double kSoiDegBtdc = 9.6;
+constexpr double kRailBar = 470.0;
+
+std::vector<cd> fft_fwd(const std::vector<double>& x) {
+  Eigen::FFT<double> fft;
+  const std::vector<cd> in(x.begin(), x.end());
+  std::vector<cd> out;
+  fft.fwd(out, in);
+  return out;
+}
+
+std::vector<double> fft_inv_real(const std::vector<cd>& X) {
+  Eigen::FFT<double> fft;
+  std::vector<cd> out;
+  fft.inv(out, X);  // scaled by 1/n
+  std::vector<double> y(out.size());
+  for (std::size_t i = 0; i < out.size(); ++i) y[i] = out[i].real();
+  return y;
+}
+
+std::vector<double> parse_numbers(const std::string& line, const std::string& path, std::size_t lineno) {
+  std::vector<double> v;
+  const char* p = line.c_str();
+  while (true) {
+    while (*p == ' ' || *p == '\t' || *p == '\r') ++p;
+    if (*p == '\0') break;
+    char* end = nullptr;
+    const double x = std::strtod(p, &end);
+    if (end == p || !std::isfinite(x))
+      throw std::runtime_error(path + ": line " + std::to_string(lineno) + ": not a finite number near \"" +
+                               std::string(p).substr(0, 16) + "\"");
+    v.push_back(x);
+    p = end;
+  }
+  return v;
+}
+
+void check_angles(const CycleTable& t, const std::string& path) {
+  if (t.crank_deg.size() != static_cast<std::size_t>(kSamplesPerCycle))
+    throw std::runtime_error(path + ": " + std::to_string(t.crank_deg.size()) + " rows, expected 3600 (720 deg in 0.2 deg)");
+  for (std::size_t i = 1; i < t.crank_deg.size(); ++i) {
+    const double step = t.crank_deg[i] - t.crank_deg[i - 1];
+    if (std::abs(step - kRecordStepDeg) > 0.01 * kRecordStepDeg)
+      throw std::runtime_error(path + ": line " + std::to_string(i + 1) + ": crank step " + std::to_string(step) +
+                               " deg, expected 0.2");
+  }
+  if (std::abs(t.crank_deg.front() + 180.0) > 1e-6)
+    throw std::runtime_error(path + ": the table starts at " + std::to_string(t.crank_deg.front()) + " deg, expected -180");
+}
+
+// The record's columns laid end to end as `cycles` cycles [720k - 360, 720k + 360): cycle k is column first+k's
+// 360 ... 539.8 deg (rows 2700 ...) then column first+k+1's -180 ... 359.8 deg (rows 0 ... 2699).
+std::vector<double> lay_out(const CycleTable& t, int first, int cycles) {
+  if (first < 0 || first + cycles + 1 > static_cast<int>(t.cycles_bar.size()))
+    throw std::runtime_error("cycles " + std::to_string(first) + " ... " + std::to_string(first + cycles) +
+                             " asked of a record of " + std::to_string(t.cycles_bar.size()));
+  constexpr int kTail = 2700;  // row of +360 deg
+  std::vector<double> x;
+  x.reserve(static_cast<std::size_t>(cycles) * kSamplesPerCycle);
+  for (int k = 0; k < cycles; ++k) {
+    const auto& a = t.cycles_bar[first + k];
+    const auto& b = t.cycles_bar[first + k + 1];
+    x.insert(x.end(), a.begin() + kTail, a.end());
+    x.insert(x.end(), b.begin(), b.begin() + kTail);
+  }
+  return x;
+}
+
+std::vector<double> ensemble_mean(const std::vector<double>& x, int cycles) {
+  std::vector<double> m(kSamplesPerCycle, 0.0);
+  for (int k = 0; k < cycles; ++k)
+    for (int i = 0; i < kSamplesPerCycle; ++i) m[i] += x[static_cast<std::size_t>(k) * kSamplesPerCycle + i] / cycles;
+  return m;
+}
+
+// 1 in the combustion window -30 ... +120 deg, 0 outside -50 ... +140 deg, cosine tapers; sample i is at
+// -360 + 0.2 i deg.
+double combustion_weight(int i) {
+  const double a = -360.0 + kRecordStepDeg * i;
+  constexpr double lo = -30, hi = 120, taper = 20;
+  if (a >= lo && a <= hi) return 1.0;
+  const double d = a < lo ? lo - a : a - hi;
+  return d >= taper ? 0.0 : 0.5 * (1.0 + std::cos(kPi * d / taper));
+}
+
+// The clean pressure of a laid-out run (see the header): the phase-locked mean (its content above 4 kHz only in
+// the combustion window of fired runs) plus each cycle's deviation below 1 kHz.
+std::vector<double> clean_of(const std::vector<double>& x, int cycles, bool motored, double speed_rpm) {
+  const double rate = 30.0 * speed_rpm;  // samples per second (0.2 deg)
+  const std::vector<double> mean = ensemble_mean(x, cycles);
+  const std::vector<double> mean_lp = lowpass(mean, kMeanCutoffHz / rate);
+  std::vector<double> dev(x.size());
+  for (std::size_t i = 0; i < x.size(); ++i) dev[i] = x[i] - mean[i % kSamplesPerCycle];
+  const std::vector<double> dev_lp = lowpass(dev, kDeviationCutoffHz / rate);
+  std::vector<double> clean(x.size());
+  for (std::size_t i = 0; i < x.size(); ++i) {
+    const int j = static_cast<int>(i % kSamplesPerCycle);
+    const double w = motored ? 0.0 : combustion_weight(j);
+    clean[i] = mean_lp[j] + w * (mean[j] - mean_lp[j]) + dev_lp[i];
+  }
+  return clean;
+}
+
+bool five_smooth(std::size_t n) {
+  for (std::size_t p : {2u, 3u, 5u})
+    while (n % p == 0) n /= p;
+  return n == 1;
+}
+
+}  // namespace
+
+// ------------------------------------------------------------------------------------------ records
+
+CycleTable read_cycle_table(const std::string& path) {
+  std::ifstream in(path);
+  if (!in) throw std::runtime_error(path + ": cannot open");
+  CycleTable t;
+  std::string line;
+  std::size_t lineno = 0, columns = 0;
+  while (std::getline(in, line)) {
+    ++lineno;
+    if (line.find_first_not_of(" \t\r") == std::string::npos) continue;
+    const std::vector<double> v = parse_numbers(line, path, lineno);
+    if (columns == 0) {
+      columns = v.size();
+      if (columns < 3) throw std::runtime_error(path + ": line 1: expected an angle and at least two cycles");
+      t.cycles_bar.resize(columns - 1);
+    }
+    if (v.size() != columns)
+      throw std::runtime_error(path + ": line " + std::to_string(lineno) + ": " + std::to_string(v.size()) +
+                               " columns, expected " + std::to_string(columns));
+    t.crank_deg.push_back(v[0]);
+    for (std::size_t c = 1; c < columns; ++c) t.cycles_bar[c - 1].push_back(v[c]);
+  }
+  check_angles(t, path);
+  return t;
+}
+
+Sources load_sources(const std::string& dir) {
+  return {read_cycle_table(dir + "/yanmar_l100v_fired_18Nm.txt"), read_cycle_table(dir + "/yanmar_l100v_motored.txt")};
+}
+
+// ------------------------------------------------------------------------------------------ physics
+
+std::complex<double> eq41(double f_hz) {
+  constexpr double ka = 11.885, wb = 2 * kPi * 100, zeta = 0.35, wn = 2 * kPi * 5000;
+  const cd s(0.0, 2 * kPi * f_hz);
+  return ka * (s + wb) / (s * s + 2 * zeta * wn * s + wn * wn);
+}
+
+std::complex<double> resonance(double f_hz, double f0_hz, double q) {
+  const cd x(0.0, f_hz / (q * f0_hz));
+  const double r = f_hz / f0_hz;
+  return x / (1.0 - r * r + x);
+}
+
+double a_weighting_db(double f_hz) {
+  const double f2 = f_hz * f_hz;
+  const double num = 12194.0 * 12194.0 * f2 * f2;
+  const double den = (f2 + 20.6 * 20.6) * std::sqrt((f2 + 107.7 * 107.7) * (f2 + 737.9 * 737.9)) * (f2 + 12194.0 * 12194.0);
+  return 20.0 * std::log10(num / den) + 2.0;
+}
+
+const std::array<std::array<double, 3>, kMics>& mic_positions_m() {
+  static const std::array<std::array<double, 3>, kMics> p{{{-1.35, 0.78, 0.79}, {0.00, 1.73, 0.26}, {0.00, 1.16, 1.31},
+                                                           {1.00, -0.58, 1.31}, {0.00, 0.00, 1.75}, {1.35, 0.78, 0.79},
+                                                           {1.50, -0.87, 0.26}, {0.00, -1.16, 1.31}, {-1.00, -0.58, 1.31},
+                                                           {-1.50, -0.87, 0.26}}};
+  return p;
+}
+
+const std::array<double, kMics>& directivity_db() {
+  static const std::array<double, kMics> g{0.6, -0.4, 0.9, -0.8, 0.2, -0.3, 0.7, -0.9, 0.4, -0.1};
+  return g;
+}
+
+std::vector<double> radiate(const std::vector<double>& u, std::size_t n_out, double period_s, const Transfer& transfer) {
+  const std::size_t n_in = u.size();
+  const std::vector<cd> U = fft_fwd(u);
+  std::vector<cd> Y(n_out, cd(0.0, 0.0));
+  const std::size_t k_max = (std::min(n_in, n_out) - 1) / 2;  // strictly below both Nyquist limits
+  const double scale = static_cast<double>(n_out) / static_cast<double>(n_in);
+  Y[0] = scale * transfer(0.0).real() * U[0].real();
+  for (std::size_t k = 1; k <= k_max; ++k) {
+    Y[k] = scale * transfer(static_cast<double>(k) / period_s) * U[k];
+    Y[n_out - k] = std::conj(Y[k]);
+  }
+  return fft_inv_real(Y);
+}
+
+std::vector<double> lowpass(const std::vector<double>& x, double cutoff) {
+  std::vector<cd> X = fft_fwd(x);
+  const std::size_t n = X.size();
+  const double lo = 0.8 * cutoff, hi = 1.25 * cutoff;
+  for (std::size_t k = 1; k < n; ++k) {
+    const double f = static_cast<double>(std::min(k, n - k)) / static_cast<double>(n);
+    const double g = f <= lo ? 1.0 : f >= hi ? 0.0 : 0.5 * (1.0 + std::cos(kPi * (f - lo) / (hi - lo)));
+    X[k] *= g;
+  }
+  return fft_inv_real(X);
+}
+
+namespace {
+double mean_square(const std::vector<cd>& X, double fs_hz, bool a_weighted) {
+  const std::size_t n = X.size();
+  double ms = 0;
+  for (std::size_t k = 1; k < n; ++k) {
+    const double f = static_cast<double>(std::min(k, n - k)) * fs_hz / static_cast<double>(n);
+    ms += std::norm(X[k]) * (a_weighted ? std::pow(10.0, a_weighting_db(f) / 10.0) : 1.0);
+  }
+  return ms / (static_cast<double>(n) * static_cast<double>(n));
+}
+}  // namespace
+
+double level_db(const std::vector<double>& x_pa, double fs_hz, bool a_weighted) {
+  return 10.0 * std::log10(mean_square(fft_fwd(x_pa), fs_hz, a_weighted) / (kPref * kPref));
+}
+
+// ------------------------------------------------------------------------------------------ the cell
+
+std::vector<Condition> default_conditions(int cycles) {
+  struct Fired { double rpm, load; bool unknown; };
+  constexpr Fired fired[] = {{1500, 0.85, false}, {1800, 1.0, true}, {2000, 0.7, false}, {2200, 1.15, false}, {2600, 1.3, false}};
+  const int last_first = 59 - cycles;  // 60 columns; cycles + 1 consecutive ones per run
+  std::vector<Condition> out;
+  for (int i = 0; i < 5; ++i) {
+    Condition c;
+    char name[40];
+    std::snprintf(name, sizeof name, "fired_%04.0f_l%03.0f", fired[i].rpm, 100 * fired[i].load);
+    c.name = name;
+    c.speed_rpm = fired[i].rpm;
+    c.load_scale = fired[i].load;
+    c.load_unknown = fired[i].unknown;
+    c.first_cycle = static_cast<int>(std::lround(i * last_first / 4.0));
+    c.cycles = cycles;
+    out.push_back(c);
+  }
+  out.push_back({"motored_1800", 1800, 1.0, true, false, 0, cycles});
+  out.push_back({"motored_2600", 2600, 1.0, true, false, last_first, cycles});
+  return out;
+}
+
+Timing timing(double nominal_rpm, int cycles, double fs_hz) {
+  const double target = 120.0 * cycles / nominal_rpm * fs_hz;
+  const auto t = static_cast<std::size_t>(std::llround(target));
+  std::size_t n = t;
+  for (std::size_t d = 0; d < t; ++d) {
+    if (five_smooth(t + d)) { n = t + d; break; }
+    if (five_smooth(t - d)) { n = t - d; break; }
+  }
+  const double period = static_cast<double>(n) / fs_hz;
+  return {120.0 * cycles / period, period, n};
+}
+
+CellPressure condition_pressure(const Sources& src, const Condition& c, double speed_rpm) {
+  const CycleTable& table = c.motored ? src.motored : src.fired;
+  const std::vector<double> x = lay_out(table, c.first_cycle, c.cycles);
+  CellPressure p;
+  p.clean_bar = clean_of(x, c.cycles, c.motored, speed_rpm);
+  p.recorded_bar = x;  // load scale 1: pressure.csv is the record itself
+  if (c.motored || c.load_scale == 1.0) return p;
+  // "motored": the motored record's clean mean over all its cycles (no content above 4 kHz without combustion).
+  const int all = static_cast<int>(src.motored.cycles_bar.size()) - 1;
+  const std::vector<double> base =
+      lowpass(ensemble_mean(lay_out(src.motored, 0, all), all), kMeanCutoffHz / (30.0 * speed_rpm));
+  for (std::size_t i = 0; i < x.size(); ++i) {
+    const double b = base[i % kSamplesPerCycle], noise = x[i] - p.clean_bar[i];
+    p.clean_bar[i] = b + c.load_scale * (p.clean_bar[i] - b);
+    p.recorded_bar[i] = p.clean_bar[i] + noise;  // the record's own noise, unscaled
+  }
+  return p;
+}
+
+// ------------------------------------------------------------------------------------------ microphones
+
+namespace {
+
+// Stationary Gaussian noise, one period of n samples, power spectrum shape(f) (f > 0), scaled to exactly `level_db`
+// (A-weighted or not) over the period.
+std::vector<double> shaped_noise(std::size_t n, double fs_hz, const std::function<double(double)>& shape, double level,
+                                 bool a_weighted, std::mt19937_64& rng) {
+  std::normal_distribution<double> normal(0.0, 1.0);
+  std::vector<cd> X(n, cd(0.0, 0.0));
+  for (std::size_t k = 1; k <= (n - 1) / 2; ++k) {
+    const double a = normal(rng), b = normal(rng);
+    X[k] = std::sqrt(shape(static_cast<double>(k) * fs_hz / static_cast<double>(n))) * cd(a, b);
+    X[n - k] = std::conj(X[k]);
+  }
+  const double gain = std::sqrt(kPref * kPref * std::pow(10.0, level / 10.0) / mean_square(X, fs_hz, a_weighted));
+  for (auto& v : X) v *= gain;
+  return fft_inv_real(X);
+}
+
+std::mt19937_64 rng_for(const Chain& chain, int condition, int mic, int stream) {
+  std::seed_seq seq{static_cast<std::uint32_t>(chain.seed), static_cast<std::uint32_t>(chain.seed >> 32),
+                    static_cast<std::uint32_t>(condition), static_cast<std::uint32_t>(mic), static_cast<std::uint32_t>(stream)};
+  return std::mt19937_64(seq);
+}
+
+// Crank-angle-locked impacts: a decaying two-tone burst at fixed angles of every cycle (deg from firing TDC).
+struct Impact {
+  double angle_deg, weight;
+};
+constexpr Impact kImpacts[] = {{-150, 0.6}, {8, 1.0}, {140, 0.8}, {355, 0.7}};  // IVC, piston slap, EVO, EVC/IVO
+constexpr double kImpactDecayS = 0.4e-3;
+
+double impact_shape(double t) {
+  if (t < 0) return 0.0;
+  return std::exp(-t / kImpactDecayS) * (std::sin(2 * kPi * 2500 * t) + 0.7 * std::sin(2 * kPi * 5200 * t + 0.6));
+}
+
+// Unit-amplitude impacts of every cycle of the run as heard `delay_s` later, added to y (periodic: wraps).
+void add_impacts(std::vector<double>& y, const Timing& t, int cycles, double fs_hz, double delay_s, double amplitude) {
+  const std::size_t n = y.size();
+  const double deg_per_s = 6.0 * t.speed_rpm;
+  const auto span = static_cast<std::size_t>(std::ceil(16 * kImpactDecayS * fs_hz));
+  for (int k = 0; k < cycles; ++k)
+    for (const Impact& im : kImpacts) {
+      const double t0 = (im.angle_deg + 360.0 + 720.0 * k) / deg_per_s + delay_s;
+      const auto j0 = static_cast<std::size_t>(std::ceil(t0 * fs_hz));
+      for (std::size_t j = j0; j < j0 + span; ++j)
+        y[j % n] += amplitude * im.weight * impact_shape(static_cast<double>(j) / fs_hz - t0);
+    }
+}
+
+// The impacts' amplitude for an array-average Leq(A) of `dba` at ref_rpm (energy per impact fixed).
+double impact_amplitude(const Timing& t, int cycles, double fs_hz, double delay_s, double dba, double ref_rpm) {
+  std::vector<double> unit(t.n_out, 0.0);
+  add_impacts(unit, t, cycles, fs_hz, delay_s, 1.0);
+  const double at_this_speed = dba + 10.0 * std::log10(t.speed_rpm / ref_rpm);
+  double array_energy = 0;  // mean of the directivity gains' energy
+  for (double g : directivity_db()) array_energy += std::pow(10.0, g / 10.0) / kMics;
+  return std::pow(10.0, (at_this_speed - level_db(unit, fs_hz, true)) / 20.0) / std::sqrt(array_energy);
+}
+
+Transfer structural_path(int mic, double speed_rpm, const Chain& chain, const Effects& fx) {
+  const double gain = std::pow(10.0, (directivity_db()[mic] + fx.speed_db_per_krpm * (speed_rpm - fx.speed_ref_rpm) / 1000.0) / 20.0);
+  const double mode = std::pow(10.0, fx.second_mode_db / 20.0) - 1.0;
+  const double delay = chain.radius_m / chain.sound_speed_m_per_s;
+  return [=](double f) {
+    const cd h = eq41(f) * (1.0 + (f > 0 ? mode * resonance(f, fx.second_mode_hz, fx.second_mode_q) : cd(0.0)));
+    return gain * h * std::polar(1.0, -2 * kPi * f * delay);
+  };
+}
+
+// The floors and the background at one microphone: stream 1 self-noise, 2 pink floor, 3 background.
+void add_floors(std::vector<double>& y, int condition, int mic, const Chain& chain, const Effects& fx) {
+  const std::size_t n = y.size();
+  auto add = [&](int stream, const std::function<double(double)>& shape, double level, bool a_weighted) {
+    std::mt19937_64 rng = rng_for(chain, condition, mic, stream);
+    const std::vector<double> v = shaped_noise(n, chain.fs_hz, shape, level, a_weighted, rng);
+    for (std::size_t i = 0; i < n; ++i) y[i] += v[i];
+  };
+  add(1, [](double) { return 1.0; }, chain.self_noise_dba, true);
+  add(2, [](double f) { return f < 20.0 ? 0.0 : 1.0 / f; }, chain.pink_floor_db, false);
+  if (std::isfinite(fx.background_dba))
+    add(3, [](double f) { return f < 20.0 ? 0.0 : 1.0 / (1.0 + (f / 500.0) * (f / 500.0)); }, fx.background_dba, true);
+}
+
+}  // namespace
+
+Run synthesize(const Sources& src, const Condition& c, int condition_index, const Chain& chain, const Effects& fx) {
+  Run r;
+  r.condition = c;
+  r.time = timing(c.speed_rpm, c.cycles, chain.fs_hz);
+  r.fs_hz = chain.fs_hz;
+  r.pressure = condition_pressure(src, c, r.time.speed_rpm);
+  std::vector<double> u(r.pressure.clean_bar.size());
+  double mean = 0;
+  for (double p : r.pressure.clean_bar) mean += p / static_cast<double>(u.size());
+  for (std::size_t i = 0; i < u.size(); ++i) u[i] = (r.pressure.clean_bar[i] - mean) * kBarToPa;
+  const double delay = chain.radius_m / chain.sound_speed_m_per_s;
+  const double impacts =
+      std::isfinite(fx.mechanical_dba) ? impact_amplitude(r.time, c.cycles, chain.fs_hz, delay, fx.mechanical_dba, fx.mechanical_ref_rpm) : 0.0;
+  for (int m = 0; m < kMics; ++m) {
+    std::vector<double> y = radiate(u, r.time.n_out, r.time.period_s, structural_path(m, r.time.speed_rpm, chain, fx));
+    if (impacts > 0) add_impacts(y, r.time, c.cycles, chain.fs_hz, delay, impacts * std::pow(10.0, directivity_db()[m] / 20.0));
+    add_floors(y, condition_index, m, chain, fx);
+    if (m == fx.mic_gain_index && fx.mic_gain_db != 0) {
+      const double g = std::pow(10.0, fx.mic_gain_db / 20.0);
+      for (double& v : y) v *= g;
+    }
+    r.mics_pa.push_back(std::move(y));
+  }
+  return r;
+}
+
+// ------------------------------------------------------------------------------------------ writers
+
+namespace {
+
+nlohmann::ordered_json run_json(const Run& run, const Chain& chain) {
+  using json = nlohmann::ordered_json;
+  const Condition& c = run.condition;
+  json cond = {{"name", c.name}, {"speed_rpm", run.time.speed_rpm}};
+  cond["load_nm"] = c.motored ? json(0.0) : c.load_unknown ? json(nullptr) : json(kFiredLoadNm * c.load_scale);
+  cond["soi_deg_btdc"] = c.motored ? json(nullptr) : json(kSoiDegBtdc);
+  cond["rail_pressure_bar"] = c.motored ? json(nullptr) : json(kRailBar);
+  cond["motored"] = c.motored;
+  json positions = json::array();
+  for (const auto& p : mic_positions_m()) positions.push_back({p[0], p[1], p[2]});
+  return {{"condition", cond},
+          {"pressure", {{"file", "pressure.csv"}, {"units", "bar"}}},
+          {"mics", {{"file", "mics.wav"}, {"units", "Pa"}, {"positions_m", positions}, {"radius_m", chain.radius_m}}},
+          {"source", "tests/independent/cell_synth: real Yanmar L100V pressure record, eq. 4.1 in the frequency domain"}};
+}
+
+void write_pressure_csv(const Run& run, const std::filesystem::path& file) {
+  std::string text = "time_s,crank_deg,pressure\n";
+  const std::vector<double>& p = run.pressure.recorded_bar;
+  text.reserve(p.size() * 40);
+  char line[96];
+  for (std::size_t i = 0; i < p.size(); ++i) {
+    const double t = static_cast<double>(i) * run.time.period_s / static_cast<double>(p.size());
+    std::snprintf(line, sizeof line, "%.9f,%.1f,%.6f\n", t, -360.0 + kRecordStepDeg * static_cast<double>(i), p[i]);
+    text += line;
+  }
+  std::ofstream out(file, std::ios::binary);
+  out << text;
+  if (!out) throw std::runtime_error(file.string() + ": cannot write");
+}
+
+void write_wav(const Run& run, const std::filesystem::path& file) {
+  SF_INFO info{};
+  info.samplerate = static_cast<int>(run.fs_hz);
+  info.channels = static_cast<int>(run.mics_pa.size());
+  info.format = SF_FORMAT_WAV | SF_FORMAT_FLOAT;
+  SNDFILE* sf = sf_open(file.c_str(), SFM_WRITE, &info);
+  if (!sf) throw std::runtime_error(file.string() + ": cannot write (" + sf_strerror(nullptr) + ")");
+  const std::size_t n = run.time.n_out, ch = run.mics_pa.size();
+  std::vector<float> frames(n * ch);
+  for (std::size_t i = 0; i < n; ++i)
+    for (std::size_t m = 0; m < ch; ++m) frames[i * ch + m] = static_cast<float>(run.mics_pa[m][i]);
+  const sf_count_t written = sf_writef_float(sf, frames.data(), static_cast<sf_count_t>(n));
+  sf_close(sf);
+  if (written != static_cast<sf_count_t>(n)) throw std::runtime_error(file.string() + ": short write");
+}
+
+}  // namespace
+
+void write_run_dir(const Run& run, const Chain& chain, const std::filesystem::path& dir) {
+  std::filesystem::create_directories(dir);
+  std::ofstream(dir / "run.json") << run_json(run, chain).dump(2) << "\n";
+  write_pressure_csv(run, dir / "pressure.csv");
+  write_wav(run, dir / "mics.wav");
+}
+
+std::vector<std::filesystem::path> write_campaign(const Sources& src, const std::vector<Condition>& conditions,
+                                                  const Chain& chain, const Effects& fx, const std::filesystem::path& dir) {
+  std::vector<std::filesystem::path> out;
+  for (std::size_t i = 0; i < conditions.size(); ++i) {
+    const Run run = synthesize(src, conditions[i], static_cast<int>(i), chain, fx);
+    out.push_back(dir / conditions[i].name);
+    write_run_dir(run, chain, out.back());
+  }
+  return out;
+}
+
+}  // namespace indep

@@ -1,0 +1,180 @@
+// An independent test cell: run directories (DESIGN.md's interchange format) made from the REAL Yanmar L100V
+// cylinder-pressure records by code that shares nothing with the project (no model/, drivers/, dsp/, daemon/):
+// its own table parser, its own frequency-domain synthesis of the thesis's eq. 4.1, its own microphones, floors
+// and effects, its own A-weighting and its own writers. The gap diagnosis is then proven on data whose truth it
+// did not define (tests/independent/test_independent_diagnosis.cpp runs the real `noisemon diagnose` on it).
+//
+// The pressure (per condition, `cycles` engine cycles end to end, 0.2 deg encoder steps)
+//   The record's cycles are laid out in crank angle as they were recorded (column j covers -180 ... 539.8 deg of
+//   cycle j; its 360 ... 539.8 part is the -360 ... -180 part of cycle j+1), so `cycles` complete cycles
+//   [720k - 360, 720k + 360) use `cycles + 1` consecutive record columns from `first_cycle`. At a constant speed
+//   the crank-angle samples are uniform in time (30 * rpm samples per second): the speed is only a time scale.
+//   The record's first row is its pegging value (the same in every column); it is kept as recorded.
+//   Load: p = motored + load_scale * (fired - motored), applied to the CLEAN pressure (below) with the motored
+//   record's clean ensemble mean as "motored"; the recorded noise is then added back unscaled.
+//
+// The clean pressure the engine hears, the recorded pressure the chain writes
+//   The real records carry their chain's broadband floor (about 0.2 bar rms per sample). That floor is a
+//   measurement artefact: the structure never hears it. Measured on the record (per 120 deg window, 1/3-octave
+//   spectra of each cycle's deviation from the 60-cycle mean): above 1 kHz the deviations are at the same level
+//   in the combustion window as in the compression and gas-exchange strokes, i.e. cycle-to-cycle deviations
+//   above 1 kHz are floor, not combustion; the phase-locked mean carries real combustion content above 4 kHz
+//   (4-9 kHz, 5-10 dB below the single-cycle floor) only in the combustion window. So the clean pressure is
+//     clean = LP4k(mean) + w(theta) * (mean - LP4k(mean)) + LP1k(cycle - mean)
+//   with mean = the condition's own ensemble mean per crank angle (its residual floor is the record floor
+//   / sqrt(cycles), about 12 dB down, and identical in every cycle), LP = zero-phase (frequency-domain,
+//   raised-cosine edge 0.8 ... 1.25 fc) low-passes in Hz at the condition's speed, and w = 1 in the combustion
+//   window -30 ... +120 deg (20 deg cosine tapers), 0 elsewhere and 0 in motored runs (no combustion). The
+//   microphones hear eq. 4.1 driven by `clean`; pressure.csv gets the RECORDED values: clean + (record - clean),
+//   the record's own noise sample for sample - exactly a real cell's situation (noisy pressure chain, clean
+//   engine). With load_scale = 1 pressure.csv is the record itself.
+//
+// The microphones (51.2 kHz, 10-channel IEEE-float WAV, Pa)
+//   y = ka (j2pi f + wb) / ((j2pi f)^2 + 2 zeta wn j2pi f + wn^2) u (eq. 4.1, u = clean pressure in Pa minus its
+//   mean), synthesised in the frequency domain over the whole run as one period (the run's cycles repeat; its
+//   two ends are both in the gas exchange at about 1 bar): FFT of the crank-angle samples, multiply by H(f), the
+//   microphone's directivity gain and the delay exp(-j2pi f r/c) (r = 1.75 m, c = 343 m/s: the sound radiated
+//   at the run's end arrives at its start, as in a periodic engine), inverse FFT onto the 51.2 kHz grid
+//   (band-limited trigonometric interpolation; only frequencies below both Nyquist limits are kept). To make
+//   the run an integer number of 51.2 kHz samples with small prime factors, the speed is adjusted by < 1 %;
+//   run.json states the speed used. Microphones at the thesis's Table 3.1 positions, each with a fixed
+//   directivity gain within +-1 dB, its own white self-noise (20 dB(A)) and an independent pink floor (40 dB
+//   re 20 uPa, unweighted, 20 Hz ... Nyquist).
+//
+// Effects (each independent of the project's implementation)
+//   second_mode        Y += a R(f) Y on the structural path, R a unit-peak band-pass (f0, Q), a = 10^(dB/20) - 1
+//   mic_gain           one microphone's whole channel (engine, impacts, floors, background) +dB
+//   background_noise   stationary noise at every microphone, independent per microphone, spectrum 1/(1+(f/500)^2)
+//                      from 20 Hz, Lp(A) = magnitude at each microphone
+//   speed_dependence   structural path gain + magnitude dB per 1000 rpm relative to speed_ref_rpm
+//   mechanical_noise   crank-angle-locked decaying impacts (piston slap, valves) at fixed angles, the same
+//                      impacts per cycle in fired and motored runs; array-average Leq(A) = magnitude at
+//                      mechanical_ref_rpm (fixed energy per impact: +10 log10(rpm / ref) elsewhere)
+//   Not made here: cubic_damping and cubic_stiffness are amplitude-dependent (nonlinear) and cannot be made by a
+//   linear frequency-domain synthesis; transducer_noise (a pressure-chain floor) is not meaningful: the real
+//   record already carries its chain's floor, which every run here has, effect or not.
+#pragma once
+
+#include <array>
+#include <complex>
+#include <cstdint>
+#include <filesystem>
+#include <functional>
+#include <limits>
+#include <string>
+#include <vector>
+
+namespace indep {
+
+constexpr double kRecordStepDeg = 0.2;
+constexpr int kSamplesPerCycle = 3600;  // 720 deg / 0.2 deg
+constexpr int kMics = 10;
+
+// ------------------------------------------------------------------------------------------ the real records
+
+// A cycle table: column 1 the crank angle (deg), then one column per cycle (bar). cycles_bar[c][row].
+struct CycleTable {
+  std::vector<double> crank_deg;
+  std::vector<std::vector<double>> cycles_bar;
+};
+
+// Reads and checks a tab/space-separated table (same column count on every line, the angle increasing in
+// 0.2 deg steps over exactly 720 deg). Throws std::runtime_error naming the file and line.
+CycleTable read_cycle_table(const std::string& path);
+
+struct Sources {
+  CycleTable fired;    // yanmar_l100v_fired_18Nm.txt
+  CycleTable motored;  // yanmar_l100v_motored.txt
+};
+Sources load_sources(const std::string& real_data_dir);
+
+// ------------------------------------------------------------------------------------------ physics
+
+std::complex<double> eq41(double f_hz);                                  // Y/U of eq. 4.1, Pa per Pa
+std::complex<double> resonance(double f_hz, double f0_hz, double q);     // unit peak (1 at f0), band-pass
+double a_weighting_db(double f_hz);                                      // IEC 61672-1, 0 dB at 1 kHz
+
+const std::array<std::array<double, 3>, kMics>& mic_positions_m();       // thesis Table 3.1
+const std::array<double, kMics>& directivity_db();                       // fixed, within +-1 dB
+
+// Periodic band-limited synthesis: u holds one period (period_s) of a real signal sampled uniformly; returns
+// n_out uniform samples over the same period of the signal filtered by `transfer` (a function of f in Hz,
+// conjugate-symmetric by construction: only f >= 0 is asked). Frequencies at or above either Nyquist limit are
+// dropped.
+using Transfer = std::function<std::complex<double>(double)>;
+std::vector<double> radiate(const std::vector<double>& u, std::size_t n_out, double period_s, const Transfer& transfer);
+
+// Zero-phase periodic low-pass: cutoff in cycles per sample, raised-cosine edge from 0.8 to 1.25 times it.
+std::vector<double> lowpass(const std::vector<double>& x, double cutoff_per_sample);
+
+// A-weighted (or unweighted) level of a periodic record, dB re 20 uPa, from its spectrum.
+double level_db(const std::vector<double>& x_pa, double fs_hz, bool a_weighted);
+
+// ------------------------------------------------------------------------------------------ the cell
+
+struct Condition {
+  std::string name;
+  double speed_rpm = 1800;    // nominal; the run uses a speed within 1 % of it (see Timing)
+  double load_scale = 1.0;    // scale of the fired-minus-motored pressure
+  bool motored = false;
+  bool load_unknown = false;  // run.json "load_nm": null
+  int first_cycle = 0;        // first record column used (0-based)
+  int cycles = 16;
+};
+
+// Five fired conditions (1500 ... 2600 rpm, load scale 0.7 ... 1.3, the 1800 rpm one with load null) and two
+// motored ones (1800, 2600 rpm), `cycles` cycles each from different parts of the records.
+std::vector<Condition> default_conditions(int cycles = 16);
+
+struct Effects {
+  double second_mode_db = 0, second_mode_hz = 1600, second_mode_q = 5;
+  double mic_gain_db = 0;
+  int mic_gain_index = 3;  // 0-based: microphone 4
+  double background_dba = std::numeric_limits<double>::quiet_NaN();  // NaN: none
+  double speed_db_per_krpm = 0, speed_ref_rpm = 1800;
+  double mechanical_dba = std::numeric_limits<double>::quiet_NaN(), mechanical_ref_rpm = 1800;
+};
+
+struct Chain {
+  double fs_hz = 51200;
+  double radius_m = 1.75;
+  double sound_speed_m_per_s = 343;
+  double self_noise_dba = 20;
+  double pink_floor_db = 40;
+  std::uint64_t seed = 1;  // noise realisations depend on (seed, condition index, microphone) only
+};
+
+// The run's timing: the speed adjusted so that `cycles` cycles are n_out samples at fs, n_out 5-smooth.
+struct Timing {
+  double speed_rpm;
+  double period_s;
+  std::size_t n_out;
+};
+Timing timing(double nominal_rpm, int cycles, double fs_hz);
+
+// One condition's pressure over [-360, 720 cycles - 360) deg in 0.2 deg steps, bar.
+struct CellPressure {
+  std::vector<double> recorded_bar;  // what pressure.csv gets
+  std::vector<double> clean_bar;     // what the engine structure hears
+};
+CellPressure condition_pressure(const Sources& src, const Condition& c, double speed_rpm);
+
+struct Run {
+  Condition condition;
+  Timing time;
+  double fs_hz = 0;
+  CellPressure pressure;
+  std::vector<std::vector<double>> mics_pa;  // [mic][sample], n_out each
+};
+
+// condition_index picks the noise realisations (see Chain::seed).
+Run synthesize(const Sources& src, const Condition& c, int condition_index, const Chain& chain, const Effects& fx);
+
+// run.json, pressure.csv, mics.wav in dir (created).
+void write_run_dir(const Run& run, const Chain& chain, const std::filesystem::path& dir);
+
+// Every condition into dir/<name>/; returns the run directories.
+std::vector<std::filesystem::path> write_campaign(const Sources& src, const std::vector<Condition>& conditions,
+                                                  const Chain& chain, const Effects& fx, const std::filesystem::path& dir);
+
+}  // namespace indep
