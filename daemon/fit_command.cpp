@@ -15,6 +15,7 @@
 #include "daemon/params_file.hpp"
 #include "drivers/waveform_csv.hpp"
 #include "model/band_fit.hpp"
+#include "model/pressure_floor.hpp"
 #include "model/diagnosis.hpp"
 #include "model/waveform_fit.hpp"
 
@@ -256,11 +257,12 @@ FitCommandResult fit_band_mode(const FitCommandOptions& o, std::FILE* out) {
   res.mode = "band";
   std::vector<std::size_t> train, heldout;
   std::vector<std::vector<char>> scored(data.conditions.size(), std::vector<char>(data.band_count(), 0));
+  const std::vector<std::vector<char>> at_floor = model::floor_limited_bands(data);
   for (std::size_t k = 0; k < data.conditions.size(); ++k) {
     const model::ConditionInfo& info = data.conditions[k].info;
     if (info.motored || info.background) continue;  // reference runs: never scored
     for (std::size_t b = 0; b < data.band_count(); ++b)
-      scored[k][b] = !data.bands[b].nyquist_cut && !data.band_line_free(k, b);
+      scored[k][b] = !data.bands[b].nyquist_cut && !data.band_line_free(k, b) && !at_floor[k][b];
     if (matches_any(held, info.name)) {
       heldout.push_back(k);
       res.heldout_sets.push_back(info.name);

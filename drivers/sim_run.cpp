@@ -435,7 +435,11 @@ RunDir acoustics(const RunDir& pressure_run, const SimRunSpec& spec, double t_en
 }  // namespace
 
 RunDir simulate_acoustics(const RunDir& pressure_run, const SimRunSpec& spec) {
-  return acoustics(pressure_run, spec, pressure_run.time_s.empty() ? 0.0 : pressure_run.time_s.back());
+  RunDir run = acoustics(pressure_run, spec, pressure_run.time_s.empty() ? 0.0 : pressure_run.time_s.back());
+  // The virtual engine hears the given pressure as it is (its own noise included): between that engine and this
+  // file no chain adds a floor, so the stated floor is 0 (only a transducer_noise effect comes on top, unstated).
+  run.pressure_noise_floor_bar = 0.0;
+  return run;
 }
 
 void synthesize_recording_mics(Recording& rec, const SimRunSpec& spec) {

@@ -84,8 +84,8 @@ RunDir simulate_background_run(const SimRunSpec& spec, SimRunStats* stats = null
 
 // Microphones for the pressure of `pressure_run` (its time_s, crank_deg and pressure_pa are the TRUE pressure for
 // the virtual engine; the result's pressure is the given one plus spec.effects' transducer_noise: a recorded
-// pressure has been through its own chain already, so the configured pressure chain is not applied again and the
-// run's own pressure_noise_floor_bar is kept). The run needs at least one whole cycle
+// pressure has been through its own chain already, so the configured pressure chain is not applied again; the
+// engine hears that pressure, noise and all, so the result states a floor of 0). The run needs at least one whole cycle
 // (720 deg); its condition is kept (a speed of 0 is measured from the crank angle); spec.condition and
 // spec.cycles are ignored. Microphone positions: the run's own when it has them, else spec.engine's (thesis).
 // Existing microphone data is replaced. Throws std::invalid_argument naming what is wrong.

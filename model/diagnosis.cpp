@@ -262,26 +262,12 @@ double since(std::chrono::steady_clock::time_point& t) {
   return s;
 }
 
-// The pressure chain's floor of every condition and the cells it limits: a band (or crank window) whose cycle-mean
-// pressure is less than `margin_db` above the floor's level in that band.
-void mark_pressure_floors(Context& cx, double margin_db) {
+// The pressure chain's floor of every condition (for the report) and the cells it limits.
+void mark_pressure_floors(Context& cx) {
   const BandDataset& data = *cx.data;
-  const std::size_t K = data.conditions.size(), nb = data.band_count();
-  const double margin = std::pow(10.0, margin_db / 10.0);
   cx.pressure_floors.clear();
-  cx.pfloor_band.assign(K, std::vector<char>(nb, 0));
-  cx.pfloor_win.assign(K, std::vector<char>(nb * kW, 0));
-  for (std::size_t k = 0; k < K; ++k) {
-    cx.pressure_floors.push_back(pressure_floor(data, k));
-    const PressureFloor& f = cx.pressure_floors.back();
-    if (data.conditions[k].info.background || f.density.empty()) continue;
-    const std::vector<double> band = mean_band_cpl(data.conditions[k]), win = mean_window_cpl(data.conditions[k]);
-    for (std::size_t b = 0; b < nb; ++b) {
-      const double limit = margin * f.band_ms[b];
-      cx.pfloor_band[k][b] = band[b] < limit;
-      for (std::size_t w = 0; w < kW; ++w) cx.pfloor_win[k][b * kW + w] = cx.pfloor_band[k][b] || win[b * kW + w] < limit;
-    }
-  }
+  for (std::size_t k = 0; k < data.conditions.size(); ++k) cx.pressure_floors.push_back(pressure_floor(data, k));
+  cx.pfloor_band = floor_limited_bands(data, &cx.pfloor_win);
 }
 
 std::vector<std::size_t> fold_train(const Context& cx, std::size_t heldout_index) {
@@ -758,7 +744,7 @@ DiagnosisResult diagnose(const BandDataset& data, const BlockParams& start, cons
     all.insert(all.end(), cx.heldout.begin(), cx.heldout.end());
     cx.fast = window_capable_bands(data, all);
   }
-  mark_pressure_floors(cx, kFloorMarginDb);
+  mark_pressure_floors(cx);
   cx.base_mask.assign(K, std::vector<char>(nb, 0));
   cx.tune_mask.assign(K, std::vector<char>(nb, 0));
   cx.floor_limited.assign(K, std::vector<char>(nb, 0));
@@ -827,7 +813,8 @@ DiagnosisResult diagnose(const BandDataset& data, const BlockParams& start, cons
     evals.push_back(std::move(e));
     stage("candidate " + n);
   }
-  // Rank: held-out gap; a simpler candidate first when the better one does not beat it in 95 % of replicates.
+  // Rank: held-out gap; a simpler candidate first when the better one does not beat it in 95 % of replicates by at
+  // least min_improvement_db (the same bar a candidate must clear against the baseline).
   std::vector<std::size_t> order(evals.size());
   std::iota(order.begin(), order.end(), 0);
   std::sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) {
@@ -837,7 +824,8 @@ DiagnosisResult diagnose(const BandDataset& data, const BlockParams& start, cons
     for (std::size_t i = 0; i + 1 < order.size(); ++i) {
       const ModelScore& a = evals[order[i]].score;
       const ModelScore& b = evals[order[i + 1]].score;
-      if (b.parameters < a.parameters && b.significant && beats(a, b) < 0.95) std::swap(order[i], order[i + 1]);
+      const bool clearly_better = beats(a, b) >= 0.95 && b.heldout_gap_db - a.heldout_gap_db >= opt.min_improvement_db;
+      if (b.parameters < a.parameters && b.significant && !clearly_better) std::swap(order[i], order[i + 1]);
     }
   for (std::size_t i : order) res.candidates.push_back(evals[i].score);
 

@@ -33,7 +33,9 @@
 // Significance: bootstrap over cycles (within each held-out condition, the same resampled cycles for every
 // model): a candidate is significant when its gap is below the baseline's in at least 95 % of the replicates
 // and the improvement is at least `min_improvement_db`. Ranking: held-out gap, best first; a simpler candidate
-// (fewer fitted parameters) ranks first when the better one does not beat it in 95 % of the replicates.
+// (fewer fitted parameters) ranks first when the better one does not beat it in 95 % of the replicates by at least
+// `min_improvement_db`; a candidate that makes the held-out thesis metric worse (by more than 0.05 dB) is never
+// significant.
 // Verdict: `none` when the baseline's held-out gap is within `tolerance_db` (or not above its bootstrap noise);
 // otherwise the best significant candidate when it (alone or with a second one) closes at least
 // `min_closed_fraction` of the gap or leaves no more than `tolerance_db`, else `unexplained`.

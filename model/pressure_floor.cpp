@@ -159,4 +159,24 @@ void judge_pressure_floors(BandDataset& data) {
   }
 }
 
+std::vector<std::vector<char>> floor_limited_bands(const BandDataset& data, std::vector<std::vector<char>>* windows) {
+  const std::size_t K = data.conditions.size(), nb = data.band_count();
+  const double margin = std::pow(10.0, kFloorMarginDb / 10.0);
+  std::vector<std::vector<char>> bands(K, std::vector<char>(nb, 0));
+  if (windows) windows->assign(K, std::vector<char>(nb * kW, 0));
+  for (std::size_t k = 0; k < K; ++k) {
+    const ConditionData& d = data.conditions[k];
+    const std::vector<double>& density = d.info.floor_density;
+    if (density.empty()) continue;
+    const std::vector<double> band = mean_band_cpl(d), win = mean_window_cpl(d);
+    for (std::size_t b = 0; b < nb && b < density.size(); ++b) {
+      const double limit = margin * density[b] * band_noise_bandwidth(data.bands[b], kGridMaxHz);
+      bands[k][b] = band[b] < limit;
+      if (windows)
+        for (std::size_t w = 0; w < kW; ++w) (*windows)[k][b * kW + w] = bands[k][b] || win[b * kW + w] < limit;
+    }
+  }
+  return bands;
+}
+
 }  // namespace noisemon::model

@@ -53,6 +53,12 @@ PressureFloor pressure_floor(const BandDataset& data, std::size_t condition);
 // pressure_floor_pa.
 void judge_pressure_floors(BandDataset& data);
 
+// Per condition, per band: the cycle-mean pressure is within kFloorMarginDb of the judged floor (ConditionInfo::
+// floor_density): the band's prediction is floor-limited, never to be fitted or scored. Per band and crank window
+// [b * W + w] in *windows when given.
+std::vector<std::vector<char>> floor_limited_bands(const BandDataset& data,
+                                                   std::vector<std::vector<char>>* windows = nullptr);
+
 // Noise bandwidth of a band's filter (the integral of its power response) from 0 to f_max, Hz.
 double band_noise_bandwidth(const dsp::ThirdOctaveBand& band, double f_max_hz);
 

@@ -1,10 +1,15 @@
-// Proof of the band-mode diagnosis on withheld effects (issue 4): the virtual engine's "true" engine carries an
+// Proof of the band-mode diagnosis on withheld effects (issues 4 and 9): the virtual engine's "true" engine carries an
 // effect of DESIGN.md's list at a realistic magnitude; the diagnosis is told nothing of it. The independent
 // reference is what was injected: the verdict must name it and the held-out gap must shrink by at least 60 %.
 // A null dataset gives `none`, an effect the library cannot express gives `unexplained`, two effects at once
 // name the stronger first with the other significant. Both thesis conditions (idle 3050 rpm / 0 N m and full load
 // 3450 rpm / 20 N m, five injection timings each, plus motored runs) take part: leave-one-condition-out holds out
 // each fired condition in turn, and the thesis protocol trains at idle and validates at full load.
+//
+// Every dataset comes from the realistic test cell (drivers/sim_source.hpp: a 0.02 bar pressure-chain floor, ADC,
+// gas ringing, microphone self-noise and directivity) unless a test says otherwise; the floors at 0, 0.02, 0.05 and
+// 0.2 bar (the real Yanmar record's) are proven separately. tests/independent holds the family whose data shares no
+// code with the virtual engine.
 //
 // Each dataset: the 12 thesis conditions (10 fired, 2 motored), 16 cycles each, generated in memory exactly as
 // `noisemon sim` + `noisemon diagnose` would (daemon/sim_dataset); the end-to-end test at the bottom goes through
@@ -30,6 +35,7 @@
 #include "daemon/sim_command.hpp"
 #include "daemon/sim_dataset.hpp"
 #include "model/diagnosis.hpp"
+#include "model/pressure_chain.hpp"
 #include "tests/drivers/unique_temp.hpp"
 
 namespace noisemon::daemon {
@@ -37,12 +43,25 @@ namespace {
 
 constexpr int kCycles = 16;
 
-model::BandDataset campaign(const std::vector<std::string>& effects, std::uint64_t seed = 1) {
+// The test cell around the engine: the pressure chain's floor (bar rms per encoder sample; 0: an ideal chain), the
+// motored reference runs, an engine-off background run.
+struct Cell {
+  double floor_bar = 0.02;
+  bool motored = true;
+  bool background_run = false;
+};
+
+model::BandDataset campaign(const std::vector<std::string>& effects, const Cell& cell = {}) {
   SimCampaign c;
-  c.conditions = drivers::thesis_conditions();
+  for (const drivers::SimCondition& k : drivers::thesis_conditions())
+    if (cell.motored || !k.motored) c.conditions.push_back(k);
   c.cycles = kCycles;
   c.effects = model::parse_effects(effects);
-  c.seed = seed;
+  if (cell.floor_bar > 0.0)
+    c.engine.pressure_chain.noise_bar = cell.floor_bar;
+  else
+    c.engine.pressure_chain = model::PressureChainConfig::ideal();
+  c.background_run = cell.background_run;
   return simulate_band_dataset(c);
 }
 
@@ -84,16 +103,18 @@ TEST_P(WithheldEffect, VerdictNamesItAndTheHeldOutGapShrinksByAtLeast60Percent) 
   EXPECT_EQ(r.heldout.size(), 10u);
 }
 
-// The catalogue default of each effect (its realistic magnitude), and a second realistic magnitude (and
-// qualifiers) for each, so that nothing is tuned to one value.
+// The catalogue default of each effect (its realistic magnitude) and a second realistic magnitude (and qualifiers),
+// so that nothing is tuned to one value, at the realistic floor. (Against this engine, 111 dB(A) at 1.75 m, quieter
+// impacts or backgrounds than the catalogue's ranges change no fired band above the pressure floor's margin by more
+// than the cycle-to-cycle noise, and `none` is then the right answer: README, detection limits.)
 INSTANTIATE_TEST_SUITE_P(
     DesignEffects, WithheldEffect,
     ::testing::Values(Withheld{"cubic_damping", "cubic_damping"}, Withheld{"cubic_damping", "cubic_damping=2000"},
                       Withheld{"cubic_stiffness", "cubic_stiffness"}, Withheld{"cubic_stiffness", "cubic_stiffness=1.5e13"},
                       Withheld{"second_mode", "second_mode"}, Withheld{"second_mode", "second_mode=10,hz=800,q=3"},
-                      Withheld{"mechanical_noise", "mechanical_noise"}, Withheld{"mechanical_noise", "mechanical_noise=85"},
-                      Withheld{"background_noise", "background_noise"}, Withheld{"background_noise", "background_noise=75"},
-                      Withheld{"transducer_noise", "transducer_noise"}, Withheld{"transducer_noise", "transducer_noise=1.5"},
+                      Withheld{"mechanical_noise", "mechanical_noise"}, Withheld{"mechanical_noise", "mechanical_noise=80"},
+                      Withheld{"background_noise", "background_noise"}, Withheld{"background_noise", "background_noise=110"},
+                      Withheld{"transducer_noise", "transducer_noise"}, Withheld{"transducer_noise", "transducer_noise=0.15"},
                       Withheld{"mic_gain", "mic_gain"}, Withheld{"mic_gain", "mic_gain=-4,mic=6"},
                       Withheld{"speed_dependence", "speed_dependence"}, Withheld{"speed_dependence", "speed_dependence=-6"}),
     [](const ::testing::TestParamInfo<Withheld>& info) {
@@ -103,14 +124,92 @@ INSTANTIATE_TEST_SUITE_P(
       return n;
     });
 
+// At the real Yanmar record's floor (0.2 bar rms per encoder sample, ten times the realistic default) every effect
+// still above that floor is named. Not here, and why: transducer_noise (its realistic 0.05 bar on top of 0.2 raises the
+// floor by 0.3 dB, within the floor's own estimate), mechanical_noise and background_noise (the bands where they
+// would show are floor-limited: the pressure there is within 6 dB of the floor, so no prediction is compared).
+class WithheldEffectAtTheRealFloor : public ::testing::TestWithParam<Withheld> {};
+
+TEST_P(WithheldEffectAtTheRealFloor, VerdictNamesItAndTheHeldOutGapShrinksByAtLeast60Percent) {
+  const Withheld w = GetParam();
+  Cell cell;
+  cell.floor_bar = 0.2;
+  const model::DiagnosisResult r = run(campaign({w.effect}, cell));
+  print(std::string(w.effect) + " at 0.2 bar", r);
+  EXPECT_EQ(r.verdict.effect, w.name);
+  EXPECT_GE(r.verdict.gap_closed_fraction, 0.6);
+}
+
+INSTANTIATE_TEST_SUITE_P(
+    AboveTheFloor, WithheldEffectAtTheRealFloor,
+    ::testing::Values(Withheld{"cubic_damping", "cubic_damping=2000"}, Withheld{"cubic_stiffness", "cubic_stiffness=1.5e13"},
+                      Withheld{"second_mode", "second_mode"}, Withheld{"mic_gain", "mic_gain"},
+                      Withheld{"speed_dependence", "speed_dependence"}),
+    [](const ::testing::TestParamInfo<Withheld>& info) { return std::string(info.param.name); });
+
 // ------------------------------------------------------------------------------------------ none, unexplained
 
-TEST(Diagnose, NullDatasetGivesNone) {
-  const model::DiagnosisResult r = run(campaign({}));
-  print("no effect", r);
+// The null dataset (the engine is exactly the linear preset) at every floor, with and without the motored runs and
+// a background run: `none`. The verdict `none` is decided on the baseline's held-out gap alone, before any candidate
+// is weighed, so one candidate is tried (the whole list costs minutes and cannot change a `none`).
+struct NullCase {
+  Cell cell;
+  std::string name;
+};
+
+class NullDataset : public ::testing::TestWithParam<NullCase> {};
+
+TEST_P(NullDataset, GivesNone) {
+  const NullCase c = GetParam();
+  model::DiagnosisOptions opt;
+  opt.candidates = {"mic_gain"};
+  const model::BandDataset data = campaign({}, c.cell);
+  const model::DiagnosisResult r = run(data, opt);
+  print("no effect, " + c.name, r);
   EXPECT_EQ(r.verdict.effect, "none");
   EXPECT_LT(r.verdict.heldout_rms_before_db, 0.5);
   EXPECT_EQ(r.verdict.heldout_rms_after_db, r.verdict.heldout_rms_before_db);
+  // The floors are in the report: every condition's pressure floor was judged (stated by the sim's run directories
+  // when the chain has a floor), and the summary counts the cells at a floor.
+  ASSERT_EQ(r.where.pressure_floor_judged_by.size(), data.conditions.size());
+  EXPECT_FALSE(r.where.floor_summary.empty());
+  EXPECT_EQ(r.where.mic_floor_source, c.cell.background_run ? "background runs" : "quiet crank windows");
+}
+
+std::vector<NullCase> null_cases() {
+  static const char* names[] = {"floor_0", "floor_0_02", "floor_0_05", "floor_0_2"};
+  std::vector<NullCase> out;
+  const double floors[] = {0.0, 0.02, 0.05, 0.2};
+  for (int f = 0; f < 4; ++f)
+    for (int motored = 1; motored >= 0; --motored)
+      for (int bg = 0; bg <= 1; ++bg)
+        out.push_back({{floors[f], motored == 1, bg == 1},
+                       std::string(names[f]) + (motored ? "_motored" : "_fired_only") + (bg ? "_background" : "")});
+  return out;
+}
+
+INSTANTIATE_TEST_SUITE_P(Floors, NullDataset, ::testing::ValuesIn(null_cases()),
+                         [](const ::testing::TestParamInfo<NullCase>& info) { return info.param.name; });
+
+TEST(Diagnose, TheStatedFloorIsTheOneJudgedAndTheEstimateAgreesWithIt) {
+  // The sim's run directories state the chain's floor (pressure.noise_floor_bar); the diagnosis also estimates it
+  // from the quiet crank windows. Independent reference: the configured 0.05 bar (white, per encoder sample).
+  Cell cell;
+  cell.floor_bar = 0.05;
+  model::DiagnosisOptions opt;
+  opt.candidates = {"mic_gain"};
+  const model::BandDataset data = campaign({}, cell);
+  const model::DiagnosisResult r = run(data, opt);
+  for (std::size_t k = 0; k < data.conditions.size(); ++k) {
+    EXPECT_EQ(r.where.pressure_floor_judged_by[k], "stated") << data.conditions[k].info.name;
+    EXPECT_NEAR(r.where.pressure_floor_stated_bar[k], 0.05, 0.001);
+    // The estimate: the quietest window's level, an upper bound that the ADC step and the quiet strokes' own
+    // pressure raise a little, and the minimum over windows lowers a little.
+    EXPECT_NEAR(r.where.pressure_floor_estimated_bar[k], 0.05, 0.05 * 0.3) << data.conditions[k].info.name;
+  }
+  // Motored runs: their fast bands are pure floor above a few kHz.
+  for (std::size_t k = 0; k < data.conditions.size(); ++k)
+    if (data.conditions[k].info.motored) EXPECT_GE(r.where.floor_limited_bands[k], 5) << data.conditions[k].info.name;
 }
 
 TEST(Diagnose, AnEffectNoCandidateCanExpressIsUnexplained) {
@@ -170,10 +269,13 @@ TEST(Diagnose, ThesisProtocolOnTheThesisNonlinearSpringDamperNamesBothCubicTerms
   // The engine's true block is Table 4.1's nl_spring_damper (k3 = 1e13 and b3 = 2000, besides its own k1, b1);
   // the diagnosis starts from the linear preset, tunes it at idle and validates at full load, as the thesis did.
   // Alone, the cubic spring is hidden by the damper (the impact-noise extension even scores a little better than
-  // the damper): only the pair started from the close runner-up explains the extrapolation.
+  // the damper): only the pair started from the close runner-up explains the extrapolation. On an ideal test cell:
+  // with the realistic one (floors, gas ringing) the pair closes too little under this protocol (README, known
+  // limits).
   SimCampaign c;
   c.conditions = drivers::thesis_conditions();
   c.cycles = kCycles;
+  c.engine = drivers::with_ideal_cell(c.engine);
   c.true_block = model::preset("nl_spring_damper");
   const model::BandDataset data = simulate_band_dataset(c);
   model::DiagnosisOptions opt;
@@ -193,7 +295,7 @@ TEST(Diagnose, CommandLineWritesTheReportSchemaFromRunDirectories) {
   const std::string dir = test::unique_temp_dir();
   SimOptions so;
   so.conditions = {"all"};
-  so.effects = {"background_noise=70"};
+  so.effects = {"background_noise=110"};
   so.cycles = 12;
   so.out_dir = dir + "/runs";
   so.progress = false;

@@ -209,7 +209,9 @@ TEST(FitCommand, BandModeFindsTheVirtualEnginesTrueBlockAndClosesTheGap) {
   EXPECT_LT(r.heldout_rms, 0.5);
   expect_loads_exactly(o.out, r.params);
 
-  // The same runs as one raw LCM log (`noisemon import`, lossless at 40 kHz): the same fit.
+  // The same runs as one raw LCM log (`noisemon import`, lossless at 40 kHz): the same fit, within what the floor's
+  // estimate changes (a raw log does not carry run.json's stated pressure floor: the fit estimates it from the quiet
+  // crank windows, to about 1 dB, and the predictions subtract a slightly different floor-driven part).
   ImportOptions io;
   io.run_dirs = runs.run_dirs;
   io.out_log = dir / "runs.lcmlog";
@@ -222,7 +224,9 @@ TEST(FitCommand, BandModeFindsTheVirtualEnginesTrueBlockAndClosesTheGap) {
   const FitCommandResult rl = run_fit(ol, sink);
   std::fclose(sink);
   EXPECT_EQ(rl.heldout_sets, r.heldout_sets);
-  for (std::size_t k = 0; k < rl.values.size(); ++k) EXPECT_NEAR(rl.values[k] / r.values[k], 1.0, 1e-3) << rl.free[k];
+  for (std::size_t k = 0; k < rl.values.size(); ++k) EXPECT_NEAR(rl.values[k] / r.values[k], 1.0, 0.02) << rl.free[k];
+  EXPECT_LT(rl.train_rms, 0.5);
+  EXPECT_LT(rl.heldout_rms, 0.5);
 }
 
 std::string error_of(const FitCommandOptions& o) {

@@ -22,8 +22,8 @@ using cd = std::complex<double>;
 constexpr double kPi = std::numbers::pi;
 constexpr double kPref = 20e-6;                 // Pa
 constexpr double kBarToPa = 1e5;
-constexpr double kDeviationCutoffHz = 1000;     // cycle-to-cycle deviations above it are the chain's floor
-constexpr double kMeanCutoffHz = 4000;          // the mean's content above it is kept in the combustion window only
+constexpr double kDeviationCutoffHz = 1000;     // outside the combustion window, deviations above it are floor
+constexpr double kMeanCutoffHz = 4000;          // outside the combustion window, the mean's content above it is floor
 constexpr double kFiredLoadNm = 18.0;           // the record's operating point
 constexpr double kSoiDegBtdc = 9.6;
 constexpr double kRailBar = 470.0;
@@ -110,8 +110,9 @@ double combustion_weight(int i) {
   return d >= taper ? 0.0 : 0.5 * (1.0 + std::cos(kPi * d / taper));
 }
 
-// The clean pressure of a laid-out run (see the header): the phase-locked mean (its content above 4 kHz only in
-// the combustion window of fired runs) plus each cycle's deviation below 1 kHz.
+// The clean pressure of a laid-out run (see the header): in the combustion window of fired runs the record itself
+// (the phase-locked mean and each cycle's full deviation: the gas ringing and every cycle-to-cycle combustion
+// variation), outside it the mean below 4 kHz plus each cycle's deviation below 1 kHz; cosine tapers between.
 std::vector<double> clean_of(const std::vector<double>& x, int cycles, bool motored, double speed_rpm) {
   const double rate = 30.0 * speed_rpm;  // samples per second (0.2 deg)
   const std::vector<double> mean = ensemble_mean(x, cycles);
@@ -123,7 +124,8 @@ std::vector<double> clean_of(const std::vector<double>& x, int cycles, bool moto
   for (std::size_t i = 0; i < x.size(); ++i) {
     const int j = static_cast<int>(i % kSamplesPerCycle);
     const double w = motored ? 0.0 : combustion_weight(j);
-    clean[i] = mean_lp[j] + w * (mean[j] - mean_lp[j]) + dev_lp[i];
+    // = LP4k(mean) + w (mean - LP4k(mean)) + LP1k(dev) + w (dev - LP1k(dev)), with mean + dev = x
+    clean[i] = (1.0 - w) * (mean_lp[j] + dev_lp[i]) + w * x[i];
   }
   return clean;
 }
@@ -291,9 +293,10 @@ CellPressure condition_pressure(const Sources& src, const Condition& c, double s
   const std::vector<double> base =
       lowpass(ensemble_mean(lay_out(src.motored, 0, all), all), kMeanCutoffHz / (30.0 * speed_rpm));
   for (std::size_t i = 0; i < x.size(); ++i) {
+    // recorded - clean: the record's noise outside the combustion window, 0 inside it (the engine hears it there)
     const double b = base[i % kSamplesPerCycle], noise = x[i] - p.clean_bar[i];
     p.clean_bar[i] = b + c.load_scale * (p.clean_bar[i] - b);
-    p.recorded_bar[i] = p.clean_bar[i] + noise;  // the record's own noise, unscaled
+    p.recorded_bar[i] = p.clean_bar[i] + noise;  // added back unscaled
   }
   return p;
 }
