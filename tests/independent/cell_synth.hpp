@@ -35,6 +35,13 @@
 //   microphones hear eq. 4.1 driven by `clean`; pressure.csv gets the RECORDED values: clean + (record - clean),
 //   the record's own noise sample for sample - a real cell's situation (noisy pressure chain, engine that hears
 //   the combustion). With load_scale = 1 pressure.csv is the record itself.
+//   Not kept (treated as floor, although it stands above it): the record's cycle-to-cycle content outside the
+//   window. Per 30 deg window (60 cycles, deviation from the mean) the record has, above its quiet-stroke level,
+//   broadband bursts near -150 deg (intake valve closing) and 360 deg (gas-exchange TDC) in BOTH records (7 ...
+//   24 dB at 4 ... 14 kHz), and in the fired record 4 ... 6 kHz and 10 ... 14 kHz content from +90 to +270 deg
+//   (expansion and exhaust blowdown, about 7 dB). A model driven by pressure.csv predicts sound in those windows
+//   that these microphones do not hear (whether that content is cylinder pressure or the transducer's response
+//   to valve impacts, the record cannot tell).
 //
 // The microphones (51.2 kHz, 10-channel IEEE-float WAV, Pa)
 //   y = ka (j2pi f + wb) / ((j2pi f)^2 + 2 zeta wn j2pi f + wn^2) u (eq. 4.1, u = clean pressure in Pa minus its
