@@ -29,6 +29,7 @@
 #include "daemon/replay.hpp"
 #include "drivers/cycle_table.hpp"
 #include "noisemon/cycle_report_t.hpp"
+#include "tests/daemon/csv_column.hpp"
 #include "tests/drivers/unique_temp.hpp"
 
 using namespace noisemon;
@@ -545,17 +546,8 @@ std::string read_text(const fs::path& p) {
 
 // Field `column` of every data row of a replay CSV.
 std::vector<std::string> csv_column(const fs::path& csv, std::size_t column) {
-  std::vector<std::string> out;
   std::ifstream in(csv);
-  std::string line;
-  std::getline(in, line);
-  while (std::getline(in, line)) {
-    std::istringstream row(line);
-    std::string field;
-    for (std::size_t c = 0; c <= column; ++c) std::getline(row, field, ',');
-    out.push_back(field);
-  }
-  return out;
+  return test::csv_column(in, column);
 }
 
 }  // namespace

@@ -15,6 +15,7 @@
 #include "daemon/report_messages.hpp"
 #include "daemon/watch.hpp"
 #include "noisemon/cycle_report_t.hpp"
+#include "tests/daemon/csv_column.hpp"
 #include "tests/drivers/unique_temp.hpp"
 
 using namespace noisemon;
@@ -180,17 +181,8 @@ namespace {
 
 // The CSV's field `column` (0-based) of every data row.
 std::vector<std::string> csv_column(const std::string& csv, std::size_t column) {
-  std::vector<std::string> out;
   std::istringstream in(csv);
-  std::string line;
-  std::getline(in, line);  // header
-  while (std::getline(in, line)) {
-    std::istringstream row(line);
-    std::string field;
-    for (std::size_t c = 0; c <= column; ++c) std::getline(row, field, ',');
-    out.push_back(field);
-  }
-  return out;
+  return test::csv_column(in, column);
 }
 
 }  // namespace
