@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <numeric>
 
 #include "model/band_fit.hpp"
 
@@ -65,6 +66,14 @@ std::vector<double> stated_floor(const BandDataset& data, double sigma_pa, doubl
   return out;
 }
 
+// Per band: the mean square a floor of these per-band densities leaves through each band's filter on the grid.
+std::vector<double> floor_band_ms(const BandDataset& data, const std::vector<double>& density) {
+  std::vector<double> out(data.band_count(), 0.0);
+  for (std::size_t b = 0; b < density.size() && b < data.band_count(); ++b)
+    out[b] = density[b] * band_noise_bandwidth(data.bands[b], kGridMaxHz);
+  return out;
+}
+
 }  // namespace
 
 double PressureFloor::estimated_rms_per_sample_pa(double encoder_rate_hz) const {
@@ -73,10 +82,8 @@ double PressureFloor::estimated_rms_per_sample_pa(double encoder_rate_hz) const 
 
 double PressureFloor::estimated_rms_on_grid_pa(const BandDataset& data) const {
   if (estimated.empty()) return kNaN;
-  double ms = 0.0;
-  for (std::size_t b = 0; b < estimated.size() && b < data.band_count(); ++b)
-    ms += estimated[b] * band_noise_bandwidth(data.bands[b], kGridMaxHz);
-  return std::sqrt(ms);
+  const std::vector<double> ms = floor_band_ms(data, estimated);
+  return std::sqrt(std::accumulate(ms.begin(), ms.end(), 0.0));
 }
 
 double band_noise_bandwidth(const dsp::ThirdOctaveBand& band, double f_max_hz) {
@@ -144,9 +151,7 @@ PressureFloor pressure_floor(const BandDataset& data, std::size_t k) {
   f.stated = std::isfinite(info.pressure_floor_pa) && info.pressure_floor_pa >= 0 && std::isfinite(info.encoder_rate_hz) &&
              info.encoder_rate_hz > 0;
   f.density = f.stated ? stated_floor(data, info.pressure_floor_pa, info.encoder_rate_hz) : f.estimated;
-  f.band_ms.assign(data.band_count(), 0.0);
-  for (std::size_t b = 0; b < f.density.size() && b < data.band_count(); ++b)
-    f.band_ms[b] = f.density[b] * band_noise_bandwidth(data.bands[b], kGridMaxHz);
+  f.band_ms = floor_band_ms(data, f.density);
   return f;
 }
 
@@ -168,9 +173,9 @@ std::vector<std::vector<char>> floor_limited_bands(const BandDataset& data, std:
     const ConditionData& d = data.conditions[k];
     const std::vector<double>& density = d.info.floor_density;
     if (density.empty()) continue;
-    const std::vector<double> band = mean_band_cpl(d), win = mean_window_cpl(d);
+    const std::vector<double> band = mean_band_cpl(d), win = mean_window_cpl(d), floor = floor_band_ms(data, density);
     for (std::size_t b = 0; b < nb && b < density.size(); ++b) {
-      const double limit = margin * density[b] * band_noise_bandwidth(data.bands[b], kGridMaxHz);
+      const double limit = margin * floor[b];
       bands[k][b] = band[b] < limit;
       if (windows)
         for (std::size_t w = 0; w < kW; ++w) (*windows)[k][b * kW + w] = bands[k][b] || win[b * kW + w] < limit;
