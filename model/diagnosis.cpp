@@ -111,16 +111,9 @@ struct ScoreDetail {
 };
 
 // The three parts of the held-out gap of one condition (see diagnosis.hpp).
-// Which cells of a condition count: `scored` per band; window cells of the `fast` bands.
-struct CellMask {
-  const std::vector<char>& scored;
-  const std::vector<char>& fast;
-};
-
-Parts score_condition(const ConditionData& d, const Measured& ms, const ConditionPrediction& p, const CellMask& cells,
-                      const std::vector<double>& floor, const std::vector<int>* counts, ScoreDetail* detail) {
-  const std::vector<char>& scored = cells.scored;
-  const std::vector<char>& fast = cells.fast;
+Parts score_condition(const ConditionData& d, const Measured& ms, const ConditionPrediction& p,
+                      const std::vector<char>& scored, const std::vector<char>& fast, const std::vector<double>& floor,
+                      const std::vector<int>* counts, ScoreDetail* detail) {
   const std::size_t nb = d.bands, nc = d.cycle_count();
   std::vector<double> m(nb, 0.0), q(nb, 0.0), mw(nb * kW, 0.0), qw(nb * kW, 0.0);
   double n = 0.0;
@@ -249,7 +242,6 @@ struct Context {
   std::vector<PressureFloor> pressure_floors;
   std::vector<std::vector<char>> pfloor_band;  // per condition, per band: cycle-mean pressure within the margin
   std::vector<std::vector<char>> pfloor_win;   // per condition, per band * W: the window's pressure likewise
-  CellMask cells(std::size_t k) const { return {base_mask[k], fast}; }
   std::vector<std::vector<std::vector<int>>> counts;  // [replicate][heldout][cycle]
   // Where the time goes (seconds, summed over models).
   mutable double t_fit = 0, t_folds = 0, t_heldout = 0, t_floors = 0, t_bootstrap = 0;
@@ -455,7 +447,7 @@ Evaluated evaluate(const Context& cx, const CandidateSpec& spec, const ExtendedM
     ev.preds.push_back(predict_condition(data, k, sc.fold_models[h], true));
     ev.measured.push_back(measured_side(d, sc.fold_models[h]));
     ScoreDetail det;
-    const Parts p = score_condition(d, ev.measured.back(), ev.preds.back(), cx.cells(k), ev.floors[h], nullptr, &det);
+    const Parts p = score_condition(d, ev.measured.back(), ev.preds.back(), cx.base_mask[k], cx.fast, ev.floors[h], nullptr, &det);
     sum.band_ms += p.band_ms;
     sum.mic += p.mic;
     sum.window_ms += p.window_ms;
@@ -487,8 +479,8 @@ Evaluated evaluate(const Context& cx, const CandidateSpec& spec, const ExtendedM
     double tot = 0.0;
     for (std::size_t h = 0; h < cx.heldout.size(); ++h) {
       const std::size_t k = cx.heldout[h];
-      tot += score_condition(data.conditions[k], ev.measured[h], ev.preds[h], cx.cells(k), ev.floors[h], &rep[h], nullptr)
-                 .total();
+      tot += score_condition(data.conditions[k], ev.measured[h], ev.preds[h], cx.base_mask[k], cx.fast, ev.floors[h],
+                             &rep[h], nullptr).total();
     }
     sc.replicate_gaps.push_back(std::sqrt(tot / H));
   }
