@@ -34,7 +34,7 @@ constexpr double kAdditiveCeil = 1e2;
 // kFloorMarginDb of the noise), the clean prediction is not known well enough to compare with (the floor's
 // estimate is good to about 1 dB, 26 %): it becomes an upper bound, the subtracted value plus kFloorAllowance of
 // the noise-driven part, and a measurement below it agrees with the model.
-constexpr double kFloorShare = 0.25;  // 10^(-kFloorMarginDb / 10)
+const double kFloorShare = std::pow(10.0, -kFloorMarginDb / 10.0);  // the share a floor kFloorMarginDb down has
 constexpr double kFloorAllowance = 0.3;
 constexpr double kObservableShare = 0.1;  // a cell's per-cycle value is never taken below this share of the full one
 constexpr double kLogBound = 3.0 * std::numbers::ln10;  // +-3 decades around the start
