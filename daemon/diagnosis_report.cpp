@@ -201,7 +201,9 @@ json band_report_json(const model::BandDataset& data, const model::DiagnosisResu
   where["mics"] = w.mics;
   where["mic_offset_db"] = numbers(w.mic_offset_db);
   where["mic_gap_rms_db"] = numbers(w.mic_gap_rms_db);
-  where["crank_windows"] = {{"start_deg", numbers(w.window_start_deg)}, {"gap_db", numbers(w.window_gap_db)}};
+  where["crank_windows"] = {{"start_deg", numbers(w.window_start_deg)},
+                            {"gap_db", numbers(w.window_gap_db)},
+                            {"gap_per_band_db", rows(w.window_band_gap_db)}};
   where["coherence"] = {{"coherent_fraction", numbers(w.coherent_fraction)},
                         {"periodic_share", numbers(w.periodic_share)},
                         {"fluctuation_coherence", numbers(w.fluct_coherence)}};

@@ -107,6 +107,7 @@ struct CondSetup {
   std::vector<double> jac;                 // Taylor mode: per scored band * free block params, d ln P / d x
   std::vector<std::size_t> wbands;         // scored window bands (locked noise only)
   std::vector<double> wmeas, wanchor;      // per window band * W
+  std::vector<char> wfloor;                // per window band * W: the pressure within its floor's margin
   std::vector<double> frac;                // per window: mean share of the cycle's frames
   double dn_krpm = 0.0;                    // (speed - ref) / 1000
   double speed_ratio = 1.0;                // speed / ref
@@ -286,8 +287,8 @@ void condition_residuals(const Layout& L, const Values& v, const CondSetup& c, b
   }
   // Subtracting the noise-driven part; within the floor's margin the result is an upper bound (censored).
   std::vector<char> censored;
-  auto minus = [&](const Jet& full, const Jet& cut) {
-    const bool limited = cut.a > kFloorShare * full.a;
+  auto minus = [&](const Jet& full, const Jet& cut, bool at_floor) {
+    const bool limited = cut.a > 0.0 && (at_floor || cut.a > kFloorShare * full.a);
     censored.push_back(limited);
     if (!limited) return full - cut;
     return (full.a > cut.a ? full - cut : Jet(0.0)) + kFloorAllowance * cut;
@@ -332,11 +333,11 @@ void condition_residuals(const Layout& L, const Values& v, const CondSetup& c, b
     if (upper && out.r[ri].a < 0.0) out.r[ri] = Jet(0.0);  // measured below the bound: consistent
   };
   for (std::size_t i = 0; i < c.bands.size(); ++i)
-    finish(i, c.meas[i], minus(c.anchor[i] * mult[i], sub[i]), add_slot(c.bands[i]), -1, c.weight);
+    finish(i, c.meas[i], minus(c.anchor[i] * mult[i], sub[i], false), add_slot(c.bands[i]), -1, c.weight);
   for (std::size_t i = 0; i < c.wbands.size(); ++i) {
     const std::size_t bi = static_cast<std::size_t>(std::find(c.bands.begin(), c.bands.end(), c.wbands[i]) - c.bands.begin());
     for (std::size_t w = 0; w < kW; ++w)
-      finish(c.bands.size() + i * kW + w, c.wmeas[i * kW + w], minus(c.wanchor[i * kW + w] * mult[bi], sub[bi]),
+      finish(c.bands.size() + i * kW + w, c.wmeas[i * kW + w], minus(c.wanchor[i * kW + w] * mult[bi], sub[bi], c.wfloor[i * kW + w] != 0),
              add_slot(c.wbands[i]), static_cast<int>(w), c.wweight);
   }
 }
@@ -782,6 +783,8 @@ CondSetup make_cond_setup(const BandDataset& data, const Anchor& anchor, std::si
         tot += cond.win_frames[cy * kW + w];
       }
     for (std::size_t w = 0; w < kW; ++w) c.frac[w] = fr[w] / tot;
+    std::vector<char> at_floor;
+    floor_limited_cells(data, k, &at_floor);
     for (std::size_t b : c.bands) {
       if (!wcap[b]) continue;
       std::vector<double> wm(kW, 0.0), wa(kW, 0.0);
@@ -803,6 +806,8 @@ CondSetup make_cond_setup(const BandDataset& data, const Anchor& anchor, std::si
       c.wbands.push_back(b);
       c.wmeas.insert(c.wmeas.end(), wm.begin(), wm.end());
       c.wanchor.insert(c.wanchor.end(), wa.begin(), wa.end());
+      c.wfloor.insert(c.wfloor.end(), at_floor.begin() + static_cast<std::ptrdiff_t>(b * kW),
+                      at_floor.begin() + static_cast<std::ptrdiff_t>((b + 1) * kW));
     }
   }
   c.dn_krpm = (cond.mean_speed_rpm() - ref_rpm) / 1000.0;
@@ -954,6 +959,7 @@ ConditionFactors extension_factors(const BandDataset& data, std::size_t k, const
   f.sub.assign(nb, 0.0);
   f.add.assign(nb, 0.0);
   f.add_win.assign(nb * kW, 0.0);
+  f.floor_band = floor_limited_cells(data, k, &f.floor_win);
   const double gain = L.on.speed ? std::pow(10.0, e.speed_gain_db_per_krpm * c.dn_krpm / 10.0) : 1.0;
   const double lscale = L.on.locked ? std::pow(c.speed_ratio, e.locked_speed_exp) : 1.0;
   std::vector<double> frac(kW, 0.0);
@@ -1438,9 +1444,11 @@ void apply_factors(const ConditionFactors& f, const ConditionData& cond, std::ve
   std::vector<char> cb(nb, 0), cw(nb * kW, 0);
   for (std::size_t b = 0; b < nb; ++b) {
     if (f.sub[b] == 0.0) continue;
-    cb[b] = f.sub[b] > kFloorShare * mean[b] * f.mult[b];
+    const auto at_floor = [&](const std::vector<char>& flags, std::size_t i) { return i < flags.size() && flags[i]; };
+    cb[b] = f.sub[b] > kFloorShare * mean[b] * f.mult[b] || at_floor(f.floor_band, b);
     if (windows)
-      for (std::size_t w = 0; w < kW; ++w) cw[b * kW + w] = f.sub[b] > kFloorShare * wmean[b * kW + w] * f.mult[b];
+      for (std::size_t w = 0; w < kW; ++w)
+        cw[b * kW + w] = f.sub[b] > kFloorShare * wmean[b * kW + w] * f.mult[b] || at_floor(f.floor_win, b * kW + w);
   }
   // A cell's value: the full prediction less the noise-driven part (never below kObservableShare of it), or, where
   // censored, that less part plus the allowance.

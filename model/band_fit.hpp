@@ -107,6 +107,9 @@ struct ConditionFactors {
                                  // noise alone drove: its judged floor and the transducer candidate's extra)
   std::vector<double> add;       // per band (cycle mean of the additive terms)
   std::vector<double> add_win;   // per band * W (window mean squares of the additive terms)
+  // The measured pressure within its floor's margin (pressure_floor.hpp), per band and per band * W: the prediction
+  // there is an upper bound whatever share of it the subtracted floor was (the floor may vary along the cycle).
+  std::vector<char> floor_band, floor_win;
 };
 ConditionFactors extension_factors(const BandDataset& data, std::size_t condition, const ConditionSpectrum& spec,
                                    const BlockParams& anchor_block, const ExtendedModel& model);

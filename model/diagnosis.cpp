@@ -108,6 +108,7 @@ struct ScoreDetail {
   std::vector<double> gaps;       // per band
   std::vector<double> mic_resid;  // per microphone
   std::vector<double> window;     // per window
+  std::vector<double> cell;       // per window * bands + band (NaN where not scored)
 };
 
 // The three parts of the held-out gap of one condition (see diagnosis.hpp).
@@ -135,6 +136,7 @@ Parts score_condition(const ConditionData& d, const Measured& ms, const Conditio
   if (detail) {
     detail->gaps.assign(nb, kNaN);
     detail->window.assign(kW, 0.0);
+    detail->cell.assign(kW * nb, kNaN);
   }
   // Sampling variance of a cycle-averaged gap 10 log10(sum m / sum q) from the cycle-to-cycle scatter (delta
   // method): subtracting it from the squared gap leaves an unbiased estimate of the squared systematic gap, so
@@ -177,6 +179,7 @@ Parts score_condition(const ConditionData& d, const Measured& ms, const Conditio
                                               [&](std::size_t c) { return p.win_ms[(c * kW + ww) * nb + b]; },
                                               mw[b * kW + ww], qw[b * kW + ww], floor[b]);
       ++nwin;
+      if (detail) detail->cell[ww * nb + b] = h;
       wsum[ww] += h;
       ++wcount[ww];
     }
@@ -455,6 +458,7 @@ Evaluated evaluate(const Context& cx, const CandidateSpec& spec, const ExtendedM
     sc.gaps.push_back(det.gaps);
     sc.mic_resid.push_back(det.mic_resid);
     sc.window_gaps.push_back(det.window);
+    sc.cell_gaps.push_back(det.cell);
     std::vector<double> att(nb, kNaN);
     const std::size_t nc = d.cycle_count();
     for (std::size_t b = 0; b < nb; ++b) {
@@ -1068,6 +1072,15 @@ DiagnosisResult diagnose(const BandDataset& data, const BlockParams& start, cons
         ++n;
       }
     wh.window_gap_db[w] = n > 0 ? s / n : kNaN;
+    std::vector<double> per_band(nb, kNaN);
+    for (std::size_t b = 0; b < nb; ++b) {
+      double sb = 0.0;
+      int nn = 0;
+      for (const auto& g : res.baseline.cell_gaps)
+        if (std::isfinite(g[w * nb + b])) sb += g[w * nb + b], ++nn;
+      if (nn > 0) per_band[b] = sb / nn;
+    }
+    wh.window_band_gap_db.push_back(per_band);
   }
   wh.coherent_fraction.assign(nb, 0.0);
   wh.fluct_coherence.assign(nb, 0.0);

@@ -89,6 +89,7 @@ struct ModelScore {
   std::vector<std::vector<double>> att_pred;     // predicted attenuation CPL - SPL_A per band, dB
   std::vector<std::vector<double>> mic_resid;    // per microphone, calibration residual after the model, dB
   std::vector<std::vector<double>> window_gaps;  // per window: mean gap over the fast bands, dB
+  std::vector<std::vector<double>> cell_gaps;    // per window * bands + band: gap, dB (NaN where not scored)
   // Bootstrap against the baseline.
   double improvement_db = 0.0;         // baseline gap - this gap
   double improvement_p05_db = 0.0;     // 5th percentile of the replicates
@@ -140,6 +141,7 @@ struct Where {
   std::vector<double> mic_offset_db;              // per microphone: mean offset from the array, over conditions
   std::vector<double> mic_gap_rms_db;             // per microphone: thesis metric of its own curve
   std::vector<double> window_gap_db;              // per crank window: mean baseline gap over fast bands
+  std::vector<std::vector<double>> window_band_gap_db;  // [window][band]: mean baseline gap over conditions
   std::vector<double> window_start_deg;
   std::vector<double> coherent_fraction;          // per band, mean over fired conditions
   std::vector<double> fluct_coherence;

@@ -164,22 +164,31 @@ void judge_pressure_floors(BandDataset& data) {
   }
 }
 
-std::vector<std::vector<char>> floor_limited_bands(const BandDataset& data, std::vector<std::vector<char>>* windows) {
-  const std::size_t K = data.conditions.size(), nb = data.band_count();
+std::vector<char> floor_limited_cells(const BandDataset& data, std::size_t k, std::vector<char>* windows) {
+  const std::size_t nb = data.band_count();
   const double margin = std::pow(10.0, kFloorMarginDb / 10.0);
-  std::vector<std::vector<char>> bands(K, std::vector<char>(nb, 0));
-  if (windows) windows->assign(K, std::vector<char>(nb * kW, 0));
-  for (std::size_t k = 0; k < K; ++k) {
-    const ConditionData& d = data.conditions[k];
-    const std::vector<double>& density = d.info.floor_density;
-    if (density.empty()) continue;
-    const std::vector<double> band = mean_band_cpl(d), win = mean_window_cpl(d), floor = floor_band_ms(data, density);
-    for (std::size_t b = 0; b < nb && b < density.size(); ++b) {
-      const double limit = margin * floor[b];
-      bands[k][b] = band[b] < limit;
-      if (windows)
-        for (std::size_t w = 0; w < kW; ++w) (*windows)[k][b * kW + w] = bands[k][b] || win[b * kW + w] < limit;
-    }
+  std::vector<char> bands(nb, 0);
+  if (windows) windows->assign(nb * kW, 0);
+  const ConditionData& d = data.conditions[k];
+  const std::vector<double>& density = d.info.floor_density;
+  if (density.empty()) return bands;
+  const std::vector<double> band = mean_band_cpl(d), win = mean_window_cpl(d), floor = floor_band_ms(data, density);
+  for (std::size_t b = 0; b < nb && b < density.size(); ++b) {
+    const double limit = margin * floor[b];
+    bands[b] = band[b] < limit;
+    if (windows)
+      for (std::size_t w = 0; w < kW; ++w) (*windows)[b * kW + w] = bands[b] || win[b * kW + w] < limit;
+  }
+  return bands;
+}
+
+std::vector<std::vector<char>> floor_limited_bands(const BandDataset& data, std::vector<std::vector<char>>* windows) {
+  std::vector<std::vector<char>> bands;
+  if (windows) windows->clear();
+  for (std::size_t k = 0; k < data.conditions.size(); ++k) {
+    std::vector<char> w;
+    bands.push_back(floor_limited_cells(data, k, windows ? &w : nullptr));
+    if (windows) windows->push_back(std::move(w));
   }
   return bands;
 }

@@ -58,6 +58,8 @@ void judge_pressure_floors(BandDataset& data);
 // [b * W + w] in *windows when given.
 std::vector<std::vector<char>> floor_limited_bands(const BandDataset& data,
                                                    std::vector<std::vector<char>>* windows = nullptr);
+// The same for one condition.
+std::vector<char> floor_limited_cells(const BandDataset& data, std::size_t condition, std::vector<char>* windows = nullptr);
 
 // Noise bandwidth of a band's filter (the integral of its power response) from 0 to f_max, Hz.
 double band_noise_bandwidth(const dsp::ThirdOctaveBand& band, double f_max_hz);
