@@ -8,6 +8,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <fstream>
+#include <iterator>
 #include <numbers>
 #include <random>
 #include <stdexcept>
@@ -22,8 +23,8 @@ using cd = std::complex<double>;
 constexpr double kPi = std::numbers::pi;
 constexpr double kPref = 20e-6;                 // Pa
 constexpr double kBarToPa = 1e5;
-constexpr double kDeviationCutoffHz = 1000;     // outside the combustion window, deviations above it are floor
-constexpr double kMeanCutoffHz = 4000;          // outside the combustion window, the mean's content above it is floor
+constexpr double kDeviationCutoffHz = 1000;     // each cycle's deviation below it is kept whole (the floor is far below)
+constexpr double kMeanCutoffHz = 4000;          // the ensemble mean below it likewise
 constexpr double kFiredLoadNm = 18.0;           // the record's operating point
 constexpr double kSoiDegBtdc = 9.6;
 constexpr double kRailBar = 470.0;
@@ -100,32 +101,61 @@ std::vector<double> ensemble_mean(const std::vector<double>& x, int cycles) {
   return m;
 }
 
-// 1 in the combustion window -30 ... +120 deg, 0 outside -50 ... +140 deg, cosine tapers; sample i is at
-// -360 + 0.2 i deg.
-double combustion_weight(int i) {
-  const double a = -360.0 + kRecordStepDeg * i;
-  constexpr double lo = -30, hi = 120, taper = 20;
-  if (a >= lo && a <= hi) return 1.0;
-  const double d = a < lo ? lo - a : a - hi;
-  return d >= taper ? 0.0 : 0.5 * (1.0 + std::cos(kPi * d / taper));
-}
+// The amplitude gain that leaves a band's content above its floor: power P = floor * 10^(excess/10) becomes P - floor
+// (spectral subtraction).
+double above_floor_gain(double excess_db) { return std::sqrt(std::max(0.0, 1.0 - std::pow(10.0, -excess_db / 10.0))); }
 
-// The clean pressure of a laid-out run (see the header): in the combustion window of fired runs the record itself
-// (the phase-locked mean and each cycle's full deviation: the gas ringing and every cycle-to-cycle combustion
-// variation), outside it the mean below 4 kHz plus each cycle's deviation below 1 kHz; cosine tapers between.
-std::vector<double> clean_of(const std::vector<double>& x, int cycles, bool motored, double speed_rpm) {
+// What the low-passed pressure keeps of a laid-out run: the condition's own ensemble mean below 4 kHz plus each
+// cycle's deviation from it below 1 kHz. Everything else in the record is its floor unless it stands above it.
+std::vector<double> low_passed(const std::vector<double>& x, int cycles, double speed_rpm) {
   const double rate = 30.0 * speed_rpm;  // samples per second (0.2 deg)
   const std::vector<double> mean = ensemble_mean(x, cycles);
   const std::vector<double> mean_lp = lowpass(mean, kMeanCutoffHz / rate);
   std::vector<double> dev(x.size());
   for (std::size_t i = 0; i < x.size(); ++i) dev[i] = x[i] - mean[i % kSamplesPerCycle];
-  const std::vector<double> dev_lp = lowpass(dev, kDeviationCutoffHz / rate);
-  std::vector<double> clean(x.size());
+  std::vector<double> smooth = lowpass(dev, kDeviationCutoffHz / rate);
+  for (std::size_t i = 0; i < x.size(); ++i) smooth[i] += mean_lp[i % kSamplesPerCycle];
+  return smooth;
+}
+
+// Zero-phase periodic low-pass with a narrow raised-cosine edge (0.9 ... 1.1 times the cutoff, cycles per sample).
+std::vector<double> sharp_lowpass(const std::vector<double>& x, double cutoff) {
+  std::vector<cd> X = fft_fwd(x);
+  const std::size_t n = X.size();
+  const double lo = 0.9 * cutoff, hi = 1.1 * cutoff;
+  for (std::size_t k = 1; k < n; ++k) {
+    const double f = static_cast<double>(std::min(k, n - k)) / static_cast<double>(n);
+    X[k] *= f <= lo ? 1.0 : f >= hi ? 0.0 : 0.5 * (1.0 + std::cos(kPi * (f - lo) / (hi - lo)));
+  }
+  return fft_inv_real(X);
+}
+
+// r split into the kFloorBands bands (see the header): the parts sum to r.
+std::vector<std::vector<double>> band_parts(const std::vector<double>& r, double speed_rpm) {
+  std::vector<std::vector<double>> parts;
+  std::vector<double> below(r.size(), 0.0);
+  for (std::size_t e = 1; e <= kFloorBands; ++e) {
+    const double edge_per_sample = 1000.0 * std::exp2(static_cast<double>(2 * e - 1) / 6.0) / (30.0 * speed_rpm);
+    std::vector<double> next = e < kFloorBands && edge_per_sample < 0.45 ? sharp_lowpass(r, edge_per_sample) : r;
+    std::vector<double> part(r.size());
+    for (std::size_t i = 0; i < r.size(); ++i) part[i] = next[i] - below[i];
+    parts.push_back(std::move(part));
+    below = std::move(next);
+  }
+  return parts;
+}
+
+// The clean pressure of a laid-out run (see the header): the low-passed pressure plus, per band and crank angle, the
+// rest of the record with its floor's power taken out (excess_db, see excess_over_floor_db).
+std::vector<double> clean_of(const std::vector<double>& x, int cycles, double speed_rpm,
+                             const std::vector<std::vector<double>>& excess_db) {
+  std::vector<double> clean = low_passed(x, cycles, speed_rpm);
+  std::vector<double> rest(x.size());
+  for (std::size_t i = 0; i < x.size(); ++i) rest[i] = x[i] - clean[i];
+  const auto parts = band_parts(rest, speed_rpm);
   for (std::size_t i = 0; i < x.size(); ++i) {
     const int j = static_cast<int>(i % kSamplesPerCycle);
-    const double w = motored ? 0.0 : combustion_weight(j);
-    // = LP4k(mean) + w (mean - LP4k(mean)) + LP1k(dev) + w (dev - LP1k(dev)), with mean + dev = x
-    clean[i] = (1.0 - w) * (mean_lp[j] + dev_lp[i]) + w * x[i];
+    for (std::size_t b = 0; b < kFloorBands; ++b) clean[i] += above_floor_gain(excess_db[b][j]) * parts[b][i];
   }
   return clean;
 }
@@ -245,6 +275,30 @@ double level_db(const std::vector<double>& x_pa, double fs_hz, bool a_weighted) 
   return 10.0 * std::log10(mean_square(fft_fwd(x_pa), fs_hz, a_weighted) / (kPref * kPref));
 }
 
+std::vector<std::vector<double>> excess_over_floor_db(const CycleTable& t, double speed_rpm) {
+  const int cycles = static_cast<int>(t.cycles_bar.size()) - 1;
+  const std::vector<double> x = lay_out(t, 0, cycles);
+  const std::vector<double> smooth = low_passed(x, cycles, speed_rpm);
+  std::vector<double> rest(x.size());
+  for (std::size_t i = 0; i < x.size(); ++i) rest[i] = x[i] - smooth[i];
+  std::vector<std::vector<double>> excess;
+  for (const std::vector<double>& part : band_parts(rest, speed_rpm)) {
+    std::vector<double> power(kSamplesPerCycle, 0.0);
+    for (std::size_t i = 0; i < part.size(); ++i) power[i % kSamplesPerCycle] += part[i] * part[i] / cycles;
+    constexpr int half = 50;  // 10 deg
+    std::vector<double> local(kSamplesPerCycle, 0.0);
+    for (int j = 0; j < kSamplesPerCycle; ++j)
+      for (int d = -half; d <= half; ++d) local[j] += power[(j + d + kSamplesPerCycle) % kSamplesPerCycle] / (2 * half + 1);
+    std::vector<double> sorted = local;
+    const auto quiet = sorted.begin() + kSamplesPerCycle / 20;  // the floor: the record's level where it is quietest
+    std::nth_element(sorted.begin(), quiet, sorted.end());
+    const double floor = *quiet;
+    for (double& v : local) v = floor > 0 ? 10.0 * std::log10(v / floor) : -300.0;  // an empty band: nothing above
+    excess.push_back(std::move(local));
+  }
+  return excess;
+}
+
 // ------------------------------------------------------------------------------------------ the cell
 
 std::vector<Condition> default_conditions(int cycles) {
@@ -285,7 +339,7 @@ CellPressure condition_pressure(const Sources& src, const Condition& c, double s
   const CycleTable& table = c.motored ? src.motored : src.fired;
   const std::vector<double> x = lay_out(table, c.first_cycle, c.cycles);
   CellPressure p;
-  p.clean_bar = clean_of(x, c.cycles, c.motored, speed_rpm);
+  p.clean_bar = clean_of(x, c.cycles, speed_rpm, excess_over_floor_db(table, speed_rpm));
   p.recorded_bar = x;  // load scale 1: pressure.csv is the record itself
   if (c.motored || c.load_scale == 1.0) return p;
   // "motored": the motored record's clean mean over all its cycles (no content above 4 kHz without combustion).
@@ -293,7 +347,7 @@ CellPressure condition_pressure(const Sources& src, const Condition& c, double s
   const std::vector<double> base =
       lowpass(ensemble_mean(lay_out(src.motored, 0, all), all), kMeanCutoffHz / (30.0 * speed_rpm));
   for (std::size_t i = 0; i < x.size(); ++i) {
-    // recorded - clean: the record's noise outside the combustion window, 0 inside it (the engine hears it there)
+    // recorded - clean: the record's floor as its chain wrote it (what the engine does not hear)
     const double b = base[i % kSamplesPerCycle], noise = x[i] - p.clean_bar[i];
     p.clean_bar[i] = b + c.load_scale * (p.clean_bar[i] - b);
     p.recorded_bar[i] = p.clean_bar[i] + noise;  // added back unscaled
@@ -339,14 +393,19 @@ double impact_shape(double t) {
   return std::exp(-t / kImpactDecayS) * (std::sin(2 * kPi * 2500 * t) + 0.7 * std::sin(2 * kPi * 5200 * t + 0.6));
 }
 
-// Unit-amplitude impacts of every cycle of the run as heard `delay_s` later, added to y (periodic: wraps).
-void add_impacts(std::vector<double>& y, const Timing& t, int cycles, double fs_hz, double delay_s, double amplitude) {
+// Unit-amplitude impacts of every cycle of the run as heard `delay_s` later, added to y (periodic: wraps). jitter_deg:
+// per cycle and impact [k * impacts + i], the impact's angle error (empty: none).
+void add_impacts(std::vector<double>& y, const Timing& t, int cycles, double fs_hz, double delay_s, double amplitude,
+                 const std::vector<double>& jitter_deg = {}) {
   const std::size_t n = y.size();
   const double deg_per_s = 6.0 * t.speed_rpm;
   const auto span = static_cast<std::size_t>(std::ceil(16 * kImpactDecayS * fs_hz));
+  constexpr std::size_t kCount = std::size(kImpacts);
   for (int k = 0; k < cycles; ++k)
-    for (const Impact& im : kImpacts) {
-      const double t0 = (im.angle_deg + 360.0 + 720.0 * k) / deg_per_s + delay_s;
+    for (std::size_t i = 0; i < kCount; ++i) {
+      const Impact& im = kImpacts[i];
+      const double jitter = jitter_deg.empty() ? 0.0 : jitter_deg[static_cast<std::size_t>(k) * kCount + i];
+      const double t0 = (im.angle_deg + jitter + 360.0 + 720.0 * k) / deg_per_s + delay_s;
       const auto j0 = static_cast<std::size_t>(std::ceil(t0 * fs_hz));
       for (std::size_t j = j0; j < j0 + span; ++j)
         y[j % n] += amplitude * im.weight * impact_shape(static_cast<double>(j) / fs_hz - t0);
@@ -402,9 +461,15 @@ Run synthesize(const Sources& src, const Condition& c, int condition_index, cons
   const double delay = chain.radius_m / chain.sound_speed_m_per_s;
   const double impacts =
       std::isfinite(fx.mechanical_dba) ? impact_amplitude(r.time, c.cycles, chain.fs_hz, delay, fx.mechanical_dba, fx.mechanical_ref_rpm) : 0.0;
+  std::vector<double> jitter;  // one per impact, heard alike at every microphone
+  if (fx.mechanical_jitter_deg > 0) {
+    std::mt19937_64 rng = rng_for(chain, condition_index, kMics, 7);
+    std::normal_distribution<double> normal(0.0, fx.mechanical_jitter_deg);
+    for (std::size_t i = 0; i < static_cast<std::size_t>(c.cycles) * std::size(kImpacts); ++i) jitter.push_back(normal(rng));
+  }
   for (int m = 0; m < kMics; ++m) {
     std::vector<double> y = radiate(u, r.time.n_out, r.time.period_s, structural_path(m, r.time.speed_rpm, chain, fx));
-    if (impacts > 0) add_impacts(y, r.time, c.cycles, chain.fs_hz, delay, impacts * std::pow(10.0, directivity_db()[m] / 20.0));
+    if (impacts > 0) add_impacts(y, r.time, c.cycles, chain.fs_hz, delay, impacts * std::pow(10.0, directivity_db()[m] / 20.0), jitter);
     add_floors(y, condition_index, m, chain, fx);
     if (m == fx.mic_gain_index && fx.mic_gain_db != 0) {
       const double g = std::pow(10.0, fx.mic_gain_db / 20.0);

@@ -12,36 +12,27 @@
 //   The record's first row is its pegging value (the same in every column); it is kept as recorded.
 //   Load: p = motored + load_scale * (fired - motored), applied to the CLEAN pressure (below) with the motored
 //   record's ensemble mean over all its cycles, low-passed at 4 kHz, as "motored"; the record-minus-clean
-//   difference (the chain's noise outside the combustion window, 0 inside it) is then added back unscaled.
+//   difference (what the chain added) is then added back unscaled.
 //
 // The clean pressure the engine hears, the recorded pressure the chain writes
-//   The real records carry their chain's broadband floor. Measured on the record (second differences of each
-//   cycle's deviation from the 60-cycle mean, / sqrt(6), per 90 deg window) it is stationary: about 0.15 bar
-//   (motored) and 0.24 ... 0.26 bar (fired) per sample in every window, the quiet strokes as around combustion.
-//   That floor is a measurement artefact: the structure never hears it. But the cylinder pressure itself also
-//   varies from cycle to cycle at high frequencies, and only around combustion: the combustion-excited gas
-//   ringing (the cylinder's acoustic modes, about 5.7 kHz in this record) is excited anew each cycle with a
-//   random phase, so it lives in each cycle's DEVIATION from the mean, not in the mean; so does every other
-//   cycle-to-cycle combustion variation above 1 kHz. The engine hears all of that. So the clean pressure is
-//     clean = w(theta) * record + (1 - w(theta)) * (LP4k(mean) + LP1k(cycle - mean))
-//   i.e. in the combustion window the record itself (the mean and each cycle's full deviation, all frequencies),
-//   outside it the mean below 4 kHz plus each cycle's deviation below 1 kHz (above those, outside the window,
-//   the record is floor). mean = the condition's own ensemble mean per crank angle, LP = zero-phase
-//   (frequency-domain, raised-cosine edge 0.8 ... 1.25 fc) low-passes in Hz at the condition's speed, and
-//   w = 1 in the combustion window -30 ... +120 deg (20 deg cosine tapers), 0 elsewhere and 0 in motored runs
-//   (no combustion). The price: inside the window the chain's floor is heard too (the engine is driven by it as
-//   if it were pressure) - a small error confined to about a fifth of the cycle (150 of 720 deg, plus the
-//   tapers), and with load_scale != 1 the floor there is scaled with the load (0.7 ... 1.3 times). The
-//   microphones hear eq. 4.1 driven by `clean`; pressure.csv gets the RECORDED values: clean + (record - clean),
-//   the record's own noise sample for sample - a real cell's situation (noisy pressure chain, engine that hears
-//   the combustion). With load_scale = 1 pressure.csv is the record itself.
-//   Not kept (treated as floor, although it stands above it): the record's cycle-to-cycle content outside the
-//   window. Per 30 deg window (60 cycles, deviation from the mean) the record has, above its quiet-stroke level,
-//   broadband bursts near -150 deg (intake valve closing) and 360 deg (gas-exchange TDC) in BOTH records (7 ...
-//   24 dB at 4 ... 14 kHz), and in the fired record 4 ... 6 kHz and 10 ... 14 kHz content from +90 to +270 deg
-//   (expansion and exhaust blowdown, about 7 dB). A model driven by pressure.csv predicts sound in those windows
-//   that these microphones do not hear (whether that content is cylinder pressure or the transducer's response
-//   to valve impacts, the record cannot tell).
+//   The real records carry their chain's broadband floor (data README: about 0.15 bar per sample motored, 0.25
+//   fired). That floor is a measurement artefact: the structure never hears it. What else the record holds above a
+//   few kHz, nobody can tell sample by sample: the combustion-excited gas ringing (about 5.7 kHz here, a new random
+//   phase every cycle), other cycle-to-cycle combustion variation, and broadband bursts near -150 deg (intake valve
+//   closing) and 360 deg (gas-exchange TDC) in both records, 7 ... 24 dB above the quiet strokes. The floor is
+//   taken as the chain's definition has it: STATIONARY, at the record's own level where it is quietest. Per band
+//   (third octaves, kFloorBands) and crank angle the record's power P (over all its cycles, +-10 deg) is compared
+//   with that floor F (its 5th percentile over the cycle), and the engine hears the record less its floor's power
+//   (spectral subtraction):
+//     clean = LP4k(mean) + LP1k(cycle - mean) + sum over bands of sqrt(max(0, 1 - F/P(theta))) * rest_band
+//   where rest = record - LP4k(mean) - LP1k(cycle - mean), mean = the condition's ensemble mean per crank angle and
+//   LP = zero-phase (frequency-domain, raised-cosine edge 0.8 ... 1.25 fc) low-passes in Hz at the condition's
+//   speed. So the engine hears the gas ringing and the bursts nearly whole (P >> F), the quiet strokes' floor not
+//   at all (P = F), and pressure.csv minus what the engine hears carries about the same power above 4 kHz in every
+//   90 deg window (checked by a test: the floor is stationary as defined). The microphones hear eq. 4.1 driven by
+//   `clean`; pressure.csv gets the RECORDED values: with load_scale = 1, the record itself, sample for sample.
+//   The price: the record's content within a dB or two of its quietest level, wherever it stands, is partly
+//   treated as floor; what the record cannot tell apart, no analysis of it can.
 //
 // The microphones (51.2 kHz, 10-channel IEEE-float WAV, Pa)
 //   y = ka (j2pi f + wb) / ((j2pi f)^2 + 2 zeta wn j2pi f + wn^2) u (eq. 4.1, u = clean pressure in Pa minus its
@@ -63,7 +54,8 @@
 //   speed_dependence   structural path gain + magnitude dB per 1000 rpm relative to speed_ref_rpm
 //   mechanical_noise   crank-angle-locked decaying impacts (piston slap, valves) at fixed angles, the same
 //                      impacts per cycle in fired and motored runs; array-average Leq(A) = magnitude at
-//                      mechanical_ref_rpm (fixed energy per impact: +10 log10(rpm / ref) elsewhere)
+//                      mechanical_ref_rpm (fixed energy per impact: +10 log10(rpm / ref) elsewhere); each impact
+//                      optionally jittered in angle from cycle to cycle (Gaussian, mechanical_jitter_deg rms)
 //   Not made here: cubic_damping and cubic_stiffness are amplitude-dependent (nonlinear) and cannot be made by a
 //   linear frequency-domain synthesis; transducer_noise (a pressure-chain floor) is not meaningful: the real
 //   record already carries its chain's floor, which every run here has, effect or not.
@@ -121,6 +113,17 @@ std::vector<double> radiate(const std::vector<double>& u, std::size_t n_out, dou
 // Zero-phase periodic low-pass: cutoff in cycles per sample, raised-cosine edge from 0.8 to 1.25 times it.
 std::vector<double> lowpass(const std::vector<double>& x, double cutoff_per_sample);
 
+// Bands in which the record's content above its floor is judged: the base-2 third octaves of IEC 61260-1, edges
+// 1000 * 2^((2k - 1)/6) Hz for k = 1 ... 14 (1.12 ... 22.4 kHz; everything below the first edge in the first
+// band, above the last in the last).
+constexpr std::size_t kFloorBands = 15;
+
+// Per band (kFloorBands) and crank angle (one cycle, 0.2 deg steps from -360 deg): the power of what the low-passed
+// pressure leaves out of the record (the ensemble mean above 4 kHz, each cycle's deviation above 1 kHz), at
+// speed_rpm, averaged over every cycle of the table and over +-10 deg, in dB above its 5th percentile over the cycle
+// (the chain's floor in that band: its level where the record is quietest; what stands above it is pressure).
+std::vector<std::vector<double>> excess_over_floor_db(const CycleTable& t, double speed_rpm);
+
 // A-weighted (or unweighted) level of a periodic record, dB re 20 uPa, from its spectrum.
 double level_db(const std::vector<double>& x_pa, double fs_hz, bool a_weighted);
 
@@ -147,6 +150,7 @@ struct Effects {
   double background_dba = std::numeric_limits<double>::quiet_NaN();  // NaN: none
   double speed_db_per_krpm = 0, speed_ref_rpm = 1800;
   double mechanical_dba = std::numeric_limits<double>::quiet_NaN(), mechanical_ref_rpm = 1800;
+  double mechanical_jitter_deg = 0;  // rms timing error of every impact, cycle to cycle
 };
 
 struct Chain {

@@ -11,6 +11,7 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <array>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -163,23 +164,38 @@ TEST(IndependentSynth, ATonePassesTheSynthesisWithEq41sMagnitudeAndPhaseAndTheDe
   EXPECT_LT(worst_sample, 1e-6);
 }
 
-// Crank angle of sample i of a laid-out run (-360 + 0.2 i deg, folded into one cycle) inside [lo, hi]?
-bool in_crank_range(std::size_t i, double lo, double hi) {
-  const double a = -360.0 + 0.2 * static_cast<double>(i % 3600);
-  return a >= lo && a <= hi;
-}
-
-// Rms above 4 kHz at 1800 rpm (54 kHz crank-angle rate) of x over the samples `pick` selects.
-double hf_rms(const std::vector<double>& x, const std::function<bool(std::size_t)>& pick) {
+// Mean square above 4 kHz at 1800 rpm (54 kHz crank-angle rate) of x per 90 deg crank window (-360 + 90 w ...).
+std::array<double, 8> hf_ms_per_window(const std::vector<double>& x) {
   const std::vector<double> lp = indep::lowpass(x, 4000.0 / 54000.0);
-  double s = 0;
-  std::size_t n = 0;
-  for (std::size_t i = 0; i < x.size(); ++i)
-    if (pick(i)) s += (x[i] - lp[i]) * (x[i] - lp[i]), ++n;
-  return std::sqrt(s / static_cast<double>(n));
+  std::array<double, 8> ms{};
+  for (std::size_t i = 0; i < x.size(); ++i) ms[(i % 3600) / 450] += (x[i] - lp[i]) * (x[i] - lp[i]) / (x.size() / 8.0);
+  return ms;
 }
 
-TEST(IndependentSynth, PressureCsvKeepsTheRecordWhileTheEngineHearsACleanerPressure) {
+// Per window: recorded minus clean mean square above 4 kHz (what the chain adds in power), and the clean's share.
+void check_floor_is_stationary(const char* what, const indep::CellPressure& p, std::size_t loud_window) {
+  const auto rec = hf_ms_per_window(p.recorded_bar), clean = hf_ms_per_window(p.clean_bar);
+  double lo = 1e300, hi = 0;
+  std::printf("%s, above 4 kHz per 90 deg window from -360 deg: recorded / heard / unheard bar rms\n   ", what);
+  std::size_t quietest = 0;
+  for (std::size_t w = 0; w < 8; ++w) {
+    const double unheard = rec[w] - clean[w];
+    lo = std::min(lo, unheard), hi = std::max(hi, unheard);
+    if (rec[w] < rec[quietest]) quietest = w;
+    std::printf(" %.3f/%.3f/%.3f", std::sqrt(rec[w]), std::sqrt(clean[w]), std::sqrt(std::max(0.0, unheard)));
+  }
+  std::printf("\n");
+  // What the engine does not hear is the chain's stationary floor, 0.1 ... 0.3 bar rms above 4 kHz (data README).
+  EXPECT_GT(lo, 0.0) << what;
+  EXPECT_LT(10 * std::log10(hi / lo), 2.0) << what << ": the unheard part is not stationary";
+  EXPECT_GT(std::sqrt(hi), 0.05) << what;
+  EXPECT_LT(std::sqrt(hi), 0.3) << what;
+  // In the quietest window the record is mostly floor; where it is loud (the gas ringing) the engine hears most.
+  EXPECT_LT(clean[quietest], rec[quietest] / 2) << what;
+  EXPECT_GT(clean[loud_window], rec[loud_window] / 2) << what;
+}
+
+TEST(IndependentSynth, PressureCsvKeepsTheRecordWhileTheEngineHearsItLessItsStationaryFloor) {
   REQUIRE_SOURCES();
   indep::Condition c{"check", 1800, 1.0, false, false, 5, 16};
   const indep::CellPressure p = indep::condition_pressure(*src, c, 1800);
@@ -187,29 +203,7 @@ TEST(IndependentSynth, PressureCsvKeepsTheRecordWhileTheEngineHearsACleanerPress
   // Load scale 1: pressure.csv is the record itself (cycle k = column 5+k's 360 ... 539.8 deg, then 5+k+1's rest).
   EXPECT_EQ(p.recorded_bar[0], src->fired.cycles_bar[5][2700]);
   EXPECT_EQ(p.recorded_bar[900 + 3600 * 3], src->fired.cycles_bar[5 + 4][0]);
-  // Outside the combustion window and its tapers (-50 ... +140 deg; 5 deg more for the filters' reach) the engine
-  // hears a pressure with far less high-frequency content than the record: there the record's is the chain's floor,
-  // about 0.2 bar rms per sample (data README).
-  const auto quiet = [](std::size_t i) { return !in_crank_range(i, -55, 145); };
-  const auto window = [](std::size_t i) { return in_crank_range(i, -30, 120); };
-  double s = 0, worst_in_window = 0;
-  std::size_t n = 0;
-  for (std::size_t i = 0; i < p.recorded_bar.size(); ++i) {
-    const double d = p.recorded_bar[i] - p.clean_bar[i];
-    if (quiet(i)) s += d * d, ++n;
-    if (window(i)) worst_in_window = std::max(worst_in_window, std::abs(d));
-  }
-  const double rms = std::sqrt(s / static_cast<double>(n));
-  const double hf_rec = hf_rms(p.recorded_bar, quiet), hf_clean = hf_rms(p.clean_bar, quiet);
-  std::printf("fired 1800 rpm outside the combustion window: recorded - clean %.3f bar rms; above 4 kHz recorded %.3f, "
-              "clean %.3f bar rms\n", rms, hf_rec, hf_clean);
-  std::printf("fired 1800 rpm in the combustion window: above 4 kHz recorded %.3f, clean %.3f bar rms; |recorded - clean| <= %.2e bar\n",
-              hf_rms(p.recorded_bar, window), hf_rms(p.clean_bar, window), worst_in_window);
-  EXPECT_GT(rms, 0.1);
-  EXPECT_LT(rms, 0.4);
-  EXPECT_LT(hf_clean, hf_rec / 4);
-  // Inside it the engine hears the record (its mean and each cycle's full deviation: the gas ringing is there).
-  EXPECT_LT(worst_in_window, 1e-9);
+  check_floor_is_stationary("fired 1800 rpm", p, 4);  // 0 ... 90 deg: combustion
   // A scaled load keeps the record's own noise (recorded - clean at scale 1), sample for sample, unscaled.
   c.load_scale = 1.3;
   const indep::CellPressure q = indep::condition_pressure(*src, c, 1800);
@@ -217,13 +211,9 @@ TEST(IndependentSynth, PressureCsvKeepsTheRecordWhileTheEngineHearsACleanerPress
   for (std::size_t i = 0; i < q.recorded_bar.size(); ++i)
     worst = std::max(worst, std::abs(q.recorded_bar[i] - q.clean_bar[i] - (p.recorded_bar[i] - p.clean_bar[i])));
   EXPECT_LT(worst, 1e-9);
-  // Motored: no combustion, no window - the engine hears the cleaner pressure at every angle.
   const indep::CellPressure m = indep::condition_pressure(*src, {"motored", 1800, 1.0, true, false, 5, 16}, 1800);
-  const auto all = [](std::size_t) { return true; };
-  const double hf_rec_m = hf_rms(m.recorded_bar, all), hf_clean_m = hf_rms(m.clean_bar, all);
-  std::printf("motored 1800 rpm: above 4 kHz recorded %.3f, clean %.3f bar rms\n", hf_rec_m, hf_clean_m);
   EXPECT_EQ(m.recorded_bar[900 + 3600 * 3], src->motored.cycles_bar[5 + 4][0]);
-  EXPECT_LT(hf_clean_m, hf_rec_m / 4);
+  check_floor_is_stationary("motored 1800 rpm", m, 2);  // -180 ... -90 deg: the burst at intake valve closing
 }
 
 TEST(IndependentSynth, EffectsHaveTheLevelsTheyAreSpecifiedBy) {
@@ -316,17 +306,10 @@ void print_floor_lines(const std::string& log_text) {
   }
 }
 
-class IndependentDiagnosis : public ::testing::TestWithParam<Case> {};
-
-// DISABLED (issue 9, open; run with --gtest_also_run_disabled_tests): on this family the diagnosis does not yet read
-// right. The synth's clean pressure now keeps each cycle's full deviation in the combustion window, but the record
-// has more cycle-to-cycle content above its floor outside it (cell_synth.hpp: bursts near -150 and 360 deg in fired
-// and motored records, 90 ... 270 deg in fired ones) that these microphones do not hear: the model driven by the
-// record predicts 30-38 dB more than they hear in the two 90 deg windows of the bursts, the tuned baseline bends to
-// it (then predicts 12-20 dB less than they hear at 4-10 kHz), and transducer_noise takes part in the null verdict.
-TEST_P(IndependentDiagnosis, DISABLED_VerdictNamesTheWithheldEffectAndClosesAtLeast60PercentOfTheGap) {
+// The real `noisemon diagnose` on the independent cell's run directories with one withheld effect (or none): the
+// verdict names it (or its partner does) and closes at least 60 % of the held-out gap; the null reads `none`.
+void expect_verdict(const Case& k) {
   REQUIRE_SOURCES();
-  const Case& k = GetParam();
   const fs::path dir = scratch(k.label);
   indep::write_campaign(*src, indep::default_conditions(kCyclesPerCondition), indep::Chain{}, k.fx, dir / "runs");
   const std::string cmd = quote(NOISEMON_PATH) + " diagnose " + quote((dir / "runs").string()) + " -o " +
@@ -356,15 +339,42 @@ TEST_P(IndependentDiagnosis, DISABLED_VerdictNamesTheWithheldEffectAndClosesAtLe
   EXPECT_GE(num(v["gap_closed_fraction"]), 0.6);
 }
 
+class IndependentDiagnosis : public ::testing::TestWithParam<Case> {};
+
+TEST_P(IndependentDiagnosis, VerdictNamesTheWithheldEffectAndClosesAtLeast60PercentOfTheGap) { expect_verdict(GetParam()); }
+
+// Magnitudes: the engine here is 108.6 dB(A) at 1800 rpm (array average). A flat +-1 dB directivity spreads the
+// microphones at every frequency, so a miscalibration must stand out of it: 4 dB (a wrong sensitivity entered in
+// the DAQ, 40 instead of 25 mV/Pa). Background 100 dB(A): a loud dynamometer and ventilation, 9 dB below the engine.
 INSTANTIATE_TEST_SUITE_P(
     WithheldEffects, IndependentDiagnosis,
     ::testing::Values(Case{"null", "none", {}},
                       Case{"second_mode_8db_1600hz", "second_mode", with([](indep::Effects& f) { f.second_mode_db = 8; })},
-                      Case{"mic_gain_3db_mic4", "mic_gain", with([](indep::Effects& f) { f.mic_gain_db = 3; })},
-                      Case{"background_noise_85dba", "background_noise", with([](indep::Effects& f) { f.background_dba = 85; })},
+                      Case{"mic_gain_4db_mic4", "mic_gain", with([](indep::Effects& f) { f.mic_gain_db = 4; })},
+                      Case{"background_noise_100dba", "background_noise", with([](indep::Effects& f) { f.background_dba = 100; })},
                       Case{"speed_dependence_4db_per_krpm", "speed_dependence",
-                           with([](indep::Effects& f) { f.speed_db_per_krpm = 4; })},
-                      Case{"mechanical_noise_90dba", "mechanical_noise", with([](indep::Effects& f) { f.mechanical_dba = 90; })}),
+                           with([](indep::Effects& f) { f.speed_db_per_krpm = 4; })}),
+    [](const ::testing::TestParamInfo<Case>& i) { return std::string(i.param.label); });
+
+class IndependentDiagnosisOpen : public ::testing::TestWithParam<Case> {};
+
+// DISABLED (issue 9, open; run with --gtest_also_run_disabled_tests): the independent cell's crank-locked impacts
+// (two decaying tones, 2.5 and 5.2 kHz, 0.4 ms, at four fixed angles; fixed energy per impact) are not yet read
+// right. At 95 dB(A) the verdict ties background_noise and mechanical_noise (50 % closed each); at 100 dB(A)
+// mechanical_noise closes 66 % and background_noise 63 %, and the simpler background is named. Both leave about
+// 1 dB of the whole-cycle band gap at 0.8-2.5 kHz (and the locked one makes 250-500 Hz worse); it fits a speed
+// exponent of 0.6-0.75 (true: 1). Not the impacts' phase lock to the combustion noise: with 2 deg of timing jitter
+// per impact the tie stays (62 / 59 %). Next suspect: the motored runs' bands above 1.6 kHz are floor-limited
+// (their PRESSURE is floor) and so never fitted, though there the microphones hear little but the impacts.
+TEST_P(IndependentDiagnosisOpen, DISABLED_VerdictNamesTheWithheldEffectAndClosesAtLeast60PercentOfTheGap) {
+  expect_verdict(GetParam());
+}
+
+INSTANTIATE_TEST_SUITE_P(
+    WithheldEffects, IndependentDiagnosisOpen,
+    ::testing::Values(Case{"mechanical_noise_95dba", "mechanical_noise", with([](indep::Effects& f) { f.mechanical_dba = 95; })},
+                      Case{"mechanical_noise_100dba", "mechanical_noise", with([](indep::Effects& f) { f.mechanical_dba = 100; })},
+                      Case{"mechanical_noise_95dba_jitter2", "mechanical_noise", with([](indep::Effects& f) { f.mechanical_dba = 95; f.mechanical_jitter_deg = 2; })}),
     [](const ::testing::TestParamInfo<Case>& i) { return std::string(i.param.label); });
 
 }  // namespace
