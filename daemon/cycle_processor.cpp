@@ -70,8 +70,13 @@ void CycleProcessor::add_pressure(const drivers::SampleBlock& block) {
   if (block.channels != drivers::kPressureStreamChannels)
     throw std::invalid_argument("CycleProcessor: pressure block with " + std::to_string(block.channels) + " channels");
   const std::int64_t end_before = pressure_.started() ? pressure_.end_index() : block.first_index;
-  const std::size_t filled = pressure_.append(block.first_index, block.data, block.frames);
-  if (filled > 0) {
+  const FrameFifo::Appended added = pressure_.append(block.first_index, block.data, block.frames);
+  counters_.frames_discarded += static_cast<std::int64_t>(added.dropped);
+  if (added.restarted) {
+    // A stall longer than the FIFO holds: the model restarts, settled at the new pressure.
+    note_gap(end_before, block.first_index + model_latency_);
+    model_primed_ = false;
+  } else if (added.held > 0) {
     // The model sees held pressure across the gap; its output is disturbed for a while after it too.
     note_gap(end_before, block.first_index + model_latency_);
     // Feed the held frames to the model so its time base stays on the grid.
@@ -110,7 +115,8 @@ void CycleProcessor::predict(std::int64_t first, const drivers::SampleBlock& blo
   for (std::uint32_t f = 0; f < block.frames; ++f) model_in_[f] = block.data[f * block.channels + drivers::kPressureChannel];
   model_.process(model_in_.data(), model_out_.data(), block.frames);
   // Output j of the model describes the instant of input j - latency.
-  predicted_.append(first - model_latency_, model_out_.data(), block.frames);
+  counters_.frames_discarded +=
+      static_cast<std::int64_t>(predicted_.append(first - model_latency_, model_out_.data(), block.frames).dropped);
 }
 
 void CycleProcessor::add_mics(const drivers::SampleBlock& block) {
@@ -120,8 +126,9 @@ void CycleProcessor::add_mics(const drivers::SampleBlock& block) {
     throw std::invalid_argument("CycleProcessor: microphone block with " + std::to_string(block.channels) +
                                 " channels, expected " + std::to_string(mics_));
   const std::int64_t end_before = mics_fifo_.started() ? mics_fifo_.end_index() : block.first_index;
-  const std::size_t filled = mics_fifo_.append(block.first_index, block.data, block.frames);
-  if (filled > 0) note_gap(end_before - delay_frames_, block.first_index - delay_frames_);
+  const FrameFifo::Appended added = mics_fifo_.append(block.first_index, block.data, block.frames);
+  counters_.frames_discarded += static_cast<std::int64_t>(added.dropped);
+  if (added.held > 0 || added.restarted) note_gap(end_before - delay_frames_, block.first_index - delay_frames_);
 }
 
 void CycleProcessor::set_operating_point(const drivers::OperatingPoint& op) {
@@ -137,6 +144,14 @@ void CycleProcessor::process() {
     next_ = std::max(pressure_.begin_index(), predicted_.begin_index());
     if (with_mics) next_ = std::max(next_, mics_fifo_.begin_index() - delay_frames_);
     settle_from_ = next_;
+  }
+  // Frames a stalled stream's partners pushed out of their FIFOs are gone: continue where all streams have data.
+  std::int64_t earliest = std::max(pressure_.begin_index(), predicted_.begin_index());
+  if (with_mics) earliest = std::max(earliest, mics_fifo_.begin_index() - delay_frames_);
+  if (next_ < earliest) {
+    note_gap(next_, earliest);
+    next_ = earliest;
+    have_last_crank_ = false;  // a cycle boundary may lie in the gap
   }
   std::int64_t end = std::min(pressure_.end_index(), predicted_.end_index());
   if (with_mics) end = std::min(end, mics_fifo_.end_index() - delay_frames_);
@@ -192,14 +207,18 @@ void CycleProcessor::finish_cycle(std::int64_t end_index) {
   std::erase_if(gaps_, [&](const Gap& g) { return g.to <= end_index; });
   settle_from_ = std::max(settle_from_, last_gap_end);  // filters restart settling after lost samples
 
-  const std::int64_t cycle = counters_.cycles_completed++;
   const double duration = static_cast<double>(end_index - start) / kFs;
-  const bool odd = last_duration_s_ > 0 && std::abs(duration - last_duration_s_) > 0.1 * last_duration_s_;
-  last_duration_s_ = duration;
   if (gap) {
-    ++counters_.cycles_dropped;
+    // A stall hides the boundaries inside it: count the cycles it spans at the last good cycle's length.
+    const double spanned = last_duration_s_ > 0 ? std::round(duration / last_duration_s_) : 1.0;
+    const auto n = static_cast<std::int64_t>(std::max(1.0, spanned));
+    counters_.cycles_completed += n;
+    counters_.cycles_dropped += n;
     return;
   }
+  const std::int64_t cycle = counters_.cycles_completed++;
+  const bool odd = last_duration_s_ > 0 && std::abs(duration - last_duration_s_) > 0.1 * last_duration_s_;
+  last_duration_s_ = duration;
 
   CycleReport r;
   r.utime = utime_of(info_.epoch_utime, static_cast<double>(start));

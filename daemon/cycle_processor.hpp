@@ -31,7 +31,8 @@ struct ProcessorCounters {
   std::int64_t cycles_completed = 0;  // reported + dropped
   std::int64_t cycles_dropped = 0;    // not reported: samples were lost in them
   std::int64_t frames_processed = 0;
-  std::int64_t gap_frames = 0;        // frames filled in because blocks were lost
+  std::int64_t gap_frames = 0;        // frames filled in because blocks were lost, or skipped after a stall
+  std::int64_t frames_discarded = 0;  // frames pushed out unconsumed: one stream ran fifo_seconds ahead of another
 };
 
 class CycleProcessor {

@@ -1,12 +1,13 @@
 // A preallocated FIFO of multichannel frames indexed by their position on the 40 kHz grid.
 // Used by the processing thread only (single-threaded): it keeps each stream's recent frames until the other
 // streams catch up, so frames of one instant can be combined. Gaps in the index are filled by holding the
-// last frame (zeros at the start) and reported to the caller.
+// last frame (zeros at the start) and reported to the caller. It never grows and never throws: when the other
+// streams stall for longer than it holds, its oldest frames are dropped; a gap longer than it holds restarts it
+// at the new frames. Both are reported, so the caller can drop the cycles they touch.
 #pragma once
 
 #include <algorithm>
 #include <cstdint>
-#include <stdexcept>
 #include <vector>
 
 namespace noisemon::daemon {
@@ -24,24 +25,41 @@ class FrameFifo {
   std::int64_t end_index() const { return begin_ + static_cast<std::int64_t>(size_); }  // one past the newest
   std::size_t size() const { return size_; }
 
-  // Appends frames whose first frame has grid index `first`. Frames already present are skipped; a gap before
-  // `first` is filled by holding the last frame. Returns the number of frames filled in. Throws
-  // std::length_error when the FIFO would overflow (the caller consumes too slowly).
-  std::size_t append(std::int64_t first, const double* frames, std::size_t n) {
-    std::size_t filled = 0;
+  struct Appended {
+    std::size_t held = 0;     // frames filled in by holding the last frame (a gap shorter than the capacity)
+    std::size_t dropped = 0;  // frames lost unconsumed: the oldest ones, pushed out, or all of them on a restart
+    bool restarted = false;   // the gap before `first` was longer than the capacity: the FIFO now begins there
+  };
+
+  // Appends frames whose first frame has grid index `first`. Frames already present are skipped.
+  Appended append(std::int64_t first, const double* frames, std::size_t n) {
+    Appended a;
     if (!started_) {
       begin_ = first;
       started_ = true;
     }
-    std::int64_t end = end_index();
-    if (first > end) {
-      filled = static_cast<std::size_t>(first - end);
-      for (std::size_t i = 0; i < filled; ++i) push(last_.data());
+    const std::int64_t end = end_index();
+    if (first - end >= static_cast<std::int64_t>(capacity_)) {
+      a.dropped = size_;
+      a.restarted = true;
+      head_ = size_ = 0;
+      begin_ = first;
+    } else if (first > end) {
+      a.held = static_cast<std::size_t>(first - end);
+      for (std::size_t i = 0; i < a.held; ++i) a.dropped += push(last_.data());
     }
-    const std::size_t skip = first < end ? static_cast<std::size_t>(std::min<std::int64_t>(end - first, n)) : 0;
-    const std::size_t count = n - skip;
-    if (count == 0) return filled;
-    if (size_ + count > capacity_) throw std::length_error("FrameFifo: capacity exceeded");
+    std::size_t skip = first < end_index() ? static_cast<std::size_t>(std::min<std::int64_t>(end_index() - first, n)) : 0;
+    std::size_t count = n - skip;
+    if (count == 0) return a;
+    if (count > capacity_) {  // more new frames than it holds: keep the newest, beginning where they begin
+      a.dropped += size_ + (count - capacity_);
+      a.restarted = true;
+      skip = n - capacity_;
+      count = capacity_;
+      head_ = size_ = 0;
+      begin_ = first + static_cast<std::int64_t>(skip);
+    }
+    if (size_ + count > capacity_) a.dropped += drop_oldest(size_ + count - capacity_);
     const double* src = frames + skip * channels_;
     const std::size_t pos = (head_ + size_) & mask_;
     const std::size_t first_part = std::min(count, capacity_ - pos);
@@ -49,7 +67,7 @@ class FrameFifo {
     std::copy(src + first_part * channels_, src + count * channels_, data_.begin());
     std::copy(src + (count - 1) * channels_, src + count * channels_, last_.begin());
     size_ += count;
-    return filled;
+    return a;
   }
   // Pointer to the frame with grid index `index` (must be within [begin_index, end_index)).
   const double* frame(std::int64_t index) const {
@@ -59,20 +77,25 @@ class FrameFifo {
   // Drops every frame with index < `index`.
   void drop_before(std::int64_t index) {
     if (index <= begin_) return;
-    const std::size_t n = static_cast<std::size_t>(std::min<std::int64_t>(index - begin_, static_cast<std::int64_t>(size_)));
-    head_ = (head_ + n) & mask_;
-    size_ -= n;
-    begin_ += static_cast<std::int64_t>(n);
+    drop_oldest(static_cast<std::size_t>(std::min<std::int64_t>(index - begin_, static_cast<std::int64_t>(size_))));
     if (size_ == 0) begin_ = index;
   }
 
  private:
-  void push(const double* f) {
-    if (size_ == capacity_) throw std::length_error("FrameFifo: capacity exceeded");
+  std::size_t drop_oldest(std::size_t n) {
+    head_ = (head_ + n) & mask_;
+    size_ -= n;
+    begin_ += static_cast<std::int64_t>(n);
+    return n;
+  }
+  // Appends one frame; returns how many old frames it pushed out (0 or 1).
+  std::size_t push(const double* f) {
+    const std::size_t out = size_ == capacity_ ? drop_oldest(1) : 0;
     const std::size_t pos = (head_ + size_) & mask_;
     std::copy(f, f + channels_, &data_[pos * channels_]);
     std::copy(f, f + channels_, last_.begin());
     ++size_;
+    return out;
   }
 
   static std::size_t round_up_pow2(std::size_t n) {

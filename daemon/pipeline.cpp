@@ -57,6 +57,8 @@ struct Pipeline::Impl {
   mutable std::mutex failure_mutex;
   std::string failure;
   std::atomic<std::int64_t> cycles_dropped{0};
+  std::atomic<std::int64_t> frames_discarded{0};  // the processor's FIFOs: one stream ran ahead of a stalled one
+  std::atomic<std::int64_t> gap_frames{0};        // frames lost in the streams, held or skipped
   std::atomic<std::int64_t> reports_queued{0};
   std::atomic<std::uint64_t> report_overruns{0};
   Clock::time_point started;
@@ -135,11 +137,13 @@ void Pipeline::Impl::run_processing() {
         any = true;
       }
       processor.process();
-      const std::int64_t dropped = processor.counters().cycles_dropped;
-      if (dropped != dropped_seen) {
-        cycles_dropped += dropped - dropped_seen;
-        dropped_seen = dropped;
+      const ProcessorCounters& counted = processor.counters();
+      if (counted.cycles_dropped != dropped_seen) {
+        cycles_dropped += counted.cycles_dropped - dropped_seen;
+        dropped_seen = counted.cycles_dropped;
       }
+      frames_discarded.store(counted.frames_discarded, std::memory_order_relaxed);
+      gap_frames.store(counted.gap_frames, std::memory_order_relaxed);
       if (config.cycles > 0 && reports_queued.load() >= config.cycles) break;
       if (!any) {
         if (draining) break;  // drivers are joined and the rings are empty
@@ -148,8 +152,8 @@ void Pipeline::Impl::run_processing() {
     }
     processing_state = drivers::ThreadState::kStopped;
   } catch (const std::exception& e) {
+    fail(std::string("processing thread: ") + e.what());  // the text first: a reader that sees kFailed finds it
     processing_state = drivers::ThreadState::kFailed;
-    fail(std::string("processing thread: ") + e.what());
     spdlog::error("processing thread failed: {}", e.what());
   }
   processing_done = true;
@@ -167,7 +171,10 @@ noisemon::status_t Pipeline::Impl::make_status(std::int64_t published, const Sta
   }
   s.thread_name.push_back("processing");
   s.thread_state.push_back(static_cast<std::int8_t>(processing_state.load()));
-  s.thread_error.push_back(processing_state.load() == drivers::ThreadState::kFailed ? failure : "");
+  {
+    std::lock_guard lock(failure_mutex);
+    s.thread_error.push_back(processing_state.load() == drivers::ThreadState::kFailed ? failure : "");
+  }
   s.thread_name.push_back("lcm");
   s.thread_state.push_back(static_cast<std::int8_t>(publishing_state.load()));
   s.thread_error.push_back("");
@@ -193,6 +200,10 @@ noisemon::status_t Pipeline::Impl::make_status(std::int64_t published, const Sta
     s.counter_name.push_back(c.name);
     s.counter_value.push_back(c.value);
   }
+  s.counter_name.push_back("processing.frames_discarded");
+  s.counter_value.push_back(frames_discarded.load(std::memory_order_relaxed));
+  s.counter_name.push_back("processing.gap_frames");
+  s.counter_value.push_back(gap_frames.load(std::memory_order_relaxed));
   s.ncounters = static_cast<std::int16_t>(s.counter_name.size());
   return s;
 }

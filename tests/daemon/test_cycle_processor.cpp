@@ -4,6 +4,7 @@
 
 #include <cmath>
 #include <complex>
+#include <functional>
 #include <numbers>
 #include <vector>
 
@@ -90,8 +91,13 @@ struct RunResult {
   std::vector<dsp::ThirdOctaveBand> bands;
 };
 
-// Feeds `seconds` of synthetic streams in 256-frame blocks; `drop_mic_block` (>= 0) is lost on the way.
-RunResult run(const Synth& s, double seconds, std::int64_t drop_mic_block = -1) {
+// Which blocks reach the processor: (microphone stream?, block number) -> delivered?
+using Delivery = std::function<bool(bool, std::int64_t)>;
+
+// Feeds `seconds` of synthetic streams in 256-frame blocks; `drop_mic_block` (>= 0) is lost on the way, and so is
+// every block `deliver` refuses.
+RunResult run(const Synth& s, double seconds, std::int64_t drop_mic_block = -1, const Delivery& deliver = {},
+              double fifo_seconds = 4.0) {
   drivers::StreamInfo info;
   info.epoch_utime = 1'000'000;
   info.mic_count = kMics;
@@ -99,6 +105,7 @@ RunResult run(const Synth& s, double seconds, std::int64_t drop_mic_block = -1) 
   info.acoustic_delay_s = kDelayFrames / kFs;
   daemon::ProcessorConfig pc;
   pc.model = model::preset("linear");
+  pc.fifo_seconds = fifo_seconds;
   RunResult out;
   daemon::CycleProcessor p(pc, info, [&](const daemon::CycleReport& r) { out.reports.push_back(r); });
   const std::int64_t total = static_cast<std::int64_t>(seconds * kFs);
@@ -114,8 +121,8 @@ RunResult run(const Synth& s, double seconds, std::int64_t drop_mic_block = -1) 
       pb.data[f * 2 + drivers::kCrankChannel] = crank(k);
       for (std::uint32_t m = 0; m < kMics; ++m) mb.data[f * kMics + m] = s.mic(k, m);
     }
-    p.add_pressure(pb);
-    if (b != drop_mic_block) p.add_mics(mb);
+    if (!deliver || deliver(false, b)) p.add_pressure(pb);
+    if (b != drop_mic_block && (!deliver || deliver(true, b))) p.add_mics(mb);
     p.process();
   }
   out.counters = p.counters();
@@ -270,4 +277,50 @@ TEST(CycleProcessor, PressureOnlyStreamReportsCplAndPredictionsAndSaysNothingWas
   mb.channels = 1;
   mb.frames = 1;
   EXPECT_THROW(p.add_mics(mb), std::invalid_argument);
+}
+
+// One stream stops delivering for 1, 5 and 30 s (a microphone card that stops, a paused encoder-clocked scan) while
+// the other keeps flowing, then resumes at the current time: the processor never fails, drops exactly the cycles
+// the stall touches, counts what its 4 s FIFOs pushed out, and reports valid cycles again within two cycles.
+TEST(CycleProcessor, AStalledStreamDropsTheCyclesItTouchesAndProcessingResumes) {
+  const Synth s({{1000.0, 2000.0, false}});
+  for (const bool mics_stall : {true, false})
+    for (const double stall_s : {1.0, 5.0, 30.0}) {
+      SCOPED_TRACE(std::string(mics_stall ? "microphones" : "pressure") + " stalled " + std::to_string(stall_s) + " s");
+      const std::int64_t from = 40, to = from + static_cast<std::int64_t>(stall_s * kFs / 256);  // blocks
+      const Delivery stall = [&](bool mics, std::int64_t b) { return mics != mics_stall || b < from || b >= to; };
+      RunResult r;
+      ASSERT_NO_THROW(r = run(s, 1.0 + stall_s + 1.0, -1, stall));
+      const std::int64_t gap_from = from * 256, gap_to = to * 256;  // frames of the stalled stream
+      const std::int64_t shift = mics_stall ? kDelayFrames : 0;      // microphone frame n + d belongs to combined n
+      std::int64_t first_after = INT64_MAX;
+      const auto start_of = [](const daemon::CycleReport& c) { return (c.utime - 1'000'000) * 40 / 1000; };  // frames
+      for (const auto& c : r.reports) {
+        const std::int64_t start = start_of(c);  // combined frame where the report's cycle starts
+        EXPECT_FALSE(start < gap_to - shift && start + kCycleFrames > gap_from - shift) << "cycle " << c.cycle << " overlaps the stall";
+        if (start >= gap_to - shift) first_after = std::min(first_after, start);
+      }
+      EXPECT_LE(first_after, gap_to - shift + 2 * kCycleFrames) << "no valid cycle within two cycles of the resumption";
+      const std::int64_t stalled_cycles = (gap_to - gap_from) / kCycleFrames;
+      EXPECT_GE(r.counters.cycles_dropped, stalled_cycles);
+      EXPECT_LE(r.counters.cycles_dropped, stalled_cycles + 2);
+      const double held_s = std::exp2(std::ceil(std::log2(4.0 * kFs))) / kFs;  // 4 s rounded up to 2^n frames
+      if (stall_s < held_s) {
+        EXPECT_EQ(r.counters.frames_discarded, 0);
+      } else {
+        EXPECT_GT(r.counters.frames_discarded, 0);
+      }
+      // After the resumption the levels are right again (the first cycles after it included).
+      const std::size_t b1k = band_index(r.bands, 1000);
+      const double expected_1k = level(2000 * std::abs(eq_4_1(1000))) + a_weight(r.bands[b1k].exact_mid_hz);
+      int checked = 0;
+      for (const auto& c : r.reports) {
+        const std::int64_t start = start_of(c);
+        if (start < gap_to - shift || checked >= 5) continue;
+        EXPECT_NEAR(c.spl_a_measured_db[b1k], expected_1k, 0.3) << "cycle " << c.cycle;
+        EXPECT_NEAR(c.spl_a_predicted_db[b1k], expected_1k, 0.3) << "cycle " << c.cycle;
+        ++checked;
+      }
+      EXPECT_EQ(checked, 5);
+    }
 }
