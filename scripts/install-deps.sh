@@ -8,7 +8,7 @@ packages=(
   libcomedi-dev libsystemd-dev libsndfile1-dev nlohmann-json3-dev libceres-dev
   clang libclang-rt-14-dev
   libgtest-dev libgmock-dev libbenchmark-dev
-  iproute2 util-linux python3
+  iproute2 util-linux python3 systemd
 )
 SUDO=""
 if [ "$(id -u)" -ne 0 ]; then SUDO="sudo"; fi
