@@ -1,0 +1,165 @@
+#include "model/combustion_metrics.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+namespace noisemon::model {
+namespace {
+
+constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+constexpr double kGasConstant = 287.0;  // J/(kg K), air
+
+struct Grid {
+  std::span<const double> p;
+  double first, step;
+  double angle(std::size_t i) const { return first + step * static_cast<double>(i); }
+  double last() const { return angle(p.size() - 1); }
+  // Index range [lo, hi] of the samples within [a, b] deg.
+  std::pair<std::size_t, std::size_t> range(double a, double b) const {
+    const double lo = std::max(0.0, std::ceil((a - first) / step - 1e-9));
+    const double hi = std::min(static_cast<double>(p.size() - 1), std::floor((b - first) / step + 1e-9));
+    return {static_cast<std::size_t>(lo), static_cast<std::size_t>(std::max(lo, hi))};
+  }
+  // The data reach [a, b] to within 2 deg (or a step) at both ends: the integrals' ends are dead centres, where
+  // the volume hardly changes (a TDC correction of a degree or two leaves a cycle table's ends that short).
+  bool covers(double a, double b) const {
+    const double slack = std::max(step, 2.0);
+    return first <= a + slack && last() >= b - slack;
+  }
+  double at(double theta) const {
+    const double x = std::clamp((theta - first) / step, 0.0, static_cast<double>(p.size() - 1));
+    const auto i = std::min(static_cast<std::size_t>(x), p.size() - 2);
+    return p[i] + (x - static_cast<double>(i)) * (p[i + 1] - p[i]);
+  }
+};
+
+// Least-squares slope over +-half samples (the Savitzky-Golay first derivative), per degree; NaN at the ends.
+std::vector<double> slope_per_deg(const Grid& g, int half) {
+  const std::size_t n = g.p.size();
+  std::vector<double> out(n, kNaN);
+  const double h = half;
+  const double den = g.step * h * (h + 1) * (2 * h + 1) / 3.0;
+  for (std::size_t i = static_cast<std::size_t>(half); i + static_cast<std::size_t>(half) < n; ++i) {
+    double s = 0.0;
+    for (int k = 1; k <= half; ++k) s += k * (g.p[i + k] - g.p[i - k]);
+    out[i] = s / den;
+  }
+  return out;
+}
+
+// Integral of p dV over [a, b] deg (trapezoid on the samples, dV/dtheta analytic), J.
+double work_j(const Grid& g, const EngineGeometry& e, double a, double b) {
+  const auto [lo, hi] = g.range(a, b);
+  double w = 0.0;
+  for (std::size_t i = lo; i < hi; ++i)
+    w += 0.5 * g.step * (g.p[i] * e.dvolume_m3_per_deg(g.angle(i)) + g.p[i + 1] * e.dvolume_m3_per_deg(g.angle(i + 1)));
+  return w;
+}
+
+void peak(const Grid& g, CombustionMetrics& m) {
+  const auto it = std::max_element(g.p.begin(), g.p.end());
+  const auto i = static_cast<std::size_t>(it - g.p.begin());
+  m.peak_pressure_pa = *it;
+  m.peak_angle_deg = g.angle(i);
+  if (i == 0 || i + 1 == g.p.size()) return;
+  // The vertex of the parabola through the three samples around the maximum.
+  const double a = g.p[i - 1], b = g.p[i], c = g.p[i + 1], curv = a - 2 * b + c;
+  if (curv >= 0) return;
+  const double d = 0.5 * (a - c) / curv;
+  m.peak_angle_deg += d * g.step;
+  m.peak_pressure_pa = b - 0.25 * (a - c) * d;
+}
+
+void max_rise(const Grid& g, const std::vector<double>& slope, const MetricsOptions& o, CombustionMetrics& m) {
+  const auto [lo, hi] = g.range(o.heat_release_from_deg, o.heat_release_to_deg);
+  m.max_rise_pa_per_deg = kNaN;
+  m.max_rise_angle_deg = kNaN;
+  for (std::size_t i = lo; i <= hi; ++i)
+    if (std::isfinite(slope[i]) && !(slope[i] <= m.max_rise_pa_per_deg)) {
+      m.max_rise_pa_per_deg = slope[i];
+      m.max_rise_angle_deg = g.angle(i);
+    }
+}
+
+// Apparent heat release (Heywood eq. 9.25) over the window, and the angles where its cumulative sum, counted from
+// its minimum before its maximum, reaches 10, 50 and 90 % of that rise.
+void heat_release(const Grid& g, const std::vector<double>& slope, const EngineGeometry& e, const MetricsOptions& o,
+                  CombustionMetrics& m) {
+  m.heat_release_j = m.ca10_deg = m.ca50_deg = m.ca90_deg = kNaN;
+  const auto [lo, hi] = g.range(o.heat_release_from_deg, o.heat_release_to_deg);
+  const double k = o.gamma / (o.gamma - 1.0), kv = 1.0 / (o.gamma - 1.0);
+  auto rate = [&](std::size_t i) { return k * g.p[i] * e.dvolume_m3_per_deg(g.angle(i)) + kv * e.volume_m3(g.angle(i)) * slope[i]; };
+  std::vector<double> q{0.0};
+  for (std::size_t i = lo; i < hi; ++i) {
+    if (!std::isfinite(slope[i]) || !std::isfinite(slope[i + 1])) return;
+    q.push_back(q.back() + 0.5 * g.step * (rate(i) + rate(i + 1)));
+  }
+  const auto top = static_cast<std::size_t>(std::max_element(q.begin(), q.end()) - q.begin());
+  const auto bottom = static_cast<std::size_t>(std::min_element(q.begin(), q.begin() + static_cast<std::ptrdiff_t>(top) + 1) - q.begin());
+  const double total = q[top] - q[bottom];
+  // Without combustion the rise is noise and heat-transfer residue, a few % of the compression work; with it, several
+  // times that work.
+  const double compression = std::abs(work_j(g, e, -180.0, 0.0));
+  if (!(total > 0.2 * compression)) return;
+  m.heat_release_j = total;
+  double* angles[] = {&m.ca10_deg, &m.ca50_deg, &m.ca90_deg};
+  const double fractions[] = {0.1, 0.5, 0.9};
+  for (int f = 0; f < 3; ++f) {
+    const double target = q[bottom] + fractions[f] * total;
+    for (std::size_t j = bottom; j < top; ++j)
+      if (q[j + 1] >= target) {
+        const double x = (target - q[j]) / (q[j + 1] - q[j]);
+        *angles[f] = g.angle(lo + j) + x * g.step;
+        break;
+      }
+  }
+}
+
+// Eng (SAE 2002-01-2859): RI = (beta (dp/dt)max)^2 / (2 gamma pmax) sqrt(gamma R Tmax), Tmax from the ideal gas law
+// with the charge trapped at intake valve closing.
+double ringing_intensity(const Grid& g, const EngineGeometry& e, double speed_rpm, const MetricsOptions& o,
+                         const CombustionMetrics& m) {
+  if (!(speed_rpm > 0) || !std::isfinite(m.max_rise_pa_per_deg) || !g.covers(o.ivc_deg, o.ivc_deg)) return kNaN;
+  const double p_ivc = g.at(o.ivc_deg);
+  if (!(p_ivc > 0) || !(m.peak_pressure_pa > 0)) return kNaN;
+  const double t_max = o.intake_temperature_k * m.peak_pressure_pa * e.volume_m3(m.peak_angle_deg) / (p_ivc * e.volume_m3(o.ivc_deg));
+  const double dpdt = m.max_rise_pa_per_deg * 6.0 * speed_rpm;  // deg/s = 6 rpm
+  const double b = o.ringing_beta_s * dpdt;
+  return b * b / (2.0 * o.gamma * m.peak_pressure_pa) * std::sqrt(o.gamma * kGasConstant * t_max);
+}
+
+void check(std::span<const double> p, double step, const EngineGeometry& e, const MetricsOptions& o) {
+  if (!(e.bore_m > 0) || !(e.stroke_m > 0) || !(e.compression_ratio > 1) || !(e.conrod_m > 0.5 * e.stroke_m))
+    throw std::invalid_argument("engine geometry: bore, stroke and rod must be positive, the rod longer than the crank "
+                                "(half the stroke) and the compression ratio above 1");
+  if (!(step > 0) || !(step <= 2.0)) throw std::invalid_argument("crank-angle step must be in (0, 2] deg, got " + std::to_string(step));
+  const int half = static_cast<int>(std::lround(o.derivative_half_width_deg / step));
+  if (p.size() < static_cast<std::size_t>(2 * std::max(half, 1) + 3))
+    throw std::invalid_argument("a cycle of " + std::to_string(p.size()) + " samples is too short for the metrics");
+  if (!(o.gamma > 1)) throw std::invalid_argument("gamma must be above 1");
+}
+
+}  // namespace
+
+CombustionMetrics combustion_metrics(std::span<const double> pressure_pa, double first_deg, double step_deg,
+                                     const EngineGeometry& engine, double speed_rpm, const MetricsOptions& options) {
+  check(pressure_pa, step_deg, engine, options);
+  const Grid g{pressure_pa, first_deg, step_deg};
+  const int half = std::max(1, static_cast<int>(std::lround(options.derivative_half_width_deg / step_deg)));
+  const std::vector<double> slope = slope_per_deg(g, half);
+  CombustionMetrics m{};
+  peak(g, m);
+  max_rise(g, slope, options, m);
+  const double vd = engine.displacement_m3();
+  m.imep_gross_pa = g.covers(-180.0, 180.0) ? work_j(g, engine, -180.0, 180.0) / vd : kNaN;
+  m.imep_net_pa = g.covers(-360.0, 360.0) ? work_j(g, engine, -360.0, 360.0) / vd : kNaN;
+  heat_release(g, slope, engine, options, m);
+  m.ringing_intensity_w_per_m2 = ringing_intensity(g, engine, speed_rpm, options, m);
+  return m;
+}
+
+}  // namespace noisemon::model

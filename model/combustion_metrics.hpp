@@ -1,0 +1,46 @@
+// Per-cycle combustion metrics from the cylinder pressure, as indicating systems report them (AVL IndiCom,
+// Kistler KiBox, Dewesoft CA): peak pressure, maximum rate of pressure rise, IMEP, apparent heat release and its
+// burn angles, ringing intensity.
+//
+// Sources: J. B. Heywood, Internal Combustion Engine Fundamentals (1988): the slider-crank volume (eq. 2.5),
+// gross and net IMEP (sec. 2.4: gross over compression and expansion, net over the whole cycle), the single-zone
+// apparent heat-release rate dQ/dtheta = g/(g-1) p dV/dtheta + 1/(g-1) V dp/dtheta (eq. 9.25); J. A. Eng,
+// "Characterization of pressure waves in HCCI combustion", SAE 2002-01-2859: ringing intensity
+// RI = (beta (dp/dt)max)^2 / (2 g pmax) sqrt(g R Tmax), beta = 0.05 ms.
+#pragma once
+
+#include <span>
+
+#include "model/engine_cycle.hpp"
+
+namespace noisemon::model {
+
+struct MetricsOptions {
+  double gamma = 1.35;                    // ratio of specific heats for the heat release (Heywood: 1.3 ... 1.35)
+  double derivative_half_width_deg = 0.5;  // dp/dtheta: least-squares slope over +-this (a Savitzky-Golay derivative)
+  double heat_release_from_deg = -60.0;    // the heat release integrates over [from, to] (deg re firing TDC)
+  double heat_release_to_deg = 90.0;
+  double ringing_beta_s = 0.05e-3;         // Eng's beta
+  double intake_temperature_k = 313.0;     // trapped charge at intake valve closing, for T_max
+  double ivc_deg = -150.0;                 // intake valve closing (deg re firing TDC)
+};
+
+struct CombustionMetrics {
+  double peak_pressure_pa, peak_angle_deg;
+  double max_rise_pa_per_deg, max_rise_angle_deg;  // with MetricsOptions::derivative_half_width_deg's smoothing
+  double imep_gross_pa, imep_net_pa;               // NaN when the cycle misses more than 2 deg of -180 ... 180
+                                                   // (gross) or -360 ... 360 (net)
+  double heat_release_j;                           // cumulative apparent heat release, minimum to maximum
+  double ca10_deg, ca50_deg, ca90_deg;             // angles at 10, 50, 90 % of it (NaN without combustion)
+  double ringing_intensity_w_per_m2;               // NaN without the speed
+};
+
+// Metrics of one cycle: pressure_pa[i] at crank angle first_deg + i * step_deg (0 = firing TDC); the whole
+// cycle is -360 ... 360 deg. The geometry (model/engine_cycle.hpp) defaults to the Yanmar L100V of
+// ../shared/data, which the virtual engine is too; its rod length (118 mm) is not published with the data.
+// speed_rpm converts dp/dtheta to dp/dt for the ringing intensity. Throws std::invalid_argument naming what is
+// wrong (geometry, step, too few samples).
+CombustionMetrics combustion_metrics(std::span<const double> pressure_pa, double first_deg, double step_deg,
+                                     const EngineGeometry& engine, double speed_rpm, const MetricsOptions& options = {});
+
+}  // namespace noisemon::model
