@@ -14,6 +14,8 @@ namespace {
 constexpr double kFs = drivers::kPipelineRateHz;
 constexpr std::size_t kChunkFrames = 512;
 constexpr std::size_t kModelPrimeFrames = 4096;  // 0.1 s: many time constants of the block model's modes
+constexpr double kGridStepDeg = 0.25;              // the combustion metrics' crank-angle grid
+constexpr std::size_t kGridPoints = 2881;          // -360 ... 360 deg
 
 double thread_cpu_seconds() {
   timespec ts{};
@@ -50,7 +52,8 @@ CycleProcessor::CycleProcessor(const ProcessorConfig& config, const drivers::Str
       model_out_(drivers::SampleBlock::kMaxFrames),
       bank_(kFs, 2 + info.mic_count),
       chunk_((2 + info.mic_count) * kChunkFrames),
-      mean_square_((2 + info.mic_count) * 64) {
+      mean_square_((2 + info.mic_count) * 64),
+      grid_(kGridPoints, std::numeric_limits<double>::quiet_NaN()) {
   // 0 microphones: a pressure-only recording (an imported cycle table); measured levels are then NaN.
   if (info.mic_count > kMaxMics)
     throw std::invalid_argument("CycleProcessor: microphone count must be 0.." + std::to_string(kMaxMics));
@@ -152,6 +155,7 @@ void CycleProcessor::process() {
     note_gap(next_, earliest);
     next_ = earliest;
     have_last_crank_ = false;  // a cycle boundary may lie in the gap
+    grid_has_last_ = false;
   }
   std::int64_t end = std::min(pressure_.end_index(), predicted_.end_index());
   if (with_mics) end = std::min(end, mics_fifo_.end_index() - delay_frames_);
@@ -161,9 +165,15 @@ void CycleProcessor::process() {
     const double crank = p[drivers::kCrankChannel];
     // A cycle starts where the crank angle wraps from just below +360 to -360.
     if (have_last_crank_ && crank < last_crank_ - 360.0) {
+      // The ending cycle's grid reaches +360 deg with this frame; the new one's starts from the last frame.
+      const double prev_deg = grid_last_deg_ - 720.0, prev_pa = grid_last_pa_;
+      grid_pressure(crank + 720.0, p[drivers::kPressureChannel]);
       flush_chunk();
       finish_cycle(next_);
+      grid_last_deg_ = prev_deg;
+      grid_last_pa_ = prev_pa;
     }
+    grid_pressure(crank, p[drivers::kPressureChannel]);
     last_crank_ = crank;
     have_last_crank_ = true;
     double* out = &chunk_[chunk_frames_ * channels];
@@ -181,6 +191,21 @@ void CycleProcessor::process() {
   if (with_mics) mics_fifo_.drop_before(next_ + delay_frames_);
 }
 
+void CycleProcessor::grid_pressure(double crank_deg, double pressure_pa) {
+  if (grid_has_last_ && crank_deg > grid_last_deg_) {
+    // Grid points in (last, this]: linear between the two frames.
+    const double from = (grid_last_deg_ + 360.0) / kGridStepDeg, to = (crank_deg + 360.0) / kGridStepDeg;
+    const auto first = static_cast<std::int64_t>(std::floor(from)) + 1, last = static_cast<std::int64_t>(std::floor(to));
+    for (std::int64_t k = std::max<std::int64_t>(first, 0); k <= std::min<std::int64_t>(last, kGridPoints - 1); ++k) {
+      const double x = (static_cast<double>(k) - from) / (to - from);
+      grid_[static_cast<std::size_t>(k)] = grid_last_pa_ + x * (pressure_pa - grid_last_pa_);
+    }
+  }
+  grid_last_deg_ = crank_deg;
+  grid_last_pa_ = pressure_pa;
+  grid_has_last_ = true;
+}
+
 void CycleProcessor::flush_chunk() {
   if (chunk_frames_ == 0) return;
   bank_.process(chunk_.data(), chunk_frames_);
@@ -195,6 +220,22 @@ void CycleProcessor::finish_cycle(std::int64_t end_index) {
   cycle_start_ = end_index;
   const double cpu_s = cpu_spent_s_;  // calls completed since the previous cycle; the current call counts for the next
   cpu_spent_s_ = 0;
+  // The combustion metrics of the cycle just ended, then a fresh grid (only complete grids give numbers).
+  model::CombustionMetrics combustion{};
+  const bool grid_complete =
+      start != INT64_MIN && std::none_of(grid_.begin(), grid_.end(), [](double v) { return std::isnan(v); });
+  if (grid_complete) {
+    combustion = model::combustion_metrics(grid_, -360.0, kGridStepDeg, config_.engine,
+                                           720.0 / 360.0 * 60.0 * kFs / static_cast<double>(end_index - start), config_.metrics);
+  } else {
+    combustion = model::CombustionMetrics{};
+    for (double* v : {&combustion.peak_pressure_pa, &combustion.peak_angle_deg, &combustion.max_rise_pa_per_deg,
+                      &combustion.max_rise_angle_deg, &combustion.imep_gross_pa, &combustion.imep_net_pa,
+                      &combustion.heat_release_j, &combustion.ca10_deg, &combustion.ca50_deg, &combustion.ca90_deg,
+                      &combustion.ringing_intensity_w_per_m2})
+      *v = std::numeric_limits<double>::quiet_NaN();
+  }
+  std::fill(grid_.begin(), grid_.end(), std::numeric_limits<double>::quiet_NaN());
   if (start == INT64_MIN) return;  // frames before the first boundary only warm the filters up
 
   bool gap = false;
@@ -276,6 +317,7 @@ void CycleProcessor::finish_cycle(std::int64_t end_index) {
   for (std::size_t m = 0; m < mics_; ++m) r.mic_lpa_db[m] = static_cast<float>(dsp::level_db(mic_sum[m]));
 
   r.processing_ms = static_cast<float>(1e3 * cpu_s);
+  r.combustion = combustion;
   sink_(r);
 }
 

@@ -18,6 +18,7 @@
 #include "drivers/source.hpp"
 #include "dsp/third_octave_bank.hpp"
 #include "model/block_model.hpp"
+#include "model/combustion_metrics.hpp"
 
 namespace noisemon::daemon {
 
@@ -25,6 +26,8 @@ struct ProcessorConfig {
   model::BlockParams model;
   double acoustic_delay_s = -1;  // < 0: take the source's StreamInfo::acoustic_delay_s
   double fifo_seconds = 4.0;     // how far one stream may run ahead of another before data is discarded
+  model::EngineGeometry engine;  // for the combustion metrics (default: the Yanmar L100V, as the virtual engine)
+  model::MetricsOptions metrics;
 };
 
 struct ProcessorCounters {
@@ -84,6 +87,11 @@ class CycleProcessor {
   struct Gap { std::int64_t from, to; };  // combined-frame interval affected by lost samples
   std::vector<Gap> gaps_;
   void note_gap(std::int64_t from, std::int64_t to);
+  // The cycle's pressure on a uniform crank-angle grid (kGridStepDeg from -360), for the combustion metrics.
+  void grid_pressure(double crank_deg, double pressure_pa);
+  std::vector<double> grid_;            // NaN where no frame has reached yet
+  double grid_last_deg_ = 0, grid_last_pa_ = 0;
+  bool grid_has_last_ = false;
   double last_duration_s_ = 0;
   drivers::OperatingPoint op_;
   bool have_op_ = false;

@@ -33,6 +33,18 @@ noisemon::cycle_report_t to_message(const CycleReport& r) {
   m.mic_lpa_db.assign(r.mic_lpa_db, r.mic_lpa_db + r.nmics);
   m.flags = r.flags;
   m.processing_ms = r.processing_ms;
+  const model::CombustionMetrics& c = r.combustion;
+  m.peak_pressure_bar = c.peak_pressure_pa * 1e-5;
+  m.peak_pressure_deg = c.peak_angle_deg;
+  m.max_rise_bar_per_deg = c.max_rise_pa_per_deg * 1e-5;
+  m.max_rise_deg = c.max_rise_angle_deg;
+  m.imep_gross_bar = c.imep_gross_pa * 1e-5;
+  m.imep_net_bar = c.imep_net_pa * 1e-5;
+  m.heat_release_j = c.heat_release_j;
+  m.ca10_deg = c.ca10_deg;
+  m.ca50_deg = c.ca50_deg;
+  m.ca90_deg = c.ca90_deg;
+  m.ringing_intensity_mw_m2 = c.ringing_intensity_w_per_m2 * 1e-6;
   return m;
 }
 
@@ -44,14 +56,18 @@ noisemon::cycle_report_t to_message(const CycleReport& r) {
 
 std::string cycle_csv_header() {
   return "cycle,utime,speed_rpm,load_nm,soi_deg_btdc,motored,lpa_measured_db,lpa_predicted_db,lwa_measured_db,"
-         "lwa_predicted_db,flags,condition\n";
+         "lwa_predicted_db,flags,peak_pressure_bar,peak_pressure_deg,max_rise_bar_per_deg,max_rise_deg,imep_gross_bar,"
+         "imep_net_bar,heat_release_j,ca10_deg,ca50_deg,ca90_deg,ringing_intensity_mw_m2,condition\n";
 }
 
 std::string cycle_csv_row(const noisemon::cycle_report_t& r, const std::string& condition) {
-  char buf[512];
-  std::snprintf(buf, sizeof buf, "%lld,%lld,%.3f,%.3f,%.3f,%d,%.4f,%.4f,%.4f,%.4f,%d,", static_cast<long long>(r.cycle),
-                static_cast<long long>(r.utime), r.speed_rpm, r.load_nm, r.soi_deg_btdc, r.motored ? 1 : 0,
-                r.lpa_measured_db, r.lpa_predicted_db, r.lwa_measured_db, r.lwa_predicted_db, r.flags);
+  char buf[768];
+  std::snprintf(buf, sizeof buf,
+                "%lld,%lld,%.3f,%.3f,%.3f,%d,%.4f,%.4f,%.4f,%.4f,%d,%.3f,%.2f,%.4f,%.2f,%.4f,%.4f,%.2f,%.2f,%.2f,%.2f,%.4f,",
+                static_cast<long long>(r.cycle), static_cast<long long>(r.utime), r.speed_rpm, r.load_nm, r.soi_deg_btdc,
+                r.motored ? 1 : 0, r.lpa_measured_db, r.lpa_predicted_db, r.lwa_measured_db, r.lwa_predicted_db, r.flags,
+                r.peak_pressure_bar, r.peak_pressure_deg, r.max_rise_bar_per_deg, r.max_rise_deg, r.imep_gross_bar,
+                r.imep_net_bar, r.heat_release_j, r.ca10_deg, r.ca50_deg, r.ca90_deg, r.ringing_intensity_mw_m2);
   std::string row = buf;
   // RFC 4180 quoting when the name needs it.
   if (condition.find_first_of(",\"\r\n") == std::string::npos) {
