@@ -2,6 +2,7 @@
 
 #include <cmath>
 #include <cstdio>
+#include <limits>
 #include <stdexcept>
 
 namespace noisemon::daemon {
@@ -60,14 +61,21 @@ std::string cycle_csv_header() {
          "imep_net_bar,heat_release_j,ca10_deg,ca50_deg,ca90_deg,ringing_intensity_mw_m2,condition\n";
 }
 
+namespace {
+// Any NaN as the one positive quiet NaN, so the CSV says "nan" (a NaN with its sign bit set would print "-nan").
+double plain(double v) { return std::isnan(v) ? std::numeric_limits<double>::quiet_NaN() : v; }
+}  // namespace
+
 std::string cycle_csv_row(const noisemon::cycle_report_t& r, const std::string& condition) {
   char buf[768];
   std::snprintf(buf, sizeof buf,
                 "%lld,%lld,%.3f,%.3f,%.3f,%d,%.4f,%.4f,%.4f,%.4f,%d,%.3f,%.2f,%.4f,%.2f,%.4f,%.4f,%.2f,%.2f,%.2f,%.2f,%.4f,",
-                static_cast<long long>(r.cycle), static_cast<long long>(r.utime), r.speed_rpm, r.load_nm, r.soi_deg_btdc,
-                r.motored ? 1 : 0, r.lpa_measured_db, r.lpa_predicted_db, r.lwa_measured_db, r.lwa_predicted_db, r.flags,
-                r.peak_pressure_bar, r.peak_pressure_deg, r.max_rise_bar_per_deg, r.max_rise_deg, r.imep_gross_bar,
-                r.imep_net_bar, r.heat_release_j, r.ca10_deg, r.ca50_deg, r.ca90_deg, r.ringing_intensity_mw_m2);
+                static_cast<long long>(r.cycle), static_cast<long long>(r.utime), plain(r.speed_rpm), plain(r.load_nm),
+                plain(r.soi_deg_btdc), r.motored ? 1 : 0, plain(r.lpa_measured_db), plain(r.lpa_predicted_db),
+                plain(r.lwa_measured_db), plain(r.lwa_predicted_db), r.flags, plain(r.peak_pressure_bar),
+                plain(r.peak_pressure_deg), plain(r.max_rise_bar_per_deg), plain(r.max_rise_deg), plain(r.imep_gross_bar),
+                plain(r.imep_net_bar), plain(r.heat_release_j), plain(r.ca10_deg), plain(r.ca50_deg), plain(r.ca90_deg),
+                plain(r.ringing_intensity_mw_m2));
   std::string row = buf;
   // RFC 4180 quoting when the name needs it.
   if (condition.find_first_of(",\"\r\n") == std::string::npos) {

@@ -28,14 +28,6 @@ struct Handler {
 };
 void on_signal(int) { g_stop = 1; }
 
-// Unknown operating-point values (NaN: null in a run directory, not sent by the source) as the one positive
-// quiet NaN, so the CSV says "nan" for each (a NaN with its sign bit set would print "-nan").
-noisemon::cycle_report_t with_plain_unknowns(noisemon::cycle_report_t r) {
-  for (double* v : {&r.speed_rpm, &r.load_nm, &r.soi_deg_btdc, &r.rail_pressure_bar})
-    if (std::isnan(*v)) *v = std::numeric_limits<double>::quiet_NaN();
-  return r;
-}
-
 void print_bands(const noisemon::cycle_report_t& r) {
   std::printf("      band Hz   CPL dB   meas dB(A)  pred dB(A)  att meas  att pred  flags\n");
   for (int b = 0; b < r.nbands; ++b)
@@ -98,7 +90,7 @@ int run_watch(const WatchOptions& o) {
   Handler<noisemon::cycle_report_t> handler;
   handler.fn = [&](const noisemon::cycle_report_t* received_report) {
     if (o.count > 0 && received >= o.count) return;
-    const noisemon::cycle_report_t r = with_plain_unknowns(*received_report);
+    const noisemon::cycle_report_t& r = *received_report;
     if (received % 40 == 0) std::printf("%s\n", cycle_line_header().c_str());
     std::printf("%s\n", cycle_line(r).c_str());
     if (o.bands) print_bands(r);

@@ -5,6 +5,7 @@
 #include <cmath>
 #include <cstdio>
 #include <fstream>
+#include <limits>
 #include <memory>
 #include <sstream>
 
@@ -104,4 +105,20 @@ TEST(ReportMessages, PythonDecoderReadsWhatTheDaemonEncodes) {
                                       "','rb').read()); print(m.cycle, m.nbands, round(m.lpa_measured_db, 3), "
                                       "round(m.cpl_db[3], 3), m.band_flags[30], m.nmics, round(m.mic_lpa_db[9], 3))\"");
   EXPECT_EQ(out, "42 31 84.25 197.0 1 10 84.9\n");
+}
+
+TEST(ReportMessages, EveryUnknownValueIsPlainNanInTheCsv) {
+  // A NaN with its sign bit set (what arithmetic on NaN may give) must not print as "-nan".
+  daemon::CycleReport r;
+  r.op.load_nm = -std::numeric_limits<double>::quiet_NaN();
+  for (double* v : {&r.combustion.peak_pressure_pa, &r.combustion.peak_angle_deg, &r.combustion.max_rise_pa_per_deg,
+                    &r.combustion.max_rise_angle_deg, &r.combustion.imep_gross_pa, &r.combustion.imep_net_pa,
+                    &r.combustion.heat_release_j, &r.combustion.ca10_deg, &r.combustion.ca50_deg, &r.combustion.ca90_deg,
+                    &r.combustion.ringing_intensity_w_per_m2})
+    *v = -std::numeric_limits<double>::quiet_NaN();
+  const std::string row = daemon::cycle_csv_row(daemon::to_message(r), "c");
+  EXPECT_EQ(row.find("-nan"), std::string::npos) << row;
+  std::size_t nans = 0;
+  for (std::size_t at = row.find("nan"); at != std::string::npos; at = row.find("nan", at + 1)) ++nans;
+  EXPECT_EQ(nans, 12u) << row;
 }
