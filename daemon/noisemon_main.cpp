@@ -7,6 +7,7 @@
 #include "daemon/import_export_cli.hpp"
 #include "daemon/replay.hpp"
 #include "daemon/diagnose_command.hpp"
+#include "daemon/summary_command.hpp"
 #include "daemon/fit_command.hpp"
 #include "daemon/sim_command.hpp"
 #include "daemon/watch.hpp"
@@ -43,6 +44,7 @@ int main(int argc, char** argv) {
   SimCommand sim(app);
   FitCommand fit(app);
   DiagnoseCommand diagnose(app);
+  SummaryCommand summary(app);
 
   try {
     app.parse(argc, argv);
@@ -55,6 +57,7 @@ int main(int argc, char** argv) {
     if (const int status = sim.run(); status >= 0) return status;
     if (const int status = fit.run(); status >= 0) return status;
     if (const int status = diagnose.run(argc, argv); status >= 0) return status;
+    if (const int status = summary.run(); status >= 0) return status;
     if (r->parsed()) {
       if (!replay_config.empty()) replay.config = load_config(replay_config);
       if (!replay_model.empty()) replay.config.model = noisemon::model::preset(replay_model);

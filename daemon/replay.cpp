@@ -75,6 +75,7 @@ ReplaySummary run_replay(const ReplayOptions& o) {
   const auto sink = [&](const CycleReport& r) {
     const noisemon::cycle_report_t m = to_message(r);
     if (csv.is_open()) csv << cycle_csv_row(m, condition);
+    if (o.on_report) o.on_report(m, condition);
     if (out) {
       encoded.resize(static_cast<std::size_t>(m.getEncodedSize()));
       m.encode(encoded.data(), 0, static_cast<int>(encoded.size()));

@@ -4,9 +4,11 @@
 #pragma once
 
 #include <cstdint>
+#include <functional>
 #include <string>
 
 #include "daemon/config.hpp"
+#include "noisemon/cycle_report_t.hpp"
 
 namespace noisemon::daemon {
 
@@ -17,6 +19,8 @@ struct ReplayOptions {
   bool realtime = false; // pace events at their recorded times
   bool progress = true;  // progress bar on stderr when it is a terminal
   Config config;         // model parameters and channel names
+  // Called with every cycle report and its run's condition name (may be empty).
+  std::function<void(const noisemon::cycle_report_t&, const std::string&)> on_report;
 };
 
 struct ReplaySummary {

@@ -1,0 +1,184 @@
+#include "daemon/cycle_statistics.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <functional>
+#include <limits>
+
+#include <nlohmann/json.hpp>
+
+#include "dsp/levels.hpp"
+
+namespace noisemon::daemon {
+namespace {
+
+constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+using Report = noisemon::cycle_report_t;
+
+struct Field {
+  const char* name;
+  const char* unit;
+  bool level;
+  std::function<double(const Report&)> get;
+};
+
+const std::vector<Field>& fields() {
+  static const std::vector<Field> f = {
+      {"speed_rpm", "rpm", false, [](const Report& r) { return r.speed_rpm; }},
+      {"load_nm", "N m", false, [](const Report& r) { return r.load_nm; }},
+      {"soi_deg_btdc", "deg", false, [](const Report& r) { return r.soi_deg_btdc; }},
+      {"rail_pressure_bar", "bar", false, [](const Report& r) { return r.rail_pressure_bar; }},
+      {"lpa_measured_db", "dB(A)", true, [](const Report& r) { return r.lpa_measured_db; }},
+      {"lpa_predicted_db", "dB(A)", true, [](const Report& r) { return r.lpa_predicted_db; }},
+      {"lwa_measured_db", "dB(A)", true, [](const Report& r) { return r.lwa_measured_db; }},
+      {"lwa_predicted_db", "dB(A)", true, [](const Report& r) { return r.lwa_predicted_db; }},
+      {"peak_pressure_bar", "bar", false, [](const Report& r) { return r.peak_pressure_bar; }},
+      {"peak_pressure_deg", "deg", false, [](const Report& r) { return r.peak_pressure_deg; }},
+      {"max_rise_bar_per_deg", "bar/deg", false, [](const Report& r) { return r.max_rise_bar_per_deg; }},
+      {"max_rise_deg", "deg", false, [](const Report& r) { return r.max_rise_deg; }},
+      {"imep_gross_bar", "bar", false, [](const Report& r) { return r.imep_gross_bar; }},
+      {"imep_net_bar", "bar", false, [](const Report& r) { return r.imep_net_bar; }},
+      {"heat_release_j", "J", false, [](const Report& r) { return r.heat_release_j; }},
+      {"ca10_deg", "deg", false, [](const Report& r) { return r.ca10_deg; }},
+      {"ca50_deg", "deg", false, [](const Report& r) { return r.ca50_deg; }},
+      {"ca90_deg", "deg", false, [](const Report& r) { return r.ca90_deg; }},
+      {"ringing_intensity_mw_m2", "MW/m^2", false, [](const Report& r) { return r.ringing_intensity_mw_m2; }},
+      {"processing_ms", "ms", false, [](const Report& r) { return static_cast<double>(r.processing_ms); }},
+  };
+  return f;
+}
+
+bool counts_as_valid(const Report& r) {
+  return !(r.flags & (Report::CYCLE_SETTLING | Report::CYCLE_GAP));
+}
+
+}  // namespace
+
+void CycleStatisticsAccumulator::clear() { *this = CycleStatisticsAccumulator{}; }
+
+void CycleStatisticsAccumulator::add(const Report& r) {
+  ++cycles_;
+  if (!counts_as_valid(r)) {
+    ++flagged_;
+    return;
+  }
+  ++valid_;
+  seconds_ += r.duration_s;
+  if (std::isfinite(r.lpa_measured_db)) energy_measured_s_ += dsp::mean_square_from_level(r.lpa_measured_db) * r.duration_s;
+  if (std::isfinite(r.lpa_predicted_db)) energy_predicted_s_ += dsp::mean_square_from_level(r.lpa_predicted_db) * r.duration_s;
+  auto take = [](Running& s, double v) {
+    if (!std::isfinite(v)) return;
+    s.min = s.n == 0 ? v : std::min(s.min, v);
+    s.max = s.n == 0 ? v : std::max(s.max, v);
+    ++s.n;
+    s.sum += v;
+    s.sum_sq += v * v;
+    s.energy += std::pow(10.0, v / 10.0);
+  };
+  scalars_.resize(fields().size());
+  for (std::size_t i = 0; i < fields().size(); ++i) take(scalars_[i], fields()[i].get(r));
+  if (band_hz_.empty()) {
+    band_hz_ = r.band_hz;
+    bands_measured_.assign(band_hz_.size(), {});
+    bands_predicted_.assign(band_hz_.size(), {});
+    bands_cpl_.assign(band_hz_.size(), {});
+  }
+  for (std::size_t b = 0; b < band_hz_.size() && b < static_cast<std::size_t>(r.nbands); ++b) {
+    take(bands_measured_[b], r.spl_a_measured_db[b]);
+    take(bands_predicted_[b], r.spl_a_predicted_db[b]);
+    take(bands_cpl_[b], r.cpl_db[b]);
+  }
+}
+
+namespace {
+
+ScalarStats finish(const Field& f, std::int64_t n, double sum, double sum_sq, double energy, double min, double max) {
+  ScalarStats s{f.name, f.unit, f.level, n, kNaN, kNaN, kNaN, kNaN, kNaN};
+  if (n == 0) return s;
+  const double mean = sum / static_cast<double>(n);
+  s.mean = f.level ? 10.0 * std::log10(energy / static_cast<double>(n)) : mean;
+  if (n > 1) s.std = std::sqrt(std::max(0.0, (sum_sq - sum * mean) / static_cast<double>(n - 1)));
+  if (!f.level && mean != 0 && n > 1) s.cov = s.std / std::abs(mean);
+  s.min = min;
+  s.max = max;
+  return s;
+}
+
+double energy_mean_db(double energy, std::int64_t n) { return n > 0 ? 10.0 * std::log10(energy / static_cast<double>(n)) : kNaN; }
+
+}  // namespace
+
+CycleStatistics CycleStatisticsAccumulator::result() const {
+  CycleStatistics s;
+  s.cycles = cycles_;
+  s.valid = valid_;
+  s.flagged = flagged_;
+  s.seconds = seconds_;
+  s.leq_a_measured_db = seconds_ > 0 && energy_measured_s_ > 0 ? dsp::level_db(energy_measured_s_ / seconds_) : kNaN;
+  s.leq_a_predicted_db = seconds_ > 0 && energy_predicted_s_ > 0 ? dsp::level_db(energy_predicted_s_ / seconds_) : kNaN;
+  for (std::size_t i = 0; i < fields().size(); ++i) {
+    const Running r = i < scalars_.size() ? scalars_[i] : Running{};
+    s.scalars.push_back(finish(fields()[i], r.n, r.sum, r.sum_sq, r.energy, r.min, r.max));
+  }
+  s.band_hz = band_hz_;
+  for (std::size_t b = 0; b < band_hz_.size(); ++b) {
+    s.spl_a_measured_db.push_back(energy_mean_db(bands_measured_[b].energy, bands_measured_[b].n));
+    s.spl_a_predicted_db.push_back(energy_mean_db(bands_predicted_[b].energy, bands_predicted_[b].n));
+    s.cpl_db.push_back(energy_mean_db(bands_cpl_[b].energy, bands_cpl_[b].n));
+  }
+  return s;
+}
+
+CycleStatistics statistics_of(const std::vector<Report>& reports) {
+  CycleStatisticsAccumulator acc;
+  for (const Report& r : reports) acc.add(r);
+  return acc.result();
+}
+
+std::string statistics_text(const CycleStatistics& s) {
+  char line[256];
+  std::snprintf(line, sizeof line, "cycles %lld: %lld valid, %lld flagged (settling or gap); %.2f s; Leq(A) measured %.2f dB, predicted %.2f dB\n",
+                static_cast<long long>(s.cycles), static_cast<long long>(s.valid), static_cast<long long>(s.flagged), s.seconds,
+                s.leq_a_measured_db, s.leq_a_predicted_db);
+  std::string out = line;
+  out += "  quantity                  unit         mean        std      cov        min        max      n\n";
+  for (const ScalarStats& v : s.scalars) {
+    std::snprintf(line, sizeof line, "  %-25s %-8s %10.4g %10.4g %8.4f %10.4g %10.4g %6lld%s\n", v.name.c_str(), v.unit.c_str(),
+                  v.mean, v.std, v.cov, v.min, v.max, static_cast<long long>(v.n), v.level ? "  (energy mean)" : "");
+    out += line;
+  }
+  return out;
+}
+
+std::string statistics_json(const CycleStatistics& s) {
+  auto num = [](double v) { return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(nullptr); };
+  nlohmann::json j = {{"cycles", s.cycles}, {"valid", s.valid}, {"flagged", s.flagged}, {"seconds", s.seconds},
+                      {"leq_a_measured_db", num(s.leq_a_measured_db)}, {"leq_a_predicted_db", num(s.leq_a_predicted_db)}};
+  for (const ScalarStats& v : s.scalars)
+    j["scalars"][v.name] = {{"unit", v.unit}, {"energy_mean", v.level}, {"n", v.n}, {"mean", num(v.mean)}, {"std", num(v.std)},
+                            {"cov", num(v.cov)}, {"min", num(v.min)}, {"max", num(v.max)}};
+  j["bands"]["hz"] = s.band_hz;
+  for (auto [key, values] : {std::pair{"spl_a_measured_db", &s.spl_a_measured_db}, {"spl_a_predicted_db", &s.spl_a_predicted_db}, {"cpl_db", &s.cpl_db}}) {
+    nlohmann::json a = nlohmann::json::array();
+    for (double v : *values) a.push_back(num(v));
+    j["bands"][key] = a;
+  }
+  return j.dump(1);
+}
+
+std::string statistics_csv_header() { return "run,quantity,unit,energy_mean,n,mean,std,cov,min,max\n"; }
+
+std::string statistics_csv_rows(const CycleStatistics& s, const std::string& run) {
+  std::string out;
+  char line[320];
+  auto plain = [](double v) { return std::isnan(v) ? kNaN : v; };
+  for (const ScalarStats& v : s.scalars) {
+    std::snprintf(line, sizeof line, "%s,%s,%s,%d,%lld,%.6g,%.6g,%.6g,%.6g,%.6g\n", run.c_str(), v.name.c_str(), v.unit.c_str(),
+                  v.level ? 1 : 0, static_cast<long long>(v.n), plain(v.mean), plain(v.std), plain(v.cov), plain(v.min), plain(v.max));
+    out += line;
+  }
+  return out;
+}
+
+}  // namespace noisemon::daemon

@@ -1,0 +1,64 @@
+// Statistics over engine cycles, as a test engineer reports them: the energy mean of every level (a sound level
+// is averaged as energy, never as dB), the arithmetic mean, standard deviation, coefficient of variation, minimum
+// and maximum of every other scalar, the counts of valid and flagged cycles, and Leq(A) over the time the cycles
+// cover. Used for a whole recording (`noisemon summary`) and for the daemon's rolling window.
+//
+// Only valid cycles (flags without settling or a gap) enter the statistics; the others are counted.
+#pragma once
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "noisemon/cycle_report_t.hpp"
+
+namespace noisemon::daemon {
+
+struct ScalarStats {
+  std::string name;   // the cycle_report_t field, e.g. "imep_net_bar"
+  std::string unit;
+  bool level = false;  // a level in dB: its mean is the energy mean, its std the std of the dB values
+  std::int64_t n = 0;  // cycles with a finite value
+  double mean = 0, std = 0, cov = 0, min = 0, max = 0;  // NaN when n == 0 (std, cov: n < 2; cov: level or mean 0)
+};
+
+struct CycleStatistics {
+  std::int64_t cycles = 0;        // every cycle seen
+  std::int64_t valid = 0;         // the ones in the statistics
+  std::int64_t flagged = 0;       // settling or with a gap: counted, not averaged
+  double seconds = 0;             // time the valid cycles cover
+  double leq_a_measured_db = 0;   // Leq(A) over that time: energy mean of Lp(A) weighted by each cycle's duration
+  double leq_a_predicted_db = 0;
+  std::vector<ScalarStats> scalars;
+  std::vector<float> band_hz;                       // of the first valid cycle
+  std::vector<double> spl_a_measured_db, spl_a_predicted_db, cpl_db;  // energy means per band
+};
+
+class CycleStatisticsAccumulator {
+ public:
+  void add(const noisemon::cycle_report_t& r);
+  CycleStatistics result() const;
+  void clear();
+
+ private:
+  struct Running {
+    std::int64_t n = 0;
+    double sum = 0, sum_sq = 0, energy = 0, min = 0, max = 0;
+  };
+  std::int64_t cycles_ = 0, valid_ = 0, flagged_ = 0;
+  double seconds_ = 0, energy_measured_s_ = 0, energy_predicted_s_ = 0;
+  std::vector<Running> scalars_;
+  std::vector<float> band_hz_;
+  std::vector<Running> bands_measured_, bands_predicted_, bands_cpl_;
+};
+
+// The statistics of a whole recording's reports.
+CycleStatistics statistics_of(const std::vector<noisemon::cycle_report_t>& reports);
+
+// The counts and Leq(A), then one "name unit mean std cov min max n" line per scalar.
+std::string statistics_text(const CycleStatistics& s);
+std::string statistics_json(const CycleStatistics& s);  // one JSON object
+std::string statistics_csv_header();
+std::string statistics_csv_rows(const CycleStatistics& s, const std::string& run);  // one row per scalar
+
+}  // namespace noisemon::daemon

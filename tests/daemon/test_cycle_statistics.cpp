@@ -1,0 +1,86 @@
+// Statistics over cycles against values worked out by hand: the energy mean of two levels, a sample standard
+// deviation, Leq over cycles of unequal length; flagged cycles counted and left out.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <limits>
+
+#include "daemon/cycle_statistics.hpp"
+
+using namespace noisemon;
+
+namespace {
+
+noisemon::cycle_report_t report(double lpa, double imep, double duration, std::int32_t flags = 0) {
+  noisemon::cycle_report_t r{};
+  r.duration_s = duration;
+  r.speed_rpm = 120.0 / duration;
+  r.lpa_measured_db = lpa;
+  r.lpa_predicted_db = lpa + 1.0;
+  r.lwa_measured_db = r.lwa_predicted_db = lpa + 12.8;
+  r.imep_net_bar = imep;
+  r.load_nm = r.soi_deg_btdc = r.rail_pressure_bar = std::numeric_limits<double>::quiet_NaN();
+  r.nbands = 2;
+  r.band_hz = {1000.f, 2000.f};
+  r.spl_a_measured_db = {static_cast<float>(lpa), 70.f};
+  r.spl_a_predicted_db = {static_cast<float>(lpa), 70.f};
+  r.cpl_db = {150.f, 140.f};
+  r.band_flags = {0, 0};
+  r.flags = flags;
+  return r;
+}
+
+const daemon::ScalarStats& scalar(const daemon::CycleStatistics& s, const std::string& name) {
+  for (const auto& v : s.scalars)
+    if (v.name == name) return v;
+  throw std::runtime_error("no scalar " + name);
+}
+
+}  // namespace
+
+TEST(CycleStatistics, LevelsAreEnergyMeansAndOtherScalarsArithmetic) {
+  const auto s = daemon::statistics_of({report(80.0, 5.0, 0.04), report(90.0, 7.0, 0.04),
+                                        report(120.0, 100.0, 0.04, noisemon::cycle_report_t::CYCLE_GAP)});
+  EXPECT_EQ(s.cycles, 3);
+  EXPECT_EQ(s.valid, 2);
+  EXPECT_EQ(s.flagged, 1);
+  // 10 lg((10^8 + 10^9) / 2) = 87.404 dB; never the 85 dB of the arithmetic mean.
+  const auto& lpa = scalar(s, "lpa_measured_db");
+  EXPECT_NEAR(lpa.mean, 87.4036, 1e-4);
+  EXPECT_TRUE(lpa.level);
+  EXPECT_NEAR(lpa.min, 80.0, 1e-12);
+  EXPECT_NEAR(lpa.max, 90.0, 1e-12);
+  const auto& imep = scalar(s, "imep_net_bar");
+  EXPECT_NEAR(imep.mean, 6.0, 1e-12);
+  EXPECT_NEAR(imep.std, std::sqrt(2.0), 1e-12);  // sample standard deviation of {5, 7}
+  EXPECT_NEAR(imep.cov, std::sqrt(2.0) / 6.0, 1e-12);
+  // Unknown values: no statistics, not zeros.
+  EXPECT_EQ(scalar(s, "load_nm").n, 0);
+  EXPECT_TRUE(std::isnan(scalar(s, "load_nm").mean));
+  // Band spectra: energy means per band.
+  ASSERT_EQ(s.spl_a_measured_db.size(), 2u);
+  EXPECT_NEAR(s.spl_a_measured_db[0], 87.4036, 1e-4);
+  EXPECT_NEAR(s.spl_a_measured_db[1], 70.0, 1e-5);
+}
+
+TEST(CycleStatistics, LeqWeightsEachCycleByItsDuration) {
+  // 0.03 s at 80 dB and 0.09 s at 90 dB: 10 lg((0.03 * 10^8 + 0.09 * 10^9) / 0.12) = 10 lg(7.75e8) = 88.893 dB.
+  const auto s = daemon::statistics_of({report(80.0, 5.0, 0.03), report(90.0, 5.0, 0.09)});
+  EXPECT_NEAR(s.seconds, 0.12, 1e-12);
+  EXPECT_NEAR(s.leq_a_measured_db, 88.8930, 1e-4);
+  EXPECT_NEAR(s.leq_a_predicted_db, 89.8930, 1e-4);
+  // The energy mean per cycle weights them equally instead: 87.404 dB.
+  EXPECT_NEAR(scalar(s, "lpa_measured_db").mean, 87.4036, 1e-4);
+}
+
+TEST(CycleStatistics, TextJsonAndCsvCarryEveryScalar) {
+  const auto s = daemon::statistics_of({report(80.0, 5.0, 0.04), report(90.0, 7.0, 0.04)});
+  const std::string text = daemon::statistics_text(s), json = daemon::statistics_json(s), csv = daemon::statistics_csv_rows(s, "run1");
+  for (const auto& v : s.scalars) {
+    EXPECT_NE(text.find(v.name), std::string::npos) << v.name;
+    EXPECT_NE(json.find("\"" + v.name + "\""), std::string::npos) << v.name;
+    EXPECT_NE(csv.find("run1," + v.name + ","), std::string::npos) << v.name;
+  }
+  EXPECT_EQ(csv.find("-nan"), std::string::npos);
+  EXPECT_NE(json.find("null"), std::string::npos);  // the unknown load
+}

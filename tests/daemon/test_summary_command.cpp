@@ -1,0 +1,119 @@
+// `noisemon summary` end to end on the real Yanmar cycles (imported as a raw log, and exported back as a run
+// directory): its statistics agree with the ones worked out here from `noisemon replay --csv`, row by row.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <string>
+
+#include <nlohmann/json.hpp>
+
+#include "tests/daemon/csv_column.hpp"
+#include "tests/drivers/unique_temp.hpp"
+
+namespace fs = std::filesystem;
+
+namespace {
+
+const std::string kNoisemon = std::string(NOISEMON_BINARY_DIR) + "/daemon/noisemon";
+const std::string kTable = std::string(NOISEMON_SHARED_DIR) + "/data/real/yanmar_l100v_fired_18Nm.txt";
+
+struct Output {
+  int status;
+  std::string text;
+};
+
+Output run(const std::string& args) {
+  Output o{-1, ""};
+  FILE* p = popen((kNoisemon + " " + args + " 2>&1").c_str(), "r");
+  if (!p) return o;
+  char buf[4096];
+  while (std::size_t n = std::fread(buf, 1, sizeof buf, p)) o.text.append(buf, n);
+  const int status = pclose(p);
+  o.status = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  return o;
+}
+
+std::size_t column_of(const std::string& csv_path, const std::string& name) {
+  std::ifstream in(csv_path);
+  std::string header;
+  std::getline(in, header);
+  std::size_t col = 0, at = 0;
+  while (true) {
+    const std::size_t comma = header.find(',', at);
+    if (header.substr(at, comma - at) == name) return col;
+    if (comma == std::string::npos) break;
+    at = comma + 1;
+    ++col;
+  }
+  ADD_FAILURE() << "no column " << name;
+  return 0;
+}
+
+std::vector<double> column(const std::string& csv_path, const std::string& name) {
+  std::ifstream in(csv_path);
+  std::vector<double> v;
+  for (const std::string& s : noisemon::test::csv_column(in, column_of(csv_path, name))) v.push_back(std::stod(s));
+  return v;
+}
+
+}  // namespace
+
+TEST(SummaryCommand, StatisticsOfTheRealCyclesAgreeWithTheReplayCsv) {
+  if (!fs::exists(kTable)) {
+    if (std::getenv("CI")) FAIL() << "missing " << kTable;
+    GTEST_SKIP() << "missing " << kTable;
+  }
+  const fs::path dir = noisemon::test::unique_temp("summary_command");
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  const std::string log = (dir / "fired.lcmlog").string(), csv = (dir / "fired.csv").string();
+  ASSERT_EQ(run("import --cycles-table " + kTable + " --rpm 1799.9 --load 18 --soi 9.6 --rail 470 -o " + log).status, 0);
+  ASSERT_EQ(run("replay " + log + " --csv " + csv + " --no-progress").status, 0);
+  const Output json_out = run("summary " + log + " --json --no-progress");
+  ASSERT_EQ(json_out.status, 0) << json_out.text;
+  const nlohmann::json all = nlohmann::json::parse(json_out.text);
+  ASSERT_TRUE(all.contains("yanmar_l100v_fired_18Nm")) << json_out.text;
+  const nlohmann::json& s = all["yanmar_l100v_fired_18Nm"];
+
+  // Worked out from the CSV: valid cycles are those without the settling (1) or gap (2) bits.
+  const std::vector<double> flags = column(csv, "flags"), imep = column(csv, "imep_net_bar"), lpa = column(csv, "lpa_predicted_db");
+  double n = 0, sum = 0, energy = 0, lo = 1e300, hi = -1e300;
+  for (std::size_t i = 0; i < flags.size(); ++i) {
+    if (static_cast<int>(flags[i]) & 3) continue;
+    ++n;
+    sum += imep[i];
+    energy += std::pow(10.0, lpa[i] / 10.0);
+    lo = std::min(lo, imep[i]);
+    hi = std::max(hi, imep[i]);
+  }
+  EXPECT_EQ(s["cycles"].get<int>(), static_cast<int>(flags.size()));
+  EXPECT_EQ(s["valid"].get<int>(), static_cast<int>(n));
+  EXPECT_EQ(s["flagged"].get<int>(), static_cast<int>(flags.size() - n));
+  EXPECT_NEAR(s["scalars"]["imep_net_bar"]["mean"].get<double>(), sum / n, 1e-3);  // the CSV rounds to 1e-4
+  EXPECT_NEAR(s["scalars"]["imep_net_bar"]["min"].get<double>(), lo, 1e-4);
+  EXPECT_NEAR(s["scalars"]["imep_net_bar"]["max"].get<double>(), hi, 1e-4);
+  EXPECT_NEAR(s["scalars"]["lpa_predicted_db"]["mean"].get<double>(), 10 * std::log10(energy / n), 1e-3);
+  EXPECT_TRUE(s["scalars"]["lpa_measured_db"]["mean"].is_null());  // a pressure-only recording measured nothing
+
+  // CSV output: a header and one row per quantity; the same run as a run directory gives the same cycles.
+  const Output csv_out = run("summary " + log + " --csv --no-progress");
+  ASSERT_EQ(csv_out.status, 0);
+  EXPECT_EQ(csv_out.text.rfind("run,quantity,unit,energy_mean,n,mean,std,cov,min,max\n", 0), 0u) << csv_out.text;
+  EXPECT_NE(csv_out.text.find("yanmar_l100v_fired_18Nm,ca50_deg,deg,0,"), std::string::npos);
+  ASSERT_EQ(run("export " + log + " -o " + (dir / "fired_run").string()).status, 0);
+  const Output from_dir = run("summary " + (dir / "fired_run").string() + " --json --no-progress");
+  ASSERT_EQ(from_dir.status, 0) << from_dir.text;
+  const nlohmann::json d = nlohmann::json::parse(from_dir.text);
+  ASSERT_EQ(d.size(), 1u);
+  EXPECT_NEAR(d.begin().value()["scalars"]["peak_pressure_bar"]["mean"].get<double>(),
+              s["scalars"]["peak_pressure_bar"]["mean"].get<double>(), 0.05);
+  // A path that is not there is a clear error.
+  const Output missing = run("summary " + (dir / "nothing").string());
+  EXPECT_NE(missing.status, 0);
+  EXPECT_NE(missing.text.find("nothing"), std::string::npos) << missing.text;
+  fs::remove_all(dir);
+}
