@@ -280,21 +280,25 @@ void CycleProcessor::finish_cycle(std::int64_t end_index) {
   std::vector<double>& ms = mean_square_;
   double meas_sum = 0, pred_sum = 0;
   double mic_sum[kMaxMics] = {};
+  const double firing_hz = 1.0 / duration;  // one firing per 720 deg
   for (std::size_t b = 0; b < nb; ++b) {
     const double aw = dsp::a_weighting_db(bands[b].exact_mid_hz);
+    const bool below_firing = bands[b].upper_edge_hz < firing_hz;
     const double cpl = dsp::level_db(ms[0 * nb + b]);
     const double pred_a = dsp::level_db(ms[1 * nb + b]) + aw;
     double mic_ms_mean = 0;
     for (std::size_t m = 0; m < mics_; ++m) {
       const double msm = ms[(2 + m) * nb + b];
       mic_ms_mean += msm;
-      mic_sum[m] += msm * std::pow(10.0, aw / 10.0);
+      if (!below_firing) mic_sum[m] += msm * std::pow(10.0, aw / 10.0);
     }
     // Energy average over microphones; without microphones nothing was measured: NaN, never a number.
     const double meas_a = mics_ > 0 ? dsp::level_db(mic_ms_mean / static_cast<double>(mics_)) + aw
                                     : std::numeric_limits<double>::quiet_NaN();
-    meas_sum += dsp::mean_square_from_level(meas_a);
-    pred_sum += dsp::mean_square_from_level(pred_a);
+    if (!below_firing) {
+      meas_sum += dsp::mean_square_from_level(meas_a);
+      pred_sum += dsp::mean_square_from_level(pred_a);
+    }
     r.band_hz[b] = static_cast<float>(bands[b].nominal_hz);
     r.cpl_db[b] = static_cast<float>(cpl);
     r.spl_a_measured_db[b] = static_cast<float>(meas_a);
@@ -304,6 +308,7 @@ void CycleProcessor::finish_cycle(std::int64_t end_index) {
     std::int8_t f = 0;
     if (bands[b].nyquist_cut) f |= kBandNyquistCut;
     if (bands[b].response_time_s > duration) f |= kBandSlow;
+    if (below_firing) f |= kBandBelowFiring;
     if (bands[b].response_time_s > settled_s) {
       f |= kBandSettling;
       r.flags |= kCycleSettling;

@@ -13,7 +13,7 @@ inline constexpr std::size_t kMaxBands = 32;
 inline constexpr std::size_t kMaxMics = drivers::SampleBlock::kMaxChannels;
 
 // Bits of CycleReport::band_flags and ::flags; the same values as the LCM constants in msgs/cycle_report_t.lcm.
-enum BandFlag : std::int8_t { kBandNyquistCut = 1, kBandSlow = 2, kBandSettling = 4 };
+enum BandFlag : std::int8_t { kBandNyquistCut = 1, kBandSlow = 2, kBandSettling = 4, kBandBelowFiring = 8 };
 enum CycleFlag : std::int32_t {
   kCycleSettling = 1,
   kCycleGap = 2,

@@ -370,3 +370,20 @@ TEST(CycleProcessor, CombustionMetricsOfEachCycleMatchThoseOfThePressureOnTheCra
   EXPECT_NEAR(m.peak_pressure_bar, 41.5, 0.01);
   EXPECT_NE(daemon::cycle_csv_row(m, "x").find(",41.49"), std::string::npos) << daemon::cycle_csv_row(m, "x");
 }
+
+// At 3000 rpm the engine fires 25 times a second: the 20 Hz band (upper edge 22.4 Hz) has no per-cycle meaning.
+// It is flagged and left out of the overall levels, so even a strong 20 Hz component does not move them.
+TEST(CycleProcessor, BandsBelowTheFiringFrequencyAreFlaggedAndLeftOutOfTheOverallLevels) {
+  const RunResult plain = run(Synth({{1000.0, 2000.0, false}}), 1.2);
+  const RunResult with_20hz = run(Synth({{1000.0, 2000.0, false}, {20.0, 2e5, false}}), 1.2);
+  const std::size_t b20 = band_index(with_20hz.bands, 20), b25 = band_index(with_20hz.bands, 25);
+  ASSERT_EQ(plain.reports.size(), with_20hz.reports.size());
+  for (std::size_t i = 10; i < plain.reports.size(); ++i) {  // the 25 Hz band settles from the tone's start by then
+    const auto& c = with_20hz.reports[i];
+    EXPECT_TRUE(c.band_flags[b20] & daemon::kBandBelowFiring);
+    EXPECT_FALSE(c.band_flags[b25] & daemon::kBandBelowFiring);
+    EXPECT_GT(c.spl_a_predicted_db[b20], plain.reports[i].spl_a_predicted_db[b20] + 20.0);  // it is there, flagged
+    EXPECT_NEAR(c.lpa_predicted_db, plain.reports[i].lpa_predicted_db, 0.01);
+    EXPECT_NEAR(c.lpa_measured_db, plain.reports[i].lpa_measured_db, 0.01);
+  }
+}

@@ -60,6 +60,7 @@ TEST(ReportMessages, FlagConstantsMatchTheMessageDefinition) {
   EXPECT_EQ(daemon::kBandNyquistCut, +noisemon::cycle_report_t::BAND_NYQUIST_CUT);
   EXPECT_EQ(daemon::kBandSlow, +noisemon::cycle_report_t::BAND_SLOW);
   EXPECT_EQ(daemon::kBandSettling, +noisemon::cycle_report_t::BAND_SETTLING);
+  EXPECT_EQ(daemon::kBandBelowFiring, +noisemon::cycle_report_t::BAND_BELOW_FIRING);
   EXPECT_EQ(daemon::kCycleSettling, +noisemon::cycle_report_t::CYCLE_SETTLING);
   EXPECT_EQ(daemon::kCycleGap, +noisemon::cycle_report_t::CYCLE_GAP);
   EXPECT_EQ(daemon::kCycleNoOperatingPoint, +noisemon::cycle_report_t::CYCLE_NO_OPERATING_POINT);
