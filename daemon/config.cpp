@@ -1,5 +1,7 @@
 #include "daemon/config.hpp"
 
+#include <sched.h>
+
 #include <cmath>
 #include <limits>
 #include <fstream>
@@ -343,6 +345,30 @@ void read_can(TableReader& top, const toml::table& root, const std::string& orig
     r.fail("signal", "[[can.signal]] given but neither can.interface nor can.candump to read them from");
 }
 
+// ---- [threads] ----------------------------------------------------------------------------------------------
+
+// [threads.<name>]: priority = SCHED_FIFO priority (0: normal scheduling), cpu = CPU index (-1: any).
+void read_thread_policy(TableReader& threads, const char* name, const std::string& origin, drivers::ThreadPolicy& policy) {
+  TableReader r(threads.table(name), threads.key_path(name), origin);
+  std::int64_t priority = policy.fifo_priority, cpu = policy.cpu.value_or(-1);
+  r.integer("priority", priority, 0, 99);  // 99: Linux's highest SCHED_FIFO priority
+  r.integer("cpu", cpu, -1, CPU_SETSIZE - 1);
+  r.reject_unknown();
+  policy.fifo_priority = static_cast<int>(priority);
+  policy.cpu = cpu < 0 ? std::nullopt : std::optional<int>(static_cast<int>(cpu));
+}
+
+void read_threads(TableReader& top, const std::string& origin, ThreadsConfig& t) {
+  TableReader r(top.table("threads"), "threads", origin);
+  r.boolean("lock_memory", t.lock_memory);
+  const std::pair<const char*, drivers::ThreadPolicy*> policies[] = {
+      {"pressure", &t.pressure}, {"mics", &t.mics},         {"operating_point", &t.operating_point},
+      {"can", &t.can},           {"lcm_receive", &t.lcm_receive}, {"processing", &t.processing},
+      {"publishing", &t.publishing}};
+  for (const auto& [name, policy] : policies) read_thread_policy(r, name, origin, *policy);
+  r.reject_unknown();
+}
+
 Config parse_table(const toml::table& root, const std::string& origin) {
   Config c;
   TableReader top(&root, "", origin);
@@ -410,6 +436,7 @@ Config parse_table(const toml::table& root, const std::string& origin) {
 
   read_comedi(top, origin, c.comedi);
   read_can(top, root, origin, c.can);
+  read_threads(top, origin, c.threads);
 
   top.reject_unknown();
   return c;

@@ -9,6 +9,7 @@
 #include "drivers/can_source.hpp"
 #include "drivers/comedi_source.hpp"
 #include "drivers/sim_source.hpp"
+#include "drivers/worker_thread.hpp"
 #include "model/block_params.hpp"
 
 namespace noisemon::daemon {
@@ -25,6 +26,19 @@ struct LcmConfig {
   double session_timeout_s = 30.0;  // source "lcm": how long to wait for the session message
 };
 
+// [threads]: memory locking and the scheduling of each thread the daemon may run (drivers/worker_thread.hpp).
+// Defaults: normal scheduling, any CPU, no memory lock.
+struct ThreadsConfig {
+  bool lock_memory = false;               // mlockall at start (needs CAP_IPC_LOCK or LimitMEMLOCK=infinity)
+  drivers::ThreadPolicy pressure;         // nm-pressure: encoder and pressure (sim, comedi)
+  drivers::ThreadPolicy mics;             // nm-mics: microphones (sim, comedi)
+  drivers::ThreadPolicy operating_point;  // nm-op: the sim's operating points
+  drivers::ThreadPolicy can;              // nm-can: operating points from SocketCAN or a candump log
+  drivers::ThreadPolicy lcm_receive;      // nm-lcm-in: source "lcm", the raw streams received from the bus
+  drivers::ThreadPolicy processing;       // nm-processing: cycles, model, levels
+  drivers::ThreadPolicy publishing;       // nm-lcm-pub: the LCM publisher (status name "lcm")
+};
+
 struct Config {
   std::string source = "sim";       // sim, lcm, comedi
   std::int64_t cycles = 0;          // stop after this many cycles; 0 = until SIGINT/SIGTERM
@@ -39,6 +53,7 @@ struct Config {
   drivers::ComediSourceConfig comedi;  // [comedi]: the DAQ hardware (source = "comedi")
   drivers::CanSourceConfig can;        // [can]: operating points from CAN; when configured, they replace the
                                        // source's own (any source)
+  ThreadsConfig threads;               // [threads]: handed to the sources and the pipeline
 };
 
 // A configuration error; what() names the file and the field.

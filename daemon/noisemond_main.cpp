@@ -14,6 +14,7 @@
 #include "daemon/pipeline.hpp"
 #include "daemon/report_messages.hpp"
 #include "daemon/sources.hpp"
+#include "drivers/worker_thread.hpp"
 
 namespace {
 
@@ -67,7 +68,14 @@ int run(int argc, char** argv) {
     std::cout << daemon::cycle_line_header() << std::endl;
     hook = [](const daemon::CycleReport& r) { std::cout << daemon::cycle_line(daemon::to_message(r)) << std::endl; };
   }
-  daemon::Pipeline pipeline(config, daemon::make_source(config), hook);
+  auto acquisition = daemon::make_source(config);
+  if (config.threads.lock_memory) {
+    // After the devices are open, so that a missing device is the error reported first; MCL_CURRENT locks what
+    // is mapped now, MCL_FUTURE the rings and threads that follow.
+    drivers::lock_memory();
+    spdlog::info("memory locked (mlockall MCL_CURRENT | MCL_FUTURE)");
+  }
+  daemon::Pipeline pipeline(config, std::move(acquisition), hook);
   pipeline.start();
 
   bool notified = false;

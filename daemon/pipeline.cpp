@@ -5,10 +5,10 @@
 #include <chrono>
 #include <cmath>
 #include <lcm/lcm-cpp.hpp>
-#include <mutex>
 
 #include "daemon/cycle_processor.hpp"
 #include "daemon/report_messages.hpp"
+#include "drivers/worker_thread.hpp"
 #include "noisemon/status_t.hpp"
 
 namespace noisemon::daemon {
@@ -48,20 +48,16 @@ struct Pipeline::Impl {
   dsp::SpscRing<drivers::OperatingPoint> op_publish_ring{64};
 
   std::unique_ptr<lcm::LCM> lcm;
-  std::thread processing, publishing;
-  std::atomic<drivers::ThreadState> processing_state{drivers::ThreadState::kIdle};
-  std::atomic<drivers::ThreadState> publishing_state{drivers::ThreadState::kIdle};
-  std::atomic<bool> drain{false};        // drivers stopped: process what is left, then exit
-  std::atomic<bool> processing_done{false};
-  std::atomic<bool> failed{false};
-  mutable std::mutex failure_mutex;
-  std::string failure;
   std::atomic<std::int64_t> cycles_dropped{0};
   std::atomic<std::int64_t> frames_discarded{0};  // the processor's FIFOs: one stream ran ahead of a stalled one
   std::atomic<std::int64_t> gap_frames{0};        // frames lost in the streams, held or skipped
   std::atomic<std::int64_t> reports_queued{0};
   std::atomic<std::uint64_t> report_overruns{0};
   Clock::time_point started;
+  // Last: destroyed (stopped) first, before anything their bodies use. A stop request to the processing thread
+  // means the drivers have stopped: it processes what is left in the rings, then returns.
+  drivers::WorkerThread processing_thread{"processing"};
+  drivers::WorkerThread publishing_thread{"lcm"};
 
   static std::size_t blocks_for(double seconds) {
     return static_cast<std::size_t>(std::ceil(seconds * drivers::kPipelineRateHz / 128.0));  // room even for half-full blocks
@@ -77,86 +73,69 @@ struct Pipeline::Impl {
         mic_ring(ring_blocks),
         op_ring(256) {}
 
-  void fail(const std::string& why) {
-    {
-      std::lock_guard lock(failure_mutex);
-      if (failure.empty()) failure = why;
-    }
-    failed = true;
-  }
-
-  void run_processing();
+  void run_processing(const std::atomic<bool>& drain);
   void run_publishing(std::atomic<std::int64_t>& published);
   noisemon::status_t make_status(std::int64_t published, const Stat& latency, const Stat& processing) const;
 };
 
-void Pipeline::Impl::run_processing() {
-  processing_state = drivers::ThreadState::kRunning;
-  try {
-    ProcessorConfig pc;
-    pc.model = config.model;
-    pc.acoustic_delay_s = config.acoustic_delay_s;
-    pc.fifo_seconds = std::max(4.0, 2 * config.ring_seconds);
-    const std::int64_t limit = config.cycles;
-    CycleProcessor processor(pc, info, [&](const CycleReport& r) {
-      if (limit > 0 && reports_queued.load() >= limit) return;
-      if (!report_ring.push(r)) {
-        ++report_overruns;
-        ++cycles_dropped;
-        return;
-      }
-      ++reports_queued;
-    });
-    spdlog::info("processing: acoustic delay {} frames, {} microphones, model k1={:.3g} k3={:.3g} b1={:.3g} b3={:.3g}",
-                 processor.delay_frames(), info.mic_count, config.model.k1, config.model.k3, config.model.b1, config.model.b3);
-    std::int64_t dropped_seen = 0;
-    while (true) {
-      const bool draining = drain.load(std::memory_order_acquire);
-      bool any = false;
-      drivers::OperatingPoint op;
-      while (op_ring.read(&op, 1) == 1) {
-        processor.set_operating_point(op);
-        if (config.lcm.publish_operating_point) op_publish_ring.push(op);
-      }
-      // Alternate between the streams so neither runs far ahead of the other.
-      for (int i = 0; i < 8; ++i) {
-        bool got = false;
-        if (const drivers::SampleBlock* b = pressure_ring.front()) {
-          processor.add_pressure(*b);
-          if (config.lcm.publish_raw) raw_ring.push(RawItem{0, *b});
-          pressure_ring.consume(1);
-          got = true;
-        }
-        if (const drivers::SampleBlock* b = mic_ring.front()) {
-          processor.add_mics(*b);
-          if (config.lcm.publish_raw) raw_ring.push(RawItem{1, *b});
-          mic_ring.consume(1);
-          got = true;
-        }
-        if (!got) break;
-        any = true;
-      }
-      processor.process();
-      const ProcessorCounters& counted = processor.counters();
-      if (counted.cycles_dropped != dropped_seen) {
-        cycles_dropped += counted.cycles_dropped - dropped_seen;
-        dropped_seen = counted.cycles_dropped;
-      }
-      frames_discarded.store(counted.frames_discarded, std::memory_order_relaxed);
-      gap_frames.store(counted.gap_frames, std::memory_order_relaxed);
-      if (config.cycles > 0 && reports_queued.load() >= config.cycles) break;
-      if (!any) {
-        if (draining) break;  // drivers are joined and the rings are empty
-        std::this_thread::sleep_for(std::chrono::milliseconds(1));
-      }
+void Pipeline::Impl::run_processing(const std::atomic<bool>& drain) {
+  ProcessorConfig pc;
+  pc.model = config.model;
+  pc.acoustic_delay_s = config.acoustic_delay_s;
+  pc.fifo_seconds = std::max(4.0, 2 * config.ring_seconds);
+  const std::int64_t limit = config.cycles;
+  CycleProcessor processor(pc, info, [&](const CycleReport& r) {
+    if (limit > 0 && reports_queued.load() >= limit) return;
+    if (!report_ring.push(r)) {
+      ++report_overruns;
+      ++cycles_dropped;
+      return;
     }
-    processing_state = drivers::ThreadState::kStopped;
-  } catch (const std::exception& e) {
-    fail(std::string("processing thread: ") + e.what());  // the text first: a reader that sees kFailed finds it
-    processing_state = drivers::ThreadState::kFailed;
-    spdlog::error("processing thread failed: {}", e.what());
+    ++reports_queued;
+  });
+  spdlog::info("processing: acoustic delay {} frames, {} microphones, model k1={:.3g} k3={:.3g} b1={:.3g} b3={:.3g}",
+               processor.delay_frames(), info.mic_count, config.model.k1, config.model.k3, config.model.b1, config.model.b3);
+  std::int64_t dropped_seen = 0;
+  while (true) {
+    const bool draining = drain.load(std::memory_order_acquire);
+    bool any = false;
+    drivers::OperatingPoint op;
+    while (op_ring.read(&op, 1) == 1) {
+      processor.set_operating_point(op);
+      if (config.lcm.publish_operating_point) op_publish_ring.push(op);
+    }
+    // Alternate between the streams so neither runs far ahead of the other.
+    for (int i = 0; i < 8; ++i) {
+      bool got = false;
+      if (const drivers::SampleBlock* b = pressure_ring.front()) {
+        processor.add_pressure(*b);
+        if (config.lcm.publish_raw) raw_ring.push(RawItem{0, *b});
+        pressure_ring.consume(1);
+        got = true;
+      }
+      if (const drivers::SampleBlock* b = mic_ring.front()) {
+        processor.add_mics(*b);
+        if (config.lcm.publish_raw) raw_ring.push(RawItem{1, *b});
+        mic_ring.consume(1);
+        got = true;
+      }
+      if (!got) break;
+      any = true;
+    }
+    processor.process();
+    const ProcessorCounters& counted = processor.counters();
+    if (counted.cycles_dropped != dropped_seen) {
+      cycles_dropped += counted.cycles_dropped - dropped_seen;
+      dropped_seen = counted.cycles_dropped;
+    }
+    frames_discarded.store(counted.frames_discarded, std::memory_order_relaxed);
+    gap_frames.store(counted.gap_frames, std::memory_order_relaxed);
+    if (config.cycles > 0 && reports_queued.load() >= config.cycles) break;
+    if (!any) {
+      if (draining) break;  // drivers are joined and the rings are empty
+      std::this_thread::sleep_for(std::chrono::milliseconds(1));
+    }
   }
-  processing_done = true;
 }
 
 noisemon::status_t Pipeline::Impl::make_status(std::int64_t published, const Stat& latency, const Stat& processing) const {
@@ -169,15 +148,11 @@ noisemon::status_t Pipeline::Impl::make_status(std::int64_t published, const Sta
     s.thread_state.push_back(static_cast<std::int8_t>(t.state));
     s.thread_error.push_back(t.error);
   }
-  s.thread_name.push_back("processing");
-  s.thread_state.push_back(static_cast<std::int8_t>(processing_state.load()));
-  {
-    std::lock_guard lock(failure_mutex);
-    s.thread_error.push_back(processing_state.load() == drivers::ThreadState::kFailed ? failure : "");
+  for (const drivers::DriverThreadStatus& t : {processing_thread.status(), publishing_thread.status()}) {
+    s.thread_name.push_back(t.name);
+    s.thread_state.push_back(static_cast<std::int8_t>(t.state));
+    s.thread_error.push_back(t.error);
   }
-  s.thread_name.push_back("lcm");
-  s.thread_state.push_back(static_cast<std::int8_t>(publishing_state.load()));
-  s.thread_error.push_back("");
   s.nthreads = static_cast<std::int16_t>(s.thread_name.size());
   auto ring = [&](const char* name, double fill, std::uint64_t overruns) {
     s.ring_name.push_back(name);
@@ -209,58 +184,51 @@ noisemon::status_t Pipeline::Impl::make_status(std::int64_t published, const Sta
 }
 
 void Pipeline::Impl::run_publishing(std::atomic<std::int64_t>& published) {
-  publishing_state = drivers::ThreadState::kRunning;
-  try {
-    Stat latency, processing;
-    auto next_status = Clock::now() + std::chrono::seconds(1);
-    // The session (time base, microphones) goes out before any raw block, then each second for late loggers.
-    auto publish_session = [&] {
-      if (!config.lcm.publish_raw) return;  // the session describes the raw streams
-      const noisemon::session_t session = to_message(info, source->name(), drivers::wall_utime());
-      lcm->publish(config.lcm.session_channel, &session);
-    };
-    publish_session();
-    while (true) {
-      bool any = false;
-      CycleReport r;
-      while (report_ring.read(&r, 1) == 1) {
-        const noisemon::cycle_report_t msg = to_message(r);
-        lcm->publish(config.lcm.report_channel, &msg);
-        ++published;
-        latency.add(1e-3 * static_cast<double>(drivers::wall_utime() - r.window_end_utime));
-        processing.add(r.processing_ms);
-        if (on_report) on_report(r);
-        any = true;
-      }
-      RawItem raw;
-      for (int i = 0; i < 64 && raw_ring.read(&raw, 1) == 1; ++i) {
-        const noisemon::raw_block_t msg = to_message(raw.block, raw.stream, info.epoch_utime);
-        lcm->publish(config.lcm.raw_channel, &msg);
-        any = true;
-      }
-      drivers::OperatingPoint op;
-      while (op_publish_ring.read(&op, 1) == 1) {
-        const noisemon::operating_point_t msg = to_message(op);
-        lcm->publish(config.lcm.operating_point_channel, &msg);
-      }
-      const bool done = processing_done.load(std::memory_order_acquire);
-      if (Clock::now() >= next_status || (done && !any)) {
-        publish_session();
-        const noisemon::status_t s = make_status(published.load(), latency, processing);
-        lcm->publish(config.lcm.status_channel, &s);
-        latency = Stat{};
-        processing = Stat{};
-        next_status += std::chrono::seconds(1);
-      }
-      if (!any) {
-        if (done && report_ring.empty() && raw_ring.empty()) break;
-        std::this_thread::sleep_for(std::chrono::microseconds(500));
-      }
+  Stat latency, processing;
+  auto next_status = Clock::now() + std::chrono::seconds(1);
+  // The session (time base, microphones) goes out before any raw block, then each second for late loggers.
+  auto publish_session = [&] {
+    if (!config.lcm.publish_raw) return;  // the session describes the raw streams
+    const noisemon::session_t session = to_message(info, source->name(), drivers::wall_utime());
+    lcm->publish(config.lcm.session_channel, &session);
+  };
+  publish_session();
+  while (true) {
+    bool any = false;
+    CycleReport r;
+    while (report_ring.read(&r, 1) == 1) {
+      const noisemon::cycle_report_t msg = to_message(r);
+      lcm->publish(config.lcm.report_channel, &msg);
+      ++published;
+      latency.add(1e-3 * static_cast<double>(drivers::wall_utime() - r.window_end_utime));
+      processing.add(r.processing_ms);
+      if (on_report) on_report(r);
+      any = true;
     }
-    publishing_state = drivers::ThreadState::kStopped;
-  } catch (const std::exception& e) {
-    publishing_state = drivers::ThreadState::kFailed;
-    fail(std::string("LCM thread: ") + e.what());
+    RawItem raw;
+    for (int i = 0; i < 64 && raw_ring.read(&raw, 1) == 1; ++i) {
+      const noisemon::raw_block_t msg = to_message(raw.block, raw.stream, info.epoch_utime);
+      lcm->publish(config.lcm.raw_channel, &msg);
+      any = true;
+    }
+    drivers::OperatingPoint op;
+    while (op_publish_ring.read(&op, 1) == 1) {
+      const noisemon::operating_point_t msg = to_message(op);
+      lcm->publish(config.lcm.operating_point_channel, &msg);
+    }
+    const bool done = processing_thread.state() != drivers::ThreadState::kRunning;  // its last reports are queued
+    if (Clock::now() >= next_status || (done && !any)) {
+      publish_session();
+      const noisemon::status_t s = make_status(published.load(), latency, processing);
+      lcm->publish(config.lcm.status_channel, &s);
+      latency = Stat{};
+      processing = Stat{};
+      next_status += std::chrono::seconds(1);
+    }
+    if (!any) {
+      if (done && report_ring.empty() && raw_ring.empty()) break;
+      std::this_thread::sleep_for(std::chrono::microseconds(500));
+    }
   }
 }
 
@@ -277,14 +245,16 @@ void Pipeline::start() {
                              "': the network needs a multicast route (see README, 'LCM and multicast')");
   d.started = Clock::now();
   drivers::Streams streams{&d.pressure_ring, &d.mic_ring, &d.op_ring};
-  d.processing = std::thread([this] { impl_->run_processing(); });
-  d.publishing = std::thread([this] { impl_->run_publishing(published_); });
+  // Processing first: the publishing thread ends once the processing thread no longer runs.
+  d.processing_thread.start("nm-processing", d.config.threads.processing,
+                     [this](const std::atomic<bool>& drain) { impl_->run_processing(drain); });
+  d.publishing_thread.start("nm-lcm-pub", d.config.threads.publishing,
+                     [this](const std::atomic<bool>&) { impl_->run_publishing(published_); });
   try {
     d.source->start(streams);
   } catch (...) {
-    d.drain = true;
-    d.processing.join();
-    d.publishing.join();
+    d.processing_thread.stop();
+    d.publishing_thread.join();
     throw;
   }
   spdlog::info("source '{}' started: {} microphones, acoustic delay {:.2f} ms", d.source->name(), d.info.mic_count,
@@ -293,11 +263,10 @@ void Pipeline::start() {
 
 void Pipeline::stop() {
   Impl& d = *impl_;
-  if (!d.processing.joinable() && !d.publishing.joinable()) return;
+  if (!d.processing_thread.joinable() && !d.publishing_thread.joinable()) return;
   d.source->stop();
-  d.drain = true;
-  if (d.processing.joinable()) d.processing.join();
-  if (d.publishing.joinable()) d.publishing.join();
+  d.processing_thread.stop();
+  d.publishing_thread.join();
   spdlog::info("stopped: {} cycles published, {} dropped", published_.load(), d.cycles_dropped.load());
 }
 
@@ -305,7 +274,8 @@ bool Pipeline::ready() const { return impl_->source->running(); }
 
 bool Pipeline::finished() const {
   const Impl& d = *impl_;
-  if (d.failed) return true;
+  for (const drivers::WorkerThread* t : {&d.processing_thread, &d.publishing_thread})
+    if (t->state() == drivers::ThreadState::kFailed) return true;
   for (const auto& t : d.source->thread_status())
     if (t.state == drivers::ThreadState::kFailed) return true;
   return d.config.cycles > 0 && published_.load() >= d.config.cycles;
@@ -313,10 +283,10 @@ bool Pipeline::finished() const {
 
 std::string Pipeline::failure() const {
   const Impl& d = *impl_;
-  {
-    std::lock_guard lock(d.failure_mutex);
-    if (!d.failure.empty()) return d.failure;
-  }
+  if (const drivers::DriverThreadStatus t = d.processing_thread.status(); t.state == drivers::ThreadState::kFailed)
+    return "processing thread: " + t.error;
+  if (const drivers::DriverThreadStatus t = d.publishing_thread.status(); t.state == drivers::ThreadState::kFailed)
+    return "LCM thread: " + t.error;
   for (const auto& t : d.source->thread_status())
     if (t.state == drivers::ThreadState::kFailed) return "driver thread '" + t.name + "': " + t.error;
   return {};

@@ -7,7 +7,6 @@
 #include <functional>
 #include <memory>
 #include <string>
-#include <thread>
 
 #include "daemon/config.hpp"
 #include "daemon/cycle_report.hpp"

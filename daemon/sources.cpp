@@ -12,7 +12,11 @@ namespace noisemon::daemon {
 namespace {
 
 std::unique_ptr<drivers::Source> make_stream_source(const Config& c) {
-  if (c.source == "sim") return drivers::make_sim_source(c.sim);
+  if (c.source == "sim") {
+    drivers::SimConfig sim = c.sim;
+    sim.threads = {c.threads.pressure, c.threads.mics, c.threads.operating_point};
+    return drivers::make_sim_source(sim);
+  }
   if (c.source == "lcm") {
     drivers::LcmSourceConfig l;
     l.url = c.lcm.url;
@@ -20,12 +24,15 @@ std::unique_ptr<drivers::Source> make_stream_source(const Config& c) {
     l.operating_point_channel = c.lcm.operating_point_channel;
     l.session_channel = c.lcm.session_channel;
     l.session_timeout_s = c.lcm.session_timeout_s;
+    l.thread = c.threads.lcm_receive;
     spdlog::info("lcm source: waiting up to {} s for {} (start lcm-logplayer now)", l.session_timeout_s, l.session_channel);
     return drivers::make_lcm_source(l);
   }
   if (c.source == "comedi") {
+    drivers::ComediSourceConfig comedi = c.comedi;
+    comedi.threads = {c.threads.pressure, c.threads.mics};
     try {
-      return drivers::make_comedi_source(c.comedi);
+      return drivers::make_comedi_source(comedi);
     } catch (const std::invalid_argument& e) {
       throw ConfigError(std::string("comedi source: ") + e.what());
     }
@@ -38,7 +45,9 @@ std::unique_ptr<drivers::Source> make_stream_source(const Config& c) {
 std::unique_ptr<drivers::Source> make_source(const Config& config) {
   auto streams = make_stream_source(config);
   if (!config.can.configured()) return streams;
-  auto can = drivers::make_can_source(config.can);
+  drivers::CanSourceConfig can_config = config.can;
+  can_config.thread = config.threads.can;
+  auto can = drivers::make_can_source(can_config);
   spdlog::info("operating points from {} ({} signals)",
                config.can.candump_path.empty() ? "CAN interface " + config.can.interface : "candump log " + config.can.candump_path,
                config.can.map.signals().size());

@@ -1,5 +1,6 @@
 // Builds the daemon's source from its configuration: the stream source of [daemon] source (sim, lcm, comedi),
-// with its operating points replaced by the [can] source when [can] is configured.
+// with its operating points replaced by the [can] source when [can] is configured; each driver thread gets its
+// policy from [threads].
 #pragma once
 
 #include <memory>

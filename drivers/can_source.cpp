@@ -6,7 +6,6 @@
 #include <chrono>
 #include <cmath>
 #include <limits>
-#include <mutex>
 #include <stdexcept>
 #include <thread>
 
@@ -50,69 +49,48 @@ class OperatingPointAssembler {
 // What the CAN threads share with the rest of the source.
 class CanSourceBase : public Source {
  public:
-  CanSourceBase(std::string name, std::string thread_name, CanSignalMap map)
-      : name_(std::move(name)), thread_name_(std::move(thread_name)), map_(std::move(map)) {}
+  CanSourceBase(std::string name, std::string thread_name, CanSignalMap map, const ThreadPolicy& policy)
+      : name_(std::move(name)), map_(std::move(map)), policy_(policy), worker_(std::move(thread_name)) {}
   std::string name() const override { return name_; }
   StreamInfo info() const override { return {}; }
   void start(const Streams& streams) override {
-    if (thread_.joinable()) throw std::logic_error(name_ + " source: start() while running; stop() first");
+    if (worker_.joinable()) throw std::logic_error(name_ + " source: start() while running; stop() first");
     if (!streams.operating_point) throw std::invalid_argument(name_ + " source: start() needs the operating-point ring");
-    stop_ = false;
-    state_ = ThreadState::kRunning;
-    thread_ = std::thread([this, ring = streams.operating_point] {
-      try {
-        run(*ring);
-        ThreadState running = ThreadState::kRunning;
-        state_.compare_exchange_strong(running, ThreadState::kStopped);
-      } catch (const std::exception& e) {
-        std::lock_guard lock(error_mutex_);
-        error_ = e.what();
-        state_ = ThreadState::kFailed;
-      }
-    });
+    worker_.start("nm-can", policy_, [this, ring = streams.operating_point](const std::atomic<bool>&) { run(*ring); });
   }
-  void stop() override {
-    stop_ = true;
-    if (thread_.joinable()) thread_.join();
-  }
+  void stop() override { worker_.stop(); }
   // Started and not failed: a candump replay that reached its end has delivered what it has.
   bool running() const override {
-    const ThreadState s = state_.load();
+    const ThreadState s = worker_.state();
     return s == ThreadState::kRunning || s == ThreadState::kStopped;
   }
-  std::vector<DriverThreadStatus> thread_status() const override {
-    std::lock_guard lock(error_mutex_);
-    return {{thread_name_, state_.load(), pushed_.load(), error_}};
-  }
+  std::vector<DriverThreadStatus> thread_status() const override { return {worker_.status()}; }
 
  protected:
   virtual void run(OperatingPointRing& ring) = 0;
+  bool stop_requested() const { return worker_.stop_requested(); }
   // Pushes an operating point; when `wait`, retries while the ring is full (offline replay loses nothing).
   void push(OperatingPointRing& ring, const OperatingPoint& op, bool wait) {
     while (!ring.push(op)) {
-      if (!wait || stop_.load(std::memory_order_relaxed)) return;
+      if (!wait || stop_requested()) return;
       std::this_thread::sleep_for(std::chrono::milliseconds(1));
     }
-    pushed_.fetch_add(1, std::memory_order_relaxed);
+    worker_.add_blocks_written();
   }
   static std::int64_t count(const std::atomic<std::uint64_t>& a) { return static_cast<std::int64_t>(a.load(std::memory_order_relaxed)); }
 
-  std::string name_, thread_name_;
+  std::string name_;
   CanSignalMap map_;
-  std::atomic<bool> stop_{false};
-  std::atomic<std::uint64_t> pushed_{0};
 
  private:
-  std::thread thread_;
-  std::atomic<ThreadState> state_{ThreadState::kIdle};
-  mutable std::mutex error_mutex_;
-  std::string error_;
+  ThreadPolicy policy_;
+  WorkerThread worker_;
 };
 
 class SocketCanSource final : public CanSourceBase {
  public:
-  SocketCanSource(int fd, bool owns_fd, const CanSignalMap& map, std::string label)
-      : CanSourceBase("socketcan", "socketcan." + label, map), fd_(fd), owns_fd_(owns_fd), label_(std::move(label)) {}
+  SocketCanSource(int fd, bool owns_fd, const CanSignalMap& map, std::string label, const ThreadPolicy& policy)
+      : CanSourceBase("socketcan", "socketcan." + label, map, policy), fd_(fd), owns_fd_(owns_fd), label_(std::move(label)) {}
   ~SocketCanSource() override {
     stop();
     if (owns_fd_) ::close(fd_);
@@ -129,7 +107,7 @@ class SocketCanSource final : public CanSourceBase {
     SocketCanReader reader(fd_);
     OperatingPointAssembler assembler(map_);
     ReceivedCanFrame rx;
-    while (!stop_.load(std::memory_order_relaxed)) {
+    while (!stop_requested()) {
       CanReadResult r;
       try {
         r = reader.read(kPollMs, rx);
@@ -162,7 +140,7 @@ class SocketCanSource final : public CanSourceBase {
 class CandumpSource final : public CanSourceBase {
  public:
   explicit CandumpSource(const CanSourceConfig& c)
-      : CanSourceBase("candump", "candump.replay", c.map), path_(c.candump_path), interface_(c.interface), paced_(c.paced),
+      : CanSourceBase("candump", "candump.replay", c.map, c.thread), path_(c.candump_path), interface_(c.interface), paced_(c.paced),
         reader_(std::make_unique<CandumpReader>(c.candump_path)) {}
   ~CandumpSource() override { stop(); }
   std::vector<DriverCounter> counters() const override {
@@ -178,7 +156,7 @@ class CandumpSource final : public CanSourceBase {
     CandumpRecord rec;
     bool first = true;
     std::int64_t rec0 = 0, wall0 = 0;
-    while (!stop_.load(std::memory_order_relaxed) && reader_->next(rec)) {
+    while (!stop_requested() && reader_->next(rec)) {
       records_.fetch_add(1, std::memory_order_relaxed);
       malformed_.store(reader_->bad_lines(), std::memory_order_relaxed);
       if (!interface_.empty() && rec.interface != interface_) {
@@ -194,7 +172,7 @@ class CandumpSource final : public CanSourceBase {
       if (paced_) {
         // Re-timed to now: the recording plays as if live, each frame at its recorded offset.
         utime = wall0 + (rec.utime - rec0);
-        while (!stop_.load(std::memory_order_relaxed)) {
+        while (!stop_requested()) {
           const std::int64_t wait = utime - wall_utime();
           if (wait <= 0) break;
           std::this_thread::sleep_for(std::chrono::microseconds(std::min<std::int64_t>(wait, kPollMs * 1000)));
@@ -223,11 +201,12 @@ std::unique_ptr<Source> make_can_source(const CanSourceConfig& config) {
                                 (config.candump_path.empty() ? "interface '" + config.interface + "'" : "'" + config.candump_path + "'"));
   if (!config.candump_path.empty()) return std::make_unique<CandumpSource>(config);
   const int fd = open_socketcan(config.interface, config.map);
-  return std::make_unique<SocketCanSource>(fd, true, config.map, config.interface);
+  return std::make_unique<SocketCanSource>(fd, true, config.map, config.interface, config.thread);
 }
 
-std::unique_ptr<Source> make_socketcan_source_on_fd(int fd, const CanSignalMap& map, const std::string& label) {
-  return std::make_unique<SocketCanSource>(fd, false, map, label);
+std::unique_ptr<Source> make_socketcan_source_on_fd(int fd, const CanSignalMap& map, const std::string& label,
+                                                    const ThreadPolicy& policy) {
+  return std::make_unique<SocketCanSource>(fd, false, map, label, policy);
 }
 
 }  // namespace noisemon::drivers

@@ -13,6 +13,7 @@
 
 #include "drivers/can_signal_map.hpp"
 #include "drivers/source.hpp"
+#include "drivers/worker_thread.hpp"
 
 namespace noisemon::drivers {
 
@@ -22,6 +23,7 @@ struct CanSourceConfig {
   std::string candump_path;  // non-empty: replay this candump -l log instead of a live bus
   bool paced = true;         // candump: at the recorded pace (re-timed to now); false: as fast as taken, recorded times
   CanSignalMap map;
+  ThreadPolicy thread;       // scheduling of the thread nm-can (the daemon's [threads.can])
 
   bool configured() const { return !interface.empty() || !candump_path.empty(); }
 };
@@ -32,6 +34,7 @@ std::unique_ptr<Source> make_can_source(const CanSourceConfig& config);
 
 // The live path on a descriptor the caller owns and keeps open (tests: one end of a socketpair carrying struct
 // can_frame records). `label` names it in messages.
-std::unique_ptr<Source> make_socketcan_source_on_fd(int fd, const CanSignalMap& map, const std::string& label);
+std::unique_ptr<Source> make_socketcan_source_on_fd(int fd, const CanSignalMap& map, const std::string& label,
+                                                    const ThreadPolicy& policy = {});
 
 }  // namespace noisemon::drivers

@@ -1,9 +1,7 @@
 #include "drivers/comedi_source.hpp"
 
 #include <atomic>
-#include <mutex>
 #include <stdexcept>
-#include <thread>
 
 #include "drivers/sim_source.hpp"  // thesis_mic_positions
 
@@ -103,8 +101,6 @@ class ComediSource final : public Source {
     }
     info_.radius_m = config.mics.radius_m;
     info_.acoustic_delay_s = config.mics.radius_m / config.mics.speed_of_sound_m_s;
-    workers_[0].name = "comedi.encoder_pressure";
-    workers_[1].name = "comedi.microphones";
   }
   ~ComediSource() override { stop(); }
 
@@ -132,41 +128,29 @@ class ComediSource final : public Source {
     }
     edge_->restart(acquisitions_[timestamp_acquisition_]->origin_utime());
     mic_->restart(acquisitions_.back()->origin_utime());
-    stop_.store(false);
-    for (Worker& w : workers_) {
-      w.state.store(ThreadState::kRunning);
-      w.blocks.store(0);
-      std::lock_guard lock(error_mutex_);
-      w.error.clear();
-    }
     started_ = true;
-    workers_[0].thread = std::thread([this, ring = streams.pressure] { run_edges(*ring); });
-    workers_[1].thread = std::thread([this, ring = streams.mics] { run_mics(*ring); });
+    edge_worker_.start("nm-pressure", config_.threads.pressure,
+                       [this, ring = streams.pressure](const std::atomic<bool>& stop) { run_edges(*ring, stop); });
+    mic_worker_.start("nm-mics", config_.threads.mics,
+                      [this, ring = streams.mics](const std::atomic<bool>& stop) { run_mics(*ring, stop); });
   }
 
   void stop() override {
-    stop_.store(true);
+    edge_worker_.request_stop();
+    mic_worker_.request_stop();
     for (auto& a : acquisitions_) a->cancel();  // unblocks a device read
-    for (Worker& w : workers_) {
-      if (w.thread.joinable()) w.thread.join();
-      ThreadState running = ThreadState::kRunning;
-      w.state.compare_exchange_strong(running, ThreadState::kStopped);
-    }
+    edge_worker_.join();
+    mic_worker_.join();
     started_ = false;
   }
 
   bool running() const override {
-    for (const Worker& w : workers_)
-      if (w.state.load() != ThreadState::kRunning || w.blocks.load() == 0) return false;
+    for (const WorkerThread* w : {&edge_worker_, &mic_worker_})
+      if (w->state() != ThreadState::kRunning || w->blocks_written() == 0) return false;
     return true;
   }
 
-  std::vector<DriverThreadStatus> thread_status() const override {
-    std::vector<DriverThreadStatus> out;
-    std::lock_guard lock(error_mutex_);
-    for (const Worker& w : workers_) out.push_back({w.name, w.state.load(), w.blocks.load(), w.error});
-    return out;
-  }
+  std::vector<DriverThreadStatus> thread_status() const override { return {edge_worker_.status(), mic_worker_.status()}; }
 
   std::vector<DriverCounter> counters() const override {
     auto v = [](const std::atomic<std::uint64_t>& a) { return static_cast<std::int64_t>(a.load(std::memory_order_relaxed)); };
@@ -181,13 +165,6 @@ class ComediSource final : public Source {
   }
 
  private:
-  struct Worker {
-    std::string name;
-    std::thread thread;
-    std::atomic<ThreadState> state{ThreadState::kIdle};
-    std::atomic<std::uint64_t> blocks{0};
-    std::string error;  // guarded by error_mutex_
-  };
   struct Counters {
     std::atomic<std::uint64_t> pressure_overruns{0}, pressure_restarts{0}, mic_overruns{0}, mic_restarts{0};
     std::atomic<std::uint64_t> edges{0}, encoder_errors{0}, edges_before_lock{0}, phase_corrections{0};
@@ -201,16 +178,10 @@ class ComediSource final : public Source {
     return c;
   }
 
-  void finish(Worker& w, const ReadLoopResult& r) {
-    if (!r.failed && stop_.load()) return;
-    std::lock_guard lock(error_mutex_);
-    w.error = r.failed ? r.message : "acquisition ended unexpectedly: " + r.message;
-    w.state.store(ThreadState::kFailed);
-  }
-  void fail(Worker& w, const std::string& message) {
-    std::lock_guard lock(error_mutex_);
-    w.error = message;
-    w.state.store(ThreadState::kFailed);
+  // A read loop that ended without a stop request ended the acquisition: the thread fails.
+  static void finish(const ReadLoopResult& r, const std::atomic<bool>& stop) {
+    if (!r.failed && stop.load()) return;
+    throw std::runtime_error(r.failed ? r.message : "acquisition ended unexpectedly: " + r.message);
   }
 
   // Re-arms a group of acquisitions together: all cancelled first, so they start again at the same edge.
@@ -228,80 +199,91 @@ class ComediSource final : public Source {
     c_.encoder_errors.store(e.encoder_errors, std::memory_order_relaxed);
     c_.edges_before_lock.store(e.edges_before_lock, std::memory_order_relaxed);
     c_.phase_corrections.store(e.phase_corrections, std::memory_order_relaxed);
-    workers_[0].blocks.store(edge_->blocks_written(), std::memory_order_relaxed);
+    edge_worker_.set_blocks_written(edge_->blocks_written());
   }
 
-  void run_edges(BlockRing& ring) {
-    Worker& w = workers_[0];
+  // The errors of a thread's reads name the acquisitions it reads.
+  void run_edges(BlockRing& ring, const std::atomic<bool>& stop) {
+    ReadLoopResult r;
     try {
-      std::vector<std::vector<std::byte>> buffers(edge_count_, std::vector<std::byte>(kReadBufferBytes));
-      std::vector<ReadStream> streams(edge_count_);
-      for (std::size_t i = 0; i < edge_count_; ++i) {
-        const auto stream = static_cast<std::uint32_t>(i);
-        streams[i] = {acquisitions_[i]->fd(), buffers[i],
-                      [this, i, stream, &ring](const std::byte* b, std::size_t n) {
-                        decoders_[i].feed(b, n, [&](const double* v) { edge_->add_scan(stream, v, ring); });
-                      },
-                      acquisitions_[i]->read_function(), acquisitions_[i]->where()};
-      }
-      const ReadLoopResult r = run_group_read_loop(
-          streams,
-          [&] {
-            edge_->deliver(ring, false);
-            publish_edge_counters();
-          },
-          [&] {
-            c_.pressure_overruns.fetch_add(1, std::memory_order_relaxed);
-            edge_->deliver(ring, true);
-            const bool ok = rearm(0, edge_count_);
-            edge_->restart(acquisitions_[timestamp_acquisition_]->origin_utime());
-            if (ok) c_.pressure_restarts.fetch_add(1, std::memory_order_relaxed);
-            return ok;
-          },
-          stop_, loop_config());
-      edge_->deliver(ring, true);
-      publish_edge_counters();
-      c_.pressure_overruns.store(r.overruns, std::memory_order_relaxed);
-      finish(w, r);
+      r = read_edges(ring, stop);
     } catch (const std::exception& e) {
       std::string names;
       for (std::size_t i = 0; i < edge_count_; ++i) names += (i ? ", " : "") + acquisitions_[i]->where();
-      fail(w, "comedi " + names + ": " + e.what());
+      throw std::runtime_error("comedi " + names + ": " + e.what());
     }
+    finish(r, stop);
   }
 
-  void run_mics(BlockRing& ring) {
-    Worker& w = workers_[1];
+  void run_mics(BlockRing& ring, const std::atomic<bool>& stop) {
+    ReadLoopResult r;
     try {
-      const std::size_t m = acquisitions_.size() - 1;
-      std::vector<std::byte> buffer(kReadBufferBytes);
-      ReadStream stream{acquisitions_[m]->fd(), buffer,
-                        [this, m, &ring](const std::byte* b, std::size_t n) {
-                          decoders_[m].feed(b, n, [&](const double* v) { mic_->add_scan(v, ring); });
-                        },
-                        acquisitions_[m]->read_function(), acquisitions_[m]->where()};
-      const ReadLoopResult r = run_group_read_loop(
-          std::span<ReadStream>(&stream, 1),
-          [&] {
-            mic_->deliver(ring, false);
-            w.blocks.store(mic_->blocks_written(), std::memory_order_relaxed);
-          },
-          [&] {
-            c_.mic_overruns.fetch_add(1, std::memory_order_relaxed);
-            mic_->deliver(ring, true);
-            const bool ok = rearm(m, 1);
-            mic_->restart(acquisitions_[m]->origin_utime());
-            if (ok) c_.mic_restarts.fetch_add(1, std::memory_order_relaxed);
-            return ok;
-          },
-          stop_, loop_config());
-      mic_->deliver(ring, true);
-      w.blocks.store(mic_->blocks_written(), std::memory_order_relaxed);
-      c_.mic_overruns.store(r.overruns, std::memory_order_relaxed);
-      finish(w, r);
+      r = read_mics(ring, stop);
     } catch (const std::exception& e) {
-      fail(w, "comedi " + acquisitions_.back()->where() + ": " + e.what());
+      throw std::runtime_error("comedi " + acquisitions_.back()->where() + ": " + e.what());
     }
+    finish(r, stop);
+  }
+
+  ReadLoopResult read_edges(BlockRing& ring, const std::atomic<bool>& stop) {
+    std::vector<std::vector<std::byte>> buffers(edge_count_, std::vector<std::byte>(kReadBufferBytes));
+    std::vector<ReadStream> streams(edge_count_);
+    for (std::size_t i = 0; i < edge_count_; ++i) {
+      const auto stream = static_cast<std::uint32_t>(i);
+      streams[i] = {acquisitions_[i]->fd(), buffers[i],
+                    [this, i, stream, &ring](const std::byte* b, std::size_t n) {
+                      decoders_[i].feed(b, n, [&](const double* v) { edge_->add_scan(stream, v, ring); });
+                    },
+                    acquisitions_[i]->read_function(), acquisitions_[i]->where()};
+    }
+    const ReadLoopResult r = run_group_read_loop(
+        streams,
+        [&] {
+          edge_->deliver(ring, false);
+          publish_edge_counters();
+        },
+        [&] {
+          c_.pressure_overruns.fetch_add(1, std::memory_order_relaxed);
+          edge_->deliver(ring, true);
+          const bool ok = rearm(0, edge_count_);
+          edge_->restart(acquisitions_[timestamp_acquisition_]->origin_utime());
+          if (ok) c_.pressure_restarts.fetch_add(1, std::memory_order_relaxed);
+          return ok;
+        },
+        stop, loop_config());
+    edge_->deliver(ring, true);
+    publish_edge_counters();
+    c_.pressure_overruns.store(r.overruns, std::memory_order_relaxed);
+    return r;
+  }
+
+  ReadLoopResult read_mics(BlockRing& ring, const std::atomic<bool>& stop) {
+    const std::size_t m = acquisitions_.size() - 1;
+    std::vector<std::byte> buffer(kReadBufferBytes);
+    ReadStream stream{acquisitions_[m]->fd(), buffer,
+                      [this, m, &ring](const std::byte* b, std::size_t n) {
+                        decoders_[m].feed(b, n, [&](const double* v) { mic_->add_scan(v, ring); });
+                      },
+                      acquisitions_[m]->read_function(), acquisitions_[m]->where()};
+    const ReadLoopResult r = run_group_read_loop(
+        std::span<ReadStream>(&stream, 1),
+        [&] {
+          mic_->deliver(ring, false);
+          mic_worker_.set_blocks_written(mic_->blocks_written());
+        },
+        [&] {
+          c_.mic_overruns.fetch_add(1, std::memory_order_relaxed);
+          mic_->deliver(ring, true);
+          const bool ok = rearm(m, 1);
+          mic_->restart(acquisitions_[m]->origin_utime());
+          if (ok) c_.mic_restarts.fetch_add(1, std::memory_order_relaxed);
+          return ok;
+        },
+        stop, loop_config());
+    mic_->deliver(ring, true);
+    mic_worker_.set_blocks_written(mic_->blocks_written());
+    c_.mic_overruns.store(r.overruns, std::memory_order_relaxed);
+    return r;
   }
 
   ComediSourceConfig config_;
@@ -314,11 +296,11 @@ class ComediSource final : public Source {
   std::vector<ScanDecoder> decoders_;
   std::unique_ptr<EdgeStreamAssembler> edge_;
   std::unique_ptr<TimedStreamAssembler> mic_;
-  std::array<Worker, 2> workers_;
   Counters c_;
-  std::atomic<bool> stop_{false};
   bool started_ = false;
-  mutable std::mutex error_mutex_;
+  // Last: destroyed (stopped) first, before anything their bodies use.
+  WorkerThread edge_worker_{"comedi.encoder_pressure"};
+  WorkerThread mic_worker_{"comedi.microphones"};
 };
 
 }  // namespace

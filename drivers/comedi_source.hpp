@@ -30,6 +30,7 @@
 #include "drivers/comedi_device.hpp"
 #include "drivers/comedi_streams.hpp"
 #include "drivers/source.hpp"
+#include "drivers/worker_thread.hpp"
 
 namespace noisemon::drivers {
 
@@ -87,6 +88,11 @@ struct ComediSourceConfig {
   std::chrono::microseconds initial_backoff{10000};
   std::chrono::microseconds max_backoff{1000000};
   unsigned max_consecutive_overruns = 16;
+
+  // Scheduling of the driver threads nm-pressure (encoder and pressure) and nm-mics (the daemon's [threads]).
+  struct Threads {
+    ThreadPolicy pressure, mics;
+  } threads;
 };
 
 // One streaming subdevice as the driver threads use it.

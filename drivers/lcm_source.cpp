@@ -3,8 +3,6 @@
 #include <atomic>
 #include <chrono>
 #include <lcm/lcm-cpp.hpp>
-#include <mutex>
-#include <thread>
 
 #include "drivers/stream_messages.hpp"
 
@@ -32,38 +30,18 @@ class LcmSource final : public Source {
 
   void start(const Streams& streams) override {
     streams_ = streams;
-    stop_ = false;
-    state_ = ThreadState::kRunning;
-    thread_ = std::thread([this] {
-      try {
-        while (!stop_.load(std::memory_order_relaxed)) lcm_.handleTimeout(50);
-        state_ = ThreadState::kStopped;
-      } catch (const std::exception& e) {
-        std::lock_guard lock(error_mutex_);
-        error_ = e.what();
-        state_ = ThreadState::kFailed;
-      }
+    worker_.start("nm-lcm-in", config_.thread, [this](const std::atomic<bool>& stop) {
+      while (!stop.load(std::memory_order_relaxed)) lcm_.handleTimeout(50);
     });
   }
-  void stop() override {
-    stop_ = true;
-    if (thread_.joinable()) thread_.join();
-  }
-  bool running() const override { return blocks_.load() > 0; }
+  void stop() override { worker_.stop(); }
+  bool running() const override { return worker_.blocks_written() > 0; }
   std::vector<DriverCounter> counters() const override {
-    return {{"lcm.blocks", static_cast<std::int64_t>(blocks_.load())},
+    return {{"lcm.blocks", static_cast<std::int64_t>(worker_.blocks_written())},
             {"lcm.damaged_blocks", static_cast<std::int64_t>(damaged_.load())},
             {"lcm.other_session_blocks", static_cast<std::int64_t>(other_session_.load())}};
   }
-  std::vector<DriverThreadStatus> thread_status() const override {
-    DriverThreadStatus s;
-    s.name = "lcm.receive";
-    s.state = state_.load();
-    s.blocks_written = blocks_.load();
-    std::lock_guard lock(error_mutex_);
-    s.error = error_;
-    return {s};
-  }
+  std::vector<DriverThreadStatus> thread_status() const override { return {worker_.status()}; }
 
  private:
   void on_session(const lcm::ReceiveBuffer*, const std::string&, const noisemon::session_t* m) {
@@ -94,7 +72,7 @@ class LcmSource final : public Source {
       return;
     }
     ring->write(&b, 1);  // a full ring counts the overrun itself
-    ++blocks_;
+    worker_.add_blocks_written();
   }
   void on_operating_point(const lcm::ReceiveBuffer*, const std::string&, const noisemon::operating_point_t* m) {
     if (streams_.operating_point) streams_.operating_point->push(from_message(*m));
@@ -106,12 +84,9 @@ class LcmSource final : public Source {
   bool have_session_ = false;
   Streams streams_;
   SampleBlock block_;
-  std::thread thread_;
-  std::atomic<bool> stop_{false};
-  std::atomic<ThreadState> state_{ThreadState::kIdle};
-  std::atomic<std::uint64_t> blocks_{0}, damaged_{0}, other_session_{0};
-  mutable std::mutex error_mutex_;
-  std::string error_;
+  std::atomic<std::uint64_t> damaged_{0}, other_session_{0};
+  // Last: destroyed (stopped) first, before anything its body uses.
+  WorkerThread worker_{"lcm.receive"};
 };
 
 }  // namespace

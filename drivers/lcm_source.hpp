@@ -7,6 +7,7 @@
 #include <string>
 
 #include "drivers/source.hpp"
+#include "drivers/worker_thread.hpp"
 
 namespace noisemon::drivers {
 
@@ -16,6 +17,7 @@ struct LcmSourceConfig {
   std::string operating_point_channel = "NOISEMON_OP";
   std::string session_channel = "NOISEMON_SESSION";
   double session_timeout_s = 30.0;  // how long construction waits for the session message
+  ThreadPolicy thread;              // scheduling of the receiving thread nm-lcm-in (the daemon's [threads.lcm_receive])
 };
 
 // Waits for a noisemon.session_t (time base, microphones) on the session channel; throws std::runtime_error

@@ -8,7 +8,7 @@
 #include <chrono>
 #include <cmath>
 #include <limits>
-#include <mutex>
+#include <memory>
 #include <stdexcept>
 #include <thread>
 
@@ -74,7 +74,6 @@ class SimSource final : public Source {
     }
     info_.radius_m = config_.radius_m;
     info_.acoustic_delay_s = config_.radius_m / config_.speed_of_sound_m_s;
-    for (std::size_t i = 0; i < kThreads; ++i) threads_[i].name = kNames[i];
   }
   ~SimSource() override { stop(); }
 
@@ -89,68 +88,47 @@ class SimSource final : public Source {
     const double now_s = 1e-6 * static_cast<double>(wall_utime() - epoch_utime_);
     const double t_first = std::ceil(std::max(now_s, 0.0) / sim::kGridAlignS) * sim::kGridAlignS;
     // Generators are built here (allocation happens now, not in the threads).
-    auto pressure = std::make_unique<sim::PressureGenerator>(config_, t_first);
-    auto mics = std::make_unique<sim::MicGenerator>(config_, t_first);
-    stop_.store(false);
-    for (auto& t : threads_) {
-      t.state.store(ThreadState::kRunning);
-      t.blocks.store(0);
-      std::lock_guard lock(error_mutex_);
-      t.error.clear();
-    }
+    auto pressure = std::make_shared<sim::PressureGenerator>(config_, t_first);
+    auto mics = std::make_shared<sim::MicGenerator>(config_, t_first);
+    const SimConfig::Threads& policy = config_.threads;
     started_ = true;
-    threads_[0].thread = std::thread([this, g = std::move(pressure), ring = streams.pressure, t_first]() mutable {
-      run_stream(threads_[0], *g, *ring, t_first);
+    workers_[0].start("nm-pressure", policy.pressure,
+                      [this, pressure, ring = streams.pressure, t_first](const std::atomic<bool>& stop) {
+                        run_stream(workers_[0], clipped_[0], *pressure, *ring, t_first, stop);
+                      });
+    workers_[1].start("nm-mics", policy.mics, [this, mics, ring = streams.mics, t_first](const std::atomic<bool>& stop) {
+      run_stream(workers_[1], clipped_[1], *mics, *ring, t_first, stop);
     });
-    threads_[1].thread = std::thread([this, g = std::move(mics), ring = streams.mics, t_first]() mutable {
-      run_stream(threads_[1], *g, *ring, t_first);
-    });
-    threads_[2].thread = std::thread([this, ring = streams.operating_point, t_first] {
-      run_operating_point(threads_[2], *ring, t_first);
-    });
+    workers_[2].start("nm-op", policy.operating_point,
+                      [this, ring = streams.operating_point, t_first](const std::atomic<bool>& stop) {
+                        run_operating_point(workers_[2], *ring, t_first, stop);
+                      });
   }
 
   void stop() override {
-    stop_.store(true);
-    for (auto& t : threads_) {
-      if (t.thread.joinable()) t.thread.join();
-      ThreadState running = ThreadState::kRunning;
-      t.state.compare_exchange_strong(running, ThreadState::kStopped);
-    }
+    for (WorkerThread& w : workers_) w.request_stop();
+    for (WorkerThread& w : workers_) w.join();
     started_ = false;
   }
 
   bool running() const override {
-    for (const auto& t : threads_)
-      if (t.state.load() != ThreadState::kRunning || t.blocks.load() == 0) return false;
+    for (const WorkerThread& w : workers_)
+      if (w.state() != ThreadState::kRunning || w.blocks_written() == 0) return false;
     return true;
   }
 
   std::vector<DriverCounter> counters() const override {
-    return {{"sim.pressure.adc_clipped", static_cast<std::int64_t>(threads_[0].clipped.load())},
-            {"sim.mics.adc_clipped", static_cast<std::int64_t>(threads_[1].clipped.load())}};
+    return {{"sim.pressure.adc_clipped", static_cast<std::int64_t>(clipped_[0].load())},
+            {"sim.mics.adc_clipped", static_cast<std::int64_t>(clipped_[1].load())}};
   }
 
   std::vector<DriverThreadStatus> thread_status() const override {
     std::vector<DriverThreadStatus> out;
-    std::lock_guard lock(error_mutex_);
-    for (const auto& t : threads_) out.push_back({t.name, t.state.load(), t.blocks.load(), t.error});
+    for (const WorkerThread& w : workers_) out.push_back(w.status());
     return out;
   }
 
  private:
-  static constexpr std::size_t kThreads = 3;
-  static constexpr const char* kNames[kThreads] = {"sim.encoder_pressure", "sim.microphones", "sim.operating_point"};
-
-  struct Worker {
-    std::string name;
-    std::thread thread;
-    std::atomic<ThreadState> state{ThreadState::kIdle};
-    std::atomic<std::uint64_t> blocks{0};
-    std::atomic<std::uint64_t> clipped{0};  // ADC clipping of the stream's samples, over every session
-    std::string error;  // guarded by error_mutex_
-  };
-
   // Sleeps until simulated time t_s arrives on the wall clock.
   void sleep_until_sim(double t_s) const {
     const auto target = std::chrono::system_clock::time_point(
@@ -159,64 +137,50 @@ class SimSource final : public Source {
   }
   double sim_now_s() const { return 1e-6 * static_cast<double>(wall_utime() - epoch_utime_); }
 
-  void fail(Worker& w, const std::exception& e) {
-    {
-      std::lock_guard lock(error_mutex_);
-      w.error = e.what();
-    }
-    w.state.store(ThreadState::kFailed);
-  }
-
   template <class Generator>
-  void run_stream(Worker& w, Generator& gen, BlockRing& ring, double t_first) {
-    try {
-      double t = t_first;
-      std::uint64_t clipped_seen = 0;
-      while (!stop_.load(std::memory_order_relaxed)) {
-        // Next chunk end; when behind the wall clock, catch up in bounded passes.
-        // Like a real device, a chunk is delivered only once its last instant has passed on the wall clock.
-        t = std::max(t + kChunkS, std::min(sim_now_s(), t + kMaxCatchUpS));
-        sleep_until_sim(t);
-        if (stop_.load(std::memory_order_relaxed)) break;
-        gen.advance(t, ring);
-        w.blocks.store(gen.blocks_written(), std::memory_order_relaxed);
-        const std::uint64_t clipped = gen.clipped_samples();
-        w.clipped.fetch_add(clipped - clipped_seen, std::memory_order_relaxed);
-        clipped_seen = clipped;
-      }
-    } catch (const std::exception& e) {
-      fail(w, e);
+  void run_stream(WorkerThread& w, std::atomic<std::uint64_t>& clipped_total, Generator& gen, BlockRing& ring, double t_first,
+                  const std::atomic<bool>& stop) {
+    double t = t_first;
+    std::uint64_t clipped_seen = 0;
+    while (!stop.load(std::memory_order_relaxed)) {
+      // Next chunk end; when behind the wall clock, catch up in bounded passes.
+      // Like a real device, a chunk is delivered only once its last instant has passed on the wall clock.
+      t = std::max(t + kChunkS, std::min(sim_now_s(), t + kMaxCatchUpS));
+      sleep_until_sim(t);
+      if (stop.load(std::memory_order_relaxed)) break;
+      gen.advance(t, ring);
+      w.set_blocks_written(gen.blocks_written());
+      const std::uint64_t clipped = gen.clipped_samples();
+      clipped_total.fetch_add(clipped - clipped_seen, std::memory_order_relaxed);
+      clipped_seen = clipped;
     }
   }
 
-  void run_operating_point(Worker& w, OperatingPointRing& ring, double t_first) {
-    try {
-      const model::CrankKinematics kin = sim::crank_kinematics(config_);
-      const double window = kOperatingPointPeriodS;
-      for (double t = t_first; !stop_.load(std::memory_order_relaxed); t += kOperatingPointPeriodS) {
-        sleep_until_sim(t);
-        OperatingPoint op;
-        op.utime = epoch_utime_ + std::llround(t * 1e6);
-        // Speed as a tachometer measures it: mean over the last window from the crank angle.
-        op.speed_rpm = (kin.theta_deg(t) - kin.theta_deg(t - window)) / (6.0 * window);
-        op.load_nm = config_.load_nm;
-        op.soi_deg_btdc = config_.soi_deg_btdc;
-        op.rail_pressure_bar = std::numeric_limits<double>::quiet_NaN();
-        op.motored = config_.motored;
-        if (ring.push(op)) w.blocks.fetch_add(1, std::memory_order_relaxed);
-      }
-    } catch (const std::exception& e) {
-      fail(w, e);
+  void run_operating_point(WorkerThread& w, OperatingPointRing& ring, double t_first, const std::atomic<bool>& stop) {
+    const model::CrankKinematics kin = sim::crank_kinematics(config_);
+    const double window = kOperatingPointPeriodS;
+    for (double t = t_first; !stop.load(std::memory_order_relaxed); t += kOperatingPointPeriodS) {
+      sleep_until_sim(t);
+      OperatingPoint op;
+      op.utime = epoch_utime_ + std::llround(t * 1e6);
+      // Speed as a tachometer measures it: mean over the last window from the crank angle.
+      op.speed_rpm = (kin.theta_deg(t) - kin.theta_deg(t - window)) / (6.0 * window);
+      op.load_nm = config_.load_nm;
+      op.soi_deg_btdc = config_.soi_deg_btdc;
+      op.rail_pressure_bar = std::numeric_limits<double>::quiet_NaN();
+      op.motored = config_.motored;
+      if (ring.push(op)) w.add_blocks_written();
     }
   }
 
   SimConfig config_;
   std::int64_t epoch_utime_;
   StreamInfo info_;
-  std::array<Worker, kThreads> threads_;
-  std::atomic<bool> stop_{false};
+  std::array<std::atomic<std::uint64_t>, 2> clipped_{};  // ADC clipping of the pressure and mic samples, every session
   bool started_ = false;
-  mutable std::mutex error_mutex_;
+  // Last: destroyed (stopped) first, before anything their bodies use.
+  std::array<WorkerThread, 3> workers_{WorkerThread("sim.encoder_pressure"), WorkerThread("sim.microphones"),
+                                       WorkerThread("sim.operating_point")};
 };
 
 }  // namespace

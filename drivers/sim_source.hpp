@@ -21,6 +21,7 @@
 #include <vector>
 
 #include "drivers/source.hpp"
+#include "drivers/worker_thread.hpp"
 #include "model/block_params.hpp"
 #include "model/effects.hpp"
 #include "model/gas_ringing.hpp"
@@ -55,6 +56,10 @@ struct SimConfig {
   model::MicChainConfig mic_chain;            // self-noise 20 dB(A), directivity +-1 dB, 24-bit ADC +-800 Pa
   model::GasRingingParams gas_ringing;        // combustion-excited gas ringing in the true pressure
   std::uint64_t seed = 1;
+  // Scheduling of the driver threads nm-pressure, nm-mics and nm-op (the daemon's [threads]).
+  struct Threads {
+    ThreadPolicy pressure, mics, operating_point;
+  } threads;
 };
 
 // The configuration with an ideal test cell: no pressure-chain floor or ADC, no microphone self-noise, directivity

@@ -77,6 +77,14 @@ TEST(Config, DocumentedDefaultFileEqualsBuiltInDefaults) {
   EXPECT_EQ(file.comedi.phase, def.comedi.phase);
   EXPECT_FALSE(file.can.configured());
   EXPECT_TRUE(file.can.map.signals().empty());
+  EXPECT_EQ(file.threads.lock_memory, def.threads.lock_memory);
+  for (const auto member : {&noisemon::daemon::ThreadsConfig::pressure, &noisemon::daemon::ThreadsConfig::mics,
+                            &noisemon::daemon::ThreadsConfig::operating_point, &noisemon::daemon::ThreadsConfig::can,
+                            &noisemon::daemon::ThreadsConfig::lcm_receive, &noisemon::daemon::ThreadsConfig::processing,
+                            &noisemon::daemon::ThreadsConfig::publishing}) {
+    EXPECT_EQ((file.threads.*member).fifo_priority, (def.threads.*member).fifo_priority);
+    EXPECT_EQ((file.threads.*member).cpu, (def.threads.*member).cpu);
+  }
 }
 
 TEST(Config, HardwareExampleFileIsAValidComediAndCanConfiguration) {
@@ -100,6 +108,12 @@ TEST(Config, HardwareExampleFileIsAValidComediAndCanConfiguration) {
   ASSERT_EQ(a.size(), 3u);
   EXPECT_NEAR(a[0].channels[0].si_per_volt, 1e5 / (16.2 * 5.0 * 1e-3), 1e-6);
   EXPECT_NEAR(a[2].channels[3].si_per_volt, 1.0 / 48.8e-3, 1e-9);
+  // The DAQ threads first, then the processing; memory locked.
+  EXPECT_TRUE(c.threads.lock_memory);
+  EXPECT_EQ(c.threads.pressure.fifo_priority, 80);
+  EXPECT_EQ(c.threads.mics.fifo_priority, 80);
+  EXPECT_EQ(c.threads.processing.fifo_priority, 60);
+  EXPECT_EQ(c.threads.publishing.fifo_priority, 0);
 }
 
 TEST(Config, ComediAndCanErrorsNameFileAndKey) {
@@ -202,4 +216,42 @@ TEST(Config, MissingFileIsAnErrorNamingIt) {
   } catch (const ConfigError& e) {
     EXPECT_NE(std::string(e.what()).find("/nonexistent/noisemond.toml"), std::string::npos);
   }
+}
+
+TEST(Config, ThreadsSetPoliciesAndMemoryLock) {
+  const Config def;
+  EXPECT_FALSE(def.threads.lock_memory);
+  EXPECT_EQ(def.threads.processing.fifo_priority, 0);  // normal scheduling, any CPU
+  EXPECT_FALSE(def.threads.processing.cpu.has_value());
+  const Config c = parse_config(R"(
+[threads]
+lock_memory = true
+[threads.processing]
+priority = 80
+cpu = 1
+[threads.pressure]
+priority = 90
+[threads.lcm_receive]
+cpu = 0
+[threads.publishing]
+priority = 0
+cpu = -1
+)", "t");
+  EXPECT_TRUE(c.threads.lock_memory);
+  EXPECT_EQ(c.threads.processing.fifo_priority, 80);
+  EXPECT_EQ(c.threads.processing.cpu, 1);
+  EXPECT_EQ(c.threads.pressure.fifo_priority, 90);
+  EXPECT_FALSE(c.threads.pressure.cpu.has_value());
+  EXPECT_EQ(c.threads.lcm_receive.cpu, 0);
+  EXPECT_EQ(c.threads.publishing.fifo_priority, 0);
+  EXPECT_FALSE(c.threads.publishing.cpu.has_value());
+  EXPECT_EQ(c.threads.mics.fifo_priority, 0);  // not given: the default
+  EXPECT_NE(error_of("[threads.procesing]\npriority = 10\n").find("test.toml:1: unknown key 'threads.procesing'"), std::string::npos);
+  EXPECT_NE(error_of("[threads.mics]\nprio = 10\n").find("test.toml:2: unknown key 'threads.mics.prio'"), std::string::npos);
+  EXPECT_NE(error_of("[threads.mics]\npriority = \"high\"\n").find("test.toml: threads.mics.priority: expected an integer"),
+            std::string::npos);
+  EXPECT_NE(error_of("[threads.can]\npriority = 100\n").find("threads.can.priority: value 100 out of range [0, 99]"), std::string::npos);
+  EXPECT_NE(error_of("[threads.can]\ncpu = -2\n").find("threads.can.cpu: value -2 out of range [-1, 1023]"), std::string::npos);
+  EXPECT_NE(error_of("[threads]\nlock_memory = 1\n").find("threads.lock_memory: expected true or false"), std::string::npos);
+  EXPECT_NE(error_of("[threads]\nprocessing = 80\n").find("threads.processing: expected a table"), std::string::npos);
 }
