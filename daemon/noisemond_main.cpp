@@ -1,14 +1,20 @@
 // noisemond: the engine-noise monitor service. Runs a source (the simulated engine by default), predicts and
-// measures dB(A) every engine cycle, and publishes over LCM until SIGINT/SIGTERM (or --cycles N).
+// measures dB(A) every engine cycle, and publishes over LCM until SIGINT/SIGTERM (or --cycles N). Under systemd
+// (Type=notify): READY=1 once the drivers deliver data, STATUS= once a second, WATCHDOG=1 only while every thread
+// runs and the processing and publishing loops go round; SIGHUP reloads the configuration file (a broken one is
+// logged and the running configuration stays).
 #include <CLI/CLI.hpp>
 #include <spdlog/sinks/stdout_color_sinks.h>
 #include <spdlog/spdlog.h>
 #include <systemd/sd-daemon.h>
 
+#include <algorithm>
+#include <chrono>
 #include <csignal>
 #include <cstdio>
 #include <ctime>
 #include <iostream>
+#include <memory>
 
 #include "daemon/config.hpp"
 #include "daemon/pipeline.hpp"
@@ -19,50 +25,45 @@
 namespace {
 
 using namespace noisemon;
+using Clock = std::chrono::steady_clock;
 
-int run(int argc, char** argv) {
-  CLI::App app{"noisemond - engine-noise monitor: predicted and measured dB(A) per engine cycle over LCM"};
+struct Options {
   std::string config_path, source, lcm_url, log_level;
   std::int64_t cycles = -1;
   bool live = false;
-  app.add_option("--config", config_path, "TOML configuration file (default: built-in defaults, simulated engine)")
+};
+
+void add_options(CLI::App& app, Options& o) {
+  app.add_option("--config", o.config_path, "TOML configuration file (default: built-in defaults, simulated engine); "
+                                             "SIGHUP reads it again")
       ->check(CLI::ExistingFile);
-  app.add_option("--source", source, "acquisition source, overrides [daemon] source: sim (virtual engine), lcm (raw blocks on the bus), comedi (DAQ card, see [comedi])")
+  app.add_option("--source", o.source, "acquisition source, overrides [daemon] source: sim (virtual engine), lcm (raw blocks on the bus), comedi (DAQ card, see [comedi])")
       ->check(CLI::IsMember({"sim", "lcm", "comedi"}));
-  app.add_option("--lcm", lcm_url, "LCM URL, overrides [lcm] url (e.g. udpm://239.255.76.67:7667?ttl=0)");
-  app.add_option("--cycles", cycles, "stop after publishing N cycles (0 = run until SIGINT/SIGTERM)")->check(CLI::NonNegativeNumber);
-  app.add_flag("--live", live, "print one line per cycle on stdout (predicted and measured Lp(A), LW(A))");
-  app.add_option("--log-level", log_level, "trace, debug, info, warn, error, critical or off")
+  app.add_option("--lcm", o.lcm_url, "LCM URL, overrides [lcm] url (e.g. udpm://239.255.76.67:7667?ttl=0)");
+  app.add_option("--cycles", o.cycles, "stop after publishing N cycles (0 = run until SIGINT/SIGTERM)")->check(CLI::NonNegativeNumber);
+  app.add_flag("--live", o.live, "print one line per cycle on stdout (predicted and measured Lp(A), LW(A))");
+  app.add_option("--log-level", o.log_level, "trace, debug, info, warn, error, critical or off")
       ->check(CLI::IsMember({"trace", "debug", "info", "warn", "error", "critical", "off"}));
-  try {
-    app.parse(argc, argv);
-  } catch (const CLI::ParseError& e) {
-    return app.exit(e);
-  }
+}
 
-  auto logger = spdlog::stderr_color_mt("noisemond");
-  spdlog::set_default_logger(logger);
-
-  daemon::Config config = config_path.empty() ? daemon::Config{} : daemon::load_config(config_path);
-  if (!source.empty()) config.source = source;
-  if (!lcm_url.empty()) config.lcm.url = lcm_url;
-  if (cycles >= 0) config.cycles = cycles;
-  if (live) config.live = true;
-  if (!log_level.empty()) config.log_level = log_level;
+// The configuration file with the command line's overrides. Throws naming the file, line and key.
+daemon::Config effective_config(const Options& o) {
+  daemon::Config config = o.config_path.empty() ? daemon::Config{} : daemon::load_config(o.config_path);
+  if (!o.source.empty()) config.source = o.source;
+  if (!o.lcm_url.empty()) config.lcm.url = o.lcm_url;
+  if (o.cycles >= 0) config.cycles = o.cycles;
+  if (o.live) config.live = true;
+  if (!o.log_level.empty()) config.log_level = o.log_level;
   if (config.source == "lcm") {
     // The streams come from the bus: publishing them again would feed them back to ourselves.
     config.lcm.publish_raw = false;
     config.lcm.publish_operating_point = false;
   }
+  return config;
+}
+
+std::unique_ptr<daemon::Pipeline> start_pipeline(const daemon::Config& config) {
   spdlog::set_level(spdlog::level::from_str(config.log_level));
-
-  // Signals are taken synchronously by this thread; every thread started below inherits the mask.
-  sigset_t stop_signals;
-  sigemptyset(&stop_signals);
-  sigaddset(&stop_signals, SIGINT);
-  sigaddset(&stop_signals, SIGTERM);
-  pthread_sigmask(SIG_BLOCK, &stop_signals, nullptr);
-
   daemon::Pipeline::ReportHook hook;
   if (config.live) {
     std::cout << daemon::cycle_line_header() << std::endl;
@@ -75,26 +76,98 @@ int run(int argc, char** argv) {
     drivers::lock_memory();
     spdlog::info("memory locked (mlockall MCL_CURRENT | MCL_FUTURE)");
   }
-  daemon::Pipeline pipeline(config, std::move(acquisition), hook);
-  pipeline.start();
+  auto pipeline = std::make_unique<daemon::Pipeline>(config, std::move(acquisition), hook);
+  pipeline->start();
+  return pipeline;
+}
 
-  bool notified = false;
-  while (!pipeline.finished()) {
-    if (!notified && pipeline.ready()) {
+// SIGHUP: the configuration file again. A broken one changes nothing; a good one restarts the pipeline with it.
+void reload(const Options& o, std::unique_ptr<daemon::Pipeline>& pipeline) {
+  daemon::Config fresh;
+  try {
+    fresh = effective_config(o);
+  } catch (const std::exception& e) {
+    spdlog::error("SIGHUP: {}: keeping the running configuration", e.what());
+    return;
+  }
+  spdlog::info("SIGHUP: {} read: restarting the pipeline with it", o.config_path.empty() ? "(built-in defaults)" : o.config_path);
+  sd_notify(0, "RELOADING=1");
+  pipeline->stop();
+  pipeline.reset();
+  pipeline = start_pipeline(fresh);
+}
+
+// The systemd side while the pipeline runs: READY=1, STATUS= each second, WATCHDOG=1 while healthy.
+class Supervisor {
+ public:
+  Supervisor() {
+    std::uint64_t usec = 0;
+    if (sd_watchdog_enabled(0, &usec) > 0 && usec > 0) watchdog_ = std::chrono::microseconds(usec);
+  }
+  void restarted() { ready_ = false; }
+  void tick(const daemon::Pipeline& pipeline) {
+    const auto now = Clock::now();
+    if (!ready_ && pipeline.ready()) {
       sd_notify(0, "READY=1\nSTATUS=acquiring");
       spdlog::info("ready: all driver threads deliver data");
-      notified = true;
+      ready_ = true;
     }
-    const timespec timeout{0, 100'000'000};
-    const int sig = sigtimedwait(&stop_signals, nullptr, &timeout);
-    if (sig > 0) {
+    if (now >= next_status_) {
+      const std::string status = "STATUS=" + std::string(ready_ ? "acquiring" : "starting") + ": " +
+                                 std::to_string(pipeline.cycles_published()) + " cycles published, " +
+                                 std::to_string(pipeline.cycles_dropped()) + " dropped";
+      sd_notify(0, status.c_str());
+      next_status_ = now + std::chrono::seconds(1);
+    }
+    // Fed at a quarter of the period, and only while every thread's loop went round within half of it.
+    const double fresh_s = std::chrono::duration<double>(watchdog_).count() / 2;
+    if (watchdog_.count() > 0 && ready_ && now >= next_ping_ && pipeline.healthy(fresh_s)) {
+      sd_notify(0, "WATCHDOG=1");
+      next_ping_ = now + watchdog_ / 4;
+    }
+  }
+
+ private:
+  std::chrono::microseconds watchdog_{0};
+  bool ready_ = false;
+  Clock::time_point next_status_ = Clock::now(), next_ping_ = Clock::now();
+};
+
+int run(int argc, char** argv) {
+  CLI::App app{"noisemond - engine-noise monitor: predicted and measured dB(A) per engine cycle over LCM"};
+  Options options;
+  add_options(app, options);
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    return app.exit(e);
+  }
+  spdlog::set_default_logger(spdlog::stderr_color_mt("noisemond"));
+  const daemon::Config config = effective_config(options);
+
+  // Signals are taken synchronously by this thread; every thread started below inherits the mask.
+  sigset_t signals;
+  sigemptyset(&signals);
+  for (int s : {SIGINT, SIGTERM, SIGHUP}) sigaddset(&signals, s);
+  pthread_sigmask(SIG_BLOCK, &signals, nullptr);
+
+  std::unique_ptr<daemon::Pipeline> pipeline = start_pipeline(config);
+  Supervisor supervisor;
+  while (!pipeline->finished()) {
+    supervisor.tick(*pipeline);
+    const timespec timeout{0, 50'000'000};
+    const int sig = sigtimedwait(&signals, nullptr, &timeout);
+    if (sig == SIGHUP) {
+      reload(options, pipeline);
+      supervisor.restarted();
+    } else if (sig > 0) {
       spdlog::info("{} received: finishing the last complete cycle", sig == SIGINT ? "SIGINT" : "SIGTERM");
       break;
     }
   }
   sd_notify(0, "STOPPING=1");
-  pipeline.stop();
-  if (const std::string why = pipeline.failure(); !why.empty()) {
+  pipeline->stop();
+  if (const std::string why = pipeline->failure(); !why.empty()) {
     spdlog::error("{}", why);
     return 1;
   }

@@ -49,6 +49,11 @@ struct Pipeline::Impl {
 
   std::unique_ptr<lcm::LCM> lcm;
   std::atomic<std::int64_t> cycles_dropped{0};
+  // Heartbeats: the steady clock (ns) at the top of the processing and publishing loops' latest iteration.
+  std::atomic<std::int64_t> processing_beat_ns{0}, publishing_beat_ns{0};
+  static std::int64_t now_ns() {
+    return std::chrono::duration_cast<std::chrono::nanoseconds>(Clock::now().time_since_epoch()).count();
+  }
   std::atomic<std::int64_t> frames_discarded{0};  // the processor's FIFOs: one stream ran ahead of a stalled one
   std::atomic<std::int64_t> gap_frames{0};        // frames lost in the streams, held or skipped
   std::atomic<std::int64_t> reports_queued{0};
@@ -97,6 +102,7 @@ void Pipeline::Impl::run_processing(const std::atomic<bool>& drain) {
                processor.delay_frames(), info.mic_count, config.model.k1, config.model.k3, config.model.b1, config.model.b3);
   std::int64_t dropped_seen = 0;
   while (true) {
+    processing_beat_ns.store(now_ns(), std::memory_order_relaxed);
     const bool draining = drain.load(std::memory_order_acquire);
     bool any = false;
     drivers::OperatingPoint op;
@@ -194,6 +200,7 @@ void Pipeline::Impl::run_publishing(std::atomic<std::int64_t>& published) {
   };
   publish_session();
   while (true) {
+    publishing_beat_ns.store(now_ns(), std::memory_order_relaxed);
     bool any = false;
     CycleReport r;
     while (report_ring.read(&r, 1) == 1) {
@@ -271,6 +278,19 @@ void Pipeline::stop() {
 }
 
 bool Pipeline::ready() const { return impl_->source->running(); }
+
+bool Pipeline::healthy(double max_beat_age_s) const {
+  const Impl& d = *impl_;
+  for (const auto& t : d.source->thread_status())
+    if (t.state != drivers::ThreadState::kRunning) return false;
+  const std::int64_t now = Impl::now_ns(), max_age = static_cast<std::int64_t>(max_beat_age_s * 1e9);
+  for (const auto* beat : {&d.processing_beat_ns, &d.publishing_beat_ns})
+    if (now - beat->load(std::memory_order_relaxed) > max_age) return false;
+  return d.processing_thread.state() == drivers::ThreadState::kRunning &&
+         d.publishing_thread.state() == drivers::ThreadState::kRunning;
+}
+
+std::int64_t Pipeline::cycles_dropped() const { return impl_->cycles_dropped.load(); }
 
 bool Pipeline::finished() const {
   const Impl& d = *impl_;

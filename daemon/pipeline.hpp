@@ -31,6 +31,10 @@ class Pipeline {
   bool finished() const;  // the configured number of cycles is published, or a thread failed
   std::string failure() const;  // why a thread failed; empty otherwise
   std::int64_t cycles_published() const { return published_.load(); }
+  std::int64_t cycles_dropped() const;
+  // Every thread runs, and the processing and publishing loops went round within max_beat_age_s (the service
+  // watchdog is fed only while this holds).
+  bool healthy(double max_beat_age_s) const;
 
  private:
   struct Impl;
