@@ -345,6 +345,24 @@ void read_can(TableReader& top, const toml::table& root, const std::string& orig
     r.fail("signal", "[[can.signal]] given but neither can.interface nor can.candump to read them from");
 }
 
+// ---- [engine] -----------------------------------------------------------------------------------------------
+
+// The measured engine's geometry, for the combustion metrics (IMEP, heat release).
+void read_engine(TableReader& top, const std::string& origin, model::EngineGeometry& e) {
+  TableReader r(top.table("engine"), "engine", origin);
+  double bore_mm = e.bore_m * 1e3, stroke_mm = e.stroke_m * 1e3, rod_mm = e.conrod_m * 1e3;
+  r.number("bore_mm", bore_mm, 1, 2000);
+  r.number("stroke_mm", stroke_mm, 1, 5000);
+  r.number("rod_mm", rod_mm, 1, 20000);
+  r.number("compression_ratio", e.compression_ratio, 1.5, 100);
+  r.reject_unknown();
+  if (!(rod_mm > stroke_mm / 2)) r.fail("rod_mm", "the connecting rod must be longer than the crank throw (half the stroke)");
+  // Only what the file gives changes (mm to m by division: 86 mm is exactly the default 0.086 m).
+  if (r.node("bore_mm")) e.bore_m = bore_mm / 1000.0;
+  if (r.node("stroke_mm")) e.stroke_m = stroke_mm / 1000.0;
+  if (r.node("rod_mm")) e.conrod_m = rod_mm / 1000.0;
+}
+
 // ---- [threads] ----------------------------------------------------------------------------------------------
 
 // [threads.<name>]: priority = SCHED_FIFO priority (0: normal scheduling), cpu = CPU index (-1: any).
@@ -395,6 +413,8 @@ Config parse_table(const toml::table& root, const std::string& origin) {
   l.boolean("publish_operating_point", c.lcm.publish_operating_point);
   l.number("session_timeout_s", c.lcm.session_timeout_s, 0.01, 3600);
   l.reject_unknown();
+
+  read_engine(top, origin, c.engine);
 
   TableReader m(top.table("model"), "model", origin);
   read_block(m, c.model_name, c.model);

@@ -11,6 +11,7 @@
 #include "drivers/sim_source.hpp"
 #include "drivers/worker_thread.hpp"
 #include "model/block_params.hpp"
+#include "model/engine_cycle.hpp"
 
 namespace noisemon::daemon {
 
@@ -54,6 +55,7 @@ struct Config {
   drivers::CanSourceConfig can;        // [can]: operating points from CAN; when configured, they replace the
                                        // source's own (any source)
   ThreadsConfig threads;               // [threads]: handed to the sources and the pipeline
+  model::EngineGeometry engine;        // [engine]: for the combustion metrics (default: the Yanmar L100V)
 };
 
 // A configuration error; what() names the file and the field.

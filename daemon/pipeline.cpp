@@ -87,6 +87,7 @@ void Pipeline::Impl::run_processing(const std::atomic<bool>& drain) {
   ProcessorConfig pc;
   pc.model = config.model;
   pc.acoustic_delay_s = config.acoustic_delay_s;
+  pc.engine = config.engine;
   pc.fifo_seconds = std::max(4.0, 2 * config.ring_seconds);
   const std::int64_t limit = config.cycles;
   CycleProcessor processor(pc, info, [&](const CycleReport& r) {

@@ -132,6 +132,7 @@ ReplaySummary run_replay(const ReplayOptions& o) {
         ProcessorConfig pc;
         pc.model = o.config.model;
         pc.acoustic_delay_s = o.config.acoustic_delay_s;
+        pc.engine = o.config.engine;
         processor = std::make_unique<CycleProcessor>(pc, *info, sink);
       }
     } else if (e->channel == ch.raw_channel) {

@@ -38,6 +38,10 @@ TEST(Config, DocumentedDefaultFileEqualsBuiltInDefaults) {
   EXPECT_EQ(file.lcm.operating_point_channel, def.lcm.operating_point_channel);
   EXPECT_EQ(file.lcm.session_channel, def.lcm.session_channel);
   EXPECT_EQ(file.lcm.publish_raw, def.lcm.publish_raw);
+  EXPECT_EQ(file.engine.bore_m, def.engine.bore_m);
+  EXPECT_EQ(file.engine.stroke_m, def.engine.stroke_m);
+  EXPECT_EQ(file.engine.conrod_m, def.engine.conrod_m);
+  EXPECT_EQ(file.engine.compression_ratio, def.engine.compression_ratio);
   EXPECT_EQ(file.model.k1, def.model.k1);
   EXPECT_EQ(file.model.b1, def.model.b1);
   EXPECT_EQ(file.acoustic_delay_s, def.acoustic_delay_s);
@@ -254,4 +258,15 @@ cpu = -1
   EXPECT_NE(error_of("[threads.can]\ncpu = -2\n").find("threads.can.cpu: value -2 out of range [-1, 1023]"), std::string::npos);
   EXPECT_NE(error_of("[threads]\nlock_memory = 1\n").find("threads.lock_memory: expected true or false"), std::string::npos);
   EXPECT_NE(error_of("[threads]\nprocessing = 80\n").find("threads.processing: expected a table"), std::string::npos);
+}
+
+TEST(Config, EngineGeometryForTheCombustionMetrics) {
+  const Config c = parse_config("[engine]\nbore_mm = 92\nstroke_mm = 96\nrod_mm = 155\ncompression_ratio = 17.5\n", "e.toml");
+  EXPECT_DOUBLE_EQ(c.engine.bore_m, 0.092);
+  EXPECT_DOUBLE_EQ(c.engine.stroke_m, 0.096);
+  EXPECT_DOUBLE_EQ(c.engine.conrod_m, 0.155);
+  EXPECT_DOUBLE_EQ(c.engine.compression_ratio, 17.5);
+  EXPECT_NE(error_of("[engine]\nstroke_mm = 96\nrod_mm = 40\n").find("engine.rod_mm"), std::string::npos);
+  EXPECT_NE(error_of("[engine]\nbore = 92\n").find("engine.bore"), std::string::npos);
+  EXPECT_NE(error_of("[engine]\ncompression_ratio = 1.0\n").find("engine.compression_ratio"), std::string::npos);
 }
