@@ -118,25 +118,13 @@ std::vector<double> low_passed(const std::vector<double>& x, int cycles, double 
   return smooth;
 }
 
-// Zero-phase periodic low-pass with a narrow raised-cosine edge (0.9 ... 1.1 times the cutoff, cycles per sample).
-std::vector<double> sharp_lowpass(const std::vector<double>& x, double cutoff) {
-  std::vector<cd> X = fft_fwd(x);
-  const std::size_t n = X.size();
-  const double lo = 0.9 * cutoff, hi = 1.1 * cutoff;
-  for (std::size_t k = 1; k < n; ++k) {
-    const double f = static_cast<double>(std::min(k, n - k)) / static_cast<double>(n);
-    X[k] *= f <= lo ? 1.0 : f >= hi ? 0.0 : 0.5 * (1.0 + std::cos(kPi * (f - lo) / (hi - lo)));
-  }
-  return fft_inv_real(X);
-}
-
 // r split into the kFloorBands bands (see the header): the parts sum to r.
 std::vector<std::vector<double>> band_parts(const std::vector<double>& r, double speed_rpm) {
   std::vector<std::vector<double>> parts;
   std::vector<double> below(r.size(), 0.0);
   for (std::size_t e = 1; e <= kFloorBands; ++e) {
     const double edge_per_sample = 1000.0 * std::exp2(static_cast<double>(2 * e - 1) / 6.0) / (30.0 * speed_rpm);
-    std::vector<double> next = e < kFloorBands && edge_per_sample < 0.45 ? sharp_lowpass(r, edge_per_sample) : r;
+    std::vector<double> next = e < kFloorBands && edge_per_sample < 0.45 ? lowpass(r, edge_per_sample, 0.9, 1.1) : r;
     std::vector<double> part(r.size());
     for (std::size_t i = 0; i < r.size(); ++i) part[i] = next[i] - below[i];
     parts.push_back(std::move(part));
@@ -247,10 +235,10 @@ std::vector<double> radiate(const std::vector<double>& u, std::size_t n_out, dou
   return fft_inv_real(Y);
 }
 
-std::vector<double> lowpass(const std::vector<double>& x, double cutoff) {
+std::vector<double> lowpass(const std::vector<double>& x, double cutoff, double edge_lo, double edge_hi) {
   std::vector<cd> X = fft_fwd(x);
   const std::size_t n = X.size();
-  const double lo = 0.8 * cutoff, hi = 1.25 * cutoff;
+  const double lo = edge_lo * cutoff, hi = edge_hi * cutoff;
   for (std::size_t k = 1; k < n; ++k) {
     const double f = static_cast<double>(std::min(k, n - k)) / static_cast<double>(n);
     const double g = f <= lo ? 1.0 : f >= hi ? 0.0 : 0.5 * (1.0 + std::cos(kPi * (f - lo) / (hi - lo)));

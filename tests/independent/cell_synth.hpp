@@ -110,8 +110,8 @@ const std::array<double, kMics>& directivity_db();                       // fixe
 using Transfer = std::function<std::complex<double>(double)>;
 std::vector<double> radiate(const std::vector<double>& u, std::size_t n_out, double period_s, const Transfer& transfer);
 
-// Zero-phase periodic low-pass: cutoff in cycles per sample, raised-cosine edge from 0.8 to 1.25 times it.
-std::vector<double> lowpass(const std::vector<double>& x, double cutoff_per_sample);
+// Zero-phase periodic low-pass: cutoff in cycles per sample, raised-cosine edge from edge_lo to edge_hi times it.
+std::vector<double> lowpass(const std::vector<double>& x, double cutoff_per_sample, double edge_lo = 0.8, double edge_hi = 1.25);
 
 // Bands in which the record's content above its floor is judged: the base-2 third octaves of IEC 61260-1, edges
 // 1000 * 2^((2k - 1)/6) Hz for k = 1 ... 14 (1.12 ... 22.4 kHz; everything below the first edge in the first
