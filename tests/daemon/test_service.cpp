@@ -98,19 +98,19 @@ TEST(Service, ReadyStatusWatchdogAndAReloadThatKeepsTheRunningConfigurationWhenT
   EXPECT_EQ(count(first, "READY=1"), 1) << read_file(err);
   EXPECT_GE(count(first, "STATUS=acquiring: "), 1);
   EXPECT_GE(count(first, "cycles published"), 1);
-  // 1 s watchdog, fed every 0.25 s once ready: at least 8 pings in the 3 s or so after READY.
-  EXPECT_GE(count(first, "WATCHDOG=1"), 8);
+  // 1 s watchdog, fed every 0.25 s once ready: about 12 pings in the 3 s or so after READY (6 on a loaded machine).
+  EXPECT_GE(count(first, "WATCHDOG=1"), 6);
 
   // A broken file: logged, nothing restarts, the watchdog keeps being fed.
   std::ofstream(cfg) << "[model\npreset = \"linear\"\n";
   kill(pid, SIGHUP);
   const std::vector<std::string> broken = notify.collect(1.5);
   EXPECT_EQ(count(broken, "RELOADING=1"), 0);
-  EXPECT_GE(count(broken, "WATCHDOG=1"), 4);
+  EXPECT_GE(count(broken, "WATCHDOG=1"), 3);
   // A good one: the pipeline restarts with it and says READY again.
   std::ofstream(cfg) << "[model]\npreset = \"nl_damper\"\n";
   kill(pid, SIGHUP);
-  const std::vector<std::string> good = notify.collect(3.0);
+  const std::vector<std::string> good = notify.collect(4.0);
   EXPECT_EQ(count(good, "RELOADING=1"), 1);
   EXPECT_EQ(count(good, "READY=1"), 1);
 
