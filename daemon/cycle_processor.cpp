@@ -221,20 +221,12 @@ void CycleProcessor::finish_cycle(std::int64_t end_index) {
   const double cpu_s = cpu_spent_s_;  // calls completed since the previous cycle; the current call counts for the next
   cpu_spent_s_ = 0;
   // The combustion metrics of the cycle just ended, then a fresh grid (only complete grids give numbers).
-  model::CombustionMetrics combustion{};
+  model::CombustionMetrics combustion;  // NaN throughout unless the grid is complete
   const bool grid_complete =
       start != INT64_MIN && std::none_of(grid_.begin(), grid_.end(), [](double v) { return std::isnan(v); });
-  if (grid_complete) {
+  if (grid_complete)
     combustion = model::combustion_metrics(grid_, -360.0, kGridStepDeg, config_.engine,
                                            720.0 / 360.0 * 60.0 * kFs / static_cast<double>(end_index - start), config_.metrics);
-  } else {
-    combustion = model::CombustionMetrics{};
-    for (double* v : {&combustion.peak_pressure_pa, &combustion.peak_angle_deg, &combustion.max_rise_pa_per_deg,
-                      &combustion.max_rise_angle_deg, &combustion.imep_gross_pa, &combustion.imep_net_pa,
-                      &combustion.heat_release_j, &combustion.ca10_deg, &combustion.ca50_deg, &combustion.ca90_deg,
-                      &combustion.ringing_intensity_w_per_m2})
-      *v = std::numeric_limits<double>::quiet_NaN();
-  }
   std::fill(grid_.begin(), grid_.end(), std::numeric_limits<double>::quiet_NaN());
   if (start == INT64_MIN) return;  // frames before the first boundary only warm the filters up
 

@@ -43,7 +43,7 @@ struct CycleReport {
   float mic_lpa_db[kMaxMics] = {};
   std::int32_t flags = 0;
   float processing_ms = 0;
-  model::CombustionMetrics combustion{};  // from the pressure on a 0.25 deg grid; NaN where the cycle had a gap
+  model::CombustionMetrics combustion;  // from the pressure on a 0.25 deg grid; NaN where the cycle had a gap
 };
 
 }  // namespace noisemon::daemon

@@ -50,7 +50,8 @@ const std::vector<Field>& fields() {
 }
 
 bool counts_as_valid(const Report& r) {
-  return !(r.flags & (Report::CYCLE_SETTLING | Report::CYCLE_GAP));
+  constexpr std::int32_t kNotValid = std::int32_t{Report::CYCLE_SETTLING} | std::int32_t{Report::CYCLE_GAP};
+  return !(r.flags & kNotValid);
 }
 
 }  // namespace
@@ -93,19 +94,19 @@ void CycleStatisticsAccumulator::add(const Report& r) {
 
 namespace {
 
+double energy_mean_db(double energy, std::int64_t n) { return n > 0 ? 10.0 * std::log10(energy / static_cast<double>(n)) : kNaN; }
+
 ScalarStats finish(const Field& f, std::int64_t n, double sum, double sum_sq, double energy, double min, double max) {
   ScalarStats s{f.name, f.unit, f.level, n, kNaN, kNaN, kNaN, kNaN, kNaN};
   if (n == 0) return s;
   const double mean = sum / static_cast<double>(n);
-  s.mean = f.level ? 10.0 * std::log10(energy / static_cast<double>(n)) : mean;
+  s.mean = f.level ? energy_mean_db(energy, n) : mean;
   if (n > 1) s.std = std::sqrt(std::max(0.0, (sum_sq - sum * mean) / static_cast<double>(n - 1)));
   if (!f.level && mean != 0 && n > 1) s.cov = s.std / std::abs(mean);
   s.min = min;
   s.max = max;
   return s;
 }
-
-double energy_mean_db(double energy, std::int64_t n) { return n > 0 ? 10.0 * std::log10(energy / static_cast<double>(n)) : kNaN; }
 
 }  // namespace
 

@@ -76,8 +76,6 @@ void peak(const Grid& g, CombustionMetrics& m) {
 
 void max_rise(const Grid& g, const std::vector<double>& slope, const MetricsOptions& o, CombustionMetrics& m) {
   const auto [lo, hi] = g.range(o.heat_release_from_deg, o.heat_release_to_deg);
-  m.max_rise_pa_per_deg = kNaN;
-  m.max_rise_angle_deg = kNaN;
   for (std::size_t i = lo; i <= hi; ++i)
     if (std::isfinite(slope[i]) && !(slope[i] <= m.max_rise_pa_per_deg)) {
       m.max_rise_pa_per_deg = slope[i];
@@ -89,7 +87,6 @@ void max_rise(const Grid& g, const std::vector<double>& slope, const MetricsOpti
 // its minimum before its maximum, reaches 10, 50 and 90 % of that rise.
 void heat_release(const Grid& g, const std::vector<double>& slope, const EngineGeometry& e, const MetricsOptions& o,
                   CombustionMetrics& m) {
-  m.heat_release_j = m.ca10_deg = m.ca50_deg = m.ca90_deg = kNaN;
   const auto [lo, hi] = g.range(o.heat_release_from_deg, o.heat_release_to_deg);
   const double k = o.gamma / (o.gamma - 1.0), kv = 1.0 / (o.gamma - 1.0);
   auto rate = [&](std::size_t i) { return k * g.p[i] * e.dvolume_m3_per_deg(g.angle(i)) + kv * e.volume_m3(g.angle(i)) * slope[i]; };
@@ -151,7 +148,7 @@ CombustionMetrics combustion_metrics(std::span<const double> pressure_pa, double
   const Grid g{pressure_pa, first_deg, step_deg};
   const int half = std::max(1, static_cast<int>(std::lround(options.derivative_half_width_deg / step_deg)));
   const std::vector<double> slope = slope_per_deg(g, half);
-  CombustionMetrics m{};
+  CombustionMetrics m;
   peak(g, m);
   max_rise(g, slope, options, m);
   const double vd = engine.displacement_m3();

@@ -9,6 +9,7 @@
 // RI = (beta (dp/dt)max)^2 / (2 g pmax) sqrt(g R Tmax), beta = 0.05 ms.
 #pragma once
 
+#include <limits>
 #include <span>
 
 #include "model/engine_cycle.hpp"
@@ -25,14 +26,16 @@ struct MetricsOptions {
   double ivc_deg = -150.0;                 // intake valve closing (deg re firing TDC)
 };
 
+// Every value NaN until computed (a cycle with a gap keeps them so).
 struct CombustionMetrics {
-  double peak_pressure_pa, peak_angle_deg;
-  double max_rise_pa_per_deg, max_rise_angle_deg;  // with MetricsOptions::derivative_half_width_deg's smoothing
-  double imep_gross_pa, imep_net_pa;               // NaN when the cycle misses more than 2 deg of -180 ... 180
-                                                   // (gross) or -360 ... 360 (net)
-  double heat_release_j;                           // cumulative apparent heat release, minimum to maximum
-  double ca10_deg, ca50_deg, ca90_deg;             // angles at 10, 50, 90 % of it (NaN without combustion)
-  double ringing_intensity_w_per_m2;               // NaN without the speed
+  static constexpr double kUnknown = std::numeric_limits<double>::quiet_NaN();
+  double peak_pressure_pa = kUnknown, peak_angle_deg = kUnknown;
+  double max_rise_pa_per_deg = kUnknown, max_rise_angle_deg = kUnknown;  // with derivative_half_width_deg's smoothing
+  double imep_gross_pa = kUnknown, imep_net_pa = kUnknown;  // NaN when the cycle misses more than 2 deg of
+                                                            // -180 ... 180 (gross) or -360 ... 360 (net)
+  double heat_release_j = kUnknown;                 // cumulative apparent heat release, minimum to maximum
+  double ca10_deg = kUnknown, ca50_deg = kUnknown, ca90_deg = kUnknown;  // 10, 50, 90 % of it (NaN without combustion)
+  double ringing_intensity_w_per_m2 = kUnknown;     // NaN without the speed
 };
 
 // Metrics of one cycle: pressure_pa[i] at crank angle first_deg + i * step_deg (0 = firing TDC); the whole
