@@ -45,6 +45,9 @@ struct ConditionInfo {
   // The floor the predictions allow for (model/pressure_floor: judge_pressure_floors): per band, the one-sided
   // density of the pressure chain's noise in the measured pressure, Pa^2/Hz; empty: none.
   std::vector<double> floor_density;
+  // Set with floor_density: per band, and per band * W ([b * W + w]), the pressure within kFloorMarginDb of that
+  // floor (model/pressure_floor.hpp); empty without a floor.
+  std::vector<char> floor_limited_band, floor_limited_window;
 };
 
 // One contiguous recording of a condition on the 40 kHz grid, as the loader hands it over.

@@ -783,8 +783,7 @@ CondSetup make_cond_setup(const BandDataset& data, const Anchor& anchor, std::si
         tot += cond.win_frames[cy * kW + w];
       }
     for (std::size_t w = 0; w < kW; ++w) c.frac[w] = fr[w] / tot;
-    std::vector<char> at_floor;
-    floor_limited_cells(data, k, &at_floor);
+    const std::vector<char>& at_floor = cond.info.floor_limited_window;
     for (std::size_t b : c.bands) {
       if (!wcap[b]) continue;
       std::vector<double> wm(kW, 0.0), wa(kW, 0.0);
@@ -806,8 +805,7 @@ CondSetup make_cond_setup(const BandDataset& data, const Anchor& anchor, std::si
       c.wbands.push_back(b);
       c.wmeas.insert(c.wmeas.end(), wm.begin(), wm.end());
       c.wanchor.insert(c.wanchor.end(), wa.begin(), wa.end());
-      c.wfloor.insert(c.wfloor.end(), at_floor.begin() + static_cast<std::ptrdiff_t>(b * kW),
-                      at_floor.begin() + static_cast<std::ptrdiff_t>((b + 1) * kW));
+      for (std::size_t w = 0; w < kW; ++w) c.wfloor.push_back(b * kW + w < at_floor.size() && at_floor[b * kW + w]);
     }
   }
   c.dn_krpm = (cond.mean_speed_rpm() - ref_rpm) / 1000.0;
@@ -959,7 +957,6 @@ ConditionFactors extension_factors(const BandDataset& data, std::size_t k, const
   f.sub.assign(nb, 0.0);
   f.add.assign(nb, 0.0);
   f.add_win.assign(nb * kW, 0.0);
-  f.floor_band = floor_limited_cells(data, k, &f.floor_win);
   const double gain = L.on.speed ? std::pow(10.0, e.speed_gain_db_per_krpm * c.dn_krpm / 10.0) : 1.0;
   const double lscale = L.on.locked ? std::pow(c.speed_ratio, e.locked_speed_exp) : 1.0;
   std::vector<double> frac(kW, 0.0);
@@ -1445,10 +1442,11 @@ void apply_factors(const ConditionFactors& f, const ConditionData& cond, std::ve
   for (std::size_t b = 0; b < nb; ++b) {
     if (f.sub[b] == 0.0) continue;
     const auto at_floor = [&](const std::vector<char>& flags, std::size_t i) { return i < flags.size() && flags[i]; };
-    cb[b] = f.sub[b] > kFloorShare * mean[b] * f.mult[b] || at_floor(f.floor_band, b);
+    cb[b] = f.sub[b] > kFloorShare * mean[b] * f.mult[b] || at_floor(cond.info.floor_limited_band, b);
     if (windows)
       for (std::size_t w = 0; w < kW; ++w)
-        cw[b * kW + w] = f.sub[b] > kFloorShare * wmean[b * kW + w] * f.mult[b] || at_floor(f.floor_win, b * kW + w);
+        cw[b * kW + w] =
+            f.sub[b] > kFloorShare * wmean[b * kW + w] * f.mult[b] || at_floor(cond.info.floor_limited_window, b * kW + w);
   }
   // A cell's value: the full prediction less the noise-driven part (never below kObservableShare of it), or, where
   // censored, that less part plus the allowance.

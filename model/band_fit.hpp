@@ -107,15 +107,13 @@ struct ConditionFactors {
                                  // noise alone drove: its judged floor and the transducer candidate's extra)
   std::vector<double> add;       // per band (cycle mean of the additive terms)
   std::vector<double> add_win;   // per band * W (window mean squares of the additive terms)
-  // The measured pressure within its floor's margin (pressure_floor.hpp), per band and per band * W: the prediction
-  // there is an upper bound whatever share of it the subtracted floor was (the floor may vary along the cycle).
-  std::vector<char> floor_band, floor_win;
 };
 ConditionFactors extension_factors(const BandDataset& data, std::size_t condition, const ConditionSpectrum& spec,
                                    const BlockParams& anchor_block, const ExtendedModel& model);
 
 // Applies the factors to a bare time-domain prediction of the condition's first cycles (and windows), in place.
-// Bands (windows) whose prediction the fitted transducer noise made unobservable are flagged in *upper: their
+// Bands (windows) whose prediction the subtracted floor made unobservable, or whose measured pressure is within the
+// floor's margin (ConditionInfo::floor_limited_*: the floor may vary along the cycle), are flagged in *upper: their
 // value is an upper bound (a measurement below it agrees with the model).
 void apply_factors(const ConditionFactors& f, const ConditionData& condition, std::vector<double>& cycle_ms,
                    std::vector<double>* win_ms, std::vector<char>* upper = nullptr,

@@ -161,6 +161,7 @@ void judge_pressure_floors(BandDataset& data) {
     const PressureFloor f = pressure_floor(data, k);
     const bool any = std::any_of(f.density.begin(), f.density.end(), [](double x) { return x > 0; });
     info.floor_density = !info.background && any ? f.density : std::vector<double>{};
+    info.floor_limited_band = floor_limited_cells(data, k, &info.floor_limited_window);
   }
 }
 
@@ -183,12 +184,14 @@ std::vector<char> floor_limited_cells(const BandDataset& data, std::size_t k, st
 }
 
 std::vector<std::vector<char>> floor_limited_bands(const BandDataset& data, std::vector<std::vector<char>>* windows) {
+  const std::size_t nb = data.band_count();
   std::vector<std::vector<char>> bands;
   if (windows) windows->clear();
-  for (std::size_t k = 0; k < data.conditions.size(); ++k) {
-    std::vector<char> w;
-    bands.push_back(floor_limited_cells(data, k, windows ? &w : nullptr));
-    if (windows) windows->push_back(std::move(w));
+  for (const ConditionData& d : data.conditions) {
+    const ConditionInfo& info = d.info;
+    bands.push_back(info.floor_limited_band.empty() ? std::vector<char>(nb, 0) : info.floor_limited_band);
+    if (windows)
+      windows->push_back(info.floor_limited_window.empty() ? std::vector<char>(nb * kW, 0) : info.floor_limited_window);
   }
   return bands;
 }

@@ -56,9 +56,10 @@ void judge_pressure_floors(BandDataset& data);
 // Per condition, per band: the cycle-mean pressure is within kFloorMarginDb of the judged floor (ConditionInfo::
 // floor_density): the band's prediction is floor-limited, never to be fitted or scored. Per band and crank window
 // [b * W + w] in *windows when given.
+// (What judge_pressure_floors stored in each ConditionInfo, all false where no floor was judged.)
 std::vector<std::vector<char>> floor_limited_bands(const BandDataset& data,
                                                    std::vector<std::vector<char>>* windows = nullptr);
-// The same for one condition.
+// The same for one condition, computed from its floor_density (judge_pressure_floors stores it).
 std::vector<char> floor_limited_cells(const BandDataset& data, std::size_t condition, std::vector<char>* windows = nullptr);
 
 // Noise bandwidth of a band's filter (the integral of its power response) from 0 to f_max, Hz.

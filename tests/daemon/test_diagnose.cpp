@@ -209,8 +209,11 @@ TEST(Diagnose, TheStatedFloorIsTheOneJudgedAndTheEstimateAgreesWithIt) {
     EXPECT_NEAR(r.where.pressure_floor_estimated_bar[k], 0.05, 0.05 * 0.3) << data.conditions[k].info.name;
   }
   // Motored runs: their fast bands are pure floor above a few kHz.
-  for (std::size_t k = 0; k < data.conditions.size(); ++k)
-    if (data.conditions[k].info.motored) EXPECT_GE(r.where.floor_limited_bands[k], 5) << data.conditions[k].info.name;
+  for (std::size_t k = 0; k < data.conditions.size(); ++k) {
+    if (data.conditions[k].info.motored) {
+      EXPECT_GE(r.where.floor_limited_bands[k], 5) << data.conditions[k].info.name;
+    }
+  }
 }
 
 TEST(Diagnose, AnEffectNoCandidateCanExpressIsUnexplained) {
