@@ -66,6 +66,8 @@ EdgeStreamConfig edge_stream_config(const ComediSourceConfig& c) {
   e.position = {1, 0};
   e.timestamp = separate_timestamp ? ScanSlot{2, 0} : ScanSlot{1, 1};
   e.counts_per_rev = c.encoder.counts_per_rev;
+  e.index_resets_counter = c.encoder.index_resets_counter;
+  e.counts_per_edge = c.encoder.counts_per_edge;
   e.index_angle_deg = c.encoder.index_angle_deg;
   e.timebase_hz = c.encoder.timebase_hz;
   e.timestamp_bits = c.encoder.timestamp_bits;
@@ -161,13 +163,20 @@ class ComediSource final : public Source {
             {"comedi.encoder.edges", v(c_.edges)},
             {"comedi.encoder.errors", v(c_.encoder_errors)},
             {"comedi.encoder.edges_before_lock", v(c_.edges_before_lock)},
-            {"comedi.encoder.phase_corrections", v(c_.phase_corrections)}};
+            {"comedi.encoder.phase_corrections", v(c_.phase_corrections)},
+            {"comedi.encoder.revolutions_checked", v(c_.revolutions_checked)},
+            {"comedi.encoder.revolutions_flagged", v(c_.revolutions_flagged)},
+            {"comedi.encoder.missing_or_extra", v(c_.missing_or_extra)},
+            {"comedi.encoder.lost_index", v(c_.lost_index)},
+            {"comedi.encoder.reverse_steps", v(c_.reverse_steps)}};
   }
 
  private:
   struct Counters {
     std::atomic<std::uint64_t> pressure_overruns{0}, pressure_restarts{0}, mic_overruns{0}, mic_restarts{0};
     std::atomic<std::uint64_t> edges{0}, encoder_errors{0}, edges_before_lock{0}, phase_corrections{0};
+    std::atomic<std::uint64_t> revolutions_checked{0}, revolutions_flagged{0}, missing_or_extra{0}, lost_index{0},
+        reverse_steps{0};
   };
 
   ReadLoopConfig loop_config() const {
@@ -199,6 +208,11 @@ class ComediSource final : public Source {
     c_.encoder_errors.store(e.encoder_errors, std::memory_order_relaxed);
     c_.edges_before_lock.store(e.edges_before_lock, std::memory_order_relaxed);
     c_.phase_corrections.store(e.phase_corrections, std::memory_order_relaxed);
+    c_.revolutions_checked.store(e.revolutions_checked, std::memory_order_relaxed);
+    c_.revolutions_flagged.store(e.revolutions_flagged, std::memory_order_relaxed);
+    c_.missing_or_extra.store(e.missing_or_extra, std::memory_order_relaxed);
+    c_.lost_index.store(e.lost_index, std::memory_order_relaxed);
+    c_.reverse_steps.store(e.reverse_steps, std::memory_order_relaxed);
     edge_worker_.set_blocks_written(edge_->blocks_written());
   }
 

@@ -68,6 +68,8 @@ struct ComediSourceConfig {
     std::uint32_t timestamp_bits = 32;
     std::uint32_t counts_per_rev = 3600;
     double index_angle_deg = 0.0;   // crank angle of the index pulse, degrees after a TDC
+    bool index_resets_counter = true;  // the index resets the position counter: each revolution's count is checked
+    std::uint32_t counts_per_edge = 1; // position counts between two clocking edges (4 for x4 decoding on one edge)
   } encoder;
 
   PhaseSource phase = PhaseSource::kPressure;

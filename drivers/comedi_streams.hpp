@@ -8,12 +8,26 @@
 // relative (piezoelectric) pressure at a crank angle if asked, and resamples the pressure from the edge times
 // to 40 kHz (dsp::NonuniformResampler) with the crank angle interpolated between edges.
 //
+// Encoder checks (index_resets_counter): the counter reads 0 at the edge of the index and counts_per_rev -
+// counts_per_edge at the last edge before the next one. Each revolution's edges are held until the index that
+// closes it confirms its count, so the output lags the edges by up to a revolution (two while a phase is being
+// re-decided). A confirmed revolution goes out with its crank angles; one that fails a check (count short or
+// long at the index, the raw position reaching counts_per_rev, a backward step, an index lost) goes out with
+// NaN crank (its pressure is still resampled: it is right in time). The index is ground truth: the unwrapped
+// count snaps to it, so the next revolution can be right again. After a backward step, a jump or a lost index
+// the firing/gas-exchange phase is decided again from the edges after the next index (NaN until then). The
+// part revolution after a (re)start is held likewise and goes out with angles only when its closing index
+// confirms the count (the counter counts from the last index the card saw); deliver(ring, true) releases what
+// is held with NaN crank. Before the first phase lock (and pegging) after a (re)start nothing goes out.
+//
 // TimedStreamAssembler: the microphone scans on the card's timer, resampled from the card rate to 40 kHz
 // (dsp::RationalResampler).
 //
 // Time base: a stream's origin_utime is the host time of its first timer tick (the instant its command
 // started); epoch_utime is the source's frame 0. Nothing allocates after construction except restart()
-// (after an overrun, never on the per-sample path).
+// (after an overrun, never on the per-sample path) and, with the encoder checks, the soft restart of the
+// pressure resampler when no edge came for 50 ms (the engine stopped: the stream has a gap there instead of
+// pressure interpolated across it).
 #pragma once
 
 #include <cstddef>
@@ -65,14 +79,26 @@ struct EdgeStreamConfig {
   double peg_window_deg = 10.0;  // mean over this crank-angle width around peg_angle_deg
 
   std::size_t max_scan_skew = 65536;  // scans one subdevice may run ahead of another before it is an error
+
+  // The index resets the position counter to 0 (quadrature counters with Z-index reset, e.g. NI's): every
+  // revolution is checked at its closing index and held until then (see above). false: the position is taken
+  // modulo counts_per_rev, nothing is checked or held (the behaviour before the checks).
+  bool index_resets_counter = true;
+  std::uint32_t counts_per_edge = 1;  // counter counts per clocking edge (counts_per_rev a multiple of it)
 };
 
 struct EdgeStreamCounters {
   std::uint64_t edges = 0;             // paired encoder-clocked scans
   std::uint64_t edges_before_lock = 0; // not output: cam phase (or the first pegging) not known yet
-  std::uint64_t encoder_errors = 0;    // position stepping backwards, timestamps not increasing
+  std::uint64_t encoder_errors = 0;    // position stepping backwards (or jumping), timestamps not increasing
   std::uint64_t phase_corrections = 0; // firing/gas-exchange TDC re-decided while running
   std::uint64_t frames = 0;            // 40 kHz frames written
+  // index_resets_counter only:
+  std::uint64_t revolutions_checked = 0;  // revolutions from one index to the next whose count was checked
+  std::uint64_t revolutions_flagged = 0;  // of those, failed a check (NaN crank)
+  std::uint64_t missing_or_extra = 0;     // count not counts_per_rev at the closing index (edges missed/spurious)
+  std::uint64_t lost_index = 0;           // index pulses missed (the counter ran on past counts_per_rev)
+  std::uint64_t reverse_steps = 0;        // edges at which the counter stepped backwards
 };
 
 class EdgeStreamAssembler {
@@ -81,13 +107,15 @@ class EdgeStreamAssembler {
   EdgeStreamAssembler(const EdgeStreamConfig& config, std::int64_t epoch_utime);
   ~EdgeStreamAssembler();
 
-  // Starts over at a new origin (the command was (re)started): partial scans, phase and pegging are forgotten.
+  // Starts over at a new origin (the command was (re)started): partial scans, phase, pegging and held edges
+  // (deliver(ring, true) first releases them) are forgotten.
   void restart(std::int64_t origin_utime);
   // One decoded scan of subdevice `stream` (its channel-list values, SI). Pairs it with the other subdevices'
   // scans of the same edge. Throws std::runtime_error when one subdevice runs max_scan_skew scans ahead.
   void add_scan(std::uint32_t stream, const double* values, BlockRing& ring);
   // Resamples the edges gathered so far and pushes finished blocks (a partial block only when at least half
-  // full, or when `all`: at stop and before a restart).
+  // full, or when `all`: at stop and before a restart; `all` also releases the held edges, with NaN crank,
+  // and the rest of their revolution follows with NaN crank).
   void deliver(BlockRing& ring, bool all);
 
   bool locked() const { return locked_ && peg_known_; }
@@ -96,8 +124,22 @@ class EdgeStreamAssembler {
 
  private:
   void add_edge(std::uint64_t position, std::uint64_t ticks, double pressure, double cam, BlockRing& ring);
-  void track_phase(double psi, double pressure, double cam);
+  bool advance_time(std::uint64_t ticks_raw);
+  void count_plain(std::uint64_t position);
+  bool count_checked(std::uint32_t raw, bool first, BlockRing& ring);
+  bool close_revolution(std::uint32_t raw, std::uint32_t prev, BlockRing& ring);
+  bool snap_to_index(std::uint32_t raw);
+  void count_fault(BlockRing& ring);
+  void sync_fault(BlockRing& ring);
+  void lose_phase();
+  void track_phase(double psi, double pressure, double cam, bool continuous);
   void vote(int phase);
+  bool gate(double psi, double pressure);
+  void peg(double theta, double pressure);
+  void hold(double t, double x, double psi, BlockRing& ring);
+  void release_held(std::size_t n, bool angles, BlockRing& ring);
+  void emit(double t, double x, double theta, BlockRing& ring);
+  void restart_resampler(BlockRing& ring);
   void run_batch(BlockRing& ring);
   double crank_at(double t);
 
@@ -114,7 +156,7 @@ class EdgeStreamAssembler {
 
   // Edge state.
   bool have_prev_ = false;
-  std::uint64_t prev_ticks_raw_ = 0, prev_position_ = 0;
+  std::uint64_t prev_ticks_raw_ = 0, prev_position_ = 0;  // prev_position_: modulo counts_per_rev, or raw
   std::uint64_t ticks_ = 0;  // unwrapped timebase count since the origin
   std::int64_t count_ = 0;   // unwrapped position count
   std::uint64_t tick_mask_;
@@ -126,6 +168,21 @@ class EdgeStreamAssembler {
   int mismatches_ = 0;
   struct Window { std::int64_t tdc = 0; double lo = 0, hi = 0; bool open = false, complete = false; } window_;
   struct Tdc { std::int64_t index = 0; double rise = 0; bool valid = false; } last_tdc_;
+
+  // Encoder checks (index_resets_counter). The revolution being counted: opened by an index (or the part one
+  // after a (re)start); `bad` once a check failed or its edges were released unconfirmed: its edges then go
+  // out at once with NaN crank instead of being held.
+  struct Revolution {
+    bool by_index = false, bad = false, fault = false, extra = false, sync_lost = false, stepped_back = false;
+  } rev_;
+  std::uint64_t slack_ = 0;           // counts: an index edge reads below it; a lost index is this past a revolution
+  std::uint64_t lost_threshold_ = 0;  // raw position at which the next index counts as lost
+  bool psi_valid_ = true;             // the unwrapped count follows the crank (false from a sync fault to an index)
+  bool output_ = false;               // the first lock (and pegging) since the (re)start is done: edges go out
+  bool release_on_lock_ = false;      // the phase was just decided again: release the confirmed revolution
+  struct Held { double t, x, psi; };
+  std::vector<Held> held_;            // ring: a confirmed revolution awaiting its phase, then the open one
+  std::size_t held_head_ = 0, held_n_ = 0, confirmed_n_ = 0;
 
   // Pegging.
   bool peg_known_ = false;
@@ -139,6 +196,8 @@ class EdgeStreamAssembler {
   struct Edge { double t, theta; };
   std::vector<Edge> history_;  // ring of recent edges for the crank-angle interpolation
   std::uint64_t history_end_ = 0, cursor_ = 0;
+  bool have_fed_ = false;  // the resampler has had an edge (since the last (soft) restart)
+  double last_fed_t_ = 0.0;
   BlockWriter writer_;
   EdgeStreamCounters counters_;
 };

@@ -192,7 +192,11 @@ inline double chain_volts(double p_pa, bool charge) {
 
 inline EdgeBytes engine_bytes(const EngineSetup& s, double t_from = 0.0) {
   EdgeBytes b;
-  const double theta_end = theta_at(s.duration_s);
+  // The card stops just after the first index at or after duration_s: the assembler confirms a revolution at
+  // the index that closes it (one still open at a stop goes out with NaN crank), so every revolution the
+  // tests check is a confirmed one.
+  const double theta_stop = theta_at(s.duration_s);
+  const double theta_end = kIndexDeg + 360.0 * std::ceil((theta_stop - kIndexDeg) / 360.0) + 0.5 * kResolution;
   // Edges sit where the count changes: index + k * resolution.
   auto n = static_cast<std::int64_t>(std::floor((theta_at(t_from) - kIndexDeg) / kResolution)) + 1;
   const std::uint64_t mask = (1ULL << s.timestamp_bits) - 1;
