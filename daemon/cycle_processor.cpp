@@ -16,12 +16,20 @@ constexpr std::size_t kChunkFrames = 512;
 constexpr std::size_t kModelPrimeFrames = 4096;  // 0.1 s: many time constants of the block model's modes
 constexpr double kGridStepDeg = 0.25;              // the combustion metrics' crank-angle grid
 constexpr std::size_t kGridPoints = 2881;          // -360 ... 360 deg
+constexpr std::size_t kReplacedChannel = drivers::kPressureStreamChannels;  // pressure FIFO: 1 where replaced
+constexpr std::size_t kPressureFifoChannels = drivers::kPressureStreamChannels + 1;
+constexpr double kOverloadFraction = 0.99;  // of the full scale: a sample there was clipped
+constexpr double kHiddenBoundaryRatio = 1.5;  // a flagged-encoder cycle this much longer than a good one hid a boundary
+constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+constexpr double kInf = std::numeric_limits<double>::infinity();
 
 double thread_cpu_seconds() {
   timespec ts{};
   clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
   return static_cast<double>(ts.tv_sec) + 1e-9 * static_cast<double>(ts.tv_nsec);
 }
+
+double overload_level(double full_scale) { return full_scale > 0 ? kOverloadFraction * full_scale : kInf; }
 
 std::int64_t utime_of(std::int64_t epoch, double frames) {
   return epoch + static_cast<std::int64_t>(std::llround(frames * 1e6 / kFs));
@@ -45,20 +53,28 @@ CycleProcessor::CycleProcessor(const ProcessorConfig& config, const drivers::Str
       delay_frames_(std::llround((config.acoustic_delay_s >= 0 ? config.acoustic_delay_s : info.acoustic_delay_s) * kFs)),
       model_(config.model, kFs),
       model_latency_(static_cast<std::int64_t>(model_.latency_samples())),
-      pressure_(drivers::kPressureStreamChannels, static_cast<std::size_t>(config.fifo_seconds * kFs)),
+      pressure_(kPressureFifoChannels, static_cast<std::size_t>(config.fifo_seconds * kFs)),
       predicted_(1, static_cast<std::size_t>(config.fifo_seconds * kFs)),
       mics_fifo_(info.mic_count, static_cast<std::size_t>(config.fifo_seconds * kFs)),
+      clean_(drivers::SampleBlock::kMaxFrames * kPressureFifoChannels),
       model_in_(drivers::SampleBlock::kMaxFrames),
       model_out_(drivers::SampleBlock::kMaxFrames),
+      model_prime_(drivers::SampleBlock::kMaxFrames),
       bank_(kFs, 2 + info.mic_count),
       chunk_((2 + info.mic_count) * kChunkFrames),
       mean_square_((2 + info.mic_count) * 64),
-      grid_(kGridPoints, std::numeric_limits<double>::quiet_NaN()) {
+      stats_(1 + info.mic_count),
+      replaced_until_(1 + info.mic_count, INT64_MIN),
+      pressure_overload_pa_(overload_level(info.pressure_full_scale_pa)),
+      mic_overload_pa_(overload_level(info.mic_full_scale_pa)),
+      grid_(kGridPoints, kNaN) {
   // 0 microphones: a pressure-only recording (an imported cycle table); measured levels are then NaN.
   if (info.mic_count > kMaxMics)
     throw std::invalid_argument("CycleProcessor: microphone count must be 0.." + std::to_string(kMaxMics));
   if (bank_.band_count() > kMaxBands) throw std::logic_error("CycleProcessor: too many bands");
   mean_square_.assign((2 + mics_) * bank_.band_count(), 0.0);
+  for (const dsp::ThirdOctaveBand& b : bank_.bands()) a_gain_.push_back(std::pow(10.0, dsp::a_weighting_db(b.exact_mid_hz) / 10.0));
+  reset_stats();
 }
 
 CycleProcessor::~CycleProcessor() = default;
@@ -68,58 +84,75 @@ void CycleProcessor::note_gap(std::int64_t from, std::int64_t to) {
   counters_.gap_frames += to - from;
 }
 
+// Copies the block into clean_ as the pressure FIFO holds it. Returns the first frame to keep: before the first
+// finite pressure ever seen, non-finite pressure is not data (there is nothing to hold), so the stream begins later.
+std::uint32_t CycleProcessor::sanitise_pressure(const drivers::SampleBlock& block) {
+  std::uint32_t from = 0;
+  if (!have_finite_pressure_)
+    while (from < block.frames && !std::isfinite(block.data[from * block.channels + drivers::kPressureChannel])) ++from;
+  for (std::uint32_t f = from; f < block.frames; ++f) {
+    const double* in = block.data + f * block.channels;
+    double* out = &clean_[(f - from) * kPressureFifoChannels];
+    const bool finite = std::isfinite(in[drivers::kPressureChannel]);
+    if (finite) last_finite_pressure_ = in[drivers::kPressureChannel];
+    out[drivers::kPressureChannel] = last_finite_pressure_;
+    out[drivers::kCrankChannel] = in[drivers::kCrankChannel];
+    out[kReplacedChannel] = finite ? 0.0 : 1.0;
+  }
+  if (from < block.frames) have_finite_pressure_ = true;
+  return from;
+}
+
 void CycleProcessor::add_pressure(const drivers::SampleBlock& block) {
   CpuScope cpu(cpu_spent_s_);
   if (block.channels != drivers::kPressureStreamChannels)
     throw std::invalid_argument("CycleProcessor: pressure block with " + std::to_string(block.channels) + " channels");
-  const std::int64_t end_before = pressure_.started() ? pressure_.end_index() : block.first_index;
-  const FrameFifo::Appended added = pressure_.append(block.first_index, block.data, block.frames);
+  const std::uint32_t from = sanitise_pressure(block);
+  if (from == block.frames) return;
+  const std::int64_t first = block.first_index + from;
+  const auto n = static_cast<std::int64_t>(block.frames - from);
+  const std::int64_t end_before = pressure_.started() ? pressure_.end_index() : first;
+  const FrameFifo::Appended added = pressure_.append(first, clean_.data(), static_cast<std::size_t>(n));
   counters_.frames_discarded += static_cast<std::int64_t>(added.dropped);
   if (added.restarted) {
     // A stall longer than the FIFO holds: the model restarts, settled at the new pressure.
-    note_gap(end_before, block.first_index + model_latency_);
+    note_gap(end_before, first + model_latency_);
     model_primed_ = false;
   } else if (added.held > 0) {
     // The model sees held pressure across the gap; its output is disturbed for a while after it too.
-    note_gap(end_before, block.first_index + model_latency_);
-    // Feed the held frames to the model so its time base stays on the grid.
-    for (std::int64_t i = end_before; i < block.first_index; i += drivers::SampleBlock::kMaxFrames) {
-      drivers::SampleBlock held;
-      held.first_index = i;
-      held.channels = drivers::kPressureStreamChannels;
-      held.frames = static_cast<std::uint32_t>(std::min<std::int64_t>(drivers::SampleBlock::kMaxFrames, block.first_index - i));
-      for (std::uint32_t f = 0; f < held.frames; ++f) held.data[f * held.channels] = pressure_.frame(i + f)[0];
-      predict(i, held);
-    }
+    note_gap(end_before, first + model_latency_);
+    feed_held_to_model(end_before, first);  // so that its time base stays on the grid
   }
-  const std::int64_t new_first = std::max(block.first_index, end_before);
-  const std::int64_t skip = new_first - block.first_index;
-  if (skip == 0) {
-    predict(new_first, block);  // the usual case: all of the block is new, no copy
-  } else if (skip < static_cast<std::int64_t>(block.frames)) {
-    drivers::SampleBlock fresh;
-    fresh.first_index = new_first;
-    fresh.channels = block.channels;
-    fresh.frames = block.frames - static_cast<std::uint32_t>(skip);
-    std::copy(block.data + skip * block.channels, block.data + block.frames * block.channels, fresh.data);
-    predict(new_first, fresh);
+  const std::int64_t new_first = std::max(first, end_before);
+  const std::int64_t skip = new_first - first;
+  if (skip >= n) return;
+  for (std::int64_t f = skip; f < n; ++f)
+    model_in_[static_cast<std::size_t>(f - skip)] = clean_[static_cast<std::size_t>(f) * kPressureFifoChannels + drivers::kPressureChannel];
+  run_model(new_first, static_cast<std::size_t>(n - skip));
+}
+
+void CycleProcessor::feed_held_to_model(std::int64_t from, std::int64_t to) {
+  for (std::int64_t i = from; i < to; i += drivers::SampleBlock::kMaxFrames) {
+    const auto frames = static_cast<std::size_t>(std::min<std::int64_t>(drivers::SampleBlock::kMaxFrames, to - i));
+    for (std::size_t f = 0; f < frames; ++f)
+      model_in_[f] = pressure_.frame(i + static_cast<std::int64_t>(f))[drivers::kPressureChannel];
+    run_model(i, frames);
   }
 }
 
-void CycleProcessor::predict(std::int64_t first, const drivers::SampleBlock& block) {
+void CycleProcessor::run_model(std::int64_t first, std::size_t n) {
   if (!model_primed_) {
     // The engine did not start with our first sample: settle the model at the first pressure (its static
     // equilibrium) instead of hitting it with a step from zero, whose ringing would spill into the first cycle.
-    std::fill(model_in_.begin(), model_in_.end(), block.data[drivers::kPressureChannel]);
-    for (std::size_t done = 0; done < kModelPrimeFrames; done += model_in_.size())
-      model_.process(model_in_.data(), model_out_.data(), model_in_.size());
+    std::fill(model_prime_.begin(), model_prime_.end(), model_in_[0]);
+    for (std::size_t done = 0; done < kModelPrimeFrames; done += model_prime_.size())
+      model_.process(model_prime_.data(), model_out_.data(), model_prime_.size());
     model_primed_ = true;
   }
-  for (std::uint32_t f = 0; f < block.frames; ++f) model_in_[f] = block.data[f * block.channels + drivers::kPressureChannel];
-  model_.process(model_in_.data(), model_out_.data(), block.frames);
+  model_.process(model_in_.data(), model_out_.data(), n);
   // Output j of the model describes the instant of input j - latency.
   counters_.frames_discarded +=
-      static_cast<std::int64_t>(predicted_.append(first - model_latency_, model_out_.data(), block.frames).dropped);
+      static_cast<std::int64_t>(predicted_.append(first - model_latency_, model_out_.data(), n).dropped);
 }
 
 void CycleProcessor::add_mics(const drivers::SampleBlock& block) {
@@ -159,36 +192,85 @@ void CycleProcessor::process() {
   }
   std::int64_t end = std::min(pressure_.end_index(), predicted_.end_index());
   if (with_mics) end = std::min(end, mics_fifo_.end_index() - delay_frames_);
-  const std::size_t channels = 2 + mics_;
   for (; next_ < end; ++next_) {
     const double* p = pressure_.frame(next_);
     const double crank = p[drivers::kCrankChannel];
-    // A cycle starts where the crank angle wraps from just below +360 to -360.
-    if (have_last_crank_ && crank < last_crank_ - 360.0) {
-      // The ending cycle's grid reaches +360 deg with this frame; the new one's starts from the last frame.
-      const double prev_deg = grid_last_deg_ - 720.0, prev_pa = grid_last_pa_;
-      grid_pressure(crank + 720.0, p[drivers::kPressureChannel]);
-      flush_chunk();
-      finish_cycle(next_);
-      grid_last_deg_ = prev_deg;
-      grid_last_pa_ = prev_pa;
+    if (!std::isfinite(crank)) {
+      unknown_crank();
+    } else {
+      // A cycle starts where the crank angle wraps from just below +360 to -360.
+      if (have_last_crank_ && crank < last_crank_ - 360.0) close_cycle(crank, p[drivers::kPressureChannel]);
+      grid_pressure(crank, p[drivers::kPressureChannel]);
+      last_crank_ = crank;
+      have_last_crank_ = true;
+      crank_unknown_ = false;
     }
-    grid_pressure(crank, p[drivers::kPressureChannel]);
-    last_crank_ = crank;
-    have_last_crank_ = true;
-    double* out = &chunk_[chunk_frames_ * channels];
-    out[0] = p[drivers::kPressureChannel];
-    out[1] = predicted_.frame(next_)[0];
-    if (with_mics) {
-      const double* m = mics_fifo_.frame(next_ + delay_frames_);
-      std::copy(m, m + mics_, out + 2);
-    }
-    if (++chunk_frames_ == kChunkFrames) flush_chunk();
+    add_frame(p);
   }
   // Keep what later combined frames still need.
   pressure_.drop_before(next_);
   predicted_.drop_before(next_);
   if (with_mics) mics_fifo_.drop_before(next_ + delay_frames_);
+}
+
+// The angle is not known: no boundary can be seen here and the grid gets nothing (nor an interpolation across).
+void CycleProcessor::unknown_crank() {
+  ++counters_.crank_unknown_frames;
+  crank_unknown_ = true;
+  cycle_encoder_ = true;
+  grid_has_last_ = false;
+}
+
+void CycleProcessor::close_cycle(double crank_deg, double pressure_pa) {
+  // The ending cycle's grid reaches +360 deg with this frame; the new one's starts from the last frame.
+  const double prev_deg = grid_last_deg_ - 720.0, prev_pa = grid_last_pa_;
+  const bool prev_has = grid_has_last_;
+  grid_pressure(crank_deg + 720.0, pressure_pa);
+  flush_chunk();
+  finish_cycle(next_);
+  grid_last_deg_ = prev_deg;
+  grid_last_pa_ = prev_pa;
+  grid_has_last_ = prev_has;
+  // The first known angle after an unknown stretch: the wrap happened somewhere inside it, the start is uncertain.
+  cycle_encoder_ = crank_unknown_;
+}
+
+// Frame next_ into the bank's chunk (microphone samples made finite), and into the channels' statistics.
+void CycleProcessor::add_frame(const double* p) {
+  const std::size_t channels = 2 + mics_;
+  double* out = &chunk_[chunk_frames_ * channels];
+  const double pa = p[drivers::kPressureChannel];
+  out[0] = pa;
+  out[1] = predicted_.frame(next_)[0];
+  ChannelStats& ps = stats_[0];
+  ps.min = std::min(ps.min, pa);
+  ps.max = std::max(ps.max, pa);
+  if (p[kReplacedChannel] != 0) {
+    ++ps.replaced;
+    ++counters_.samples_replaced;
+    replaced_until_[0] = next_ + 1;
+  } else if (pa >= pressure_overload_pa_) {
+    ps.overload = true;
+  }
+  if (mics_ > 0) {
+    const double* m = mics_fifo_.frame(next_ + delay_frames_);
+    for (std::size_t c = 0; c < mics_; ++c) {
+      ChannelStats& s = stats_[1 + c];
+      double x = m[c];
+      if (!std::isfinite(x)) {
+        x = 0.0;
+        ++s.replaced;
+        ++counters_.samples_replaced;
+        replaced_until_[1 + c] = next_ + 1;
+      } else if (std::abs(x) >= mic_overload_pa_) {
+        s.overload = true;
+      }
+      s.min = std::min(s.min, x);
+      s.max = std::max(s.max, x);
+      out[2 + c] = x;
+    }
+  }
+  if (++chunk_frames_ == kChunkFrames) flush_chunk();
 }
 
 void CycleProcessor::grid_pressure(double crank_deg, double pressure_pa) {
@@ -213,23 +295,58 @@ void CycleProcessor::flush_chunk() {
   chunk_frames_ = 0;
 }
 
-void CycleProcessor::finish_cycle(std::int64_t end_index) {
-  const std::size_t nb = bank_.band_count();
-  bank_.take_mean_square(mean_square_.data());
-  const std::int64_t start = cycle_start_;
-  cycle_start_ = end_index;
-  const double cpu_s = cpu_spent_s_;  // calls completed since the previous cycle; the current call counts for the next
-  cpu_spent_s_ = 0;
-  // The combustion metrics of the cycle just ended, then a fresh grid (only complete grids give numbers).
+void CycleProcessor::reset_stats() { std::fill(stats_.begin(), stats_.end(), ChannelStats{kInf, -kInf, 0, false}); }
+
+// The channels' verdicts on the cycle [start, end_index) just ended; the statistics restart for the next one.
+CycleProcessor::CycleHealth CycleProcessor::take_health(std::int64_t start, std::int64_t end_index) {
+  CycleHealth h;
+  // Samples replaced shortly before the cycle: the filters still ring from the step at the stretch's end. Bands
+  // slower than the cycle are flagged BAND_SLOW (smeared over neighbouring cycles) and do not count here.
+  const double cycle_s = start == INT64_MIN ? 0.0 : static_cast<double>(end_index - start) / kFs;
+  double ring_s = 0;
+  for (const dsp::ThirdOctaveBand& b : bank_.bands())
+    if (b.response_time_s <= cycle_s) ring_s = std::max(ring_s, b.response_time_s);
+  const auto replaced = [&](std::size_t ch) {
+    if (stats_[ch].replaced > 0) return true;
+    if (start == INT64_MIN || replaced_until_[ch] == INT64_MIN) return false;
+    return static_cast<double>(start - replaced_until_[ch]) < ring_s * kFs;
+  };
+  // A stuck converter repeats one code; after resampling to 40 kHz only rounding remains (1e-16 relative), far
+  // below any converter's step (a 24-bit step is 6e-8 of full scale). Never true before any frame: inf > -inf.
+  const auto flat = [](const ChannelStats& s) {
+    return s.max >= s.min && s.max - s.min <= 1e-9 * std::max(std::abs(s.max), std::abs(s.min));
+  };
+  const ChannelStats& ps = stats_[0];
+  h.pressure_fault = flat(ps) || ps.overload || replaced(0);
+  h.overload = ps.overload;
+  for (std::size_t m = 0; m < mics_; ++m) {
+    const ChannelStats& s = stats_[1 + m];
+    std::int8_t f = 0;
+    if (flat(s)) f |= kMicFlat;
+    if (s.overload) f |= kMicOverload;
+    if (replaced(1 + m)) f |= kMicNan;
+    h.mic_flags[m] = f;
+    h.overload = h.overload || s.overload;
+  }
+  reset_stats();
+  return h;
+}
+
+// The combustion metrics of the cycle just ended, then a fresh grid (only complete grids give numbers).
+model::CombustionMetrics CycleProcessor::take_combustion(std::int64_t start, std::int64_t end_index, bool wanted) {
   model::CombustionMetrics combustion;  // NaN throughout unless the grid is complete
-  const bool grid_complete =
-      start != INT64_MIN && std::none_of(grid_.begin(), grid_.end(), [](double v) { return std::isnan(v); });
+  const bool grid_complete = wanted && start != INT64_MIN &&
+                             std::none_of(grid_.begin(), grid_.end(), [](double v) { return std::isnan(v); });
   if (grid_complete)
     combustion = model::combustion_metrics(grid_, -360.0, kGridStepDeg, config_.engine,
-                                           720.0 / 360.0 * 60.0 * kFs / static_cast<double>(end_index - start), config_.metrics);
-  std::fill(grid_.begin(), grid_.end(), std::numeric_limits<double>::quiet_NaN());
-  if (start == INT64_MIN) return;  // frames before the first boundary only warm the filters up
+                                           720.0 / 360.0 * 60.0 * kFs / static_cast<double>(end_index - start), config_.metrics,
+                                           metrics_scratch_);
+  std::fill(grid_.begin(), grid_.end(), kNaN);
+  return combustion;
+}
 
+// Whether samples were lost in [start, end_index); forgets the gaps that end there and restarts the settling.
+bool CycleProcessor::take_gaps(std::int64_t start, std::int64_t end_index) {
   bool gap = false;
   std::int64_t last_gap_end = INT64_MIN;
   for (const Gap& g : gaps_) {
@@ -239,19 +356,37 @@ void CycleProcessor::finish_cycle(std::int64_t end_index) {
   }
   std::erase_if(gaps_, [&](const Gap& g) { return g.to <= end_index; });
   settle_from_ = std::max(settle_from_, last_gap_end);  // filters restart settling after lost samples
+  return gap;
+}
 
+// A stretch that hides the boundaries inside it: count the cycles it spans at the last good cycle's length.
+void CycleProcessor::count_dropped(double duration_s) {
+  const double spanned = last_duration_s_ > 0 ? std::round(duration_s / last_duration_s_) : 1.0;
+  const auto n = static_cast<std::int64_t>(std::max(1.0, spanned));
+  counters_.cycles_completed += n;
+  counters_.cycles_dropped += n;
+}
+
+void CycleProcessor::finish_cycle(std::int64_t end_index) {
+  bank_.take_mean_square(mean_square_.data());
+  const std::int64_t start = cycle_start_;
+  cycle_start_ = end_index;
+  const double cpu_s = cpu_spent_s_;  // calls completed since the previous cycle; the current call counts for the next
+  cpu_spent_s_ = 0;
+  const CycleHealth health = take_health(start, end_index);
+  const bool encoder = cycle_encoder_;
+  const model::CombustionMetrics combustion = take_combustion(start, end_index, !encoder && !health.pressure_fault);
+  if (start == INT64_MIN) return;  // frames before the first boundary only warm the filters up
+
+  const bool gap = take_gaps(start, end_index);
   const double duration = static_cast<double>(end_index - start) / kFs;
-  if (gap) {
-    // A stall hides the boundaries inside it: count the cycles it spans at the last good cycle's length.
-    const double spanned = last_duration_s_ > 0 ? std::round(duration / last_duration_s_) : 1.0;
-    const auto n = static_cast<std::int64_t>(std::max(1.0, spanned));
-    counters_.cycles_completed += n;
-    counters_.cycles_dropped += n;
+  if (gap || (encoder && last_duration_s_ > 0 && duration > kHiddenBoundaryRatio * last_duration_s_)) {
+    count_dropped(duration);
     return;
   }
   const std::int64_t cycle = counters_.cycles_completed++;
   const bool odd = last_duration_s_ > 0 && std::abs(duration - last_duration_s_) > 0.1 * last_duration_s_;
-  last_duration_s_ = duration;
+  if (!encoder) last_duration_s_ = duration;
 
   CycleReport r;
   r.utime = utime_of(info_.epoch_utime, static_cast<double>(start));
@@ -261,32 +396,76 @@ void CycleProcessor::finish_cycle(std::int64_t end_index) {
   r.op = op_;
   r.op.speed_rpm = 720.0 / 360.0 * 60.0 / duration;  // two revolutions per cycle
   r.radius_m = info_.radius_m;
-  r.nbands = static_cast<std::uint16_t>(nb);
+  r.nbands = static_cast<std::uint16_t>(bank_.band_count());
   r.nmics = static_cast<std::uint16_t>(mics_);
   if (!have_op_) r.flags |= kCycleNoOperatingPoint;
   if (odd) r.flags |= kCycleLengthOdd;
   if (mics_ == 0) r.flags |= kCycleNoMics;
+  if (encoder) r.flags |= kCycleEncoder;
+  if (health.overload) r.flags |= kCycleOverload;
+  if (health.pressure_fault) r.flags |= kCyclePressureFault;
+  std::copy(health.mic_flags, health.mic_flags + mics_, r.mic_flags);
 
-  const double settled_s = static_cast<double>(start - settle_from_) / kFs;
+  mic_levels(r);
+  select_mics(r);
+  band_levels(r, static_cast<double>(start - settle_from_) / kFs, health.pressure_fault);
+  r.processing_ms = static_cast<float>(1e3 * cpu_s);
+  r.combustion = combustion;
+  sink_(r);
+}
+
+// Every microphone's own A-weighted level over the bands above the firing frequency.
+void CycleProcessor::mic_levels(CycleReport& r) const {
+  const std::size_t nb = bank_.band_count();
+  const double firing_hz = 1.0 / r.duration_s;  // one firing per 720 deg
+  for (std::size_t m = 0; m < mics_; ++m) {
+    double sum = 0;
+    for (std::size_t b = 0; b < nb; ++b)
+      if (bank_.bands()[b].upper_edge_hz >= firing_hz) sum += mean_square_[(2 + m) * nb + b] * a_gain_[b];
+    r.mic_lpa_db[m] = static_cast<float>(dsp::level_db(sum));
+  }
+}
+
+// Marks the microphones far below the others (MIC_LOW) and leaves every faulty one out (MIC_EXCLUDED).
+void CycleProcessor::select_mics(CycleReport& r) const {
+  // The median of the levels of the microphones that are not otherwise faulty (their levels say nothing).
+  double levels[kMaxMics];
+  std::size_t n = 0;
+  for (std::size_t m = 0; m < mics_; ++m)
+    if ((r.mic_flags[m] & (kMicFlat | kMicOverload | kMicNan)) == 0) levels[n++] = r.mic_lpa_db[m];
+  if (n > 0) {
+    std::sort(levels, levels + n);
+    const double median = n % 2 ? levels[n / 2] : 0.5 * (levels[n / 2 - 1] + levels[n / 2]);
+    for (std::size_t m = 0; m < mics_; ++m)
+      if (!(r.mic_lpa_db[m] >= median - config_.mic_low_db)) r.mic_flags[m] |= kMicLow;  // NaN counts as low
+  }
+  for (std::size_t m = 0; m < mics_; ++m)
+    if (r.mic_flags[m] != 0) {
+      r.mic_flags[m] |= kMicExcluded;
+      r.flags |= kCycleMicExcluded;
+    }
+}
+
+// Band levels, attenuation and overall levels; measured from the microphones not excluded (NaN without any),
+// predicted and CPL NaN when the pressure is faulty.
+void CycleProcessor::band_levels(CycleReport& r, double settled_s, bool pressure_fault) const {
+  const std::size_t nb = bank_.band_count();
   const auto& bands = bank_.bands();
-  std::vector<double>& ms = mean_square_;
+  const std::vector<double>& ms = mean_square_;
+  std::size_t used = 0;
+  for (std::size_t m = 0; m < mics_; ++m) used += (r.mic_flags[m] & kMicExcluded) ? 0 : 1;
   double meas_sum = 0, pred_sum = 0;
-  double mic_sum[kMaxMics] = {};
-  const double firing_hz = 1.0 / duration;  // one firing per 720 deg
+  const double firing_hz = 1.0 / r.duration_s;  // one firing per 720 deg
   for (std::size_t b = 0; b < nb; ++b) {
     const double aw = dsp::a_weighting_db(bands[b].exact_mid_hz);
     const bool below_firing = bands[b].upper_edge_hz < firing_hz;
-    const double cpl = dsp::level_db(ms[0 * nb + b]);
-    const double pred_a = dsp::level_db(ms[1 * nb + b]) + aw;
-    double mic_ms_mean = 0;
-    for (std::size_t m = 0; m < mics_; ++m) {
-      const double msm = ms[(2 + m) * nb + b];
-      mic_ms_mean += msm;
-      if (!below_firing) mic_sum[m] += msm * std::pow(10.0, aw / 10.0);
-    }
-    // Energy average over microphones; without microphones nothing was measured: NaN, never a number.
-    const double meas_a = mics_ > 0 ? dsp::level_db(mic_ms_mean / static_cast<double>(mics_)) + aw
-                                    : std::numeric_limits<double>::quiet_NaN();
+    const double cpl = pressure_fault ? kNaN : dsp::level_db(ms[0 * nb + b]);
+    const double pred_a = pressure_fault ? kNaN : dsp::level_db(ms[1 * nb + b]) + aw;
+    double mic_ms_sum = 0;
+    for (std::size_t m = 0; m < mics_; ++m)
+      if (!(r.mic_flags[m] & kMicExcluded)) mic_ms_sum += ms[(2 + m) * nb + b];
+    // Energy average over the microphones used; without any nothing was measured: NaN, never a number.
+    const double meas_a = used > 0 ? dsp::level_db(mic_ms_sum / static_cast<double>(used)) + aw : kNaN;
     if (!below_firing) {
       meas_sum += dsp::mean_square_from_level(meas_a);
       pred_sum += dsp::mean_square_from_level(pred_a);
@@ -299,7 +478,7 @@ void CycleProcessor::finish_cycle(std::int64_t end_index) {
     r.att_predicted_db[b] = static_cast<float>(dsp::attenuation_db(cpl, pred_a));
     std::int8_t f = 0;
     if (bands[b].nyquist_cut) f |= kBandNyquistCut;
-    if (bands[b].response_time_s > duration) f |= kBandSlow;
+    if (bands[b].response_time_s > r.duration_s) f |= kBandSlow;
     if (below_firing) f |= kBandBelowFiring;
     if (bands[b].response_time_s > settled_s) {
       f |= kBandSettling;
@@ -307,15 +486,10 @@ void CycleProcessor::finish_cycle(std::int64_t end_index) {
     }
     r.band_flags[b] = f;
   }
-  r.lpa_measured_db = dsp::level_db(meas_sum);
-  r.lpa_predicted_db = dsp::level_db(pred_sum);
+  r.lpa_measured_db = used > 0 ? dsp::level_db(meas_sum) : kNaN;
+  r.lpa_predicted_db = pressure_fault ? kNaN : dsp::level_db(pred_sum);
   r.lwa_measured_db = dsp::sound_power_level_db(r.lpa_measured_db, info_.radius_m);
   r.lwa_predicted_db = dsp::sound_power_level_db(r.lpa_predicted_db, info_.radius_m);
-  for (std::size_t m = 0; m < mics_; ++m) r.mic_lpa_db[m] = static_cast<float>(dsp::level_db(mic_sum[m]));
-
-  r.processing_ms = static_cast<float>(1e3 * cpu_s);
-  r.combustion = combustion;
-  sink_(r);
 }
 
 }  // namespace noisemon::daemon

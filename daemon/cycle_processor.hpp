@@ -6,6 +6,14 @@
 // Alignment: combined frame n holds pressure(n), the model's prediction for instant n, and microphone frame
 // n + d, where d is the acoustic delay in frames (sound radiated at n reaches the microphones at n + d).
 // All channels then pass through one 1/3-octave bank, so every channel sees the same filter delays.
+//
+// Faulty channels degrade the report, never the processing: a non-finite pressure sample is replaced by the last
+// finite pressure before the block model and the bank (a NaN would stay in their IIR states for ever), a
+// non-finite microphone sample by 0. Each cycle judges every channel (flat, overloaded, replaced samples; a
+// microphone also far below the others): a faulty microphone is left out of the measured levels, a faulty
+// pressure makes the cycle's CPL, predictions, attenuation and combustion metrics NaN. A frame whose crank angle
+// is NaN (not known) is never a cycle boundary and never on the combustion-metrics grid. See the CYCLE_* and
+// MIC_* flags in msgs/cycle_report_t.lcm.
 #pragma once
 
 #include <cstdint>
@@ -28,6 +36,11 @@ struct ProcessorConfig {
   double fifo_seconds = 4.0;     // how far one stream may run ahead of another before data is discarded
   model::EngineGeometry engine;  // for the combustion metrics (default: the Yanmar L100V, as the virtual engine)
   model::MetricsOptions metrics;
+  // A microphone whose A-weighted level (mic_lpa_db) lies more than this below the median level of the microphones
+  // that are not flat, overloaded or NaN is left out of the measured levels (MIC_LOW): an unplugged microphone reads
+  // only its converter's noise. With two microphones the median is their mean in dB: one of them is left out only
+  // when they differ by more than twice this.
+  double mic_low_db = 20.0;
 };
 
 struct ProcessorCounters {
@@ -36,6 +49,8 @@ struct ProcessorCounters {
   std::int64_t frames_processed = 0;
   std::int64_t gap_frames = 0;        // frames filled in because blocks were lost, or skipped after a stall
   std::int64_t frames_discarded = 0;  // frames pushed out unconsumed: one stream ran fifo_seconds ahead of another
+  std::int64_t samples_replaced = 0;  // non-finite pressure or microphone samples replaced before the filters
+  std::int64_t crank_unknown_frames = 0;  // frames whose crank angle was NaN (encoder fault, before a resync)
 };
 
 class CycleProcessor {
@@ -56,9 +71,34 @@ class CycleProcessor {
   std::int64_t delay_frames() const { return delay_frames_; }
 
  private:
-  void predict(std::int64_t first, const drivers::SampleBlock& block);
+  // Per-cycle health of one channel (0: pressure, 1 + m: microphone m), over the values the bank sees.
+  struct ChannelStats {
+    double min, max;
+    std::int64_t replaced;  // non-finite samples replaced
+    bool overload;
+  };
+  struct CycleHealth {
+    bool pressure_fault = false;
+    bool overload = false;
+    std::int8_t mic_flags[kMaxMics] = {};  // kMicFlat, kMicOverload, kMicNan
+  };
+
+  std::uint32_t sanitise_pressure(const drivers::SampleBlock& block);
+  void feed_held_to_model(std::int64_t from, std::int64_t to);
+  void run_model(std::int64_t first, std::size_t n);  // input in model_in_[0, n)
   void flush_chunk();
+  void unknown_crank();
+  void close_cycle(double crank_deg, double pressure_pa);
+  void add_frame(const double* pressure_frame);
+  void reset_stats();
+  CycleHealth take_health(std::int64_t start, std::int64_t end_index);
+  model::CombustionMetrics take_combustion(std::int64_t start, std::int64_t end_index, bool wanted);
+  bool take_gaps(std::int64_t start, std::int64_t end_index);
+  void count_dropped(double duration_s);
   void finish_cycle(std::int64_t end_index);
+  void mic_levels(CycleReport& r) const;
+  void select_mics(CycleReport& r) const;
+  void band_levels(CycleReport& r, double settled_s, bool pressure_fault) const;
 
   ProcessorConfig config_;
   drivers::StreamInfo info_;
@@ -68,20 +108,31 @@ class CycleProcessor {
 
   model::BlockModel model_;
   std::int64_t model_latency_;
-  FrameFifo pressure_;   // pressure, crank
+  FrameFifo pressure_;   // pressure (non-finite replaced), crank, 1 where the pressure was replaced
   FrameFifo predicted_;  // model output, indexed by the instant it describes
-  FrameFifo mics_fifo_;
-  std::vector<double> model_in_, model_out_;
+  FrameFifo mics_fifo_;  // as received (non-finite samples are replaced on their way to the bank)
+  std::vector<double> clean_;  // a pressure block as the FIFO holds it
+  std::vector<double> model_in_, model_out_, model_prime_;
   bool model_primed_ = false;
+  double last_finite_pressure_ = 0;
+  bool have_finite_pressure_ = false;  // until then, non-finite pressure is not data: the stream has not begun
 
   dsp::ThirdOctaveBank bank_;  // channels: pressure, predicted, mic 1..M
+  std::vector<double> a_gain_;  // A-weighting per band as a mean-square factor
   std::vector<double> chunk_;  // combined frames waiting for the bank
   std::size_t chunk_frames_ = 0;
   std::vector<double> mean_square_;
+  std::vector<ChannelStats> stats_;
+  // Per channel: one past the last combined frame whose sample was replaced. The bank's filters ring after the
+  // replaced stretch: the channel stays faulty into the next cycle while its non-slow bands have not settled.
+  std::vector<std::int64_t> replaced_until_;
+  double pressure_overload_pa_, mic_overload_pa_;  // 0.99 of the full scales; +inf when not known
 
   std::int64_t next_ = INT64_MIN;        // next combined frame to process
-  double last_crank_ = 0;
+  double last_crank_ = 0;                // the last known crank angle
   bool have_last_crank_ = false;
+  bool crank_unknown_ = false;           // NaN crank angles since last_crank_
+  bool cycle_encoder_ = false;           // the current cycle had unknown angles or started after them
   std::int64_t cycle_start_ = INT64_MIN;  // INT64_MIN until the first boundary
   std::int64_t settle_from_ = INT64_MIN;  // start of the stretch of continuous data (start or last gap)
   struct Gap { std::int64_t from, to; };  // combined-frame interval affected by lost samples
@@ -90,9 +141,10 @@ class CycleProcessor {
   // The cycle's pressure on a uniform crank-angle grid (kGridStepDeg from -360), for the combustion metrics.
   void grid_pressure(double crank_deg, double pressure_pa);
   std::vector<double> grid_;            // NaN where no frame has reached yet
+  model::MetricsWorkspace metrics_scratch_;  // sized by the first cycle, reused: no allocation per cycle
   double grid_last_deg_ = 0, grid_last_pa_ = 0;
   bool grid_has_last_ = false;
-  double last_duration_s_ = 0;
+  double last_duration_s_ = 0;          // of the last reported cycle without kCycleEncoder
   drivers::OperatingPoint op_;
   bool have_op_ = false;
   double cpu_spent_s_ = 0;  // CPU time spent in add_*/process since the last cycle was finished

@@ -12,14 +12,27 @@ namespace noisemon::daemon {
 inline constexpr std::size_t kMaxBands = 32;
 inline constexpr std::size_t kMaxMics = drivers::SampleBlock::kMaxChannels;
 
-// Bits of CycleReport::band_flags and ::flags; the same values as the LCM constants in msgs/cycle_report_t.lcm.
+// Bits of CycleReport::band_flags, ::mic_flags and ::flags; the same values as the LCM constants in
+// msgs/cycle_report_t.lcm (whose comments say what each one means).
 enum BandFlag : std::int8_t { kBandNyquistCut = 1, kBandSlow = 2, kBandSettling = 4, kBandBelowFiring = 8 };
+enum MicFlag : std::int8_t {
+  kMicExcluded = 1,  // left out of the measured (array-average) levels of this cycle
+  kMicFlat = 2,      // every sample of the cycle the same: a stuck converter
+  kMicOverload = 4,  // a sample reached 0.99 of the converter's full scale
+  kMicNan = 8,       // non-finite samples were replaced by 0 (in the cycle, or its filters still ring from them)
+  kMicLow = 16,      // more than ProcessorConfig::mic_low_db below the median microphone level: unplugged?
+};
 enum CycleFlag : std::int32_t {
   kCycleSettling = 1,
   kCycleGap = 2,
   kCycleNoOperatingPoint = 4,
   kCycleLengthOdd = 8,
-  kCycleNoMics = 16,  // pressure-only stream: measured levels and attenuation are NaN
+  kCycleNoMics = 16,           // pressure-only stream: measured levels and attenuation are NaN
+  kCycleEncoder = 32,          // crank angle unknown in the cycle, or its start uncertain: combustion metrics NaN
+  kCycleOverload = 64,         // the pressure or a microphone reached 0.99 of its converter's full scale
+  kCycleMicExcluded = 128,     // a microphone was left out of the measured levels (see mic_flags)
+  kCyclePressureFault = 256,   // pressure flat, overloaded or non-finite (or ringing from replaced samples):
+                               // CPL, predictions, attenuation and combustion metrics are NaN
 };
 
 struct CycleReport {
@@ -40,10 +53,12 @@ struct CycleReport {
   float att_predicted_db[kMaxBands] = {};
   std::int8_t band_flags[kMaxBands] = {};
   std::uint16_t nmics = 0;
-  float mic_lpa_db[kMaxMics] = {};
+  float mic_lpa_db[kMaxMics] = {};   // every microphone's own level, excluded ones included
+  std::int8_t mic_flags[kMaxMics] = {};  // MicFlag bits
   std::int32_t flags = 0;
   float processing_ms = 0;
-  model::CombustionMetrics combustion;  // from the pressure on a 0.25 deg grid; NaN where the cycle had a gap
+  model::CombustionMetrics combustion;  // from the pressure on a 0.25 deg grid; NaN unless the grid is complete and
+                                      // the cycle has neither kCycleEncoder nor kCyclePressureFault
 };
 
 }  // namespace noisemon::daemon

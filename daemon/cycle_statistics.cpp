@@ -50,7 +50,9 @@ const std::vector<Field>& fields() {
 }
 
 bool counts_as_valid(const Report& r) {
-  constexpr std::int32_t kNotValid = std::int32_t{Report::CYCLE_SETTLING} | std::int32_t{Report::CYCLE_GAP};
+  // An encoder-flagged cycle's boundaries are uncertain: its duration, speed and levels are not one cycle's.
+  constexpr std::int32_t kNotValid =
+      std::int32_t{Report::CYCLE_SETTLING} | std::int32_t{Report::CYCLE_GAP} | std::int32_t{Report::CYCLE_ENCODER};
   return !(r.flags & kNotValid);
 }
 
@@ -66,8 +68,15 @@ void CycleStatisticsAccumulator::add(const Report& r) {
   }
   ++valid_;
   seconds_ += r.duration_s;
-  if (std::isfinite(r.lpa_measured_db)) energy_measured_s_ += dsp::mean_square_from_level(r.lpa_measured_db) * r.duration_s;
-  if (std::isfinite(r.lpa_predicted_db)) energy_predicted_s_ += dsp::mean_square_from_level(r.lpa_predicted_db) * r.duration_s;
+  // Leq over the time each level covers: a cycle without one (no microphone left, a pressure fault) adds no time.
+  if (std::isfinite(r.lpa_measured_db)) {
+    energy_measured_s_ += dsp::mean_square_from_level(r.lpa_measured_db) * r.duration_s;
+    seconds_measured_ += r.duration_s;
+  }
+  if (std::isfinite(r.lpa_predicted_db)) {
+    energy_predicted_s_ += dsp::mean_square_from_level(r.lpa_predicted_db) * r.duration_s;
+    seconds_predicted_ += r.duration_s;
+  }
   auto take = [](Running& s, double v) {
     if (!std::isfinite(v)) return;
     s.min = s.n == 0 ? v : std::min(s.min, v);
@@ -116,8 +125,10 @@ CycleStatistics CycleStatisticsAccumulator::result() const {
   s.valid = valid_;
   s.flagged = flagged_;
   s.seconds = seconds_;
-  s.leq_a_measured_db = seconds_ > 0 && energy_measured_s_ > 0 ? dsp::level_db(energy_measured_s_ / seconds_) : kNaN;
-  s.leq_a_predicted_db = seconds_ > 0 && energy_predicted_s_ > 0 ? dsp::level_db(energy_predicted_s_ / seconds_) : kNaN;
+  s.leq_a_measured_db =
+      seconds_measured_ > 0 && energy_measured_s_ > 0 ? dsp::level_db(energy_measured_s_ / seconds_measured_) : kNaN;
+  s.leq_a_predicted_db =
+      seconds_predicted_ > 0 && energy_predicted_s_ > 0 ? dsp::level_db(energy_predicted_s_ / seconds_predicted_) : kNaN;
   for (std::size_t i = 0; i < fields().size(); ++i) {
     const Running r = i < scalars_.size() ? scalars_[i] : Running{};
     s.scalars.push_back(finish(fields()[i], r.n, r.sum, r.sum_sq, r.energy, r.min, r.max));
@@ -139,7 +150,7 @@ CycleStatistics statistics_of(const std::vector<Report>& reports) {
 
 std::string statistics_text(const CycleStatistics& s) {
   char line[256];
-  std::snprintf(line, sizeof line, "cycles %lld: %lld valid, %lld flagged (settling or gap); %.2f s; Leq(A) measured %.2f dB, predicted %.2f dB\n",
+  std::snprintf(line, sizeof line, "cycles %lld: %lld valid, %lld flagged (settling, gap or encoder); %.2f s; Leq(A) measured %.2f dB, predicted %.2f dB\n",
                 static_cast<long long>(s.cycles), static_cast<long long>(s.valid), static_cast<long long>(s.flagged), s.seconds,
                 s.leq_a_measured_db, s.leq_a_predicted_db);
   std::string out = line;

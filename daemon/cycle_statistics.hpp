@@ -3,7 +3,9 @@
 // and maximum of every other scalar, the counts of valid and flagged cycles, and Leq(A) over the time the cycles
 // cover. Used for a whole recording (`noisemon summary`) and for the daemon's rolling window.
 //
-// Only valid cycles (flags without settling or a gap) enter the statistics; the others are counted.
+// Only valid cycles (flags without settling, a gap or an encoder fault) enter the statistics; the others are
+// counted. A value a valid cycle does not have (NaN: no microphone left, a pressure fault) is left out of that
+// quantity's statistics, and its Leq(A) covers only the time of the cycles that have it.
 #pragma once
 
 #include <cstdint>
@@ -25,7 +27,7 @@ struct ScalarStats {
 struct CycleStatistics {
   std::int64_t cycles = 0;        // every cycle seen
   std::int64_t valid = 0;         // the ones in the statistics
-  std::int64_t flagged = 0;       // settling or with a gap: counted, not averaged
+  std::int64_t flagged = 0;       // settling, with a gap or an encoder fault: counted, not averaged
   double seconds = 0;             // time the valid cycles cover
   double leq_a_measured_db = 0;   // Leq(A) over that time: energy mean of Lp(A) weighted by each cycle's duration
   double leq_a_predicted_db = 0;
@@ -46,7 +48,7 @@ class CycleStatisticsAccumulator {
     double sum = 0, sum_sq = 0, energy = 0, min = 0, max = 0;
   };
   std::int64_t cycles_ = 0, valid_ = 0, flagged_ = 0;
-  double seconds_ = 0, energy_measured_s_ = 0, energy_predicted_s_ = 0;
+  double seconds_ = 0, energy_measured_s_ = 0, energy_predicted_s_ = 0, seconds_measured_ = 0, seconds_predicted_ = 0;
   std::vector<Running> scalars_;
   std::vector<float> band_hz_;
   std::vector<Running> bands_measured_, bands_predicted_, bands_cpl_;

@@ -32,6 +32,7 @@ noisemon::cycle_report_t to_message(const CycleReport& r) {
   m.band_flags.assign(r.band_flags, r.band_flags + r.nbands);
   m.nmics = static_cast<std::int16_t>(r.nmics);
   m.mic_lpa_db.assign(r.mic_lpa_db, r.mic_lpa_db + r.nmics);
+  m.mic_flags.assign(r.mic_flags, r.mic_flags + r.nmics);
   m.flags = r.flags;
   m.processing_ms = r.processing_ms;
   const model::CombustionMetrics& c = r.combustion;
@@ -100,6 +101,10 @@ std::string cycle_flags_text(std::int32_t flags) {
   add(noisemon::cycle_report_t::CYCLE_NO_OPERATING_POINT, "no-op");
   add(noisemon::cycle_report_t::CYCLE_LENGTH_ODD, "odd-length");
   add(noisemon::cycle_report_t::CYCLE_NO_MICS, "no-mics");
+  add(noisemon::cycle_report_t::CYCLE_ENCODER, "encoder");
+  add(noisemon::cycle_report_t::CYCLE_OVERLOAD, "overload");
+  add(noisemon::cycle_report_t::CYCLE_MIC_EXCLUDED, "mic-excluded");
+  add(noisemon::cycle_report_t::CYCLE_PRESSURE_FAULT, "pressure-fault");
   return s;
 }
 

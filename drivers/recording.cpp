@@ -271,7 +271,7 @@ class LogAssembler {
       if (!decode_message(e.data, static_cast<std::size_t>(e.datalen), m)) return damage(e, "does not decode as noisemon.raw_block_t");
       if (sessions_.empty()) return damage(e, "raw block before any " + ch_.session + " message");
       SessionData& s = sessions_.back();
-      if (const std::string why = raw_block_problem(m, s.info); !why.empty()) return damage(e, "raw " + why);
+      if (const std::string why = raw_block_problem_for_recording(m, s.info); !why.empty()) return damage(e, "raw " + why);
       if (m.frames == 0) return;
       RawBlock rb{m.first_index, static_cast<std::uint32_t>(m.frames), std::move(m.data)};
       (m.stream == noisemon::raw_block_t::STREAM_PRESSURE ? s.pressure : s.mics).push_back(std::move(rb));

@@ -38,7 +38,8 @@ struct SampleBlock {
 
 // Pressure stream channels.
 inline constexpr std::uint32_t kPressureChannel = 0;  // cylinder pressure, Pa (absolute)
-inline constexpr std::uint32_t kCrankChannel = 1;     // crank angle, degrees in [-360, 360), 0 = firing TDC
+inline constexpr std::uint32_t kCrankChannel = 1;     // crank angle, degrees in [-360, 360), 0 = firing TDC;
+                                                      // NaN where the angle is not known (encoder fault, before a resync)
 inline constexpr std::uint32_t kPressureStreamChannels = 2;
 
 struct OperatingPoint {
@@ -66,6 +67,9 @@ struct StreamInfo {
   std::vector<std::array<double, 3>> mic_positions_m;  // one per microphone
   double radius_m = 1.75;         // measurement hemisphere radius
   double acoustic_delay_s = 0.0;  // engine-to-microphone propagation time the processing should remove
+  // The converters' rails as 40 kHz values (0: not known): a sample at or beyond them was clipped (overload).
+  double pressure_full_scale_pa = 0.0;  // top of the pressure converter's range, Pa (absolute)
+  double mic_full_scale_pa = 0.0;       // +- full scale of the microphone converter, Pa
 };
 
 enum class ThreadState : std::uint8_t { kIdle = 0, kRunning = 1, kStopped = 2, kFailed = 3 };

@@ -50,6 +50,8 @@ noisemon::session_t to_message(const StreamInfo& info, const std::string& source
   m.sample_rate_hz = kPipelineRateHz;
   m.radius_m = info.radius_m;
   m.acoustic_delay_s = info.acoustic_delay_s;
+  m.pressure_full_scale_pa = info.pressure_full_scale_pa;
+  m.mic_full_scale_pa = info.mic_full_scale_pa;
   m.nmics = static_cast<std::int16_t>(info.mic_count);
   m.mic_positions_m.assign(info.mic_count, std::vector<double>(3, 0.0));
   for (std::size_t i = 0; i < info.mic_count; ++i) {
@@ -69,11 +71,17 @@ StreamInfo from_message(const noisemon::session_t& m) {
   if (!(m.radius_m > 0) || !std::isfinite(m.radius_m) || !(m.acoustic_delay_s >= 0 && m.acoustic_delay_s <= 1))
     throw std::invalid_argument("session with radius " + std::to_string(m.radius_m) + " m and acoustic delay " +
                                 std::to_string(m.acoustic_delay_s) + " s (positive radius, delay 0..1 s expected)");
+  // A full scale is a level the samples are compared with: finite, and 0 (unknown) or above.
+  for (const double fs : {m.pressure_full_scale_pa, m.mic_full_scale_pa})
+    if (!(fs >= 0) || !std::isfinite(fs))
+      throw std::invalid_argument("session with full scale " + std::to_string(fs) + " Pa (0 = unknown, or above 0 expected)");
   StreamInfo info;
   info.epoch_utime = m.epoch_utime;
   info.mic_count = static_cast<std::uint32_t>(m.nmics);
   info.radius_m = m.radius_m;
   info.acoustic_delay_s = m.acoustic_delay_s;
+  info.pressure_full_scale_pa = m.pressure_full_scale_pa;
+  info.mic_full_scale_pa = m.mic_full_scale_pa;
   for (const auto& p : m.mic_positions_m) info.mic_positions_m.push_back({p[0], p[1], p[2]});
   return info;
 }
@@ -137,7 +145,8 @@ bool decode_exact(const void* data, std::size_t size, Message& m) {
 }  // namespace
 
 bool decode_message(const void* data, std::size_t size, noisemon::session_t& m) {
-  // fingerprint, utime, epoch_utime, source, sample_rate_hz, radius_m, acoustic_delay_s, nmics, positions, condition
+  // fingerprint, utime, epoch_utime, source, sample_rate_hz, radius_m, acoustic_delay_s, nmics, positions, condition,
+  // pressure_full_scale_pa, mic_full_scale_pa
   const auto* d = static_cast<const std::uint8_t*>(data);
   std::size_t pos = 24;
   if (size < pos || !skip_string(d, size, pos)) return false;
@@ -147,7 +156,7 @@ bool decode_message(const void* data, std::size_t size, noisemon::session_t& m) 
   pos += 2;
   if (nmics < 0 || static_cast<std::size_t>(nmics) * 24 > size - pos) return false;
   pos += static_cast<std::size_t>(nmics) * 24;
-  if (!skip_string(d, size, pos) || pos != size) return false;
+  if (!skip_string(d, size, pos) || size - pos != 16) return false;
   return decode_exact(data, size, m);
 }
 
@@ -187,12 +196,19 @@ std::string raw_block_problem(const noisemon::raw_block_t& m, const StreamInfo& 
     return std::string(m.stream == noisemon::raw_block_t::STREAM_PRESSURE ? "pressure" : "microphone") + " block with " +
            std::to_string(m.channels) + " channels, expected " + std::to_string(expected);
   for (double v : m.data)
-    if (!std::isfinite(v)) return "non-finite sample";
+    if (std::isinf(v)) return "infinite sample";
   if (m.stream == noisemon::raw_block_t::STREAM_PRESSURE)
     for (std::int16_t f = 0; f < m.frames; ++f) {
       const double c = m.data[static_cast<std::size_t>(f) * kPressureStreamChannels + kCrankChannel];
       if (c < -360.0 || c > 360.0) return "crank angle outside [-360, 360] deg";
     }
+  return "";
+}
+
+std::string raw_block_problem_for_recording(const noisemon::raw_block_t& m, const StreamInfo& info) {
+  if (std::string why = raw_block_problem(m, info); !why.empty()) return why;
+  for (double v : m.data)
+    if (std::isnan(v)) return "non-finite sample";
   return "";
 }
 

@@ -32,8 +32,12 @@ bool decode_message(const void* data, std::size_t size, noisemon::operating_poin
 // Why a decoded raw block cannot be used as part of the session `info` ("" when it can): a sample rate other
 // than 40 kHz, frames/channels out of range or not matching nsamples, another session's epoch, a utime that
 // contradicts first_index (a damaged field), an unknown stream, a channel count its stream does not have,
-// non-finite samples, a crank angle outside [-360, 360]. from_message() then succeeds on it.
+// infinite samples, a crank angle outside [-360, 360]. NaN samples are what the device delivered (NaN crank: the
+// angle is unknown; NaN pressure or sound: a faulty channel): the processing flags them, so they pass here.
+// from_message() then succeeds on it.
 std::string raw_block_problem(const noisemon::raw_block_t& m, const StreamInfo& info);
+// The same, and "non-finite sample" for NaN too: for recordings that become run directories and fits.
+std::string raw_block_problem_for_recording(const noisemon::raw_block_t& m, const StreamInfo& info);
 SampleBlock from_message(const noisemon::raw_block_t& m);
 // Operating points: an unknown value is NaN both ways (always the positive quiet NaN, so text says "nan").
 OperatingPoint from_message(const noisemon::operating_point_t& m);

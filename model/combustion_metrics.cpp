@@ -38,9 +38,9 @@ struct Grid {
 };
 
 // Least-squares slope over +-half samples (the Savitzky-Golay first derivative), per degree; NaN at the ends.
-std::vector<double> slope_per_deg(const Grid& g, int half) {
+void slope_per_deg(const Grid& g, int half, std::vector<double>& out) {
   const std::size_t n = g.p.size();
-  std::vector<double> out(n, kNaN);
+  out.assign(n, kNaN);
   const double h = half;
   const double den = g.step * h * (h + 1) * (2 * h + 1) / 3.0;
   for (std::size_t i = static_cast<std::size_t>(half); i + static_cast<std::size_t>(half) < n; ++i) {
@@ -48,7 +48,6 @@ std::vector<double> slope_per_deg(const Grid& g, int half) {
     for (int k = 1; k <= half; ++k) s += k * (g.p[i + k] - g.p[i - k]);
     out[i] = s / den;
   }
-  return out;
 }
 
 // Integral of p dV over [a, b] deg (trapezoid on the samples, dV/dtheta analytic), J.
@@ -86,11 +85,11 @@ void max_rise(const Grid& g, const std::vector<double>& slope, const MetricsOpti
 // Apparent heat release (Heywood eq. 9.25) over the window, and the angles where its cumulative sum, counted from
 // its minimum before its maximum, reaches 10, 50 and 90 % of that rise.
 void heat_release(const Grid& g, const std::vector<double>& slope, const EngineGeometry& e, const MetricsOptions& o,
-                  CombustionMetrics& m) {
+                  std::vector<double>& q, CombustionMetrics& m) {
   const auto [lo, hi] = g.range(o.heat_release_from_deg, o.heat_release_to_deg);
   const double k = o.gamma / (o.gamma - 1.0), kv = 1.0 / (o.gamma - 1.0);
   auto rate = [&](std::size_t i) { return k * g.p[i] * e.dvolume_m3_per_deg(g.angle(i)) + kv * e.volume_m3(g.angle(i)) * slope[i]; };
-  std::vector<double> q{0.0};
+  q.assign(1, 0.0);
   for (std::size_t i = lo; i < hi; ++i) {
     if (!std::isfinite(slope[i]) || !std::isfinite(slope[i + 1])) return;
     q.push_back(q.back() + 0.5 * g.step * (rate(i) + rate(i + 1)));
@@ -144,17 +143,25 @@ void check(std::span<const double> p, double step, const EngineGeometry& e, cons
 
 CombustionMetrics combustion_metrics(std::span<const double> pressure_pa, double first_deg, double step_deg,
                                      const EngineGeometry& engine, double speed_rpm, const MetricsOptions& options) {
+  MetricsWorkspace scratch;
+  return combustion_metrics(pressure_pa, first_deg, step_deg, engine, speed_rpm, options, scratch);
+}
+
+CombustionMetrics combustion_metrics(std::span<const double> pressure_pa, double first_deg, double step_deg,
+                                     const EngineGeometry& engine, double speed_rpm, const MetricsOptions& options,
+                                     MetricsWorkspace& scratch) {
   check(pressure_pa, step_deg, engine, options);
   const Grid g{pressure_pa, first_deg, step_deg};
   const int half = std::max(1, static_cast<int>(std::lround(options.derivative_half_width_deg / step_deg)));
-  const std::vector<double> slope = slope_per_deg(g, half);
+  std::vector<double>& slope = scratch.slope;
+  slope_per_deg(g, half, slope);
   CombustionMetrics m;
   peak(g, m);
   max_rise(g, slope, options, m);
   const double vd = engine.displacement_m3();
   m.imep_gross_pa = g.covers(-180.0, 180.0) ? work_j(g, engine, -180.0, 180.0) / vd : kNaN;
   m.imep_net_pa = g.covers(-360.0, 360.0) ? work_j(g, engine, -360.0, 360.0) / vd : kNaN;
-  heat_release(g, slope, engine, options, m);
+  heat_release(g, slope, engine, options, scratch.heat, m);
   m.ringing_intensity_w_per_m2 = ringing_intensity(g, engine, speed_rpm, options, m);
   return m;
 }

@@ -11,6 +11,7 @@
 
 #include <limits>
 #include <span>
+#include <vector>
 
 #include "model/engine_cycle.hpp"
 
@@ -45,5 +46,14 @@ struct CombustionMetrics {
 // wrong (geometry, step, too few samples).
 CombustionMetrics combustion_metrics(std::span<const double> pressure_pa, double first_deg, double step_deg,
                                      const EngineGeometry& engine, double speed_rpm, const MetricsOptions& options = {});
+
+// The metrics' scratch space: sized by the first call and reused, so a caller that keeps one (the processing
+// thread) does not allocate per cycle.
+struct MetricsWorkspace {
+  std::vector<double> slope, heat;
+};
+CombustionMetrics combustion_metrics(std::span<const double> pressure_pa, double first_deg, double step_deg,
+                                     const EngineGeometry& engine, double speed_rpm, const MetricsOptions& options,
+                                     MetricsWorkspace& scratch);
 
 }  // namespace noisemon::model

@@ -2,10 +2,12 @@
 // response through eq. 4.1 are known in closed form; microphones delayed by the acoustic delay.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <complex>
 #include <functional>
 #include <numbers>
+#include <random>
 #include <vector>
 
 #include "daemon/cycle_processor.hpp"
@@ -176,7 +178,9 @@ TEST(CycleProcessor, SteadyTonesMatchAnalyticLevels) {
 TEST(CycleProcessor, MicrophoneWindowIsShiftedByTheAcousticDelay) {
   // A 5 kHz tone only in even cycles: with the delay removed, the microphones' level in every cycle follows the
   // pressure's. Without the shift 1/8 of the burst would land in the odd cycles (only ~9 dB down).
-  const Synth s({{5000.0, 500.0, true}});
+  // A weak steady 200 Hz tone keeps every channel moving in the off cycles: a channel exactly constant for a whole
+  // cycle is a stuck converter (flat) and would be left out.
+  const Synth s({{5000.0, 500.0, true}, {200.0, 1.0, false}});
   const RunResult r = run(s, 1.2);
   const std::size_t b5k = band_index(r.bands, 5000);
   int even = 0, odd = 0;
@@ -385,5 +389,417 @@ TEST(CycleProcessor, BandsBelowTheFiringFrequencyAreFlaggedAndLeftOutOfTheOveral
     EXPECT_GT(c.spl_a_predicted_db[b20], plain.reports[i].spl_a_predicted_db[b20] + 20.0);  // it is there, flagged
     EXPECT_NEAR(c.lpa_predicted_db, plain.reports[i].lpa_predicted_db, 0.01);
     EXPECT_NEAR(c.lpa_measured_db, plain.reports[i].lpa_measured_db, 0.01);
+  }
+}
+
+// ------------------------------------------------------------------------------------------ faulty channels
+
+namespace {
+
+// Streams sample by sample, so that a test can break any channel anywhere: a dead microphone, a NaN burst, a
+// clipping converter, an encoder that loses the angle. Frame k of every stream; microphone frame k hears the
+// engine at k - kDelayFrames (as Synth does).
+struct Streams {
+  std::uint32_t mics = kMics;
+  std::function<double(std::int64_t)> pressure;
+  std::function<double(std::int64_t)> crank = ::crank;
+  std::function<double(std::int64_t, std::uint32_t)> mic;
+  double pressure_full_scale_pa = 0, mic_full_scale_pa = 0;
+};
+
+Streams streams_of(const Synth& s) {
+  Streams st;
+  st.pressure = [s](std::int64_t k) { return s.pressure(k); };
+  st.mic = [s](std::int64_t k, std::uint32_t m) { return s.mic(k, m); };
+  return st;
+}
+
+// As run(), with an operating point, so that a report's flags say only what the streams did to it.
+RunResult run_streams(const Streams& st, double seconds) {
+  drivers::StreamInfo info;
+  info.epoch_utime = 1'000'000;
+  info.mic_count = st.mics;
+  info.radius_m = 1.75;
+  info.acoustic_delay_s = kDelayFrames / kFs;
+  info.pressure_full_scale_pa = st.pressure_full_scale_pa;
+  info.mic_full_scale_pa = st.mic_full_scale_pa;
+  daemon::ProcessorConfig pc;
+  pc.model = model::preset("linear");
+  RunResult out;
+  daemon::CycleProcessor p(pc, info, [&](const daemon::CycleReport& r) { out.reports.push_back(r); });
+  drivers::OperatingPoint op;
+  op.speed_rpm = 3000;
+  p.set_operating_point(op);
+  drivers::SampleBlock pb, mb;
+  for (std::int64_t b = 0; b * 256 < static_cast<std::int64_t>(seconds * kFs); ++b) {
+    pb.first_index = mb.first_index = b * 256;
+    pb.frames = mb.frames = 256;
+    pb.channels = drivers::kPressureStreamChannels;
+    mb.channels = st.mics;
+    for (int f = 0; f < 256; ++f) {
+      const std::int64_t k = b * 256 + f;
+      pb.data[f * 2 + drivers::kPressureChannel] = st.pressure(k);
+      pb.data[f * 2 + drivers::kCrankChannel] = st.crank(k);
+      for (std::uint32_t m = 0; m < st.mics; ++m) mb.data[f * st.mics + m] = st.mic(k, m);
+    }
+    p.add_pressure(pb);
+    if (st.mics > 0) p.add_mics(mb);
+    p.process();
+  }
+  out.counters = p.counters();
+  out.bands = p.bands();
+  return out;
+}
+
+// Report cycle n spans combined frames [first_frame(n), first_frame(n) + kCycleFrames): the first boundary is at 1600.
+constexpr std::int64_t first_frame(std::int64_t cycle) { return (cycle + 1) * kCycleFrames; }
+
+const daemon::CycleReport* find_cycle(const RunResult& r, std::int64_t cycle) {
+  for (const auto& c : r.reports)
+    if (c.cycle == cycle) return &c;
+  return nullptr;
+}
+
+// Every number a report publishes is finite (mic levels of dead microphones aside: -inf for all-zero samples).
+void expect_all_finite(const daemon::CycleReport& c) {
+  EXPECT_TRUE(std::isfinite(c.lpa_measured_db) && std::isfinite(c.lpa_predicted_db) && std::isfinite(c.lwa_measured_db) &&
+              std::isfinite(c.lwa_predicted_db))
+      << "cycle " << c.cycle;
+  for (std::size_t b = 0; b < c.nbands; ++b)
+    EXPECT_TRUE(std::isfinite(c.cpl_db[b]) && std::isfinite(c.spl_a_measured_db[b]) && std::isfinite(c.spl_a_predicted_db[b]) &&
+                std::isfinite(c.att_measured_db[b]) && std::isfinite(c.att_predicted_db[b]))
+        << "cycle " << c.cycle << " band " << b;
+  for (std::size_t m = 0; m < c.nmics; ++m) EXPECT_TRUE(std::isfinite(c.mic_lpa_db[m])) << "cycle " << c.cycle << " mic " << m;
+}
+
+}  // namespace
+
+// Ten microphones, one of them dead (all zeros: a stuck converter) or unplugged (its converter's noise only,
+// 40 dB below the others): it is flagged and left out, and the array level equals that of a second processor that
+// is fed the nine good microphones only. Left in, it would pull the energy average down by 10 log10(9/10) = 0.46 dB.
+TEST(CycleProcessorFaults, ADeadOrUnpluggedMicrophoneIsLeftOutOfTheArrayAverage) {
+  const Synth s({{1000.0, 2000.0, false}, {5000.0, 300.0, false}});
+  // Microphone gains spread around 1 (mean square), so that which microphones are averaged matters.
+  const auto gain = [](std::uint32_t m) { return std::sqrt(0.7 + 0.06 * m); };
+  constexpr std::uint32_t kDead = 3;
+  std::mt19937 rng(7);
+  std::vector<double> noise(48000);
+  for (double& v : noise) v = std::normal_distribution<double>(0.0, 1.0)(rng);
+  for (const bool unplugged : {false, true}) {
+    SCOPED_TRACE(unplugged ? "unplugged (noise 40 dB down)" : "dead (zeros)");
+    Streams ten = streams_of(s);
+    ten.mics = 10;
+    // Unplugged: white noise with 1 % of a good microphone's rms (the 1 kHz tone through eq. 4.1 dominates it).
+    const double noise_rms = 0.01 * 2000 * std::abs(eq_4_1(1000)) / std::sqrt(2.0);
+    ten.mic = [&](std::int64_t k, std::uint32_t m) {
+      if (m == kDead) return unplugged ? noise_rms * noise[static_cast<std::size_t>(k) % noise.size()] : 0.0;
+      return gain(m) * s.mic(k, 1);
+    };
+    Streams nine = ten;
+    nine.mics = 9;
+    nine.mic = [&](std::int64_t k, std::uint32_t m) { return gain(m < kDead ? m : m + 1) * s.mic(k, 1); };
+    const RunResult r10 = run_streams(ten, 1.2), r9 = run_streams(nine, 1.2);
+    ASSERT_EQ(r10.reports.size(), r9.reports.size());
+    ASSERT_GE(r10.reports.size(), 25u);
+    for (std::size_t i = 0; i < r10.reports.size(); ++i) {
+      const auto &a = r10.reports[i], &b = r9.reports[i];
+      const std::int8_t want = daemon::kMicExcluded | (unplugged ? daemon::kMicLow : daemon::kMicFlat | daemon::kMicLow);
+      EXPECT_EQ(a.mic_flags[kDead], want) << "cycle " << a.cycle;
+      for (std::uint32_t m = 0; m < 10; ++m)
+        if (m != kDead) EXPECT_EQ(a.mic_flags[m], 0) << "cycle " << a.cycle << " mic " << m;
+      EXPECT_TRUE(a.flags & daemon::kCycleMicExcluded);
+      EXPECT_EQ(a.flags & ~daemon::kCycleSettling, daemon::kCycleMicExcluded) << "cycle " << a.cycle;
+      EXPECT_EQ(b.flags & ~daemon::kCycleSettling, 0) << "cycle " << b.cycle;
+      EXPECT_NEAR(a.lpa_measured_db, b.lpa_measured_db, 0.01) << "cycle " << a.cycle;
+      EXPECT_NEAR(a.lwa_measured_db, b.lwa_measured_db, 0.01) << "cycle " << a.cycle;
+      for (std::size_t band = 0; band < a.nbands; ++band) {
+        EXPECT_NEAR(a.spl_a_measured_db[band], b.spl_a_measured_db[band], 0.01) << "cycle " << a.cycle << " band " << band;
+        EXPECT_NEAR(a.att_measured_db[band], b.att_measured_db[band], 0.01) << "cycle " << a.cycle << " band " << band;
+      }
+      // The dead microphone's own level is still reported: -inf for zeros, about 40 dB down for the noise.
+      if (unplugged) {
+        EXPECT_NEAR(a.mic_lpa_db[kDead], a.mic_lpa_db[1], 45.0);
+        EXPECT_LT(a.mic_lpa_db[kDead], a.mic_lpa_db[1] - 25.0);
+      } else {
+        EXPECT_EQ(a.mic_lpa_db[kDead], -std::numeric_limits<float>::infinity());
+      }
+    }
+    // The premise: left in, microphone 3 would have moved the average by far more than the tolerance.
+    const auto& c = r10.reports.back();
+    double all = 0;
+    for (std::uint32_t m = 0; m < 10; ++m) all += std::pow(10.0, c.mic_lpa_db[m] / 10.0);
+    EXPECT_GT(c.lpa_measured_db - 10 * std::log10(all / 10), 0.4);
+  }
+}
+
+namespace {
+
+// A replaced stretch ends in a step that the bank's filters ring with: a channel stays faulty while the bands that
+// settle within a cycle (the slower ones are flagged BAND_SLOW) have not settled since. The longest of their
+// settling times, in frames, for 40 ms cycles: the 400 Hz band's 35 ms.
+std::int64_t ring_frames(const std::vector<dsp::ThirdOctaveBand>& bands) {
+  double ring = 0;
+  for (const auto& b : bands)
+    if (b.response_time_s <= kCycleFrames / kFs) ring = std::max(ring, b.response_time_s);
+  return static_cast<std::int64_t>(std::ceil(ring * kFs));
+}
+
+// A NaN burst early in cycle 10 (it ends more than the ring time before cycle 11), and one that ends 100 frames
+// before cycle 11: the cycles that channel is faulty in.
+struct Burst {
+  const char* name;
+  std::int64_t from, to;  // combined frames
+  std::vector<std::int64_t> faulty;
+};
+const std::vector<Burst>& bursts() {
+  static const std::vector<Burst> b = {
+      {"early in cycle 10", first_frame(10) + 20, first_frame(10) + 160, {10}},
+      {"100 frames before cycle 11", first_frame(11) - 500, first_frame(11) - 100, {10, 11}},
+  };
+  return b;
+}
+
+bool in(const std::vector<std::int64_t>& v, std::int64_t x) { return std::find(v.begin(), v.end(), x) != v.end(); }
+
+}  // namespace
+
+// A NaN burst in one microphone: that microphone is left out of the cycles it makes faulty (its NaN never reaches
+// the bank, whose filters would stay NaN for ever), and only those; the array level there stays the clean run's
+// (microphones 0 and 2 average to the same mean square as all three: with the burst's zeros in, it would drop), and
+// every later report is the clean run's again: same flags, no NaN, the same levels.
+TEST(CycleProcessorFaults, ANanBurstInAMicrophoneExcludesItUntilItsFiltersHaveSettled) {
+  const Synth s({{1000.0, 2000.0, false}, {5000.0, 300.0, false}});
+  const RunResult clean = run_streams(streams_of(s), 1.2);
+  const std::int64_t ring = ring_frames(clean.bands);
+  // About 35 ms: the bursts end on either side of it (1440 and 100 frames before cycle 11).
+  ASSERT_GT(ring, 100);
+  ASSERT_LT(ring, 1440);
+  for (const Burst& burst : bursts()) {
+    SCOPED_TRACE(burst.name);
+    Streams faulty = streams_of(s);
+    faulty.mic = [&](std::int64_t k, std::uint32_t m) {
+      const std::int64_t n = k - kDelayFrames;  // the combined frame this microphone sample belongs to
+      return m == 1 && n >= burst.from && n < burst.to ? std::numeric_limits<double>::quiet_NaN() : s.mic(k, m);
+    };
+    const RunResult r = run_streams(faulty, 1.2);
+    ASSERT_EQ(r.reports.size(), clean.reports.size());
+    EXPECT_EQ(r.counters.samples_replaced, burst.to - burst.from);
+    EXPECT_EQ(r.counters.cycles_dropped, 0);
+    for (std::size_t i = 0; i < r.reports.size(); ++i) {
+      const auto &c = r.reports[i], &ref = clean.reports[i];
+      ASSERT_EQ(c.cycle, ref.cycle);
+      if (in(burst.faulty, c.cycle)) {
+        EXPECT_EQ(c.mic_flags[1], daemon::kMicExcluded | daemon::kMicNan) << "cycle " << c.cycle;
+        EXPECT_EQ(c.mic_flags[0] | c.mic_flags[2], 0) << "cycle " << c.cycle;
+        EXPECT_EQ(c.flags, ref.flags | daemon::kCycleMicExcluded) << "cycle " << c.cycle;
+        EXPECT_NEAR(c.lpa_measured_db, ref.lpa_measured_db, 0.01) << "cycle " << c.cycle;
+        EXPECT_TRUE(std::isfinite(c.mic_lpa_db[1])) << "cycle " << c.cycle;  // its own level is still reported
+      } else {
+        EXPECT_EQ(c.flags, ref.flags) << "cycle " << c.cycle;
+        for (std::uint32_t m = 0; m < kMics; ++m) EXPECT_EQ(c.mic_flags[m], 0) << "cycle " << c.cycle;
+      }
+      if (c.cycle > burst.faulty.back()) {
+        expect_all_finite(c);
+        EXPECT_NEAR(c.lpa_measured_db, ref.lpa_measured_db, 0.05) << "cycle " << c.cycle;
+        EXPECT_NEAR(c.mic_lpa_db[1], ref.mic_lpa_db[1], 0.05) << "cycle " << c.cycle;
+      }
+    }
+    // In the cycle of the burst, microphone 1's own level misses the burst's energy (1/11 or 1/4 of the cycle).
+    EXPECT_LT(find_cycle(r, 10)->mic_lpa_db[1], find_cycle(clean, 10)->mic_lpa_db[1] - 0.3);
+  }
+  // The clean run's premise: its cycles are fully valid (once the filters have settled from the start).
+  for (const auto& c : clean.reports) EXPECT_EQ(c.flags & ~daemon::kCycleSettling, 0) << "cycle " << c.cycle;
+  EXPECT_EQ(clean.reports.back().flags, 0);
+}
+
+// A NaN burst in the pressure: the cycles it makes faulty say so and publish no CPL, prediction, attenuation or
+// combustion metric, but their measured levels; the NaN never reaches the block model or the bank, so every later
+// cycle predicts what a clean run predicts.
+TEST(CycleProcessorFaults, ANanBurstInThePressureVoidsThePredictionsUntilItsFiltersHaveSettled) {
+  const Synth s({{1000.0, 2000.0, false}, {5000.0, 300.0, false}});
+  const RunResult clean = run_streams(streams_of(s), 1.2);
+  const std::size_t b1k = band_index(clean.bands, 1000), b5k = band_index(clean.bands, 5000);
+  for (const Burst& burst : bursts()) {
+    SCOPED_TRACE(burst.name);
+    Streams faulty = streams_of(s);
+    faulty.pressure = [&](std::int64_t k) {
+      return k >= burst.from && k < burst.to ? std::numeric_limits<double>::quiet_NaN() : s.pressure(k);
+    };
+    const RunResult r = run_streams(faulty, 1.2);
+    ASSERT_EQ(r.reports.size(), clean.reports.size());
+    EXPECT_EQ(r.counters.samples_replaced, burst.to - burst.from);
+    for (std::size_t i = 0; i < r.reports.size(); ++i) {
+      const auto &c = r.reports[i], &ref = clean.reports[i];
+      ASSERT_EQ(c.cycle, ref.cycle);
+      if (in(burst.faulty, c.cycle)) {
+        EXPECT_EQ(c.flags, ref.flags | daemon::kCyclePressureFault) << "cycle " << c.cycle;
+        EXPECT_TRUE(std::isnan(c.lpa_predicted_db) && std::isnan(c.lwa_predicted_db)) << "cycle " << c.cycle;
+        EXPECT_TRUE(std::isnan(c.combustion.peak_pressure_pa) && std::isnan(c.combustion.imep_gross_pa));
+        for (std::size_t b = 0; b < c.nbands; ++b)
+          EXPECT_TRUE(std::isnan(c.cpl_db[b]) && std::isnan(c.spl_a_predicted_db[b]) && std::isnan(c.att_measured_db[b]) &&
+                      std::isnan(c.att_predicted_db[b]))
+              << "cycle " << c.cycle << " band " << b;
+        EXPECT_NEAR(c.lpa_measured_db, ref.lpa_measured_db, 1e-9);  // the microphones are untouched
+        EXPECT_NEAR(c.spl_a_measured_db[b1k], ref.spl_a_measured_db[b1k], 1e-6);
+        for (std::uint32_t m = 0; m < kMics; ++m) EXPECT_EQ(c.mic_flags[m], 0);
+        continue;
+      }
+      EXPECT_EQ(c.flags, ref.flags) << "cycle " << c.cycle;
+      if (c.cycle < burst.faulty.front()) continue;
+      expect_all_finite(c);
+      EXPECT_NEAR(c.lpa_predicted_db, ref.lpa_predicted_db, 0.05) << "cycle " << c.cycle;
+      EXPECT_NEAR(c.spl_a_predicted_db[b1k], ref.spl_a_predicted_db[b1k], 0.05) << "cycle " << c.cycle;
+      EXPECT_NEAR(c.spl_a_predicted_db[b5k], ref.spl_a_predicted_db[b5k], 0.05) << "cycle " << c.cycle;
+      EXPECT_NEAR(c.cpl_db[b1k], ref.cpl_db[b1k], 0.05) << "cycle " << c.cycle;
+      EXPECT_NEAR(c.combustion.peak_pressure_pa, ref.combustion.peak_pressure_pa, 1.0) << "cycle " << c.cycle;
+    }
+  }
+}
+
+// Converters that clip: a microphone whose samples reach the rail in one cycle is flagged overloaded and left out
+// of that cycle (CYCLE_OVERLOAD, as a sound level meter's overload indicator); one that peaks at 96 % of its full
+// scale is not. A pressure that reaches its rail voids the cycle's predictions (CYCLE_PRESSURE_FAULT) and is
+// an overload too. Full scale 0 (unknown): nothing is checked.
+TEST(CycleProcessorFaults, ClippingAtTheFullScaleIsAnOverload) {
+  const Synth s({{1000.0, 2000.0, false}});
+  // Peak of the loudest microphone (2, gain sqrt(1.2)): the tone through eq. 4.1. Its rail sits at peak / 0.96: 4 %
+  // of headroom, below the 0.99 threshold.
+  const double peak2 = 2000 * std::abs(eq_4_1(1000)) * Synth::gain(2);
+  const double mic_fs = peak2 / 0.96;
+  const double pressure_fs = (1e5 + 2000) / 0.96;  // the pressure's peak at 96 % of its (absolute) rail too
+  constexpr std::int64_t kMicCycle = 10, kPressureCycle = 14;
+  const auto in_cycle = [](std::int64_t n, std::int64_t cycle) { return n >= first_frame(cycle) && n < first_frame(cycle + 1); };
+  Streams st = streams_of(s);
+  st.mic_full_scale_pa = mic_fs;
+  st.pressure_full_scale_pa = pressure_fs;
+  // Microphone 2 hears 1.6 dB more in cycle kMicCycle: beyond its rail, clipped there. Clipped samples after the
+  // resampling to 40 kHz stay a little below the rail itself: 99.5 % of it here.
+  constexpr double kClipped = 0.995;
+  st.mic = [&](std::int64_t k, std::uint32_t m) {
+    const double x = s.mic(k, m);
+    return m == 2 && in_cycle(k - kDelayFrames, kMicCycle) ? std::clamp(1.2 * x, -kClipped * mic_fs, kClipped * mic_fs) : x;
+  };
+  // The pressure swings four times as far in cycle kPressureCycle: beyond its rail, clipped there.
+  st.pressure = [&](std::int64_t k) {
+    const double p = s.pressure(k);
+    return in_cycle(k, kPressureCycle) ? std::min(1e5 + 4 * (p - 1e5), kClipped * pressure_fs) : p;
+  };
+  const RunResult r = run_streams(st, 1.0);
+  ASSERT_NE(find_cycle(r, kPressureCycle + 1), nullptr);
+  for (const auto& c : r.reports) {
+    if (c.cycle == kMicCycle) {
+      EXPECT_EQ(c.mic_flags[2], daemon::kMicExcluded | daemon::kMicOverload);
+      EXPECT_EQ(c.flags & ~daemon::kCycleSettling, daemon::kCycleOverload | daemon::kCycleMicExcluded);
+    } else if (c.cycle == kPressureCycle) {
+      EXPECT_EQ(c.flags & ~daemon::kCycleSettling, daemon::kCycleOverload | daemon::kCyclePressureFault);
+      EXPECT_TRUE(std::isnan(c.lpa_predicted_db));
+      EXPECT_TRUE(std::isfinite(c.lpa_measured_db));
+    } else {
+      EXPECT_EQ(c.flags & ~daemon::kCycleSettling, 0) << "cycle " << c.cycle;  // microphone 2 at 96 %: no overload
+    }
+    if (c.cycle != kMicCycle)
+      for (std::uint32_t m = 0; m < kMics; ++m) EXPECT_EQ(c.mic_flags[m], 0) << "cycle " << c.cycle << " mic " << m;
+  }
+  // The same streams with the full scales unknown: no overload anywhere.
+  st.mic_full_scale_pa = st.pressure_full_scale_pa = 0;
+  for (const auto& c : run_streams(st, 1.0).reports) EXPECT_EQ(c.flags & ~daemon::kCycleSettling, 0) << "cycle " << c.cycle;
+}
+
+namespace {
+
+// A combustion pulse (as in the metrics test above) with a 1 kHz ripple, so that every cycle has combustion metrics.
+Streams combustion_streams() {
+  const Synth s({{1000.0, 2000.0, false}});
+  Streams st = streams_of(s);
+  st.pressure = [s](std::int64_t k) { return s.pressure(k) + 40e5 * std::exp(-std::pow((crank(k) - 8.0) / 15.0, 2)); };
+  return st;
+}
+
+Streams with_crank_unknown(Streams st, std::int64_t from, std::int64_t to) {
+  st.crank = [from, to](std::int64_t k) { return k >= from && k < to ? std::numeric_limits<double>::quiet_NaN() : crank(k); };
+  return st;
+}
+
+}  // namespace
+
+// The encoder loses the angle for 300 frames (135 deg) in the middle of one cycle: that cycle is flagged and has no
+// combustion metrics (its pressure has a hole on the crank-angle grid); its neighbours are untouched, no cycle is
+// lost or invented, and the levels (time-based) are those of a clean run.
+TEST(CycleProcessorFaults, UnknownCrankAngleInsideACycleFlagsThatCycleOnly) {
+  constexpr std::int64_t kCycle = 10, kFrom = first_frame(kCycle) + 400, kTo = kFrom + 300;
+  const RunResult clean = run_streams(combustion_streams(), 1.0);
+  const RunResult r = run_streams(with_crank_unknown(combustion_streams(), kFrom, kTo), 1.0);
+  ASSERT_EQ(r.reports.size(), clean.reports.size());
+  EXPECT_EQ(r.counters.cycles_dropped, 0);
+  EXPECT_EQ(r.counters.crank_unknown_frames, kTo - kFrom);
+  for (std::size_t i = 0; i < r.reports.size(); ++i) {
+    const auto &c = r.reports[i], &ref = clean.reports[i];
+    ASSERT_EQ(c.cycle, ref.cycle);
+    ASSERT_EQ(c.utime, ref.utime);
+    EXPECT_TRUE(std::isfinite(ref.combustion.peak_pressure_pa) && std::isfinite(ref.combustion.imep_gross_pa));
+    if (c.cycle == kCycle) {
+      EXPECT_EQ(c.flags & ~ref.flags, daemon::kCycleEncoder);
+      EXPECT_TRUE(std::isnan(c.combustion.peak_pressure_pa));
+      EXPECT_TRUE(std::isnan(c.combustion.imep_gross_pa));
+      EXPECT_TRUE(std::isnan(c.combustion.ca50_deg));
+    } else {
+      EXPECT_EQ(c.flags, ref.flags) << "cycle " << c.cycle;
+      EXPECT_EQ(c.combustion.peak_pressure_pa, ref.combustion.peak_pressure_pa) << "cycle " << c.cycle;
+      EXPECT_EQ(c.combustion.imep_gross_pa, ref.combustion.imep_gross_pa) << "cycle " << c.cycle;
+    }
+    EXPECT_NEAR(c.lpa_measured_db, ref.lpa_measured_db, 1e-9) << "cycle " << c.cycle;
+    EXPECT_NEAR(c.lpa_predicted_db, ref.lpa_predicted_db, 1e-9) << "cycle " << c.cycle;
+  }
+}
+
+// The encoder loses the angle across a cycle boundary. Longer than a cycle (the angle after it is past the one
+// before it: no wrap seen), the boundaries inside are hidden: the 2-cycle stretch between the boundaries around it
+// is not reported and counts as two dropped cycles, and the next cycle (starting at a boundary seen on known angles)
+// is valid again, with the clean run's index. Shorter (a wrap is seen at the first known angle), the boundary is
+// uncertain: the cycles before and after it are flagged, not dropped, and do not become the reference length.
+TEST(CycleProcessorFaults, UnknownCrankAngleAcrossABoundaryHidesOrBlursIt) {
+  const RunResult clean = run_streams(combustion_streams(), 1.0);
+  struct Case {
+    const char* name;
+    std::int64_t from, to;            // unknown crank angles, combined frames
+    std::vector<std::int64_t> gone;   // report indices not published
+    std::vector<std::int64_t> blurred;  // published with CYCLE_ENCODER
+  };
+  const std::vector<Case> cases = {
+      {"1.13 cycles, covering the boundary at the start of cycle 11", first_frame(10) + 1000, first_frame(11) + 1200, {10, 11}, {}},
+      {"400 frames around the boundary at the start of cycle 11", first_frame(11) - 200, first_frame(11) + 200, {}, {10, 11}},
+  };
+  for (const Case& k : cases) {
+    SCOPED_TRACE(k.name);
+    const RunResult r = run_streams(with_crank_unknown(combustion_streams(), k.from, k.to), 1.0);
+    EXPECT_EQ(r.counters.cycles_dropped, static_cast<std::int64_t>(k.gone.size()));
+    EXPECT_EQ(r.reports.size() + k.gone.size(), clean.reports.size());
+    std::int64_t first_valid_after = INT64_MAX;
+    for (const auto& c : r.reports) {
+      EXPECT_EQ(std::count(k.gone.begin(), k.gone.end(), c.cycle), 0) << "cycle " << c.cycle << " published";
+      const daemon::CycleReport* ref = find_cycle(clean, c.cycle);
+      ASSERT_NE(ref, nullptr) << "cycle " << c.cycle;
+      const bool blurred = std::count(k.blurred.begin(), k.blurred.end(), c.cycle) > 0;
+      EXPECT_EQ((c.flags & daemon::kCycleEncoder) != 0, blurred) << "cycle " << c.cycle;
+      if (blurred) {
+        EXPECT_TRUE(std::isnan(c.combustion.peak_pressure_pa)) << "cycle " << c.cycle;
+        continue;
+      }
+      // Every other cycle is the clean run's: same start, same flags (no odd length after the blurred ones),
+      // same metrics.
+      EXPECT_EQ(c.utime, ref->utime) << "cycle " << c.cycle;
+      EXPECT_EQ(c.flags, ref->flags) << "cycle " << c.cycle;
+      EXPECT_NEAR(c.combustion.peak_pressure_pa, ref->combustion.peak_pressure_pa, 1e-6) << "cycle " << c.cycle;
+      const std::int64_t start = (c.utime - 1'000'000) * 40 / 1000;
+      if (start >= k.to && (c.flags & ~daemon::kCycleSettling) == 0) first_valid_after = std::min(first_valid_after, start);
+    }
+    EXPECT_LE(first_valid_after, k.to + 2 * kCycleFrames) << "no valid cycle within two cycles of the stretch's end";
+    // The blurred boundary sits at the first known angle: the cycle before it is longer, the one after shorter.
+    if (!k.blurred.empty()) {
+      const daemon::CycleReport *before = find_cycle(r, k.blurred[0]), *after = find_cycle(r, k.blurred[1]);
+      ASSERT_TRUE(before && after);
+      EXPECT_NEAR(before->duration_s, (first_frame(11) + 200 - first_frame(10)) / kFs, 1e-9);
+      EXPECT_NEAR(after->duration_s, (first_frame(12) - first_frame(11) - 200) / kFs, 1e-9);
+    }
   }
 }

@@ -73,6 +73,22 @@ TEST(CycleStatistics, LeqWeightsEachCycleByItsDuration) {
   EXPECT_NEAR(scalar(s, "lpa_measured_db").mean, 87.4036, 1e-4);
 }
 
+TEST(CycleStatistics, LeqCoversOnlyTheTimeOfTheCyclesThatHaveTheLevel) {
+  // A cycle whose pressure was faulty has no prediction (NaN): its 0.09 s are not silence. Predicted Leq is that
+  // of the 0.03 s cycle alone (81 dB); measured Leq covers both, as above. An encoder-flagged cycle (uncertain
+  // boundaries: not one cycle's numbers) is counted and left out, like one with a gap.
+  auto faulty = report(90.0, 5.0, 0.09, noisemon::cycle_report_t::CYCLE_PRESSURE_FAULT);
+  faulty.lpa_predicted_db = faulty.lwa_predicted_db = std::numeric_limits<double>::quiet_NaN();
+  const auto s = daemon::statistics_of(
+      {report(80.0, 5.0, 0.03), faulty, report(120.0, 5.0, 0.05, noisemon::cycle_report_t::CYCLE_ENCODER)});
+  EXPECT_EQ(s.valid, 2);
+  EXPECT_EQ(s.flagged, 1);
+  EXPECT_NEAR(s.seconds, 0.12, 1e-12);
+  EXPECT_NEAR(s.leq_a_measured_db, 88.8930, 1e-4);
+  EXPECT_NEAR(s.leq_a_predicted_db, 81.0, 1e-9);
+  EXPECT_EQ(scalar(s, "lpa_predicted_db").n, 1);
+}
+
 TEST(CycleStatistics, TextJsonAndCsvCarryEveryScalar) {
   const auto s = daemon::statistics_of({report(80.0, 5.0, 0.04), report(90.0, 7.0, 0.04)});
   const std::string text = daemon::statistics_text(s), json = daemon::statistics_json(s), csv = daemon::statistics_csv_rows(s, "run1");

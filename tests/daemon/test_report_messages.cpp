@@ -42,7 +42,8 @@ daemon::CycleReport sample_report() {
   r.band_flags[30] = daemon::kBandNyquistCut;
   r.nmics = 10;
   for (int m = 0; m < 10; ++m) r.mic_lpa_db[m] = 84.0f + 0.1f * m;
-  r.flags = daemon::kCycleSettling;
+  r.mic_flags[9] = daemon::kMicExcluded | daemon::kMicLow;
+  r.flags = daemon::kCycleSettling | daemon::kCycleMicExcluded;
   return r;
 }
 
@@ -65,6 +66,25 @@ TEST(ReportMessages, FlagConstantsMatchTheMessageDefinition) {
   EXPECT_EQ(daemon::kCycleGap, +noisemon::cycle_report_t::CYCLE_GAP);
   EXPECT_EQ(daemon::kCycleNoOperatingPoint, +noisemon::cycle_report_t::CYCLE_NO_OPERATING_POINT);
   EXPECT_EQ(daemon::kCycleLengthOdd, +noisemon::cycle_report_t::CYCLE_LENGTH_ODD);
+  EXPECT_EQ(daemon::kCycleNoMics, +noisemon::cycle_report_t::CYCLE_NO_MICS);
+  EXPECT_EQ(daemon::kCycleEncoder, +noisemon::cycle_report_t::CYCLE_ENCODER);
+  EXPECT_EQ(daemon::kCycleOverload, +noisemon::cycle_report_t::CYCLE_OVERLOAD);
+  EXPECT_EQ(daemon::kCycleMicExcluded, +noisemon::cycle_report_t::CYCLE_MIC_EXCLUDED);
+  EXPECT_EQ(daemon::kCyclePressureFault, +noisemon::cycle_report_t::CYCLE_PRESSURE_FAULT);
+  EXPECT_EQ(daemon::kMicExcluded, +noisemon::cycle_report_t::MIC_EXCLUDED);
+  EXPECT_EQ(daemon::kMicFlat, +noisemon::cycle_report_t::MIC_FLAT);
+  EXPECT_EQ(daemon::kMicOverload, +noisemon::cycle_report_t::MIC_OVERLOAD);
+  EXPECT_EQ(daemon::kMicNan, +noisemon::cycle_report_t::MIC_NAN);
+  EXPECT_EQ(daemon::kMicLow, +noisemon::cycle_report_t::MIC_LOW);
+}
+
+TEST(ReportMessages, EveryCycleFlagHasAName) {
+  EXPECT_EQ(daemon::cycle_flags_text(0), "ok");
+  EXPECT_EQ(daemon::cycle_flags_text(daemon::kCycleEncoder | daemon::kCycleOverload | daemon::kCycleMicExcluded |
+                                     daemon::kCyclePressureFault),
+            "encoder,overload,mic-excluded,pressure-fault");
+  for (std::int32_t bit = 1; bit <= daemon::kCyclePressureFault; bit <<= 1)
+    EXPECT_NE(daemon::cycle_flags_text(bit), "") << bit;
 }
 
 TEST(ReportMessages, CycleReportRoundTripsThroughLcmEncoding) {
@@ -77,6 +97,9 @@ TEST(ReportMessages, CycleReportRoundTripsThroughLcmEncoding) {
   EXPECT_EQ(back.nbands, 31);
   EXPECT_FLOAT_EQ(back.att_measured_db[5], 200.0f - 5 - (50.0f + 5));
   EXPECT_EQ(back.band_flags[30], +noisemon::cycle_report_t::BAND_NYQUIST_CUT);
+  ASSERT_EQ(back.mic_flags.size(), 10u);
+  EXPECT_EQ(back.mic_flags[9], noisemon::cycle_report_t::MIC_EXCLUDED | noisemon::cycle_report_t::MIC_LOW);
+  EXPECT_EQ(back.mic_flags[8], 0);
   EXPECT_TRUE(std::isnan(back.rail_pressure_bar));
 }
 
@@ -104,8 +127,8 @@ TEST(ReportMessages, PythonDecoderReadsWhatTheDaemonEncodes) {
   const std::string out = run_command("PYTHONPATH=" + python_dir +
                                       " python3 -c \"import noisemon; m = noisemon.cycle_report_t.decode(open('" + path +
                                       "','rb').read()); print(m.cycle, m.nbands, round(m.lpa_measured_db, 3), "
-                                      "round(m.cpl_db[3], 3), m.band_flags[30], m.nmics, round(m.mic_lpa_db[9], 3))\"");
-  EXPECT_EQ(out, "42 31 84.25 197.0 1 10 84.9\n");
+                                      "round(m.cpl_db[3], 3), m.band_flags[30], m.nmics, round(m.mic_lpa_db[9], 3), m.mic_flags[9], m.flags)\"");
+  EXPECT_EQ(out, "42 31 84.25 197.0 1 10 84.9 17 129\n");
 }
 
 TEST(ReportMessages, EveryUnknownValueIsPlainNanInTheCsv) {

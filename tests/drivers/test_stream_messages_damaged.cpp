@@ -155,6 +155,32 @@ TEST(StreamMessagesDamaged, TruncatedPaddedOrForeignPayloadsAreRefused) {
   EXPECT_FALSE(decode_message(nullptr, 10, sm));
 }
 
+TEST(StreamMessagesDamaged, SessionCarriesTheConvertersFullScalesAndRefusesImpossibleOnes) {
+  StreamInfo info;
+  info.mic_count = 1;
+  info.mic_positions_m = {{1, 2, 3}};
+  info.pressure_full_scale_pa = 250e5;
+  info.mic_full_scale_pa = 3162.3;
+  const auto bytes = encode(to_message(info, "sim", 5));
+  noisemon::session_t m;
+  ASSERT_TRUE(decode_message(bytes.data(), bytes.size(), m));
+  EXPECT_EQ(m.pressure_full_scale_pa, 250e5);
+  EXPECT_EQ(m.mic_full_scale_pa, 3162.3);
+  const StreamInfo back = from_message(m);
+  EXPECT_EQ(back.pressure_full_scale_pa, 250e5);
+  EXPECT_EQ(back.mic_full_scale_pa, 3162.3);
+  // 0: not known (a session that does not say); the default.
+  EXPECT_EQ(from_message(session()).mic_full_scale_pa, 0.0);
+  for (double fs : {-1.0, std::numeric_limits<double>::infinity(), std::nan("")}) {
+    noisemon::session_t bad = session();
+    bad.mic_full_scale_pa = fs;
+    EXPECT_THROW(from_message(bad), std::invalid_argument) << fs;
+    bad = session();
+    bad.pressure_full_scale_pa = fs;
+    EXPECT_THROW(from_message(bad), std::invalid_argument) << fs;
+  }
+}
+
 TEST(StreamMessagesDamaged, SessionWithAcousticDelayOf1e20sIsRefused) {
   for (double delay : {1e20, 1.5, -0.001, std::numeric_limits<double>::infinity(), std::nan("")}) {
     noisemon::session_t m = session();
