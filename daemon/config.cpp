@@ -115,6 +115,37 @@ void read_sim_cell(TableReader& sr, drivers::SimConfig& s) {
   if (decay_ms >= 0.0) s.gas_ringing.decay_s = decay_ms / 1e3;
 }
 
+// [[sim.faults]]: faults the virtual engine injects (drivers/sim_faults.hpp; documented in systemd/noisemond.toml).
+void read_faults(TableReader& sr, const std::string& origin, drivers::SimConfig& s) {
+  const toml::node* n = sr.node("faults");
+  if (!n) return;
+  const toml::array* list = n->as_array();
+  if (!list || !list->is_array_of_tables()) sr.fail("faults", "expected an array of tables ([[sim.faults]])");
+  for (std::size_t i = 0; i < list->size(); ++i) {
+    TableReader r((*list)[i].as_table(), "sim.faults[" + std::to_string(i) + "]", origin);
+    std::string kind_name, channel;
+    r.string("kind", kind_name);
+    const std::optional<drivers::SimFaultKind> kind = drivers::parse_fault_kind(kind_name);
+    if (!kind)
+      r.fail("kind", "unknown fault '" + kind_name +
+                         "' (expected missing_edges, extra_edges, lost_index, reverse, flat, overload, nan, unplugged, stall, overrun, fail)");
+    drivers::SimFault f;
+    f.kind = *kind;
+    r.string("channel", channel);
+    try {
+      f.target = drivers::parse_fault_target(f.kind, channel, s.mic_count);
+    } catch (const std::invalid_argument& e) {
+      r.fail("channel", e.what());
+    }
+    r.number("at_s", f.at_s, 0, 1e9);
+    r.number("duration_s", f.duration_s, 1e-3, 1e9);
+    r.number("per_rev", f.per_rev, 1, 100);
+    r.number("gain", f.gain, 1.000001, 1e6);
+    r.reject_unknown();
+    s.faults.push_back(f);
+  }
+}
+
 // [model] or [sim.true_block]: a preset plus optional parameter overrides.
 void read_block(TableReader& r, std::string& preset_name, model::BlockParams& p) {
   if (r.node("preset")) {
@@ -276,6 +307,10 @@ void read_comedi(TableReader& top, const std::string& origin, drivers::ComediSou
   e.timestamp_bits = static_cast<std::uint32_t>(bits);
   e.counts_per_rev = static_cast<std::uint32_t>(cpr);
   er.number("index_angle_deg", e.index_angle_deg, -360, 360);
+  er.boolean("index_resets_counter", e.index_resets_counter);
+  std::int64_t per_edge = e.counts_per_edge;
+  er.integer("counts_per_edge", per_edge, 1, 64);
+  e.counts_per_edge = static_cast<std::uint32_t>(per_edge);
   er.reject_unknown();
 
   auto& m = c.mics;
@@ -422,10 +457,12 @@ Config parse_table(const toml::table& root, const std::string& origin) {
   TableReader p(top.table("processing"), "processing", origin);
   p.number("acoustic_delay_s", c.acoustic_delay_s, -1, 1.0);
   p.number("ring_seconds", c.ring_seconds, 0.1, 60);
+  p.number("mic_low_db", c.mic_low_db, 1, 200);
   p.reject_unknown();
 
   drivers::SimConfig& s = c.sim;
   TableReader sr(top.table("sim"), "sim", origin);
+  sr.boolean("paced", s.paced);
   sr.number("speed_rpm", s.speed_rpm, 100, 10000);
   sr.number("load_nm", s.load_nm, 0, 1e4);
   sr.number("full_load_nm", s.full_load_nm, 1e-3, 1e4);
@@ -446,6 +483,7 @@ Config parse_table(const toml::table& root, const std::string& origin) {
   sr.number("mic_gain_spread_db", s.mic_gain_spread_db, 0, 20);
   sr.number("background_noise_db", s.background_noise_db, -100, 200);
   read_sim_cell(sr, s);
+  read_faults(sr, origin, s);
   std::int64_t seed = static_cast<std::int64_t>(s.seed);
   sr.integer("seed", seed, 0, INT64_MAX);
   s.seed = static_cast<std::uint64_t>(seed);

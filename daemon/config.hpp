@@ -49,7 +49,8 @@ struct Config {
   std::string model_name = "linear";// the preset the model parameters start from
   model::BlockParams model = model::preset("linear");
   double acoustic_delay_s = -1;     // < 0: radius / speed of sound, as the source reports it
-  double ring_seconds = 2.0;        // capacity of each driver ring buffer
+  double mic_low_db = 20.0;         // a microphone this far below the median of the others is left out (unplugged)
+  double ring_seconds = 0.5;        // capacity of each driver ring buffer
   drivers::SimConfig sim;
   drivers::ComediSourceConfig comedi;  // [comedi]: the DAQ hardware (source = "comedi")
   drivers::CanSourceConfig can;        // [can]: operating points from CAN; when configured, they replace the

@@ -44,7 +44,7 @@ struct Pipeline::Impl {
   drivers::BlockRing pressure_ring, mic_ring;
   drivers::OperatingPointRing op_ring;
   dsp::SpscRing<CycleReport> report_ring{256};
-  dsp::SpscRing<RawItem> raw_ring{512};
+  dsp::SpscRing<RawItem> raw_ring;  // both streams' blocks on their way to NOISEMON_RAW: twice a driver ring
   dsp::SpscRing<drivers::OperatingPoint> op_publish_ring{64};
 
   std::unique_ptr<lcm::LCM> lcm;
@@ -56,6 +56,8 @@ struct Pipeline::Impl {
   }
   std::atomic<std::int64_t> frames_discarded{0};  // the processor's FIFOs: one stream ran ahead of a stalled one
   std::atomic<std::int64_t> gap_frames{0};        // frames lost in the streams, held or skipped
+  std::atomic<std::int64_t> samples_replaced{0};  // non-finite pressure or microphone samples replaced
+  std::atomic<std::int64_t> crank_unknown_frames{0};  // frames whose crank angle was NaN (encoder fault)
   std::atomic<std::int64_t> reports_queued{0};
   std::atomic<std::uint64_t> report_overruns{0};
   Clock::time_point started;
@@ -76,7 +78,8 @@ struct Pipeline::Impl {
         ring_blocks(blocks_for(c.ring_seconds)),
         pressure_ring(ring_blocks),
         mic_ring(ring_blocks),
-        op_ring(256) {}
+        op_ring(256),
+        raw_ring(2 * ring_blocks) {}
 
   void run_processing(const std::atomic<bool>& drain);
   void run_publishing(std::atomic<std::int64_t>& published);
@@ -88,7 +91,8 @@ void Pipeline::Impl::run_processing(const std::atomic<bool>& drain) {
   pc.model = config.model;
   pc.acoustic_delay_s = config.acoustic_delay_s;
   pc.engine = config.engine;
-  pc.fifo_seconds = std::max(4.0, 2 * config.ring_seconds);
+  pc.fifo_seconds = std::max(1.0, 2 * config.ring_seconds);
+  pc.mic_low_db = config.mic_low_db;
   const std::int64_t limit = config.cycles;
   CycleProcessor processor(pc, info, [&](const CycleReport& r) {
     if (limit > 0 && reports_queued.load() >= limit) return;
@@ -137,6 +141,8 @@ void Pipeline::Impl::run_processing(const std::atomic<bool>& drain) {
     }
     frames_discarded.store(counted.frames_discarded, std::memory_order_relaxed);
     gap_frames.store(counted.gap_frames, std::memory_order_relaxed);
+    samples_replaced.store(counted.samples_replaced, std::memory_order_relaxed);
+    crank_unknown_frames.store(counted.crank_unknown_frames, std::memory_order_relaxed);
     if (config.cycles > 0 && reports_queued.load() >= config.cycles) break;
     if (!any) {
       if (draining) break;  // drivers are joined and the rings are empty
@@ -182,10 +188,15 @@ noisemon::status_t Pipeline::Impl::make_status(std::int64_t published, const Sta
     s.counter_name.push_back(c.name);
     s.counter_value.push_back(c.value);
   }
-  s.counter_name.push_back("processing.frames_discarded");
-  s.counter_value.push_back(frames_discarded.load(std::memory_order_relaxed));
-  s.counter_name.push_back("processing.gap_frames");
-  s.counter_value.push_back(gap_frames.load(std::memory_order_relaxed));
+  const std::pair<const char*, const std::atomic<std::int64_t>*> processing_counters[] = {
+      {"processing.frames_discarded", &frames_discarded},
+      {"processing.gap_frames", &gap_frames},
+      {"processing.samples_replaced", &samples_replaced},
+      {"processing.crank_unknown_frames", &crank_unknown_frames}};
+  for (const auto& [name, value] : processing_counters) {
+    s.counter_name.push_back(name);
+    s.counter_value.push_back(value->load(std::memory_order_relaxed));
+  }
   s.ncounters = static_cast<std::int16_t>(s.counter_name.size());
   return s;
 }

@@ -2,7 +2,10 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <stdexcept>
+
+#include "model/random.hpp"
 
 namespace noisemon::drivers::sim {
 
@@ -50,48 +53,147 @@ double EngineCycleCache::pressure_pa(double theta_deg) {
 
 // ---------------------------------------------------------------------------------------------- pressure
 
+namespace {
+
+// The decoder of the sim's encoder-clocked scans: one subdevice scanning pressure, position and timestamp.
+EdgeStreamConfig encoder_decoder_config(std::int64_t counts_per_rev, double index_angle_deg) {
+  EdgeStreamConfig c;
+  c.stream_channels = {3};
+  c.pressure = {0, 0};
+  c.position = {0, 1};
+  c.timestamp = {0, 2};
+  c.counts_per_rev = static_cast<std::uint32_t>(counts_per_rev);
+  c.index_angle_deg = index_angle_deg;
+  c.timebase_hz = PressureGenerator::kTimebaseHz;
+  c.timestamp_bits = 32;
+  c.timestamp_mode = TimestampMode::kAbsolute;
+  c.phase = PhaseSource::kPressure;
+  c.max_scan_skew = 1;  // one subdevice: nothing to pair
+  return c;
+}
+
+std::int64_t floor_mod(std::int64_t a, std::int64_t m) { return ((a % m) + m) % m; }
+
+// Edges a fault of per_rev a revolution picks: evenly spread, away from the index.
+bool picked(std::int64_t edge_in_rev, std::int64_t counts_per_rev, double per_rev) {
+  const auto spacing = std::max<std::int64_t>(1, std::llround(static_cast<double>(counts_per_rev) / per_rev));
+  return floor_mod(edge_in_rev, spacing) == spacing / 2;
+}
+
+}  // namespace
+
 PressureGenerator::PressureGenerator(const SimConfig& config, double t_first_s)
     : kin_(crank_kinematics(config)),
       cache_(config),
       chain_(config.pressure_chain, config.effects, config.seed),
-      resampler_(kPipelineRateHz, 1),
-      writer_(kPressureStreamChannels),
+      faults_(config.faults),
       resolution_deg_(config.encoder_resolution_deg),
+      counts_per_rev_(std::llround(360.0 / config.encoder_resolution_deg)),
+      index_edge_(std::llround(kIndexAngleDeg / config.encoder_resolution_deg)),
       next_edge_(static_cast<std::int64_t>(std::ceil(kin_.theta_deg(t_first_s - kPreRollS) / config.encoder_resolution_deg))),
-      first_index_(to_index(t_first_s, kPipelineRateHz)) {
-  // Keep each resampler call's output well inside its room, even for slow engines and coarse encoders.
-  const double frames_per_edge =
-      kPipelineRateHz * resolution_deg_ / (6.0 * config.speed_rpm * (1.0 - config.speed_fluctuation));
-  batch_ = static_cast<std::size_t>(std::clamp(1024.0 / frames_per_edge, 1.0, 256.0));
+      first_index_(to_index(t_first_s, kPipelineRateHz)),
+      t_first_(t_first_s),
+      origin_s_(1e-6 * static_cast<double>(std::llround((t_first_s - kPreRollS) * 1e6))),
+      decoder_(std::make_unique<EdgeStreamAssembler>(
+          encoder_decoder_config(counts_per_rev_, static_cast<double>(index_edge_) * config.encoder_resolution_deg), 0)),
+      staging_(16) {
+  decoder_->restart(std::llround(origin_s_ * 1e6));
+  // The counter as it stands at the first edge: counted from the last index (the card was started earlier).
+  counter_ = static_cast<std::uint32_t>(floor_mod(next_edge_ - 1 - index_edge_, counts_per_rev_));
+  batch_ = 256;
   t_.resize(batch_);
   x_.resize(batch_);
-  out_.resize(kOutFrames);
+  edge_.resize(batch_);
 }
+
+PressureGenerator::~PressureGenerator() = default;
+
+const EdgeStreamCounters& PressureGenerator::encoder_counters() const { return decoder_->counters(); }
 
 void PressureGenerator::advance(double t_end_s, BlockRing& ring) {
   for (;;) {
     std::size_t n = 0;
-    for (; n < batch_; ++n) {
-      const double theta = static_cast<double>(next_edge_) * resolution_deg_;
-      const double t = kin_.time_s(theta);
-      if (t >= t_end_s) break;
-      t_[n] = t;
-      x_[n] = cache_.pressure_pa(theta);
-      ++next_edge_;
-    }
+    fill_batch(t_end_s, n);
     if (n == 0) break;
-    chain_.measure(next_edge_ - static_cast<std::int64_t>(n), x_.data(), n);
-    std::int64_t k = resampler_.next_output_index();
-    const std::size_t frames = resampler_.process(t_.data(), x_.data(), n, out_.data(), out_.size());
-    for (std::size_t f = 0; f < frames; ++f, ++k) {
-      if (k < first_index_) continue;
-      double* slot = writer_.frame(k, ring);
-      slot[kPressureChannel] = out_[f];
-      slot[kCrankChannel] = model::CrankKinematics::cycle_angle(kin_.theta_deg(static_cast<double>(k) / kPipelineRateHz));
-    }
+    chain_.measure(edge_[0], x_.data(), n);
+    apply_channel_faults(n);
+    for (std::size_t i = 0; i < n; ++i) count_edge(edge_[i], t_[i], x_[i], ring);
     if (n < batch_) break;
   }
-  writer_.flush(ring);
+  decoder_->deliver(staging_, false);
+  forward(ring);
+}
+
+// The true pressure at the next edges before t_end_s (an overload fault scales it before the converter).
+void PressureGenerator::fill_batch(double t_end_s, std::size_t& n) {
+  for (n = 0; n < batch_; ++n) {
+    const double theta = static_cast<double>(next_edge_) * resolution_deg_;
+    const double t = kin_.time_s(theta);
+    if (t >= t_end_s) break;
+    t_[n] = t;
+    x_[n] = cache_.pressure_pa(theta);
+    if (const SimFault* f = active_fault(faults_, SimFaultKind::kOverload, kPressureTarget, t - t_first_)) x_[n] *= f->gain;
+    edge_[n] = next_edge_++;
+  }
+}
+
+// Faults of the converter's samples: stuck (repeats its last sample) or NaN.
+void PressureGenerator::apply_channel_faults(std::size_t n) {
+  if (faults_.empty()) return;
+  for (std::size_t i = 0; i < n; ++i) {
+    const double since = t_[i] - t_first_;
+    if (active_fault(faults_, SimFaultKind::kFlat, kPressureTarget, since)) x_[i] = held_pressure_;
+    held_pressure_ = x_[i];
+    if (active_fault(faults_, SimFaultKind::kNan, kPressureTarget, since)) x_[i] = std::numeric_limits<double>::quiet_NaN();
+  }
+}
+
+// What the card's counter does at one true encoder edge, and the scans it clocks.
+void PressureGenerator::count_edge(std::int64_t edge, double t, double pressure, BlockRing& ring) {
+  const double since = t - t_first_;
+  const std::int64_t in_rev = floor_mod(edge - index_edge_, counts_per_rev_);
+  if (!faults_.empty()) {
+    const SimFault* missing = active_fault(faults_, SimFaultKind::kMissingEdges, kPressureTarget, since);
+    if (missing && picked(in_rev, counts_per_rev_, missing->per_rev)) return;  // never reaches the counter
+  }
+  const bool reverse = !faults_.empty() && active_fault(faults_, SimFaultKind::kReverse, kPressureTarget, since);
+  if (in_rev == 0 && !(faults_.size() && active_fault(faults_, SimFaultKind::kLostIndex, kPressureTarget, since)))
+    counter_ = 0;  // the index resets the counter
+  else
+    counter_ += reverse ? ~0u : 1u;  // counting down wraps like the card's register
+  scan(t, pressure, ring);
+  if (faults_.empty()) return;
+  const SimFault* extra = active_fault(faults_, SimFaultKind::kExtraEdges, kPressureTarget, since);
+  if (extra && picked(in_rev, counts_per_rev_, extra->per_rev)) {
+    const double t_next = kin_.time_s(static_cast<double>(edge + 1) * resolution_deg_);
+    ++counter_;
+    scan(0.5 * (t + t_next), pressure, ring);  // a glitch between two edges
+  }
+}
+
+void PressureGenerator::scan(double t, double pressure, BlockRing& ring) {
+  const auto ticks = static_cast<std::uint64_t>(std::llround((t - origin_s_) * kTimebaseHz)) & 0xffffffffULL;
+  const double values[3] = {pressure, static_cast<double>(counter_), static_cast<double>(ticks)};
+  decoder_->add_scan(0, values, staging_);
+  forward(ring);
+}
+
+// The decoder's blocks to the ring, from first_index_ on (the pre-roll settles the decoder; it is not published).
+void PressureGenerator::forward(BlockRing& ring) {
+  for (const SampleBlock* b = staging_.front(); b; staging_.consume(1), b = staging_.front()) {
+    const std::int64_t end = b->first_index + static_cast<std::int64_t>(b->frames);
+    if (end <= first_index_) continue;
+    const SampleBlock* out = b;
+    if (b->first_index < first_index_) {
+      const auto skip = static_cast<std::uint32_t>(first_index_ - b->first_index);
+      trimmed_.first_index = first_index_;
+      trimmed_.channels = b->channels;
+      trimmed_.frames = b->frames - skip;
+      std::copy_n(b->data + skip * b->channels, trimmed_.frames * b->channels, trimmed_.data);
+      out = &trimmed_;
+    }
+    if (ring.push(*out)) ++forwarded_;
+  }
 }
 
 // ---------------------------------------------------------------------------------------------- microphones
@@ -147,6 +249,11 @@ MicGenerator::MicGenerator(const SimConfig& config, double t_first_s)
       feed_(config, t_first_s - kPreRollS, 2.0 * config.mic_rate_hz),
       engine_(virtual_engine_config(config, 2.0 * config.mic_rate_hz)),
       to_pipeline_(config.mic_rate_hz, kPipelineRateHz, config.mic_count),
+      t_first_(t_first_s),
+      adc_range_pa_(config.mic_chain.adc_bits > 0 ? config.mic_chain.adc_range_pa : std::numeric_limits<double>::infinity()),
+      seed_(config.seed),
+      faults_(config.faults),
+      held_(config.mic_count, 0.0),
       writer_(config.mic_count) {
   if (std::abs(t0_ / kGridAlignS - std::round(t0_ / kGridAlignS)) > 1e-6)
     throw std::invalid_argument("MicGenerator: start time must be a multiple of 1/1600 s");
@@ -159,6 +266,7 @@ void MicGenerator::advance(double t_end_s, BlockRing& ring) {
   while (card_next_ < m_end) {
     const auto n = static_cast<std::size_t>(std::min<std::int64_t>(kCardBatch, m_end - card_next_));
     engine_.render(feed_, mic_card_.data(), n);
+    apply_channel_faults(n);
     card_next_ += static_cast<std::int64_t>(n);
     std::int64_t k = index0_ + to_pipeline_.next_output_index();
     const std::size_t frames = to_pipeline_.process(mic_card_.data(), n, out_.data(), kOutFrames);
@@ -170,6 +278,29 @@ void MicGenerator::advance(double t_end_s, BlockRing& ring) {
     }
   }
   writer_.flush(ring);
+}
+
+// Faults of the card's samples, per microphone: stuck, clipped at the rails after too much gain, NaN, or open
+// (only the converter's noise: 1e-4 Pa rms, about 14 dB re 20 uPa, far below any microphone's self-noise).
+void MicGenerator::apply_channel_faults(std::size_t n) {
+  if (faults_.empty()) return;
+  constexpr double kOpenInputNoisePa = 1e-4;
+  constexpr std::uint64_t kOpenInputStream = 0x6f70656e;  // "open"
+  for (std::size_t j = 0; j < n; ++j) {
+    const std::int64_t card_frame = card_next_ + static_cast<std::int64_t>(j);
+    const double since = t0_ + static_cast<double>(card_frame) / card_rate_ - t_first_;
+    for (std::uint32_t m = 0; m < mics_; ++m) {
+      double& x = mic_card_[j * mics_ + m];
+      const int target = static_cast<int>(m);
+      if (const SimFault* f = active_fault(faults_, SimFaultKind::kOverload, target, since))
+        x = std::clamp(x * f->gain, -adc_range_pa_, adc_range_pa_);
+      if (active_fault(faults_, SimFaultKind::kUnplugged, target, since))
+        x = kOpenInputNoisePa * model::rnd::normal_at(seed_, kOpenInputStream + m, static_cast<std::uint64_t>(card_frame));
+      if (active_fault(faults_, SimFaultKind::kFlat, target, since)) x = held_[m];
+      held_[m] = x;
+      if (active_fault(faults_, SimFaultKind::kNan, target, since)) x = std::numeric_limits<double>::quiet_NaN();
+    }
+  }
 }
 
 }  // namespace noisemon::drivers::sim

@@ -10,9 +10,12 @@
 #include <array>
 #include <cstddef>
 #include <cstdint>
+#include <memory>
 #include <vector>
 
 #include "drivers/block_writer.hpp"
+#include "drivers/comedi_streams.hpp"
+#include "drivers/sim_faults.hpp"
 #include "drivers/sim_source.hpp"
 #include "dsp/resample.hpp"
 #include "model/block_model.hpp"
@@ -50,28 +53,53 @@ class EngineCycleCache {
 
 using drivers::BlockWriter;
 
-// Encoder + pressure: an edge every encoder_resolution_deg at the instant theta(t) reaches it, the true cylinder
-// pressure at the edge through the pressure chain (floor, flicker, transducer_noise, ADC: counter-based on the
-// edge index), NonuniformResampler to 40 kHz; the crank channel is theta(k / 40 kHz) wrapped.
+// Encoder + pressure as a DAQ card sees them: an edge every encoder_resolution_deg at the instant theta(t)
+// reaches it; each edge clocks a scan of the true cylinder pressure through the pressure chain (floor, flicker,
+// transducer_noise, ADC: counter-based on the edge index), the card's 32-bit position counter (reset to 0 by the
+// once-per-revolution index, kIndexAngleDeg after firing TDC) and an 80 MHz timestamp. The scans go through
+// EdgeStreamAssembler, the decoder of a real encoder-clocked card: it finds the phase from the pressure, checks
+// each revolution's count at the index, and resamples to 40 kHz (NaN crank where the encoder cannot be trusted).
+// Encoder, pressure-channel faults of config.faults act on the counter and on the converter's samples.
 class PressureGenerator {
  public:
+  static constexpr double kIndexAngleDeg = 37.0;  // crank angle of the index after a TDC (rounded to an edge)
+  static constexpr double kTimebaseHz = 80e6;
+
   PressureGenerator(const SimConfig& config, double t_first_s);
+  ~PressureGenerator();
   void advance(double t_end_s, BlockRing& ring);  // every edge before t_end_s
-  std::uint64_t blocks_written() const { return writer_.blocks_written(); }
+  std::uint64_t blocks_written() const { return forwarded_; }
   std::int64_t first_index() const { return first_index_; }
   std::uint64_t clipped_samples() const { return chain_.clipped_samples(); }  // encoder samples the ADC clipped
+  const EdgeStreamCounters& encoder_counters() const;
 
  private:
+  void fill_batch(double t_end_s, std::size_t& n);
+  void apply_channel_faults(std::size_t n);
+  void count_edge(std::int64_t edge, double t, double pressure, BlockRing& ring);
+  void scan(double t, double pressure, BlockRing& ring);
+  void forward(BlockRing& ring);
+
   model::CrankKinematics kin_;
   EngineCycleCache cache_;
   model::PressureChain chain_;
-  dsp::NonuniformResampler resampler_;
-  BlockWriter writer_;
+  std::vector<SimFault> faults_;
   double resolution_deg_;
-  std::int64_t next_edge_;  // edge m at m * resolution
+  std::int64_t counts_per_rev_;
+  std::int64_t index_edge_;          // an edge at the index (edges index_edge_ + k * counts_per_rev_)
+  std::int64_t next_edge_;           // edge m at m * resolution
   std::int64_t first_index_;
-  std::size_t batch_;       // edges per resampler call
-  std::vector<double> t_, x_, out_;
+  double t_first_;
+  double origin_s_;                  // the counters' start, s on the source clock (whole microseconds)
+  std::uint32_t counter_ = 0;        // the card's position counter
+  double held_pressure_ = 0.0;       // last converter sample (a stuck converter repeats it)
+  std::unique_ptr<EdgeStreamAssembler> decoder_;
+  BlockRing staging_;                // the decoder's output, passed on from first_index_ (pre-roll frames trimmed)
+  SampleBlock trimmed_;
+  std::uint64_t forwarded_ = 0;      // blocks written to the ring
+  std::size_t batch_;                // edges per chain call
+  std::vector<double> t_, x_;
+  std::vector<std::int64_t> edge_;
 };
 
 // The virtual engine's acoustic side for a configuration: thesis microphone layout unless given, the configured
@@ -107,6 +135,8 @@ class MicGenerator {
   std::uint64_t clipped_samples() const { return engine_.mic_clipped(); }  // card samples the ADC clipped
 
  private:
+  void apply_channel_faults(std::size_t n);
+
   double card_rate_;
   double t0_;                  // sim time of fine index 0, card index 0 and local 40 kHz index 0
   std::int64_t index0_;        // global 40 kHz index of local index 0
@@ -116,6 +146,11 @@ class MicGenerator {
   model::VirtualEngine engine_;
   dsp::RationalResampler to_pipeline_;
   std::int64_t card_next_ = 0;            // next card frame of the microphones
+  double t_first_;
+  double adc_range_pa_;                   // the card's rails (overload clips there)
+  std::uint64_t seed_;
+  std::vector<SimFault> faults_;
+  std::vector<double> held_;              // per microphone: last card sample (a stuck converter repeats it)
   BlockWriter writer_;
   std::vector<double> mic_card_, out_;
 };

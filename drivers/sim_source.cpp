@@ -34,6 +34,8 @@ namespace {
 constexpr double kChunkS = 0.005;             // generation chunk of the sample streams
 constexpr double kOperatingPointPeriodS = 0.1;  // 10 Hz
 constexpr double kMaxCatchUpS = 0.05;         // simulated time per loop pass when behind (keeps stop() prompt)
+constexpr double kMaxLeadS = 0.05;            // unpaced: how far a stream may run ahead of the slowest
+constexpr std::size_t kUnpacedRoomBlocks = 16; // unpaced: free ring slots a pass needs (a pass writes a few blocks)
 
 void validate(const SimConfig& c) {
   auto fail = [](const std::string& what) { throw std::invalid_argument("sim source: " + what); };
@@ -43,6 +45,8 @@ void validate(const SimConfig& c) {
   if (!(c.soi_deg_btdc >= 0.0 && c.soi_deg_btdc <= 60.0)) fail("soi_deg_btdc must be in [0, 60]");
   if (!(c.load_nm >= 0.0) || !(c.full_load_nm > 0.0)) fail("load_nm must be >= 0 and full_load_nm > 0");
   if (!(c.encoder_resolution_deg >= 0.01 && c.encoder_resolution_deg <= 6.0)) fail("encoder_resolution_deg must be in [0.01, 6]");
+  if (const double counts = 360.0 / c.encoder_resolution_deg; std::abs(counts - std::round(counts)) > 1e-6)
+    fail("encoder_resolution_deg must divide 360 (a whole number of counts per revolution)");
   if (c.mic_count == 0 || c.mic_count > SampleBlock::kMaxChannels) fail("mic_count must be in [1, 16]");
   if (c.mic_positions_m.empty() && c.mic_count > thesis_mic_positions().size())
     fail("mic_positions_m must be given for more than 10 microphones");
@@ -56,6 +60,7 @@ void validate(const SimConfig& c) {
   try {
     c.pressure_chain.validate();
     c.mic_chain.validate();
+    validate_faults(c.faults, c.mic_count);
   } catch (const std::invalid_argument& e) {
     fail(e.what());
   }
@@ -74,6 +79,8 @@ class SimSource final : public Source {
     }
     info_.radius_m = config_.radius_m;
     info_.acoustic_delay_s = config_.radius_m / config_.speed_of_sound_m_s;
+    if (config_.pressure_chain.adc_bits > 0) info_.pressure_full_scale_pa = config_.pressure_chain.adc_max_bar * 1e5;
+    if (config_.mic_chain.adc_bits > 0) info_.mic_full_scale_pa = config_.mic_chain.adc_range_pa;
   }
   ~SimSource() override { stop(); }
 
@@ -91,13 +98,15 @@ class SimSource final : public Source {
     auto pressure = std::make_shared<sim::PressureGenerator>(config_, t_first);
     auto mics = std::make_shared<sim::MicGenerator>(config_, t_first);
     const SimConfig::Threads& policy = config_.threads;
+    for (auto& p : progress_) p.store(t_first, std::memory_order_relaxed);
     started_ = true;
     workers_[0].start("nm-pressure", policy.pressure,
                       [this, pressure, ring = streams.pressure, t_first](const std::atomic<bool>& stop) {
-                        run_stream(workers_[0], clipped_[0], *pressure, *ring, t_first, stop);
+                        run_stream(workers_[0], 0, *pressure, *ring, t_first, stop,
+                                   [this, &pressure] { publish_encoder(pressure->encoder_counters()); });
                       });
     workers_[1].start("nm-mics", policy.mics, [this, mics, ring = streams.mics, t_first](const std::atomic<bool>& stop) {
-      run_stream(workers_[1], clipped_[1], *mics, *ring, t_first, stop);
+      run_stream(workers_[1], 1, *mics, *ring, t_first, stop, [] {});
     });
     workers_[2].start("nm-op", policy.operating_point,
                       [this, ring = streams.operating_point, t_first](const std::atomic<bool>& stop) {
@@ -118,8 +127,15 @@ class SimSource final : public Source {
   }
 
   std::vector<DriverCounter> counters() const override {
-    return {{"sim.pressure.adc_clipped", static_cast<std::int64_t>(clipped_[0].load())},
-            {"sim.mics.adc_clipped", static_cast<std::int64_t>(clipped_[1].load())}};
+    auto count = [](const std::atomic<std::uint64_t>& c) { return static_cast<std::int64_t>(c.load(std::memory_order_relaxed)); };
+    std::vector<DriverCounter> out{{"sim.pressure.adc_clipped", count(stats_[0].clipped)},
+                                   {"sim.mics.adc_clipped", count(stats_[1].clipped)}};
+    if (config_.faults.empty()) return out;
+    for (const auto& [name, i] : {std::pair{"pressure", 0}, std::pair{"mics", 1}})
+      out.push_back({std::string("sim.") + name + ".blocks_lost", count(stats_[i].lost_blocks)});
+    for (std::size_t i = 0; i < kEncoderCounterNames.size(); ++i)
+      out.push_back({std::string("sim.encoder.") + kEncoderCounterNames[i], count(encoder_[i])});
+    return out;
   }
 
   std::vector<DriverThreadStatus> thread_status() const override {
@@ -137,30 +153,69 @@ class SimSource final : public Source {
   }
   double sim_now_s() const { return 1e-6 * static_cast<double>(wall_utime() - epoch_utime_); }
 
-  template <class Generator>
-  void run_stream(WorkerThread& w, std::atomic<std::uint64_t>& clipped_total, Generator& gen, BlockRing& ring, double t_first,
-                  const std::atomic<bool>& stop) {
+  // One stream's driver loop. A stream fault (stall, overrun) makes a pass's blocks vanish before the ring, as a
+  // device that delivers nothing; they are counted, never silent.
+  template <class Generator, class AfterPass>
+  void run_stream(WorkerThread& w, int stream, Generator& gen, BlockRing& ring, double t_first, const std::atomic<bool>& stop,
+                  AfterPass after_pass) {
+    const int target = stream == 0 ? kPressureTarget : kMicsTarget;
+    std::unique_ptr<BlockRing> lost;  // where undelivered blocks go (only with faults configured)
+    if (!config_.faults.empty()) lost = std::make_unique<BlockRing>(32);
     double t = t_first;
     std::uint64_t clipped_seen = 0;
     while (!stop.load(std::memory_order_relaxed)) {
       // Next chunk end; when behind the wall clock, catch up in bounded passes.
       // Like a real device, a chunk is delivered only once its last instant has passed on the wall clock.
-      t = std::max(t + kChunkS, std::min(sim_now_s(), t + kMaxCatchUpS));
-      sleep_until_sim(t);
-      if (stop.load(std::memory_order_relaxed)) break;
-      gen.advance(t, ring);
+      t = config_.paced ? std::max(t + kChunkS, std::min(sim_now_s(), t + kMaxCatchUpS)) : t + kChunkS;
+      if (!wait_turn(stream, t, &ring, stop)) break;
+      if (lost && active_fault(config_.faults, SimFaultKind::kFail, target, t - t_first))
+        throw std::runtime_error(std::string("sim ") + (stream == 0 ? "encoder/pressure" : "microphone") +
+                                 " device: input/output error (injected fault)");
+      const bool delivers = !lost || stream_delivers(config_.faults, target, t - t_first);
+      gen.advance(t, delivers ? ring : *lost);
+      for (; lost && lost->front(); lost->consume(1)) stats_[stream].lost_blocks.fetch_add(1, std::memory_order_relaxed);
       w.set_blocks_written(gen.blocks_written());
       const std::uint64_t clipped = gen.clipped_samples();
-      clipped_total.fetch_add(clipped - clipped_seen, std::memory_order_relaxed);
+      stats_[stream].clipped.fetch_add(clipped - clipped_seen, std::memory_order_relaxed);
       clipped_seen = clipped;
+      after_pass();
+      progress_[stream].store(t, std::memory_order_release);
     }
+  }
+
+  // Waits until the stream may produce up to simulated time t; false when stopped meanwhile. Paced: until t has
+  // arrived on the wall clock. Unpaced: until no other stream is more than kMaxLeadS behind and the ring has room
+  // for a pass (nothing is lost to the pace: the processing thread sets it).
+  bool wait_turn(int stream, double t, const BlockRing* ring, const std::atomic<bool>& stop) {
+    if (config_.paced) {
+      sleep_until_sim(t);
+      return !stop.load(std::memory_order_relaxed);
+    }
+    auto blocked = [&] {
+      for (int other = 0; other < 2; ++other)
+        if (other != stream && progress_[other].load(std::memory_order_acquire) < t - kMaxLeadS) return true;
+      return ring && ring->capacity() - ring->size() < kUnpacedRoomBlocks;
+    };
+    while (blocked()) {
+      if (stop.load(std::memory_order_relaxed)) return false;
+      std::this_thread::sleep_for(std::chrono::microseconds(100));
+    }
+    return !stop.load(std::memory_order_relaxed);
+  }
+
+  void publish_encoder(const EdgeStreamCounters& c) {
+    const std::uint64_t values[] = {c.edges,          c.edges_before_lock,   c.encoder_errors,   c.phase_corrections,
+                                    c.revolutions_checked, c.revolutions_flagged, c.missing_or_extra, c.lost_index,
+                                    c.reverse_steps};
+    static_assert(std::size(values) == kEncoderCounterNames.size());
+    for (std::size_t i = 0; i < std::size(values); ++i) encoder_[i].store(values[i], std::memory_order_relaxed);
   }
 
   void run_operating_point(WorkerThread& w, OperatingPointRing& ring, double t_first, const std::atomic<bool>& stop) {
     const model::CrankKinematics kin = sim::crank_kinematics(config_);
     const double window = kOperatingPointPeriodS;
     for (double t = t_first; !stop.load(std::memory_order_relaxed); t += kOperatingPointPeriodS) {
-      sleep_until_sim(t);
+      if (!wait_turn(2, t, nullptr, stop)) break;
       OperatingPoint op;
       op.utime = epoch_utime_ + std::llround(t * 1e6);
       // Speed as a tachometer measures it: mean over the last window from the crank angle.
@@ -176,7 +231,16 @@ class SimSource final : public Source {
   SimConfig config_;
   std::int64_t epoch_utime_;
   StreamInfo info_;
-  std::array<std::atomic<std::uint64_t>, 2> clipped_{};  // ADC clipping of the pressure and mic samples, every session
+  struct StreamStats {
+    std::atomic<std::uint64_t> clipped{0};      // samples the ADC clipped, every session
+    std::atomic<std::uint64_t> lost_blocks{0};  // blocks a stream fault kept from the ring
+  };
+  std::array<StreamStats, 2> stats_;  // pressure, microphones
+  std::array<std::atomic<double>, 2> progress_{};  // simulated time each stream has delivered up to (unpaced pacing)
+  static constexpr std::array<const char*, 9> kEncoderCounterNames{
+      "edges", "edges_before_lock", "encoder_errors", "phase_corrections", "revolutions_checked",
+      "revolutions_flagged", "missing_or_extra", "lost_index", "reverse_steps"};
+  std::array<std::atomic<std::uint64_t>, kEncoderCounterNames.size()> encoder_{};  // the decoder's counters
   bool started_ = false;
   // Last: destroyed (stopped) first, before anything their bodies use.
   std::array<WorkerThread, 3> workers_{WorkerThread("sim.encoder_pressure"), WorkerThread("sim.microphones"),

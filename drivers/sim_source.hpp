@@ -20,6 +20,7 @@
 #include <string>
 #include <vector>
 
+#include "drivers/sim_faults.hpp"
 #include "drivers/source.hpp"
 #include "drivers/worker_thread.hpp"
 #include "model/block_params.hpp"
@@ -56,6 +57,11 @@ struct SimConfig {
   model::MicChainConfig mic_chain;            // self-noise 20 dB(A), directivity +-1 dB, 24-bit ADC +-800 Pa
   model::GasRingingParams gas_ringing;        // combustion-excited gas ringing in the true pressure
   std::uint64_t seed = 1;
+  std::vector<SimFault> faults;       // injected faults (drivers/sim_faults.hpp): none by default
+  // true: the driver threads keep to the wall clock, as hardware does. false: as fast as the processing takes the
+  // data, the streams in step and never a block lost to the pace (soak tests, benchmarks); utimes then run ahead of
+  // the wall clock.
+  bool paced = true;
   // Scheduling of the driver threads nm-pressure, nm-mics and nm-op (the daemon's [threads]).
   struct Threads {
     ThreadPolicy pressure, mics, operating_point;

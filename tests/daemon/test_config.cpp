@@ -270,3 +270,46 @@ TEST(Config, EngineGeometryForTheCombustionMetrics) {
   EXPECT_NE(error_of("[engine]\nbore = 92\n").find("engine.bore"), std::string::npos);
   EXPECT_NE(error_of("[engine]\ncompression_ratio = 1.0\n").find("engine.compression_ratio"), std::string::npos);
 }
+
+TEST(Config, SimFaultsAreReadInOrderAndBadOnesNameTheirEntryAndKey) {
+  const Config c = parse_config(R"(
+[[sim.faults]]
+kind = "missing_edges"
+at_s = 2.5
+duration_s = 0.5
+per_rev = 7
+[[sim.faults]]
+kind = "overload"
+channel = "mic10"
+at_s = 1
+gain = 8
+[[sim.faults]]
+kind = "stall"
+channel = "mics"
+duration_s = 30
+)",
+                                "f.toml");
+  ASSERT_EQ(c.sim.faults.size(), 3u);
+  EXPECT_EQ(c.sim.faults[0].kind, noisemon::drivers::SimFaultKind::kMissingEdges);
+  EXPECT_DOUBLE_EQ(c.sim.faults[0].at_s, 2.5);
+  EXPECT_DOUBLE_EQ(c.sim.faults[0].duration_s, 0.5);
+  EXPECT_DOUBLE_EQ(c.sim.faults[0].per_rev, 7.0);
+  EXPECT_EQ(c.sim.faults[1].kind, noisemon::drivers::SimFaultKind::kOverload);
+  EXPECT_EQ(c.sim.faults[1].target, 9);  // mic10, 0-based
+  EXPECT_DOUBLE_EQ(c.sim.faults[1].gain, 8.0);
+  EXPECT_EQ(c.sim.faults[2].target, noisemon::drivers::kMicsTarget);
+  EXPECT_DOUBLE_EQ(c.sim.faults[2].duration_s, 30.0);
+  EXPECT_TRUE(Config().sim.faults.empty());  // none by default
+
+  const std::string unknown = error_of("[[sim.faults]]\nkind = \"gremlins\"\n");
+  EXPECT_NE(unknown.find("sim.faults[0].kind"), std::string::npos) << unknown;
+  EXPECT_NE(unknown.find("gremlins"), std::string::npos) << unknown;
+  const std::string mic = error_of("[[sim.faults]]\nkind = \"flat\"\nchannel = \"mic11\"\n");
+  EXPECT_NE(mic.find("sim.faults[0].channel"), std::string::npos) << mic;
+  EXPECT_NE(mic.find("mic11"), std::string::npos) << mic;
+  const std::string stream = error_of("[[sim.faults]]\nkind = \"nan\"\nchannel = \"pressure\"\n[[sim.faults]]\nkind = \"stall\"\nchannel = \"mic2\"\n");
+  EXPECT_NE(stream.find("sim.faults[1].channel"), std::string::npos) << stream;
+  const std::string key = error_of("[[sim.faults]]\nkind = \"flat\"\nchannel = \"pressure\"\nwhen = 3\n");
+  EXPECT_NE(key.find("sim.faults[0].when"), std::string::npos) << key;
+  EXPECT_NE(error_of("[sim]\nfaults = 3\n").find("sim.faults"), std::string::npos);
+}

@@ -363,7 +363,8 @@ TEST(SimSource, CrankChannelFollowsTheKinematicsAndWrapsOncePerCycle) {
     max_err = std::max(max_err, std::min(err, 720.0 - err));
     if (f > 0 && crank < r.pressure.at(f - 1, nd::kCrankChannel) - 360.0) ++wraps;
   }
-  EXPECT_LT(max_err, 1e-6);
+  // The card timestamps edges at 80 MHz (12.5 ns = 0.00023 deg at 3050 rpm); the decoder interpolates between them.
+  EXPECT_LT(max_err, 1e-3);
   const double seconds = static_cast<double>(r.pressure.frames()) / kFs;
   EXPECT_NEAR(wraps, seconds * cfg.speed_rpm / 120.0, 1.01);
   // Operating points at 10 Hz with the measured mean speed.
@@ -557,7 +558,11 @@ TEST(SimSource, RealisticCellIsBitReproducibleAndIndependentOfChunking) {
   const auto m_one = generate<nd::sim::MicGenerator>(cfg, 0.25, 0.2);
   const auto m_many = generate<nd::sim::MicGenerator>(cfg, 0.25, 0.0037);
   ASSERT_GT(p_one.size(), 10000u);
-  EXPECT_EQ(p_many, p_one);
+  // The encoder decoder holds up to a revolution and half a block: how much is out by t_end depends on the
+  // chunking; what is out is the same bits.
+  const std::size_t common = std::min(p_one.size(), p_many.size());
+  ASSERT_GT(common, p_one.size() - 2 * 1600);
+  EXPECT_TRUE(std::equal(p_one.begin(), p_one.begin() + static_cast<std::ptrdiff_t>(common), p_many.begin()));
   EXPECT_EQ(m_many, m_one);
   nd::SimConfig other = cfg;
   other.seed = 12;
