@@ -24,68 +24,14 @@
 #include "model/block_model.hpp"
 #include "model/engine_cycle.hpp"
 #include "tests/drivers/unique_temp.hpp"
+#include "tests/e2e/private_network.hpp"
 
 namespace {
 
-const char* kLcmUrl = "udpm://239.255.76.67:7667?ttl=0";
-
-// Enters a private network namespace once for the whole test program: nothing leaves this machine.
-class PrivateNetwork : public ::testing::Environment {
- public:
-  void SetUp() override {
-    if (geteuid() != 0) {
-      reason = "needs root for a private network namespace (unshare -n)";
-      return;
-    }
-    if (unshare(CLONE_NEWNET) != 0) {
-      reason = std::string("unshare(CLONE_NEWNET) failed: ") + std::strerror(errno);
-      return;
-    }
-    if (std::system("ip link set lo up && ip route add 224.0.0.0/4 dev lo") != 0) {
-      reason = "cannot bring up loopback with a multicast route in the namespace";
-      return;
-    }
-    ok = true;
-  }
-  static inline bool ok = false;
-  static inline std::string reason;
-};
-const auto* const kEnv = ::testing::AddGlobalTestEnvironment(new PrivateNetwork);
-
-void require_namespace() {
-  if (PrivateNetwork::ok) return;
-  if (const char* ci = std::getenv("CI"); ci && std::string(ci) == "true") FAIL() << PrivateNetwork::reason;
-  GTEST_SKIP() << PrivateNetwork::reason;
-}
-
-pid_t spawn(const std::vector<std::string>& args, const std::string& stdout_path) {
-  const pid_t pid = fork();
-  if (pid == 0) {
-    if (!stdout_path.empty()) {
-      FILE* f = std::freopen(stdout_path.c_str(), "w", stdout);
-      (void)f;
-    }
-    std::vector<char*> argv;
-    for (const auto& a : args) argv.push_back(const_cast<char*>(a.c_str()));
-    argv.push_back(nullptr);
-    execv(argv[0], argv.data());
-    _exit(127);
-  }
-  return pid;
-}
-
-// Waits up to timeout for the child; kills it after that. Returns the exit status, or -1 on timeout.
-int wait_for(pid_t pid, std::chrono::seconds timeout) {
-  const auto deadline = std::chrono::steady_clock::now() + timeout;
-  while (std::chrono::steady_clock::now() < deadline) {
-    int status = 0;
-    if (waitpid(pid, &status, WNOHANG) == pid) return WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
-    std::this_thread::sleep_for(std::chrono::milliseconds(50));
-  }
-  kill(pid, SIGKILL);
-  waitpid(pid, nullptr, 0);
-  return -1;
-}
+using noisemon::test::kLcmUrl;
+using noisemon::test::spawn;
+using noisemon::test::wait_for;
+const auto* const kEnv = ::testing::AddGlobalTestEnvironment(new noisemon::test::PrivateNetwork);
 
 struct Row {
   long long cycle;
@@ -175,7 +121,7 @@ double offline_lpa_difference(const std::string& true_block) {
 }  // namespace
 
 TEST(EndToEnd, MeasuredAndPredictedAgreeWhenTheModelIsTheTrueBlock) {
-  require_namespace();
+  NOISEMON_REQUIRE_NAMESPACE();
   const Session s = run_session("same", "linear", "linear", 60);
   EXPECT_EQ(s.watch_status, 0);
   EXPECT_EQ(s.daemon_status, 0);
@@ -192,7 +138,7 @@ TEST(EndToEnd, MeasuredAndPredictedAgreeWhenTheModelIsTheTrueBlock) {
 }
 
 TEST(EndToEnd, SigintPublishesTheLastCompleteCycleAndExitsCleanly) {
-  require_namespace();
+  NOISEMON_REQUIRE_NAMESPACE();
   const std::string csv = noisemon::test::unique_temp_dir() + "/sigint.csv";
   const pid_t watch = spawn({NOISEMON_PATH, "watch", "--lcm", kLcmUrl, "--timeout", "5", "--csv", csv}, "/dev/null");
   std::this_thread::sleep_for(std::chrono::milliseconds(300));
@@ -219,7 +165,7 @@ TEST(EndToEnd, SigintPublishesTheLastCompleteCycleAndExitsCleanly) {
 }
 
 TEST(EndToEnd, StatusIsPublishedEverySecondWithHealthyThreads) {
-  require_namespace();
+  NOISEMON_REQUIRE_NAMESPACE();
   const std::string out = noisemon::test::unique_temp_dir() + "/status.txt";
   const pid_t daemon = spawn({NOISEMOND_PATH, "--lcm", kLcmUrl}, "/dev/null");
   const auto t0 = std::chrono::steady_clock::now();
@@ -244,7 +190,7 @@ TEST(EndToEnd, StatusIsPublishedEverySecondWithHealthyThreads) {
 class ModelMismatch : public ::testing::TestWithParam<std::pair<const char*, double>> {};
 
 TEST_P(ModelMismatch, PredictedMinusMeasuredIsTheOfflineGap) {
-  require_namespace();
+  NOISEMON_REQUIRE_NAMESPACE();
   const auto [true_block, tolerance_db] = GetParam();
   const double expected = offline_lpa_difference(true_block);
   ASSERT_GT(std::abs(expected), 0.3) << "the presets must differ audibly for this test to mean anything";
@@ -264,7 +210,7 @@ INSTANTIATE_TEST_SUITE_P(Presets, ModelMismatch,
                          [](const auto& info) { return std::string(info.param.first); });
 
 TEST(EndToEnd, SystemdHearsReadyOnceDriversRunAndStoppingOnSigterm) {
-  require_namespace();
+  NOISEMON_REQUIRE_NAMESPACE();
   // Play systemd's part: a datagram socket named by NOTIFY_SOCKET, as for a Type=notify unit.
   const std::string path = noisemon::test::unique_temp_dir() + "/notify.sock";
   std::remove(path.c_str());
@@ -295,7 +241,7 @@ TEST(EndToEnd, SystemdHearsReadyOnceDriversRunAndStoppingOnSigterm) {
 }
 
 TEST(EndToEnd, MissingMulticastRouteIsAClearError) {
-  require_namespace();
+  NOISEMON_REQUIRE_NAMESPACE();
   // A fresh namespace of its own has no multicast route: the daemon must say what failed and exit 1.
   const std::string log = noisemon::test::unique_temp_dir() + "/badlcm.txt";
   const pid_t pid = fork();
@@ -312,7 +258,7 @@ TEST(EndToEnd, MissingMulticastRouteIsAClearError) {
 }
 
 TEST(EndToEnd, LcmLoggerRecordingReplaysToTheLiveReportsOfflineAndThroughLcmLogplayer) {
-  require_namespace();
+  NOISEMON_REQUIRE_NAMESPACE();
   const std::string dir = noisemon::test::unique_temp_dir();
   const std::string log = dir + "/session.lcmlog", live = dir + "/live.csv", replayed = dir + "/replayed.csv";
   std::remove(log.c_str());

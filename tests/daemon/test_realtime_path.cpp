@@ -1,0 +1,153 @@
+// The real-time path neither allocates nor locks after start: the driver threads' work (the virtual engine's
+// generators, the encoder decoder) and the processing thread's (CycleProcessor) run here, after a warm-up, with
+// every allocation (global operator new, malloc through it) and every mutex lock of this process counted.
+// The LCM publishing thread is not on the path: it encodes messages (which allocates) behind a ring.
+#include <dlfcn.h>
+#include <gtest/gtest.h>
+#include <pthread.h>
+
+#include <atomic>
+#include <cmath>
+#include <cstdlib>
+#include <mutex>
+#include <new>
+#include <vector>
+
+#include "daemon/cycle_processor.hpp"
+#include "drivers/sim_generators.hpp"
+#include "drivers/source.hpp"
+
+namespace {
+std::atomic<bool> counting{false};
+std::atomic<long> allocations{0}, locks{0};
+}  // namespace
+
+// Every allocation of the program goes through these while counting is on.
+void* operator new(std::size_t n) {
+  if (counting.load(std::memory_order_relaxed)) allocations.fetch_add(1, std::memory_order_relaxed);
+  if (void* p = std::malloc(n ? n : 1)) return p;
+  throw std::bad_alloc();
+}
+void* operator new[](std::size_t n) { return operator new(n); }
+void* operator new(std::size_t n, std::align_val_t a) {
+  if (counting.load(std::memory_order_relaxed)) allocations.fetch_add(1, std::memory_order_relaxed);
+  if (void* p = std::aligned_alloc(static_cast<std::size_t>(a), (n + static_cast<std::size_t>(a) - 1) & ~(static_cast<std::size_t>(a) - 1)))
+    return p;
+  throw std::bad_alloc();
+}
+void* operator new[](std::size_t n, std::align_val_t a) { return operator new(n, a); }
+void operator delete(void* p) noexcept { std::free(p); }
+void operator delete[](void* p) noexcept { std::free(p); }
+void operator delete(void* p, std::size_t) noexcept { std::free(p); }
+void operator delete[](void* p, std::size_t) noexcept { std::free(p); }
+void operator delete(void* p, std::align_val_t) noexcept { std::free(p); }
+void operator delete[](void* p, std::align_val_t) noexcept { std::free(p); }
+void operator delete(void* p, std::size_t, std::align_val_t) noexcept { std::free(p); }
+void operator delete[](void* p, std::size_t, std::align_val_t) noexcept { std::free(p); }
+
+// Every std::mutex (and any other pthread mutex) lock of the program, interposed on the C library's.
+extern "C" int pthread_mutex_lock(pthread_mutex_t* m) {
+  using Lock = int (*)(pthread_mutex_t*);
+  static const auto real = reinterpret_cast<Lock>(dlsym(RTLD_NEXT, "pthread_mutex_lock"));
+  if (counting.load(std::memory_order_relaxed)) locks.fetch_add(1, std::memory_order_relaxed);
+  return real(m);
+}
+
+namespace {
+
+namespace nd = noisemon::drivers;
+
+struct Counted {
+  long allocations, locks;
+};
+
+template <class Work>
+Counted count(Work&& work) {
+  allocations = 0;
+  locks = 0;
+  counting = true;
+  work();
+  counting = false;
+  return {allocations.load(), locks.load()};
+}
+
+TEST(RealTimePath, TheCountersSeeAllocationsAndLocks) {
+  // The instrument first: it must see what it is meant to catch.
+  const Counted c = count([] {
+    std::vector<double> v(100);
+    std::mutex m;
+    std::lock_guard<std::mutex> lock(m);
+    v[1] = 1;
+  });
+  EXPECT_GE(c.allocations, 1);
+  EXPECT_GE(c.locks, 1);
+}
+
+TEST(RealTimePath, DriverGeneratorsAndTheEncoderDecoderNeitherAllocateNorLockOnceRunning) {
+  nd::SimConfig config;
+  nd::sim::PressureGenerator pressure(config, 0.0);
+  nd::sim::MicGenerator mics(config, 0.0);
+  nd::BlockRing pressure_ring(4096), mic_ring(4096);
+  double t = 0.0;
+  for (; t < 0.5; t += 0.005) {  // warm-up: lock, the first held revolutions, scratch sized
+    pressure.advance(t, pressure_ring);
+    mics.advance(t, mic_ring);
+  }
+  nd::SampleBlock sink;
+  while (pressure_ring.read(&sink, 1)) {}
+  while (mic_ring.read(&sink, 1)) {}
+  const Counted c = count([&] {
+    for (; t < 1.5; t += 0.005) {
+      pressure.advance(t, pressure_ring);
+      mics.advance(t, mic_ring);
+      while (pressure_ring.read(&sink, 1)) {}
+      while (mic_ring.read(&sink, 1)) {}
+    }
+  });
+  EXPECT_EQ(c.allocations, 0);
+  EXPECT_EQ(c.locks, 0);
+}
+
+// Blocks of a steady engine at 3000 rpm (a cycle is 1600 frames): a pressure pulse at firing TDC, crank angle,
+// ten microphones hearing a tone.
+struct Streams {
+  std::int64_t next = 0;
+  void fill(nd::SampleBlock& p, nd::SampleBlock& m) {
+    p.first_index = m.first_index = next;
+    p.frames = m.frames = nd::SampleBlock::kMaxFrames;
+    p.channels = nd::kPressureStreamChannels;
+    m.channels = 10;
+    for (std::uint32_t f = 0; f < p.frames; ++f, ++next) {
+      const double crank = std::fmod(static_cast<double>(next) * 720.0 / 1600.0, 720.0) - 360.0;
+      p.data[f * 2 + nd::kPressureChannel] = 1e5 + 60e5 * std::exp(-crank * crank / 400.0);
+      p.data[f * 2 + nd::kCrankChannel] = crank;
+      for (int i = 0; i < 10; ++i) m.data[f * 10 + i] = 2.0 * std::sin(2 * M_PI * 1000.0 * static_cast<double>(next) / 40000.0 + i);
+    }
+  }
+};
+
+TEST(RealTimePath, ProcessingNeitherAllocatesNorLocksOnceRunning) {
+  nd::StreamInfo info;
+  info.mic_count = 10;
+  info.radius_m = 1.75;
+  int reports = 0;
+  noisemon::daemon::CycleProcessor processor({}, info, [&](const noisemon::daemon::CycleReport&) { ++reports; });
+  Streams streams;
+  nd::SampleBlock p, m;
+  auto run = [&](int blocks) {
+    for (int b = 0; b < blocks; ++b) {
+      streams.fill(p, m);
+      processor.add_pressure(p);
+      processor.add_mics(m);
+      processor.process();
+    }
+  };
+  run(200);  // warm-up: 1.3 s, the first cycles and their scratch
+  const int before = reports;
+  const Counted c = count([&] { run(1000); });  // 6.4 s, 160 cycles
+  EXPECT_GE(reports - before, 150);
+  EXPECT_EQ(c.allocations, 0);
+  EXPECT_EQ(c.locks, 0);
+}
+
+}  // namespace
