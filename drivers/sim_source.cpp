@@ -238,7 +238,7 @@ class SimSource final : public Source {
   std::array<StreamStats, 2> stats_;  // pressure, microphones
   std::array<std::atomic<double>, 2> progress_{};  // simulated time each stream has delivered up to (unpaced pacing)
   static constexpr std::array<const char*, 9> kEncoderCounterNames{
-      "edges", "edges_before_lock", "encoder_errors", "phase_corrections", "revolutions_checked",
+      "edges", "edges_before_lock", "errors", "phase_corrections", "revolutions_checked",
       "revolutions_flagged", "missing_or_extra", "lost_index", "reverse_steps"};
   std::array<std::atomic<std::uint64_t>, kEncoderCounterNames.size()> encoder_{};  // the decoder's counters
   bool started_ = false;
