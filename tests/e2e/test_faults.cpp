@@ -215,7 +215,9 @@ TEST_P(PressureFault, PredictionsOfTheAffectedCyclesAreWithheldTheMicrophonesKee
     if (!(c.flags & cycle_report_t::CYCLE_PRESSURE_FAULT)) continue;
     EXPECT_TRUE(std::isnan(c.lpa_predicted_db)) << "cycle " << c.cycle;
     EXPECT_TRUE(std::isfinite(c.lpa_measured_db) && c.lpa_measured_db > 40.0) << "cycle " << c.cycle;
-    if (kind == "overload") EXPECT_NE(c.flags & cycle_report_t::CYCLE_OVERLOAD, 0) << "cycle " << c.cycle;
+    if (kind == "overload") {
+      EXPECT_NE(c.flags & cycle_report_t::CYCLE_OVERLOAD, 0) << "cycle " << c.cycle;
+    }
   }
 }
 
@@ -251,7 +253,9 @@ TEST_P(MicFault, TheMicrophoneIsLeftOutAndTheOthersStillAgreeWithThePrediction) 
     // the model, which is the true block here.
     EXPECT_NEAR(c.lpa_measured_db, energy_mean_without(c, kMic), 0.05) << "cycle " << c.cycle;
     EXPECT_NEAR(c.lpa_measured_db, c.lpa_predicted_db, 0.6) << "cycle " << c.cycle;
-    if (kind == "overload") EXPECT_NE(c.flags & cycle_report_t::CYCLE_OVERLOAD, 0);
+    if (kind == "overload") {
+      EXPECT_NE(c.flags & cycle_report_t::CYCLE_OVERLOAD, 0);
+    }
     ++checked;
   }
   EXPECT_GE(checked, 5);
