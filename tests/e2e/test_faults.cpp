@@ -169,13 +169,17 @@ void expect_contained(const DaemonRun& run, double at, double duration, std::int
   const cycle_report_t* first_after = nullptr;
   for (const cycle_report_t& c : run.cycles) {
     const double s = run.start_s(c), e = run.end_s(c);
-    if (s > 1.0 && e < at) EXPECT_TRUE(valid(c)) << "cycle " << c.cycle << " before the fault, flags " << c.flags;
+    if (s > 1.0 && e < at) {
+      EXPECT_TRUE(valid(c)) << "cycle " << c.cycle << " before the fault, flags " << c.flags;
+    }
     if (s > at + kStartSlackS && e < at + duration) {
       EXPECT_NE(c.flags & expected_flags, 0) << "cycle " << c.cycle << " inside the fault published as valid, flags " << c.flags;
     }
     if ((c.flags & expected_flags) != 0) ++flagged;
     if (s >= end && !first_after) first_after = &c;
-    if (s > end + 0.5) EXPECT_TRUE(valid(c)) << "cycle " << c.cycle << " long after the fault, flags " << c.flags;
+    if (s > end + 0.5) {
+      EXPECT_TRUE(valid(c)) << "cycle " << c.cycle << " long after the fault, flags " << c.flags;
+    }
   }
   const std::int64_t dropped = run.statuses.empty() ? 0 : run.statuses.back().cycles_dropped;
   EXPECT_GT(flagged + dropped, 0) << "the fault left no trace";
@@ -196,8 +200,11 @@ TEST_P(EncoderFault, AffectedCyclesAreFlaggedAndTheDecoderResynchronises) {
   NOISEMON_REQUIRE_NAMESPACE();
   const DaemonRun run = run_daemon(std::string("encoder_") + GetParam(), fault(GetParam(), "", 3.0, 0.5), 6.0);
   expect_contained(run, 3.0, 0.5, cycle_report_t::CYCLE_ENCODER);
-  for (const cycle_report_t& c : run.cycles)
-    if (c.flags & cycle_report_t::CYCLE_ENCODER) EXPECT_TRUE(std::isnan(c.imep_net_bar)) << "angle unknown, IMEP " << c.imep_net_bar;
+  for (const cycle_report_t& c : run.cycles) {
+    if (c.flags & cycle_report_t::CYCLE_ENCODER) {
+      EXPECT_TRUE(std::isnan(c.imep_net_bar)) << "angle unknown, IMEP " << c.imep_net_bar;
+    }
+  }
 }
 
 INSTANTIATE_TEST_SUITE_P(Kinds, EncoderFault, ::testing::Values("missing_edges", "extra_edges", "lost_index", "reverse"));
