@@ -253,8 +253,11 @@ TEST_P(MicFault, TheMicrophoneIsLeftOutAndTheOthersStillAgreeWithThePrediction) 
     if (!(c.flags & cycle_report_t::CYCLE_MIC_EXCLUDED)) continue;
     ASSERT_EQ(c.nmics, 10);
     EXPECT_NE(c.mic_flags[kMic] & cycle_report_t::MIC_EXCLUDED, 0) << "cycle " << c.cycle;
-    for (int i = 0; i < c.nmics; ++i)
-      if (i != kMic) EXPECT_EQ(c.mic_flags[i], 0) << "cycle " << c.cycle << " mic " << i + 1;
+    for (int i = 0; i < c.nmics; ++i) {
+      if (i != kMic) {
+        EXPECT_EQ(c.mic_flags[i], 0) << "cycle " << c.cycle << " mic " << i + 1;
+      }
+    }
     if (c.flags & ~(kQualifiers | cycle_report_t::CYCLE_MIC_EXCLUDED | cycle_report_t::CYCLE_OVERLOAD)) continue;
     // The measured level is the nine others' (a second computation from their own levels) and still agrees with
     // the model, which is the true block here.
