@@ -256,8 +256,8 @@ TEST(WorkerThread, CpuAffinityTakesEffectOrFailsNamingTheCpu) {
 }
 
 TEST(LockMemory, RefusedToAnUnprivilegedProcessWithAClearError) {
-#if defined(__SANITIZE_ADDRESS__)
-  GTEST_SKIP() << "AddressSanitizer replaces mlockall with a no-op that succeeds";
+#if defined(__SANITIZE_ADDRESS__) || defined(__SANITIZE_THREAD__)
+  GTEST_SKIP() << "the sanitizer replaces mlockall with a no-op that succeeds";
 #endif
   GTEST_FLAG_SET(death_test_style, "threadsafe");
   EXPECT_EXIT(
