@@ -152,18 +152,16 @@ void PressureGenerator::apply_channel_faults(std::size_t n) {
 void PressureGenerator::count_edge(std::int64_t edge, double t, double pressure, BlockRing& ring) {
   const double since = t - t_first_;
   const std::int64_t in_rev = floor_mod(edge - index_edge_, counts_per_rev_);
-  if (!faults_.empty()) {
-    const SimFault* missing = active_fault(faults_, SimFaultKind::kMissingEdges, kPressureTarget, since);
-    if (missing && picked(in_rev, counts_per_rev_, missing->per_rev)) return;  // never reaches the counter
-  }
-  const bool reverse = !faults_.empty() && active_fault(faults_, SimFaultKind::kReverse, kPressureTarget, since);
-  if (in_rev == 0 && !(faults_.size() && active_fault(faults_, SimFaultKind::kLostIndex, kPressureTarget, since)))
+  // (active_fault over an empty list is a null check: the fault-free run pays nothing.)
+  const auto fault = [&](SimFaultKind kind) { return active_fault(faults_, kind, kPressureTarget, since); };
+  if (const SimFault* missing = fault(SimFaultKind::kMissingEdges); missing && picked(in_rev, counts_per_rev_, missing->per_rev))
+    return;  // never reaches the counter
+  if (in_rev == 0 && !fault(SimFaultKind::kLostIndex))
     counter_ = 0;  // the index resets the counter
   else
-    counter_ += reverse ? ~0u : 1u;  // counting down wraps like the card's register
+    counter_ += fault(SimFaultKind::kReverse) ? ~0u : 1u;  // counting down wraps like the card's register
   scan(t, pressure, ring);
-  if (faults_.empty()) return;
-  const SimFault* extra = active_fault(faults_, SimFaultKind::kExtraEdges, kPressureTarget, since);
+  const SimFault* extra = fault(SimFaultKind::kExtraEdges);
   if (extra && picked(in_rev, counts_per_rev_, extra->per_rev)) {
     const double t_next = kin_.time_s(static_cast<double>(edge + 1) * resolution_deg_);
     ++counter_;
