@@ -159,8 +159,8 @@ class SimSource final : public Source {
   void run_stream(WorkerThread& w, int stream, Generator& gen, BlockRing& ring, double t_first, const std::atomic<bool>& stop,
                   AfterPass after_pass) {
     const int target = stream == 0 ? kPressureTarget : kMicsTarget;
-    std::unique_ptr<BlockRing> lost;  // where undelivered blocks go (only with faults configured)
-    if (!config_.faults.empty()) lost = std::make_unique<BlockRing>(32);
+    std::unique_ptr<BlockRing> staged;  // with faults configured: each block waits here to be delivered or lost
+    if (!config_.faults.empty()) staged = std::make_unique<BlockRing>(64);
     double t = t_first;
     std::uint64_t clipped_seen = 0;
     while (!stop.load(std::memory_order_relaxed)) {
@@ -168,18 +168,30 @@ class SimSource final : public Source {
       // Like a real device, a chunk is delivered only once its last instant has passed on the wall clock.
       t = config_.paced ? std::max(t + kChunkS, std::min(sim_now_s(), t + kMaxCatchUpS)) : t + kChunkS;
       if (!wait_turn(stream, t, &ring, stop)) break;
-      if (lost && active_fault(config_.faults, SimFaultKind::kFail, target, t - t_first))
+      if (staged && active_fault(config_.faults, SimFaultKind::kFail, target, t - t_first))
         throw std::runtime_error(std::string("sim ") + (stream == 0 ? "encoder/pressure" : "microphone") +
                                  " device: input/output error (injected fault)");
-      const bool delivers = !lost || stream_delivers(config_.faults, target, t - t_first);
-      gen.advance(t, delivers ? ring : *lost);
-      for (; lost && lost->front(); lost->consume(1)) stats_[stream].lost_blocks.fetch_add(1, std::memory_order_relaxed);
+      gen.advance(t, staged ? *staged : ring);
+      if (staged) route_staged(stream, target, t_first, *staged, ring);
       w.set_blocks_written(gen.blocks_written());
       const std::uint64_t clipped = gen.clipped_samples();
       stats_[stream].clipped.fetch_add(clipped - clipped_seen, std::memory_order_relaxed);
       clipped_seen = clipped;
       after_pass();
       progress_[stream].store(t, std::memory_order_release);
+    }
+  }
+
+  // A stream fault takes the blocks whose frames were sampled inside it, wherever a (catching-up) pass ends: a
+  // stall or an overrun loses what the device would have acquired meanwhile, never a neighbour's frames.
+  void route_staged(int stream, int target, double t_first, BlockRing& staged, BlockRing& ring) {
+    for (const SampleBlock* b = staged.front(); b != nullptr; staged.consume(1), b = staged.front()) {
+      const double first_s = static_cast<double>(b->first_index) / kPipelineRateHz - t_first;
+      const double last_s = first_s + static_cast<double>(b->frames - 1) / kPipelineRateHz;
+      if (stream_delivers(config_.faults, target, first_s) && stream_delivers(config_.faults, target, last_s))
+        ring.write(b, 1);  // a full ring counts its own overrun, as without faults
+      else
+        stats_[stream].lost_blocks.fetch_add(1, std::memory_order_relaxed);
     }
   }
 
