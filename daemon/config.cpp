@@ -115,7 +115,7 @@ void read_sim_cell(TableReader& sr, drivers::SimConfig& s) {
   if (decay_ms >= 0.0) s.gas_ringing.decay_s = decay_ms / 1e3;
 }
 
-// [[sim.faults]]: faults the virtual engine injects (drivers/sim_faults.hpp; documented in systemd/noisemond.toml).
+// [[sim.faults]]: faults the virtual engine injects (drivers/sim/sim_faults.hpp; documented in systemd/noisemond.toml).
 void read_faults(TableReader& sr, const std::string& origin, drivers::SimConfig& s) {
   const toml::node* n = sr.node("faults");
   if (!n) return;

@@ -6,12 +6,12 @@
 #include <stdexcept>
 #include <string>
 
-#include "drivers/can_source.hpp"
-#include "drivers/comedi_source.hpp"
-#include "drivers/sim_source.hpp"
+#include "drivers/can/can_source.hpp"
+#include "drivers/comedi/comedi_source.hpp"
+#include "drivers/sim/sim_source.hpp"
 #include "drivers/worker_thread.hpp"
 #include "model/block_params.hpp"
-#include "model/engine_cycle.hpp"
+#include "model/engine_geometry.hpp"
 
 namespace noisemon::daemon {
 

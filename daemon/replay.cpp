@@ -14,7 +14,7 @@
 
 #include "daemon/cycle_processor.hpp"
 #include "daemon/report_messages.hpp"
-#include "drivers/lcm_log_reader.hpp"
+#include "drivers/formats/lcm_log_reader.hpp"
 
 namespace noisemon::daemon {
 namespace {

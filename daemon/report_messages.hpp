@@ -1,5 +1,5 @@
 // Conversion of the daemon's cycle report to its LCM message (the stream messages are in
-// drivers/stream_messages.hpp), and the one-line text form of
+// drivers/formats/stream_messages.hpp), and the one-line text form of
 // a cycle report that `noisemond --live` and `noisemon watch` print.
 #pragma once
 
@@ -7,7 +7,7 @@
 
 #include "daemon/cycle_report.hpp"
 #include "noisemon/cycle_report_t.hpp"
-#include "drivers/stream_messages.hpp"
+#include "drivers/formats/stream_messages.hpp"
 
 namespace noisemon::daemon {
 

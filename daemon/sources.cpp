@@ -2,11 +2,11 @@
 
 #include <spdlog/spdlog.h>
 
-#include "drivers/can_source.hpp"
+#include "drivers/can/can_source.hpp"
 #include "drivers/combined_source.hpp"
-#include "drivers/comedi_source.hpp"
-#include "drivers/lcm_source.hpp"
-#include "drivers/sim_source.hpp"
+#include "drivers/comedi/comedi_source.hpp"
+#include "drivers/lcm/lcm_source.hpp"
+#include "drivers/sim/sim_source.hpp"
 
 namespace noisemon::daemon {
 namespace {

@@ -13,7 +13,7 @@
 #include <span>
 #include <vector>
 
-#include "model/engine_cycle.hpp"
+#include "model/engine_geometry.hpp"
 
 namespace noisemon::model {
 
@@ -40,7 +40,7 @@ struct CombustionMetrics {
 };
 
 // Metrics of one cycle: pressure_pa[i] at crank angle first_deg + i * step_deg (0 = firing TDC); the whole
-// cycle is -360 ... 360 deg. The geometry (model/engine_cycle.hpp) defaults to the Yanmar L100V of
+// cycle is -360 ... 360 deg. The geometry (model/engine_geometry.hpp) defaults to the Yanmar L100V of
 // ../shared/data, which the virtual engine is too; its rod length (118 mm) is not published with the data.
 // speed_rpm converts dp/dtheta to dp/dt for the ringing intensity. Throws std::invalid_argument naming what is
 // wrong (geometry, step, too few samples).

@@ -9,8 +9,8 @@
 #include <cstdlib>
 #include <string>
 
-#include "daemon/sim_dataset.hpp"
-#include "model/diagnosis.hpp"
+#include "daemon/cli/sim_dataset.hpp"
+#include "model/diagnosis/diagnosis.hpp"
 
 namespace {
 

@@ -13,10 +13,10 @@
 #include <vector>
 #include <unistd.h>
 
-#include "daemon/fit_command.hpp"
+#include "daemon/cli/fit_command.hpp"
 #include "daemon/params_file.hpp"
-#include "daemon/sim_command.hpp"
-#include "model/waveform_fit.hpp"
+#include "daemon/cli/sim_command.hpp"
+#include "model/fit/waveform_fit.hpp"
 
 namespace {
 

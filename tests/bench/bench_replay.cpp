@@ -12,7 +12,7 @@
 #include <random>
 
 #include "daemon/replay.hpp"
-#include "drivers/stream_messages.hpp"
+#include "drivers/formats/stream_messages.hpp"
 
 using namespace noisemon;
 

@@ -2,8 +2,8 @@
 // is well under one core at 3450 rpm with a 0.1 deg encoder, since the daemon's processing needs the other.
 #include <benchmark/benchmark.h>
 
-#include "drivers/sim_generators.hpp"
-#include "model/engine_cycle.hpp"
+#include "drivers/sim/sim_generators.hpp"
+#include "model/engine/engine_cycle.hpp"
 
 namespace nd = noisemon::drivers;
 

@@ -6,7 +6,7 @@
 // 3450 rpm / 20 N m, five injection timings each, plus motored runs) take part: leave-one-condition-out holds out
 // each fired condition in turn, and the thesis protocol trains at idle and validates at full load.
 //
-// Every dataset comes from the realistic test cell (drivers/sim_source.hpp: a 0.02 bar pressure-chain floor, ADC,
+// Every dataset comes from the realistic test cell (drivers/sim/sim_source.hpp: a 0.02 bar pressure-chain floor, ADC,
 // gas ringing, microphone self-noise and directivity) unless a test says otherwise; the floors at 0, 0.02, 0.05 and
 // 0.2 bar (the real Yanmar record's) are proven separately. tests/independent holds the family whose data shares no
 // code with the virtual engine.
@@ -29,13 +29,13 @@
 
 #include <nlohmann/json.hpp>
 
-#include "daemon/diagnose_command.hpp"
-#include "daemon/fit_command.hpp"
-#include "daemon/import_export.hpp"
-#include "daemon/sim_command.hpp"
-#include "daemon/sim_dataset.hpp"
-#include "model/diagnosis.hpp"
-#include "model/pressure_chain.hpp"
+#include "daemon/cli/diagnose_command.hpp"
+#include "daemon/cli/fit_command.hpp"
+#include "daemon/cli/import_export.hpp"
+#include "daemon/cli/sim_command.hpp"
+#include "daemon/cli/sim_dataset.hpp"
+#include "model/diagnosis/diagnosis.hpp"
+#include "model/engine/pressure_chain.hpp"
 #include "tests/drivers/unique_temp.hpp"
 
 namespace noisemon::daemon {

@@ -23,10 +23,10 @@
 #include <vector>
 
 #include "daemon/config.hpp"
-#include "daemon/fit_command.hpp"
-#include "daemon/import_export.hpp"
+#include "daemon/cli/fit_command.hpp"
+#include "daemon/cli/import_export.hpp"
 #include "daemon/params_file.hpp"
-#include "daemon/sim_command.hpp"
+#include "daemon/cli/sim_command.hpp"
 
 namespace noisemon::daemon {
 namespace {

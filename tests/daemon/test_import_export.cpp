@@ -24,10 +24,10 @@
 #include <random>
 #include <sstream>
 
-#include "daemon/band_data.hpp"
-#include "daemon/import_export.hpp"
+#include "daemon/cli/band_data.hpp"
+#include "daemon/cli/import_export.hpp"
 #include "daemon/replay.hpp"
-#include "drivers/cycle_table.hpp"
+#include "drivers/formats/cycle_table.hpp"
 #include "noisemon/cycle_report_t.hpp"
 #include "tests/daemon/csv_column.hpp"
 #include "tests/drivers/unique_temp.hpp"

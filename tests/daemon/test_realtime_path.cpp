@@ -14,7 +14,7 @@
 #include <vector>
 
 #include "daemon/cycle_processor.hpp"
-#include "drivers/sim_generators.hpp"
+#include "drivers/sim/sim_generators.hpp"
 #include "drivers/source.hpp"
 
 namespace {

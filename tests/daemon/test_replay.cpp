@@ -13,7 +13,7 @@
 
 #include "daemon/replay.hpp"
 #include "daemon/report_messages.hpp"
-#include "daemon/watch.hpp"
+#include "daemon/cli/watch.hpp"
 #include "noisemon/cycle_report_t.hpp"
 #include "tests/daemon/csv_column.hpp"
 #include "tests/drivers/unique_temp.hpp"

@@ -9,7 +9,7 @@
 #include <tuple>
 #include <vector>
 
-#include "daemon/report_html.hpp"
+#include "daemon/report/report_html.hpp"
 
 using nlohmann::json;
 using noisemon::daemon::report_html;

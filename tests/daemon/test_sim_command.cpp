@@ -26,8 +26,8 @@
 #include <thread>
 #include <vector>
 
-#include "daemon/band_data.hpp"
-#include "drivers/run_dir.hpp"
+#include "daemon/cli/band_data.hpp"
+#include "drivers/formats/run_dir.hpp"
 #include "tests/drivers/unique_temp.hpp"
 
 namespace fs = std::filesystem;

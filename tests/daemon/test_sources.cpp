@@ -22,8 +22,8 @@
 #include <sstream>
 #include <thread>
 
-#include "drivers/lcm_source.hpp"
-#include "drivers/stream_messages.hpp"
+#include "drivers/lcm/lcm_source.hpp"
+#include "drivers/formats/stream_messages.hpp"
 #include "tests/drivers/unique_temp.hpp"
 
 using noisemon::daemon::Config;

@@ -25,7 +25,7 @@
 #include <thread>
 #include <vector>
 
-#include "drivers/comedi_source.hpp"
+#include "drivers/comedi/comedi_source.hpp"
 
 namespace comedi_fake {
 

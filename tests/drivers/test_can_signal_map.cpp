@@ -1,5 +1,5 @@
 // CAN signal extraction against hand-worked DBC examples and a bit-by-bit walk of the DBC bit numbering.
-#include "drivers/can_signal_map.hpp"
+#include "drivers/formats/can_signal_map.hpp"
 
 #include <gtest/gtest.h>
 

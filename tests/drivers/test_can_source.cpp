@@ -2,7 +2,7 @@
 // its bytes (below, independent of the decoder), replayed as fast as possible and at its recorded pace; the live
 // path through a seqpacket socketpair carrying struct can_frame (this machine's kernel has no CAN) with error
 // frames counted; the errors for a missing interface; and the combination with a stream source.
-#include "drivers/can_source.hpp"
+#include "drivers/can/can_source.hpp"
 
 #include <linux/can.h>
 #include <linux/can/error.h>

@@ -1,5 +1,5 @@
 // candump log parsing against lines written by hand in the can-utils `candump -l` format.
-#include "drivers/candump.hpp"
+#include "drivers/formats/candump.hpp"
 
 #include <gtest/gtest.h>
 

@@ -2,7 +2,7 @@
 // overrun/restart/backoff and end-of-stream handling (scripted fake reads and real closed descriptors), the
 // command settling loop against scripted comedi_command_test behaviour, and CR_PACK against comedi.h's
 // documented bit layout (chan bits 0-15, range 16-23, aref 24-25).
-#include "drivers/comedi_device.hpp"
+#include "drivers/comedi/comedi_device.hpp"
 
 #include <fcntl.h>
 #include <sys/stat.h>

@@ -2,7 +2,7 @@
 // comedi_to_physical give exact voltages, and sensor chains worked through by unit (V -> mV -> pC -> bar -> Pa).
 // Streams of random raw codes are checked against the conversion formulas written out in the test, whatever
 // way the bytes are split, including through a real pipe read by the device path's read loop.
-#include "drivers/comedi_scan.hpp"
+#include "drivers/comedi/comedi_scan.hpp"
 
 #include <fcntl.h>
 #include <unistd.h>
@@ -14,7 +14,7 @@
 #include <random>
 #include <vector>
 
-#include "drivers/comedi_device.hpp"
+#include "drivers/comedi/comedi_device.hpp"
 
 namespace nd = noisemon::drivers;
 

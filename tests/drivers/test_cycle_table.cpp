@@ -8,7 +8,7 @@
 #include <filesystem>
 #include <string>
 
-#include "drivers/cycle_table.hpp"
+#include "drivers/formats/cycle_table.hpp"
 
 using namespace noisemon::drivers;
 

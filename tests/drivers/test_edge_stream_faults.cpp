@@ -18,7 +18,7 @@
 #include <utility>
 #include <vector>
 
-#include "drivers/comedi_streams.hpp"
+#include "drivers/comedi/comedi_streams.hpp"
 
 namespace nd = noisemon::drivers;
 

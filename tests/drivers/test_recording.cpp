@@ -22,9 +22,9 @@
 #include <limits>
 #include <numbers>
 
-#include "drivers/lcm_log_reader.hpp"
-#include "drivers/recording.hpp"
-#include "drivers/stream_messages.hpp"
+#include "drivers/formats/lcm_log_reader.hpp"
+#include "drivers/formats/recording.hpp"
+#include "drivers/formats/stream_messages.hpp"
 #include "tests/drivers/unique_temp.hpp"
 
 using namespace noisemon::drivers;

@@ -10,7 +10,7 @@
 #include <numbers>
 #include <string>
 
-#include "drivers/run_dir.hpp"
+#include "drivers/formats/run_dir.hpp"
 #include "tests/drivers/unique_temp.hpp"
 
 using namespace noisemon::drivers;

@@ -7,7 +7,7 @@
 // configured rms per encoder sample, and ADC clipping must show in the source's counters. Tests whose reference
 // is exact get an explicitly ideal part: the pressure-channel test an ideal pressure chain, the harmonic-level
 // test no gas ringing (its random phase per cycle makes the pressure aperiodic).
-#include "drivers/sim_source.hpp"
+#include "drivers/sim/sim_source.hpp"
 
 #include <gtest/gtest.h>
 
@@ -24,10 +24,10 @@
 
 #include <sys/resource.h>
 
-#include "drivers/sim_generators.hpp"
-#include "drivers/sim_run.hpp"
+#include "drivers/sim/sim_generators.hpp"
+#include "drivers/sim/sim_run.hpp"
 #include "model/block_model.hpp"
-#include "model/engine_cycle.hpp"
+#include "model/engine/engine_cycle.hpp"
 
 namespace nd = noisemon::drivers;
 namespace nm = noisemon::model;

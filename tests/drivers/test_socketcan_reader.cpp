@@ -1,6 +1,6 @@
 // The socketcan read loop, fed struct can_frame bytes through an AF_UNIX seqpacket socketpair (this machine
 // has no CAN), and the raw-socket open's error path.
-#include "drivers/socketcan_reader.hpp"
+#include "drivers/can/socketcan_reader.hpp"
 
 #include <gtest/gtest.h>
 

@@ -3,7 +3,7 @@
 // microphone count is damaged, without an exception and without a large allocation (intact messages decode as
 // encoded); from_message must refuse a session whose acoustic delay is no frame offset (1e20 s overflowed the
 // processor's frame arithmetic).
-#include "drivers/stream_messages.hpp"
+#include "drivers/formats/stream_messages.hpp"
 
 #include <gtest/gtest.h>
 

@@ -22,7 +22,7 @@
 #include "dsp/third_octave_bank.hpp"
 #include "dsp/weighting.hpp"
 #include "model/block_model.hpp"
-#include "model/engine_cycle.hpp"
+#include "model/engine/engine_cycle.hpp"
 #include "tests/drivers/unique_temp.hpp"
 #include "tests/e2e/private_network.hpp"
 

@@ -6,7 +6,7 @@
 #include <string>
 #include <vector>
 
-#include "drivers/candump.hpp"
+#include "drivers/formats/candump.hpp"
 #include "fuzz_util.hpp"
 
 using noisemon::drivers::CandumpRecord;

@@ -5,8 +5,8 @@
 #include <exception>
 #include <string_view>
 
-#include "drivers/cycle_table.hpp"
-#include "drivers/recording.hpp"
+#include "drivers/formats/cycle_table.hpp"
+#include "drivers/formats/recording.hpp"
 #include "fuzz_util.hpp"
 
 using noisemon::fuzz::fail;
@@ -20,7 +20,7 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
     noisemon::fuzz::require_names(e.what(), file);
     return 0;
   }
-  // What an accepted table promises (drivers/cycle_table.hpp).
+  // What an accepted table promises (drivers/formats/cycle_table.hpp).
   const std::size_t rows = table.crank_deg.size();
   if (rows < 2 || table.cycles_bar.empty()) fail("accepted an empty table");
   for (std::size_t i = 0; i < rows; ++i)

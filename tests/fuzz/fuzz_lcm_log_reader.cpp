@@ -4,7 +4,7 @@
 #include <cstring>
 #include <vector>
 
-#include "drivers/lcm_log_reader.hpp"
+#include "drivers/formats/lcm_log_reader.hpp"
 #include "fuzz_util.hpp"
 
 using noisemon::drivers::LcmLogEvent;

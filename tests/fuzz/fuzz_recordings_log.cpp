@@ -3,7 +3,7 @@
 // is refused with an error naming the file.
 #include <exception>
 
-#include "drivers/recording.hpp"
+#include "drivers/formats/recording.hpp"
 #include "fuzz_util.hpp"
 
 using noisemon::fuzz::fail;

@@ -4,8 +4,8 @@
 #include <cmath>
 #include <exception>
 
-#include "drivers/recording.hpp"
-#include "drivers/run_dir.hpp"
+#include "drivers/formats/recording.hpp"
+#include "drivers/formats/run_dir.hpp"
 #include "fuzz_util.hpp"
 #include "valid_inputs.hpp"
 
@@ -31,7 +31,7 @@ bool all_finite(const auto& v) {
   return true;
 }
 
-// What an accepted run directory promises its users (drivers/run_dir.hpp).
+// What an accepted run directory promises its users (drivers/formats/run_dir.hpp).
 void check_accepted(const noisemon::drivers::RunDir& r) {
   const std::size_t n = r.time_s.size();
   if (r.crank_deg.size() != n || r.pressure_pa.size() != n) fail("pressure columns of different lengths");

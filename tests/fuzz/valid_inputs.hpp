@@ -12,7 +12,7 @@
 #include <string>
 #include <vector>
 
-#include "drivers/stream_messages.hpp"
+#include "drivers/formats/stream_messages.hpp"
 
 namespace noisemon::fuzz {
 

@@ -16,7 +16,7 @@
 //    from rendered samples; counter-based noise independent of chunking.
 // quiet_config() is an explicitly ideal cell (no floor, no self-noise, directivity or ADCs): the tests of the
 // engine's sound and of each effect measure it alone.
-#include "model/virtual_engine.hpp"
+#include "model/engine/virtual_engine.hpp"
 
 #include <gtest/gtest.h>
 
@@ -31,9 +31,9 @@
 #include <vector>
 
 #include "dsp/weighting.hpp"
-#include "model/effects.hpp"
-#include "model/pressure_chain.hpp"
-#include "model/random.hpp"
+#include "model/engine/effects.hpp"
+#include "model/engine/pressure_chain.hpp"
+#include "model/engine/random.hpp"
 
 namespace nm = noisemon::model;
 

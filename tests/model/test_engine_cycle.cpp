@@ -1,11 +1,11 @@
 // Tests of the virtual engine's physics against independent references: slider-crank geometry in closed form,
 // the isentropic relations of an adiabatic closed system, the fuel's energy content, the first law, the
 // thesis's injection-timing trend, the inverse of the crank kinematics, sample statistics of the cycle
-// variation, and a real motored pressure record of the Yanmar L100V. The gas ringing (model/gas_ringing.hpp):
+// variation, and a real motored pressure record of the Yanmar L100V. The gas ringing (model/engine/gas_ringing.hpp):
 // each mode's frequency against Draper's formula written out here at the model's own gas temperature, its
 // amplitude against the documented law, none in motored cycles, and its first mode against the ringing of the
 // real fired Yanmar record (the same spectral estimator on both).
-#include "model/engine_cycle.hpp"
+#include "model/engine/engine_cycle.hpp"
 
 #include <gtest/gtest.h>
 

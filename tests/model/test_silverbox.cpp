@@ -10,8 +10,8 @@
 // Checks: the linear model leaves a large error; the waveform diagnosis, given no hint, names cubic_stiffness;
 // the cubic model cuts the test error by a clear factor and beats the best published baseline (LSTM) on the
 // extrapolating arrow.
-#include "model/waveform_diagnosis.hpp"
-#include "model/waveform_fit.hpp"
+#include "model/diagnosis/waveform_diagnosis.hpp"
+#include "model/fit/waveform_fit.hpp"
 
 #include <gtest/gtest.h>
 

@@ -7,8 +7,8 @@
 // the held-out error equals the added noise (nothing left to explain); the diagnosis names cubic_stiffness,
 // cubic_damping, or none for the matching data; the block bootstrap keeps its false-alarm rate on
 // correlated noise.
-#include "model/waveform_diagnosis.hpp"
-#include "model/waveform_fit.hpp"
+#include "model/diagnosis/waveform_diagnosis.hpp"
+#include "model/fit/waveform_fit.hpp"
 
 #include <gtest/gtest.h>
 

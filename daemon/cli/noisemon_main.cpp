@@ -1,0 +1,76 @@
+// noisemon: the command-line tool beside the daemon (watch, replay, import, export, sim, fit, diagnose).
+#include <CLI/CLI.hpp>
+
+#include <cstdio>
+
+#include "daemon/config.hpp"
+#include "daemon/cli/import_export_cli.hpp"
+#include "daemon/replay.hpp"
+#include "daemon/cli/diagnose_command.hpp"
+#include "daemon/cli/summary_command.hpp"
+#include "daemon/cli/fit_command.hpp"
+#include "daemon/cli/sim_command.hpp"
+#include "daemon/cli/watch.hpp"
+
+int main(int argc, char** argv) {
+  using namespace noisemon::daemon;
+  CLI::App app{"noisemon - command-line tools for the noisemon engine-noise monitor"};
+  app.require_subcommand(1);
+
+  WatchOptions watch;
+  CLI::App* w = app.add_subcommand("watch", "subscribe to noisemond's cycle reports and print one line per cycle");
+  w->add_option("--lcm", watch.lcm_url, "LCM URL (default: LCM's default udpm URL)");
+  w->add_option("--channel", watch.channel, "channel of the cycle reports")->capture_default_str();
+  w->add_option("--count", watch.count, "exit after N reports (0 = until Ctrl-C)")->check(CLI::NonNegativeNumber);
+  w->add_option("--timeout", watch.timeout_s, "fail when no report arrives for this many seconds (0 = wait forever)")
+      ->check(CLI::NonNegativeNumber);
+  w->add_option("--csv", watch.csv_path, "also write one CSV row per report to this file");
+  w->add_flag("--bands", watch.bands, "also print each report's 1/3-octave spectra");
+  w->add_flag("--status", watch.status, "print the daemon's 1 Hz status messages instead (threads, rings, counters)");
+  w->add_option("--status-channel", watch.status_channel, "channel of the status messages")->capture_default_str();
+
+  ReplayOptions replay;
+  std::string replay_config, replay_model;
+  CLI::App* r = app.add_subcommand("replay", "run a raw LCM log (lcm-logger of noisemond's channels) through the processing");
+  r->add_option("LOG", replay.log_path, "LCM log holding NOISEMON_SESSION, NOISEMON_RAW and NOISEMON_OP")->required()->check(CLI::ExistingFile);
+  r->add_option("--out", replay.out_log, "write the cycle reports to this LCM log");
+  r->add_option("--csv", replay.csv_path, "write one CSV row per cycle to this file");
+  r->add_flag("--realtime", replay.realtime, "pace the events at their recorded times (default: as fast as possible)");
+  r->add_option("--config", replay_config, "noisemond TOML configuration for the model and channel names")->check(CLI::ExistingFile);
+  r->add_option("--model", replay_model, "model preset, overrides [model] preset (linear, nl_damper, nl_spring_damper, nl_spring_damper_opt)");
+  r->add_flag("!--no-progress", replay.progress, "no progress bar");
+
+  ImportExportCommands import_export(app);
+  SimCommand sim(app);
+  FitCommand fit(app);
+  DiagnoseCommand diagnose(app);
+  SummaryCommand summary(app);
+
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    return app.exit(e);
+  }
+  try {
+    if (w->parsed()) return run_watch(watch);
+    if (const int status = import_export.run(); status >= 0) return status;
+    if (const int status = sim.run(); status >= 0) return status;
+    if (const int status = fit.run(); status >= 0) return status;
+    if (const int status = diagnose.run(argc, argv); status >= 0) return status;
+    if (const int status = summary.run(); status >= 0) return status;
+    if (r->parsed()) {
+      if (!replay_config.empty()) replay.config = load_config(replay_config);
+      if (!replay_model.empty()) replay.config.model = noisemon::model::preset(replay_model);
+      const ReplaySummary s = run_replay(replay);
+      std::fprintf(stderr, "noisemon replay: %lld session(s), %lld events, %lld raw blocks, %lld cycles reported, %lld dropped, %lld events of other channels, %lld damaged events skipped\n",
+                   static_cast<long long>(s.sessions), static_cast<long long>(s.events), static_cast<long long>(s.raw_blocks), static_cast<long long>(s.reports),
+                   static_cast<long long>(s.cycles_dropped), static_cast<long long>(s.skipped_unknown),
+                   static_cast<long long>(s.skipped_damaged));
+      return 0;
+    }
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "noisemon: %s\n", e.what());
+    return 1;
+  }
+  return 0;
+}

@@ -1,0 +1,406 @@
+#include "drivers/comedi/comedi_source.hpp"
+
+#include <atomic>
+#include <stdexcept>
+
+#include "drivers/mic_positions.hpp"
+
+namespace noisemon::drivers {
+namespace {
+
+constexpr std::size_t kReadBufferBytes = 1 << 16;
+
+std::string where(const std::string& device, int subdevice) {
+  return device + " subdevice " + (subdevice >= 0 ? std::to_string(subdevice) : std::string("(default read)"));
+}
+
+class DeviceAcquisition final : public Acquisition {
+ public:
+  explicit DeviceAcquisition(const ComediAcquisitionConfig& config) : device_(config) {}
+  std::string where() const override { return device_.device_path() + " subdevice " + std::to_string(device_.subdevice()); }
+  int fd() const override { return device_.fd(); }
+  SampleWidth sample_width() const override { return device_.sample_width(); }
+  const std::vector<ChannelConversion>& conversions() const override { return device_.conversions(); }
+  double scan_period_s() const override { return device_.scan_period_s(); }
+  void start() override {
+    const std::int64_t before = wall_utime();
+    device_.start();
+    origin_ = (before + wall_utime()) / 2;
+  }
+  bool restart() override {
+    const std::int64_t before = wall_utime();
+    if (!device_.restart()) return false;
+    origin_ = (before + wall_utime()) / 2;
+    return true;
+  }
+  void cancel() override { device_.cancel(); }
+  std::int64_t origin_utime() const override { return origin_; }
+
+ private:
+  ComediDevice device_;
+  std::int64_t origin_ = 0;
+};
+
+double pressure_si_per_volt(const ComediSourceConfig::Pressure& p) {
+  const bool voltage = p.sensitivity_mv_per_bar > 0.0;
+  const bool charge = p.sensitivity_pc_per_bar > 0.0 || p.amplifier_mv_per_pc > 0.0;
+  if (voltage == charge)
+    throw std::invalid_argument(
+        "comedi.pressure: set either sensitivity_mv_per_bar (voltage-output chain) or sensitivity_pc_per_bar and "
+        "amplifier_mv_per_pc (charge-output transducer and charge amplifier)");
+  if (voltage) return pressure_pa_per_volt(p.sensitivity_mv_per_bar);
+  if (!(p.sensitivity_pc_per_bar > 0.0 && p.amplifier_mv_per_pc > 0.0))
+    throw std::invalid_argument("comedi.pressure: a charge chain needs both sensitivity_pc_per_bar and amplifier_mv_per_pc");
+  return charge_pressure_pa_per_volt(p.sensitivity_pc_per_bar, p.amplifier_mv_per_pc);
+}
+
+// Where each value sits in the encoder-clocked scans of comedi_acquisitions().
+EdgeStreamConfig edge_stream_config(const ComediSourceConfig& c) {
+  EdgeStreamConfig e;
+  const bool cam = c.pressure.cam_channel >= 0;
+  const bool separate_timestamp = c.encoder.timestamp_subdevice >= 0;
+  e.stream_channels = {cam ? 2u : 1u, separate_timestamp ? 1u : 2u};
+  if (separate_timestamp) e.stream_channels.push_back(1);
+  e.pressure = {0, 0};
+  if (cam) e.cam = ScanSlot{0, 1};
+  e.position = {1, 0};
+  e.timestamp = separate_timestamp ? ScanSlot{2, 0} : ScanSlot{1, 1};
+  e.counts_per_rev = c.encoder.counts_per_rev;
+  e.index_resets_counter = c.encoder.index_resets_counter;
+  e.counts_per_edge = c.encoder.counts_per_edge;
+  e.index_angle_deg = c.encoder.index_angle_deg;
+  e.timebase_hz = c.encoder.timebase_hz;
+  e.timestamp_bits = c.encoder.timestamp_bits;
+  e.timestamp_mode = c.encoder.timestamp_mode;
+  e.phase = c.phase;
+  e.cam_threshold_v = c.cam_threshold_v;
+  e.cam_edge_deg = c.cam_edge_deg;
+  e.peg_pa = c.pressure.peg_pa;
+  e.peg_angle_deg = c.pressure.peg_angle_deg;
+  return e;
+}
+
+class ComediSource final : public Source {
+ public:
+  ComediSource(const ComediSourceConfig& config, const AcquisitionFactory& factory, std::int64_t epoch_utime)
+      : config_(config), edge_config_(edge_stream_config(config)), epoch_utime_(epoch_utime ? epoch_utime : wall_utime()) {
+    const std::vector<ComediAcquisitionConfig> acquisitions = comedi_acquisitions(config);
+    for (const ComediAcquisitionConfig& a : acquisitions) {
+      acquisitions_.push_back(factory ? factory(a) : open_comedi_acquisition(a));
+      if (acquisitions_.back()->conversions().size() != a.channels.size())
+        throw std::runtime_error("comedi " + acquisitions_.back()->where() + ": " +
+                                 std::to_string(acquisitions_.back()->conversions().size()) + " channel conversions for " +
+                                 std::to_string(a.channels.size()) + " configured channels");
+    }
+    edge_count_ = acquisitions_.size() - 1;
+    timestamp_acquisition_ = edge_config_.timestamp.stream;
+    info_.epoch_utime = epoch_utime_;
+    info_.mic_count = static_cast<std::uint32_t>(config.mics.channels.size());
+    info_.mic_positions_m = config.mics.positions_m;
+    if (info_.mic_positions_m.empty()) {
+      info_.mic_positions_m = thesis_mic_positions();
+      info_.mic_positions_m.resize(info_.mic_count);
+    }
+    info_.radius_m = config.mics.radius_m;
+    info_.acoustic_delay_s = config.mics.radius_m / config.mics.speed_of_sound_m_s;
+  }
+  ~ComediSource() override { stop(); }
+
+  std::string name() const override { return "comedi"; }
+  StreamInfo info() const override { return info_; }
+
+  void start(const Streams& streams) override {
+    if (started_) throw std::logic_error("comedi source: start() while running; stop() first");
+    if (!streams.pressure || !streams.mics) throw std::invalid_argument("comedi source: start() needs the pressure and mic rings");
+    decoders_.clear();
+    for (const auto& a : acquisitions_) decoders_.emplace_back(a->sample_width(), a->conversions());
+    edge_ = std::make_unique<EdgeStreamAssembler>(edge_config_, epoch_utime_);
+    std::size_t started = 0;
+    try {
+      for (; started < acquisitions_.size(); ++started) acquisitions_[started]->start();
+      const Acquisition& mic = *acquisitions_.back();
+      try {
+        mic_ = std::make_unique<TimedStreamAssembler>(info_.mic_count, 1.0 / mic.scan_period_s(), epoch_utime_);
+      } catch (const std::invalid_argument& e) {
+        throw std::runtime_error("comedi " + mic.where() + ": " + e.what());
+      }
+    } catch (...) {
+      for (std::size_t i = 0; i < started; ++i) acquisitions_[i]->cancel();
+      throw;
+    }
+    edge_->restart(acquisitions_[timestamp_acquisition_]->origin_utime());
+    mic_->restart(acquisitions_.back()->origin_utime());
+    started_ = true;
+    edge_worker_.start("nm-pressure", config_.threads.pressure,
+                       [this, ring = streams.pressure](const std::atomic<bool>& stop) { run_edges(*ring, stop); });
+    mic_worker_.start("nm-mics", config_.threads.mics,
+                      [this, ring = streams.mics](const std::atomic<bool>& stop) { run_mics(*ring, stop); });
+  }
+
+  void stop() override {
+    edge_worker_.request_stop();
+    mic_worker_.request_stop();
+    for (auto& a : acquisitions_) a->cancel();  // unblocks a device read
+    edge_worker_.join();
+    mic_worker_.join();
+    started_ = false;
+  }
+
+  bool running() const override {
+    for (const WorkerThread* w : {&edge_worker_, &mic_worker_})
+      if (w->state() != ThreadState::kRunning || w->blocks_written() == 0) return false;
+    return true;
+  }
+
+  std::vector<DriverThreadStatus> thread_status() const override { return {edge_worker_.status(), mic_worker_.status()}; }
+
+  std::vector<DriverCounter> counters() const override {
+    auto v = [](const std::atomic<std::uint64_t>& a) { return static_cast<std::int64_t>(a.load(std::memory_order_relaxed)); };
+    return {{"comedi.pressure.overruns", v(c_.pressure_overruns)},
+            {"comedi.pressure.restarts", v(c_.pressure_restarts)},
+            {"comedi.mics.overruns", v(c_.mic_overruns)},
+            {"comedi.mics.restarts", v(c_.mic_restarts)},
+            {"comedi.encoder.edges", v(c_.edges)},
+            {"comedi.encoder.errors", v(c_.encoder_errors)},
+            {"comedi.encoder.edges_before_lock", v(c_.edges_before_lock)},
+            {"comedi.encoder.phase_corrections", v(c_.phase_corrections)},
+            {"comedi.encoder.revolutions_checked", v(c_.revolutions_checked)},
+            {"comedi.encoder.revolutions_flagged", v(c_.revolutions_flagged)},
+            {"comedi.encoder.missing_or_extra", v(c_.missing_or_extra)},
+            {"comedi.encoder.lost_index", v(c_.lost_index)},
+            {"comedi.encoder.reverse_steps", v(c_.reverse_steps)}};
+  }
+
+ private:
+  struct Counters {
+    std::atomic<std::uint64_t> pressure_overruns{0}, pressure_restarts{0}, mic_overruns{0}, mic_restarts{0};
+    std::atomic<std::uint64_t> edges{0}, encoder_errors{0}, edges_before_lock{0}, phase_corrections{0};
+    std::atomic<std::uint64_t> revolutions_checked{0}, revolutions_flagged{0}, missing_or_extra{0}, lost_index{0},
+        reverse_steps{0};
+  };
+
+  ReadLoopConfig loop_config() const {
+    ReadLoopConfig c;
+    c.initial_backoff = config_.initial_backoff;
+    c.max_backoff = config_.max_backoff;
+    c.max_consecutive_overruns = config_.max_consecutive_overruns;
+    return c;
+  }
+
+  // A read loop that ended without a stop request ended the acquisition: the thread fails.
+  static void finish(const ReadLoopResult& r, const std::atomic<bool>& stop) {
+    if (!r.failed && stop.load()) return;
+    throw std::runtime_error(r.failed ? r.message : "acquisition ended unexpectedly: " + r.message);
+  }
+
+  // Re-arms a group of acquisitions together: all cancelled first, so they start again at the same edge.
+  bool rearm(std::size_t first, std::size_t count) {
+    for (std::size_t i = first; i < first + count; ++i) acquisitions_[i]->cancel();
+    bool ok = true;
+    for (std::size_t i = first; i < first + count; ++i) ok = acquisitions_[i]->restart() && ok;
+    for (std::size_t i = first; i < first + count; ++i) decoders_[i].reset();
+    return ok;
+  }
+
+  void publish_edge_counters() {
+    const EdgeStreamCounters& e = edge_->counters();
+    c_.edges.store(e.edges, std::memory_order_relaxed);
+    c_.encoder_errors.store(e.encoder_errors, std::memory_order_relaxed);
+    c_.edges_before_lock.store(e.edges_before_lock, std::memory_order_relaxed);
+    c_.phase_corrections.store(e.phase_corrections, std::memory_order_relaxed);
+    c_.revolutions_checked.store(e.revolutions_checked, std::memory_order_relaxed);
+    c_.revolutions_flagged.store(e.revolutions_flagged, std::memory_order_relaxed);
+    c_.missing_or_extra.store(e.missing_or_extra, std::memory_order_relaxed);
+    c_.lost_index.store(e.lost_index, std::memory_order_relaxed);
+    c_.reverse_steps.store(e.reverse_steps, std::memory_order_relaxed);
+    edge_worker_.set_blocks_written(edge_->blocks_written());
+  }
+
+  // The errors of a thread's reads name the acquisitions it reads.
+  void run_edges(BlockRing& ring, const std::atomic<bool>& stop) {
+    ReadLoopResult r;
+    try {
+      r = read_edges(ring, stop);
+    } catch (const std::exception& e) {
+      std::string names;
+      for (std::size_t i = 0; i < edge_count_; ++i) names += (i ? ", " : "") + acquisitions_[i]->where();
+      throw std::runtime_error("comedi " + names + ": " + e.what());
+    }
+    finish(r, stop);
+  }
+
+  void run_mics(BlockRing& ring, const std::atomic<bool>& stop) {
+    ReadLoopResult r;
+    try {
+      r = read_mics(ring, stop);
+    } catch (const std::exception& e) {
+      throw std::runtime_error("comedi " + acquisitions_.back()->where() + ": " + e.what());
+    }
+    finish(r, stop);
+  }
+
+  ReadLoopResult read_edges(BlockRing& ring, const std::atomic<bool>& stop) {
+    std::vector<std::vector<std::byte>> buffers(edge_count_, std::vector<std::byte>(kReadBufferBytes));
+    std::vector<ReadStream> streams(edge_count_);
+    for (std::size_t i = 0; i < edge_count_; ++i) {
+      const auto stream = static_cast<std::uint32_t>(i);
+      streams[i] = {acquisitions_[i]->fd(), buffers[i],
+                    [this, i, stream, &ring](const std::byte* b, std::size_t n) {
+                      decoders_[i].feed(b, n, [&](const double* v) { edge_->add_scan(stream, v, ring); });
+                    },
+                    acquisitions_[i]->read_function(), acquisitions_[i]->where()};
+    }
+    const ReadLoopResult r = run_group_read_loop(
+        streams,
+        [&] {
+          edge_->deliver(ring, false);
+          publish_edge_counters();
+        },
+        [&] {
+          c_.pressure_overruns.fetch_add(1, std::memory_order_relaxed);
+          edge_->deliver(ring, true);
+          const bool ok = rearm(0, edge_count_);
+          edge_->restart(acquisitions_[timestamp_acquisition_]->origin_utime());
+          if (ok) c_.pressure_restarts.fetch_add(1, std::memory_order_relaxed);
+          return ok;
+        },
+        stop, loop_config());
+    edge_->deliver(ring, true);
+    publish_edge_counters();
+    c_.pressure_overruns.store(r.overruns, std::memory_order_relaxed);
+    return r;
+  }
+
+  ReadLoopResult read_mics(BlockRing& ring, const std::atomic<bool>& stop) {
+    const std::size_t m = acquisitions_.size() - 1;
+    std::vector<std::byte> buffer(kReadBufferBytes);
+    ReadStream stream{acquisitions_[m]->fd(), buffer,
+                      [this, m, &ring](const std::byte* b, std::size_t n) {
+                        decoders_[m].feed(b, n, [&](const double* v) { mic_->add_scan(v, ring); });
+                      },
+                      acquisitions_[m]->read_function(), acquisitions_[m]->where()};
+    const ReadLoopResult r = run_group_read_loop(
+        std::span<ReadStream>(&stream, 1),
+        [&] {
+          mic_->deliver(ring, false);
+          mic_worker_.set_blocks_written(mic_->blocks_written());
+        },
+        [&] {
+          c_.mic_overruns.fetch_add(1, std::memory_order_relaxed);
+          mic_->deliver(ring, true);
+          const bool ok = rearm(m, 1);
+          mic_->restart(acquisitions_[m]->origin_utime());
+          if (ok) c_.mic_restarts.fetch_add(1, std::memory_order_relaxed);
+          return ok;
+        },
+        stop, loop_config());
+    mic_->deliver(ring, true);
+    mic_worker_.set_blocks_written(mic_->blocks_written());
+    c_.mic_overruns.store(r.overruns, std::memory_order_relaxed);
+    return r;
+  }
+
+  ComediSourceConfig config_;
+  EdgeStreamConfig edge_config_;
+  std::int64_t epoch_utime_;
+  StreamInfo info_;
+  std::vector<std::unique_ptr<Acquisition>> acquisitions_;  // encoder-clocked ones, then the microphones
+  std::size_t edge_count_ = 0;
+  std::uint32_t timestamp_acquisition_ = 1;
+  std::vector<ScanDecoder> decoders_;
+  std::unique_ptr<EdgeStreamAssembler> edge_;
+  std::unique_ptr<TimedStreamAssembler> mic_;
+  Counters c_;
+  bool started_ = false;
+  // Last: destroyed (stopped) first, before anything their bodies use.
+  WorkerThread edge_worker_{"comedi.encoder_pressure"};
+  WorkerThread mic_worker_{"comedi.microphones"};
+};
+
+}  // namespace
+
+std::unique_ptr<Acquisition> open_comedi_acquisition(const ComediAcquisitionConfig& config) {
+  return std::make_unique<DeviceAcquisition>(config);
+}
+
+std::vector<ComediAcquisitionConfig> comedi_acquisitions(const ComediSourceConfig& c) {
+  auto fail = [](const std::string& what) { throw std::invalid_argument(what); };
+  std::vector<ComediAcquisitionConfig> out;
+
+  ComediAcquisitionConfig p;
+  p.device_path = c.pressure.device;
+  p.subdevice = c.pressure.subdevice;
+  p.clock = ScanClock::kExternal;
+  p.external_trigger = c.pressure.edge_trigger;
+  p.start_trigger = c.pressure.start_trigger;
+  p.convert_src = c.pressure.convert_src;
+  ComediChannelConfig pc = c.pressure.channel;
+  pc.si_per_volt = pressure_si_per_volt(c.pressure);
+  p.channels.push_back(pc);
+  if (c.pressure.cam_channel >= 0)
+    p.channels.push_back({.channel = static_cast<unsigned>(c.pressure.cam_channel), .range = c.pressure.cam_range,
+                          .aref = c.pressure.cam_aref, .si_per_volt = 1.0});
+  else if (c.phase == PhaseSource::kCam)
+    fail("comedi.phase = \"cam\" needs comedi.pressure.cam_channel");
+  out.push_back(p);
+
+  if (c.encoder.subdevice < 0) fail("comedi.encoder.subdevice: set the counter subdevice that streams the encoder");
+  ComediAcquisitionConfig e;
+  e.device_path = c.encoder.device;
+  e.subdevice = c.encoder.subdevice;
+  e.clock = ScanClock::kExternal;
+  e.external_trigger = c.encoder.edge_trigger;
+  e.start_trigger = c.encoder.start_trigger;
+  e.convert_src = c.encoder.convert_src;
+  e.use_soft_calibration = false;
+  const ComediChannelConfig position{.channel = c.encoder.position_channel, .range = 0, .aref = AREF_GROUND,
+                                     .si_per_volt = 1.0, .raw_counts = true, .counter_mode = c.encoder.position_counter_mode};
+  const ComediChannelConfig timestamp{.channel = c.encoder.timestamp_channel, .range = 0, .aref = AREF_GROUND,
+                                      .si_per_volt = 1.0, .raw_counts = true, .counter_mode = c.encoder.timestamp_counter_mode};
+  e.channels.push_back(position);
+  if (c.encoder.timestamp_subdevice < 0) e.channels.push_back(timestamp);
+  out.push_back(e);
+  if (c.encoder.timestamp_subdevice >= 0) {
+    ComediAcquisitionConfig ts = e;
+    ts.subdevice = c.encoder.timestamp_subdevice;
+    ts.channels = {timestamp};
+    out.push_back(ts);
+  }
+
+  const auto& m = c.mics;
+  if (m.channels.empty() || m.channels.size() > SampleBlock::kMaxChannels)
+    fail("comedi.mics.channels: 1.." + std::to_string(SampleBlock::kMaxChannels) + " microphone channels");
+  if (m.sensitivity_mv_per_pa.size() != m.channels.size())
+    fail("comedi.mics.sensitivity_mv_per_pa: one sensitivity per channel (" + std::to_string(m.channels.size()) +
+         "), got " + std::to_string(m.sensitivity_mv_per_pa.size()));
+  if (m.positions_m.empty() && m.channels.size() > thesis_mic_positions().size())
+    fail("comedi.mics.positions_m: required for more than " + std::to_string(thesis_mic_positions().size()) + " microphones");
+  if (!m.positions_m.empty() && m.positions_m.size() != m.channels.size())
+    fail("comedi.mics.positions_m: one position per channel");
+  if (!(m.radius_m > 0.0) || !(m.speed_of_sound_m_s > 0.0)) fail("comedi.mics: radius_m and speed_of_sound_m_s must be positive");
+  ComediAcquisitionConfig mic;
+  mic.device_path = m.device;
+  mic.subdevice = m.subdevice;
+  mic.clock = ScanClock::kTimed;
+  mic.scan_rate_hz = m.scan_rate_hz;
+  for (std::size_t i = 0; i < m.channels.size(); ++i) {
+    ComediChannelConfig ch = m.channels[i];
+    try {
+      ch.si_per_volt = microphone_pa_per_volt(m.sensitivity_mv_per_pa[i]);
+    } catch (const std::invalid_argument& err) {
+      fail("comedi.mics.sensitivity_mv_per_pa[" + std::to_string(i) + "]: " + err.what());
+    }
+    mic.channels.push_back(ch);
+  }
+  out.push_back(mic);
+  for (const auto& a : out)
+    if (a.device_path.empty()) fail("comedi: empty device path for " + where(a.device_path, a.subdevice));
+  return out;
+}
+
+std::unique_ptr<Source> make_comedi_source(const ComediSourceConfig& config, AcquisitionFactory factory,
+                                           std::int64_t epoch_utime) {
+  return std::make_unique<ComediSource>(config, factory, epoch_utime);
+}
+
+}  // namespace noisemon::drivers

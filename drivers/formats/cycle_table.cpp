@@ -1,0 +1,191 @@
+#include "drivers/formats/cycle_table.hpp"
+
+#include <charconv>
+#include <cmath>
+#include <cstring>
+#include <fstream>
+#include <sstream>
+
+namespace noisemon::drivers {
+namespace {
+
+bool is_blank(char c) { return c == ' ' || c == '\t'; }
+
+// A number; with decimal_comma, "0,969" reads as 0.969 (the European spreadsheet export, ';'-separated).
+bool parse_number(std::string_view field, double& out, bool decimal_comma = false) {
+  if (!field.empty() && field.front() == '+') field.remove_prefix(1);
+  if (field.empty() || field.size() > 64) return false;
+  char buf[65];
+  if (decimal_comma) {
+    for (std::size_t i = 0; i < field.size(); ++i) buf[i] = field[i] == ',' ? '.' : field[i];
+    field = std::string_view(buf, field.size());
+  }
+  const auto [end, ec] = std::from_chars(field.data(), field.data() + field.size(), out);
+  return ec == std::errc() && end == field.data() + field.size() && std::isfinite(out);
+}
+
+// Splits a line into fields. A line with tabs or semicolons is separated by them (and by blanks, with tabs) and a
+// ',' inside a field is a decimal comma (*decimal_comma is set): the spreadsheet exports of comma-decimal
+// locales. Otherwise blanks and commas separate ("-180.0, 0.969, 0.97"). Fields are trimmed of blanks.
+void split(std::string_view line, std::vector<std::string_view>& fields, bool* decimal_comma) {
+  fields.clear();
+  const bool semicolons = line.find(';') != std::string_view::npos;
+  const bool tabs = !semicolons && line.find('\t') != std::string_view::npos;
+  *decimal_comma = semicolons || tabs;
+  if (semicolons) {
+    std::size_t i = 0;
+    while (i <= line.size()) {
+      std::size_t j = line.find(';', i);
+      if (j == std::string_view::npos) j = line.size();
+      std::string_view f = line.substr(i, j - i);
+      while (!f.empty() && is_blank(f.front())) f.remove_prefix(1);
+      while (!f.empty() && is_blank(f.back())) f.remove_suffix(1);
+      if (!(f.empty() && j == line.size())) fields.push_back(f);  // a trailing ';' adds no field
+      i = j + 1;
+    }
+    return;
+  }
+  const auto is_sep = [&](char c) { return is_blank(c) || (!tabs && c == ','); };
+  std::size_t i = 0;
+  while (i < line.size()) {
+    while (i < line.size() && is_sep(line[i])) ++i;
+    if (i == line.size()) break;
+    std::size_t j = i;
+    while (j < line.size() && !is_sep(line[j])) ++j;
+    fields.push_back(line.substr(i, j - i));
+    i = j;
+  }
+}
+
+// Header lines (column names, units, a title) allowed before the first row of numbers.
+constexpr std::size_t kMaxHeaderLines = 20;
+
+// Beyond any engine: a crank angle this large is a corrupted file, and a pressure this large would overflow
+// (or silently lose its meaning) once converted to Pa.
+constexpr double kMaxAbsCrankDeg = 1e6;
+constexpr double kMaxAbsPressureBar = 1e5;
+
+std::string fmt(double v) {
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "%.6g", v);
+  return buf;
+}
+
+}  // namespace
+
+CycleTable read_cycle_table(const std::filesystem::path& file) {
+  std::ifstream in(file, std::ios::binary);
+  if (!in) throw RunDirError(file.string() + ": cannot open cycle table (" + std::strerror(errno) + ")");
+  std::ostringstream s;
+  s << in.rdbuf();
+  return parse_cycle_table(s.str(), file.string());
+}
+
+CycleTable parse_cycle_table(std::string_view text, const std::string& file) {
+  CycleTable t;
+  std::vector<std::string_view> fields;
+  std::size_t columns = 0;  // including the crank column
+  std::size_t pos = 0, line_no = 0, blank_line = 0;
+  std::size_t header_lines = 0;
+  const auto at = [&](std::size_t line) { return file + ": line " + std::to_string(line) + ": "; };
+  while (pos < text.size()) {
+    std::size_t eol = text.find('\n', pos);
+    if (eol == std::string_view::npos) eol = text.size();
+    std::string_view line = text.substr(pos, eol - pos);
+    pos = eol + 1;
+    ++line_no;
+    if (!line.empty() && line.back() == '\r') line.remove_suffix(1);
+    bool decimal_comma = false;
+    split(line, fields, &decimal_comma);
+    if (fields.empty() || (fields.size() == 1 && fields[0].empty())) {
+      if (blank_line == 0 && columns > 0) blank_line = line_no;
+      continue;
+    }
+    if (!fields[0].empty() && fields[0].front() == '#') continue;
+    if (blank_line != 0) throw RunDirError(at(blank_line) + "empty line inside the table");
+    double crank;
+    if (!parse_number(fields[0], crank, decimal_comma)) {
+      if (columns == 0 && header_lines < kMaxHeaderLines) {  // header lines: names, units, a title
+        ++header_lines;
+        continue;
+      }
+      throw RunDirError(at(line_no) + "column 1 (crank angle) is \"" + std::string(fields[0]) + "\", expected a number");
+    }
+    if (std::abs(crank) > kMaxAbsCrankDeg)
+      throw RunDirError(at(line_no) + "crank angle " + fmt(crank) + " deg, expected a crank angle within +-" +
+                        fmt(kMaxAbsCrankDeg) + " deg");
+    if (columns == 0) {
+      columns = fields.size();
+      if (columns < 2)
+        throw RunDirError(at(line_no) + "1 column, expected the crank angle followed by one pressure column per cycle");
+      t.cycles_bar.assign(columns - 1, {});
+      t.first_data_line = line_no;
+    } else if (fields.size() != columns) {
+      throw RunDirError(at(line_no) + std::to_string(fields.size()) + " columns, expected " + std::to_string(columns) +
+                        " like line " + std::to_string(t.first_data_line));
+    }
+    if (!t.crank_deg.empty() && !(crank > t.crank_deg.back()))
+      throw RunDirError(at(line_no) + "crank angle " + fmt(crank) + " does not increase (previous row " +
+                        fmt(t.crank_deg.back()) + ")");
+    t.crank_deg.push_back(crank);
+    for (std::size_t c = 1; c < columns; ++c) {
+      double p;
+      if (!parse_number(fields[c], p, decimal_comma) || std::abs(p) > kMaxAbsPressureBar)
+        throw RunDirError(at(line_no) + "column " + std::to_string(c + 1) + " is \"" + std::string(fields[c]) +
+                          "\", expected a pressure in bar (within +-" + fmt(kMaxAbsPressureBar) + ")");
+      t.cycles_bar[c - 1].push_back(p);
+    }
+  }
+  const std::size_t n = t.crank_deg.size();
+  if (n < 8) throw RunDirError(file + ": " + std::to_string(n) + " rows of data, expected a table over one 720-degree cycle");
+  // A uniform step over exactly one four-stroke cycle: the columns then join end to end.
+  const double step = (t.crank_deg.back() - t.crank_deg.front()) / static_cast<double>(n - 1);
+  for (std::size_t i = 1; i < n; ++i) {
+    const double d = t.crank_deg[i] - t.crank_deg[i - 1];
+    if (std::abs(d - step) > 0.01 * step)
+      throw RunDirError(at(t.first_data_line + i) + "crank angle " + fmt(t.crank_deg[i]) + " after " + fmt(t.crank_deg[i - 1]) +
+                        ", expected a uniform step of " + fmt(step) + " deg (line numbers count data rows from line " +
+                        std::to_string(t.first_data_line) + ")");
+  }
+  const double span = step * static_cast<double>(n);
+  if (std::abs(span - 720.0) > 0.5 * step)
+    throw RunDirError(file + ": the crank column covers " + fmt(span) + " deg (" + std::to_string(n) + " rows of " +
+                      fmt(step) + " deg), expected 720 deg: one four-stroke cycle per column");
+  return t;
+}
+
+CycleTableConversion cycle_table_to_run(const CycleTable& table, const CycleTableOptions& o, const std::string& file) {
+  if (!(o.speed_rpm > 0) || !std::isfinite(o.speed_rpm))
+    throw RunDirError(file + ": the engine speed must be given (rpm > 0): a cycle table holds no time");
+  const std::size_t rows = table.crank_deg.size(), cycles = table.cycles_bar.size();
+  if (rows < 2 || cycles == 0) throw RunDirError(file + ": empty cycle table");
+  CycleTableConversion out;
+  out.cycles = cycles;
+  bool drop = o.pegging == PeggingRow::kFirstRow;
+  if (o.pegging == PeggingRow::kAuto && cycles >= 2) {
+    drop = true;
+    for (const auto& c : table.cycles_bar) drop = drop && c.front() == table.cycles_bar.front().front();
+  }
+  out.pegging_row_dropped = drop;
+  RunDir& run = out.run;
+  run.condition = o.condition;
+  run.condition.speed_rpm = o.speed_rpm;
+  const std::size_t first_row = drop ? 1 : 0;
+  const std::size_t per_cycle = rows - first_row;
+  run.time_s.reserve(per_cycle * cycles);
+  run.crank_deg.reserve(per_cycle * cycles);
+  run.pressure_pa.reserve(per_cycle * cycles);
+  const double theta0 = table.crank_deg[first_row] - o.tdc_deg;
+  const double deg_per_s = 6.0 * o.speed_rpm;
+  for (std::size_t j = 0; j < cycles; ++j) {
+    for (std::size_t r = first_row; r < rows; ++r) {
+      const double theta = 720.0 * static_cast<double>(j) + table.crank_deg[r] - o.tdc_deg;
+      run.crank_deg.push_back(theta);
+      run.time_s.push_back((theta - theta0) / deg_per_s);
+      run.pressure_pa.push_back(table.cycles_bar[j][r] * 1e5);
+    }
+  }
+  return out;
+}
+
+}  // namespace noisemon::drivers

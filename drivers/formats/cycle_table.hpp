@@ -1,0 +1,69 @@
+// Cycle tables: the common export of indicating systems (AVL IndiCom, Kistler KiBox, lab heat-release scripts):
+// a text table whose first column is the crank angle over one 720-degree cycle and whose further columns are
+// consecutive cycles of cylinder pressure in bar, separated by tabs or semicolons (a decimal comma is then allowed:
+// "-180,0;0,969", the export of comma-decimal locales), or by blanks or commas ("-180.0, 0.969"), e.g.
+//
+//   -180.0   0.969  0.969  ...      <- first row: the pegging value (the same in every cycle), see below
+//   -179.8   1.024  0.859  ...
+//   ...
+//    539.8   1.262  1.170  ...
+//
+// Conversion to a run directory lays the cycles end to end at a constant speed (time from crank angle,
+// t = (theta - theta_first) / (6 rpm)) and unwraps the crank angle so that 0 is the firing TDC of the first
+// cycle: cycle j's table angle a becomes 720 j + a - tdc_deg. A table whose window is not centred on TDC (the
+// Yanmar tables run -180 .. 539.8) is therefore mapped correctly: each sample lands at its true angle, and the
+// pipeline's cycles [720k - 360, 720k + 360) take their pieces from two consecutive table columns. The first
+// table cycle starts at -180 deg, half-way into the pipeline's first cycle, so that cycle is incomplete and only
+// warms the filters: a table of N cycles gives N - 1 cycle reports.
+//
+// Pegging row: many exports write the pegging (absolute-pressure reference) value into the first row of every
+// cycle instead of a measured sample. It is not a sample of the cycle: the converter drops it, which leaves one
+// missing encoder step per cycle that resampling to 40 kHz fills by interpolation (as for any missing encoder
+// sample). PeggingRow::kAuto treats the first row as pegging when it holds exactly the same value in every
+// cycle (a measured, noisy sample never does) and the table has at least two cycles.
+#pragma once
+
+#include <cstddef>
+#include <filesystem>
+#include <optional>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "drivers/formats/run_dir.hpp"
+
+namespace noisemon::drivers {
+
+struct CycleTable {
+  std::vector<double> crank_deg;              // one per row, strictly increasing, uniform step
+  std::vector<std::vector<double>> cycles_bar;  // one vector per cycle (column), crank_deg.size() values each
+  std::size_t first_data_line = 1;            // line number of the first row (after a header line, if any)
+};
+
+// Reads a table; throws RunDirError naming the file, the line and column and what was expected (a numeric
+// table of at least two columns, the same number of columns on every line, crank angle increasing in a uniform
+// step covering exactly 720 degrees). Up to 20 header lines of text before the first row of numbers (names,
+// units, a title) and lines starting with '#' are skipped.
+CycleTable read_cycle_table(const std::filesystem::path& file);
+CycleTable parse_cycle_table(std::string_view text, const std::string& file);
+
+enum class PeggingRow { kAuto, kFirstRow, kNone };
+
+struct CycleTableOptions {
+  double speed_rpm = 0.0;        // required: the speed the cycles were recorded at
+  double tdc_deg = 0.0;          // table crank angle of firing TDC (0 for the Yanmar tables, 360 for 0..720 tables)
+  PeggingRow pegging = PeggingRow::kAuto;
+  RunCondition condition;        // name, load, SOI, rail pressure, motored (speed_rpm is taken from above)
+};
+
+struct CycleTableConversion {
+  RunDir run;
+  bool pegging_row_dropped = false;
+  std::size_t cycles = 0;
+};
+
+// The table's cycles as a pressure-only run directory (no microphones).
+CycleTableConversion cycle_table_to_run(const CycleTable& table, const CycleTableOptions& options,
+                                        const std::string& file);
+
+}  // namespace noisemon::drivers

@@ -1,0 +1,583 @@
+#include "drivers/formats/recording.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <lcm/lcm-cpp.hpp>
+#include <limits>
+#include <stdexcept>
+
+#include "drivers/formats/lcm_log_reader.hpp"
+#include "drivers/formats/stream_messages.hpp"
+#include "dsp/resample.hpp"
+
+namespace noisemon::drivers {
+namespace {
+
+constexpr double kFs = kPipelineRateHz;
+constexpr double kSpeedOfSoundMS = 343.0;  // air at 20 degC: the default acoustic delay radius / c
+// Frames dropped at the start of a resampled stream: the resamplers' start-up (held first pressure sample,
+// zeros before the first microphone frame) reaches about 1.5 ms into their output.
+constexpr std::int64_t kResamplerEdgeFrames = 128;
+constexpr std::size_t kBlockFrames = SampleBlock::kMaxFrames;
+constexpr std::int64_t kRepeatFrames = 40000;  // session and operating point again every second
+constexpr std::size_t kMaxDamageNotes = 10;
+constexpr double kMaxRecordingSeconds = 24 * 3600;  // one import: a day of 40 kHz frames is already 3.5e9
+
+std::int64_t utime_of_index(std::int64_t epoch, std::int64_t index) {
+  return epoch + static_cast<std::int64_t>(std::llround(static_cast<double>(index) * 1e6 / kFs));
+}
+
+double wrap_crank(double theta) { return theta - 720.0 * std::floor((theta + 360.0) / 720.0); }
+
+// time_s exactly on the 40 kHz grid at consecutive indices (what to_run_dir writes): returns the first index.
+bool on_pipeline_grid(const std::vector<double>& t, std::int64_t& first) {
+  first = std::llround(t.front() * kFs);
+  for (std::size_t i = 0; i < t.size(); ++i) {
+    const double k = t[i] * kFs;
+    if (std::abs(k - static_cast<double>(first + static_cast<std::int64_t>(i))) > 1e-6) return false;
+  }
+  return true;
+}
+
+struct Stream {
+  std::int64_t first = 0;  // grid index of values[0]
+  std::vector<double> values;
+  std::size_t channels = 1;
+  std::int64_t end() const { return first + static_cast<std::int64_t>(values.size() / channels); }
+};
+
+// Encoder samples -> 40 kHz pressure and crank.
+void resample_pressure(const RunDir& run, Stream& pressure, Stream& crank) {
+  const std::size_t n = run.time_s.size();
+  // Encoder step; fill missing samples (the reader allows up to kMaxCrankGapSteps) so they are evenly spaced.
+  std::vector<double> steps(n - 1);
+  for (std::size_t i = 1; i < n; ++i) steps[i - 1] = run.crank_deg[i] - run.crank_deg[i - 1];
+  std::nth_element(steps.begin(), steps.begin() + static_cast<std::ptrdiff_t>(steps.size() / 2), steps.end());
+  const double step = steps[steps.size() / 2];
+  std::vector<double> t, th, p;
+  t.reserve(n);
+  th.reserve(n);
+  p.reserve(n);
+  for (std::size_t i = 0; i < n; ++i) {
+    if (i > 0) {
+      const double d = run.crank_deg[i] - run.crank_deg[i - 1];
+      const long missing = d > 1.5 * step ? std::lround(d / step) - 1 : 0;
+      for (long j = 1; j <= missing; ++j) {
+        const double f = static_cast<double>(j) / static_cast<double>(missing + 1);
+        t.push_back(run.time_s[i - 1] + f * (run.time_s[i] - run.time_s[i - 1]));
+        th.push_back(run.crank_deg[i - 1] + f * d);
+        p.push_back(run.pressure_pa[i - 1] + f * (run.pressure_pa[i] - run.pressure_pa[i - 1]));
+      }
+    }
+    t.push_back(run.time_s[i]);
+    th.push_back(run.crank_deg[i]);
+    p.push_back(run.pressure_pa[i]);
+  }
+  // The resampler's clock starts at a grid instant at or before the first sample (it needs t >= 0).
+  const std::int64_t shift = t.front() < 0 ? static_cast<std::int64_t>(std::floor(t.front() * kFs)) : 0;
+  for (double& v : t) v -= static_cast<double>(shift) / kFs;
+
+  dsp::NonuniformResampler rs(kFs, 1);
+  std::vector<double> out;
+  bool started = false;
+  constexpr std::size_t kChunk = 4096;
+  for (std::size_t done = 0; done < t.size();) {
+    const std::size_t take = std::min(kChunk, t.size() - done);
+    const double from = done == 0 ? t.front() : t[done - 1];
+    const auto room = static_cast<std::size_t>(std::ceil((t[done + take - 1] - from) * kFs)) + 8192 + 64;
+    out.resize(room);
+    const std::size_t got = rs.process(&t[done], &p[done], take, out.data(), room);
+    if (got > 0 && !started) {
+      pressure.first = rs.next_output_index() - static_cast<std::int64_t>(got);
+      started = true;
+    }
+    pressure.values.insert(pressure.values.end(), out.begin(), out.begin() + static_cast<std::ptrdiff_t>(got));
+    done += take;
+  }
+  crank.first = pressure.first;
+  crank.values.resize(pressure.values.size());
+  std::size_t seg = 0;
+  for (std::size_t f = 0; f < crank.values.size(); ++f) {
+    const double tau = static_cast<double>(pressure.first + static_cast<std::int64_t>(f)) / kFs;
+    while (seg + 2 < t.size() && t[seg + 1] <= tau) ++seg;
+    const double a = (tau - t[seg]) / (t[seg + 1] - t[seg]);
+    crank.values[f] = wrap_crank(th[seg] + a * (th[seg + 1] - th[seg]));
+  }
+  pressure.first += shift;
+  crank.first += shift;
+  if (started) {  // drop the resampler's start-up
+    const auto drop = static_cast<std::size_t>(std::min<std::int64_t>(kResamplerEdgeFrames, static_cast<std::int64_t>(pressure.values.size())));
+    pressure.values.erase(pressure.values.begin(), pressure.values.begin() + static_cast<std::ptrdiff_t>(drop));
+    crank.values.erase(crank.values.begin(), crank.values.begin() + static_cast<std::ptrdiff_t>(drop));
+    pressure.first += static_cast<std::int64_t>(drop);
+    crank.first += static_cast<std::int64_t>(drop);
+  }
+}
+
+void resample_mics(const RunDir& run, Stream& mics) {
+  const std::size_t ch = run.mic_count;
+  const std::size_t frames = run.mic_pa.size() / ch;
+  mics.channels = ch;
+  mics.first = 0;  // mics.wav's t = 0 is the grid's index 0
+  if (run.mic_rate_hz == kFs) {
+    mics.values.assign(run.mic_pa.begin(), run.mic_pa.end());
+    return;
+  }
+  dsp::RationalResampler rs(run.mic_rate_hz, kFs, ch);
+  constexpr std::size_t kChunk = 8192;
+  std::vector<double> in(kChunk * ch), out(rs.max_output_frames(kChunk) * ch);
+  mics.values.reserve(static_cast<std::size_t>(static_cast<double>(frames) * kFs / run.mic_rate_hz + 16) * ch);
+  for (std::size_t done = 0; done < frames;) {
+    const std::size_t take = std::min(kChunk, frames - done);
+    std::copy(run.mic_pa.begin() + static_cast<std::ptrdiff_t>(done * ch),
+              run.mic_pa.begin() + static_cast<std::ptrdiff_t>((done + take) * ch), in.begin());
+    const std::size_t room = rs.max_output_frames(take);
+    if (out.size() < room * ch) out.resize(room * ch);
+    const std::size_t got = rs.process(in.data(), take, out.data(), room);
+    mics.values.insert(mics.values.end(), out.begin(), out.begin() + static_cast<std::ptrdiff_t>(got * ch));
+    done += take;
+  }
+  const auto drop = std::min<std::size_t>(kResamplerEdgeFrames, mics.values.size() / ch);
+  mics.values.erase(mics.values.begin(), mics.values.begin() + static_cast<std::ptrdiff_t>(drop * ch));
+  mics.first = static_cast<std::int64_t>(drop);
+}
+
+template <class Message>
+void write_event(lcm::LogFile& log, const std::filesystem::path& path, const std::string& channel, const Message& m,
+                 std::int64_t utime, std::vector<char>& buf) {
+  buf.resize(static_cast<std::size_t>(m.getEncodedSize()));
+  m.encode(buf.data(), 0, static_cast<int>(buf.size()));
+  lcm::LogEvent e{0, utime, channel, static_cast<std::int32_t>(buf.size()), buf.data()};
+  if (log.writeEvent(&e) != 0) throw std::runtime_error(path.string() + ": cannot write log event (disk full?)");
+}
+
+// ---------------------------------------------------------------------------------------------- reading
+
+struct RawBlock {
+  std::int64_t first;
+  std::uint32_t frames;
+  std::vector<double> data;
+};
+
+struct SessionData {
+  StreamInfo info;
+  std::string condition;
+  std::string source;
+  std::vector<RawBlock> pressure, mics;
+  std::vector<OperatingPoint> ops;
+};
+
+struct Interval {
+  std::int64_t from, to;
+};
+
+std::vector<Interval> coverage(std::vector<RawBlock>& blocks) {
+  std::stable_sort(blocks.begin(), blocks.end(), [](const RawBlock& a, const RawBlock& b) { return a.first < b.first; });
+  std::vector<Interval> out;
+  for (const RawBlock& b : blocks) {
+    const std::int64_t to = b.first + b.frames;
+    if (!out.empty() && b.first <= out.back().to)
+      out.back().to = std::max(out.back().to, to);
+    else
+      out.push_back({b.first, to});
+  }
+  return out;
+}
+
+std::vector<Interval> intersect(const std::vector<Interval>& a, const std::vector<Interval>& b) {
+  std::vector<Interval> out;
+  std::size_t i = 0, j = 0;
+  while (i < a.size() && j < b.size()) {
+    const std::int64_t from = std::max(a[i].from, b[j].from), to = std::min(a[i].to, b[j].to);
+    if (from < to) out.push_back({from, to});
+    (a[i].to < b[j].to) ? ++i : ++j;
+  }
+  return out;
+}
+
+// Copies the frames of `blocks` (sorted) that fall in [from, to) into out (channels per frame).
+void gather(const std::vector<RawBlock>& blocks, std::size_t channels, std::int64_t from, std::int64_t to,
+            std::vector<double>& out) {
+  out.assign(static_cast<std::size_t>(to - from) * channels, 0.0);
+  auto it = std::lower_bound(blocks.begin(), blocks.end(), from - static_cast<std::int64_t>(kBlockFrames),
+                             [](const RawBlock& b, std::int64_t v) { return b.first < v; });
+  for (; it != blocks.end() && it->first < to; ++it) {
+    const std::int64_t a = std::max(from, it->first), z = std::min(to, it->first + it->frames);
+    for (std::int64_t k = a; k < z; ++k)
+      std::copy_n(&it->data[static_cast<std::size_t>(k - it->first) * channels], channels,
+                  &out[static_cast<std::size_t>(k - from) * channels]);
+  }
+}
+
+// Mean speed of a stretch of the wrapped crank channel (for a recording without operating points).
+double speed_from_crank(const std::vector<double>& crank) {
+  double unwrapped = 0;
+  for (std::size_t i = 1; i < crank.size(); ++i) {
+    double d = crank[i] - crank[i - 1];
+    if (d < -360.0) d += 720.0;
+    unwrapped += d;
+  }
+  const double seconds = static_cast<double>(crank.size() - 1) / kFs;
+  return seconds > 0 ? unwrapped / seconds / 6.0 : 0.0;
+}
+
+// Two values the same, unknown (NaN) included.
+bool same_value(double a, double b) { return a == b || (std::isnan(a) && std::isnan(b)); }
+
+// Repeats of the same point (noisemond sends it at 10 Hz) carry nothing new.
+std::vector<OperatingPoint> distinct_points(const std::vector<OperatingPoint>& points) {
+  std::vector<OperatingPoint> distinct;
+  for (const OperatingPoint& op : points) {
+    if (!distinct.empty()) {
+      const OperatingPoint& l = distinct.back();
+      if (same_value(l.speed_rpm, op.speed_rpm) && same_value(l.load_nm, op.load_nm) &&
+          same_value(l.soi_deg_btdc, op.soi_deg_btdc) && same_value(l.rail_pressure_bar, op.rail_pressure_bar) &&
+          l.motored == op.motored)
+        continue;
+    }
+    distinct.push_back(op);
+  }
+  return distinct;
+}
+
+class LogAssembler {
+ public:
+  LogAssembler(std::string name, const LogChannels& channels, LogReadStats& stats)
+      : name_(std::move(name)), ch_(channels), stats_(stats) {}
+
+  void event(const LcmLogEvent& e) {
+    ++stats_.events;
+    if (e.channel == ch_.session) {
+      noisemon::session_t m;
+      if (!decode_message(e.data, static_cast<std::size_t>(e.datalen), m)) return damage(e, "does not decode as noisemon.session_t");
+      StreamInfo info;
+      try {
+        info = from_message(m);
+      } catch (const std::invalid_argument& err) {
+        return damage(e, err.what());
+      }
+      if (m.nmics > 0 && static_cast<std::size_t>(m.nmics) != info.mic_positions_m.size())
+        return damage(e, "session microphone positions do not match nmics");
+      if (!sessions_.empty()) {
+        const SessionData& s = sessions_.back();
+        if (s.info.epoch_utime == info.epoch_utime && s.info.mic_count == info.mic_count && s.condition == m.condition)
+          return;  // the same session, repeated
+      }
+      sessions_.push_back({info, m.condition, m.source, {}, {}, {}});
+      ++stats_.sessions;
+    } else if (e.channel == ch_.raw) {
+      noisemon::raw_block_t m;
+      if (!decode_message(e.data, static_cast<std::size_t>(e.datalen), m)) return damage(e, "does not decode as noisemon.raw_block_t");
+      if (sessions_.empty()) return damage(e, "raw block before any " + ch_.session + " message");
+      SessionData& s = sessions_.back();
+      if (const std::string why = raw_block_problem_for_recording(m, s.info); !why.empty()) return damage(e, "raw " + why);
+      if (m.frames == 0) return;
+      RawBlock rb{m.first_index, static_cast<std::uint32_t>(m.frames), std::move(m.data)};
+      (m.stream == noisemon::raw_block_t::STREAM_PRESSURE ? s.pressure : s.mics).push_back(std::move(rb));
+    } else if (e.channel == ch_.operating_point) {
+      noisemon::operating_point_t m;
+      if (!decode_message(e.data, static_cast<std::size_t>(e.datalen), m)) return damage(e, "does not decode as noisemon.operating_point_t");
+      if (sessions_.empty()) return;  // before any session: nothing to attach it to
+      sessions_.back().ops.push_back(from_message(m));
+    } else {
+      ++stats_.other_channels;
+    }
+  }
+
+  void framing(const LcmLogReader& r) {
+    if (r.damaged() == 0) return;
+    stats_.damaged += r.damaged();
+    note(std::to_string(r.damaged()) + " damaged stretch(es) of the file (" + std::to_string(r.damaged_bytes()) +
+         " bytes), the first at byte " + std::to_string(r.first_damage_offset()) +
+         (r.truncated() ? "; the log ends inside an event (cut short)" : ""));
+  }
+
+  std::vector<Recording> finish() {
+    if (sessions_.empty()) throw std::runtime_error(name_ + ": no " + ch_.session + " message: not a noisemon raw log");
+    std::vector<Recording> out;
+    for (SessionData& s : sessions_) {
+      std::vector<Interval> spans = coverage(s.pressure);
+      if (s.info.mic_count > 0) spans = intersect(spans, coverage(s.mics));
+      if (spans.size() > 1) stats_.pieces_split += static_cast<std::int64_t>(spans.size()) - 1;
+      for (const Interval& span : spans) {
+        Recording rec;
+        rec.condition = s.condition;
+        rec.source = s.source;
+        rec.info = s.info;
+        rec.first_index = span.from;
+        std::vector<double> p;
+        gather(s.pressure, kPressureStreamChannels, span.from, span.to, p);
+        const std::size_t frames = static_cast<std::size_t>(span.to - span.from);
+        rec.pressure_pa.resize(frames);
+        rec.crank_deg.resize(frames);
+        for (std::size_t f = 0; f < frames; ++f) {
+          rec.pressure_pa[f] = p[f * kPressureStreamChannels + kPressureChannel];
+          rec.crank_deg[f] = p[f * kPressureStreamChannels + kCrankChannel];
+        }
+        if (s.info.mic_count > 0) gather(s.mics, s.info.mic_count, span.from, span.to, rec.mics_pa);
+        // The operating point in force at the start, and every change during the stretch.
+        const std::int64_t u0 = utime_of_index(s.info.epoch_utime, span.from);
+        const std::int64_t u1 = utime_of_index(s.info.epoch_utime, span.to);
+        const OperatingPoint* before = nullptr;
+        for (const OperatingPoint& op : s.ops) {
+          if (op.utime <= u0) before = &op;
+          else if (op.utime < u1) rec.operating_points.push_back(op);
+        }
+        if (before) rec.operating_points.insert(rec.operating_points.begin(), *before);
+        if (rec.operating_points.empty() && !s.ops.empty()) rec.operating_points.push_back(s.ops.front());
+        if (rec.operating_points.empty()) {
+          // No operating point in the log: the speed is measured, the rest is unknown (never made up).
+          constexpr double kUnknown = std::numeric_limits<double>::quiet_NaN();
+          OperatingPoint op;
+          op.utime = u0;
+          op.speed_rpm = speed_from_crank(rec.crank_deg);
+          op.load_nm = op.soi_deg_btdc = op.rail_pressure_bar = kUnknown;
+          rec.operating_points.push_back(op);
+        }
+        rec.operating_points = distinct_points(rec.operating_points);
+        out.push_back(std::move(rec));
+      }
+      s = SessionData{};  // free the blocks as we go
+    }
+    if (out.empty()) throw std::runtime_error(name_ + ": the log's sessions hold no complete raw data");
+    return out;
+  }
+
+ private:
+  void damage(const LcmLogEvent& e, const std::string& what) {
+    ++stats_.damaged;
+    note("event " + std::to_string(e.eventnum) + " at byte " + std::to_string(e.offset) + " on " + std::string(e.channel) +
+         ": " + what);
+  }
+  void note(std::string s) {
+    if (stats_.damage.size() < kMaxDamageNotes) stats_.damage.push_back(std::move(s));
+  }
+
+  std::string name_;
+  const LogChannels& ch_;
+  LogReadStats& stats_;
+  std::vector<SessionData> sessions_;
+};
+
+std::vector<Recording> read_log(LcmLogReader& reader, const std::string& name, const LogChannels& channels,
+                                std::int64_t* skipped, LogReadStats* stats, const ProgressFn& progress) {
+  LogReadStats local;
+  LogReadStats& st = stats ? *stats : local;
+  st = LogReadStats{};
+  LogAssembler assembler(name, channels, st);
+  LcmLogEvent e;
+  std::int64_t n = 0;
+  while (reader.next(e)) {
+    assembler.event(e);
+    if (progress && (++n & 1023) == 0 && reader.size() > 0)
+      progress(static_cast<double>(reader.position()) / static_cast<double>(reader.size()));
+  }
+  assembler.framing(reader);
+  if (skipped) *skipped = st.damaged;
+  std::vector<Recording> out = assembler.finish();
+  if (progress) progress(1.0);
+  return out;
+}
+
+}  // namespace
+
+Recording to_recording(const RunDir& run, std::int64_t epoch_utime) {
+  const std::size_t n = run.time_s.size();
+  if (n < 2 || run.crank_deg.size() != n || run.pressure_pa.size() != n)
+    throw RunDirError("run '" + run.condition.name + "': time, crank and pressure columns must have the same length >= 2");
+  if (run.mic_count > SampleBlock::kMaxChannels || (run.mic_count > 0 && (run.mic_positions_m.size() != run.mic_count ||
+                                                                          run.mic_pa.size() % run.mic_count != 0)))
+    throw RunDirError("run '" + run.condition.name + "': microphone data does not match its positions");
+  // Before any frame count is computed from times: absurd times would overflow it (and memory).
+  const double span_s = run.time_s.back() - run.time_s.front();
+  if (!(std::abs(run.time_s.front()) <= kMaxRecordingSeconds && span_s <= kMaxRecordingSeconds))
+    throw RunDirError("run '" + run.condition.name + "': time_s " + std::to_string(run.time_s.front()) + " .. " +
+                      std::to_string(run.time_s.back()) + " s, expected a run within " +
+                      std::to_string(static_cast<int>(kMaxRecordingSeconds)) + " s of time 0");
+
+  Recording rec;
+  rec.condition = run.condition.name;
+  rec.info.epoch_utime = epoch_utime;
+  rec.info.mic_count = run.mic_count;
+  rec.info.mic_positions_m = run.mic_positions_m;
+  rec.info.radius_m = run.radius_m;
+  rec.info.acoustic_delay_s = run.acoustic_delay_s >= 0 ? run.acoustic_delay_s
+                              : run.mic_count > 0       ? run.radius_m / kSpeedOfSoundMS
+                                                        : 0.0;
+
+  Stream pressure, crank;
+  std::int64_t first = 0;
+  if (on_pipeline_grid(run.time_s, first)) {
+    pressure.first = crank.first = first;
+    pressure.values = run.pressure_pa;
+    crank.values.resize(n);
+    for (std::size_t i = 0; i < n; ++i) crank.values[i] = wrap_crank(run.crank_deg[i]);
+  } else {
+    resample_pressure(run, pressure, crank);
+  }
+  std::int64_t from = pressure.first, to = pressure.end();
+  Stream mics;
+  if (run.mic_count > 0) {
+    resample_mics(run, mics);
+    from = std::max(from, mics.first);
+    to = std::min(to, mics.end());
+  }
+  if (to <= from)
+    throw RunDirError("run '" + run.condition.name + "': " +
+                      (run.mic_count > 0 ? std::string("the pressure and the microphones do not overlap in time")
+                                         : std::string("too short to resample")));
+  const auto frames = static_cast<std::size_t>(to - from);
+  rec.first_index = from;
+  const auto p0 = static_cast<std::ptrdiff_t>(from - pressure.first);
+  rec.pressure_pa.assign(pressure.values.begin() + p0, pressure.values.begin() + p0 + static_cast<std::ptrdiff_t>(frames));
+  rec.crank_deg.assign(crank.values.begin() + p0, crank.values.begin() + p0 + static_cast<std::ptrdiff_t>(frames));
+  if (run.mic_count > 0) {
+    const auto m0 = static_cast<std::ptrdiff_t>((from - mics.first) * run.mic_count);
+    rec.mics_pa.assign(mics.values.begin() + m0, mics.values.begin() + m0 + static_cast<std::ptrdiff_t>(frames * run.mic_count));
+  }
+  rec.operating_points.push_back(operating_point_of(run, utime_of_index(epoch_utime, from)));
+  return rec;
+}
+
+OperatingPoint operating_point_of(const RunDir& run, std::int64_t utime) {
+  const RunCondition& c = run.condition;
+  OperatingPoint op;
+  op.utime = utime;
+  op.speed_rpm = std::isnan(c.speed_rpm) ? encoder_speed_rpm(run) : c.speed_rpm;
+  op.load_nm = c.load_nm;            // NaN when unknown: travels as NaN
+  op.soi_deg_btdc = c.soi_deg_btdc;
+  op.rail_pressure_bar = c.rail_pressure_bar.value_or(std::numeric_limits<double>::quiet_NaN());
+  op.motored = c.motored_known && c.motored;  // the message's boolean: false when unknown
+  return op;
+}
+
+RunDir to_run_dir(const Recording& rec) {
+  const std::size_t n = rec.frames();
+  if (rec.crank_deg.size() != n || rec.mics_pa.size() != n * rec.info.mic_count)
+    throw std::invalid_argument("to_run_dir: recording '" + rec.condition + "' has streams of different lengths");
+  RunDir run;
+  run.condition.name = rec.condition;
+  if (!rec.operating_points.empty()) {
+    const OperatingPoint& op = rec.operating_points.front();
+    run.condition.speed_rpm = op.speed_rpm;
+    run.condition.load_nm = op.load_nm;
+    run.condition.soi_deg_btdc = op.soi_deg_btdc;
+    if (std::isfinite(op.rail_pressure_bar)) run.condition.rail_pressure_bar = op.rail_pressure_bar;
+    run.condition.motored = op.motored;
+  }
+  if (!(run.condition.speed_rpm > 0)) run.condition.speed_rpm = speed_from_crank(rec.crank_deg);
+  run.time_s.resize(n);
+  run.crank_deg.resize(n);
+  run.pressure_pa = rec.pressure_pa;
+  double offset = 0;
+  for (std::size_t i = 0; i < n; ++i) {
+    run.time_s[i] = static_cast<double>(i) / kFs;
+    if (i > 0 && rec.crank_deg[i] < rec.crank_deg[i - 1] - 360.0) offset += 720.0;  // a wrap: next cycle
+    run.crank_deg[i] = rec.crank_deg[i] + offset;
+  }
+  run.mic_count = rec.info.mic_count;
+  if (run.mic_count > 0) {
+    run.mic_rate_hz = kFs;
+    run.mic_pa.assign(rec.mics_pa.begin(), rec.mics_pa.end());
+    run.mic_positions_m = rec.info.mic_positions_m;
+    run.mic_positions_m.resize(run.mic_count);
+  }
+  run.radius_m = rec.info.radius_m;
+  run.acoustic_delay_s = rec.info.acoustic_delay_s;
+  return run;
+}
+
+struct RecordingLogWriter::Impl {
+  Impl(const std::filesystem::path& p, const LogChannels& c) : path(p), channels(c), log(p.string(), "w") {
+    if (!log.good()) throw std::runtime_error(path.string() + ": cannot write log file");
+  }
+  std::filesystem::path path;
+  LogChannels channels;
+  lcm::LogFile log;
+  std::vector<std::int64_t> epochs;
+  std::vector<char> buf;
+};
+
+RecordingLogWriter::RecordingLogWriter(const std::filesystem::path& log, const LogChannels& channels)
+    : impl_(std::make_unique<Impl>(log, channels)) {}
+RecordingLogWriter::~RecordingLogWriter() = default;
+
+void RecordingLogWriter::write(const Recording& rec, const ProgressFn& progress) {
+  Impl& w = *impl_;
+  if (rec.crank_deg.size() != rec.frames() || rec.mics_pa.size() != rec.frames() * rec.info.mic_count ||
+      rec.info.mic_count > SampleBlock::kMaxChannels || rec.info.mic_positions_m.size() < rec.info.mic_count)
+    throw std::invalid_argument(w.path.string() + ": recording '" + rec.condition + "' has streams of different lengths");
+  if (std::find(w.epochs.begin(), w.epochs.end(), rec.info.epoch_utime) != w.epochs.end())
+    throw std::invalid_argument(w.path.string() + ": recording '" + rec.condition +
+                                "' has the epoch of an earlier one; each run needs its own");
+  w.epochs.push_back(rec.info.epoch_utime);
+  const std::int64_t epoch = rec.info.epoch_utime;
+  const std::uint32_t mics = rec.info.mic_count;
+  std::size_t next_op = 0;
+  const OperatingPoint* current = nullptr;
+  SampleBlock b;
+  for (std::size_t f = 0; f < rec.frames(); f += kBlockFrames) {
+    const std::int64_t k = rec.first_index + static_cast<std::int64_t>(f);
+    const std::int64_t utime = utime_of_index(epoch, k);
+    const bool repeat = f % kRepeatFrames < kBlockFrames;  // first block of each second
+    if (repeat)
+      write_event(w.log, w.path, w.channels.session, to_message(rec.info, rec.source, utime, rec.condition), utime, w.buf);
+    // Each operating point when its time comes; the first one at the start in any case.
+    bool op_written = false;
+    while (next_op < rec.operating_points.size() &&
+           (rec.operating_points[next_op].utime <= utime || (f == 0 && next_op == 0))) {
+      current = &rec.operating_points[next_op++];
+      write_event(w.log, w.path, w.channels.operating_point, to_message(*current), utime, w.buf);
+      op_written = true;
+    }
+    if (repeat && !op_written && current)
+      write_event(w.log, w.path, w.channels.operating_point, to_message(*current), utime, w.buf);
+    b.first_index = k;
+    b.frames = static_cast<std::uint32_t>(std::min(kBlockFrames, rec.frames() - f));
+    b.channels = kPressureStreamChannels;
+    for (std::uint32_t i = 0; i < b.frames; ++i) {
+      b.data[i * 2 + kPressureChannel] = rec.pressure_pa[f + i];
+      b.data[i * 2 + kCrankChannel] = rec.crank_deg[f + i];
+    }
+    write_event(w.log, w.path, w.channels.raw, to_message(b, noisemon::raw_block_t::STREAM_PRESSURE, epoch), utime, w.buf);
+    if (mics > 0) {
+      b.channels = mics;
+      std::copy_n(&rec.mics_pa[f * mics], b.frames * mics, b.data);
+      write_event(w.log, w.path, w.channels.raw, to_message(b, noisemon::raw_block_t::STREAM_MICS, epoch), utime, w.buf);
+    }
+    if (progress && (f / kBlockFrames) % 256 == 0)
+      progress(static_cast<double>(f) / static_cast<double>(rec.frames()));
+  }
+  std::fflush(w.log.getFilePtr());
+  if (progress) progress(1.0);
+}
+
+void write_recordings_log(const std::filesystem::path& path, const std::vector<Recording>& recordings,
+                          const LogChannels& channels, const ProgressFn& progress) {
+  std::size_t total = 0, done = 0;
+  for (const Recording& r : recordings) total += r.frames();
+  RecordingLogWriter writer(path, channels);
+  for (const Recording& r : recordings) {
+    ProgressFn part;
+    if (progress && total > 0)
+      part = [&](double f) { progress((static_cast<double>(done) + f * static_cast<double>(r.frames())) / static_cast<double>(total)); };
+    writer.write(r, part);
+    done += r.frames();
+  }
+  if (progress) progress(1.0);
+}
+
+std::vector<Recording> read_recordings_log(const std::filesystem::path& log, const LogChannels& channels,
+                                           std::int64_t* skipped, LogReadStats* stats, const ProgressFn& progress) {
+  LcmLogReader reader(log);
+  return read_log(reader, log.string(), channels, skipped, stats, progress);
+}
+
+std::vector<Recording> read_recordings_log(const std::uint8_t* data, std::size_t size, const std::string& name,
+                                           const LogChannels& channels, std::int64_t* skipped, LogReadStats* stats) {
+  LcmLogReader reader(data, size);
+  return read_log(reader, name, channels, skipped, stats, {});
+}
+
+}  // namespace noisemon::drivers

@@ -1,0 +1,215 @@
+#include "drivers/formats/stream_messages.hpp"
+
+#include <cmath>
+#include <algorithm>
+#include <cstdint>
+#include <limits>
+#include <stdexcept>
+
+namespace noisemon::drivers {
+namespace {
+
+// Every unknown value (NaN) as the one positive quiet NaN: printf writes a NaN with its sign bit set (what
+// 0.0 / 0.0 gives on x86) as "-nan", and the CSV files should say "nan" for every unknown alike.
+double unknown_as_nan(double v) { return std::isnan(v) ? std::numeric_limits<double>::quiet_NaN() : v; }
+
+}  // namespace
+
+noisemon::operating_point_t to_message(const OperatingPoint& op) {
+  noisemon::operating_point_t m;
+  m.utime = op.utime;
+  m.speed_rpm = unknown_as_nan(op.speed_rpm);
+  m.load_nm = unknown_as_nan(op.load_nm);
+  m.soi_deg_btdc = unknown_as_nan(op.soi_deg_btdc);
+  m.rail_pressure_bar = unknown_as_nan(op.rail_pressure_bar);
+  m.motored = op.motored;
+  return m;
+}
+
+noisemon::raw_block_t to_message(const SampleBlock& b, std::int8_t stream, std::int64_t epoch_utime) {
+  noisemon::raw_block_t m;
+  m.epoch_utime = epoch_utime;
+  m.first_index = b.first_index;
+  m.utime = epoch_utime + static_cast<std::int64_t>(std::llround(static_cast<double>(b.first_index) * 1e6 / kPipelineRateHz));
+  m.stream = stream;
+  m.sample_rate_hz = kPipelineRateHz;
+  m.channels = static_cast<std::int16_t>(b.channels);
+  m.frames = static_cast<std::int16_t>(b.frames);
+  m.nsamples = static_cast<std::int32_t>(b.frames * b.channels);
+  m.data.assign(b.data, b.data + m.nsamples);
+  return m;
+}
+
+noisemon::session_t to_message(const StreamInfo& info, const std::string& source, std::int64_t utime,
+                               const std::string& condition) {
+  noisemon::session_t m;
+  m.condition = condition;
+  m.utime = utime;
+  m.epoch_utime = info.epoch_utime;
+  m.source = source;
+  m.sample_rate_hz = kPipelineRateHz;
+  m.radius_m = info.radius_m;
+  m.acoustic_delay_s = info.acoustic_delay_s;
+  m.pressure_full_scale_pa = info.pressure_full_scale_pa;
+  m.mic_full_scale_pa = info.mic_full_scale_pa;
+  m.nmics = static_cast<std::int16_t>(info.mic_count);
+  m.mic_positions_m.assign(info.mic_count, std::vector<double>(3, 0.0));
+  for (std::size_t i = 0; i < info.mic_count; ++i) {
+    const auto& p = i < info.mic_positions_m.size() ? info.mic_positions_m[i] : std::array<double, 3>{};
+    for (int j = 0; j < 3; ++j) m.mic_positions_m[i][j] = p[j];
+  }
+  return m;
+}
+
+StreamInfo from_message(const noisemon::session_t& m) {
+  if (m.sample_rate_hz != kPipelineRateHz)
+    throw std::invalid_argument("session sample rate " + std::to_string(m.sample_rate_hz) + " Hz, expected 40000");
+  if (m.nmics < 0 || m.nmics > static_cast<int>(SampleBlock::kMaxChannels))
+    throw std::invalid_argument("session with " + std::to_string(m.nmics) + " microphones (0.." +
+                                std::to_string(SampleBlock::kMaxChannels) + " expected)");
+  // The delay becomes a frame offset: bounded (as run.json's 0..1 s) so that it stays an offset.
+  if (!(m.radius_m > 0) || !std::isfinite(m.radius_m) || !(m.acoustic_delay_s >= 0 && m.acoustic_delay_s <= 1))
+    throw std::invalid_argument("session with radius " + std::to_string(m.radius_m) + " m and acoustic delay " +
+                                std::to_string(m.acoustic_delay_s) + " s (positive radius, delay 0..1 s expected)");
+  // A full scale is a level the samples are compared with: finite, and 0 (unknown) or above.
+  for (const double fs : {m.pressure_full_scale_pa, m.mic_full_scale_pa})
+    if (!(fs >= 0) || !std::isfinite(fs))
+      throw std::invalid_argument("session with full scale " + std::to_string(fs) + " Pa (0 = unknown, or above 0 expected)");
+  StreamInfo info;
+  info.epoch_utime = m.epoch_utime;
+  info.mic_count = static_cast<std::uint32_t>(m.nmics);
+  info.radius_m = m.radius_m;
+  info.acoustic_delay_s = m.acoustic_delay_s;
+  info.pressure_full_scale_pa = m.pressure_full_scale_pa;
+  info.mic_full_scale_pa = m.mic_full_scale_pa;
+  for (const auto& p : m.mic_positions_m) info.mic_positions_m.push_back({p[0], p[1], p[2]});
+  return info;
+}
+
+SampleBlock from_message(const noisemon::raw_block_t& m) {
+  if (m.sample_rate_hz != kPipelineRateHz)
+    throw std::invalid_argument("raw block at " + std::to_string(m.sample_rate_hz) + " Hz, expected 40000");
+  if (m.channels < 1 || m.channels > static_cast<int>(SampleBlock::kMaxChannels) || m.frames < 0 ||
+      m.frames > static_cast<int>(SampleBlock::kMaxFrames))
+    throw std::invalid_argument("raw block of " + std::to_string(m.frames) + " frames x " + std::to_string(m.channels) +
+                                " channels (at most 256 x 16)");
+  SampleBlock b;
+  b.first_index = m.first_index;
+  b.frames = static_cast<std::uint32_t>(m.frames);
+  b.channels = static_cast<std::uint32_t>(m.channels);
+  if (m.nsamples != m.frames * m.channels || m.data.size() != static_cast<std::size_t>(m.nsamples))
+    throw std::invalid_argument("raw block holds " + std::to_string(m.nsamples) + " samples, expected frames x channels = " +
+                                std::to_string(m.frames * m.channels));
+  std::copy(m.data.begin(), m.data.end(), b.data);
+  return b;
+}
+
+OperatingPoint from_message(const noisemon::operating_point_t& m) {
+  OperatingPoint op;
+  op.utime = m.utime;
+  op.speed_rpm = unknown_as_nan(m.speed_rpm);
+  op.load_nm = unknown_as_nan(m.load_nm);
+  op.soi_deg_btdc = unknown_as_nan(m.soi_deg_btdc);
+  op.rail_pressure_bar = unknown_as_nan(m.rail_pressure_bar);
+  op.motored = m.motored;
+  return op;
+}
+
+namespace {
+
+std::int32_t be32(const std::uint8_t* p) {
+  return static_cast<std::int32_t>((std::uint32_t{p[0]} << 24) | (std::uint32_t{p[1]} << 16) | (std::uint32_t{p[2]} << 8) | p[3]);
+}
+std::int16_t be16(const std::uint8_t* p) { return static_cast<std::int16_t>((p[0] << 8) | p[1]); }
+
+// A string field at pos: int32 length (including the terminating NUL) then the bytes. Advances pos.
+bool skip_string(const std::uint8_t* d, std::size_t size, std::size_t& pos) {
+  if (size - pos < 4) return false;
+  const std::int32_t len = be32(d + pos);
+  pos += 4;
+  if (len < 1 || static_cast<std::size_t>(len) > size - pos || d[pos + static_cast<std::size_t>(len) - 1] != 0) return false;
+  pos += static_cast<std::size_t>(len);
+  return true;
+}
+
+template <class Message>
+bool decode_exact(const void* data, std::size_t size, Message& m) {
+  if (size > static_cast<std::size_t>(INT32_MAX)) return false;
+  try {
+    return m.decode(data, 0, static_cast<int>(size)) == static_cast<int>(size);
+  } catch (const std::exception&) {
+    return false;
+  }
+}
+
+}  // namespace
+
+bool decode_message(const void* data, std::size_t size, noisemon::session_t& m) {
+  // fingerprint, utime, epoch_utime, source, sample_rate_hz, radius_m, acoustic_delay_s, nmics, positions, condition,
+  // pressure_full_scale_pa, mic_full_scale_pa
+  const auto* d = static_cast<const std::uint8_t*>(data);
+  std::size_t pos = 24;
+  if (size < pos || !skip_string(d, size, pos)) return false;
+  pos += 24;
+  if (size < pos + 2) return false;
+  const std::int16_t nmics = be16(d + pos);
+  pos += 2;
+  if (nmics < 0 || static_cast<std::size_t>(nmics) * 24 > size - pos) return false;
+  pos += static_cast<std::size_t>(nmics) * 24;
+  if (!skip_string(d, size, pos) || size - pos != 16) return false;
+  return decode_exact(data, size, m);
+}
+
+bool decode_message(const void* data, std::size_t size, noisemon::raw_block_t& m) {
+  // fingerprint, utime, epoch_utime, first_index, stream (1), sample_rate_hz, channels (2), frames (2), nsamples
+  constexpr std::size_t kNsamplesAt = 8 + 8 + 8 + 8 + 1 + 8 + 2 + 2;
+  const auto* d = static_cast<const std::uint8_t*>(data);
+  if (size < kNsamplesAt + 4) return false;
+  const std::int32_t n = be32(d + kNsamplesAt);
+  if (n < 0 || static_cast<std::size_t>(n) * 8 != size - kNsamplesAt - 4) return false;
+  return decode_exact(data, size, m);
+}
+
+bool decode_message(const void* data, std::size_t size, noisemon::operating_point_t& m) {
+  return decode_exact(data, size, m);
+}
+
+std::string raw_block_problem(const noisemon::raw_block_t& m, const StreamInfo& info) {
+  if (m.sample_rate_hz != kPipelineRateHz) return "sample rate " + std::to_string(m.sample_rate_hz) + " Hz, expected 40000";
+  if (m.frames < 0 || m.frames > static_cast<int>(SampleBlock::kMaxFrames) || m.channels < 1 ||
+      m.channels > static_cast<int>(SampleBlock::kMaxChannels) || m.nsamples != m.frames * m.channels ||
+      m.data.size() != static_cast<std::size_t>(m.nsamples))
+    return "block of " + std::to_string(m.frames) + " frames x " + std::to_string(m.channels) + " channels holding " +
+           std::to_string(m.nsamples) + " samples";
+  if (m.epoch_utime != info.epoch_utime) return "block of another session (epoch " + std::to_string(m.epoch_utime) + ")";
+  if (m.first_index < -(std::int64_t{1} << 50) || m.first_index > (std::int64_t{1} << 50) ||
+      m.utime != m.epoch_utime + static_cast<std::int64_t>(std::llround(static_cast<double>(m.first_index) * 1e6 / kPipelineRateHz)))
+    return "utime does not match first_index (a damaged field)";
+  std::size_t expected;
+  if (m.stream == noisemon::raw_block_t::STREAM_PRESSURE)
+    expected = kPressureStreamChannels;
+  else if (m.stream == noisemon::raw_block_t::STREAM_MICS)
+    expected = info.mic_count;
+  else
+    return "unknown stream " + std::to_string(m.stream);
+  if (static_cast<std::size_t>(m.channels) != expected)
+    return std::string(m.stream == noisemon::raw_block_t::STREAM_PRESSURE ? "pressure" : "microphone") + " block with " +
+           std::to_string(m.channels) + " channels, expected " + std::to_string(expected);
+  for (double v : m.data)
+    if (std::isinf(v)) return "infinite sample";
+  if (m.stream == noisemon::raw_block_t::STREAM_PRESSURE)
+    for (std::int16_t f = 0; f < m.frames; ++f) {
+      const double c = m.data[static_cast<std::size_t>(f) * kPressureStreamChannels + kCrankChannel];
+      if (c < -360.0 || c > 360.0) return "crank angle outside [-360, 360] deg";
+    }
+  return "";
+}
+
+std::string raw_block_problem_for_recording(const noisemon::raw_block_t& m, const StreamInfo& info) {
+  if (std::string why = raw_block_problem(m, info); !why.empty()) return why;
+  for (double v : m.data)
+    if (std::isnan(v)) return "non-finite sample";
+  return "";
+}
+
+}  // namespace noisemon::drivers

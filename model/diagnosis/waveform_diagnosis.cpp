@@ -1,0 +1,673 @@
+#include "model/diagnosis/waveform_diagnosis.hpp"
+
+#include <unsupported/Eigen/FFT>
+
+#include <Eigen/Dense>
+
+#include <algorithm>
+#include <array>
+#include <chrono>
+#include <cmath>
+#include <complex>
+#include <cstdio>
+#include <limits>
+#include <numbers>
+#include <random>
+#include <stdexcept>
+
+namespace noisemon::model {
+namespace {
+
+constexpr double kInf = std::numeric_limits<double>::infinity();
+
+std::string fmt(const char* f, double a, double b = 0.0, double c = 0.0) {
+  char buf[256];
+  std::snprintf(buf, sizeof buf, f, a, b, c);
+  return buf;
+}
+
+WaveformSimOptions with_steps(WaveformSimOptions sim, int steps) {
+  sim.steps_per_sample = steps;
+  return sim;
+}
+
+// Scored errors (model - measured) of each range.
+std::vector<std::vector<double>> errors_of(const WaveformModel& m, double fs, const WaveformSimOptions& sim,
+                                           std::span<const double> u, std::span<const double> y,
+                                           std::span<const SampleRange> ranges) {
+  std::vector<std::vector<double>> out;
+  for (const SampleRange& r : ranges) {
+    const auto s = simulate_waveform(m, fs, sim, u, y, r);
+    std::vector<double> e;
+    e.reserve(s.size() - sim.settle_samples);
+    for (std::size_t j = sim.settle_samples; j < s.size(); ++j) e.push_back(s[j] - y[r.begin + j]);
+    out.push_back(std::move(e));
+  }
+  return out;
+}
+
+double rms_of(const std::vector<std::vector<double>>& e) {
+  double s = 0.0;
+  std::size_t n = 0;
+  for (const auto& v : e)
+    for (double x : v) {
+      s += x * x;
+      ++n;
+    }
+  return n ? std::sqrt(s / static_cast<double>(n)) : std::numeric_limits<double>::quiet_NaN();
+}
+
+std::vector<std::vector<double>> squared_difference(const std::vector<std::vector<double>>& before,
+                                                    const std::vector<std::vector<double>>& after) {
+  std::vector<std::vector<double>> d(before.size());
+  for (std::size_t s = 0; s < before.size(); ++s) {
+    d[s].resize(before[s].size());
+    for (std::size_t i = 0; i < before[s].size(); ++i) d[s][i] = before[s][i] * before[s][i] - after[s][i] * after[s][i];
+  }
+  return d;
+}
+
+// ------------------------------------------------------------------------------------------- spectra
+
+// Welch cross spectrum of a and b (Hann, 50 % overlap) on nfft bins, summed over segments (unnormalised:
+// callers use ratios or normalise themselves). Returns the number of averaged windows.
+std::size_t welch(const std::vector<std::vector<double>>& a, const std::vector<std::vector<double>>& b,
+                  std::size_t nfft, std::vector<std::complex<double>>& sab, std::vector<double>& saa) {
+  Eigen::FFT<double> fft;
+  sab.assign(nfft / 2 + 1, 0.0);
+  saa.assign(nfft / 2 + 1, 0.0);
+  std::vector<double> wa(nfft), wb(nfft), win(nfft);
+  for (std::size_t i = 0; i < nfft; ++i) win[i] = 0.5 - 0.5 * std::cos(2.0 * std::numbers::pi * static_cast<double>(i) / static_cast<double>(nfft));
+  std::vector<std::complex<double>> fa, fb;
+  std::size_t windows = 0;
+  for (std::size_t s = 0; s < a.size(); ++s) {
+    const auto& xa = a[s];
+    const auto& xb = b[s];
+    for (std::size_t start = 0; start + nfft <= xa.size(); start += nfft / 2) {
+      double ma = 0.0, mb = 0.0;
+      for (std::size_t i = 0; i < nfft; ++i) {
+        ma += xa[start + i];
+        mb += xb[start + i];
+      }
+      ma /= static_cast<double>(nfft);
+      mb /= static_cast<double>(nfft);
+      for (std::size_t i = 0; i < nfft; ++i) {
+        wa[i] = (xa[start + i] - ma) * win[i];
+        wb[i] = (xb[start + i] - mb) * win[i];
+      }
+      fft.fwd(fa, wa);
+      fft.fwd(fb, wb);
+      for (std::size_t k = 0; k <= nfft / 2; ++k) {
+        sab[k] += std::conj(fa[k]) * fb[k];
+        saa[k] += std::norm(fa[k]);
+      }
+      ++windows;
+    }
+  }
+  return windows;
+}
+
+std::size_t nfft_for(const std::vector<std::vector<double>>& x) {
+  std::size_t longest = 0;
+  for (const auto& v : x) longest = std::max(longest, v.size());
+  std::size_t n = 64;
+  while (n * 2 <= std::min<std::size_t>(longest / 4, 4096)) n *= 2;
+  return n;
+}
+
+// Frequency where most of the residual's power is coherent with the input, |S_ue|^2 / S_uu (the power the
+// residual's transfer function from the input explains), between a few bins and 0.45 fs: where a missing
+// mode shows. (The transfer function alone peaks wherever the input has little power.)
+double residual_peak_hz(const std::vector<std::vector<double>>& u, const std::vector<std::vector<double>>& e,
+                        double fs) {
+  const std::size_t nfft = nfft_for(u);
+  std::vector<std::complex<double>> sue;
+  std::vector<double> suu;
+  if (welch(u, e, nfft, sue, suu) == 0) return 0.1 * fs;
+  double best = -1.0, f_best = 0.1 * fs;
+  double suu_max = 0.0;
+  for (double v : suu) suu_max = std::max(suu_max, v);
+  for (std::size_t k = 3; k <= nfft / 2; ++k) {
+    const double f = fs * static_cast<double>(k) / static_cast<double>(nfft);
+    if (f > 0.45 * fs) break;
+    if (suu[k] < 1e-6 * suu_max) continue;  // no excitation there: the ratio is noise
+    const double h = std::norm(sue[k]) / suu[k];
+    if (h > best) {
+      best = h;
+      f_best = f;
+    }
+  }
+  return f_best;
+}
+
+// ------------------------------------------------------------------------------------- explainable gap
+
+// The explainable-gap test regresses the error on what a missing term of the model could produce. To first
+// order, a missing force f(z, z') changes the output by the model's own linear dynamics driven by f along
+// the model's trajectory; f is expanded in a basis of odd, even, smooth and switching functions of the
+// standardised state (cubic, quadratic, friction-like, dead-zone-like ...). Lagged input covers linear
+// misfit with short memory. Features: those responses (position and velocity), the lagged input, a constant.
+constexpr std::size_t kBasis = 13;
+
+std::array<double, kBasis> force_basis(double z, double v) {
+  const double sz = std::tanh(z / 0.05), sv = std::tanh(v / 0.05);  // smoothed sign(z), sign(v)
+  return {z, v, z * z - 1.0, v * v - 1.0, z * v, z * z * z, v * v * v, z * std::fabs(z), v * std::fabs(v), sz, sv,
+          std::fabs(v) - 0.8, std::fabs(z) - 0.8};
+}
+
+struct RangeSignals {
+  std::vector<double> u, e;  // whole range: input, error
+  std::vector<std::array<double, 2 * kBasis>> dyn;
+};
+
+// Response of the linear part of m's primary mode to x, aligned with x: position (velocity when `velocity`).
+std::vector<double> linear_response(const WaveformModel& m, double fs, int steps, const std::vector<double>& x,
+                                    bool velocity) {
+  BlockParams p = m.block;
+  p.k3 = p.b3 = 0.0;
+  p.c0 = velocity ? 0.0 : 1.0;
+  p.c1 = velocity ? 1.0 : 0.0;
+  BlockModelOptions o;
+  o.max_step_s = 1.0 / (fs * steps);
+  o.refine = false;
+  BlockModel bm(p, fs, o);
+  const std::size_t lat = bm.latency_samples();
+  std::vector<double> in(x);
+  in.resize(x.size() + lat, x.empty() ? 0.0 : x.back());
+  std::vector<double> out(in.size());
+  bm.process(in.data(), out.data(), in.size());
+  return std::vector<double>(out.begin() + static_cast<std::ptrdiff_t>(lat), out.end());
+}
+
+ExplainableGap explainable_gap(const WaveformModel& m, double fs, const WaveformDiagnosisOptions& opt,
+                               const WaveformSimOptions& sim, std::span<const double> u, std::span<const double> y) {
+  const std::size_t settle = sim.settle_samples;
+  std::vector<WaveformTrace> train_tr, held_tr;
+  for (const SampleRange& r : opt.train) train_tr.push_back(simulate_waveform_trace(m, fs, sim, u, y, r));
+  for (const SampleRange& r : opt.heldout) held_tr.push_back(simulate_waveform_trace(m, fs, sim, u, y, r));
+
+  // Standardisation from the training ranges.
+  double su = 0, su2 = 0, sz2 = 0, sv2 = 0;
+  std::size_t n = 0;
+  for (std::size_t s = 0; s < train_tr.size(); ++s)
+    for (std::size_t j = settle; j < train_tr[s].y.size(); ++j) {
+      const double uu = u[opt.train[s].begin + j];
+      su += uu;
+      su2 += uu * uu;
+      sz2 += train_tr[s].z[j] * train_tr[s].z[j];
+      sv2 += train_tr[s].v[j] * train_tr[s].v[j];
+      ++n;
+    }
+  const double dn = static_cast<double>(std::max<std::size_t>(n, 1));
+  const double u_mean = su / dn, u_std = std::sqrt(std::max(su2 / dn - u_mean * u_mean, 1e-300));
+  const double z_rms = std::sqrt(std::max(sz2 / dn, 1e-300)), v_rms = std::sqrt(std::max(sv2 / dn, 1e-300));
+  const int steps = sim.steps_per_sample > 0 ? sim.steps_per_sample : choose_steps_per_sample(m, fs);
+
+  auto signals = [&](const std::vector<WaveformTrace>& traces, std::span<const SampleRange> ranges) {
+    std::vector<RangeSignals> out;
+    for (std::size_t s = 0; s < traces.size(); ++s) {
+      const WaveformTrace& t = traces[s];
+      const std::size_t len = t.y.size();
+      RangeSignals rs;
+      rs.u.resize(len);
+      rs.e.resize(len);
+      for (std::size_t j = 0; j < len; ++j) {
+        rs.u[j] = (u[ranges[s].begin + j] - u_mean) / u_std;
+        rs.e[j] = t.y[j] - y[ranges[s].begin + j];
+      }
+      rs.dyn.resize(len);
+      std::vector<std::vector<double>> phi(kBasis, std::vector<double>(len));
+      for (std::size_t j = 0; j < len; ++j) {
+        const auto b = force_basis(t.z[j] / z_rms, t.v[j] / v_rms);
+        for (std::size_t k = 0; k < kBasis; ++k) phi[k][j] = b[k];
+      }
+      for (std::size_t k = 0; k < kBasis; ++k)
+        for (int vel = 0; vel < 2; ++vel) {
+          const auto g = linear_response(m, fs, steps, phi[k], vel == 1);
+          const double scale = vel ? v_rms : z_rms;  // same size as the state it perturbs
+          for (std::size_t j = 0; j < len; ++j) rs.dyn[j][2 * k + static_cast<std::size_t>(vel)] = g[j] / scale;
+        }
+      out.push_back(std::move(rs));
+    }
+    return out;
+  };
+  const auto train = signals(train_tr, opt.train);
+  const auto held = signals(held_tr, opt.heldout);
+
+  // Lags of the input over the primary mode's decay time (2 m / b1), 8..32 samples.
+  const double decay_samples = 2.0 * m.block.m / std::max(m.block.b1, 1e-300) * fs;
+  const auto lags = static_cast<std::size_t>(std::clamp(std::round(decay_samples), 8.0, 32.0));
+  const auto p = static_cast<Eigen::Index>(2 * kBasis + lags + 1);
+  auto fill = [&](const RangeSignals& r, std::size_t i, Eigen::VectorXd& f) {
+    Eigen::Index at = 0;
+    for (double d : r.dyn[i]) f(at++) = d;
+    for (std::size_t k = 0; k < lags; ++k) f(at++) = r.u[i >= k ? i - k : 0];
+    f(at) = 1.0;
+  };
+  Eigen::MatrixXd ata = Eigen::MatrixXd::Zero(p, p);
+  Eigen::VectorXd atb = Eigen::VectorXd::Zero(p);
+  Eigen::VectorXd f(p);
+  const std::size_t stride = std::max<std::size_t>(1, n / 20000);  // enough rows for ~60 regressors
+  for (const auto& s : train)
+    for (std::size_t j = settle; j < s.e.size(); j += stride) {
+      fill(s, j, f);
+      ata.selfadjointView<Eigen::Lower>().rankUpdate(f);
+      atb.noalias() += f * s.e[j];
+    }
+  ata.triangularView<Eigen::StrictlyUpper>() = ata.transpose();
+  // Ridge, relative to each regressor's own size: keeps noise-fitting small.
+  const Eigen::VectorXd diag = ata.diagonal();
+  ata.diagonal() += 1e-4 * diag + Eigen::VectorXd::Constant(p, 1e-12 * diag.maxCoeff());
+  const Eigen::VectorXd beta = ata.ldlt().solve(atb);
+
+  std::vector<std::vector<double>> before, after;
+  for (const auto& s : held) {
+    std::vector<double> b, a;
+    for (std::size_t j = settle; j < s.e.size(); ++j) {
+      fill(s, j, f);
+      b.push_back(s.e[j]);
+      a.push_back(s.e[j] - f.dot(beta));
+    }
+    before.push_back(std::move(b));
+    after.push_back(std::move(a));
+  }
+  ExplainableGap g;
+  g.heldout_rms = rms_of(before);
+  g.heldout_rms_after = rms_of(after);
+  g.fraction = 1.0 - g.heldout_rms_after / g.heldout_rms;
+  g.test = block_bootstrap_test(squared_difference(before, after), opt.block_samples, opt.bootstrap_resamples, opt.seed);
+  g.significant = g.test.p_value < opt.alpha && g.fraction >= opt.min_gain;
+  return g;
+}
+
+// --------------------------------------------------------------------------------------- candidates
+
+struct CandidateSpec {
+  std::string effect;
+  WaveformModel start;
+  std::vector<std::string> added;
+  std::string start_note;
+};
+
+bool has(const std::vector<std::string>& v, const std::string& s) { return std::find(v.begin(), v.end(), s) != v.end(); }
+
+// The candidate `effect` on top of `base` (fitted with free parameters `base_free`); nullopt when the base
+// already contains it.
+std::optional<CandidateSpec> make_candidate(const std::string& effect, const WaveformFitResult& base,
+                                            const std::vector<std::string>& base_free,
+                                            const std::vector<std::vector<double>>& train_u,
+                                            const std::vector<std::vector<double>>& train_e, double fs) {
+  CandidateSpec c;
+  c.effect = effect;
+  c.start = base.model;
+  const bool offsets = has(base_free, "y_offset") && !has(base_free, "u_offset");
+  if (effect == "cubic_stiffness" || effect == "cubic_damping") {
+    const std::string p = effect == "cubic_stiffness" ? "k3" : "b3";
+    if (has(base_free, p)) return std::nullopt;
+    c.start.block.k3 = effect == "cubic_stiffness" ? 0.0 : c.start.block.k3;
+    c.start.block.b3 = effect == "cubic_damping" ? 0.0 : c.start.block.b3;
+    c.added.push_back(p);
+    if (offsets) c.added.push_back("u_offset");
+  } else if (effect == "second_mode") {
+    if (base.model.has_second_mode) return std::nullopt;
+    const double f2 = residual_peak_hz(train_u, train_e, fs);
+    c.start_note = fmt("second mode started at %.4g Hz (peak of the residual's power coherent with the input)", f2);
+    const double w2 = 2.0 * std::numbers::pi * f2;
+    c.start.has_second_mode = true;
+    c.start.second = SecondModeParams{w2 * w2, 2.0 * 0.05 * w2, 0.0, 0.0};
+    c.added = {"k1_2", "b1_2", "c0_2", "c1_2"};
+  } else {
+    throw std::invalid_argument("waveform diagnosis: unknown candidate effect '" + effect +
+                                "' (waveform mode knows cubic_stiffness, cubic_damping, second_mode)");
+  }
+  return c;
+}
+
+void rank(std::vector<CandidateResult>& c, double tie) {
+  std::stable_sort(c.begin(), c.end(), [](const CandidateResult& a, const CandidateResult& b) {
+    if (a.significant != b.significant) return a.significant;
+    return a.heldout_rms < b.heldout_rms;
+  });
+  // Tie-breaker: of two neighbours within `tie` of each other, the simpler first.
+  for (bool swapped = true; swapped;) {
+    swapped = false;
+    for (std::size_t i = 0; i + 1 < c.size(); ++i) {
+      CandidateResult& a = c[i];
+      CandidateResult& b = c[i + 1];
+      if (a.significant == b.significant && b.added_params.size() < a.added_params.size() &&
+          std::fabs(a.heldout_rms - b.heldout_rms) <= tie * a.heldout_rms) {
+        std::swap(a, b);
+        swapped = true;
+      }
+    }
+  }
+}
+
+std::vector<CandidateResult> run_round(const WaveformFitResult& base, const std::vector<std::string>& base_free,
+                                       const std::vector<std::string>& effects,
+                                       const std::vector<std::vector<double>>& base_held_errors,
+                                       std::span<const double> u, std::span<const double> y,
+                                       const WaveformDiagnosisOptions& opt) {
+  // Training signals for the second mode's start frequency.
+  std::vector<std::vector<double>> train_u, train_e;
+  if (has(effects, "second_mode")) {
+    train_e = errors_of(base.model, opt.fs_hz, with_steps(opt.sim, base.steps_per_sample), u, y, opt.train);
+    for (const SampleRange& r : opt.train)
+      train_u.emplace_back(u.begin() + static_cast<std::ptrdiff_t>(r.begin + opt.sim.settle_samples),
+                           u.begin() + static_cast<std::ptrdiff_t>(r.end));
+  }
+  const double before = rms_of(base_held_errors);
+  std::vector<CandidateResult> out;
+  for (const std::string& effect : effects) {
+    const auto spec = make_candidate(effect, base, base_free, train_u, train_e, opt.fs_hz);
+    if (!spec) continue;
+    CandidateResult c;
+    c.effect = effect;
+    c.added_params = spec->added;
+    WaveformFitOptions fo;
+    fo.fs_hz = opt.fs_hz;
+    fo.train = opt.train;
+    fo.heldout = opt.heldout;
+    fo.free_params = base_free;
+    fo.free_params.insert(fo.free_params.end(), spec->added.begin(), spec->added.end());
+    fo.start = spec->start;
+    fo.start_name = "baseline + " + effect;
+    fo.sim = opt.sim;
+    fo.max_iterations = opt.max_iterations;
+    fo.progress = opt.fit_progress;
+    if (opt.log) {
+      opt.log("fitting candidate " + effect + " (+" + std::to_string(spec->added.size()) + " parameters)");
+      if (!spec->start_note.empty()) opt.log(spec->start_note);
+    }
+    try {
+      c.fit = fit_waveform(u, y, fo);
+      const auto held = errors_of(c.fit.model, opt.fs_hz, with_steps(opt.sim, c.fit.steps_per_sample), u, y, opt.heldout);
+      c.heldout_rms = rms_of(held);
+      c.heldout_segment_rms = c.fit.heldout_segment_rms;
+      c.gap_closed_fraction = 1.0 - c.heldout_rms / before;
+      c.test = block_bootstrap_test(squared_difference(base_held_errors, held), opt.block_samples,
+                                    opt.bootstrap_resamples, opt.seed);
+    } catch (const std::exception& e) {
+      c.error = e.what();
+      c.heldout_rms = kInf;
+      c.gap_closed_fraction = 0.0;
+    }
+    if (opt.log)
+      opt.log(c.error.empty()
+                  ? effect + fmt(": held-out rms %.6g (%.1f %% of the gap closed), p = %.4f", c.heldout_rms,
+                                 100.0 * c.gap_closed_fraction, c.test.p_value)
+                  : effect + ": fit failed: " + c.error);
+    out.push_back(std::move(c));
+  }
+  const double k = static_cast<double>(std::max<std::size_t>(out.size(), 1));
+  for (CandidateResult& c : out)
+    c.significant = c.error.empty() && c.test.p_value < opt.alpha / k && c.gap_closed_fraction >= opt.min_gain;
+  rank(out, opt.tie_tolerance);
+  return out;
+}
+
+}  // namespace
+
+// ------------------------------------------------------------------------------------------ public API
+
+SignificanceTest block_bootstrap_test(const std::vector<std::vector<double>>& d, std::size_t block_samples,
+                                      int resamples, std::uint64_t seed) {
+  SignificanceTest t;
+  std::size_t n = 0;
+  double sum = 0.0;
+  for (const auto& v : d)
+    for (double x : v) {
+      sum += x;
+      ++n;
+    }
+  if (n == 0) return t;
+  t.mean_reduction = sum / static_cast<double>(n);
+  std::size_t len = block_samples;
+  if (len == 0) {
+    // Correlation length: first lag where the autocorrelation (pooled over segments) falls below 0.05.
+    const std::size_t max_lag = std::max<std::size_t>(1, n / 20);
+    double var = 0.0;
+    for (const auto& v : d)
+      for (double x : v) var += (x - t.mean_reduction) * (x - t.mean_reduction);
+    std::size_t tau = max_lag;
+    for (std::size_t lag = 1; lag < max_lag && var > 0; ++lag) {
+      double c = 0.0;
+      for (const auto& v : d)
+        for (std::size_t i = lag; i < v.size(); ++i) c += (v[i] - t.mean_reduction) * (v[i - lag] - t.mean_reduction);
+      if (c / var < 0.05) {
+        tau = lag;
+        break;
+      }
+    }
+    len = std::clamp<std::size_t>(4 * tau, 16, std::max<std::size_t>(16, n / 20));
+  }
+  std::vector<std::pair<double, std::size_t>> blocks;
+  for (const auto& v : d)
+    for (std::size_t b = 0; b < v.size(); b += len) {
+      const std::size_t e = std::min(v.size(), b + len);
+      double s = 0.0;
+      for (std::size_t i = b; i < e; ++i) s += v[i];
+      blocks.emplace_back(s, e - b);
+    }
+  t.block_samples = len;
+  t.blocks = blocks.size();
+  std::mt19937_64 gen(seed);
+  int exceed = 0;
+  for (int r = 0; r < resamples; ++r) {
+    double s = 0.0;
+    std::size_t c = 0;
+    for (std::size_t k = 0; k < blocks.size(); ++k) {
+      const auto& b = blocks[gen() % blocks.size()];
+      s += b.first;
+      c += b.second;
+    }
+    // Under "no improvement" the bootstrap distribution is shifted to mean zero.
+    if (s / static_cast<double>(c) - t.mean_reduction >= t.mean_reduction) ++exceed;
+  }
+  t.p_value = (1.0 + exceed) / (1.0 + resamples);
+  return t;
+}
+
+std::vector<BandRms> third_octave_rms(const std::vector<std::vector<double>>& segments, double fs_hz) {
+  const std::size_t nfft = nfft_for(segments);
+  std::vector<std::complex<double>> sxx_c;
+  std::vector<double> sxx;
+  const std::size_t windows = welch(segments, segments, nfft, sxx_c, sxx);
+  std::vector<BandRms> out;
+  if (windows == 0) return out;
+  // Hann window power: sum w^2 = 3 nfft / 8. One-sided mean square per bin: 2 |X|^2 / (sum w^2 nfft).
+  const double norm = 2.0 / (static_cast<double>(windows) * 0.375 * static_cast<double>(nfft) * static_cast<double>(nfft));
+  const double df = fs_hz / static_cast<double>(nfft);
+  for (int band = -20; band <= 43; ++band) {  // 10 mHz .. 20 kHz
+    const double fc = std::pow(10.0, band / 10.0);
+    const double lo = fc * std::pow(10.0, -0.05), hi = fc * std::pow(10.0, 0.05);
+    if (lo < df || hi > fs_hz / 2.0 * 1.0001) continue;
+    double ms = 0.0;
+    std::size_t bins = 0;
+    for (std::size_t k = 1; k <= nfft / 2; ++k) {
+      const double f = df * static_cast<double>(k);
+      if (f >= lo && f < hi) {
+        ms += sxx[k] * norm;
+        ++bins;
+      }
+    }
+    if (bins > 0) out.push_back({fc, lo, hi, std::sqrt(ms)});
+  }
+  return out;
+}
+
+WaveformDiagnosis diagnose_waveform(std::span<const double> u, std::span<const double> y,
+                                    const WaveformDiagnosisOptions& opt) {
+  if (opt.heldout.empty()) throw std::invalid_argument("waveform diagnosis: no held-out range");
+  for (const std::string& c : opt.candidates)
+    if (c != "cubic_stiffness" && c != "cubic_damping" && c != "second_mode")
+      throw std::invalid_argument("waveform diagnosis: candidate '" + c +
+                                  "' does not apply to a waveform (waveform mode knows cubic_stiffness, "
+                                  "cubic_damping, second_mode)");
+  const auto t0 = std::chrono::steady_clock::now();
+  WaveformDiagnosis d;
+  d.not_applicable = {
+      {"mechanical_noise", "crank-angle-locked impacts: a u,y waveform carries no crank angle"},
+      {"background_noise", "output noise independent of the input: no model extension reduces a free-run error; "
+                           "it is the floor the explainable-gap test measures against"},
+      {"transducer_noise", "noise on the measured input: irreducible by a model of the system (errors in variables)"},
+      {"mic_gain", "a single output channel: a gain error is absorbed by c0 and c1"},
+      {"speed_dependence", "no engine speed in a waveform"},
+  };
+
+  WaveformFitOptions fo;
+  fo.fs_hz = opt.fs_hz;
+  fo.train = opt.train;
+  fo.heldout = opt.heldout;
+  fo.free_params = opt.baseline_free;
+  fo.start = opt.start;
+  fo.start_name = opt.start_name;
+  fo.sim = opt.sim;
+  fo.max_iterations = opt.max_iterations;
+  fo.progress = opt.fit_progress;
+  if (opt.log) opt.log("fitting the baseline (" + std::to_string(opt.baseline_free.size()) + " parameters)");
+  d.baseline = fit_waveform(u, y, fo);
+  const WaveformSimOptions base_sim = with_steps(opt.sim, d.baseline.steps_per_sample);
+  const auto base_held = errors_of(d.baseline.model, opt.fs_hz, base_sim, u, y, opt.heldout);
+  d.heldout_rms_before = rms_of(base_held);
+  if (opt.log) opt.log(fmt("baseline: train rms %.6g, held-out rms %.6g", d.baseline.train_rms, d.heldout_rms_before));
+
+  d.candidates = run_round(d.baseline, opt.baseline_free, opt.candidates, base_held, u, y, opt);
+  d.baseline_gap = explainable_gap(d.baseline.model, opt.fs_hz, opt, base_sim, u, y);
+  if (opt.log)
+    opt.log(fmt("baseline error explainable from the input: %.1f %% of its rms (p = %.4f)", 100.0 * d.baseline_gap.fraction,
+                d.baseline_gap.test.p_value));
+
+  const CandidateResult* best = (!d.candidates.empty() && d.candidates.front().significant) ? &d.candidates.front() : nullptr;
+  std::vector<std::vector<double>> best_held = base_held;
+  WaveformSimOptions best_sim = base_sim;
+  if (best) {
+    d.verdict = best->effect;
+    d.best_model = best->fit.model;
+    d.best_steps_per_sample = best->fit.steps_per_sample;
+    best_sim = with_steps(opt.sim, best->fit.steps_per_sample);
+    best_held = errors_of(d.best_model, opt.fs_hz, best_sim, u, y, opt.heldout);
+    d.heldout_rms_after = best->heldout_rms;
+    if (opt.second_round) {
+      std::vector<std::string> rest;
+      for (const std::string& c : opt.candidates)
+        if (c != best->effect) rest.push_back(c);
+      std::vector<std::string> best_free = best->fit.free_params;
+      d.second_round = run_round(best->fit, best_free, rest, best_held, u, y, opt);
+      for (const auto& c : d.second_round)
+        if (c.significant) d.also_significant.push_back(c.effect);
+      // The best model is the verdict's effect plus the best significant one fitted on top of it.
+      if (!d.second_round.empty() && d.second_round.front().significant) {
+        const CandidateResult& top = d.second_round.front();
+        d.best_model = top.fit.model;
+        d.best_steps_per_sample = top.fit.steps_per_sample;
+        best_sim = with_steps(opt.sim, top.fit.steps_per_sample);
+        d.heldout_rms_after = top.heldout_rms;
+        best_held = errors_of(d.best_model, opt.fs_hz, best_sim, u, y, opt.heldout);
+      }
+    }
+    d.remaining_gap = explainable_gap(d.best_model, opt.fs_hz, opt, best_sim, u, y);
+  } else {
+    d.verdict = d.baseline_gap.significant ? "unexplained" : "none";
+    d.best_model = d.baseline.model;
+    d.best_steps_per_sample = d.baseline.steps_per_sample;
+    d.heldout_rms_after = d.heldout_rms_before;
+    d.remaining_gap = d.baseline_gap;
+  }
+  if (opt.log) opt.log("verdict: " + d.verdict);
+
+  // Where: per held-out range, per band, against the output level.
+  for (std::size_t s = 0; s < base_held.size(); ++s) {
+    d.segment_rms_before.push_back(rms_of({base_held[s]}));
+    d.segment_rms_after.push_back(rms_of({best_held[s]}));
+  }
+  std::vector<std::vector<double>> y_held;
+  for (const SampleRange& r : opt.heldout)
+    y_held.emplace_back(y.begin() + static_cast<std::ptrdiff_t>(r.begin + opt.sim.settle_samples),
+                        y.begin() + static_cast<std::ptrdiff_t>(r.end));
+  const auto out_bands = third_octave_rms(y_held, opt.fs_hz);
+  const auto before_bands = third_octave_rms(base_held, opt.fs_hz);
+  const auto after_bands = third_octave_rms(best_held, opt.fs_hz);
+  for (std::size_t b = 0; b < out_bands.size() && b < before_bands.size() && b < after_bands.size(); ++b)
+    d.bands.push_back({out_bands[b].f_center_hz, out_bands[b].f_lo_hz, out_bands[b].f_hi_hz, out_bands[b].rms,
+                       before_bands[b].rms, after_bands[b].rms});
+
+  // Local output level: rms over two periods of the primary mode, in five equally populated bins.
+  const double fn = std::sqrt(d.baseline.model.block.k1 / d.baseline.model.block.m) / (2.0 * std::numbers::pi);
+  const std::size_t win = static_cast<std::size_t>(std::clamp(std::round(2.0 * opt.fs_hz / fn), 4.0, 1e5));
+  std::vector<std::array<double, 3>> lv;  // level, error before, error after
+  for (std::size_t s = 0; s < y_held.size(); ++s) {
+    const auto& yy = y_held[s];
+    double mean = 0.0;
+    for (double v : yy) mean += v;
+    mean /= static_cast<double>(std::max<std::size_t>(yy.size(), 1));
+    double acc = 0.0;
+    std::vector<double> level(yy.size());
+    for (std::size_t i = 0; i < yy.size(); ++i) {
+      acc += (yy[i] - mean) * (yy[i] - mean);
+      if (i >= win) acc -= (yy[i - win] - mean) * (yy[i - win] - mean);
+      level[i] = std::sqrt(std::max(acc, 0.0) / static_cast<double>(std::min(i + 1, win)));
+    }
+    for (std::size_t i = 0; i < yy.size(); ++i) lv.push_back({level[i], base_held[s][i], best_held[s][i]});
+  }
+  std::sort(lv.begin(), lv.end(), [](const auto& a, const auto& b) { return a[0] < b[0]; });
+  constexpr std::size_t kLevelBins = 5;
+  for (std::size_t b = 0; b < kLevelBins && lv.size() >= kLevelBins; ++b) {
+    const std::size_t i0 = lv.size() * b / kLevelBins, i1 = lv.size() * (b + 1) / kLevelBins;
+    AmplitudeGap g;
+    g.level_lo = lv[i0][0];
+    g.level_hi = lv[i1 - 1][0];
+    g.samples = i1 - i0;
+    double sb = 0.0, sa = 0.0;
+    for (std::size_t i = i0; i < i1; ++i) {
+      sb += lv[i][1] * lv[i][1];
+      sa += lv[i][2] * lv[i][2];
+    }
+    g.error_rms_before = std::sqrt(sb / static_cast<double>(g.samples));
+    g.error_rms_after = std::sqrt(sa / static_cast<double>(g.samples));
+    d.amplitude.push_back(g);
+  }
+  d.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  return d;
+}
+
+namespace {
+std::vector<std::pair<std::string, double>> model_params(const WaveformModel& m, const std::vector<std::string>& free) {
+  std::vector<std::pair<std::string, double>> out;
+  for (const std::string& name : free) out.emplace_back(name, get_parameter(m, name));
+  return out;
+}
+
+WaveformReportCandidate report_candidate(const CandidateResult& c, bool second_round) {
+  WaveformReportCandidate r;
+  r.effect = c.effect;
+  r.heldout_rms = c.heldout_rms;
+  r.gap_closed_fraction = c.gap_closed_fraction;
+  r.significant = c.significant;
+  r.p_value = c.test.p_value;
+  if (c.error.empty()) r.params = model_params(c.fit.model, c.fit.free_params);
+  r.second_round = second_round;
+  r.error = c.error;
+  return r;
+}
+}  // namespace
+
+WaveformReport waveform_report(const WaveformDiagnosis& d) {
+  WaveformReport r;
+  r.baseline_model = d.baseline.start_name;
+  r.baseline_train_rms = d.baseline.train_rms;
+  r.baseline_heldout_rms = d.baseline.heldout_rms;
+  r.baseline_params = model_params(d.baseline.model, d.baseline.free_params);
+  for (const CandidateResult& c : d.candidates) r.candidates.push_back(report_candidate(c, false));
+  for (const CandidateResult& c : d.second_round) r.candidates.push_back(report_candidate(c, true));
+  r.not_applicable = d.not_applicable;
+  r.verdict = d.verdict;
+  r.also_significant = d.also_significant;
+  r.heldout_rms_before = d.heldout_rms_before;
+  r.heldout_rms_after = d.heldout_rms_after;
+  r.bands = d.bands;
+  r.amplitude = d.amplitude;
+  return r;
+}
+
+}  // namespace noisemon::model

@@ -1,0 +1,87 @@
+#include "model/engine_geometry.hpp"
+
+#include <cmath>
+#include <numbers>
+#include <stdexcept>
+
+namespace noisemon::model {
+
+namespace {
+constexpr double kPi = std::numbers::pi;
+constexpr double kDegToRad = kPi / 180.0;
+}  // namespace
+
+// ---------------------------------------------------------------------------------------------- geometry
+
+double EngineGeometry::piston_area_m2() const { return 0.25 * kPi * bore_m * bore_m; }
+double EngineGeometry::displacement_m3() const { return piston_area_m2() * stroke_m; }
+double EngineGeometry::clearance_volume_m3() const { return displacement_m3() / (compression_ratio - 1.0); }
+
+double EngineGeometry::piston_travel_m(double theta_deg) const {
+  const double a = 0.5 * stroke_m;
+  const double th = theta_deg * kDegToRad;
+  const double s = std::sin(th);
+  return conrod_m + a - (a * std::cos(th) + std::sqrt(conrod_m * conrod_m - a * a * s * s));
+}
+
+double EngineGeometry::volume_m3(double theta_deg) const {
+  return clearance_volume_m3() + piston_area_m2() * piston_travel_m(theta_deg);
+}
+
+double EngineGeometry::dvolume_m3_per_deg(double theta_deg) const {
+  const double a = 0.5 * stroke_m;
+  const double th = theta_deg * kDegToRad;
+  const double s = std::sin(th), c = std::cos(th);
+  const double ds_dth = a * s * (1.0 + a * c / std::sqrt(conrod_m * conrod_m - a * a * s * s));
+  return piston_area_m2() * ds_dth * kDegToRad;
+}
+
+double EngineGeometry::wall_area_m2(double theta_deg) const {
+  return 2.0 * piston_area_m2() + kPi * bore_m * (piston_travel_m(theta_deg) + clearance_volume_m3() / piston_area_m2());
+}
+
+double EngineGeometry::mean_piston_speed_m_s(double speed_rpm) const { return 2.0 * stroke_m * speed_rpm / 60.0; }
+
+// ---------------------------------------------------------------------------------------------- kinematics
+
+CrankKinematics::CrankKinematics(double mean_speed_rpm, double speed_fluctuation, double theta0_deg)
+    : rpm_(mean_speed_rpm), eps_(speed_fluctuation), theta0_(theta0_deg) {
+  if (!(mean_speed_rpm > 0.0)) throw std::invalid_argument("CrankKinematics: mean speed must be positive");
+  if (!(speed_fluctuation >= 0.0 && speed_fluctuation < 0.5))
+    throw std::invalid_argument("CrankKinematics: speed fluctuation must be in [0, 0.5)");
+}
+
+double CrankKinematics::theta_deg(double t_s) const {
+  const double phi = theta0_ + 6.0 * rpm_ * t_s;
+  return phi - eps_ * (360.0 / kPi) * std::sin(kPi / 360.0 * phi);
+}
+
+double CrankKinematics::speed_rpm(double t_s) const {
+  const double phi = theta0_ + 6.0 * rpm_ * t_s;
+  return rpm_ * (1.0 - eps_ * std::cos(kPi / 360.0 * phi));
+}
+
+double CrankKinematics::time_s(double theta_deg) const {
+  // Solve phi - A sin(k phi) = theta (Kepler's equation; the map is monotone for eps < 1).
+  const double k = kPi / 360.0, amp = eps_ / k;
+  double phi = theta_deg;
+  for (int it = 0; it < 20; ++it) {
+    const double f = phi - amp * std::sin(k * phi) - theta_deg;
+    const double step = f / (1.0 - eps_ * std::cos(k * phi));
+    phi -= step;
+    if (std::abs(step) <= 1e-13 * (1.0 + std::abs(phi))) break;
+  }
+  return (phi - theta0_) / (6.0 * rpm_);
+}
+
+std::int64_t CrankKinematics::cycle_index(double theta_deg) {
+  return static_cast<std::int64_t>(std::floor((theta_deg + 360.0) / 720.0));
+}
+
+double CrankKinematics::cycle_angle(double theta_deg) {
+  double w = theta_deg - 720.0 * std::floor((theta_deg + 360.0) / 720.0);
+  if (w >= 360.0) w -= 720.0;  // rounding at the boundary
+  return w;
+}
+
+}  // namespace noisemon::model
