@@ -8,8 +8,6 @@ namespace noisemon::dsp {
 namespace {
 
 constexpr double kReferenceArea = 1.0;             // S0, m^2 (ISO 3744)
-constexpr double kMinBackgroundDifferenceDb = 6;   // below this ISO 3744 gives no valid K1
-constexpr double kNoCorrectionAboveDb = 15;        // above this ISO 3744 sets K1 = 0
 
 double energy_of(double level) { return std::pow(10.0, level / 10.0); }
 
@@ -39,13 +37,6 @@ double hemisphere_area_term_db(double radius_m) {
 }
 
 double sound_power_level_db(double lp_db, double radius_m) { return lp_db + hemisphere_area_term_db(radius_m); }
-
-double background_correction_k1_db(double lp_total_db, double lp_background_db) {
-  const double dl = lp_total_db - lp_background_db;
-  if (!(dl >= kMinBackgroundDifferenceDb)) return std::numeric_limits<double>::quiet_NaN();
-  if (dl > kNoCorrectionAboveDb) return 0.0;
-  return -10.0 * std::log10(1.0 - std::pow(10.0, -0.1 * dl));
-}
 
 double attenuation_db(double cpl_db, double spl_a_db) { return cpl_db - spl_a_db; }
 

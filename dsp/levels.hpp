@@ -1,4 +1,5 @@
-// Sound and pressure levels: SPL/CPL re 20 uPa, energy sums and averages, sound power (ISO 3744), attenuation.
+// Sound and pressure levels: SPL/CPL re 20 uPa, energy sums and averages, the hemisphere term of sound power,
+// attenuation (ISO 3744's corrections: dsp/sound_power.hpp).
 #pragma once
 
 #include <cstddef>
@@ -19,9 +20,6 @@ double energy_sum_db(std::span<const double> levels_db);
 // ISO 3744 hemisphere over a reflecting plane: S = 2 pi r^2, S0 = 1 m^2, LW = Lp + 10 log10(S / S0).
 double hemisphere_area_term_db(double radius_m);
 double sound_power_level_db(double lp_db, double radius_m);
-// ISO 3744 background noise correction K1 = -10 log10(1 - 10^(-0.1 dL)), dL = Lp(source+bg) - Lp(bg).
-// Returns NaN when dL < 6 dB (the standard's limit for a valid correction).
-double background_correction_k1_db(double lp_total_db, double lp_background_db);
 // Attenuation curve (thesis eq. 2.1): CPL(band) - SPL_A(band).
 double attenuation_db(double cpl_db, double spl_a_db);
 

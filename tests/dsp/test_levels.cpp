@@ -55,18 +55,4 @@ TEST(Levels, HemisphereAreaTermAndSoundPower) {
   EXPECT_NEAR(sound_power_level_db(80.0, 1.75), 92.84, 0.005);
 }
 
-TEST(Levels, BackgroundCorrectionRemovesTheBackgroundEnergy) {
-  // Second method: subtract the background energy directly. Valid for 6 <= dL <= 15 dB.
-  for (double dl : {6.0, 8.0, 10.0, 12.5, 15.0}) {
-    const double total = 70.0, bg = total - dl;
-    const double source_alone = 10 * std::log10(std::pow(10.0, total / 10) - std::pow(10.0, bg / 10));
-    EXPECT_NEAR(total - background_correction_k1_db(total, bg), source_alone, 1e-9) << dl;
-  }
-  EXPECT_NEAR(background_correction_k1_db(76.0, 70.0), 1.26, 0.005);  // dL = 6 dB: about 1.3 dB
-  EXPECT_NEAR(background_correction_k1_db(80.0, 70.0), 0.46, 0.005);
-  EXPECT_EQ(background_correction_k1_db(85.1, 70.0), 0.0);  // dL > 15 dB: no correction
-  EXPECT_TRUE(std::isnan(background_correction_k1_db(75.9, 70.0)));  // dL < 6 dB: not valid
-  EXPECT_TRUE(std::isnan(background_correction_k1_db(60.0, 70.0)));
-}
-
 TEST(Levels, AttenuationIsCplMinusSplA) { EXPECT_DOUBLE_EQ(attenuation_db(190.0, 85.5), 104.5); }
