@@ -22,7 +22,7 @@ if [ "$mode" = run ]; then
 fi
 cd "$build"
 # The suite, then the sanitizer runs (label sanitize: each builds the project again in a tree of its own, so they
-# come last and one at a time; README "Checks" says how long each takes). Both run even when the first fails.
+# come last and one at a time; docs/benchmarks.md "Sanitizers" says how long each takes). Both run even when the first fails.
 status=0
 ctest --output-on-failure -j "$(nproc)" --timeout 600 -LE sanitize || status=$?
 ctest --output-on-failure --timeout 3000 -L sanitize || status=$?

@@ -8,7 +8,7 @@ ImportExportCommands::ImportExportCommands(CLI::App& app) {
   import_ = app.add_subcommand(
       "import",
       "convert recordings from other systems into a raw LCM log for `noisemon replay`: run directories "
-      "(run.json + pressure.csv + mics.wav, see README) or an indicating system's cycle table");
+      "(run.json + pressure.csv + mics.wav, see docs/sources-and-formats.md, 'Run directory format') or an indicating system's cycle table");
   import_->add_option("RUN_DIR", dirs_.run_dirs, "run directories; each becomes one session (run) of the log")
       ->check(CLI::ExistingDirectory);
   import_->add_option("-o,--out", dirs_.out_log, "the LCM log to write (replaced)")->required();

@@ -38,7 +38,7 @@ constexpr std::array<EffectQualifierInfo, 1> kMicGainQualifiers{{
 }};
 
 // Defaults are realistic magnitudes that leave a clear trace in the attenuation curves of the thesis
-// conditions (see the README table: each one's measured gap).
+// conditions (see the table in docs/diagnosis.md, 'Proof on withheld effects': each one's measured gap).
 const std::array<EffectInfo, 9> kCatalog{{
     {"cubic_damping", "N s^3/m^3",
      "cubic damper b3 added to the true block (eq. 4.13): damping grows with vibration velocity",

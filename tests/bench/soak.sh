@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Soak and resident memory of the whole daemon (README "Benchmarks"): noisemond on the virtual engine through
+# Soak and resident memory of the whole daemon (docs/benchmarks.md "Soak and memory"): noisemond on the virtual engine through
 # drivers, rings, processing and LCM publishing over real multicast in a private network namespace (root).
 #   1. real time: the default configuration for REALTIME_S seconds; resident memory (VmRSS, and its peak VmHWM).
 #   2. soak: the virtual engine unpaced ([sim] paced = false: as fast as the processing takes it, nothing lost to

@@ -107,7 +107,7 @@ TEST_P(WithheldEffect, VerdictNamesItAndTheHeldOutGapShrinksByAtLeast60Percent) 
 // so that nothing is tuned to one value, at the realistic floor. (transducer_noise has no second magnitude yet: at
 // 0.15 bar on a stated 0.02 the impact extension wins, 72 % closed; an open issue.) (Against this engine, 111 dB(A) at 1.75 m, quieter
 // impacts or backgrounds than the catalogue's ranges change no fired band above the pressure floor's margin by more
-// than the cycle-to-cycle noise, and `none` is then the right answer: README, detection limits.)
+// than the cycle-to-cycle noise, and `none` is then the right answer: docs/diagnosis.md, known limits.)
 INSTANTIATE_TEST_SUITE_P(
     DesignEffects, WithheldEffect,
     ::testing::Values(Withheld{"cubic_damping", "cubic_damping"}, Withheld{"cubic_damping", "cubic_damping=2000"},
@@ -274,8 +274,8 @@ TEST(Diagnose, ThesisProtocolOnTheThesisNonlinearSpringDamperNamesBothCubicTerms
   // the diagnosis starts from the linear preset, tunes it at idle and validates at full load, as the thesis did.
   // Alone, the cubic spring is hidden by the damper (the impact-noise extension even scores a little better than
   // the damper): only the pair started from the close runner-up explains the extrapolation. On an ideal test cell:
-  // with the realistic one (floors, gas ringing) the pair closes too little under this protocol (README, known
-  // limits).
+  // with the realistic one (floors, gas ringing) the pair closes too little under this protocol
+  // (docs/diagnosis.md, known limits).
   SimCampaign c;
   c.conditions = drivers::thesis_conditions();
   c.cycles = kCycles;

@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # Builds noisemon with a sanitizer in a tree of its own and runs part of the suite there (ctest entries
-# sanitize_address and sanitize_thread; see README "Checks").
+# sanitize_address and sanitize_thread; see docs/benchmarks.md "Sanitizers").
 #   run_sanitized.sh address BUILD_DIR   AddressSanitizer + UndefinedBehaviorSanitizer (and LeakSanitizer): the
 #                                        unit suite, every test labelled dsp, model, drivers or daemon but the
 #                                        whole-diagnosis runs

@@ -12,7 +12,7 @@ DESTDIR=$stage cmake --install "$build" >/dev/null
 root=$stage$prefix
 for f in bin/noisemond bin/noisemon lib/systemd/system/noisemond.service lib/sysusers.d/noisemon.conf \
          lib/tmpfiles.d/noisemon.conf lib/udev/rules.d/60-noisemon-comedi.rules etc/noisemon/noisemond.toml \
-         etc/noisemon/noisemond.comedi.toml share/doc/noisemon/README.md; do
+         etc/noisemon/noisemond.comedi.toml share/doc/noisemon/README.md share/doc/noisemon/docs/operator-guide.md; do
   [ -e "$root/$f" ] || { echo "not installed: $prefix/$f"; exit 1; }
 done
 unit=$root/lib/systemd/system/noisemond.service
