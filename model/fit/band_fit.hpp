@@ -18,6 +18,8 @@
 //
 // Which cycles: the fit re-simulates the first `fit_cycles` complete cycles of every training condition
 // (documented subset, default 8); held-out figures use every cycle.
+//
+// One part per file (model/fit/band_fit_*.cpp); band_fit_internal.hpp lists them and holds what they share.
 #pragma once
 
 #include <cstddef>
@@ -75,14 +77,6 @@ struct ExtendedModel {
 
 // ------------------------------------------------------------------------------------------ prediction
 
-// Time-domain re-simulation (the anchor) of one condition: block model on the pressure, through the bank.
-// Per cycle [c * bands + b] over the first `cycles` cycles of the condition (0: all); windows
-// [(c * W + w) * bands + b] when requested. With `mode`, its second mode (mode_db, mode_hz, mode_q) is applied to
-// the block's output in the time domain (model/effects' SecondModeFilter) before the bank.
-void simulate_condition(const ConditionData& condition, const BlockParams& params, std::size_t cycles,
-                        std::vector<double>& cycle_ms, std::vector<double>* win_ms = nullptr,
-                        const ExtensionParams* mode = nullptr);
-
 // The frequency-domain view of a condition for the shortcut: pressure power per frequency bin and, per band,
 // the bins its filter passes with their weights W_b(f) S(f).
 struct ConditionSpectrum {
@@ -93,10 +87,6 @@ struct ConditionSpectrum {
   struct Tap { std::size_t bin; double q; };  // q = W_b(f) s
   std::vector<std::vector<Tap>> band_taps;
 };
-ConditionSpectrum condition_spectrum(const BandDataset& data, std::size_t condition, std::size_t cycles);
-// Power response of band b of the bank (analogue 8th-order Butterworth band-pass with the band's edges; the
-// Nyquist-cut band as a high-pass from its lower edge).
-double band_power_response(const dsp::ThirdOctaveBand& band, double f_hz);
 
 // The extension factors of a condition relative to the bare block (per band), given the block at `block` and
 // the anchor's block `anchor_block`: predicted = anchor_ms * mult - sub + additive (per cycle and

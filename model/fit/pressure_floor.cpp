@@ -4,7 +4,7 @@
 #include <cmath>
 #include <numeric>
 
-#include "model/fit/band_fit.hpp"
+#include "model/fit/band_fit_internal.hpp"
 
 namespace noisemon::model {
 namespace {
@@ -95,7 +95,7 @@ double band_noise_bandwidth(const dsp::ThirdOctaveBand& band, double f_max_hz) {
   double sum = 0.0;
   for (std::size_t i = 0; i <= n; ++i) {
     const double f = lo * std::exp(step * static_cast<double>(i));
-    sum += (i == 0 || i == n ? 0.5 : 1.0) * band_power_response(band, f) * f;
+    sum += (i == 0 || i == n ? 0.5 : 1.0) * band_fit_internal::band_power_response(band, f) * f;
   }
   return sum * step;
 }

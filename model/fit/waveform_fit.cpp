@@ -703,14 +703,12 @@ std::optional<WaveformModel> linear_estimate_from_data(std::span<const double> u
   return m;
 }
 
-WaveformFitResult fit_waveform(std::span<const double> u, std::span<const double> y, const WaveformFitOptions& opt) {
-  validate(u, y, opt);
-  const auto t0 = std::chrono::steady_clock::now();
-  const bool second_free = std::any_of(opt.free_params.begin(), opt.free_params.end(),
-                                       [](const std::string& n) { return n.find("_2") != std::string::npos; });
+namespace {
 
-  // Start: the given model, or the nearest of the presets (resonance below Nyquist) and the data's estimate.
-  WaveformFitResult res;
+// The start (see the header): the given model (its free gains refined by least squares where that lowers the
+// training error), or the nearest of the presets whose resonance lies below Nyquist and the data's linear estimate.
+void choose_start(std::span<const double> u, std::span<const double> y, const WaveformFitOptions& opt,
+                  WaveformFitResult& res) {
   auto refine = [&](WaveformModel m) {
     if (opt.refine_start_gains)
       least_squares_gains(m, opt.fs_hz, opt.sim, steps_for(m, opt.fs_hz, opt.sim, u, opt.train), u, y, opt.train,
@@ -730,54 +728,48 @@ WaveformFitResult fit_waveform(std::span<const double> u, std::span<const double
       res.start = refined;
       res.start_train_rms = r;
     }
-  } else {
-    res.start_train_rms = std::numeric_limits<double>::infinity();
-    for (const std::string& name : preset_names()) {
-      WaveformModel m;
-      m.block = preset(name);
-      if (std::sqrt(m.block.k1 / m.block.m) / (2.0 * std::numbers::pi) >= 0.5 * opt.fs_hz) continue;
-      m = refine(m);
-      const double r = rms_of(m);
-      if (r < res.start_train_rms) {
-        res.start = m;
-        res.start_name = name;
-        res.start_train_rms = r;
-      }
-    }
-    if (auto est = linear_estimate_from_data(u, y, opt.fs_hz, opt.train, opt.sim)) {
-      const double r = rms_of(*est);
-      if (r < res.start_train_rms) {
-        res.start = *est;
-        res.start_name = "data";
-        res.start_train_rms = r;
-      }
-    }
-    if (!std::isfinite(res.start_train_rms))
-      throw std::runtime_error("waveform fit: no usable start (no preset below Nyquist and no stable linear estimate)");
+    return;
   }
-  if (second_free && !res.start.has_second_mode)
-    throw std::invalid_argument("waveform fit: second-mode parameters are free but the start has no second mode");
+  res.start_train_rms = std::numeric_limits<double>::infinity();
+  for (const std::string& name : preset_names()) {
+    WaveformModel m;
+    m.block = preset(name);
+    if (std::sqrt(m.block.k1 / m.block.m) / (2.0 * std::numbers::pi) >= 0.5 * opt.fs_hz) continue;
+    m = refine(m);
+    const double r = rms_of(m);
+    if (r < res.start_train_rms) {
+      res.start = m;
+      res.start_name = name;
+      res.start_train_rms = r;
+    }
+  }
+  if (auto est = linear_estimate_from_data(u, y, opt.fs_hz, opt.train, opt.sim)) {
+    const double r = rms_of(*est);
+    if (r < res.start_train_rms) {
+      res.start = *est;
+      res.start_name = "data";
+      res.start_train_rms = r;
+    }
+  }
+  if (!std::isfinite(res.start_train_rms))
+    throw std::runtime_error("waveform fit: no usable start (no preset below Nyquist and no stable linear estimate)");
+}
 
-  FitContext ctx;
-  ctx.u = u;
-  ctx.y = y;
-  ctx.fs = opt.fs_hz;
-  ctx.sim = opt.sim;
-  ctx.train = opt.train;
-  ctx.n_scored = scored_count(opt.train, opt.sim.settle_samples);
-  if (ctx.n_scored <= opt.free_params.size())
-    throw std::invalid_argument("waveform fit: fewer scored samples than free parameters");
-  const double u_rms = signal_rms(u, opt.train), y_rms = signal_rms(y, opt.train);
-
-  WaveformModel current = res.start;
+// The solve from the start, repeated (at most three rounds) while the fitted model needs finer integration steps
+// than it was fitted with. Leaves ctx at the last round's maps; steps and iterations: the last round's step, the
+// iterations of all rounds.
+CoreResult fit_rounds(FitContext& ctx, const WaveformFitOptions& opt, const WaveformModel& start,
+                      std::chrono::steady_clock::time_point t0, int& steps, int& iterations) {
+  const double u_rms = signal_rms(ctx.u, opt.train), y_rms = signal_rms(ctx.y, opt.train);
+  WaveformModel current = start;
   CoreResult core;
-  int steps = 0;
-  int iterations = 0;
+  steps = 0;
+  iterations = 0;
   for (int round = 0; round < 3; ++round) {
-    const int steps_now = steps_for(current, opt.fs_hz, opt.sim, u, opt.train);
+    const int steps_now = steps_for(current, opt.fs_hz, opt.sim, ctx.u, opt.train);
     if (round > 0 && steps_now <= steps) break;
     steps = steps_now;
-    const StateRms st = state_rms(current, opt.fs_hz, opt.sim, steps, u, opt.train);
+    const StateRms st = state_rms(current, opt.fs_hz, opt.sim, steps, ctx.u, opt.train);
     ctx.steps = steps;
     ctx.base = current;
     ctx.maps = make_maps(current, opt.free_params, st, u_rms, y_rms, opt.fs_hz);
@@ -786,24 +778,42 @@ WaveformFitResult fit_waveform(std::span<const double> u, std::span<const double
     current = core.model;
     if (opt.sim.steps_per_sample > 0) break;
   }
-  res.model = current;
-  res.free_params = opt.free_params;
-  res.iterations = iterations;
-  res.converged = core.converged;
-  res.solver_message = core.message;
-  res.steps_per_sample = steps;
+  core.model = current;
+  return core;
+}
 
-  // Uncertainty from the Jacobian at the optimum (in data units).
+using RowMajorMap = Eigen::Map<Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>>;
+
+// The sandwich's meat: the scores J^T r summed over blocks of neighbouring samples (within each range).
+Eigen::MatrixXd block_scores(const RowMajorMap& J, const Eigen::Map<Eigen::VectorXd>& R, const WaveformFitOptions& opt,
+                             std::size_t n, std::size_t p) {
+  Eigen::MatrixXd meat = Eigen::MatrixXd::Zero(static_cast<Eigen::Index>(p), static_cast<Eigen::Index>(p));
+  std::size_t at = 0;
+  for (const SampleRange& seg : opt.train) {
+    const std::size_t len = seg.size() - opt.sim.settle_samples;
+    const std::size_t bl = block_length(n);
+    for (std::size_t b0 = 0; b0 < len; b0 += bl) {
+      const std::size_t b1 = std::min(len, b0 + bl);
+      const auto rows = static_cast<Eigen::Index>(b1 - b0);
+      const Eigen::VectorXd g = J.middleRows(static_cast<Eigen::Index>(at + b0), rows).transpose() *
+                                R.segment(static_cast<Eigen::Index>(at + b0), rows);
+      meat.noalias() += g * g.transpose();
+    }
+    at += len;
+  }
+  return meat;
+}
+
+// The training error and the uncertainty from the Jacobian at the optimum res.model (in data units).
+void add_uncertainty(const FitContext& ctx, const WaveformFitOptions& opt, WaveformFitResult& res) {
   const std::size_t p = ctx.maps.size(), n = ctx.n_scored;
   std::vector<double> theta(p);
-  for (std::size_t k = 0; k < p; ++k) theta[k] = ctx.maps[k].theta(get_parameter(current, ctx.maps[k].name));
+  for (std::size_t k = 0; k < p; ++k) theta[k] = ctx.maps[k].theta(get_parameter(res.model, ctx.maps[k].name));
   std::vector<double> r(n), jac(n * p);
   ctx.residuals(theta.data(), r.data());
   const bool jac_ok = ctx.jacobian(theta.data(), nullptr, jac.data());
   const double sqrt_n = std::sqrt(static_cast<double>(n));
-  Eigen::Map<Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>> J(jac.data(),
-                                                                                       static_cast<Eigen::Index>(n),
-                                                                                       static_cast<Eigen::Index>(p));
+  RowMajorMap J(jac.data(), static_cast<Eigen::Index>(n), static_cast<Eigen::Index>(p));
   Eigen::Map<Eigen::VectorXd> R(r.data(), static_cast<Eigen::Index>(n));
   J *= sqrt_n;
   R *= sqrt_n;
@@ -817,48 +827,63 @@ WaveformFitResult fit_waveform(std::span<const double> u, std::span<const double
   for (std::size_t k = 0; k < p; ++k) {
     const double th = theta[k];
     const auto& m = ctx.maps[k];
-    res.at_bound[k] = (std::isfinite(m.lower) && th <= m.lower + 1e-9) || (std::isfinite(m.upper) && th >= m.upper - 1e-9);
+    res.at_bound[k] =
+        (std::isfinite(m.lower) && th <= m.lower + 1e-9) || (std::isfinite(m.upper) && th >= m.upper - 1e-9);
   }
-  if (jac_ok) {
-    const Eigen::MatrixXd jtj = J.transpose() * J;
-    Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> es(jtj);
-    const Eigen::VectorXd ev = es.eigenvalues();
-    const double tol = ev.maxCoeff() * 1e-14;
-    Eigen::VectorXd inv_ev(ev.size());
-    for (Eigen::Index i = 0; i < ev.size(); ++i) inv_ev(i) = ev(i) > tol ? 1.0 / ev(i) : 0.0;
-    const Eigen::MatrixXd jtj_inv = es.eigenvectors() * inv_ev.asDiagonal() * es.eigenvectors().transpose();
-    const Eigen::MatrixXd cov = res.residual_sigma * res.residual_sigma * jtj_inv;
-    // Sandwich: scores summed over blocks of neighbouring samples (within each range).
-    Eigen::MatrixXd meat = Eigen::MatrixXd::Zero(static_cast<Eigen::Index>(p), static_cast<Eigen::Index>(p));
-    std::size_t at = 0;
-    for (const SampleRange& seg : opt.train) {
-      const std::size_t len = seg.size() - opt.sim.settle_samples;
-      const std::size_t bl = block_length(n);
-      for (std::size_t b0 = 0; b0 < len; b0 += bl) {
-        const std::size_t b1 = std::min(len, b0 + bl);
-        const auto rows = static_cast<Eigen::Index>(b1 - b0);
-        const Eigen::VectorXd g = J.middleRows(static_cast<Eigen::Index>(at + b0), rows).transpose() *
-                                  R.segment(static_cast<Eigen::Index>(at + b0), rows);
-        meat.noalias() += g * g.transpose();
-      }
-      at += len;
-    }
-    const Eigen::MatrixXd cov_b =
-        jtj_inv * meat * jtj_inv * (static_cast<double>(n) / static_cast<double>(n - p));
-    const bool singular = (ev.array() <= tol).any();
-    for (std::size_t k = 0; k < p; ++k) {
-      const auto i = static_cast<Eigen::Index>(k);
-      const double d = std::fabs(ctx.maps[k].derivative(theta[k]));
-      res.sigma[k] = singular ? std::numeric_limits<double>::infinity() : d * std::sqrt(cov(i, i));
-      res.sigma_blocks[k] = singular ? std::numeric_limits<double>::infinity() : d * std::sqrt(cov_b(i, i));
-    }
+  if (!jac_ok) return;
+  const Eigen::MatrixXd jtj = J.transpose() * J;
+  Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> es(jtj);
+  const Eigen::VectorXd ev = es.eigenvalues();
+  const double tol = ev.maxCoeff() * 1e-14;
+  Eigen::VectorXd inv_ev(ev.size());
+  for (Eigen::Index i = 0; i < ev.size(); ++i) inv_ev(i) = ev(i) > tol ? 1.0 / ev(i) : 0.0;
+  const Eigen::MatrixXd jtj_inv = es.eigenvectors() * inv_ev.asDiagonal() * es.eigenvectors().transpose();
+  const Eigen::MatrixXd cov = res.residual_sigma * res.residual_sigma * jtj_inv;
+  const Eigen::MatrixXd meat = block_scores(J, R, opt, n, p);
+  const Eigen::MatrixXd cov_b = jtj_inv * meat * jtj_inv * (static_cast<double>(n) / static_cast<double>(n - p));
+  const bool singular = (ev.array() <= tol).any();
+  for (std::size_t k = 0; k < p; ++k) {
+    const auto i = static_cast<Eigen::Index>(k);
+    const double d = std::fabs(ctx.maps[k].derivative(theta[k]));
+    res.sigma[k] = singular ? std::numeric_limits<double>::infinity() : d * std::sqrt(cov(i, i));
+    res.sigma_blocks[k] = singular ? std::numeric_limits<double>::infinity() : d * std::sqrt(cov_b(i, i));
   }
+}
 
-  const auto held = free_run_errors(current, opt.fs_hz, [&] {
-    WaveformSimOptions s = opt.sim;
-    s.steps_per_sample = steps;
-    return s;
-  }(), u, y, opt.heldout);
+}  // namespace
+
+WaveformFitResult fit_waveform(std::span<const double> u, std::span<const double> y, const WaveformFitOptions& opt) {
+  validate(u, y, opt);
+  const auto t0 = std::chrono::steady_clock::now();
+  const bool second_free = std::any_of(opt.free_params.begin(), opt.free_params.end(),
+                                       [](const std::string& n) { return n.find("_2") != std::string::npos; });
+  WaveformFitResult res;
+  choose_start(u, y, opt, res);
+  if (second_free && !res.start.has_second_mode)
+    throw std::invalid_argument("waveform fit: second-mode parameters are free but the start has no second mode");
+
+  FitContext ctx;
+  ctx.u = u;
+  ctx.y = y;
+  ctx.fs = opt.fs_hz;
+  ctx.sim = opt.sim;
+  ctx.train = opt.train;
+  ctx.n_scored = scored_count(opt.train, opt.sim.settle_samples);
+  if (ctx.n_scored <= opt.free_params.size())
+    throw std::invalid_argument("waveform fit: fewer scored samples than free parameters");
+  int steps = 0, iterations = 0;
+  const CoreResult core = fit_rounds(ctx, opt, res.start, t0, steps, iterations);
+  res.model = core.model;
+  res.free_params = opt.free_params;
+  res.iterations = iterations;
+  res.converged = core.converged;
+  res.solver_message = core.message;
+  res.steps_per_sample = steps;
+  add_uncertainty(ctx, opt, res);
+
+  WaveformSimOptions held_sim = opt.sim;
+  held_sim.steps_per_sample = steps;
+  const auto held = free_run_errors(res.model, opt.fs_hz, held_sim, u, y, opt.heldout);
   for (const auto& e : held) res.heldout_segment_rms.push_back(e.rms());
   const SegmentError hp = pooled(held);
   res.heldout_rms = hp.rms();
