@@ -244,25 +244,8 @@ std::vector<T> per_channel(TableReader& r, const char* key, std::size_t n, T fal
   return out;
 }
 
-void read_comedi(TableReader& top, const std::string& origin, drivers::ComediSourceConfig& c) {
-  TableReader r(top.table("comedi"), "comedi", origin);
-  if (r.node("phase")) {
-    std::string phase;
-    r.string("phase", phase);
-    c.phase = pick<drivers::PhaseSource>(r, "phase", phase, {{"pressure", drivers::PhaseSource::kPressure}, {"cam", drivers::PhaseSource::kCam}});
-  }
-  r.number("cam_threshold_v", c.cam_threshold_v, -100, 100);
-  r.number("cam_edge_deg", c.cam_edge_deg, -360, 360);
-  double initial_ms = 1e-3 * static_cast<double>(c.initial_backoff.count());
-  double max_ms = 1e-3 * static_cast<double>(c.max_backoff.count());
-  r.number("backoff_initial_ms", initial_ms, 0.001, 60000);
-  r.number("backoff_max_ms", max_ms, 0.001, 600000);
-  if (max_ms < initial_ms) r.fail("backoff_max_ms", "must not be below backoff_initial_ms");
-  c.initial_backoff = std::chrono::microseconds(std::llround(initial_ms * 1e3));
-  c.max_backoff = std::chrono::microseconds(std::llround(max_ms * 1e3));
-  read_unsigned(r, "max_consecutive_overruns", c.max_consecutive_overruns, 1000000);
-
-  auto& p = c.pressure;
+// [comedi.pressure]: the pressure (and cam) channel.
+void read_comedi_pressure(TableReader& r, const std::string& origin, drivers::ComediSourceConfig::Pressure& p) {
   TableReader pr(r.table("pressure"), "comedi.pressure", origin);
   pr.string("device", p.device);
   read_int(pr, "subdevice", p.subdevice, -1, 255);
@@ -281,8 +264,10 @@ void read_comedi(TableReader& top, const std::string& origin, drivers::ComediSou
   read_unsigned(pr, "cam_range", p.cam_range, 255);
   read_aref_key(pr, "cam_aref", p.cam_aref);
   pr.reject_unknown();
+}
 
-  auto& e = c.encoder;
+// [comedi.encoder]: the crank encoder's counters.
+void read_comedi_encoder(TableReader& r, const std::string& origin, drivers::ComediSourceConfig::Encoder& e) {
   TableReader er(r.table("encoder"), "comedi.encoder", origin);
   er.string("device", e.device);
   read_int(er, "subdevice", e.subdevice, -1, 255);
@@ -312,12 +297,10 @@ void read_comedi(TableReader& top, const std::string& origin, drivers::ComediSou
   er.integer("counts_per_edge", per_edge, 1, 64);
   e.counts_per_edge = static_cast<std::uint32_t>(per_edge);
   er.reject_unknown();
+}
 
-  auto& m = c.mics;
-  TableReader mr(r.table("mics"), "comedi.mics", origin);
-  mr.string("device", m.device);
-  read_int(mr, "subdevice", m.subdevice, -1, 255);
-  mr.number("scan_rate_hz", m.scan_rate_hz, 8000, 1e7);
+// comedi.mics.channels, and the per-channel range and aref (one value for all or one per channel).
+void read_mic_channels(TableReader& mr, drivers::ComediSourceConfig::Mics& m) {
   if (const toml::node* n = mr.node("channels")) {
     const toml::array* a = n->as_array();
     if (!a || a->empty() || a->size() > drivers::SampleBlock::kMaxChannels)
@@ -342,6 +325,16 @@ void read_comedi(TableReader& top, const std::string& origin, drivers::ComediSou
     m.channels[i].range = ranges[i];
     m.channels[i].aref = arefs[i];
   }
+}
+
+// [comedi.mics]: the microphone channels, their sensitivities and positions.
+void read_comedi_mics(TableReader& r, const std::string& origin, drivers::ComediSourceConfig::Mics& m) {
+  TableReader mr(r.table("mics"), "comedi.mics", origin);
+  mr.string("device", m.device);
+  read_int(mr, "subdevice", m.subdevice, -1, 255);
+  mr.number("scan_rate_hz", m.scan_rate_hz, 8000, 1e7);
+  read_mic_channels(mr, m);
+  const std::size_t n = m.channels.size();
   if (mr.node("sensitivity_mv_per_pa") || n != m.sensitivity_mv_per_pa.size())
     m.sensitivity_mv_per_pa = per_channel<double>(mr, "sensitivity_mv_per_pa", n, 0.0, [&](const toml::node& v, const char* key) {
       if (!v.is_number() || !(*v.value<double>() > 0.0)) mr.fail(key, "expected positive numbers (mV/Pa)");
@@ -353,6 +346,29 @@ void read_comedi(TableReader& top, const std::string& origin, drivers::ComediSou
   mr.number("radius_m", m.radius_m, 0.1, 100);
   mr.number("speed_of_sound_m_s", m.speed_of_sound_m_s, 100, 1000);
   mr.reject_unknown();
+}
+
+void read_comedi(TableReader& top, const std::string& origin, drivers::ComediSourceConfig& c) {
+  TableReader r(top.table("comedi"), "comedi", origin);
+  if (r.node("phase")) {
+    std::string phase;
+    r.string("phase", phase);
+    c.phase = pick<drivers::PhaseSource>(
+        r, "phase", phase, {{"pressure", drivers::PhaseSource::kPressure}, {"cam", drivers::PhaseSource::kCam}});
+  }
+  r.number("cam_threshold_v", c.cam_threshold_v, -100, 100);
+  r.number("cam_edge_deg", c.cam_edge_deg, -360, 360);
+  double initial_ms = 1e-3 * static_cast<double>(c.initial_backoff.count());
+  double max_ms = 1e-3 * static_cast<double>(c.max_backoff.count());
+  r.number("backoff_initial_ms", initial_ms, 0.001, 60000);
+  r.number("backoff_max_ms", max_ms, 0.001, 600000);
+  if (max_ms < initial_ms) r.fail("backoff_max_ms", "must not be below backoff_initial_ms");
+  c.initial_backoff = std::chrono::microseconds(std::llround(initial_ms * 1e3));
+  c.max_backoff = std::chrono::microseconds(std::llround(max_ms * 1e3));
+  read_unsigned(r, "max_consecutive_overruns", c.max_consecutive_overruns, 1000000);
+  read_comedi_pressure(r, origin, c.pressure);
+  read_comedi_encoder(r, origin, c.encoder);
+  read_comedi_mics(r, origin, c.mics);
   r.reject_unknown();
 }
 

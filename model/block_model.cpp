@@ -267,8 +267,8 @@ void BlockModel::Impl::reset() {
 }
 
 // Band-limited input at stage `stage` of sub-interval `index` of the current sample interval [n, n+1]
-// divided into base_steps 2^level parts.
-double BlockModel::Impl::input_at(int level, int index, int stage) const {
+// divided into base_steps 2^level parts. Inline: GCC's size heuristics otherwise leave it a call in the step.
+inline double BlockModel::Impl::input_at(int level, int index, int stage) const {
   const double* window = &hist[pos];
   const int n = base_steps << level;
   if (stage == kStages - 1 && index == n - 1)  // sample n + 1 (a held input still has sample n's value)
@@ -280,21 +280,25 @@ double BlockModel::Impl::input_at(int level, int index, int stage) const {
   return dot_taps(w.data(), window);
 }
 
-// Newton's method on the stage velocities V (stage positions follow as Z = z0 + hA V):
+namespace {
+
+// The stage equations of one step from (z0, v0) with stage inputs U, in the stage velocities V (stage positions
+// follow as Z = z0 + hA V):
 //   G(V) = V - v0 - hA F(Z, V, U) = 0,  F = (U - k1 Z - k3 Z^3 - b1 V - b3 V^3) / m,
-// with the analytic Jacobian J = I + hA (diag(Pz) hA + diag(Pv)), Pz = (k1 + 3 k3 Z^2)/m,
-// Pv = (b1 + 3 b3 V^2)/m. `damped` halves a step until the residual decreases (a globalisation for
-// far-off starts on the cubic terms).
-// Scaling: with the h-scaled tableau every term of G is a velocity (the unknowns are O(0.01..100) m/s
-// whether u is 1e5 or 1e9 Pa), and the convergence test is relative to the largest term, so doubles
-// need no further nondimensionalisation.
-bool BlockModel::Impl::solve_stages(const RadauTables& t, double z0, double v0, const Vec3& U, Vec3& V,
-                                    bool damped, int max_iter) const {
-  const double k1 = p.k1, k3 = p.k3, b1 = p.b1, b3 = p.b3;
-  const Mat3& hA = t.hA;
-  const auto& q = t.q;
-  const double h = t.h;
-  auto residual = [&](const Vec3& Vt, Vec3& G, Vec3& Pz, Vec3& Pv, double& scale) {
+// with the analytic Jacobian J = I + hA (diag(Pz) hA + diag(Pv)), Pz = (k1 + 3 k3 Z^2)/m, Pv = (b1 + 3 b3 V^2)/m.
+// Scaling: with the h-scaled tableau every term of G is a velocity (the unknowns are O(0.01..100) m/s whether u is
+// 1e5 or 1e9 Pa), and the convergence test is relative to the largest term, so doubles need no further
+// nondimensionalisation.
+struct StageEquations {
+  double k1, k3, b1, b3, inv_m;
+  const RadauTables& t;
+  double z0, v0;
+  const Vec3& U;
+
+  // G(Vt) into G, with the Jacobian's diagonal pieces Pz, Pv and the size of the terms that cancel in G (`scale`,
+  // which sets the attainable tolerance); returns max |G_i|.
+  double residual(const Vec3& Vt, Vec3& G, Vec3& Pz, Vec3& Pv, double& scale) const {
+    const Mat3& hA = t.hA;
     Vec3 Z, F;
     double fmax = 0.0;
     for (int i = 0; i < kStages; ++i) Z[i] = z0 + hA[i][0] * Vt[0] + hA[i][1] * Vt[1] + hA[i][2] * Vt[2];
@@ -312,21 +316,20 @@ bool BlockModel::Impl::solve_stages(const RadauTables& t, double z0, double v0, 
       norm = std::max(norm, std::fabs(G[i]));
       vmax = std::max(vmax, std::fabs(Vt[i]));
     }
-    scale = vmax + h * fmax;  // size of the terms that cancel in G: sets the attainable tolerance
+    scale = vmax + t.h * fmax;
     return norm;
-  };
+  }
 
-  Vec3 G, Pz, Pv;
-  double scale = 0.0;
-  double gnorm = residual(V, G, Pz, Pv, scale);
-  for (int it = 0; it < max_iter; ++it) {
-    if (!std::isfinite(gnorm)) return false;
+  // The Newton correction d solving J d = -G, by cofactors (J is well conditioned: I plus a positive-weighted
+  // tableau term).
+  Vec3 correction(const Vec3& G, const Vec3& Pz, const Vec3& Pv) const {
+    const Mat3& hA = t.hA;
+    const auto& q = t.q;
     Mat3 J;
     for (int i = 0; i < kStages; ++i)
       for (int k = 0; k < kStages; ++k)
         J[i][k] = (i == k ? 1.0 : 0.0) + q[0][i][k] * Pz[0] + q[1][i][k] * Pz[1] + q[2][i][k] * Pz[2] +
                   hA[i][k] * Pv[k];
-    // Solve J d = -G by cofactors (J is well conditioned: I plus a positive-weighted tableau term).
     const double c00 = J[1][1] * J[2][2] - J[1][2] * J[2][1];
     const double c01 = J[1][2] * J[2][0] - J[1][0] * J[2][2];
     const double c02 = J[1][0] * J[2][1] - J[1][1] * J[2][0];
@@ -339,37 +342,52 @@ bool BlockModel::Impl::solve_stages(const RadauTables& t, double z0, double v0, 
                       (J[0][2] * J[1][0] - J[0][0] * J[1][2]) * G[2]);
     d[2] = inv_det * (c02 * G[0] + (J[0][1] * J[2][0] - J[0][0] * J[2][1]) * G[1] +
                       (J[0][0] * J[1][1] - J[0][1] * J[1][0]) * G[2]);
+    return d;
+  }
+
+  // Whether the full step V + d already solves the equations to within `tol`. F is a cubic polynomial, so the
+  // residual after the full step is exactly the Taylor remainder
+  // G(V + d) = (hA / m) [k3 (3 Z dZ^2 + dZ^3) + b3 (3 V d^2 + d^3)], dZ = hA d: no new residual and Jacobian needed.
+  bool full_step_solves(const Vec3& V, const Vec3& d, double tol) const {
+    const Mat3& hA = t.hA;
+    Vec3 rem;
+    for (int j = 0; j < kStages; ++j) {
+      const double dz = hA[j][0] * d[0] + hA[j][1] * d[1] + hA[j][2] * d[2];
+      const double zj = z0 + hA[j][0] * V[0] + hA[j][1] * V[1] + hA[j][2] * V[2];
+      rem[j] = (k3 * dz * dz * (3.0 * zj + dz) + b3 * d[j] * d[j] * (3.0 * V[j] + d[j])) * inv_m;
+    }
+    double rnorm = 0.0;
+    for (int i = 0; i < kStages; ++i)
+      rnorm = std::max(rnorm, std::fabs(hA[i][0] * rem[0] + hA[i][1] * rem[1] + hA[i][2] * rem[2]));
+    return rnorm <= tol;
+  }
+};
+
+}  // namespace
+
+// Newton's method on the stage equations from the start guess V. `damped` halves a step until the residual
+// decreases (a globalisation for far-off starts on the cubic terms).
+bool BlockModel::Impl::solve_stages(const RadauTables& t, double z0, double v0, const Vec3& U, Vec3& V,
+                                    bool damped, int max_iter) const {
+  const StageEquations eq{p.k1, p.k3, p.b1, p.b3, inv_m, t, z0, v0, U};
+  Vec3 G, Pz, Pv;
+  double scale = 0.0;
+  double gnorm = eq.residual(V, G, Pz, Pv, scale);
+  for (int it = 0; it < max_iter; ++it) {
+    if (!std::isfinite(gnorm)) return false;
+    const Vec3 d = eq.correction(G, Pz, Pv);
     const double dnorm = std::max({std::fabs(d[0]), std::fabs(d[1]), std::fabs(d[2])});
     // Converged once the Newton correction is negligible against the terms of the equation; by
     // quadratic convergence the corrected iterate is then accurate far beyond that.
-    if (dnorm <= kNewtonTol * scale) {
+    if (dnorm <= kNewtonTol * scale || (!damped && eq.full_step_solves(V, d, kNewtonTol * scale))) {
       for (int i = 0; i < kStages; ++i) V[i] += d[i];
       return true;
     }
-    if (!damped) {
-      // F is a cubic polynomial, so the residual after the full step is exactly the Taylor remainder
-      // G(V + d) = (hA / m) [k3 (3 Z dZ^2 + dZ^3) + b3 (3 V d^2 + d^3)], dZ = hA d: if it is already
-      // negligible, accept without another residual and Jacobian (usually saves the second iteration).
-      Vec3 rem;
-      for (int j = 0; j < kStages; ++j) {
-        const double dz = hA[j][0] * d[0] + hA[j][1] * d[1] + hA[j][2] * d[2];
-        const double zj = z0 + hA[j][0] * V[0] + hA[j][1] * V[1] + hA[j][2] * V[2];
-        rem[j] = (k3 * dz * dz * (3.0 * zj + dz) + b3 * d[j] * d[j] * (3.0 * V[j] + d[j])) * inv_m;
-      }
-      double rnorm = 0.0;
-      for (int i = 0; i < kStages; ++i)
-        rnorm = std::max(rnorm, std::fabs(hA[i][0] * rem[0] + hA[i][1] * rem[1] + hA[i][2] * rem[2]));
-      if (rnorm <= kNewtonTol * scale) {
-        for (int i = 0; i < kStages; ++i) V[i] += d[i];
-        return true;
-      }
-    }
-
     double lambda = 1.0;
     Vec3 Vn;
     for (int tries = 0;; ++tries) {
       for (int i = 0; i < kStages; ++i) Vn[i] = V[i] + lambda * d[i];
-      const double gn = residual(Vn, G, Pz, Pv, scale);
+      const double gn = eq.residual(Vn, G, Pz, Pv, scale);
       if (!damped || (std::isfinite(gn) && gn < gnorm) || tries >= 30) {
         gnorm = gn;
         break;

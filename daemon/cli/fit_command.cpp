@@ -237,13 +237,9 @@ bool matches_any(const std::vector<std::string>& patterns, const std::string& na
   return false;
 }
 
-FitCommandResult fit_band_mode(const FitCommandOptions& o, std::FILE* out) {
-  const auto t0 = std::chrono::steady_clock::now();
-  const std::vector<model::BlockParam> free = parse_free_option(o.free);  // checked before the slow work
-  ProgressLine line(o.progress);
-  const model::BandDataset data = load_band_dataset(o.data, out, line);
-
-  const std::vector<std::string> held = flatten_lists(o.holdout), trn = flatten_lists(o.train);
+// Every --holdout / --train pattern must name at least one condition.
+void check_patterns(const model::BandDataset& data, const std::vector<std::string>& held,
+                    const std::vector<std::string>& trn) {
   for (const auto* list : {&held, &trn})
     for (const std::string& p : *list) {
       bool any = false;
@@ -252,62 +248,88 @@ FitCommandResult fit_band_mode(const FitCommandOptions& o, std::FILE* out) {
         throw std::runtime_error(std::string(list == &held ? "--holdout " : "--train ") + p +
                                  ": matches no condition (the data hold " + condition_names(data) + ")");
     }
+}
 
-  FitCommandResult res;
-  res.mode = "band";
+// Which fired conditions train and which are held out, and the bands each is scored on (none for the reference
+// runs: motored and background).
+struct BandSplit {
   std::vector<std::size_t> train, heldout;
-  std::vector<std::vector<char>> scored(data.conditions.size(), std::vector<char>(data.band_count(), 0));
+  std::vector<std::vector<char>> scored;
+};
+
+BandSplit split_conditions(const model::BandDataset& data, const std::vector<std::string>& held,
+                           const std::vector<std::string>& trn, FitCommandResult& res) {
+  BandSplit split;
+  split.scored.assign(data.conditions.size(), std::vector<char>(data.band_count(), 0));
   const std::vector<std::vector<char>> at_floor = model::floor_limited_bands(data);
   for (std::size_t k = 0; k < data.conditions.size(); ++k) {
     const model::ConditionInfo& info = data.conditions[k].info;
     if (info.motored || info.background) continue;  // reference runs: never scored
     for (std::size_t b = 0; b < data.band_count(); ++b)
-      scored[k][b] = !data.bands[b].nyquist_cut && !data.band_line_free(k, b) && !at_floor[k][b];
+      split.scored[k][b] = !data.bands[b].nyquist_cut && !data.band_line_free(k, b) && !at_floor[k][b];
     if (matches_any(held, info.name)) {
-      heldout.push_back(k);
+      split.heldout.push_back(k);
       res.heldout_sets.push_back(info.name);
     } else if (trn.empty() || matches_any(trn, info.name)) {
-      train.push_back(k);
+      split.train.push_back(k);
       res.train_sets.push_back(info.name);
     }
   }
-  if (train.empty()) throw std::runtime_error("no fired condition left to train on (check --train / --holdout)");
+  if (split.train.empty()) throw std::runtime_error("no fired condition left to train on (check --train / --holdout)");
+  return split;
+}
 
-  model::FitSetup setup;
-  setup.data = &data;
-  setup.train = train;
-  setup.scored = scored;
-  setup.fit_cycles = o.fit_cycles;
-
-  // Start: the given model, or the Table 4.1 preset with the lowest training gap.
+// The start: the given model, or the Table 4.1 preset with the lowest training gap (each one's gap printed).
+model::ExtendedModel start_model(const FitCommandOptions& o, const model::FitSetup& setup, ProgressLine& line,
+                                 std::FILE* out, std::string& start_name) {
   model::ExtendedModel start;
   if (!o.model.empty()) {
-    start.block = resolve_model(o.model, &res.start_name);
-  } else {
-    double best = std::numeric_limits<double>::infinity();
-    model::FitSetup ev = setup;
-    ev.evaluate_only = true;
-    for (const std::string& name : model::preset_names()) {
-      model::ExtendedModel m;
-      m.block = model::preset(name);
-      line.show("start: trying preset " + name);
-      const model::Anchor an = model::make_anchor(data, m.block, train, o.fit_cycles, false);
-      const double rms = model::refit_on_anchor(ev, an, m).train_rms_db;
-      line.done();
-      std::fprintf(out, "preset %-22s train RMS %.3f dB\n", name.c_str(), rms);
-      if (rms < best) {
-        best = rms;
-        start = m;
-        res.start_name = name;
-      }
+    start.block = resolve_model(o.model, &start_name);
+    return start;
+  }
+  double best = std::numeric_limits<double>::infinity();
+  model::FitSetup ev = setup;
+  ev.evaluate_only = true;
+  for (const std::string& name : model::preset_names()) {
+    model::ExtendedModel m;
+    m.block = model::preset(name);
+    line.show("start: trying preset " + name);
+    const model::Anchor an = model::make_anchor(*setup.data, m.block, setup.train, o.fit_cycles, false);
+    const double rms = model::refit_on_anchor(ev, an, m).train_rms_db;
+    line.done();
+    std::fprintf(out, "preset %-22s train RMS %.3f dB\n", name.c_str(), rms);
+    if (rms < best) {
+      best = rms;
+      start = m;
+      start_name = name;
     }
   }
+  return start;
+}
+
+FitCommandResult fit_band_mode(const FitCommandOptions& o, std::FILE* out) {
+  const auto t0 = std::chrono::steady_clock::now();
+  const std::vector<model::BlockParam> free = parse_free_option(o.free);  // checked before the slow work
+  ProgressLine line(o.progress);
+  const model::BandDataset data = load_band_dataset(o.data, out, line);
+  const std::vector<std::string> held = flatten_lists(o.holdout), trn = flatten_lists(o.train);
+  check_patterns(data, held, trn);
+
+  FitCommandResult res;
+  res.mode = "band";
+  const BandSplit split = split_conditions(data, held, trn, res);
+  model::FitSetup setup;
+  setup.data = &data;
+  setup.train = split.train;
+  setup.scored = split.scored;
+  setup.fit_cycles = o.fit_cycles;
+  const model::ExtendedModel start = start_model(o, setup, line, out, res.start_name);
   setup.free = free.empty() ? model::default_free_params(start.block) : free;
   setup.progress = [&](const model::FitProgress& p) {
     line.show("fit: anchor " + std::to_string(p.anchor) + " iteration " + std::to_string(p.iteration) +
               "  train gap " + format_g(p.rms_db, 4) + " dB  " + p.note);
   };
-  res.start_train_rms = mean_rms(data, train, start, scored);
+  res.start_train_rms = mean_rms(data, split.train, start, split.scored);
   const model::FitOutcome fit = model::fit_model(setup, start);
   line.done();
   std::fprintf(out, "Ceres: %d iterations over %d time-domain anchors, %s\n", fit.iterations, fit.anchors,
@@ -321,8 +343,8 @@ FitCommandResult fit_band_mode(const FitCommandOptions& o, std::FILE* out) {
   }
   res.units = "dB";
   line.show("scoring every cycle ...");
-  res.train_rms = mean_rms(data, train, fit.model, scored);
-  res.heldout_rms = mean_rms(data, heldout, fit.model, scored);
+  res.train_rms = mean_rms(data, split.train, fit.model, split.scored);
+  res.heldout_rms = mean_rms(data, split.heldout, fit.model, split.scored);
   line.done();
   res.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   return res;

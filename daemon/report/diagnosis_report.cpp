@@ -116,48 +116,39 @@ const model::ModelScore* best_model(const model::DiagnosisResult& r) {
   return r.candidates.empty() ? nullptr : &r.candidates.front();
 }
 
-}  // namespace
-
-json band_report_json(const model::BandDataset& data, const model::DiagnosisResult& r,
-                      const model::DiagnosisOptions& o, const ReportContext& ctx) {
+// What both reports start with: the tool, the mode, the units, the command, the data and the metric.
+json report_head(const char* mode, const std::string& units, const ReportContext& ctx, const std::string& metric) {
   json j;
   j["tool"] = "noisemon diagnose";
-  j["mode"] = "band";
-  j["units"] = "dB";
+  j["mode"] = mode;
+  j["units"] = units;
   j["command"] = ctx.command;
   j["data"] = ctx.data;
-  j["metric"] =
-      "heldout_rms_db: the ranking gap, sqrt(thesis band gap^2 + microphone-calibration residual^2 + crank-window "
-      "gap^2) over held-out conditions; *_thesis_rms_db: the thesis metric alone (attenuation-curve RMS over the "
-      "scored 1/3-octave bands, cycle-averaged, per held-out condition, averaged)";
+  j["metric"] = metric;
+  return j;
+}
 
-  std::vector<std::string> train, held, refs;
-  for (std::size_t k : r.train) train.push_back(data.conditions[k].info.name);
-  for (std::size_t k : r.heldout) held.push_back(data.conditions[k].info.name);
-  for (std::size_t k : r.reference) refs.push_back(data.conditions[k].info.name);
-  j["protocol"] = {{"train", train},
-                   {"heldout", held},
-                   {"reference", refs},
-                   {"leave_one_condition_out", r.leave_one_out},
-                   {"bootstrap_replicates", o.bootstrap},
-                   {"seed", o.seed},
-                   {"tolerance_db", o.tolerance_db},
-                   {"min_closed_fraction", o.min_closed_fraction},
-                   {"floor_margin_db", o.floor_margin_db},
-                   {"pressure_floor_margin_db", model::kFloorMarginDb},
-                   {"fit_cycles", o.fit_cycles}};
+std::vector<std::string> condition_names(const model::BandDataset& data, const std::vector<std::size_t>& which) {
+  std::vector<std::string> names;
+  for (std::size_t k : which) names.push_back(data.conditions[k].info.name);
+  return names;
+}
 
-  j["baseline"] = {{"model", r.model_name},
-                   {"train_rms_db", number(r.baseline.train_rms_db)},
-                   {"heldout_rms_db", number(r.baseline.heldout_gap_db)},
-                   {"heldout_thesis_rms_db", number(r.baseline.heldout_thesis_rms_db)},
-                   {"parameters", r.baseline.parameters},
-                   {"params", model_params(r.baseline.model)}};
+json band_protocol(const model::BandDataset& data, const model::DiagnosisResult& r, const model::DiagnosisOptions& o) {
+  return {{"train", condition_names(data, r.train)},
+          {"heldout", condition_names(data, r.heldout)},
+          {"reference", condition_names(data, r.reference)},
+          {"leave_one_condition_out", r.leave_one_out},
+          {"bootstrap_replicates", o.bootstrap},
+          {"seed", o.seed},
+          {"tolerance_db", o.tolerance_db},
+          {"min_closed_fraction", o.min_closed_fraction},
+          {"floor_margin_db", o.floor_margin_db},
+          {"pressure_floor_margin_db", model::kFloorMarginDb},
+          {"fit_cycles", o.fit_cycles}};
+}
 
-  const model::Where& w = r.where;
-  json where;
-  where["bands_hz"] = numbers(w.band_hz);
-  where["band_notes"] = w.band_notes;
+json band_conditions(const model::BandDataset& data, const model::Where& w) {
   json conds = json::array();
   for (std::size_t k = 0; k < data.conditions.size(); ++k) {
     const model::ConditionData& d = data.conditions[k];
@@ -171,26 +162,39 @@ json band_report_json(const model::BandDataset& data, const model::DiagnosisResu
                      {"cycles", d.cycle_count()},
                      {"mics", d.mics}});
   }
-  where["conditions"] = conds;
+  return conds;
+}
+
+json band_floors(const model::Where& w) {
+  return {{"pressure_judged_by", w.pressure_floor_judged_by},
+          {"pressure_stated_bar", numbers(w.pressure_floor_stated_bar)},
+          {"pressure_estimated_bar", numbers(w.pressure_floor_estimated_bar)},
+          {"pressure_estimated_grid_bar", numbers(w.pressure_floor_estimated_grid_bar)},
+          {"pressure_floor_db", rows(w.pressure_floor_db)},
+          {"floor_limited_bands", w.floor_limited_bands},
+          {"floor_limited_windows", w.floor_limited_windows},
+          {"mic_floor_db", numbers(w.mic_floor_db)},
+          {"mic_floor_source", w.mic_floor_source},
+          {"summary", w.floor_summary}};
+}
+
+// The per-band, per-condition, per-microphone and per-window figures of where the gap is.
+json band_where(const model::BandDataset& data, const model::DiagnosisResult& r) {
+  const model::Where& w = r.where;
+  json where;
+  where["bands_hz"] = numbers(w.band_hz);
+  where["band_notes"] = w.band_notes;
+  where["conditions"] = band_conditions(data, w);
   where["scored"] = flags(w.scored);
   where["floor_limited"] = flags(w.floor_limited);
-  where["heldout_conditions"] = held;
+  where["heldout_conditions"] = condition_names(data, r.heldout);
   where["gap_db"] = rows(w.gap);  // baseline, per held-out condition and band: measured - predicted
   where["gap_per_band_rms_db"] = numbers(w.gap_per_band_rms);
   where["gap_per_condition_rms_db"] = numbers(w.gap_per_condition_rms);
   where["noise_dominated"] = flags(w.noise_dominated);
   where["noise_floor"] = {{"combustion_independent_db", numbers(w.floor_db)},
                           {"background_db", numbers(w.background_db)}};
-  where["floors"] = {{"pressure_judged_by", w.pressure_floor_judged_by},
-                     {"pressure_stated_bar", numbers(w.pressure_floor_stated_bar)},
-                     {"pressure_estimated_bar", numbers(w.pressure_floor_estimated_bar)},
-                     {"pressure_estimated_grid_bar", numbers(w.pressure_floor_estimated_grid_bar)},
-                     {"pressure_floor_db", rows(w.pressure_floor_db)},
-                     {"floor_limited_bands", w.floor_limited_bands},
-                     {"floor_limited_windows", w.floor_limited_windows},
-                     {"mic_floor_db", numbers(w.mic_floor_db)},
-                     {"mic_floor_source", w.mic_floor_source},
-                     {"summary", w.floor_summary}};
+  where["floors"] = band_floors(w);
   where["amplitude"] = {{"cpl_overall_db", numbers(w.cpl_overall_db)},
                         {"mean_gap_db", numbers(w.mean_gap_db)},
                         {"slope_db_per_db", number(w.amplitude_slope_db_per_db)},
@@ -216,55 +220,39 @@ json band_report_json(const model::BandDataset& data, const model::DiagnosisResu
     where["mic_residual_best_db"] = rows(best->mic_resid);
   }
   where["mic_residual_baseline_db"] = rows(r.baseline.mic_resid);
-  j["where"] = where;
-
-  json cands = json::array();
-  for (const auto& c : r.candidates) cands.push_back(score_json(c));
-  j["candidates"] = cands;
-  json combos = json::array();
-  for (const auto& c : r.combinations) combos.push_back(score_json(c));
-  j["combinations"] = combos;
-
-  const model::Verdict& v = r.verdict;
-  j["verdict"] = {{"effect", v.effect},
-                  {"also", v.also},
-                  {"heldout_rms_before_db", number(v.heldout_rms_before_db)},
-                  {"heldout_rms_after_db", number(v.heldout_rms_after_db)},
-                  {"heldout_thesis_rms_before_db", number(v.heldout_thesis_before_db)},
-                  {"heldout_thesis_rms_after_db", number(v.heldout_thesis_after_db)},
-                  {"gap_closed_fraction", number(v.gap_closed_fraction)},
-                  {"remaining_db", number(v.heldout_rms_after_db)},
-                  {"noise_db", number(v.noise_db)},
-                  {"band_before_db", numbers(v.band_before_db)},
-                  {"band_after_db", numbers(v.band_after_db)},
-                  {"explanation", v.explanation}};
-  json timing = json::array();
-  for (const auto& [stage, s] : r.timing) timing.push_back({{"stage", stage}, {"seconds", s}});
-  j["timing"] = timing;
-  j["seconds"] = r.seconds;
-  return j;
+  return where;
 }
 
-json waveform_report_json(const model::WaveformDiagnosis& d, const std::string& units,
-                          const std::vector<WaveformTestSet>& tests, const ReportContext& ctx) {
-  const model::WaveformReport rep = model::waveform_report(d);
-  auto params = [](const std::vector<std::pair<std::string, double>>& p) {
-    json o = json::object();
-    for (const auto& [k, v] : p) o[k] = number(v);
-    return o;
-  };
-  json j;
-  j["tool"] = "noisemon diagnose";
-  j["mode"] = "waveform";
-  j["units"] = units;
-  j["command"] = ctx.command;
-  j["data"] = ctx.data;
-  j["metric"] = "free-run simulation RMS error of the output on the held-out sample ranges, in " + units +
-                " (the *_rms_db keys carry it in waveform mode)";
-  j["baseline"] = {{"model", rep.baseline_model},
-                   {"train_rms_db", number(rep.baseline_train_rms)},
-                   {"heldout_rms_db", number(rep.baseline_heldout_rms)},
-                   {"params", params(rep.baseline_params)}};
+json scores_json(const std::vector<model::ModelScore>& scores) {
+  json a = json::array();
+  for (const auto& c : scores) a.push_back(score_json(c));
+  return a;
+}
+
+json band_verdict(const model::Verdict& v) {
+  return {{"effect", v.effect},
+          {"also", v.also},
+          {"heldout_rms_before_db", number(v.heldout_rms_before_db)},
+          {"heldout_rms_after_db", number(v.heldout_rms_after_db)},
+          {"heldout_thesis_rms_before_db", number(v.heldout_thesis_before_db)},
+          {"heldout_thesis_rms_after_db", number(v.heldout_thesis_after_db)},
+          {"gap_closed_fraction", number(v.gap_closed_fraction)},
+          {"remaining_db", number(v.heldout_rms_after_db)},
+          {"noise_db", number(v.noise_db)},
+          {"band_before_db", numbers(v.band_before_db)},
+          {"band_after_db", numbers(v.band_after_db)},
+          {"explanation", v.explanation}};
+}
+
+// ---- waveform mode ----
+
+json named_params(const std::vector<std::pair<std::string, double>>& p) {
+  json o = json::object();
+  for (const auto& [k, v] : p) o[k] = number(v);
+  return o;
+}
+
+json waveform_candidates(const model::WaveformReport& rep) {
   json cands = json::array();
   for (const auto& c : rep.candidates) {
     json x = {{"effect", c.effect},
@@ -273,15 +261,14 @@ json waveform_report_json(const model::WaveformDiagnosis& d, const std::string& 
               {"significant", c.significant},
               {"p_value", number(c.p_value)},
               {"second_round", c.second_round},
-              {"params", params(c.params)}};
+              {"params", named_params(c.params)}};
     if (!c.error.empty()) x["error"] = c.error;
     cands.push_back(x);
   }
-  j["candidates"] = cands;
-  json na = json::array();
-  for (const auto& n : rep.not_applicable) na.push_back({{"effect", n.effect}, {"reason", n.reason}});
-  j["not_applicable"] = na;
-  json bands = json::array();
+  return cands;
+}
+
+json waveform_where(const model::WaveformDiagnosis& d, const model::WaveformReport& rep) {
   json where;
   std::vector<double> hz, before, after, out;
   for (const auto& b : rep.bands) {
@@ -310,7 +297,61 @@ json waveform_report_json(const model::WaveformDiagnosis& d, const std::string& 
                               {"remaining_fraction", number(d.remaining_gap.fraction)},
                               {"remaining_p_value", number(d.remaining_gap.test.p_value)},
                               {"remaining_significant", d.remaining_gap.significant}};
-  j["where"] = where;
+  return where;
+}
+
+json test_sets_json(const std::vector<WaveformTestSet>& tests) {
+  json ts = json::array();
+  for (const auto& t : tests)
+    ts.push_back({{"name", t.name},
+                  {"range", {t.range.begin, t.range.end}},
+                  {"baseline_rms", number(t.baseline_rms)},
+                  {"best_rms", number(t.best_rms)}});
+  return ts;
+}
+
+}  // namespace
+
+json band_report_json(const model::BandDataset& data, const model::DiagnosisResult& r,
+                      const model::DiagnosisOptions& o, const ReportContext& ctx) {
+  json j = report_head(
+      "band", "dB", ctx,
+      "heldout_rms_db: the ranking gap, sqrt(thesis band gap^2 + microphone-calibration residual^2 + crank-window "
+      "gap^2) over held-out conditions; *_thesis_rms_db: the thesis metric alone (attenuation-curve RMS over the "
+      "scored 1/3-octave bands, cycle-averaged, per held-out condition, averaged)");
+  j["protocol"] = band_protocol(data, r, o);
+  j["baseline"] = {{"model", r.model_name},
+                   {"train_rms_db", number(r.baseline.train_rms_db)},
+                   {"heldout_rms_db", number(r.baseline.heldout_gap_db)},
+                   {"heldout_thesis_rms_db", number(r.baseline.heldout_thesis_rms_db)},
+                   {"parameters", r.baseline.parameters},
+                   {"params", model_params(r.baseline.model)}};
+  j["where"] = band_where(data, r);
+  j["candidates"] = scores_json(r.candidates);
+  j["combinations"] = scores_json(r.combinations);
+  j["verdict"] = band_verdict(r.verdict);
+  json timing = json::array();
+  for (const auto& [stage, s] : r.timing) timing.push_back({{"stage", stage}, {"seconds", s}});
+  j["timing"] = timing;
+  j["seconds"] = r.seconds;
+  return j;
+}
+
+json waveform_report_json(const model::WaveformDiagnosis& d, const std::string& units,
+                          const std::vector<WaveformTestSet>& tests, const ReportContext& ctx) {
+  const model::WaveformReport rep = model::waveform_report(d);
+  json j = report_head("waveform", units, ctx,
+                       "free-run simulation RMS error of the output on the held-out sample ranges, in " + units +
+                           " (the *_rms_db keys carry it in waveform mode)");
+  j["baseline"] = {{"model", rep.baseline_model},
+                   {"train_rms_db", number(rep.baseline_train_rms)},
+                   {"heldout_rms_db", number(rep.baseline_heldout_rms)},
+                   {"params", named_params(rep.baseline_params)}};
+  j["candidates"] = waveform_candidates(rep);
+  json na = json::array();
+  for (const auto& n : rep.not_applicable) na.push_back({{"effect", n.effect}, {"reason", n.reason}});
+  j["not_applicable"] = na;
+  j["where"] = waveform_where(d, rep);
   const double before_rms = rep.heldout_rms_before, after_rms = rep.heldout_rms_after;
   j["verdict"] = {{"effect", rep.verdict},
                   {"also", rep.also_significant},
@@ -318,13 +359,7 @@ json waveform_report_json(const model::WaveformDiagnosis& d, const std::string& 
                   {"heldout_rms_after_db", number(after_rms)},
                   {"gap_closed_fraction", number(before_rms > 0 ? 1.0 - after_rms / before_rms : 0.0)},
                   {"remaining_db", number(after_rms)}};
-  json ts = json::array();
-  for (const auto& t : tests)
-    ts.push_back({{"name", t.name},
-                  {"range", {t.range.begin, t.range.end}},
-                  {"baseline_rms", number(t.baseline_rms)},
-                  {"best_rms", number(t.best_rms)}});
-  j["test_sets"] = ts;
+  j["test_sets"] = test_sets_json(tests);
   j["seconds"] = d.seconds;
   return j;
 }

@@ -324,70 +324,57 @@ RunManifest parse_run_json(std::string_view text, const std::string& file) {
   return m;
 }
 
-void parse_pressure_csv(std::string_view text, const std::string& file, double to_pa, RunDir& run) {
-  run.time_s.clear();
-  run.crank_deg.clear();
-  run.pressure_pa.clear();
-  std::vector<std::uint32_t> lines;  // line number of each row, for the checks after reading
-  if (text.substr(0, 3) == "\xEF\xBB\xBF") text.remove_prefix(3);  // UTF-8 byte-order mark
-  std::size_t pos = 0;
-  std::uint32_t line_no = 0;
-  std::uint32_t blank_line = 0;  // first blank line seen (only trailing blank lines are allowed)
-  const auto at = [&](std::uint32_t line) { return file + ": line " + std::to_string(line) + ": "; };
-  while (pos < text.size()) {
-    std::size_t eol = text.find('\n', pos);
-    if (eol == std::string_view::npos) eol = text.size();
-    std::string_view line = text.substr(pos, eol - pos);
-    pos = eol + 1;
-    ++line_no;
-    if (!line.empty() && line.back() == '\r') line.remove_suffix(1);
-    if (line_no == 1) {
-      if (line != kCsvHeader)
-        throw RunDirError(at(1) + "header " + quoted(line) + ", expected \"" + kCsvHeader + "\"");
-      continue;
-    }
-    if (line.find_first_not_of(" \t") == std::string_view::npos) {
-      if (blank_line == 0) blank_line = line_no;
-      continue;
-    }
-    if (blank_line != 0) throw RunDirError(at(blank_line) + "empty line inside the data");
-    double v[3];
-    std::size_t start = 0;
-    for (int i = 0; i < 3; ++i) {
-      const std::size_t comma = i < 2 ? line.find(',', start) : line.size();
-      if (comma == std::string_view::npos)
-        throw RunDirError(at(line_no) + std::to_string(i + 1) + " field(s), expected 3 (time_s,crank_deg,pressure)");
-      const std::string_view field = line.substr(start, comma - start);
-      if (i == 2 && field.find(',') != std::string_view::npos)
-        throw RunDirError(at(line_no) + "more than 3 fields, expected 3 (time_s,crank_deg,pressure)");
-      if (!parse_number(field, v[i])) {
-        static const char* names[3] = {"time_s", "crank_deg", "pressure"};
-        throw RunDirError(at(line_no) + "field " + names[i] + " is " + quoted(field) + ", expected a finite number");
-      }
-      start = comma + 1;
-    }
-    if (!run.time_s.empty()) {
-      if (!(v[0] > run.time_s.back()))
-        throw RunDirError(at(line_no) + "time_s " + std::to_string(v[0]) + " s does not increase (previous row " +
-                          std::to_string(run.time_s.back()) + " s): rows out of order or repeated");
-      if (!(v[1] > run.crank_deg.back()))
-        throw RunDirError(at(line_no) + "crank_deg " + std::to_string(v[1]) + " does not increase (previous row " +
-                          std::to_string(run.crank_deg.back()) + "): crank_deg must be unwrapped and increasing");
-    }
-    // Far beyond any cylinder (1e5 bar): a corrupted field, which would also overflow once converted to Pa.
-    if (!(std::abs(v[2] * to_pa) <= 1e10))
-      throw RunDirError(at(line_no) + "field pressure is " + quoted(line.substr(line.rfind(',') + 1)) +
-                        ", expected a cylinder pressure within +-1e5 bar");
-    run.time_s.push_back(v[0]);
-    run.crank_deg.push_back(v[1]);
-    run.pressure_pa.push_back(v[2] * to_pa);
-    lines.push_back(line_no);
-  }
-  if (line_no == 0) throw RunDirError(file + ": empty file, expected the header \"" + kCsvHeader + "\" and rows");
-  if (run.time_s.size() < 2) throw RunDirError(file + ": " + std::to_string(run.time_s.size()) + " data rows, expected at least 2");
+namespace {
 
-  // Gaps: a crank step far above the encoder's (the median step) means lost samples; so does a sudden change
-  // of the speed the rows imply (time jumping while the crank does not).
+std::string at_line(const std::string& file, std::uint32_t line) {
+  return file + ": line " + std::to_string(line) + ": ";
+}
+
+// The three numbers of the data row on line line_no.
+void parse_csv_row(std::string_view line, const std::string& file, std::uint32_t line_no, double (&v)[3]) {
+  std::size_t start = 0;
+  for (int i = 0; i < 3; ++i) {
+    const std::size_t comma = i < 2 ? line.find(',', start) : line.size();
+    if (comma == std::string_view::npos)
+      throw RunDirError(at_line(file, line_no) + std::to_string(i + 1) +
+                        " field(s), expected 3 (time_s,crank_deg,pressure)");
+    const std::string_view field = line.substr(start, comma - start);
+    if (i == 2 && field.find(',') != std::string_view::npos)
+      throw RunDirError(at_line(file, line_no) + "more than 3 fields, expected 3 (time_s,crank_deg,pressure)");
+    if (!parse_number(field, v[i])) {
+      static const char* names[3] = {"time_s", "crank_deg", "pressure"};
+      throw RunDirError(at_line(file, line_no) + "field " + names[i] + " is " + quoted(field) +
+                        ", expected a finite number");
+    }
+    start = comma + 1;
+  }
+}
+
+// Appends a row (pressure converted to Pa) after checking it against the previous one and the plausible range.
+void append_row(RunDir& run, const double (&v)[3], double to_pa, std::string_view line, const std::string& file,
+                std::uint32_t line_no) {
+  if (!run.time_s.empty()) {
+    if (!(v[0] > run.time_s.back()))
+      throw RunDirError(at_line(file, line_no) + "time_s " + std::to_string(v[0]) +
+                        " s does not increase (previous row " + std::to_string(run.time_s.back()) +
+                        " s): rows out of order or repeated");
+    if (!(v[1] > run.crank_deg.back()))
+      throw RunDirError(at_line(file, line_no) + "crank_deg " + std::to_string(v[1]) +
+                        " does not increase (previous row " + std::to_string(run.crank_deg.back()) +
+                        "): crank_deg must be unwrapped and increasing");
+  }
+  // Far beyond any cylinder (1e5 bar): a corrupted field, which would also overflow once converted to Pa.
+  if (!(std::abs(v[2] * to_pa) <= 1e10))
+    throw RunDirError(at_line(file, line_no) + "field pressure is " + quoted(line.substr(line.rfind(',') + 1)) +
+                      ", expected a cylinder pressure within +-1e5 bar");
+  run.time_s.push_back(v[0]);
+  run.crank_deg.push_back(v[1]);
+  run.pressure_pa.push_back(v[2] * to_pa);
+}
+
+// Gaps: a crank step far above the encoder's (the median step) means lost samples; so does a sudden change of the
+// speed the rows imply (time jumping while the crank does not). lines: the file's line of each row.
+void check_crank_gaps(const RunDir& run, const std::vector<std::uint32_t>& lines, const std::string& file) {
   const std::size_t n = run.time_s.size();
   std::vector<double> steps(n - 1);
   for (std::size_t i = 1; i < n; ++i) steps[i - 1] = run.crank_deg[i] - run.crank_deg[i - 1];
@@ -400,7 +387,7 @@ void parse_pressure_csv(std::string_view text, const std::string& file, double t
                     "crank_deg jumps by %.6g deg from %.6g to %.6g (%.1f encoder steps of %.6g deg); at most %.0f "
                     "steps expected (a few missing encoder samples are interpolated, more are lost data)",
                     d, run.crank_deg[i - 1], run.crank_deg[i], d / step, step, kMaxCrankGapSteps);
-      throw RunDirError(at(lines[i]) + buf);
+      throw RunDirError(at_line(file, lines[i]) + buf);
     }
     if (i >= 2) {
       const double speed = d / (run.time_s[i] - run.time_s[i - 1]);
@@ -411,10 +398,48 @@ void parse_pressure_csv(std::string_view text, const std::string& file, double t
                       "time_s jumps from %.9g to %.9g s while crank_deg moves %.6g deg: the speed changes %.1f-fold "
                       "from the previous row (at most %.0f-fold expected: lost samples or a time error)",
                       run.time_s[i - 1], run.time_s[i], d, std::max(speed / before, before / speed), kMaxCrankGapSteps);
-        throw RunDirError(at(lines[i]) + buf);
+        throw RunDirError(at_line(file, lines[i]) + buf);
       }
     }
   }
+}
+
+}  // namespace
+
+void parse_pressure_csv(std::string_view text, const std::string& file, double to_pa, RunDir& run) {
+  run.time_s.clear();
+  run.crank_deg.clear();
+  run.pressure_pa.clear();
+  std::vector<std::uint32_t> lines;  // line number of each row, for the checks after reading
+  if (text.substr(0, 3) == "\xEF\xBB\xBF") text.remove_prefix(3);  // UTF-8 byte-order mark
+  std::size_t pos = 0;
+  std::uint32_t line_no = 0;
+  std::uint32_t blank_line = 0;  // first blank line seen (only trailing blank lines are allowed)
+  while (pos < text.size()) {
+    std::size_t eol = text.find('\n', pos);
+    if (eol == std::string_view::npos) eol = text.size();
+    std::string_view line = text.substr(pos, eol - pos);
+    pos = eol + 1;
+    ++line_no;
+    if (!line.empty() && line.back() == '\r') line.remove_suffix(1);
+    if (line_no == 1) {
+      if (line != kCsvHeader)
+        throw RunDirError(at_line(file, 1) + "header " + quoted(line) + ", expected \"" + kCsvHeader + "\"");
+      continue;
+    }
+    if (line.find_first_not_of(" \t") == std::string_view::npos) {
+      if (blank_line == 0) blank_line = line_no;
+      continue;
+    }
+    if (blank_line != 0) throw RunDirError(at_line(file, blank_line) + "empty line inside the data");
+    double v[3];
+    parse_csv_row(line, file, line_no, v);
+    append_row(run, v, to_pa, line, file, line_no);
+    lines.push_back(line_no);
+  }
+  if (line_no == 0) throw RunDirError(file + ": empty file, expected the header \"" + kCsvHeader + "\" and rows");
+  if (run.time_s.size() < 2) throw RunDirError(file + ": " + std::to_string(run.time_s.size()) + " data rows, expected at least 2");
+  check_crank_gaps(run, lines, file);
 }
 
 void read_mics_wav(const std::filesystem::path& file, std::uint32_t channels, std::optional<double> full_scale_pa,

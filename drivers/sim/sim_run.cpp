@@ -316,33 +316,60 @@ void fill_encoder_gaps(std::vector<double>& t, std::vector<double>& th, std::vec
   p.swap(p2);
 }
 
-// simulate_acoustics with microphone frames up to t_end_s (at most one cycle past the pressure's end).
-RunDir acoustics(const RunDir& pressure_run, const SimRunSpec& spec, double t_end_s) {
-  const std::string what = "sim acoustics for run \"" + pressure_run.condition.name + "\"";
-  const std::size_t n_given = pressure_run.time_s.size();
-  if (n_given < 16 || pressure_run.crank_deg.size() != n_given || pressure_run.pressure_pa.size() != n_given)
+// A pressure trace on its encoder clock: time (s), crank angle (deg), pressure (Pa).
+struct EncoderTrace {
+  std::vector<double> t, th, p;
+};
+
+// The given run's pressure, checked (enough samples, time and crank angle increasing, a whole cycle) and with its
+// missing encoder samples filled.
+EncoderTrace checked_pressure(const RunDir& run, const std::string& what) {
+  const std::size_t n = run.time_s.size();
+  if (n < 16 || run.crank_deg.size() != n || run.pressure_pa.size() != n)
     throw std::invalid_argument(what + ": too few or inconsistent pressure samples");
-  for (std::size_t i = 1; i < n_given; ++i)
-    if (!(pressure_run.time_s[i] > pressure_run.time_s[i - 1]) || !(pressure_run.crank_deg[i] > pressure_run.crank_deg[i - 1]))
-      throw std::invalid_argument(what + ": time and crank angle must increase (pressure sample " + std::to_string(i) + ")");
-  std::vector<double> t = pressure_run.time_s, th = pressure_run.crank_deg, p = pressure_run.pressure_pa;
-  fill_encoder_gaps(t, th, p, what);
+  for (std::size_t i = 1; i < n; ++i)
+    if (!(run.time_s[i] > run.time_s[i - 1]) || !(run.crank_deg[i] > run.crank_deg[i - 1]))
+      throw std::invalid_argument(what + ": time and crank angle must increase (pressure sample " + std::to_string(i) +
+                                  ")");
+  EncoderTrace tr{run.time_s, run.crank_deg, run.pressure_pa};
+  fill_encoder_gaps(tr.t, tr.th, tr.p, what);
+  if (tr.th.back() - tr.th.front() < 720.0)
+    throw std::invalid_argument(what + ": needs at least one whole cycle (720 deg) of pressure");
+  return tr;
+}
+
+// The time at a crank angle, linear in crank angle (extrapolated from the first or last interval outside).
+double time_at(const EncoderTrace& tr, double theta) {
+  const auto it = std::upper_bound(tr.th.begin(), tr.th.end(), theta);
+  const std::size_t j = std::clamp<std::size_t>(static_cast<std::size_t>(it - tr.th.begin()), 1, tr.t.size() - 1);
+  return tr.t[j - 1] + (tr.t[j] - tr.t[j - 1]) * (theta - tr.th[j - 1]) / (tr.th[j] - tr.th[j - 1]);
+}
+
+// A trace with its first and last whole cycles (by crank angle) repeated as periodic extensions before and after
+// it, far enough before t = 0 for the pre-roll.
+struct ExtendedTrace {
+  EncoderTrace x;
+  std::size_t first_end = 0;  // the samples of the first whole cycle: [0, first_end) of the given trace
+  double last_period = 0.0;   // s
+};
+
+ExtendedTrace extend_periodically(const EncoderTrace& tr) {
+  const std::vector<double>& t = tr.t;
+  const std::vector<double>& th = tr.th;
+  const std::vector<double>& p = tr.p;
   const std::size_t n = t.size();
-  if (th.back() - th.front() < 720.0) throw std::invalid_argument(what + ": needs at least one whole cycle (720 deg) of pressure");
-  const auto time_at = [&](double theta) {  // linear in crank angle
-    const auto it = std::upper_bound(th.begin(), th.end(), theta);
-    const std::size_t j = std::clamp<std::size_t>(static_cast<std::size_t>(it - th.begin()), 1, n - 1);
-    return t[j - 1] + (t[j] - t[j - 1]) * (theta - th[j - 1]) / (th[j] - th[j - 1]);
-  };
-  // First and last whole cycles (by crank angle) as periodic extensions before and after the data.
-  const double first_period = time_at(th.front() + 720.0) - t.front();
-  const double last_period = t.back() - time_at(th.back() - 720.0);
-  const std::size_t first_end = static_cast<std::size_t>(std::lower_bound(th.begin(), th.end(), th.front() + 720.0) - th.begin());
-  const std::size_t last_begin = static_cast<std::size_t>(std::upper_bound(th.begin(), th.end(), th.back() - 720.0) - th.begin());
+  const double first_period = time_at(tr, th.front() + 720.0) - t.front();
+  ExtendedTrace e;
+  e.last_period = t.back() - time_at(tr, th.back() - 720.0);
+  e.first_end = static_cast<std::size_t>(std::lower_bound(th.begin(), th.end(), th.front() + 720.0) - th.begin());
+  const auto last_begin =
+      static_cast<std::size_t>(std::upper_bound(th.begin(), th.end(), th.back() - 720.0) - th.begin());
   const int pre_copies = static_cast<int>(std::ceil((std::max(t.front(), 0.0) + 1.5 * kPreRollS) / first_period));
-  std::vector<double> et, eth, ep;
+  std::vector<double>& et = e.x.t;
+  std::vector<double>& eth = e.x.th;
+  std::vector<double>& ep = e.x.p;
   for (int k = pre_copies; k >= 1; --k)
-    for (std::size_t i = 0; i < first_end; ++i) {
+    for (std::size_t i = 0; i < e.first_end; ++i) {
       et.push_back(t[i] - k * first_period);
       eth.push_back(th[i] - 720.0 * k);
       ep.push_back(p[i]);
@@ -351,79 +378,107 @@ RunDir acoustics(const RunDir& pressure_run, const SimRunSpec& spec, double t_en
   eth.insert(eth.end(), th.begin(), th.end());
   ep.insert(ep.end(), p.begin(), p.end());
   for (std::size_t i = last_begin; i < n; ++i) {
-    et.push_back(t[i] + last_period);
+    et.push_back(t[i] + e.last_period);
     eth.push_back(th[i] + 720.0);
     ep.push_back(p[i]);
   }
+  return e;
+}
 
+// The spec of the virtual engine that hears a given run: the run's operating point (its speed from the data when it
+// states none) and its microphones, if it has them.
+SimRunSpec acoustics_spec(const RunDir& pressure_run, const SimRunSpec& spec, const EncoderTrace& tr) {
   SimRunSpec s = spec;
   s.condition = {pressure_run.condition.name, pressure_run.condition.speed_rpm, pressure_run.condition.load_nm,
                  pressure_run.condition.soi_deg_btdc, pressure_run.condition.motored};
   if (!(s.condition.speed_rpm > 0.0))
-    s.condition.speed_rpm = (th.back() - th.front()) / (6.0 * (t.back() - t.front()));  // deg/s -> rpm
+    s.condition.speed_rpm = (tr.th.back() - tr.th.front()) / (6.0 * (tr.t.back() - tr.t.front()));  // deg/s -> rpm
   s.condition.soi_deg_btdc = std::clamp(s.condition.soi_deg_btdc, 0.0, 60.0);
   if (pressure_run.mic_count > 0 && pressure_run.mic_positions_m.size() == pressure_run.mic_count) {
     s.engine.mic_positions_m = pressure_run.mic_positions_m;
     s.engine.mic_count = pressure_run.mic_count;
   }
   check_config(s);
-  const SimConfig config = run_config(s);
-  const double fine_rate = 2.0 * config.mic_rate_hz;
+  return s;
+}
 
-  // Band-limited resampling of the extended pressure onto the fine grid t = t_ref + k / fine_rate, t_ref on the
-  // 1/1600 s grid (so t = 0 falls on a microphone frame).
-  const double t_ref = std::floor(et.front() * 1600.0) / 1600.0;
+// The pressure on the virtual engine's fine grid t = t0 + k / fine_rate, with the crank angle at each sample.
+struct FinePressure {
+  std::vector<double> p, th;
+  double t0 = 0.0;
+};
+
+// The crank angle at count instants t0 + k / rate, linear in time between the trace's samples.
+std::vector<double> crank_on_grid(const EncoderTrace& e, double t0, double rate, std::size_t count) {
+  std::vector<double> th(count);
+  std::size_t j = 1;
+  for (std::size_t k = 0; k < count; ++k) {
+    const double tk = t0 + static_cast<double>(k) / rate;
+    while (j + 1 < e.t.size() && e.t[j] < tk) ++j;
+    th[k] = e.th[j - 1] + (e.th[j] - e.th[j - 1]) * (tk - e.t[j - 1]) / (e.t[j] - e.t[j - 1]);
+  }
+  return th;
+}
+
+// Band-limited resampling of an (extended) trace onto the fine grid t = t_ref + k / fine_rate, t_ref on the
+// 1/1600 s grid (so t = 0 falls on a microphone frame); the result starts on an even fine index (a microphone
+// frame) inside the resampled data.
+FinePressure resample_fine(const EncoderTrace& e, double fine_rate, const std::string& what) {
+  const double t_ref = std::floor(e.t.front() * 1600.0) / 1600.0;
   dsp::NonuniformResampler resampler(fine_rate, 1);
-  std::vector<double> fine_p;
-  fine_p.reserve(static_cast<std::size_t>((et.back() - t_ref) * fine_rate) + 16);
+  FinePressure fine;
+  fine.p.reserve(static_cast<std::size_t>((e.t.back() - t_ref) * fine_rate) + 16);
   std::vector<double> out(8192), tt(256);
   std::int64_t k_first = -1;
   const auto take = [&](std::size_t got) {
     if (k_first < 0 && got > 0) k_first = resampler.next_output_index() - static_cast<std::int64_t>(got);
-    fine_p.insert(fine_p.end(), out.begin(), out.begin() + static_cast<std::ptrdiff_t>(got));
+    fine.p.insert(fine.p.end(), out.begin(), out.begin() + static_cast<std::ptrdiff_t>(got));
     return got == out.size();  // more may be waiting
   };
-  for (std::size_t i = 0; i < et.size(); i += tt.size()) {
-    const std::size_t m = std::min(tt.size(), et.size() - i);
-    for (std::size_t j = 0; j < m; ++j) tt[j] = et[i + j] - t_ref;
-    if (take(resampler.process(tt.data(), ep.data() + i, m, out.data(), out.size())))
+  for (std::size_t i = 0; i < e.t.size(); i += tt.size()) {
+    const std::size_t m = std::min(tt.size(), e.t.size() - i);
+    for (std::size_t j = 0; j < m; ++j) tt[j] = e.t[i + j] - t_ref;
+    if (take(resampler.process(tt.data(), e.p.data() + i, m, out.data(), out.size())))
       while (take(resampler.process(nullptr, nullptr, 0, out.data(), out.size()))) {}
   }
   if (k_first < 0) throw std::invalid_argument(what + ": the pressure could not be resampled");
-  // Start the virtual engine on an even fine index (a microphone frame) inside the resampled data.
   std::int64_t k0 = k_first + 64;
   if (k0 % 2 != 0) ++k0;
-  const double t_fine0 = t_ref + static_cast<double>(k0) / fine_rate;
-  if (t_fine0 > -kPreRollS) throw std::invalid_argument(what + ": internal: pre-roll too short");
-  fine_p.erase(fine_p.begin(), fine_p.begin() + (k0 - k_first));
-  std::vector<double> fine_th(fine_p.size());
-  {
-    std::size_t j = 1;
-    for (std::size_t k = 0; k < fine_th.size(); ++k) {
-      const double tk = t_fine0 + static_cast<double>(k) / fine_rate;
-      while (j + 1 < et.size() && et[j] < tk) ++j;
-      fine_th[k] = eth[j - 1] + (eth[j] - eth[j - 1]) * (tk - et[j - 1]) / (et[j] - et[j - 1]);
-    }
-  }
+  fine.t0 = t_ref + static_cast<double>(k0) / fine_rate;
+  if (fine.t0 > -kPreRollS) throw std::invalid_argument(what + ": internal: pre-roll too short");
+  fine.p.erase(fine.p.begin(), fine.p.begin() + (k0 - k_first));
+  fine.th = crank_on_grid(e, fine.t0, fine_rate, fine.p.size());
+  return fine;
+}
+
+// simulate_acoustics with microphone frames up to t_end_s (at most one cycle past the pressure's end).
+RunDir acoustics(const RunDir& pressure_run, const SimRunSpec& spec, double t_end_s) {
+  const std::string what = "sim acoustics for run \"" + pressure_run.condition.name + "\"";
+  const EncoderTrace tr = checked_pressure(pressure_run, what);
+  const ExtendedTrace ext = extend_periodically(tr);
+  const SimConfig config = run_config(acoustics_spec(pressure_run, spec, tr));
+  const double fine_rate = 2.0 * config.mic_rate_hz;
+  FinePressure fine = resample_fine(ext.x, fine_rate, what);
   // Expected mean input (AC coupling start): the first cycle's mean.
   double mean = 0.0;
-  for (std::size_t i = 0; i < first_end; ++i) mean += p[i];
-  mean /= static_cast<double>(std::max<std::size_t>(first_end, 1));
+  for (std::size_t i = 0; i < ext.first_end; ++i) mean += tr.p[i];
+  mean /= static_cast<double>(std::max<std::size_t>(ext.first_end, 1));
 
   model::VirtualEngineConfig vcfg = sim::virtual_engine_config(config, fine_rate);
   vcfg.setup_seed = spec.setup_seed;
   vcfg.mean_pressure_pa = mean;
   model::VirtualEngine engine(vcfg);
-  ArrayFeed feed(std::move(fine_p), std::move(fine_th));
+  ArrayFeed feed(std::move(fine.p), std::move(fine.th));
 
   RunDir run = pressure_run;
-  const auto skip = static_cast<std::int64_t>(std::llround(-t_fine0 * config.mic_rate_hz));
-  if (t_end_s > t.back() + 0.9 * last_period) throw std::invalid_argument(what + ": internal: microphones past the data");
+  const auto skip = static_cast<std::int64_t>(std::llround(-fine.t0 * config.mic_rate_hz));
+  if (t_end_s > tr.t.back() + 0.9 * ext.last_period)
+    throw std::invalid_argument(what + ": internal: microphones past the data");
   const auto frames = static_cast<std::int64_t>(std::floor(t_end_s * config.mic_rate_hz)) + 1;
   if (frames < 1) throw std::invalid_argument(what + ": the pressure ends before t = 0");
   render_mics(engine, feed, skip, frames, run);
   // The given pressure went through its own chain already: only the injected extra floor is added.
-  model::add_transducer_noise(spec.effects, spec.seed, 0, run.pressure_pa.data(), n_given);
+  model::add_transducer_noise(spec.effects, spec.seed, 0, run.pressure_pa.data(), pressure_run.time_s.size());
   run.mic_rate_hz = config.mic_rate_hz;
   run.mic_count = static_cast<std::uint32_t>(engine.mic_count());
   run.mic_positions_m = vcfg.mic_positions_m;

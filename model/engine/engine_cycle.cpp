@@ -185,27 +185,29 @@ EngineCycle::Rates EngineCycle::rates(std::size_t j, double temp, const Constant
   return out;
 }
 
-void EngineCycle::compute(const OperatingCondition& op, const CycleVariation& variation) {
-  const auto& g = params_.geometry;
-  const double v_ivc = vol_[2 * ivc_node_];
-  const double m = params_.intake_pressure_pa * v_ivc / (params_.gas_constant_j_kg_k * params_.intake_temperature_k);
-  const double sp = g.mean_piston_speed_m_s(op.speed_rpm);
-  const Constants k{.m = m,
-                    .r = params_.gas_constant_j_kg_k,
-                    .cv0 = params_.cv0_j_kg_k,
-                    .cv1 = params_.cv1_j_kg_k2,
-                    .tw = params_.wall_temperature_k,
-                    .deg_per_s = 6.0 * op.speed_rpm,
-                    .a = params_.wiebe_a,
-                    .mp = params_.premixed_shape,
-                    .md = params_.diffusion_shape,
-                    .cn_ea = 618840.0 / (params_.cetane_number + 25.0),
-                    .hh_speed = 0.36 + 0.22 * sp,
-                    .p_motored_ref = params_.intake_pressure_pa,
-                    .woschni_w0 = std::pow(kWoschniC1 * sp, 0.8),
-                    .woschni_coef = params_.heat_transfer_scale * 3.26 * std::pow(g.bore_m, -0.2) *
-                                    std::pow(1e-3 * m * params_.gas_constant_j_kg_k, 0.8) / (6.0 * op.speed_rpm)};
+// The rate function's constants for this cycle: trapped mass m (at IVC), mean piston speed sp.
+EngineCycle::Constants EngineCycle::constants(const OperatingCondition& op, double m, double sp) const {
+  return Constants{.m = m,
+                   .r = params_.gas_constant_j_kg_k,
+                   .cv0 = params_.cv0_j_kg_k,
+                   .cv1 = params_.cv1_j_kg_k2,
+                   .tw = params_.wall_temperature_k,
+                   .deg_per_s = 6.0 * op.speed_rpm,
+                   .a = params_.wiebe_a,
+                   .mp = params_.premixed_shape,
+                   .md = params_.diffusion_shape,
+                   .cn_ea = 618840.0 / (params_.cetane_number + 25.0),
+                   .hh_speed = 0.36 + 0.22 * sp,
+                   .p_motored_ref = params_.intake_pressure_pa,
+                   .woschni_w0 = std::pow(kWoschniC1 * sp, 0.8),
+                   .woschni_coef = params_.heat_transfer_scale * 3.26 * std::pow(params_.geometry.bore_m, -0.2) *
+                                   std::pow(1e-3 * m * params_.gas_constant_j_kg_k, 0.8) / (6.0 * op.speed_rpm)};
+}
 
+// Starts the cycle's summary (mass, fuel, timing; no combustion yet) and its combustion state before ignition.
+EngineCycle::Combustion EngineCycle::start_cycle(const OperatingCondition& op, const CycleVariation& variation,
+                                                 double m, double sp) {
+  const double v_ivc = vol_[2 * ivc_node_];
   const double fuel = fuel_mass_per_cycle_kg(params_, op) * std::max(variation.heat_release_scale, 0.0);
   summary_ = CycleSummary{};
   summary_.trapped_mass_kg = m;
@@ -221,9 +223,31 @@ void EngineCycle::compute(const OperatingCondition& op, const CycleVariation& va
   c.injected = fuel > 0.0;
   c.delay_scale = std::max(variation.ignition_delay_scale, 0.05);
   c.woschni_w = kWoschniC1 * sp;
-  c.woschni_k = kWoschniC2 * g.displacement_m3() * params_.intake_temperature_k / (params_.intake_pressure_pa * v_ivc);
+  c.woschni_k = kWoschniC2 * params_.geometry.displacement_m3() * params_.intake_temperature_k /
+                (params_.intake_pressure_pa * v_ivc);
+  return c;
+}
 
-  // RK4 over the closed part; state: T, heat loss, work, ignition integral.
+// Combustion starts at soc: the premixed and diffusion burns, split by Watson's premixed fraction.
+void EngineCycle::ignite(Combustion& c, double soc, double deg_per_s) {
+  c.soc = soc;
+  c.ignited = true;
+  const double delay_ms = 1e3 * (c.soc - c.soi) / deg_per_s;
+  const double phi = summary_.equivalence_ratio;
+  // Watson's premixed fraction: beta = 1 - 0.926 phi^0.37 / tau_id[ms]^0.26.
+  const double beta = std::clamp(1.0 - 0.926 * std::pow(phi, 0.37) / std::pow(delay_ms, 0.26), 0.05, 0.95);
+  c.q_premixed = beta * summary_.fuel_energy_j;
+  c.q_diffusion = (1.0 - beta) * summary_.fuel_energy_j;
+  c.dur_p = params_.premixed_duration_deg;
+  c.dur_d = params_.diffusion_duration_base_deg + params_.diffusion_duration_per_phi_deg * phi;
+  summary_.soc_deg = c.soc;
+  summary_.ignition_delay_deg = c.soc - c.soi;
+  summary_.premixed_fraction = beta;
+}
+
+// RK4 over the closed part (IVC..EVO); state: T, heat loss, work, ignition integral. Fills the closed-part traces
+// and the pressure table there, ignites where the ignition integral reaches 1.
+void EngineCycle::integrate_closed_part(const Constants& k, Combustion& c) {
   double temp = params_.intake_temperature_k, qloss = 0.0, work = 0.0, ign = 0.0;
   const double h = h_;
   for (std::size_t i = ivc_node_;; ++i) {
@@ -245,25 +269,22 @@ void EngineCycle::compute(const OperatingCondition& op, const CycleVariation& va
       const double ign_next = ign + h / 6.0 * (k1.dign + 2.0 * (k2.dign + k3.dign) + k4.dign);
       if (ign_next >= 1.0) {
         const double th0 = -360.0 + h * static_cast<double>(i);
-        c.soc = th0 + h * (1.0 - ign) / (ign_next - ign);
-        c.ignited = true;
-        const double delay_ms = 1e3 * (c.soc - c.soi) / k.deg_per_s;
-        const double phi = summary_.equivalence_ratio;
-        // Watson's premixed fraction: beta = 1 - 0.926 phi^0.37 / tau_id[ms]^0.26.
-        const double beta = std::clamp(1.0 - 0.926 * std::pow(phi, 0.37) / std::pow(delay_ms, 0.26), 0.05, 0.95);
-        c.q_premixed = beta * summary_.fuel_energy_j;
-        c.q_diffusion = (1.0 - beta) * summary_.fuel_energy_j;
-        c.dur_p = params_.premixed_duration_deg;
-        c.dur_d = params_.diffusion_duration_base_deg + params_.diffusion_duration_per_phi_deg * phi;
-        summary_.soc_deg = c.soc;
-        summary_.ignition_delay_deg = c.soc - c.soi;
-        summary_.premixed_fraction = beta;
+        ignite(c, th0 + h * (1.0 - ign) / (ign_next - ign), k.deg_per_s);
       }
       ign = ign_next;
     }
   }
   summary_.heat_loss_j = qloss;
   summary_.closed_work_j = work;
+}
+
+void EngineCycle::compute(const OperatingCondition& op, const CycleVariation& variation) {
+  const double v_ivc = vol_[2 * ivc_node_];
+  const double m = params_.intake_pressure_pa * v_ivc / (params_.gas_constant_j_kg_k * params_.intake_temperature_k);
+  const double sp = params_.geometry.mean_piston_speed_m_s(op.speed_rpm);
+  const Constants k = constants(op, m, sp);
+  Combustion c = start_cycle(op, variation, m, sp);
+  integrate_closed_part(k, c);
   if (c.ignited) {
     const double a = params_.wiebe_a;
     const double x = params_.evo_deg - c.soc;

@@ -139,6 +139,11 @@ class EngineCycle {
   struct Combustion;
   struct Rates;
   Rates rates(std::size_t half_step, double temperature_k, const Constants& k, const Combustion& c) const;
+  Constants constants(const OperatingCondition& op, double trapped_mass_kg, double piston_speed_m_s) const;
+  Combustion start_cycle(const OperatingCondition& op, const CycleVariation& variation, double trapped_mass_kg,
+                         double piston_speed_m_s);
+  void ignite(Combustion& c, double soc_deg, double deg_per_s);
+  void integrate_closed_part(const Constants& k, Combustion& c);
   void fill_open_part();
   void summarise();
   void add_ringing(double deg_per_s, const CycleVariation& variation, const Combustion& c);
