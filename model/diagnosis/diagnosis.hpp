@@ -39,6 +39,8 @@
 // Verdict: `none` when the baseline's held-out gap is within `tolerance_db` (or not above its bootstrap noise);
 // otherwise the best significant candidate when it (alone or with a second one) closes at least
 // `min_closed_fraction` of the gap or leaves no more than `tolerance_db`, else `unexplained`.
+//
+// The stages, one file each, are declared in stages.hpp (internal to model/diagnosis).
 #pragma once
 
 #include <cstddef>

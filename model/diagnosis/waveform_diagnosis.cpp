@@ -179,19 +179,20 @@ std::vector<double> linear_response(const WaveformModel& m, double fs, int steps
   return std::vector<double>(out.begin() + static_cast<std::ptrdiff_t>(lat), out.end());
 }
 
-ExplainableGap explainable_gap(const WaveformModel& m, double fs, const WaveformDiagnosisOptions& opt,
-                               const WaveformSimOptions& sim, std::span<const double> u, std::span<const double> y) {
-  const std::size_t settle = sim.settle_samples;
-  std::vector<WaveformTrace> train_tr, held_tr;
-  for (const SampleRange& r : opt.train) train_tr.push_back(simulate_waveform_trace(m, fs, sim, u, y, r));
-  for (const SampleRange& r : opt.heldout) held_tr.push_back(simulate_waveform_trace(m, fs, sim, u, y, r));
+// The scale of the regressors, from the training ranges' scored samples: the input's mean and standard deviation,
+// the state's rms; n: the number of samples.
+struct Standardisation {
+  double u_mean = 0.0, u_std = 1.0, z_rms = 1.0, v_rms = 1.0;
+  std::size_t n = 0;
+};
 
-  // Standardisation from the training ranges.
+Standardisation standardisation(const std::vector<WaveformTrace>& train_tr, std::span<const SampleRange> ranges,
+                                std::size_t settle, std::span<const double> u) {
   double su = 0, su2 = 0, sz2 = 0, sv2 = 0;
   std::size_t n = 0;
   for (std::size_t s = 0; s < train_tr.size(); ++s)
     for (std::size_t j = settle; j < train_tr[s].y.size(); ++j) {
-      const double uu = u[opt.train[s].begin + j];
+      const double uu = u[ranges[s].begin + j];
       su += uu;
       su2 += uu * uu;
       sz2 += train_tr[s].z[j] * train_tr[s].z[j];
@@ -199,58 +200,66 @@ ExplainableGap explainable_gap(const WaveformModel& m, double fs, const Waveform
       ++n;
     }
   const double dn = static_cast<double>(std::max<std::size_t>(n, 1));
-  const double u_mean = su / dn, u_std = std::sqrt(std::max(su2 / dn - u_mean * u_mean, 1e-300));
-  const double z_rms = std::sqrt(std::max(sz2 / dn, 1e-300)), v_rms = std::sqrt(std::max(sv2 / dn, 1e-300));
-  const int steps = sim.steps_per_sample > 0 ? sim.steps_per_sample : choose_steps_per_sample(m, fs);
+  Standardisation st;
+  st.n = n;
+  st.u_mean = su / dn;
+  st.u_std = std::sqrt(std::max(su2 / dn - st.u_mean * st.u_mean, 1e-300));
+  st.z_rms = std::sqrt(std::max(sz2 / dn, 1e-300));
+  st.v_rms = std::sqrt(std::max(sv2 / dn, 1e-300));
+  return st;
+}
 
-  auto signals = [&](const std::vector<WaveformTrace>& traces, std::span<const SampleRange> ranges) {
-    std::vector<RangeSignals> out;
-    for (std::size_t s = 0; s < traces.size(); ++s) {
-      const WaveformTrace& t = traces[s];
-      const std::size_t len = t.y.size();
-      RangeSignals rs;
-      rs.u.resize(len);
-      rs.e.resize(len);
-      for (std::size_t j = 0; j < len; ++j) {
-        rs.u[j] = (u[ranges[s].begin + j] - u_mean) / u_std;
-        rs.e[j] = t.y[j] - y[ranges[s].begin + j];
-      }
-      rs.dyn.resize(len);
-      std::vector<std::vector<double>> phi(kBasis, std::vector<double>(len));
-      for (std::size_t j = 0; j < len; ++j) {
-        const auto b = force_basis(t.z[j] / z_rms, t.v[j] / v_rms);
-        for (std::size_t k = 0; k < kBasis; ++k) phi[k][j] = b[k];
-      }
-      for (std::size_t k = 0; k < kBasis; ++k)
-        for (int vel = 0; vel < 2; ++vel) {
-          const auto g = linear_response(m, fs, steps, phi[k], vel == 1);
-          const double scale = vel ? v_rms : z_rms;  // same size as the state it perturbs
-          for (std::size_t j = 0; j < len; ++j) rs.dyn[j][2 * k + static_cast<std::size_t>(vel)] = g[j] / scale;
-        }
-      out.push_back(std::move(rs));
+// Per range: the standardised input, the error and the responses of the model's linear dynamics to the force
+// basis along the model's trajectory.
+std::vector<RangeSignals> range_signals(const WaveformModel& m, double fs, int steps, const Standardisation& st,
+                                        const std::vector<WaveformTrace>& traces, std::span<const SampleRange> ranges,
+                                        std::span<const double> u, std::span<const double> y) {
+  std::vector<RangeSignals> out;
+  for (std::size_t s = 0; s < traces.size(); ++s) {
+    const WaveformTrace& t = traces[s];
+    const std::size_t len = t.y.size();
+    RangeSignals rs;
+    rs.u.resize(len);
+    rs.e.resize(len);
+    for (std::size_t j = 0; j < len; ++j) {
+      rs.u[j] = (u[ranges[s].begin + j] - st.u_mean) / st.u_std;
+      rs.e[j] = t.y[j] - y[ranges[s].begin + j];
     }
-    return out;
-  };
-  const auto train = signals(train_tr, opt.train);
-  const auto held = signals(held_tr, opt.heldout);
+    rs.dyn.resize(len);
+    std::vector<std::vector<double>> phi(kBasis, std::vector<double>(len));
+    for (std::size_t j = 0; j < len; ++j) {
+      const auto b = force_basis(t.z[j] / st.z_rms, t.v[j] / st.v_rms);
+      for (std::size_t k = 0; k < kBasis; ++k) phi[k][j] = b[k];
+    }
+    for (std::size_t k = 0; k < kBasis; ++k)
+      for (int vel = 0; vel < 2; ++vel) {
+        const auto g = linear_response(m, fs, steps, phi[k], vel == 1);
+        const double scale = vel ? st.v_rms : st.z_rms;  // same size as the state it perturbs
+        for (std::size_t j = 0; j < len; ++j) rs.dyn[j][2 * k + static_cast<std::size_t>(vel)] = g[j] / scale;
+      }
+    out.push_back(std::move(rs));
+  }
+  return out;
+}
 
-  // Lags of the input over the primary mode's decay time (2 m / b1), 8..32 samples.
-  const double decay_samples = 2.0 * m.block.m / std::max(m.block.b1, 1e-300) * fs;
-  const auto lags = static_cast<std::size_t>(std::clamp(std::round(decay_samples), 8.0, 32.0));
+// The regressors of sample i: the dynamic responses, `lags` lagged inputs, a constant.
+void fill_features(const RangeSignals& r, std::size_t i, std::size_t lags, Eigen::VectorXd& f) {
+  Eigen::Index at = 0;
+  for (double d : r.dyn[i]) f(at++) = d;
+  for (std::size_t k = 0; k < lags; ++k) f(at++) = r.u[i >= k ? i - k : 0];
+  f(at) = 1.0;
+}
+
+// Ridge regression of the training error on the features (every stride-th scored sample).
+Eigen::VectorXd regress_error(const std::vector<RangeSignals>& train, std::size_t settle, std::size_t lags,
+                              std::size_t stride) {
   const auto p = static_cast<Eigen::Index>(2 * kBasis + lags + 1);
-  auto fill = [&](const RangeSignals& r, std::size_t i, Eigen::VectorXd& f) {
-    Eigen::Index at = 0;
-    for (double d : r.dyn[i]) f(at++) = d;
-    for (std::size_t k = 0; k < lags; ++k) f(at++) = r.u[i >= k ? i - k : 0];
-    f(at) = 1.0;
-  };
   Eigen::MatrixXd ata = Eigen::MatrixXd::Zero(p, p);
   Eigen::VectorXd atb = Eigen::VectorXd::Zero(p);
   Eigen::VectorXd f(p);
-  const std::size_t stride = std::max<std::size_t>(1, n / 20000);  // enough rows for ~60 regressors
   for (const auto& s : train)
     for (std::size_t j = settle; j < s.e.size(); j += stride) {
-      fill(s, j, f);
+      fill_features(s, j, lags, f);
       ata.selfadjointView<Eigen::Lower>().rankUpdate(f);
       atb.noalias() += f * s.e[j];
     }
@@ -258,13 +267,32 @@ ExplainableGap explainable_gap(const WaveformModel& m, double fs, const Waveform
   // Ridge, relative to each regressor's own size: keeps noise-fitting small.
   const Eigen::VectorXd diag = ata.diagonal();
   ata.diagonal() += 1e-4 * diag + Eigen::VectorXd::Constant(p, 1e-12 * diag.maxCoeff());
-  const Eigen::VectorXd beta = ata.ldlt().solve(atb);
+  return ata.ldlt().solve(atb);
+}
 
+ExplainableGap explainable_gap(const WaveformModel& m, double fs, const WaveformDiagnosisOptions& opt,
+                               const WaveformSimOptions& sim, std::span<const double> u, std::span<const double> y) {
+  const std::size_t settle = sim.settle_samples;
+  std::vector<WaveformTrace> train_tr, held_tr;
+  for (const SampleRange& r : opt.train) train_tr.push_back(simulate_waveform_trace(m, fs, sim, u, y, r));
+  for (const SampleRange& r : opt.heldout) held_tr.push_back(simulate_waveform_trace(m, fs, sim, u, y, r));
+  const Standardisation st = standardisation(train_tr, opt.train, settle, u);
+  const int steps = sim.steps_per_sample > 0 ? sim.steps_per_sample : choose_steps_per_sample(m, fs);
+  const auto train = range_signals(m, fs, steps, st, train_tr, opt.train, u, y);
+  const auto held = range_signals(m, fs, steps, st, held_tr, opt.heldout, u, y);
+
+  // Lags of the input over the primary mode's decay time (2 m / b1), 8..32 samples.
+  const double decay_samples = 2.0 * m.block.m / std::max(m.block.b1, 1e-300) * fs;
+  const auto lags = static_cast<std::size_t>(std::clamp(std::round(decay_samples), 8.0, 32.0));
+  const std::size_t stride = std::max<std::size_t>(1, st.n / 20000);  // enough rows for ~60 regressors
+  const Eigen::VectorXd beta = regress_error(train, settle, lags, stride);
+
+  Eigen::VectorXd f(beta.size());
   std::vector<std::vector<double>> before, after;
   for (const auto& s : held) {
     std::vector<double> b, a;
     for (std::size_t j = settle; j < s.e.size(); ++j) {
-      fill(s, j, f);
+      fill_features(s, j, lags, f);
       b.push_back(s.e[j]);
       a.push_back(s.e[j] - f.dot(beta));
     }
@@ -275,7 +303,8 @@ ExplainableGap explainable_gap(const WaveformModel& m, double fs, const Waveform
   g.heldout_rms = rms_of(before);
   g.heldout_rms_after = rms_of(after);
   g.fraction = 1.0 - g.heldout_rms_after / g.heldout_rms;
-  g.test = block_bootstrap_test(squared_difference(before, after), opt.block_samples, opt.bootstrap_resamples, opt.seed);
+  g.test =
+      block_bootstrap_test(squared_difference(before, after), opt.block_samples, opt.bootstrap_resamples, opt.seed);
   g.significant = g.test.p_value < opt.alpha && g.fraction >= opt.min_gain;
   return g;
 }
@@ -406,6 +435,150 @@ std::vector<CandidateResult> run_round(const WaveformFitResult& base, const std:
   return out;
 }
 
+// ------------------------------------------------------------------------------------------- diagnosis
+
+void check_options(const WaveformDiagnosisOptions& opt) {
+  if (opt.heldout.empty()) throw std::invalid_argument("waveform diagnosis: no held-out range");
+  for (const std::string& c : opt.candidates)
+    if (c != "cubic_stiffness" && c != "cubic_damping" && c != "second_mode")
+      throw std::invalid_argument("waveform diagnosis: candidate '" + c +
+                                  "' does not apply to a waveform (waveform mode knows cubic_stiffness, "
+                                  "cubic_damping, second_mode)");
+}
+
+std::vector<NotApplicable> not_applicable_effects() {
+  return {
+      {"mechanical_noise", "crank-angle-locked impacts: a u,y waveform carries no crank angle"},
+      {"background_noise", "output noise independent of the input: no model extension reduces a free-run error; "
+                           "it is the floor the explainable-gap test measures against"},
+      {"transducer_noise", "noise on the measured input: irreducible by a model of the system (errors in variables)"},
+      {"mic_gain", "a single output channel: a gain error is absorbed by c0 and c1"},
+      {"speed_dependence", "no engine speed in a waveform"},
+  };
+}
+
+WaveformFitResult fit_baseline(std::span<const double> u, std::span<const double> y,
+                               const WaveformDiagnosisOptions& opt) {
+  WaveformFitOptions fo;
+  fo.fs_hz = opt.fs_hz;
+  fo.train = opt.train;
+  fo.heldout = opt.heldout;
+  fo.free_params = opt.baseline_free;
+  fo.start = opt.start;
+  fo.start_name = opt.start_name;
+  fo.sim = opt.sim;
+  fo.max_iterations = opt.max_iterations;
+  fo.progress = opt.fit_progress;
+  if (opt.log) opt.log("fitting the baseline (" + std::to_string(opt.baseline_free.size()) + " parameters)");
+  return fit_waveform(u, y, fo);
+}
+
+// The second round on top of the verdict's candidate `best`: the best model becomes the verdict's effect plus the
+// best significant one fitted on top of it. Updates best_held and best_sim with it.
+void second_round_on_top(WaveformDiagnosis& d, const CandidateResult& best,
+                         std::vector<std::vector<double>>& best_held, WaveformSimOptions& best_sim,
+                         std::span<const double> u, std::span<const double> y, const WaveformDiagnosisOptions& opt) {
+  std::vector<std::string> rest;
+  for (const std::string& c : opt.candidates)
+    if (c != best.effect) rest.push_back(c);
+  std::vector<std::string> best_free = best.fit.free_params;
+  d.second_round = run_round(best.fit, best_free, rest, best_held, u, y, opt);
+  for (const auto& c : d.second_round)
+    if (c.significant) d.also_significant.push_back(c.effect);
+  if (!d.second_round.empty() && d.second_round.front().significant) {
+    const CandidateResult& top = d.second_round.front();
+    d.best_model = top.fit.model;
+    d.best_steps_per_sample = top.fit.steps_per_sample;
+    best_sim = with_steps(opt.sim, top.fit.steps_per_sample);
+    d.heldout_rms_after = top.heldout_rms;
+    best_held = errors_of(d.best_model, opt.fs_hz, best_sim, u, y, opt.heldout);
+  }
+}
+
+// The verdict and the best model (the best significant candidate, else the baseline: `unexplained` when its error
+// is significantly explainable from the input, `none` otherwise) and what remains explainable after it. Returns
+// the best model's held-out errors.
+std::vector<std::vector<double>> choose_best(WaveformDiagnosis& d, const std::vector<std::vector<double>>& base_held,
+                                             std::span<const double> u, std::span<const double> y,
+                                             const WaveformDiagnosisOptions& opt) {
+  const CandidateResult* best =
+      (!d.candidates.empty() && d.candidates.front().significant) ? &d.candidates.front() : nullptr;
+  if (!best) {
+    d.verdict = d.baseline_gap.significant ? "unexplained" : "none";
+    d.best_model = d.baseline.model;
+    d.best_steps_per_sample = d.baseline.steps_per_sample;
+    d.heldout_rms_after = d.heldout_rms_before;
+    d.remaining_gap = d.baseline_gap;
+    return base_held;
+  }
+  d.verdict = best->effect;
+  d.best_model = best->fit.model;
+  d.best_steps_per_sample = best->fit.steps_per_sample;
+  WaveformSimOptions best_sim = with_steps(opt.sim, best->fit.steps_per_sample);
+  std::vector<std::vector<double>> best_held = errors_of(d.best_model, opt.fs_hz, best_sim, u, y, opt.heldout);
+  d.heldout_rms_after = best->heldout_rms;
+  if (opt.second_round) second_round_on_top(d, *best, best_held, best_sim, u, y, opt);
+  d.remaining_gap = explainable_gap(d.best_model, opt.fs_hz, opt, best_sim, u, y);
+  return best_held;
+}
+
+// Per 1/3-octave band of the held-out output: its rms and the baseline's and the best model's error rms.
+std::vector<BandGap> band_gaps(const std::vector<std::vector<double>>& y_held,
+                               const std::vector<std::vector<double>>& base_held,
+                               const std::vector<std::vector<double>>& best_held, double fs_hz) {
+  const auto out_bands = third_octave_rms(y_held, fs_hz);
+  const auto before_bands = third_octave_rms(base_held, fs_hz);
+  const auto after_bands = third_octave_rms(best_held, fs_hz);
+  std::vector<BandGap> bands;
+  for (std::size_t b = 0; b < out_bands.size() && b < before_bands.size() && b < after_bands.size(); ++b)
+    bands.push_back({out_bands[b].f_center_hz, out_bands[b].f_lo_hz, out_bands[b].f_hi_hz, out_bands[b].rms,
+                     before_bands[b].rms, after_bands[b].rms});
+  return bands;
+}
+
+// The errors against the local output level: rms over two periods of the primary mode, in five equally
+// populated bins.
+std::vector<AmplitudeGap> amplitude_gaps(const WaveformModel& baseline, const std::vector<std::vector<double>>& y_held,
+                                         const std::vector<std::vector<double>>& base_held,
+                                         const std::vector<std::vector<double>>& best_held, double fs_hz) {
+  const double fn = std::sqrt(baseline.block.k1 / baseline.block.m) / (2.0 * std::numbers::pi);
+  const std::size_t win = static_cast<std::size_t>(std::clamp(std::round(2.0 * fs_hz / fn), 4.0, 1e5));
+  std::vector<std::array<double, 3>> lv;  // level, error before, error after
+  for (std::size_t s = 0; s < y_held.size(); ++s) {
+    const auto& yy = y_held[s];
+    double mean = 0.0;
+    for (double v : yy) mean += v;
+    mean /= static_cast<double>(std::max<std::size_t>(yy.size(), 1));
+    double acc = 0.0;
+    std::vector<double> level(yy.size());
+    for (std::size_t i = 0; i < yy.size(); ++i) {
+      acc += (yy[i] - mean) * (yy[i] - mean);
+      if (i >= win) acc -= (yy[i - win] - mean) * (yy[i - win] - mean);
+      level[i] = std::sqrt(std::max(acc, 0.0) / static_cast<double>(std::min(i + 1, win)));
+    }
+    for (std::size_t i = 0; i < yy.size(); ++i) lv.push_back({level[i], base_held[s][i], best_held[s][i]});
+  }
+  std::sort(lv.begin(), lv.end(), [](const auto& a, const auto& b) { return a[0] < b[0]; });
+  constexpr std::size_t kLevelBins = 5;
+  std::vector<AmplitudeGap> out;
+  for (std::size_t b = 0; b < kLevelBins && lv.size() >= kLevelBins; ++b) {
+    const std::size_t i0 = lv.size() * b / kLevelBins, i1 = lv.size() * (b + 1) / kLevelBins;
+    AmplitudeGap g;
+    g.level_lo = lv[i0][0];
+    g.level_hi = lv[i1 - 1][0];
+    g.samples = i1 - i0;
+    double sb = 0.0, sa = 0.0;
+    for (std::size_t i = i0; i < i1; ++i) {
+      sb += lv[i][1] * lv[i][1];
+      sa += lv[i][2] * lv[i][2];
+    }
+    g.error_rms_before = std::sqrt(sb / static_cast<double>(g.samples));
+    g.error_rms_after = std::sqrt(sa / static_cast<double>(g.samples));
+    out.push_back(g);
+  }
+  return out;
+}
+
 }  // namespace
 
 // ------------------------------------------------------------------------------------------ public API
@@ -498,35 +671,12 @@ std::vector<BandRms> third_octave_rms(const std::vector<std::vector<double>>& se
 
 WaveformDiagnosis diagnose_waveform(std::span<const double> u, std::span<const double> y,
                                     const WaveformDiagnosisOptions& opt) {
-  if (opt.heldout.empty()) throw std::invalid_argument("waveform diagnosis: no held-out range");
-  for (const std::string& c : opt.candidates)
-    if (c != "cubic_stiffness" && c != "cubic_damping" && c != "second_mode")
-      throw std::invalid_argument("waveform diagnosis: candidate '" + c +
-                                  "' does not apply to a waveform (waveform mode knows cubic_stiffness, "
-                                  "cubic_damping, second_mode)");
+  check_options(opt);
   const auto t0 = std::chrono::steady_clock::now();
   WaveformDiagnosis d;
-  d.not_applicable = {
-      {"mechanical_noise", "crank-angle-locked impacts: a u,y waveform carries no crank angle"},
-      {"background_noise", "output noise independent of the input: no model extension reduces a free-run error; "
-                           "it is the floor the explainable-gap test measures against"},
-      {"transducer_noise", "noise on the measured input: irreducible by a model of the system (errors in variables)"},
-      {"mic_gain", "a single output channel: a gain error is absorbed by c0 and c1"},
-      {"speed_dependence", "no engine speed in a waveform"},
-  };
+  d.not_applicable = not_applicable_effects();
 
-  WaveformFitOptions fo;
-  fo.fs_hz = opt.fs_hz;
-  fo.train = opt.train;
-  fo.heldout = opt.heldout;
-  fo.free_params = opt.baseline_free;
-  fo.start = opt.start;
-  fo.start_name = opt.start_name;
-  fo.sim = opt.sim;
-  fo.max_iterations = opt.max_iterations;
-  fo.progress = opt.fit_progress;
-  if (opt.log) opt.log("fitting the baseline (" + std::to_string(opt.baseline_free.size()) + " parameters)");
-  d.baseline = fit_waveform(u, y, fo);
+  d.baseline = fit_baseline(u, y, opt);
   const WaveformSimOptions base_sim = with_steps(opt.sim, d.baseline.steps_per_sample);
   const auto base_held = errors_of(d.baseline.model, opt.fs_hz, base_sim, u, y, opt.heldout);
   d.heldout_rms_before = rms_of(base_held);
@@ -537,43 +687,7 @@ WaveformDiagnosis diagnose_waveform(std::span<const double> u, std::span<const d
   if (opt.log)
     opt.log(fmt("baseline error explainable from the input: %.1f %% of its rms (p = %.4f)", 100.0 * d.baseline_gap.fraction,
                 d.baseline_gap.test.p_value));
-
-  const CandidateResult* best = (!d.candidates.empty() && d.candidates.front().significant) ? &d.candidates.front() : nullptr;
-  std::vector<std::vector<double>> best_held = base_held;
-  WaveformSimOptions best_sim = base_sim;
-  if (best) {
-    d.verdict = best->effect;
-    d.best_model = best->fit.model;
-    d.best_steps_per_sample = best->fit.steps_per_sample;
-    best_sim = with_steps(opt.sim, best->fit.steps_per_sample);
-    best_held = errors_of(d.best_model, opt.fs_hz, best_sim, u, y, opt.heldout);
-    d.heldout_rms_after = best->heldout_rms;
-    if (opt.second_round) {
-      std::vector<std::string> rest;
-      for (const std::string& c : opt.candidates)
-        if (c != best->effect) rest.push_back(c);
-      std::vector<std::string> best_free = best->fit.free_params;
-      d.second_round = run_round(best->fit, best_free, rest, best_held, u, y, opt);
-      for (const auto& c : d.second_round)
-        if (c.significant) d.also_significant.push_back(c.effect);
-      // The best model is the verdict's effect plus the best significant one fitted on top of it.
-      if (!d.second_round.empty() && d.second_round.front().significant) {
-        const CandidateResult& top = d.second_round.front();
-        d.best_model = top.fit.model;
-        d.best_steps_per_sample = top.fit.steps_per_sample;
-        best_sim = with_steps(opt.sim, top.fit.steps_per_sample);
-        d.heldout_rms_after = top.heldout_rms;
-        best_held = errors_of(d.best_model, opt.fs_hz, best_sim, u, y, opt.heldout);
-      }
-    }
-    d.remaining_gap = explainable_gap(d.best_model, opt.fs_hz, opt, best_sim, u, y);
-  } else {
-    d.verdict = d.baseline_gap.significant ? "unexplained" : "none";
-    d.best_model = d.baseline.model;
-    d.best_steps_per_sample = d.baseline.steps_per_sample;
-    d.heldout_rms_after = d.heldout_rms_before;
-    d.remaining_gap = d.baseline_gap;
-  }
+  const std::vector<std::vector<double>> best_held = choose_best(d, base_held, u, y, opt);
   if (opt.log) opt.log("verdict: " + d.verdict);
 
   // Where: per held-out range, per band, against the output level.
@@ -585,48 +699,8 @@ WaveformDiagnosis diagnose_waveform(std::span<const double> u, std::span<const d
   for (const SampleRange& r : opt.heldout)
     y_held.emplace_back(y.begin() + static_cast<std::ptrdiff_t>(r.begin + opt.sim.settle_samples),
                         y.begin() + static_cast<std::ptrdiff_t>(r.end));
-  const auto out_bands = third_octave_rms(y_held, opt.fs_hz);
-  const auto before_bands = third_octave_rms(base_held, opt.fs_hz);
-  const auto after_bands = third_octave_rms(best_held, opt.fs_hz);
-  for (std::size_t b = 0; b < out_bands.size() && b < before_bands.size() && b < after_bands.size(); ++b)
-    d.bands.push_back({out_bands[b].f_center_hz, out_bands[b].f_lo_hz, out_bands[b].f_hi_hz, out_bands[b].rms,
-                       before_bands[b].rms, after_bands[b].rms});
-
-  // Local output level: rms over two periods of the primary mode, in five equally populated bins.
-  const double fn = std::sqrt(d.baseline.model.block.k1 / d.baseline.model.block.m) / (2.0 * std::numbers::pi);
-  const std::size_t win = static_cast<std::size_t>(std::clamp(std::round(2.0 * opt.fs_hz / fn), 4.0, 1e5));
-  std::vector<std::array<double, 3>> lv;  // level, error before, error after
-  for (std::size_t s = 0; s < y_held.size(); ++s) {
-    const auto& yy = y_held[s];
-    double mean = 0.0;
-    for (double v : yy) mean += v;
-    mean /= static_cast<double>(std::max<std::size_t>(yy.size(), 1));
-    double acc = 0.0;
-    std::vector<double> level(yy.size());
-    for (std::size_t i = 0; i < yy.size(); ++i) {
-      acc += (yy[i] - mean) * (yy[i] - mean);
-      if (i >= win) acc -= (yy[i - win] - mean) * (yy[i - win] - mean);
-      level[i] = std::sqrt(std::max(acc, 0.0) / static_cast<double>(std::min(i + 1, win)));
-    }
-    for (std::size_t i = 0; i < yy.size(); ++i) lv.push_back({level[i], base_held[s][i], best_held[s][i]});
-  }
-  std::sort(lv.begin(), lv.end(), [](const auto& a, const auto& b) { return a[0] < b[0]; });
-  constexpr std::size_t kLevelBins = 5;
-  for (std::size_t b = 0; b < kLevelBins && lv.size() >= kLevelBins; ++b) {
-    const std::size_t i0 = lv.size() * b / kLevelBins, i1 = lv.size() * (b + 1) / kLevelBins;
-    AmplitudeGap g;
-    g.level_lo = lv[i0][0];
-    g.level_hi = lv[i1 - 1][0];
-    g.samples = i1 - i0;
-    double sb = 0.0, sa = 0.0;
-    for (std::size_t i = i0; i < i1; ++i) {
-      sb += lv[i][1] * lv[i][1];
-      sa += lv[i][2] * lv[i][2];
-    }
-    g.error_rms_before = std::sqrt(sb / static_cast<double>(g.samples));
-    g.error_rms_after = std::sqrt(sa / static_cast<double>(g.samples));
-    d.amplitude.push_back(g);
-  }
+  d.bands = band_gaps(y_held, base_held, best_held, opt.fs_hz);
+  d.amplitude = amplitude_gaps(d.baseline.model, y_held, base_held, best_held, opt.fs_hz);
   d.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   return d;
 }

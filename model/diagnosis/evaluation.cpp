@@ -1,0 +1,281 @@
+// One model of the diagnosis, the baseline or a candidate, evaluated: tuned on all training conditions, refitted
+// on every leave-one-condition-out fold (a surrogate solve on the all-training anchor), re-simulated exactly on
+// the held-out conditions and scored there (gap.cpp), with the gap's bootstrap replicates.
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+
+#include "dsp/weighting.hpp"
+#include "model/diagnosis/stages.hpp"
+
+namespace noisemon::model::diagnosis {
+namespace {
+
+double since(std::chrono::steady_clock::time_point& t) {
+  const auto now = std::chrono::steady_clock::now();
+  const double s = std::chrono::duration<double>(now - t).count();
+  t = now;
+  return s;
+}
+
+bool contains(const std::vector<std::size_t>& v, std::size_t k) { return std::find(v.begin(), v.end(), k) != v.end(); }
+
+// The training conditions of fold h: the fired ones but the held-out one (all of them for a given split), and
+// the references.
+std::vector<std::size_t> fold_train(const Context& cx, std::size_t heldout_index) {
+  std::vector<std::size_t> t;
+  for (std::size_t k : cx.train_fired)
+    if (!cx.loo || k != cx.heldout[heldout_index]) t.push_back(k);
+  t.insert(t.end(), cx.refs.begin(), cx.refs.end());
+  return t;
+}
+
+// The fit on all training conditions: the spec's extensions and free parameters on the baseline's.
+FitSetup candidate_setup(const Context& cx, const CandidateSpec& spec, const std::vector<BlockParam>& base_free) {
+  FitSetup s;
+  s.data = cx.data;
+  s.train = cx.train_fired;
+  s.train.insert(s.train.end(), cx.refs.begin(), cx.refs.end());
+  s.free = base_free;
+  s.fit_cycles = cx.opt->fit_cycles;
+  // Only the additive-noise extensions can explain bands the combustion-independent noise dominates.
+  s.scored = (spec.ext.stationary || spec.ext.locked) ? cx.base_mask : cx.tune_mask;
+  s.extensions = spec.ext;
+  s.extensions.mic_gain = false;
+  for (BlockParam p : spec.extra_free)
+    if (std::find(s.free.begin(), s.free.end(), p) == s.free.end()) s.free.push_back(p);
+  return s;
+}
+
+ExtendedModel candidate_start(const Context& cx, const CandidateSpec& spec, const ExtendedModel& start,
+                              const std::vector<std::size_t>& train) {
+  ExtendedModel st = start;
+  if (spec.ext.mic_gain) {
+    st.on.mic_gain = true;
+    st.ext.mic_gain_db = estimate_mic_gains(cx, train);
+  }
+  for (BlockParam p : spec.extra_free)
+    if (!(param_value(st.block, p) > 0)) set_param(st.block, p, 0.0);
+  return st;
+}
+
+std::vector<ExtendedModel> fold_models(const Context& cx, const CandidateSpec& spec, const FitSetup& setup,
+                                       const FitOutcome& all) {
+  std::vector<ExtendedModel> folds;
+  for (std::size_t h = 0; h < cx.heldout.size(); ++h) {
+    if (!cx.loo) {
+      folds.push_back(all.model);
+      continue;
+    }
+    FitSetup f = setup;
+    f.train = fold_train(cx, h);
+    ExtendedModel fs = all.model;
+    if (spec.ext.mic_gain) fs.ext.mic_gain_db = estimate_mic_gains(cx, f.train);
+    folds.push_back(refit_on_anchor(f, *all.anchor, fs).model);
+  }
+  return folds;
+}
+
+// Thesis metric over the fired training conditions: the all-training fit on its fit cycles.
+double training_rms(const Context& cx, const FitOutcome& all) {
+  const BandDataset& data = *cx.data;
+  const std::size_t nb = data.band_count();
+  double s = 0.0;
+  int n = 0;
+  for (std::size_t i = 0; i < all.anchor->conditions.size(); ++i) {
+    const std::size_t k = all.anchor->conditions[i];
+    if (!contains(cx.train_fired, k)) continue;
+    const ConditionData& d = data.conditions[k];
+    // The anchor sits at (or within the step tolerance of) the result: predicted = anchor with the factors.
+    std::vector<double> pred = all.anchor->cycle_ms[i];
+    apply_factors(extension_factors(data, k, all.anchor->spectra[i], all.anchor->block, all.model), d, pred, nullptr);
+    const std::size_t nc = pred.size() / nb;
+    double ms = 0.0;
+    int nbands = 0;
+    for (std::size_t b = 0; b < nb; ++b) {
+      if (!cx.base_mask[k][b]) continue;
+      double m = 0.0, p = 0.0;
+      for (std::size_t c = 0; c < nc; ++c) {
+        m += measured_ms(d, c, b, all.model);
+        p += pred[c * nb + b];
+      }
+      if (m > 0 && p > 0) {
+        ms += std::pow(db(m / p), 2);
+        ++nbands;
+      }
+    }
+    if (nbands > 0) {
+      s += std::sqrt(ms / nbands);
+      ++n;
+    }
+  }
+  return n > 0 ? s / n : kNaN;
+}
+
+// Predicted attenuation CPL - SPL_A per band of a condition, dB.
+std::vector<double> predicted_attenuation(const BandDataset& data, const ConditionData& d,
+                                          const ConditionPrediction& pred) {
+  const std::size_t nb = data.band_count(), nc = d.cycle_count();
+  std::vector<double> att(nb, kNaN);
+  for (std::size_t b = 0; b < nb; ++b) {
+    double cpl = 0.0, p2 = 0.0;
+    for (std::size_t c = 0; c < nc; ++c) {
+      cpl += d.cpl_ms[c * nb + b];
+      p2 += pred.cycle_ms[c * nb + b];
+    }
+    if (cpl > 0 && p2 > 0) att[b] = db(cpl / p2) - dsp::a_weighting_db(data.bands[b].exact_mid_hz);
+  }
+  return att;
+}
+
+// Every held-out condition re-simulated at its fold's model and scored; the sums of the parts over them and of
+// the thesis metric in *thesis.
+Parts score_heldout(const Context& cx, Evaluated& ev, double* thesis) {
+  const BandDataset& data = *cx.data;
+  ModelScore& sc = ev.score;
+  Parts sum;
+  for (std::size_t h = 0; h < cx.heldout.size(); ++h) {
+    const std::size_t k = cx.heldout[h];
+    const ConditionData& d = data.conditions[k];
+    ev.preds.push_back(predict_condition(data, k, sc.fold_models[h], true));
+    ev.measured.push_back(measured_side(d, sc.fold_models[h]));
+    ScoreDetail det;
+    const Parts p = score_condition(d, ev.measured.back(), ev.preds.back(), cx.base_mask[k], cx.fast, ev.floors[h],
+                                    nullptr, &det);
+    sum.band_ms += p.band_ms;
+    sum.mic += p.mic;
+    sum.window_ms += p.window_ms;
+    *thesis += std::sqrt(p.band_ms);
+    sc.gaps.push_back(det.gaps);
+    sc.mic_resid.push_back(det.mic_resid);
+    sc.window_gaps.push_back(det.window);
+    sc.cell_gaps.push_back(det.cell);
+    sc.att_pred.push_back(predicted_attenuation(data, d, ev.preds.back()));
+  }
+  return sum;
+}
+
+// The held-out gap of every bootstrap replicate (the cycles each draw picked, the same predictions).
+std::vector<double> replicate_gaps(const Context& cx, const Evaluated& ev) {
+  const BandDataset& data = *cx.data;
+  const double H = static_cast<double>(cx.heldout.size());
+  std::vector<double> gaps;
+  for (const auto& rep : cx.counts) {
+    double tot = 0.0;
+    for (std::size_t h = 0; h < cx.heldout.size(); ++h) {
+      const std::size_t k = cx.heldout[h];
+      tot += score_condition(data.conditions[k], ev.measured[h], ev.preds[h], cx.base_mask[k], cx.fast, ev.floors[h],
+                             &rep[h], nullptr).total();
+    }
+    gaps.push_back(std::sqrt(tot / H));
+  }
+  return gaps;
+}
+
+}  // namespace
+
+std::vector<double> estimate_mic_gains(const Context& cx, const std::vector<std::size_t>& conds) {
+  const BandDataset& data = *cx.data;
+  const std::size_t M = data.conditions.front().mics;
+  std::vector<double> mean(M, 0.0);
+  ExtendedModel none;
+  int n = 0;
+  for (std::size_t k : conds) {
+    const ConditionData& d = data.conditions[k];
+    if (d.mics != M) continue;
+    const std::vector<double> off = mic_offsets(d, measured_side(d, none), cx.base_mask[k], nullptr);
+    for (std::size_t m = 0; m < M; ++m) mean[m] += off[m];
+    ++n;
+  }
+  for (double& x : mean) x /= std::max(1, n);
+  const std::vector<double> t = mic_outliers(mean);
+  const double med = median(mean);
+  std::vector<double> g(M, 0.0);
+  for (std::size_t m = 0; m < M; ++m)
+    if (t[m] != 0.0) g[m] = mean[m] - med;
+  return g;
+}
+
+std::vector<std::vector<double>> stationary_floors(const Context& cx, const ExtendedModel& model) {
+  const BandDataset& data = *cx.data;
+  const std::size_t nb = data.band_count();
+  std::vector<std::size_t> all = cx.train_fired;
+  all.insert(all.end(), cx.refs.begin(), cx.refs.end());
+  // Per training condition: mean excess per band and window (the exact prediction of the fit cycles: a band
+  // factor for a second mode would misplace its energy between the windows).
+  std::vector<std::vector<double>> excess(all.size(), std::vector<double>(nb * kW, 0.0));
+  std::vector<std::vector<double>> predicted(all.size(), std::vector<double>(nb * kW, 0.0));
+  for (std::size_t i = 0; i < all.size(); ++i) {
+    const ConditionData& d = data.conditions[all[i]];
+    const Measured ms = measured_side(d, model);
+    const ConditionPrediction pr = predict_condition(data, all[i], model, true, cx.opt->fit_cycles);
+    const std::size_t nc = pr.cycle_ms.size() / nb;
+    for (std::size_t c = 0; c < nc; ++c)
+      for (std::size_t b = 0; b < nb; ++b)
+        for (std::size_t w = 0; w < kW; ++w) {
+          const double pred = pr.win_ms[(c * kW + w) * nb + b];
+          excess[i][b * kW + w] += (ms.win[(c * kW + w) * nb + b] - pred) / static_cast<double>(nc);
+          predicted[i][b * kW + w] += pred / static_cast<double>(nc);
+        }
+  }
+  // The floor: the mean excess in the two windows where the model predicts least (averaged over conditions):
+  // where the model makes (nearly) nothing, whatever is measured beyond it is stationary or locked noise there.
+  std::vector<std::vector<double>> out(cx.heldout.size(), std::vector<double>(nb, 0.0));
+  for (std::size_t h = 0; h < cx.heldout.size(); ++h)
+    for (std::size_t b = 0; b < nb; ++b) {
+      std::vector<std::pair<double, double>> win;  // (predicted, excess) per window
+      for (std::size_t w = 0; w < kW; ++w) {
+        double s = 0.0, q = 0.0;
+        int n = 0;
+        for (std::size_t i = 0; i < all.size(); ++i) {
+          if (cx.loo && all[i] == cx.heldout[h]) continue;
+          s += excess[i][b * kW + w];
+          q += predicted[i][b * kW + w];
+          ++n;
+        }
+        if (n > 0) win.emplace_back(q / n, s / n);
+      }
+      if (win.size() < 2) continue;
+      std::sort(win.begin(), win.end());
+      out[h][b] = std::max(0.0, 0.5 * (win[0].second + win[1].second));
+    }
+  return out;
+}
+
+Evaluated evaluate(const Context& cx, const CandidateSpec& spec, const ExtendedModel& start,
+                   const std::vector<BlockParam>& base_free, bool is_baseline) {
+  Evaluated ev;
+  ModelScore& sc = ev.score;
+  sc.name = is_baseline ? "baseline" : spec.name;
+  sc.effects = spec.effects;
+  const FitSetup setup = candidate_setup(cx, spec, base_free);
+  const ExtendedModel st = candidate_start(cx, spec, start, setup.train);
+  auto clk = std::chrono::steady_clock::now();
+  const FitOutcome all = fit_model(setup, st);
+  cx.t_fit += since(clk);
+  sc.model = all.model;
+  sc.parameters = all.parameters;
+  if (spec.ext.mic_gain)
+    for (double g : all.model.ext.mic_gain_db) sc.parameters += g != 0.0 ? 1 : 0;
+  sc.fold_models = fold_models(cx, spec, setup, all);
+  cx.t_folds += since(clk);
+  sc.train_rms_db = training_rms(cx, all);
+  // Held-out predictions (exact re-simulation at the fold's block, every cycle, crank windows).
+  since(clk);
+  ev.floors = stationary_floors(cx, all.model);
+  cx.t_floors += since(clk);
+  double thesis = 0.0;
+  const Parts sum = score_heldout(cx, ev, &thesis);
+  cx.t_heldout += since(clk);
+  const double H = static_cast<double>(cx.heldout.size());
+  sc.part_band_ms = sum.band_ms / H;
+  sc.part_mic = sum.mic / H;
+  sc.part_window_ms = sum.window_ms / H;
+  sc.heldout_gap_db = std::sqrt(sum.total() / H);
+  sc.heldout_thesis_rms_db = thesis / H;
+  sc.replicate_gaps = replicate_gaps(cx, ev);
+  cx.t_bootstrap += since(clk);
+  return ev;
+}
+
+}  // namespace noisemon::model::diagnosis
