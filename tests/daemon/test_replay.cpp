@@ -7,10 +7,13 @@
 #include <fstream>
 #include <lcm/lcm-cpp.hpp>
 #include <limits>
+#include <memory>
 #include <numbers>
+#include <set>
 #include <sstream>
 #include <vector>
 
+#include "daemon/cycle_processor.hpp"
 #include "daemon/replay.hpp"
 #include "daemon/report_messages.hpp"
 #include "daemon/cli/watch.hpp"
@@ -254,4 +257,124 @@ TEST(Replay, UnknownLoadAndSoiAreNaNInTheReportsNanInTheCsvAndNaOnTheWatchLines)
   const std::string watch_csv = read_bytes(w.csv_path);
   EXPECT_EQ(csv_column(watch_csv, 4), csv_column(csv, 4));  // the same "nan" as replay's CSV
   EXPECT_EQ(csv_column(watch_csv, 3), csv_column(csv, 3));
+}
+
+namespace {
+
+// Two runs in one log, operating points that change between blocks (and repeats that do not), as noisemond and
+// `noisemon import` write them.
+void write_two_runs_with_changing_operating_points(const std::string& path) {
+  lcm::LogFile log(path, "w");
+  for (int run = 0; run < 2; ++run) {
+    drivers::StreamInfo i = info();
+    i.epoch_utime += run * 100'000'000;
+    write(log, "NOISEMON_SESSION", daemon::to_message(i, "test", i.epoch_utime, run == 0 ? "a" : "b"), i.epoch_utime);
+    for (int first = 0, n = 0; first < kTotal; first += 200, ++n) {
+      if (n % 9 == 0) {
+        drivers::OperatingPoint op;
+        op.utime = i.epoch_utime + first * 25;
+        op.speed_rpm = 2400;
+        op.load_nm = 10.0 * ((n / 9) % 4) + run;  // changes every ninth block pair
+        op.soi_deg_btdc = 8;
+        write(log, "NOISEMON_OP", daemon::to_message(op), op.utime);
+        if (n % 2 == 0) write(log, "NOISEMON_OP", daemon::to_message(op), op.utime + 1);  // a repeat
+      }
+      drivers::SampleBlock p, m;
+      p.first_index = m.first_index = first;
+      p.frames = m.frames = 200;
+      p.channels = 2;
+      m.channels = 1;
+      for (int f = 0; f < 200; ++f) {
+        const int k = first + f;
+        const double x = 1e3 * std::sin(2 * std::numbers::pi * (1000.0 + 300 * run) * k / 40000.0);
+        p.data[2 * f] = 1e5 + x;
+        p.data[2 * f + 1] = -360.0 + 720.0 * (k % kCycle) / kCycle;
+        m.data[f] = 1e-3 * x * (1 + 0.1 * (k / 5000));
+      }
+      write(log, "NOISEMON_RAW", daemon::to_message(p, 0, i.epoch_utime), i.epoch_utime + first * 25);
+      write(log, "NOISEMON_RAW", daemon::to_message(m, 1, i.epoch_utime), i.epoch_utime + first * 25);
+    }
+  }
+}
+
+struct Stamped {
+  std::int64_t utime;
+  std::vector<char> bytes;  // encoded, processing_ms zeroed
+  bool operator==(const Stamped&) const = default;
+};
+
+Stamped stamped(noisemon::cycle_report_t m, std::int64_t utime) {
+  m.processing_ms = 0;  // the CPU time the cycle took: a measurement of this run, not of the engine
+  std::vector<char> b(static_cast<std::size_t>(m.getEncodedSize()));
+  m.encode(b.data(), 0, static_cast<int>(b.size()));
+  return {utime, b};
+}
+
+// The second path: LCM's own log reader and message decoders, and a cycle processor per session driven by hand in
+// the log's order (each block added and processed before the next event): what replay did before it ran the pipeline.
+std::vector<Stamped> processed_in_log_order(const std::string& path, const daemon::Config& config) {
+  std::vector<Stamped> out;
+  std::unique_ptr<daemon::CycleProcessor> processor;
+  lcm::LogFile log(path, "r");
+  while (const lcm::LogEvent* e = log.readNextEvent()) {
+    if (e->channel == "NOISEMON_SESSION") {
+      noisemon::session_t s;
+      EXPECT_EQ(s.decode(e->data, 0, e->datalen), e->datalen);
+      daemon::ProcessorConfig pc;
+      pc.model = config.model;
+      pc.acoustic_delay_s = config.acoustic_delay_s;
+      pc.engine = config.engine;
+      const auto keep = [&](const daemon::CycleReport& r) {
+        out.push_back(stamped(daemon::to_message(r), r.window_end_utime));
+      };
+      processor = std::make_unique<daemon::CycleProcessor>(pc, drivers::from_message(s), keep);
+    } else if (e->channel == "NOISEMON_OP") {
+      noisemon::operating_point_t m;
+      EXPECT_EQ(m.decode(e->data, 0, e->datalen), e->datalen);
+      processor->set_operating_point(drivers::from_message(m));
+    } else if (e->channel == "NOISEMON_RAW") {
+      noisemon::raw_block_t m;
+      EXPECT_EQ(m.decode(e->data, 0, e->datalen), e->datalen);
+      if (m.stream == noisemon::raw_block_t::STREAM_PRESSURE)
+        processor->add_pressure(drivers::from_message(m));
+      else
+        processor->add_mics(drivers::from_message(m));
+      processor->process();
+    }
+  }
+  return out;
+}
+
+}  // namespace
+
+TEST(Replay, ReportsAreTheProcessorsDrivenInLogOrderOperatingPointChangesIncluded) {
+  const std::string dir = noisemon::test::unique_temp_dir();
+  const std::string path = dir + "/two_runs.lcmlog";
+  write_two_runs_with_changing_operating_points(path);
+  daemon::ReplayOptions o;
+  o.log_path = path;
+  o.progress = false;
+  o.out_log = dir + "/two_runs_reports.lcmlog";
+  const daemon::ReplaySummary s = daemon::run_replay(o);
+  EXPECT_EQ(s.sessions, 2);
+  EXPECT_EQ(s.reports, 2 * 38);
+  std::vector<Stamped> replayed;
+  lcm::LogFile f(o.out_log, "r");
+  while (const lcm::LogEvent* e = f.readNextEvent()) {
+    noisemon::cycle_report_t m;
+    ASSERT_EQ(m.decode(e->data, 0, e->datalen), e->datalen);
+    EXPECT_EQ(e->channel, "NOISEMON_CYCLE");
+    replayed.push_back(stamped(m, e->timestamp));
+  }
+  const std::vector<Stamped> reference = processed_in_log_order(path, o.config);
+  ASSERT_EQ(replayed.size(), reference.size());
+  for (std::size_t i = 0; i < reference.size(); ++i) EXPECT_TRUE(replayed[i] == reference[i]) << "report " << i;
+  // The operating points did change the reports: several loads among them.
+  std::set<double> loads;
+  for (const Stamped& r : reference) {
+    noisemon::cycle_report_t m;
+    m.decode(r.bytes.data(), 0, static_cast<int>(r.bytes.size()));
+    loads.insert(m.load_nm);
+  }
+  EXPECT_GE(loads.size(), 6u);
 }
