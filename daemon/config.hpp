@@ -37,7 +37,7 @@ struct ThreadsConfig {
   drivers::ThreadPolicy can;              // nm-can: operating points from SocketCAN or a candump log
   drivers::ThreadPolicy lcm_receive;      // nm-lcm-in: source "lcm", the raw streams received from the bus
   drivers::ThreadPolicy processing;       // nm-processing: cycles, model, levels
-  drivers::ThreadPolicy publishing;       // nm-lcm-pub: the LCM publisher (status name "lcm")
+  drivers::ThreadPolicy publishing;       // nm-publish: the publishing thread (status name "lcm")
 };
 
 struct Config {

@@ -17,6 +17,7 @@
 #include <memory>
 
 #include "daemon/config.hpp"
+#include "daemon/lcm_publisher.hpp"
 #include "daemon/pipeline.hpp"
 #include "daemon/report_messages.hpp"
 #include "daemon/sources.hpp"
@@ -64,10 +65,12 @@ daemon::Config effective_config(const Options& o) {
 
 std::unique_ptr<daemon::Pipeline> start_pipeline(const daemon::Config& config) {
   spdlog::set_level(spdlog::level::from_str(config.log_level));
-  daemon::Pipeline::ReportHook hook;
+  daemon::PipelineOptions options;
   if (config.live) {
     std::cout << daemon::cycle_line_header() << std::endl;
-    hook = [](const daemon::CycleReport& r) { std::cout << daemon::cycle_line(daemon::to_message(r)) << std::endl; };
+    options.on_report = [](const daemon::CycleReport& r) {
+      std::cout << daemon::cycle_line(daemon::to_message(r)) << std::endl;
+    };
   }
   auto acquisition = daemon::make_source(config);
   if (config.threads.lock_memory) {
@@ -76,7 +79,9 @@ std::unique_ptr<daemon::Pipeline> start_pipeline(const daemon::Config& config) {
     drivers::lock_memory();
     spdlog::info("memory locked (mlockall MCL_CURRENT | MCL_FUTURE)");
   }
-  auto pipeline = std::make_unique<daemon::Pipeline>(config, std::move(acquisition), hook);
+  // After the source: a missing device is the error reported first.
+  auto publisher = std::make_shared<daemon::LcmPublisher>(config.lcm.url);
+  auto pipeline = std::make_unique<daemon::Pipeline>(config, std::move(acquisition), publisher, options);
   pipeline->start();
   return pipeline;
 }

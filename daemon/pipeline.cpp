@@ -4,7 +4,8 @@
 
 #include <chrono>
 #include <cmath>
-#include <lcm/lcm-cpp.hpp>
+#include <stdexcept>
+#include <thread>
 
 #include "daemon/cycle_processor.hpp"
 #include "daemon/report_messages.hpp"
@@ -37,7 +38,8 @@ struct Stat {
 struct Pipeline::Impl {
   Config config;
   std::unique_ptr<drivers::Source> source;
-  ReportHook on_report;
+  std::shared_ptr<Publisher> publisher;
+  PipelineOptions options;
   drivers::StreamInfo info;
 
   std::size_t ring_blocks;
@@ -47,7 +49,7 @@ struct Pipeline::Impl {
   dsp::SpscRing<RawItem> raw_ring;  // both streams' blocks on their way to NOISEMON_RAW: twice a driver ring
   dsp::SpscRing<drivers::OperatingPoint> op_publish_ring{64};
 
-  std::unique_ptr<lcm::LCM> lcm;
+  std::unique_ptr<CycleProcessor> processor;  // made with the pipeline, run by the processing thread
   std::atomic<std::int64_t> cycles_dropped{0};
   // Heartbeats: the steady clock (ns) at the top of the processing and publishing loops' latest iteration.
   std::atomic<std::int64_t> processing_beat_ns{0}, publishing_beat_ns{0};
@@ -64,52 +66,55 @@ struct Pipeline::Impl {
   // Last: destroyed (stopped) first, before anything their bodies use. A stop request to the processing thread
   // means the drivers have stopped: it processes what is left in the rings, then returns.
   drivers::WorkerThread processing_thread{"processing"};
-  drivers::WorkerThread publishing_thread{"lcm"};
+  drivers::WorkerThread publishing_thread{"lcm"};  // the status name it has always had
 
   static std::size_t blocks_for(double seconds) {
     return static_cast<std::size_t>(std::ceil(seconds * drivers::kPipelineRateHz / 128.0));  // room even for half-full blocks
   }
 
-  Impl(const Config& c, std::unique_ptr<drivers::Source> s, ReportHook hook)
+  Impl(const Config& c, std::unique_ptr<drivers::Source> s, std::shared_ptr<Publisher> p, PipelineOptions o)
       : config(c),
         source(std::move(s)),
-        on_report(std::move(hook)),
+        publisher(std::move(p)),
+        options(std::move(o)),
         info(source->info()),
         ring_blocks(blocks_for(c.ring_seconds)),
         pressure_ring(ring_blocks),
         mic_ring(ring_blocks),
         op_ring(256),
-        raw_ring(2 * ring_blocks) {}
+        raw_ring(c.lcm.publish_raw ? 2 * ring_blocks : 1),
+        processor(make_processor()) {}
 
+  std::unique_ptr<CycleProcessor> make_processor();
   void run_processing(const std::atomic<bool>& drain);
+  void queue_report(const CycleReport& r);
   void run_publishing(std::atomic<std::int64_t>& published);
   noisemon::status_t make_status(std::int64_t published, const Stat& latency, const Stat& processing) const;
 };
 
-void Pipeline::Impl::run_processing(const std::atomic<bool>& drain) {
+std::unique_ptr<CycleProcessor> Pipeline::Impl::make_processor() {
   ProcessorConfig pc;
   pc.model = config.model;
   pc.acoustic_delay_s = config.acoustic_delay_s;
   pc.engine = config.engine;
-  pc.fifo_seconds = std::max(1.0, 2 * config.ring_seconds);
+  pc.fifo_seconds = options.fifo_seconds > 0 ? options.fifo_seconds : std::max(1.0, 2 * config.ring_seconds);
   pc.mic_low_db = config.mic_low_db;
-  const std::int64_t limit = config.cycles;
-  CycleProcessor processor(pc, info, [&](const CycleReport& r) {
-    if (limit > 0 && reports_queued.load() >= limit) return;
-    if (!report_ring.push(r)) {
-      ++report_overruns;
-      ++cycles_dropped;
-      return;
-    }
-    ++reports_queued;
-  });
-  spdlog::info("processing: acoustic delay {} frames, {} microphones, model k1={:.3g} k3={:.3g} b1={:.3g} b3={:.3g}",
-               processor.delay_frames(), info.mic_count, config.model.k1, config.model.k3, config.model.b1, config.model.b3);
+  return std::make_unique<CycleProcessor>(pc, info, [this](const CycleReport& r) { queue_report(r); });
+}
+
+void Pipeline::Impl::run_processing(const std::atomic<bool>& drain) {
+  CycleProcessor& processor = *this->processor;
+  if (!options.quiet)
+    spdlog::info("processing: acoustic delay {} frames, {} microphones, model k1={:.3g} k3={:.3g} b1={:.3g} b3={:.3g}",
+                 processor.delay_frames(), info.mic_count, config.model.k1, config.model.k3, config.model.b1,
+                 config.model.b3);
   std::int64_t dropped_seen = 0;
   while (true) {
     processing_beat_ns.store(now_ns(), std::memory_order_relaxed);
     const bool draining = drain.load(std::memory_order_acquire);
     bool any = false;
+    // Operating points first, process() last: an operating point a source hands over once the block rings are
+    // empty applies to exactly the cycles its blocks complete after it (the log source's ordering relies on it).
     drivers::OperatingPoint op;
     while (op_ring.read(&op, 1) == 1) {
       processor.set_operating_point(op);
@@ -146,9 +151,23 @@ void Pipeline::Impl::run_processing(const std::atomic<bool>& drain) {
     if (config.cycles > 0 && reports_queued.load() >= config.cycles) break;
     if (!any) {
       if (draining) break;  // drivers are joined and the rings are empty
-      std::this_thread::sleep_for(std::chrono::milliseconds(1));
+      std::this_thread::sleep_for(std::chrono::microseconds(options.lossless ? 100 : 1000));
     }
   }
+}
+
+void Pipeline::Impl::queue_report(const CycleReport& r) {
+  if (config.cycles > 0 && reports_queued.load() >= config.cycles) return;
+  // Lossless: wait for the publisher, unless it has failed (then nobody would ever make room).
+  while (options.lossless && report_ring.size() == report_ring.capacity() &&
+         publishing_thread.state() == drivers::ThreadState::kRunning)
+    std::this_thread::sleep_for(std::chrono::microseconds(100));
+  if (!report_ring.push(r)) {
+    ++report_overruns;
+    ++cycles_dropped;
+    return;
+  }
+  ++reports_queued;
 }
 
 noisemon::status_t Pipeline::Impl::make_status(std::int64_t published, const Stat& latency, const Stat& processing) const {
@@ -208,7 +227,7 @@ void Pipeline::Impl::run_publishing(std::atomic<std::int64_t>& published) {
   auto publish_session = [&] {
     if (!config.lcm.publish_raw) return;  // the session describes the raw streams
     const noisemon::session_t session = to_message(info, source->name(), drivers::wall_utime());
-    lcm->publish(config.lcm.session_channel, &session);
+    publisher->publish(config.lcm.session_channel, session, session.utime);
   };
   publish_session();
   while (true) {
@@ -217,29 +236,29 @@ void Pipeline::Impl::run_publishing(std::atomic<std::int64_t>& published) {
     CycleReport r;
     while (report_ring.read(&r, 1) == 1) {
       const noisemon::cycle_report_t msg = to_message(r);
-      lcm->publish(config.lcm.report_channel, &msg);
+      publisher->publish(config.lcm.report_channel, msg, r.window_end_utime);
       ++published;
       latency.add(1e-3 * static_cast<double>(drivers::wall_utime() - r.window_end_utime));
       processing.add(r.processing_ms);
-      if (on_report) on_report(r);
+      if (options.on_report) options.on_report(r);
       any = true;
     }
     RawItem raw;
     for (int i = 0; i < 64 && raw_ring.read(&raw, 1) == 1; ++i) {
       const noisemon::raw_block_t msg = to_message(raw.block, raw.stream, info.epoch_utime);
-      lcm->publish(config.lcm.raw_channel, &msg);
+      publisher->publish(config.lcm.raw_channel, msg, msg.utime);
       any = true;
     }
     drivers::OperatingPoint op;
     while (op_publish_ring.read(&op, 1) == 1) {
       const noisemon::operating_point_t msg = to_message(op);
-      lcm->publish(config.lcm.operating_point_channel, &msg);
+      publisher->publish(config.lcm.operating_point_channel, msg, msg.utime);
     }
     const bool done = processing_thread.state() != drivers::ThreadState::kRunning;  // its last reports are queued
     if (Clock::now() >= next_status || (done && !any)) {
       publish_session();
       const noisemon::status_t s = make_status(published.load(), latency, processing);
-      lcm->publish(config.lcm.status_channel, &s);
+      publisher->publish(config.lcm.status_channel, s, s.utime);
       latency = Stat{};
       processing = Stat{};
       next_status += std::chrono::seconds(1);
@@ -249,25 +268,25 @@ void Pipeline::Impl::run_publishing(std::atomic<std::int64_t>& published) {
       std::this_thread::sleep_for(std::chrono::microseconds(500));
     }
   }
+  publisher->flush();
 }
 
-Pipeline::Pipeline(const Config& config, std::unique_ptr<drivers::Source> source, ReportHook on_report)
-    : impl_(std::make_unique<Impl>(config, std::move(source), std::move(on_report))) {}
+Pipeline::Pipeline(const Config& config, std::unique_ptr<drivers::Source> source, std::shared_ptr<Publisher> publisher,
+                   PipelineOptions options)
+    : impl_(std::make_unique<Impl>(config, std::move(source), std::move(publisher), std::move(options))) {
+  if (!impl_->publisher) throw std::invalid_argument("Pipeline: a publisher is required");
+}
 
 Pipeline::~Pipeline() { stop(); }
 
 void Pipeline::start() {
   Impl& d = *impl_;
-  d.lcm = std::make_unique<lcm::LCM>(d.config.lcm.url);
-  if (!d.lcm->good())
-    throw std::runtime_error("cannot open LCM at '" + (d.config.lcm.url.empty() ? std::string("default URL") : d.config.lcm.url) +
-                             "': the network needs a multicast route (see README, 'LCM and multicast')");
   d.started = Clock::now();
   drivers::Streams streams{&d.pressure_ring, &d.mic_ring, &d.op_ring};
   // Processing first: the publishing thread ends once the processing thread no longer runs.
   d.processing_thread.start("nm-processing", d.config.threads.processing,
                      [this](const std::atomic<bool>& drain) { impl_->run_processing(drain); });
-  d.publishing_thread.start("nm-lcm-pub", d.config.threads.publishing,
+  d.publishing_thread.start("nm-publish", d.config.threads.publishing,
                      [this](const std::atomic<bool>&) { impl_->run_publishing(published_); });
   try {
     d.source->start(streams);
@@ -276,8 +295,9 @@ void Pipeline::start() {
     d.publishing_thread.join();
     throw;
   }
-  spdlog::info("source '{}' started: {} microphones, acoustic delay {:.2f} ms", d.source->name(), d.info.mic_count,
-               1e3 * d.info.acoustic_delay_s);
+  if (!d.options.quiet)
+    spdlog::info("source '{}' started: {} microphones, acoustic delay {:.2f} ms", d.source->name(), d.info.mic_count,
+                 1e3 * d.info.acoustic_delay_s);
 }
 
 void Pipeline::stop() {
@@ -286,7 +306,8 @@ void Pipeline::stop() {
   d.source->stop();
   d.processing_thread.stop();
   d.publishing_thread.join();
-  spdlog::info("stopped: {} cycles published, {} dropped", published_.load(), d.cycles_dropped.load());
+  if (!d.options.quiet)
+    spdlog::info("stopped: {} cycles published, {} dropped", published_.load(), d.cycles_dropped.load());
 }
 
 bool Pipeline::ready() const { return impl_->source->running(); }
@@ -310,7 +331,7 @@ bool Pipeline::finished() const {
     if (t->state() == drivers::ThreadState::kFailed) return true;
   for (const auto& t : d.source->thread_status())
     if (t.state == drivers::ThreadState::kFailed) return true;
-  return d.config.cycles > 0 && published_.load() >= d.config.cycles;
+  return d.source->exhausted() || (d.config.cycles > 0 && published_.load() >= d.config.cycles);
 }
 
 std::string Pipeline::failure() const {
@@ -318,7 +339,7 @@ std::string Pipeline::failure() const {
   if (const drivers::DriverThreadStatus t = d.processing_thread.status(); t.state == drivers::ThreadState::kFailed)
     return "processing thread: " + t.error;
   if (const drivers::DriverThreadStatus t = d.publishing_thread.status(); t.state == drivers::ThreadState::kFailed)
-    return "LCM thread: " + t.error;
+    return "publishing thread: " + t.error;
   for (const auto& t : d.source->thread_status())
     if (t.state == drivers::ThreadState::kFailed) return "driver thread '" + t.name + "': " + t.error;
   return {};

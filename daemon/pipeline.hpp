@@ -1,6 +1,7 @@
-// The running daemon: a source's driver threads -> lock-free rings -> the processing thread (CycleProcessor)
-// -> a lock-free report queue -> the LCM thread, which publishes cycle reports, raw blocks, operating points
-// and a 1 Hz status message.
+// The one pipeline of the daemon and of `noisemon replay`: a source's driver threads -> lock-free rings -> the
+// processing thread (CycleProcessor) -> a lock-free report queue -> the publishing thread, which hands cycle
+// reports, raw blocks, operating points, the session and a 1 Hz status message to a Publisher (the LCM bus, a log
+// file, a CSV file or memory: publisher.hpp).
 #pragma once
 
 #include <atomic>
@@ -10,25 +11,40 @@
 
 #include "daemon/config.hpp"
 #include "daemon/cycle_report.hpp"
+#include "daemon/publisher.hpp"
 #include "drivers/source.hpp"
 
 namespace noisemon::daemon {
 
+struct PipelineOptions {
+  // Called on the publishing thread after each cycle report is published (e.g. the live display).
+  std::function<void(const CycleReport&)> on_report;
+  // For a source that never drops data (a log file): the processing thread waits for room in the report queue
+  // instead of dropping the cycle, so nothing is lost however slow the publisher; and it looks for blocks every
+  // 0.1 ms when idle (not 1 ms), so a pipeline that runs as fast as the machine allows does not wait on it.
+  bool lossless = false;
+  // How far one stream may run ahead of another before its frames are discarded, s; 0: the daemon's
+  // max(1 s, 2 x ring_seconds).
+  double fifo_seconds = 0;
+  // No info messages when it starts and stops (replay runs one pipeline per run of a log, on the user's terminal).
+  bool quiet = false;
+};
+
 class Pipeline {
  public:
-  // on_report: called on the LCM thread after each cycle report is published (e.g. the live display).
-  using ReportHook = std::function<void(const CycleReport&)>;
-
-  Pipeline(const Config& config, std::unique_ptr<drivers::Source> source, ReportHook on_report = {});
+  Pipeline(const Config& config, std::unique_ptr<drivers::Source> source, std::shared_ptr<Publisher> publisher,
+           PipelineOptions options = {});
   ~Pipeline();
 
-  // Starts the driver, processing and LCM threads. Throws with a clear message when LCM or the source fails.
+  // Starts the processing, publishing and driver threads, once per pipeline (a new configuration is a new pipeline).
+  // Throws with a clear message when the source fails.
   void start();
   // Stops the drivers, processes and publishes every complete cycle already acquired, joins all threads.
   void stop();
 
   bool ready() const;     // every driver thread delivers data
-  bool finished() const;  // the configured number of cycles is published, or a thread failed
+  // The configured number of cycles is published, the source has delivered all it has (a log), or a thread failed.
+  bool finished() const;
   std::string failure() const;  // why a thread failed; empty otherwise
   std::int64_t cycles_published() const { return published_.load(); }
   std::int64_t cycles_dropped() const;

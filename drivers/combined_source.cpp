@@ -7,7 +7,7 @@ namespace {
 
 class CombinedSource final : public Source {
  public:
-  CombinedSource(std::unique_ptr<Source> streams, std::unique_ptr<Source> op)
+  CombinedSource(std::unique_ptr<Source> streams, std::unique_ptr<OperatingPointSource> op)
       : streams_(std::move(streams)), op_(std::move(op)), discarded_(64) {
     if (!streams_ || !op_) throw std::invalid_argument("combine_sources: both sources are required");
   }
@@ -16,7 +16,8 @@ class CombinedSource final : public Source {
   std::string name() const override { return streams_->name() + "+" + op_->name(); }
   StreamInfo info() const override { return streams_->info(); }
   void start(const Streams& s) override {
-    op_->start(Streams{nullptr, nullptr, s.operating_point});
+    if (!s.operating_point) throw std::invalid_argument(name() + ": start() needs the operating-point ring");
+    op_->start(*s.operating_point);
     try {
       streams_->start(Streams{s.pressure, s.mics, &discarded_});
     } catch (...) {
@@ -29,6 +30,7 @@ class CombinedSource final : public Source {
     op_->stop();
   }
   bool running() const override { return streams_->running() && op_->running(); }
+  bool exhausted() const override { return streams_->exhausted(); }
   std::vector<DriverThreadStatus> thread_status() const override {
     auto out = streams_->thread_status();
     for (auto& t : op_->thread_status()) out.push_back(std::move(t));
@@ -41,13 +43,15 @@ class CombinedSource final : public Source {
   }
 
  private:
-  std::unique_ptr<Source> streams_, op_;
+  std::unique_ptr<Source> streams_;
+  std::unique_ptr<OperatingPointSource> op_;
   OperatingPointRing discarded_;
 };
 
 }  // namespace
 
-std::unique_ptr<Source> combine_sources(std::unique_ptr<Source> streams, std::unique_ptr<Source> operating_point) {
+std::unique_ptr<Source> combine_sources(std::unique_ptr<Source> streams,
+                                        std::unique_ptr<OperatingPointSource> operating_point) {
   return std::make_unique<CombinedSource>(std::move(streams), std::move(operating_point));
 }
 

@@ -9,7 +9,9 @@
 
 namespace noisemon::drivers {
 
-// name() is "<streams>+<operating_point>"; info() is the stream source's; threads and counters are both sources'.
-std::unique_ptr<Source> combine_sources(std::unique_ptr<Source> streams, std::unique_ptr<Source> operating_point);
+// name() is "<streams>+<operating_point>"; info() and exhausted() are the stream source's; threads and counters are
+// both sources'.
+std::unique_ptr<Source> combine_sources(std::unique_ptr<Source> streams,
+                                        std::unique_ptr<OperatingPointSource> operating_point);
 
 }  // namespace noisemon::drivers

@@ -1,4 +1,5 @@
-// The one interface every acquisition source implements (sim, comedi, socketcan, replay).
+// The interfaces the acquisition sources implement: a stream source (sim, comedi, lcm, log) and an operating-point
+// source (CAN), each with its driver threads (SourceBase).
 //
 // A source owns its driver threads. Each thread resamples its stream to the common 40 kHz grid and pushes
 // fixed-size blocks into a lock-free ring; everything downstream of the rings is identical for all sources.
@@ -87,14 +88,11 @@ struct DriverCounter {
   std::int64_t value = 0;
 };
 
-class Source {
+// What every source has: a name, driver threads that stop, their state and their event counters.
+class SourceBase {
  public:
-  virtual ~Source() = default;
+  virtual ~SourceBase() = default;
   virtual std::string name() const = 0;
-  // Valid after construction (before start): stream layout and time base.
-  virtual StreamInfo info() const = 0;
-  // Starts the driver threads; they push into the given rings until stop(). Throws on a device error.
-  virtual void start(const Streams& streams) = 0;
   // Stops and joins the driver threads. Idempotent.
   virtual void stop() = 0;
   // True once every driver thread has produced data (used for the systemd READY notification).
@@ -103,6 +101,26 @@ class Source {
   virtual std::vector<DriverThreadStatus> thread_status() const = 0;
   // A snapshot of the driver's event counters (safe from any thread). Sources without any return none.
   virtual std::vector<DriverCounter> counters() const { return {}; }
+};
+
+// A stream source, what the pipeline runs on: the pressure with the crank angle and the microphones, and the
+// operating points if it has its own (sim, comedi, lcm, log; combined_source.hpp gives it CAN's instead).
+class Source : public SourceBase {
+ public:
+  // Valid after construction (before start): stream layout and time base.
+  virtual StreamInfo info() const = 0;
+  // Starts the driver threads; they push into the given rings until stop(). Throws on a device error.
+  virtual void start(const Streams& streams) = 0;
+  // A finite source (a log file) that has delivered all it will: the pipeline then drains and finishes. Live
+  // sources never are.
+  virtual bool exhausted() const { return false; }
+};
+
+// An operating-point source: no streams, only the engine's operating points (CAN).
+class OperatingPointSource : public SourceBase {
+ public:
+  // Starts the driver threads; they push into the ring until stop(). Throws on a device error.
+  virtual void start(OperatingPointRing& ring) = 0;
 };
 
 }  // namespace noisemon::drivers

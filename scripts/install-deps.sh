@@ -5,10 +5,10 @@ packages=(
   build-essential cmake pkg-config ninja-build
   libeigen3-dev libspdlog-dev libfmt-dev libtomlplusplus-dev libcli11-dev
   liblcm-dev liblcm-bin liblcm-java libglib2.0-dev default-jdk-headless
-  libcomedi-dev libsystemd-dev libsndfile1-dev nlohmann-json3-dev libceres-dev
+  libcomedi-dev libsystemd-dev libsndfile1-dev nlohmann-json3-dev libceres-dev libhdf5-dev
   clang libclang-rt-14-dev
   libgtest-dev libgmock-dev libbenchmark-dev
-  iproute2 util-linux python3 systemd
+  iproute2 util-linux python3 python3-h5py systemd
 )
 SUDO=""
 if [ "$(id -u)" -ne 0 ]; then SUDO="sudo"; fi

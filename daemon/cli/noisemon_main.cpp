@@ -2,9 +2,11 @@
 #include <CLI/CLI.hpp>
 
 #include <cstdio>
+#include <memory>
 
 #include "daemon/config.hpp"
 #include "daemon/cli/import_export_cli.hpp"
+#include "daemon/cli/hdf5_publisher.hpp"
 #include "daemon/replay.hpp"
 #include "daemon/cli/diagnose_command.hpp"
 #include "daemon/cli/summary_command.hpp"
@@ -35,6 +37,8 @@ int main(int argc, char** argv) {
   r->add_option("LOG", replay.log_path, "LCM log holding NOISEMON_SESSION, NOISEMON_RAW and NOISEMON_OP")->required()->check(CLI::ExistingFile);
   r->add_option("--out", replay.out_log, "write the cycle reports to this LCM log");
   r->add_option("--csv", replay.csv_path, "write one CSV row per cycle to this file");
+  std::string replay_hdf5;
+  r->add_option("--hdf5", replay_hdf5, "write the cycle reports to this HDF5 file (h5py, MATLAB; docs/sources-and-formats.md)");
   r->add_flag("--realtime", replay.realtime, "pace the events at their recorded times (default: as fast as possible)");
   r->add_option("--config", replay_config, "noisemond TOML configuration for the model and channel names")->check(CLI::ExistingFile);
   r->add_option("--model", replay_model, "model preset, overrides [model] preset (linear, nl_damper, nl_spring_damper, nl_spring_damper_opt)");
@@ -61,6 +65,7 @@ int main(int argc, char** argv) {
     if (r->parsed()) {
       if (!replay_config.empty()) replay.config = load_config(replay_config);
       if (!replay_model.empty()) replay.config.model = noisemon::model::preset(replay_model);
+      if (!replay_hdf5.empty()) replay.publishers.push_back(std::make_shared<Hdf5Publisher>(replay_hdf5));
       const ReplaySummary s = run_replay(replay);
       std::fprintf(stderr, "noisemon replay: %lld session(s), %lld events, %lld raw blocks, %lld cycles reported, %lld dropped, %lld events of other channels, %lld damaged events skipped\n",
                    static_cast<long long>(s.sessions), static_cast<long long>(s.events), static_cast<long long>(s.raw_blocks), static_cast<long long>(s.reports),

@@ -47,16 +47,14 @@ class OperatingPointAssembler {
 };
 
 // What the CAN threads share with the rest of the source.
-class CanSourceBase : public Source {
+class CanSourceBase : public OperatingPointSource {
  public:
   CanSourceBase(std::string name, std::string thread_name, CanSignalMap map, const ThreadPolicy& policy)
       : name_(std::move(name)), map_(std::move(map)), policy_(policy), worker_(std::move(thread_name)) {}
   std::string name() const override { return name_; }
-  StreamInfo info() const override { return {}; }
-  void start(const Streams& streams) override {
+  void start(OperatingPointRing& ring) override {
     if (worker_.joinable()) throw std::logic_error(name_ + " source: start() while running; stop() first");
-    if (!streams.operating_point) throw std::invalid_argument(name_ + " source: start() needs the operating-point ring");
-    worker_.start("nm-can", policy_, [this, ring = streams.operating_point](const std::atomic<bool>&) { run(*ring); });
+    worker_.start("nm-can", policy_, [this, &ring](const std::atomic<bool>&) { run(ring); });
   }
   void stop() override { worker_.stop(); }
   // Started and not failed: a candump replay that reached its end has delivered what it has.
@@ -195,7 +193,7 @@ class CandumpSource final : public CanSourceBase {
 
 }  // namespace
 
-std::unique_ptr<Source> make_can_source(const CanSourceConfig& config) {
+std::unique_ptr<OperatingPointSource> make_can_source(const CanSourceConfig& config) {
   if (config.map.signals().empty())
     throw std::invalid_argument("can: no [[can.signal]] entries: nothing to decode from " +
                                 (config.candump_path.empty() ? "interface '" + config.interface + "'" : "'" + config.candump_path + "'"));
@@ -204,8 +202,9 @@ std::unique_ptr<Source> make_can_source(const CanSourceConfig& config) {
   return std::make_unique<SocketCanSource>(fd, true, config.map, config.interface, config.thread);
 }
 
-std::unique_ptr<Source> make_socketcan_source_on_fd(int fd, const CanSignalMap& map, const std::string& label,
-                                                    const ThreadPolicy& policy) {
+std::unique_ptr<OperatingPointSource> make_socketcan_source_on_fd(int fd, const CanSignalMap& map,
+                                                                  const std::string& label,
+                                                                  const ThreadPolicy& policy) {
   return std::make_unique<SocketCanSource>(fd, false, map, label, policy);
 }
 

@@ -2,8 +2,8 @@
 // candump log replayed (at its recorded pace, or as fast as the pipeline takes it). Frames are decoded through
 // the [[can.signal]] map (can_signal_map.hpp) into Streams::operating_point.
 //
-// It is a Source that writes only the operating-point ring (its StreamInfo has no streams); combine it with a
-// source of pressure and microphones (combined_source.hpp). An operating point is pushed on every frame that
+// It is an OperatingPointSource: it has no streams; combine it with a source of pressure and microphones
+// (combined_source.hpp). An operating point is pushed on every frame that
 // changes a mapped field, once every mapped field has been received at least once (before that it would carry
 // made-up values for the missing ones). Fields the map does not set stay at 0 (rail pressure: NaN).
 #pragma once
@@ -30,11 +30,12 @@ struct CanSourceConfig {
 
 // Opens the socket (open_socketcan: kernel filters for the map's ids) or the candump file now; throws
 // std::runtime_error naming the interface or the file when it cannot, std::invalid_argument for an empty map.
-std::unique_ptr<Source> make_can_source(const CanSourceConfig& config);
+std::unique_ptr<OperatingPointSource> make_can_source(const CanSourceConfig& config);
 
 // The live path on a descriptor the caller owns and keeps open (tests: one end of a socketpair carrying struct
 // can_frame records). `label` names it in messages.
-std::unique_ptr<Source> make_socketcan_source_on_fd(int fd, const CanSignalMap& map, const std::string& label,
-                                                    const ThreadPolicy& policy = {});
+std::unique_ptr<OperatingPointSource> make_socketcan_source_on_fd(int fd, const CanSignalMap& map,
+                                                                  const std::string& label,
+                                                                  const ThreadPolicy& policy = {});
 
 }  // namespace noisemon::drivers

@@ -244,44 +244,36 @@ std::vector<OperatingPoint> distinct_points(const std::vector<OperatingPoint>& p
 class LogAssembler {
  public:
   LogAssembler(std::string name, const LogChannels& channels, LogReadStats& stats)
-      : name_(std::move(name)), ch_(channels), stats_(stats) {}
+      : name_(std::move(name)), ch_(channels), stats_(stats),
+        decoder_({channels, SessionChanges::kFollow, BlockCheck::kFinite}) {}
 
   void event(const LcmLogEvent& e) {
     ++stats_.events;
-    if (e.channel == ch_.session) {
-      noisemon::session_t m;
-      if (!decode_message(e.data, static_cast<std::size_t>(e.datalen), m)) return damage(e, "does not decode as noisemon.session_t");
-      StreamInfo info;
-      try {
-        info = from_message(m);
-      } catch (const std::invalid_argument& err) {
-        return damage(e, err.what());
-      }
-      if (m.nmics > 0 && static_cast<std::size_t>(m.nmics) != info.mic_positions_m.size())
-        return damage(e, "session microphone positions do not match nmics");
-      if (!sessions_.empty()) {
-        const SessionData& s = sessions_.back();
-        if (s.info.epoch_utime == info.epoch_utime && s.info.mic_count == info.mic_count && s.condition == m.condition)
-          return;  // the same session, repeated
-      }
-      sessions_.push_back({info, m.condition, m.source, {}, {}, {}});
-      ++stats_.sessions;
-    } else if (e.channel == ch_.raw) {
-      noisemon::raw_block_t m;
-      if (!decode_message(e.data, static_cast<std::size_t>(e.datalen), m)) return damage(e, "does not decode as noisemon.raw_block_t");
-      if (sessions_.empty()) return damage(e, "raw block before any " + ch_.session + " message");
-      SessionData& s = sessions_.back();
-      if (const std::string why = raw_block_problem_for_recording(m, s.info); !why.empty()) return damage(e, "raw " + why);
-      if (m.frames == 0) return;
-      RawBlock rb{m.first_index, static_cast<std::uint32_t>(m.frames), std::move(m.data)};
-      (m.stream == noisemon::raw_block_t::STREAM_PRESSURE ? s.pressure : s.mics).push_back(std::move(rb));
-    } else if (e.channel == ch_.operating_point) {
-      noisemon::operating_point_t m;
-      if (!decode_message(e.data, static_cast<std::size_t>(e.datalen), m)) return damage(e, "does not decode as noisemon.operating_point_t");
-      if (sessions_.empty()) return;  // before any session: nothing to attach it to
-      sessions_.back().ops.push_back(from_message(m));
-    } else {
-      ++stats_.other_channels;
+    const RawEvent& ev = decoder_.decode(e.channel, e.data, static_cast<std::size_t>(e.datalen));
+    switch (ev.kind) {
+      case RawEventKind::kSession:
+        if (!ev.session_started) return;  // the same session, repeated
+        sessions_.push_back({decoder_.info(), decoder_.condition(), decoder_.source(), {}, {}, {}});
+        ++stats_.sessions;
+        return;
+      case RawEventKind::kBlock:
+        if (ev.block.frames > 0) add_block(ev);
+        return;
+      case RawEventKind::kOperatingPoint:
+        sessions_.back().ops.push_back(ev.operating_point);
+        return;
+      case RawEventKind::kDamaged:
+        return damage(e, ev.reason);
+      case RawEventKind::kBadBlock:
+      case RawEventKind::kOtherSessionBlock:
+        return damage(e, "raw " + ev.reason);
+      case RawEventKind::kBeforeSession:
+        // An operating point before any session has nothing to attach it to; a raw block there is damage.
+        if (ev.channel == RawChannel::kRaw) damage(e, "raw block before any " + ch_.session + " message");
+        return;
+      case RawEventKind::kOtherChannel:
+        ++stats_.other_channels;
+        return;
     }
   }
 
@@ -345,6 +337,12 @@ class LogAssembler {
   }
 
  private:
+  void add_block(const RawEvent& ev) {
+    const SampleBlock& b = ev.block;
+    RawBlock rb{b.first_index, b.frames, std::vector<double>(b.data, b.data + std::size_t{b.frames} * b.channels)};
+    SessionData& s = sessions_.back();
+    (ev.stream == noisemon::raw_block_t::STREAM_PRESSURE ? s.pressure : s.mics).push_back(std::move(rb));
+  }
   void damage(const LcmLogEvent& e, const std::string& what) {
     ++stats_.damaged;
     note("event " + std::to_string(e.eventnum) + " at byte " + std::to_string(e.offset) + " on " + std::string(e.channel) +
@@ -357,6 +355,7 @@ class LogAssembler {
   std::string name_;
   const LogChannels& ch_;
   LogReadStats& stats_;
+  RawStreamDecoder decoder_;
   std::vector<SessionData> sessions_;
 };
 

@@ -11,6 +11,7 @@
 #include <string>
 #include <vector>
 
+#include "drivers/formats/raw_stream_decoder.hpp"
 #include "drivers/formats/run_dir.hpp"
 #include "drivers/source.hpp"
 
@@ -50,11 +51,7 @@ OperatingPoint operating_point_of(const RunDir& run, std::int64_t utime);
 // and are written as null.
 RunDir to_run_dir(const Recording& rec);
 
-struct LogChannels {
-  std::string raw = "NOISEMON_RAW";
-  std::string operating_point = "NOISEMON_OP";
-  std::string session = "NOISEMON_SESSION";
-};
+using LogChannels = StreamChannels;
 
 // Progress of long conversions: fraction done, 0..1.
 using ProgressFn = std::function<void(double fraction)>;

@@ -1,5 +1,5 @@
 // The 40 kHz streams as LCM messages (noisemon.raw_block_t, operating_point_t, session_t) and back: what the
-// daemon publishes for recording, and what the lcm source and `noisemon replay` read.
+// daemon publishes for recording. Readers of the raw stream decode it with raw_stream_decoder.hpp, built on these.
 #pragma once
 
 #include <cstdint>

@@ -1,6 +1,9 @@
 // The `lcm` source: the 40 kHz streams as another process publishes them on LCM — lcm-logplayer replaying an
 // lcm-logger recording, or a daemon elsewhere publishing its raw channels. Its one driver thread receives
-// noisemon.raw_block_t and operating_point_t and pushes them into the same rings as a hardware source.
+// noisemon.raw_block_t and operating_point_t, decodes them with the one raw-stream decoder against the first
+// session (raw_stream_decoder.hpp) and pushes them into the same rings as a hardware source. A block that does not
+// fit the session (another epoch, channel count, damaged fields) is counted and dropped: it never reaches the
+// processing.
 #pragma once
 
 #include <memory>

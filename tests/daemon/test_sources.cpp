@@ -241,7 +241,10 @@ TEST(LcmSource, BlocksOfAnotherSessionAreCountedNotMixedIn) {
     noisemon::drivers::SampleBlock b;
     b.frames = 4;
     b.channels = noisemon::drivers::kPressureStreamChannels;
-    for (std::size_t i = 0; i < b.frames * b.channels; ++i) b.data[i] = 1e5;
+    for (std::size_t f = 0; f < b.frames; ++f) {
+      b.data[f * b.channels + noisemon::drivers::kPressureChannel] = 1e5;
+      b.data[f * b.channels + noisemon::drivers::kCrankChannel] = 0.0;  // in range: the blocks fit their session
+    }
     for (int k = 0; k < 5; ++k) {
       b.first_index = 4 * (k % 2);
       const std::int64_t epoch = k < 2 ? a.epoch_utime : a.epoch_utime + 60'000'000;  // blocks 2..4: the next run

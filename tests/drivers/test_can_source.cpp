@@ -120,14 +120,14 @@ std::vector<nd::OperatingPoint> drain(nd::OperatingPointRing& ring) {
   return out;
 }
 
-std::int64_t counter(const nd::Source& s, const std::string& name) {
+std::int64_t counter(const nd::SourceBase& s, const std::string& name) {
   for (const auto& c : s.counters())
     if (c.name == name) return c.value;
   ADD_FAILURE() << "no counter " << name;
   return -1;
 }
 
-void wait_until_stopped(const nd::Source& s) {
+void wait_until_stopped(const nd::SourceBase& s) {
   const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(10);
   while (s.thread_status().at(0).state == nd::ThreadState::kRunning && std::chrono::steady_clock::now() < deadline)
     std::this_thread::sleep_for(std::chrono::milliseconds(2));
@@ -143,7 +143,7 @@ TEST(CandumpSource, FixtureDecodesToTheHandComputedOperatingPoints) {
   c.map = example_map();
   auto source = nd::make_can_source(c);
   nd::OperatingPointRing ring(64);
-  source->start(nd::Streams{nullptr, nullptr, &ring});
+  source->start(ring);
   wait_until_stopped(*source);
   source->stop();
   const auto ops = drain(ring);
@@ -172,7 +172,7 @@ TEST(CandumpSource, PacedReplayKeepsTheRecordedSpacing) {
   auto source = nd::make_can_source(c);
   nd::OperatingPointRing ring(64);
   const std::int64_t t0 = nd::wall_utime();
-  source->start(nd::Streams{nullptr, nullptr, &ring});
+  source->start(ring);
   std::vector<std::pair<std::int64_t, nd::OperatingPoint>> arrivals;  // wall time seen, op
   const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(5);
   while (arrivals.size() < 5 && std::chrono::steady_clock::now() < deadline) {
@@ -249,7 +249,7 @@ class SocketCanPair : public ::testing::Test {
 TEST_F(SocketCanPair, FramesBecomeOperatingPointsAndErrorsAreCounted) {
   auto source = nd::make_socketcan_source_on_fd(fds_[1], example_map(), "pair");
   nd::OperatingPointRing ring(64);
-  source->start(nd::Streams{nullptr, nullptr, &ring});
+  source->start(ring);
   send_frame(0x0CF00400 | CAN_EFF_FLAG, {0xFF, 0xFF, 0xFF, 0x40, 0x5F, 0xFF, 0xFF, 0xFF});  // 3048 rpm
   send_frame(CAN_ERR_FLAG | CAN_ERR_BUSOFF, {0, 0, 0, 0, 0, 0, 0, 0});
   send_frame(0x321, {0x00, 0xC8, 0x48});                                                     // 20 N m, 18 deg

@@ -25,8 +25,10 @@ BASE["drivers/formats"] = ["drivers", "dsp", "msgs"]
 BASE["drivers/comedi"] = ["drivers", "model", "dsp"]
 BASE["drivers/can"] = ["drivers/formats", "drivers", "dsp"]
 BASE["drivers/lcm"] = ["drivers/formats", "drivers", "dsp", "msgs"]
+BASE["drivers/log"] = ["drivers/formats", "drivers", "dsp", "msgs"]
 BASE["drivers/sim"] = ["drivers/comedi", "drivers/formats", "drivers", "model/engine", "model", "dsp"]
-BASE["daemon"] = ["drivers/sim", "drivers/comedi", "drivers/can", "drivers/lcm", "drivers/formats", "drivers",
+BASE["daemon"] = ["drivers/sim", "drivers/comedi", "drivers/can", "drivers/lcm", "drivers/log", "drivers/formats",
+                  "drivers",
                   "model/engine", "model", "dsp", "msgs"]
 BASE["daemon/report"] = ["model/diagnosis", "model/fit", "model/engine", "model", "dsp"]
 BASE["daemon/cli"] = ["daemon/report", "daemon"] + BASE["daemon"] + ["model/diagnosis", "model/fit"]

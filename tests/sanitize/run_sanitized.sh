@@ -2,10 +2,10 @@
 # Builds noisemon with a sanitizer in a tree of its own and runs part of the suite there (ctest entries
 # sanitize_address and sanitize_thread; see docs/benchmarks.md "Sanitizers").
 #   run_sanitized.sh address BUILD_DIR   AddressSanitizer + UndefinedBehaviorSanitizer (and LeakSanitizer): the
-#                                        unit suite, every test labelled dsp, model, drivers or daemon but the
+#                                        unit suite, every test labelled dsp, model, drivers, daemon or cli but the
 #                                        whole-diagnosis runs
 #   run_sanitized.sh thread BUILD_DIR    ThreadSanitizer: the threaded tests (rings, worker threads, sources,
-#                                        the daemon's service and pipeline, end to end over LCM)
+#                                        the pipeline, replay, the daemon's service, end to end over LCM)
 # Any report fails the run (halt_on_error); the sanitizer's report is in the test output.
 set -euo pipefail
 kind="${1:?usage: $0 address|thread BUILD_DIR}"
@@ -16,15 +16,16 @@ jobs="$(nproc)"
 case "$kind" in
   address)
     sanitize="address,undefined"
-    labels='^(dsp|model|drivers|daemon)$'
-    targets=$(cd "$src/tests" && ls dsp/test_*.cpp model/test_*.cpp drivers/test_*.cpp daemon/test_*.cpp |
+    labels='^(dsp|model|drivers|daemon|cli)$'
+    targets=$(cd "$src/tests" && ls dsp/test_*.cpp model/test_*.cpp drivers/test_*.cpp daemon/test_*.cpp cli/test_*.cpp |
               sed -e 's|/|_|' -e 's|\.cpp$||')
     targets="$targets noisemond noisemon"
     ;;
   thread)
     sanitize="thread"
     programs="dsp_test_spsc_ring drivers_test_worker_thread drivers_test_sim_source drivers_test_comedi_source
-              drivers_test_can_source daemon_test_service daemon_test_sources e2e/e2e_test_lcm"
+              drivers_test_can_source drivers_test_lcm_source daemon_test_pipeline cli_test_replay
+              daemon_test_service daemon_test_sources e2e/e2e_test_lcm"
     targets="$(for p in $programs; do basename "$p"; done) noisemond noisemon"
     ;;
   *) echo "$0: unknown sanitizer '$kind' (address or thread)" >&2; exit 2 ;;
@@ -44,7 +45,7 @@ export TSAN_OPTIONS="halt_on_error=1:second_deadlock_stack=1"
 cd "$build"
 status=0
 if [ "$kind" = address ]; then
-  # Less the whole-diagnosis runs of tests/daemon/test_diagnose.cpp (minutes of fitting each under the sanitizer;
+  # Less the whole-diagnosis runs of tests/cli/test_diagnose.cpp (minutes of fitting each under the sanitizer;
   # the fitting code is exercised by the model tests and `noisemon fit`).
   ctest --output-on-failure -j "$jobs" --timeout 1200 -L "$labels" \
     -E '^(Diagnose|[A-Za-z]+/(WithheldEffect|WithheldEffectAtTheRealFloor|NullDataset))\.' || status=$?

@@ -5,16 +5,22 @@
 #include <algorithm>
 #include <cmath>
 #include <fstream>
+#include <iterator>
 #include <lcm/lcm-cpp.hpp>
 #include <limits>
+#include <memory>
 #include <numbers>
+#include <set>
 #include <sstream>
 #include <vector>
 
+#include "daemon/cli/hdf5_publisher.hpp"
+#include "daemon/cycle_processor.hpp"
 #include "daemon/replay.hpp"
 #include "daemon/report_messages.hpp"
 #include "daemon/cli/watch.hpp"
 #include "noisemon/cycle_report_t.hpp"
+#include "tests/cli/h5py_reader.hpp"
 #include "tests/daemon/csv_column.hpp"
 #include "tests/drivers/unique_temp.hpp"
 
@@ -254,4 +260,159 @@ TEST(Replay, UnknownLoadAndSoiAreNaNInTheReportsNanInTheCsvAndNaOnTheWatchLines)
   const std::string watch_csv = read_bytes(w.csv_path);
   EXPECT_EQ(csv_column(watch_csv, 4), csv_column(csv, 4));  // the same "nan" as replay's CSV
   EXPECT_EQ(csv_column(watch_csv, 3), csv_column(csv, 3));
+}
+
+namespace {
+
+// Two runs in one log, operating points that change between blocks (and repeats that do not), as noisemond and
+// `noisemon import` write them.
+void write_two_runs_with_changing_operating_points(const std::string& path) {
+  lcm::LogFile log(path, "w");
+  for (int run = 0; run < 2; ++run) {
+    drivers::StreamInfo i = info();
+    i.epoch_utime += run * 100'000'000;
+    write(log, "NOISEMON_SESSION", daemon::to_message(i, "test", i.epoch_utime, run == 0 ? "a" : "b"), i.epoch_utime);
+    for (int first = 0, n = 0; first < kTotal; first += 200, ++n) {
+      if (n % 9 == 0) {
+        drivers::OperatingPoint op;
+        op.utime = i.epoch_utime + first * 25;
+        op.speed_rpm = 2400;
+        op.load_nm = 10.0 * ((n / 9) % 4) + run;  // changes every ninth block pair
+        op.soi_deg_btdc = 8;
+        write(log, "NOISEMON_OP", daemon::to_message(op), op.utime);
+        if (n % 2 == 0) write(log, "NOISEMON_OP", daemon::to_message(op), op.utime + 1);  // a repeat
+      }
+      drivers::SampleBlock p, m;
+      p.first_index = m.first_index = first;
+      p.frames = m.frames = 200;
+      p.channels = 2;
+      m.channels = 1;
+      for (int f = 0; f < 200; ++f) {
+        const int k = first + f;
+        const double x = 1e3 * std::sin(2 * std::numbers::pi * (1000.0 + 300 * run) * k / 40000.0);
+        p.data[2 * f] = 1e5 + x;
+        p.data[2 * f + 1] = -360.0 + 720.0 * (k % kCycle) / kCycle;
+        m.data[f] = 1e-3 * x * (1 + 0.1 * (k / 5000));
+      }
+      write(log, "NOISEMON_RAW", daemon::to_message(p, 0, i.epoch_utime), i.epoch_utime + first * 25);
+      write(log, "NOISEMON_RAW", daemon::to_message(m, 1, i.epoch_utime), i.epoch_utime + first * 25);
+    }
+  }
+}
+
+struct Stamped {
+  std::int64_t utime;
+  std::vector<char> bytes;  // encoded, processing_ms zeroed
+  bool operator==(const Stamped&) const = default;
+};
+
+Stamped stamped(noisemon::cycle_report_t m, std::int64_t utime) {
+  m.processing_ms = 0;  // the CPU time the cycle took: a measurement of this run, not of the engine
+  std::vector<char> b(static_cast<std::size_t>(m.getEncodedSize()));
+  m.encode(b.data(), 0, static_cast<int>(b.size()));
+  return {utime, b};
+}
+
+// The second path: LCM's own log reader and message decoders, and a cycle processor per session driven by hand in
+// the log's order (each block added and processed before the next event): what replay did before it ran the pipeline.
+std::vector<Stamped> processed_in_log_order(const std::string& path, const daemon::Config& config) {
+  std::vector<Stamped> out;
+  std::unique_ptr<daemon::CycleProcessor> processor;
+  lcm::LogFile log(path, "r");
+  while (const lcm::LogEvent* e = log.readNextEvent()) {
+    if (e->channel == "NOISEMON_SESSION") {
+      noisemon::session_t s;
+      EXPECT_EQ(s.decode(e->data, 0, e->datalen), e->datalen);
+      daemon::ProcessorConfig pc;
+      pc.model = config.model;
+      pc.acoustic_delay_s = config.acoustic_delay_s;
+      pc.engine = config.engine;
+      const auto keep = [&](const daemon::CycleReport& r) {
+        out.push_back(stamped(daemon::to_message(r), r.window_end_utime));
+      };
+      processor = std::make_unique<daemon::CycleProcessor>(pc, drivers::from_message(s), keep);
+    } else if (e->channel == "NOISEMON_OP") {
+      noisemon::operating_point_t m;
+      EXPECT_EQ(m.decode(e->data, 0, e->datalen), e->datalen);
+      processor->set_operating_point(drivers::from_message(m));
+    } else if (e->channel == "NOISEMON_RAW") {
+      noisemon::raw_block_t m;
+      EXPECT_EQ(m.decode(e->data, 0, e->datalen), e->datalen);
+      if (m.stream == noisemon::raw_block_t::STREAM_PRESSURE)
+        processor->add_pressure(drivers::from_message(m));
+      else
+        processor->add_mics(drivers::from_message(m));
+      processor->process();
+    }
+  }
+  return out;
+}
+
+}  // namespace
+
+TEST(Replay, ReportsAreTheProcessorsDrivenInLogOrderOperatingPointChangesIncluded) {
+  const std::string dir = noisemon::test::unique_temp_dir();
+  const std::string path = dir + "/two_runs.lcmlog";
+  write_two_runs_with_changing_operating_points(path);
+  daemon::ReplayOptions o;
+  o.log_path = path;
+  o.progress = false;
+  o.out_log = dir + "/two_runs_reports.lcmlog";
+  const daemon::ReplaySummary s = daemon::run_replay(o);
+  EXPECT_EQ(s.sessions, 2);
+  EXPECT_EQ(s.reports, 2 * 38);
+  std::vector<Stamped> replayed;
+  lcm::LogFile f(o.out_log, "r");
+  while (const lcm::LogEvent* e = f.readNextEvent()) {
+    noisemon::cycle_report_t m;
+    ASSERT_EQ(m.decode(e->data, 0, e->datalen), e->datalen);
+    EXPECT_EQ(e->channel, "NOISEMON_CYCLE");
+    replayed.push_back(stamped(m, e->timestamp));
+  }
+  const std::vector<Stamped> reference = processed_in_log_order(path, o.config);
+  ASSERT_EQ(replayed.size(), reference.size());
+  for (std::size_t i = 0; i < reference.size(); ++i) EXPECT_TRUE(replayed[i] == reference[i]) << "report " << i;
+  // The operating points did change the reports: several loads among them.
+  std::set<double> loads;
+  for (const Stamped& r : reference) {
+    noisemon::cycle_report_t m;
+    m.decode(r.bytes.data(), 0, static_cast<int>(r.bytes.size()));
+    loads.insert(m.load_nm);
+  }
+  EXPECT_GE(loads.size(), 6u);
+}
+
+// `noisemon replay --hdf5`: the HDF5 file gets the same cycles as the CSV, each run's condition in /runs and every
+// cycle's run index, read back by h5py.
+TEST(Replay, Hdf5OutputHoldsEveryCycleWithItsRunAsTheCsvDoes) {
+  NOISEMON_REQUIRE_H5PY();
+  const std::string dir = noisemon::test::unique_temp_dir();
+  const std::string path = dir + "/two_runs.lcmlog";
+  write_two_runs_with_changing_operating_points(path);
+  daemon::ReplayOptions o;
+  o.log_path = path;
+  o.progress = false;
+  o.csv_path = dir + "/two_runs.csv";
+  o.publishers.push_back(std::make_shared<daemon::Hdf5Publisher>(dir + "/two_runs.h5"));
+  const daemon::ReplaySummary s = daemon::run_replay(o);
+  o.publishers.clear();  // closes the file
+  const nlohmann::json h5 = noisemon::test::read_with_h5py(dir + "/two_runs.h5", dir);
+  EXPECT_EQ(h5["conditions"], nlohmann::json({"a", "b"}));
+  ASSERT_EQ(h5["cycle"].size(), static_cast<std::size_t>(s.reports));
+  std::ifstream csv_file(o.csv_path);
+  const std::string csv((std::istreambuf_iterator<char>(csv_file)), std::istreambuf_iterator<char>());
+  const auto column = [&csv](const std::string& name) {
+    std::istringstream header(csv.substr(0, csv.find('\n')));
+    std::size_t index = 0;
+    for (std::string field; std::getline(header, field, ','); ++index)
+      if (field == name) return csv_column(csv, index);
+    ADD_FAILURE() << "no column " << name;
+    return std::vector<std::string>{};
+  };
+  const std::vector<std::string> cycles = column("cycle"), conditions = column("condition");
+  ASSERT_EQ(cycles.size(), h5["cycle"].size());
+  for (std::size_t i = 0; i < cycles.size(); ++i) {
+    EXPECT_EQ(std::stoll(cycles[i]), h5["cycle"][i].get<std::int64_t>()) << "row " << i;
+    EXPECT_EQ(conditions[i], h5["run"][i].get<int>() == 0 ? "a" : "b") << "row " << i;
+  }
 }
