@@ -62,7 +62,7 @@ std::vector<std::complex<double>> pressure_fft(const PreparedSegment& seg, std::
 }
 
 // One-sided power per FFT bin (Pa^2), merged into 1/48-octave bins above kCompressFromHz, into sp's bins.
-void power_bins(const std::vector<std::complex<double>>& X, std::size_t nfft, std::size_t n, double wsum2,
+void power_bins(const std::vector<std::complex<double>>& X, std::size_t nfft, double wsum2,
                 ConditionSpectrum& sp) {
   const double df = kDatasetRateHz / static_cast<double>(nfft);
   double acc_p = 0.0, acc_pf = 0.0, acc_df = 0.0, edge = kCompressFromHz;
@@ -77,8 +77,9 @@ void power_bins(const std::vector<std::complex<double>>& X, std::size_t nfft, st
   };
   for (std::size_t j = 1; j < nfft / 2; ++j) {
     const double f = static_cast<double>(j) * df;
-    const double p = 2.0 * std::norm(X[j]) / (static_cast<double>(nfft) * wsum2) * static_cast<double>(nfft) /
-                     static_cast<double>(n);
+    // Parseval over the zero-padded transform: the one-sided bins sum to the windowed mean square of the n
+    // samples, whatever nfft is.
+    const double p = 2.0 * std::norm(X[j]) / (static_cast<double>(nfft) * wsum2);
     if (f < kCompressFromHz) {
       if (p > 0.0) {
         sp.f_hz.push_back(f);
@@ -117,7 +118,7 @@ ConditionSpectrum condition_spectrum(const BandDataset& data, std::size_t k, std
   double wsum2 = 0.0;
   const std::vector<std::complex<double>> X = pressure_fft(seg, from, to, nfft, wsum2);
   ConditionSpectrum sp;
-  power_bins(X, nfft, n, wsum2, sp);
+  power_bins(X, nfft, wsum2, sp);
   sp.floor = floor_per_bin(data, cond.info.floor_density, sp.f_hz);
   sp.band_taps.resize(data.band_count());
   for (std::size_t b = 0; b < data.band_count(); ++b)

@@ -59,14 +59,13 @@ TEST(BandFitSpectrum, PowerOfSinesIsConservedAndLandsInTheBandsThatPassThem) {
   ASSERT_EQ(sp.f_hz.size(), sp.s.size());
   ASSERT_EQ(sp.f_hz.size(), sp.df_hz.size());
   EXPECT_TRUE(sp.floor.empty());  // no floor judged
-  // The shortcut uses ratios of band sums: the spectrum's scale drops out, its shape must be right. The total is the
-  // sines' power times nfft / n (12800 frames zero-padded to 16384: the padded transform's bins overlap and the
-  // normalisation does not take that out); the pressure floor's share d df / s per bin is low by the same factor.
+  // The bins are absolute powers (the pressure floor's share per bin is d df / s): they sum to the sines' power
+  // (Parseval), although the 12800 frames are zero-padded to 16384.
   double total = 0.0;
   for (double s : sp.s) total += s;
   const double expected = (a1 * a1 + a2 * a2 + a3 * a3) / 2.0;
   const double scale = total / expected;
-  EXPECT_NEAR(scale, 16384.0 / 12800.0, 2e-3);
+  EXPECT_NEAR(scale, 1.0, 2e-3);
   // Each band: the sum of its taps is the power of the sines weighted by the band's response at them; to 1 % in the
   // bands that pass a sine at half power or more, in the skirts (the response changes across the window's main lobe)
   // to 1e-3 of the total.
