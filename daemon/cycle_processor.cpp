@@ -6,6 +6,7 @@
 #include <limits>
 
 #include "dsp/levels.hpp"
+#include "dsp/resample.hpp"
 #include "dsp/weighting.hpp"
 
 namespace noisemon::daemon {
@@ -446,6 +447,16 @@ void CycleProcessor::select_mics(CycleReport& r) const {
     }
 }
 
+// The highest frequencies the streams carry in a cycle of this duration (infinite when the source does not say).
+CycleProcessor::PassbandLimits CycleProcessor::passband_limits(double duration_s) const {
+  PassbandLimits l;
+  const double revolutions_per_s = 2.0 / duration_s;
+  if (info_.pressure_edges_per_rev > 0)
+    l.pressure_hz = dsp::crank_angle_passband_hz(info_.pressure_edges_per_rev * revolutions_per_s);
+  if (info_.mic_passband_hz > 0) l.mic_hz = info_.mic_passband_hz;
+  return l;
+}
+
 // Band levels, attenuation and overall levels; measured from the microphones not excluded (NaN without any),
 // predicted and CPL NaN when the pressure is faulty.
 void CycleProcessor::band_levels(CycleReport& r, double settled_s, bool pressure_fault) const {
@@ -456,9 +467,12 @@ void CycleProcessor::band_levels(CycleReport& r, double settled_s, bool pressure
   for (std::size_t m = 0; m < mics_; ++m) used += (r.mic_flags[m] & kMicExcluded) ? 0 : 1;
   double meas_sum = 0, pred_sum = 0;
   const double firing_hz = 1.0 / r.duration_s;  // one firing per 720 deg
+  const PassbandLimits limits = passband_limits(r.duration_s);
   for (std::size_t b = 0; b < nb; ++b) {
     const double aw = dsp::a_weighting_db(bands[b].exact_mid_hz);
     const bool below_firing = bands[b].upper_edge_hz < firing_hz;
+    const bool beyond_pressure = bands[b].upper_edge_hz > limits.pressure_hz;
+    const bool beyond_mics = mics_ > 0 && bands[b].upper_edge_hz > limits.mic_hz;
     const double cpl = pressure_fault ? kNaN : dsp::level_db(ms[0 * nb + b]);
     const double pred_a = pressure_fault ? kNaN : dsp::level_db(ms[1 * nb + b]) + aw;
     double mic_ms_sum = 0;
@@ -466,7 +480,9 @@ void CycleProcessor::band_levels(CycleReport& r, double settled_s, bool pressure
       if (!(r.mic_flags[m] & kMicExcluded)) mic_ms_sum += ms[(2 + m) * nb + b];
     // Energy average over the microphones used; without any nothing was measured: NaN, never a number.
     const double meas_a = used > 0 ? dsp::level_db(mic_ms_sum / static_cast<double>(used)) + aw : kNaN;
-    if (!below_firing) {
+    // Only the bands every stream carries and that have a per-cycle meaning make the overall levels, so that the
+    // measured and predicted ones cover the same bands.
+    if (!below_firing && !beyond_pressure && !beyond_mics) {
       meas_sum += dsp::mean_square_from_level(meas_a);
       pred_sum += dsp::mean_square_from_level(pred_a);
     }
@@ -480,6 +496,8 @@ void CycleProcessor::band_levels(CycleReport& r, double settled_s, bool pressure
     if (bands[b].nyquist_cut) f |= kBandNyquistCut;
     if (bands[b].response_time_s > r.duration_s) f |= kBandSlow;
     if (below_firing) f |= kBandBelowFiring;
+    if (beyond_pressure) f |= kBandPressurePassband;
+    if (beyond_mics) f |= kBandMicPassband;
     if (bands[b].response_time_s > settled_s) {
       f |= kBandSettling;
       r.flags |= kCycleSettling;

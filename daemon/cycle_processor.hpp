@@ -18,6 +18,7 @@
 
 #include <cstdint>
 #include <functional>
+#include <limits>
 #include <memory>
 #include <vector>
 
@@ -98,6 +99,11 @@ class CycleProcessor {
   void finish_cycle(std::int64_t end_index);
   void mic_levels(CycleReport& r) const;
   void select_mics(CycleReport& r) const;
+  struct PassbandLimits {
+    double pressure_hz = std::numeric_limits<double>::infinity();
+    double mic_hz = std::numeric_limits<double>::infinity();
+  };
+  PassbandLimits passband_limits(double duration_s) const;
   void band_levels(CycleReport& r, double settled_s, bool pressure_fault) const;
 
   ProcessorConfig config_;

@@ -14,7 +14,14 @@ inline constexpr std::size_t kMaxMics = drivers::SampleBlock::kMaxChannels;
 
 // Bits of CycleReport::band_flags, ::mic_flags and ::flags; the same values as the LCM constants in
 // msgs/cycle_report_t.lcm (whose comments say what each one means).
-enum BandFlag : std::int8_t { kBandNyquistCut = 1, kBandSlow = 2, kBandSettling = 4, kBandBelowFiring = 8 };
+enum BandFlag : std::int8_t {
+  kBandNyquistCut = 1,
+  kBandSlow = 2,
+  kBandSettling = 4,
+  kBandBelowFiring = 8,
+  kBandPressurePassband = 16,
+  kBandMicPassband = 32,
+};
 enum MicFlag : std::int8_t {
   kMicExcluded = 1,  // left out of the measured (array-average) levels of this cycle
   kMicFlat = 2,      // every sample of the cycle the same: a stuck converter

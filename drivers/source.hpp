@@ -71,6 +71,10 @@ struct StreamInfo {
   // The converters' rails as 40 kHz values (0: not known): a sample at or beyond them was clipped (overload).
   double pressure_full_scale_pa = 0.0;  // top of the pressure converter's range, Pa (absolute)
   double mic_full_scale_pa = 0.0;       // +- full scale of the microphone converter, Pa
+  // What the streams carry, for the band validity flags (0: not known, nothing flagged). A crank-angle-sampled
+  // pressure carries up to dsp::crank_angle_passband_hz of its edge rate, which follows the speed.
+  double pressure_edges_per_rev = 0.0;  // encoder edges per revolution that clock the pressure samples
+  double mic_passband_hz = 0.0;         // upper edge of the microphone converter's passband, Hz
 };
 
 enum class ThreadState : std::uint8_t { kIdle = 0, kRunning = 1, kStopped = 2, kFailed = 3 };

@@ -482,10 +482,14 @@ std::int64_t NonuniformResampler::next_output_index() const {
   return impl_->decimator.next_output() - static_cast<std::int64_t>(impl_->queue.pending());
 }
 
+double crank_angle_passband_hz(double edge_rate_hz) { return kIndexPassband * edge_rate_hz; }
+
+double converter_passband_hz(double rate_hz) { return kPassbandFraction * rate_hz; }
+
 double NonuniformResampler::passband_edge_hz() const {
-  const double out_limit = kPassbandFraction * impl_->out_rate;
+  const double out_limit = converter_passband_hz(impl_->out_rate);
   if (impl_->edge_rate_hz <= 0.0) return out_limit;
-  return std::min(out_limit, kIndexPassband * impl_->edge_rate_hz);
+  return std::min(out_limit, crank_angle_passband_hz(impl_->edge_rate_hz));
 }
 
 std::size_t NonuniformResampler::channels() const { return impl_->channels; }

@@ -34,6 +34,13 @@ class RationalResampler {
   std::unique_ptr<Impl> impl_;
 };
 
+// What a signal sampled once per encoder edge keeps, at edge_rate_hz edges per second: the NonuniformResampler
+// is flat up to this frequency (a fraction of the edge rate, below its Nyquist); above it the content is lost.
+double crank_angle_passband_hz(double edge_rate_hz);
+
+// The passband a converter sampling at rate_hz keeps (its anti-alias filter, as the RationalResampler's).
+double converter_passband_hz(double rate_hz);
+
 // Resampler for samples taken at uneven instants (crank-angle-clocked: one sample per encoder edge, with
 // the edge time). Output frame k is the band-limited signal at t = k / out_rate_hz (t in seconds on the
 // caller's clock; frame 0 is at t = 0, so times before the first input are never requested: output starts

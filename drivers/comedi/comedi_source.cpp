@@ -4,6 +4,7 @@
 #include <stdexcept>
 
 #include "drivers/mic_positions.hpp"
+#include "dsp/resample.hpp"
 
 namespace noisemon::drivers {
 namespace {
@@ -103,6 +104,8 @@ class ComediSource final : public Source {
     }
     info_.radius_m = config.mics.radius_m;
     info_.acoustic_delay_s = config.mics.radius_m / config.mics.speed_of_sound_m_s;
+    info_.pressure_edges_per_rev = static_cast<double>(config.encoder.counts_per_rev) / config.encoder.counts_per_edge;
+    info_.mic_passband_hz = dsp::converter_passband_hz(config.mics.scan_rate_hz);
   }
   ~ComediSource() override { stop(); }
 

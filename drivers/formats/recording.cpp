@@ -47,8 +47,8 @@ struct Stream {
   std::int64_t end() const { return first + static_cast<std::int64_t>(values.size() / channels); }
 };
 
-// Encoder samples -> 40 kHz pressure and crank.
-void resample_pressure(const RunDir& run, Stream& pressure, Stream& crank) {
+// Encoder samples -> 40 kHz pressure and crank. Returns the encoder step, degrees.
+double resample_pressure(const RunDir& run, Stream& pressure, Stream& crank) {
   const std::size_t n = run.time_s.size();
   // Encoder step; fill missing samples (the reader allows up to kMaxCrankGapSteps) so they are evenly spaced.
   std::vector<double> steps(n - 1);
@@ -113,6 +113,7 @@ void resample_pressure(const RunDir& run, Stream& pressure, Stream& crank) {
     pressure.first += static_cast<std::int64_t>(drop);
     crank.first += static_cast<std::int64_t>(drop);
   }
+  return step;
 }
 
 void resample_mics(const RunDir& run, Stream& mics) {
@@ -408,17 +409,20 @@ Recording to_recording(const RunDir& run, std::int64_t epoch_utime) {
   Stream pressure, crank;
   std::int64_t first = 0;
   if (on_pipeline_grid(run.time_s, first)) {
+    rec.info.pressure_edges_per_rev = run.pressure_edges_per_rev.value_or(0.0);
     pressure.first = crank.first = first;
     pressure.values = run.pressure_pa;
     crank.values.resize(n);
     for (std::size_t i = 0; i < n; ++i) crank.values[i] = wrap_crank(run.crank_deg[i]);
   } else {
-    resample_pressure(run, pressure, crank);
+    // What the encoder's edges carry (run.json says it only for samples already on the 40 kHz grid).
+    rec.info.pressure_edges_per_rev = 360.0 / resample_pressure(run, pressure, crank);
   }
   std::int64_t from = pressure.first, to = pressure.end();
   Stream mics;
   if (run.mic_count > 0) {
     resample_mics(run, mics);
+    rec.info.mic_passband_hz = run.mic_passband_hz.value_or(run.mic_rate_hz != kFs ? dsp::converter_passband_hz(run.mic_rate_hz) : 0.0);
     from = std::max(from, mics.first);
     to = std::min(to, mics.end());
   }
@@ -484,6 +488,8 @@ RunDir to_run_dir(const Recording& rec) {
   }
   run.radius_m = rec.info.radius_m;
   run.acoustic_delay_s = rec.info.acoustic_delay_s;
+  if (rec.info.pressure_edges_per_rev > 0) run.pressure_edges_per_rev = rec.info.pressure_edges_per_rev;
+  if (run.mic_count > 0 && rec.info.mic_passband_hz > 0) run.mic_passband_hz = rec.info.mic_passband_hz;
   return run;
 }
 

@@ -259,6 +259,16 @@ RunCondition parse_condition(const JsonFields& f, const json& c) {
   return r;
 }
 
+// An optional number above 0 (null or absent: not known).
+std::optional<double> optional_positive(const JsonFields& f, const json& object, const std::string& where,
+                                        const char* key, const std::string& what) {
+  const json* v = f.find(object, where, key, false, "");
+  if (!v || v->is_null()) return std::nullopt;
+  const double x = f.number(*v, where + "." + key, (what + ", or null").c_str());
+  if (!(x > 0)) f.fail(where + "." + key, "expected a value above 0 (" + what + "), or null (unknown)");
+  return x;
+}
+
 void parse_pressure_entry(const JsonFields& f, const json& p, RunManifest& m) {
   m.pressure_file = f.string(p, "pressure", "file", "the pressure CSV's file name");
   const std::string units = f.string(p, "pressure", "units", "\"bar\" or \"Pa\"");
@@ -274,6 +284,7 @@ void parse_pressure_entry(const JsonFields& f, const json& p, RunManifest& m) {
       f.fail("pressure.noise_floor_bar", "expected a noise floor >= 0 bar rms per encoder sample, or null (unknown)");
     m.pressure_noise_floor_bar = floor;
   }
+  m.pressure_edges_per_rev = optional_positive(f, p, "pressure", "encoder_edges_per_rev", "encoder edges per revolution");
 }
 
 void parse_mics_entry(const JsonFields& f, const json& mics, RunManifest& m) {
@@ -304,6 +315,7 @@ void parse_mics_entry(const JsonFields& f, const json& mics, RunManifest& m) {
     m.full_scale_pa = f.number(*fs, "mics.full_scale_pa", "Pa at PCM full scale");
     if (!(*m.full_scale_pa > 0)) f.fail("mics.full_scale_pa", "expected a value above 0 Pa");
   }
+  m.mic_passband_hz = optional_positive(f, mics, "mics", "passband_hz", "upper edge of the converter's passband, Hz");
 }
 
 }  // namespace
@@ -491,8 +503,10 @@ RunDir read_run_dir(const std::filesystem::path& dir) {
     run.mic_positions_m = m.mic_positions_m;
     run.radius_m = m.radius_m;
     run.acoustic_delay_s = m.acoustic_delay_s;
+    run.mic_passband_hz = m.mic_passband_hz;
   }
   run.pressure_noise_floor_bar = m.pressure_noise_floor_bar;
+  run.pressure_edges_per_rev = m.pressure_edges_per_rev;
   return run;
 }
 
@@ -518,11 +532,13 @@ json run_json(const RunDir& run, const std::string& pressure_units) {
                        {"motored", c.motored_known ? json(c.motored) : json(nullptr)}};
   root["pressure"] = {{"file", "pressure.csv"}, {"units", pressure_units}};
   if (run.pressure_noise_floor_bar) root["pressure"]["noise_floor_bar"] = *run.pressure_noise_floor_bar;
+  if (run.pressure_edges_per_rev) root["pressure"]["encoder_edges_per_rev"] = *run.pressure_edges_per_rev;
   if (run.mic_count > 0) {
     json positions = json::array();
     for (const auto& p : run.mic_positions_m) positions.push_back({p[0], p[1], p[2]});
     root["mics"] = {{"file", "mics.wav"}, {"units", "Pa"}, {"positions_m", positions}, {"radius_m", run.radius_m}};
     if (run.acoustic_delay_s >= 0) root["mics"]["acoustic_delay_s"] = run.acoustic_delay_s;
+    if (run.mic_passband_hz) root["mics"]["passband_hz"] = *run.mic_passband_hz;
   }
   return root;
 }

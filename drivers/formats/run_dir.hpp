@@ -51,6 +51,10 @@ struct RunDir {
   // The pressure chain's commissioned noise floor, bar rms per encoder sample (run.json
   // "pressure.noise_floor_bar"); nullopt when absent or null: the diagnosis then estimates it from the data.
   std::optional<double> pressure_noise_floor_bar;
+  // What the recording carries, when its samples do not say (already on the 40 kHz grid, as export writes them):
+  // run.json "pressure.encoder_edges_per_rev" and "mics.passband_hz" (band validity flags; docs: Run directory).
+  std::optional<double> pressure_edges_per_rev;
+  std::optional<double> mic_passband_hz;
 };
 
 // The contents of run.json, checked (what parse_run_json returns).
@@ -65,6 +69,8 @@ struct RunManifest {
   double acoustic_delay_s = -1.0;
   std::optional<double> full_scale_pa;     // PCM WAVs only: the Pa of digital full scale
   std::optional<double> pressure_noise_floor_bar;  // "pressure.noise_floor_bar" (see RunDir)
+  std::optional<double> pressure_edges_per_rev;    // "pressure.encoder_edges_per_rev" (see RunDir)
+  std::optional<double> mic_passband_hz;           // "mics.passband_hz" (see RunDir)
 };
 
 struct RunDirError : std::runtime_error {

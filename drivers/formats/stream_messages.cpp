@@ -52,6 +52,8 @@ noisemon::session_t to_message(const StreamInfo& info, const std::string& source
   m.acoustic_delay_s = info.acoustic_delay_s;
   m.pressure_full_scale_pa = info.pressure_full_scale_pa;
   m.mic_full_scale_pa = info.mic_full_scale_pa;
+  m.pressure_edges_per_rev = info.pressure_edges_per_rev;
+  m.mic_passband_hz = info.mic_passband_hz;
   m.nmics = static_cast<std::int16_t>(info.mic_count);
   m.mic_positions_m.assign(info.mic_count, std::vector<double>(3, 0.0));
   for (std::size_t i = 0; i < info.mic_count; ++i) {
@@ -75,6 +77,11 @@ StreamInfo from_message(const noisemon::session_t& m) {
   for (const double fs : {m.pressure_full_scale_pa, m.mic_full_scale_pa})
     if (!(fs >= 0) || !std::isfinite(fs))
       throw std::invalid_argument("session with full scale " + std::to_string(fs) + " Pa (0 = unknown, or above 0 expected)");
+  for (const double limit : {m.pressure_edges_per_rev, m.mic_passband_hz})
+    if (!(limit >= 0) || !std::isfinite(limit))
+      throw std::invalid_argument("session with encoder edges per revolution " + std::to_string(m.pressure_edges_per_rev) +
+                                  " and microphone passband " + std::to_string(m.mic_passband_hz) +
+                                  " Hz (0 = unknown, or above 0 expected)");
   StreamInfo info;
   info.epoch_utime = m.epoch_utime;
   info.mic_count = static_cast<std::uint32_t>(m.nmics);
@@ -82,6 +89,8 @@ StreamInfo from_message(const noisemon::session_t& m) {
   info.acoustic_delay_s = m.acoustic_delay_s;
   info.pressure_full_scale_pa = m.pressure_full_scale_pa;
   info.mic_full_scale_pa = m.mic_full_scale_pa;
+  info.pressure_edges_per_rev = m.pressure_edges_per_rev;
+  info.mic_passband_hz = m.mic_passband_hz;
   for (const auto& p : m.mic_positions_m) info.mic_positions_m.push_back({p[0], p[1], p[2]});
   return info;
 }
@@ -146,7 +155,7 @@ bool decode_exact(const void* data, std::size_t size, Message& m) {
 
 bool decode_message(const void* data, std::size_t size, noisemon::session_t& m) {
   // fingerprint, utime, epoch_utime, source, sample_rate_hz, radius_m, acoustic_delay_s, nmics, positions, condition,
-  // pressure_full_scale_pa, mic_full_scale_pa
+  // pressure_full_scale_pa, mic_full_scale_pa, pressure_edges_per_rev, mic_passband_hz
   const auto* d = static_cast<const std::uint8_t*>(data);
   std::size_t pos = 24;
   if (size < pos || !skip_string(d, size, pos)) return false;
@@ -156,7 +165,7 @@ bool decode_message(const void* data, std::size_t size, noisemon::session_t& m) 
   pos += 2;
   if (nmics < 0 || static_cast<std::size_t>(nmics) * 24 > size - pos) return false;
   pos += static_cast<std::size_t>(nmics) * 24;
-  if (!skip_string(d, size, pos) || size - pos != 16) return false;
+  if (!skip_string(d, size, pos) || size - pos != 4 * 8) return false;
   return decode_exact(data, size, m);
 }
 

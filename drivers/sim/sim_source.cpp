@@ -13,6 +13,7 @@
 #include <thread>
 
 #include "drivers/mic_positions.hpp"
+#include "dsp/resample.hpp"
 #include "drivers/sim/sim_generators.hpp"
 
 namespace noisemon::drivers {
@@ -76,6 +77,8 @@ class SimSource final : public Source {
     info_.acoustic_delay_s = config_.radius_m / config_.speed_of_sound_m_s;
     if (config_.pressure_chain.adc_bits > 0) info_.pressure_full_scale_pa = config_.pressure_chain.adc_max_bar * 1e5;
     if (config_.mic_chain.adc_bits > 0) info_.mic_full_scale_pa = config_.mic_chain.adc_range_pa;
+    info_.pressure_edges_per_rev = 360.0 / config_.encoder_resolution_deg;
+    info_.mic_passband_hz = dsp::converter_passband_hz(config_.mic_rate_hz);
   }
   ~SimSource() override { stop(); }
 

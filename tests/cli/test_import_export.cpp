@@ -27,6 +27,7 @@
 #include "daemon/cli/band_data.hpp"
 #include "daemon/cli/import_export.hpp"
 #include "daemon/replay.hpp"
+#include "dsp/resample.hpp"
 #include "drivers/formats/cycle_table.hpp"
 #include "noisemon/cycle_report_t.hpp"
 #include "tests/daemon/csv_column.hpp"
@@ -199,6 +200,35 @@ TEST_F(YanmarTables, OneReportPerCycleExceptTheDocumentedFirst) {
   EXPECT_EQ(fired_->reports[0].load_nm, 18.0);
   EXPECT_FALSE(fired_->reports[0].motored);
   EXPECT_TRUE(motored_->reports[0].motored);
+}
+
+// A coarser encoder than the tables': every fifth row of the fired table is a 1 deg table, a 10.8 kHz edge rate at
+// 1800 rpm. The import says so in the session, and the bands above what the crank-angle resampler keeps of that edge
+// rate (4.4 kHz; tests/dsp/test_resample.cpp measures its flatness there) are flagged BAND_PRESSURE_PASSBAND and
+// left out of the overall levels. The 0.2 deg table itself carries every band but the 20 kHz one.
+TEST_F(YanmarTables, BandsAboveWhatACoarseEncoderCarriesAreFlagged) {
+  const std::string coarse = noisemon::test::unique_temp_dir() + "/fired_1deg.txt";
+  {
+    std::ifstream in(shared_file("yanmar_l100v_fired_18Nm.txt"));
+    std::ofstream out(coarse);
+    std::size_t row = 0;
+    for (std::string line; std::getline(in, line);)
+      if (row++ % 5 == 0) out << line << "\n";
+  }
+  const TableRun run = import_and_replay(coarse, "fired_1deg", false);
+  const double limit_hz = noisemon::dsp::crank_angle_passband_hz(6.0 * kRpm / 1.0);
+  const auto upper_edge = [](float nominal_hz) { return nominal_hz * std::pow(2.0, 1.0 / 6.0); };
+  ASSERT_FALSE(run.reports.empty());
+  for (const auto& r : run.reports)
+    for (int b = 0; b < r.nbands; ++b) {
+      const bool out = r.band_flags[b] & noisemon::cycle_report_t::BAND_PRESSURE_PASSBAND;
+      // 2 % either side: the nominal frequency is rounded and the cycle's speed varies a little.
+      if (upper_edge(r.band_hz[b]) > 1.02 * limit_hz) EXPECT_TRUE(out) << r.band_hz[b] << " Hz, cycle " << r.cycle;
+      if (upper_edge(r.band_hz[b]) < 0.98 * limit_hz) EXPECT_FALSE(out) << r.band_hz[b] << " Hz, cycle " << r.cycle;
+    }
+  for (const auto& r : fired_->reports)
+    for (int b = 0; b + 1 < r.nbands; ++b)
+      EXPECT_FALSE(r.band_flags[b] & noisemon::cycle_report_t::BAND_PRESSURE_PASSBAND) << r.band_hz[b] << " Hz";
 }
 
 TEST_F(YanmarTables, CplSpectraAgreeWithAnIndependentDftOfTheSameCycle) {

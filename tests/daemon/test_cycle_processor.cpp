@@ -405,6 +405,7 @@ struct Streams {
   std::function<double(std::int64_t)> crank = ::crank;
   std::function<double(std::int64_t, std::uint32_t)> mic;
   double pressure_full_scale_pa = 0, mic_full_scale_pa = 0;
+  double pressure_edges_per_rev = 0, mic_passband_hz = 0;
 };
 
 Streams streams_of(const Synth& s) {
@@ -423,6 +424,8 @@ RunResult run_streams(const Streams& st, double seconds) {
   info.acoustic_delay_s = kDelayFrames / kFs;
   info.pressure_full_scale_pa = st.pressure_full_scale_pa;
   info.mic_full_scale_pa = st.mic_full_scale_pa;
+  info.pressure_edges_per_rev = st.pressure_edges_per_rev;
+  info.mic_passband_hz = st.mic_passband_hz;
   daemon::ProcessorConfig pc;
   pc.model = model::preset("linear");
   RunResult out;
@@ -801,5 +804,41 @@ TEST(CycleProcessorFaults, UnknownCrankAngleAcrossABoundaryHidesOrBlursIt) {
       EXPECT_NEAR(before->duration_s, (first_frame(11) + 200 - first_frame(10)) / kFs, 1e-9);
       EXPECT_NEAR(after->duration_s, (first_frame(12) - first_frame(11) - 200) / kFs, 1e-9);
     }
+  }
+}
+
+// What the streams cannot carry is flagged and left out of the overall levels. A pressure sampled at every degree
+// (360 edges per revolution) at 3000 rpm has an 18 kHz edge rate: the crank-angle resampler is flat to 0.41 of it
+// (7.4 kHz; tests/dsp/test_resample.cpp measures that flatness), so the 8 kHz band (upper edge 8.9 kHz) and above
+// are flagged; microphones behind a 10 kHz passband flag the 10 kHz band (upper edge 11.2 kHz) and above. A strong
+// 12.5 kHz tone then does not move the overall levels: they are the 5 kHz tone's alone, as eq. 4.1 gives it.
+TEST(CycleProcessor, BandsTheStreamsCannotCarryAreFlaggedAndLeftOutOfTheOverallLevels) {
+  const Synth s({{5000.0, 300.0, false}, {12500.0, 30000.0, false}});
+  Streams st = streams_of(s);
+  st.pressure_edges_per_rev = 360;
+  st.mic_passband_hz = 10000;
+  const RunResult r = run_streams(st, 1.2);
+  ASSERT_GE(r.reports.size(), 20u);
+  const std::size_t b6k3 = band_index(r.bands, 6300), b8k = band_index(r.bands, 8000), b10k = band_index(r.bands, 10000);
+  const double expected_lpa = level(300 * std::abs(eq_4_1(5000))) + a_weight(r.bands[band_index(r.bands, 5000)].exact_mid_hz);
+  for (const auto& c : r.reports) {
+    EXPECT_FALSE(c.band_flags[b6k3] & (daemon::kBandPressurePassband | daemon::kBandMicPassband));
+    EXPECT_TRUE(c.band_flags[b8k] & daemon::kBandPressurePassband);
+    EXPECT_FALSE(c.band_flags[b8k] & daemon::kBandMicPassband);
+    for (std::size_t b = b10k; b < r.bands.size(); ++b) {
+      EXPECT_TRUE(c.band_flags[b] & daemon::kBandPressurePassband) << r.bands[b].nominal_hz;
+      EXPECT_TRUE(c.band_flags[b] & daemon::kBandMicPassband) << r.bands[b].nominal_hz;
+    }
+    if (c.cycle < 5) continue;  // let the filters settle
+    EXPECT_GT(c.spl_a_measured_db[band_index(r.bands, 12500)], expected_lpa + 10.0);  // it is there, flagged
+    EXPECT_NEAR(c.lpa_measured_db, expected_lpa, 0.2);
+    EXPECT_NEAR(c.lpa_predicted_db, expected_lpa, 0.2);
+  }
+  // Without the limits (a source that does not say), nothing is flagged and the 12.5 kHz tone dominates.
+  const RunResult unlimited = run_streams(streams_of(s), 1.2);
+  for (const auto& c : unlimited.reports) {
+    for (std::size_t b = 0; b < r.bands.size(); ++b)
+      EXPECT_FALSE(c.band_flags[b] & (daemon::kBandPressurePassband | daemon::kBandMicPassband));
+    if (c.cycle >= 5) EXPECT_GT(c.lpa_measured_db, expected_lpa + 10.0);
   }
 }
