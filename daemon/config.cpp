@@ -2,6 +2,7 @@
 
 #include <sched.h>
 
+#include <cctype>
 #include <cmath>
 #include <limits>
 #include <fstream>
@@ -438,6 +439,28 @@ void read_threads(TableReader& top, const std::string& origin, ThreadsConfig& t)
   r.reject_unknown();
 }
 
+// [lcm]: the URL, the channel names and the cell id (which suffixes them).
+void read_lcm(TableReader& top, const std::string& origin, LcmConfig& lcm) {
+  TableReader l(top.table("lcm"), "lcm", origin);
+  l.string("url", lcm.url);
+  l.string("report_channel", lcm.report_channel);
+  l.string("status_channel", lcm.status_channel);
+  l.string("raw_channel", lcm.raw_channel);
+  l.string("operating_point_channel", lcm.operating_point_channel);
+  l.string("session_channel", lcm.session_channel);
+  l.boolean("publish_raw", lcm.publish_raw);
+  l.boolean("publish_operating_point", lcm.publish_operating_point);
+  l.number("session_timeout_s", lcm.session_timeout_s, 0.01, 3600);
+  std::string cell;
+  l.string("cell", cell);
+  try {
+    set_cell(lcm, cell);
+  } catch (const ConfigError& e) {
+    l.fail("cell", e.what());
+  }
+  l.reject_unknown();
+}
+
 Config parse_table(const toml::table& root, const std::string& origin) {
   Config c;
   TableReader top(&root, "", origin);
@@ -453,17 +476,7 @@ Config parse_table(const toml::table& root, const std::string& origin) {
   d.boolean("live", c.live);
   d.reject_unknown();
 
-  TableReader l(top.table("lcm"), "lcm", origin);
-  l.string("url", c.lcm.url);
-  l.string("report_channel", c.lcm.report_channel);
-  l.string("status_channel", c.lcm.status_channel);
-  l.string("raw_channel", c.lcm.raw_channel);
-  l.string("operating_point_channel", c.lcm.operating_point_channel);
-  l.string("session_channel", c.lcm.session_channel);
-  l.boolean("publish_raw", c.lcm.publish_raw);
-  l.boolean("publish_operating_point", c.lcm.publish_operating_point);
-  l.number("session_timeout_s", c.lcm.session_timeout_s, 0.01, 3600);
-  l.reject_unknown();
+  read_lcm(top, origin, c.lcm);
 
   read_engine(top, origin, c.engine);
 
@@ -517,6 +530,19 @@ Config parse_table(const toml::table& root, const std::string& origin) {
 }
 
 }  // namespace
+
+void set_cell(LcmConfig& lcm, const std::string& cell) {
+  for (const char ch : cell)
+    if (!std::isalnum(static_cast<unsigned char>(ch)) && ch != '-')
+      throw ConfigError("cell id '" + cell + "': only letters, digits and '-' are allowed");
+  const std::string old_suffix = lcm.cell.empty() ? "" : "_" + lcm.cell;
+  for (std::string* channel : {&lcm.report_channel, &lcm.status_channel, &lcm.raw_channel, &lcm.operating_point_channel,
+                               &lcm.session_channel}) {
+    if (!old_suffix.empty() && channel->ends_with(old_suffix)) channel->resize(channel->size() - old_suffix.size());
+    if (!cell.empty()) *channel += "_" + cell;
+  }
+  lcm.cell = cell;
+}
 
 Config parse_config(const std::string& text, const std::string& origin) {
   toml::table root;

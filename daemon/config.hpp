@@ -25,6 +25,7 @@ struct LcmConfig {
   bool publish_raw = true;
   bool publish_operating_point = true;
   double session_timeout_s = 30.0;  // source "lcm": how long to wait for the session message
+  std::string cell;  // test cell id, appended to every channel as "_<cell>" (empty: the plain names)
 };
 
 // [threads]: memory locking and the scheduling of each thread the daemon may run (drivers/worker_thread.hpp).
@@ -63,6 +64,10 @@ struct Config {
 struct ConfigError : std::runtime_error {
   using std::runtime_error::runtime_error;
 };
+
+// Sets the cell id and appends "_<cell>" to every channel name, replacing the suffix of a previous cell; several
+// daemons can so share one multicast group. Throws ConfigError unless the id is [A-Za-z0-9-]* (empty: no suffix).
+void set_cell(LcmConfig& lcm, const std::string& cell);
 
 // Reads a TOML file over the defaults. Unknown keys, wrong types and out-of-range values are errors.
 Config load_config(const std::string& path);

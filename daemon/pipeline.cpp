@@ -282,6 +282,9 @@ Pipeline::~Pipeline() { stop(); }
 void Pipeline::start() {
   Impl& d = *impl_;
   d.started = Clock::now();
+  // spdlog's registry is a static made on first use: make it here, before the threads that log. (Its guard lives
+  // in libspdlog, which ThreadSanitizer does not see into: two threads' first logs were reported as a race.)
+  spdlog::default_logger_raw();
   drivers::Streams streams{&d.pressure_ring, &d.mic_ring, &d.op_ring};
   // Processing first: the publishing thread ends once the processing thread no longer runs.
   d.processing_thread.start("nm-processing", d.config.threads.processing,

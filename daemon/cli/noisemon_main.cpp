@@ -8,6 +8,7 @@
 #include "daemon/cli/import_export_cli.hpp"
 #include "daemon/cli/hdf5_publisher.hpp"
 #include "daemon/replay.hpp"
+#include "daemon/cli/dash_command.hpp"
 #include "daemon/cli/diagnose_command.hpp"
 #include "daemon/cli/summary_command.hpp"
 #include "daemon/cli/fit_command.hpp"
@@ -30,6 +31,8 @@ int main(int argc, char** argv) {
   w->add_flag("--bands", watch.bands, "also print each report's 1/3-octave spectra");
   w->add_flag("--status", watch.status, "print the daemon's 1 Hz status messages instead (threads, rings, counters)");
   w->add_option("--status-channel", watch.status_channel, "channel of the status messages")->capture_default_str();
+  std::string watch_cell;
+  w->add_option("--cell", watch_cell, "test cell id: append _ID to both channels (docs/sources-and-formats.md)");
 
   ReplayOptions replay;
   std::string replay_config, replay_model;
@@ -49,6 +52,7 @@ int main(int argc, char** argv) {
   FitCommand fit(app);
   DiagnoseCommand diagnose(app);
   SummaryCommand summary(app);
+  DashCommand dash(app);
 
   try {
     app.parse(argc, argv);
@@ -56,12 +60,21 @@ int main(int argc, char** argv) {
     return app.exit(e);
   }
   try {
-    if (w->parsed()) return run_watch(watch);
+    if (w->parsed()) {
+      LcmConfig channels;
+      channels.report_channel = watch.channel;
+      channels.status_channel = watch.status_channel;
+      set_cell(channels, watch_cell);  // validates the id
+      watch.channel = channels.report_channel;
+      watch.status_channel = channels.status_channel;
+      return run_watch(watch);
+    }
     if (const int status = import_export.run(); status >= 0) return status;
     if (const int status = sim.run(); status >= 0) return status;
     if (const int status = fit.run(); status >= 0) return status;
     if (const int status = diagnose.run(argc, argv); status >= 0) return status;
     if (const int status = summary.run(); status >= 0) return status;
+    if (const int status = dash.run(); status >= 0) return status;
     if (r->parsed()) {
       if (!replay_config.empty()) replay.config = load_config(replay_config);
       if (!replay_model.empty()) replay.config.model = noisemon::model::preset(replay_model);

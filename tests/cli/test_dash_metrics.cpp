@@ -1,0 +1,177 @@
+// `noisemon dash`'s /metrics text, read back by a small parser of the Prometheus text exposition format (0.0.4)
+// written from the format's rules, not from the writer: every line is a comment (# HELP / # TYPE) or a sample;
+// names and label names match their grammars; each family's HELP and TYPE come once, before its samples.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <map>
+#include <regex>
+#include <set>
+#include <sstream>
+#include <string>
+
+#include "daemon/cli/dash_metrics.hpp"
+#include "daemon/cli/dash_state.hpp"
+
+namespace {
+
+using noisemon::daemon::MetricsInput;
+using noisemon::daemon::prometheus_text;
+
+struct Sample {
+  std::string name;
+  std::map<std::string, std::string> labels;
+  double value;
+};
+
+struct Exposition {
+  std::vector<Sample> samples;
+  std::map<std::string, std::string> types;
+  std::vector<std::string> errors;
+};
+
+// Label values: any characters with \\, \" and \n escaped.
+std::map<std::string, std::string> parse_labels(const std::string& text, std::vector<std::string>& errors) {
+  static const std::regex label(R"(([a-zA-Z_][a-zA-Z0-9_]*)=\"((?:[^\"\\\n]|\\[\\\"n])*)\"(,|$))");
+  std::map<std::string, std::string> out;
+  auto it = text.cbegin();
+  std::smatch m;
+  while (it != text.cend()) {
+    if (!std::regex_search(it, text.cend(), m, label, std::regex_constants::match_continuous)) {
+      errors.push_back("bad labels: " + text);
+      break;
+    }
+    if (!out.emplace(m[1], m[2]).second) errors.push_back("duplicate label " + m[1].str());
+    it = m[0].second;
+  }
+  return out;
+}
+
+Exposition parse(const std::string& text) {
+  static const std::regex help(R"(# HELP ([a-zA-Z_:][a-zA-Z0-9_:]*) .*)");
+  static const std::regex type(R"(# TYPE ([a-zA-Z_:][a-zA-Z0-9_:]*) (counter|gauge|histogram|summary|untyped))");
+  static const std::regex sample(R"(([a-zA-Z_:][a-zA-Z0-9_:]*)(?:\{(.*)\})? (NaN|[+-]Inf|[-+]?[0-9.]+(?:[eE][-+]?[0-9]+)?))");
+  Exposition e;
+  std::set<std::string> helped, sampled;
+  std::istringstream in(text);
+  std::string line;
+  std::smatch m;
+  if (text.empty() || text.back() != '\n') e.errors.push_back("the text must end with a line feed");
+  while (std::getline(in, line)) {
+    if (std::regex_match(line, m, help)) {
+      if (!helped.insert(m[1]).second) e.errors.push_back("second HELP for " + m[1].str());
+    } else if (std::regex_match(line, m, type)) {
+      if (e.types.count(m[1]) || sampled.count(m[1])) e.errors.push_back("TYPE after samples or twice: " + m[1].str());
+      e.types[m[1]] = m[2];
+    } else if (std::regex_match(line, m, sample)) {
+      const std::string value = m[3];
+      e.samples.push_back({m[1], parse_labels(m[2], e.errors),
+                           value == "NaN" ? NAN : value == "+Inf" ? INFINITY : value == "-Inf" ? -INFINITY : std::stod(value)});
+      sampled.insert(m[1]);
+      if (!e.types.count(m[1])) e.errors.push_back("sample before its TYPE: " + line);
+    } else {
+      e.errors.push_back("not a comment or sample: " + line);
+    }
+  }
+  return e;
+}
+
+noisemon::status_t make_status() {
+  noisemon::status_t s{};
+  s.source = "sim";
+  s.uptime_s = 12.5;
+  s.nthreads = 2;
+  s.thread_name = {"processing", "lcm"};
+  s.thread_state = {noisemon::status_t::THREAD_RUNNING, noisemon::status_t::THREAD_FAILED};
+  s.thread_error = {"", "boom \"quoted\"\nsecond line"};
+  s.nrings = 1;
+  s.ring_name = {"pressure"};
+  s.ring_fill = {0.25f};
+  s.ring_overruns = {7};
+  s.cycles_published = 1234;
+  s.cycles_dropped = 5;
+  s.latency_ms_mean = 20.5f;
+  s.latency_ms_max = 34.0f;
+  s.processing_ms_mean = 0.5f;
+  s.processing_ms_max = 0.75f;
+  s.ncounters = 1;
+  s.counter_name = {"comedi.pressure.overruns"};
+  s.counter_value = {3};
+  return s;
+}
+
+const Sample* find(const Exposition& e, const std::string& name, const std::string& label = "", const std::string& value = "") {
+  for (const Sample& s : e.samples)
+    if (s.name == name && (label.empty() || (s.labels.count(label) && s.labels.at(label) == value))) return &s;
+  return nullptr;
+}
+
+}  // namespace
+
+TEST(DashMetrics, StatusAndLevelsParseAsPrometheusTextWithTheCellOnEverySample) {
+  MetricsInput in;
+  in.cell = "bay-2";
+  in.status = make_status();
+  noisemon::cycle_report_t r{};
+  r.cycle = 99;
+  r.lpa_measured_db = 111.25;
+  r.lpa_predicted_db = NAN;
+  in.cycle = r;
+  const Exposition e = parse(prometheus_text(in));
+  for (const std::string& error : e.errors) ADD_FAILURE() << error;
+  ASSERT_FALSE(e.samples.empty());
+  for (const Sample& s : e.samples) EXPECT_EQ(s.labels.count("cell") ? s.labels.at("cell") : "", "bay-2") << s.name;
+  EXPECT_EQ(e.types.at("noisemon_cycles_published_total"), "counter");
+  EXPECT_EQ(e.types.at("noisemon_ring_fill_ratio"), "gauge");
+  EXPECT_EQ(find(e, "noisemon_cycles_published_total")->value, 1234);
+  EXPECT_EQ(find(e, "noisemon_cycles_dropped_total")->value, 5);
+  EXPECT_EQ(find(e, "noisemon_ring_fill_ratio", "ring", "pressure")->value, 0.25);
+  EXPECT_EQ(find(e, "noisemon_ring_overruns_total", "ring", "pressure")->value, 7);
+  EXPECT_EQ(find(e, "noisemon_thread_state", "thread", "processing")->value, 1);
+  EXPECT_EQ(find(e, "noisemon_thread_state", "thread", "lcm")->value, 3);
+  EXPECT_DOUBLE_EQ(find(e, "noisemon_latency_mean_seconds")->value, 0.0205);
+  EXPECT_DOUBLE_EQ(find(e, "noisemon_processing_max_seconds")->value, 0.00075);
+  EXPECT_EQ(find(e, "noisemon_driver_counter_total", "counter", "comedi.pressure.overruns")->value, 3);
+  EXPECT_EQ(find(e, "noisemon_lpa_measured_db")->value, 111.25);
+  EXPECT_TRUE(std::isnan(find(e, "noisemon_lpa_predicted_db")->value));
+  EXPECT_EQ(find(e, "noisemon_last_cycle")->value, 99);
+  for (const auto& [name, type] : e.types)
+    if (type == "counter") EXPECT_TRUE(name.ends_with("_total")) << name;
+}
+
+TEST(DashMetrics, LabelValuesAreEscaped) {
+  EXPECT_EQ(noisemon::daemon::prometheus_label_value("a\"b\\c\nd"), "a\\\"b\\\\c\\nd");
+  MetricsInput in;
+  in.status = make_status();
+  in.status->ring_name = {"odd \"ring\"\n"};
+  const Exposition e = parse(prometheus_text(in));
+  for (const std::string& error : e.errors) ADD_FAILURE() << error;
+  EXPECT_NE(find(e, "noisemon_ring_fill_ratio", "ring", "odd \\\"ring\\\"\\n"), nullptr);
+}
+
+TEST(DashMetrics, BeforeAnyMessageOnlyTheDashsOwnCounterIsExposed) {
+  const Exposition e = parse(prometheus_text(MetricsInput{}));
+  for (const std::string& error : e.errors) ADD_FAILURE() << error;
+  ASSERT_EQ(e.samples.size(), 1u);
+  EXPECT_EQ(e.samples[0].name, "noisemon_dash_cycles_received_total");
+}
+
+TEST(DashState, EventsCarryTheTrendPointsAClientHasNotHadAndMarkRestartsAndDrops) {
+  noisemon::daemon::DashState state("", 3);
+  noisemon::cycle_report_t r{};
+  for (const std::int64_t cycle : {0, 1, 3, 4, 0}) {  // 2 dropped, then the daemon restarts
+    r.cycle = cycle;
+    state.on_cycle(r);
+  }
+  std::uint64_t sent = 0;
+  const auto all = nlohmann::json::parse(state.event_json(0, sent));
+  EXPECT_EQ(sent, 5u);
+  ASSERT_EQ(all["trend"].size(), 3u);  // the history keeps 3
+  EXPECT_EQ(all["trend"][0]["dropped"], 1);
+  EXPECT_EQ(all["trend"][2]["restarted"], true);
+  EXPECT_EQ(all["full"], true);
+  const auto newer = nlohmann::json::parse(state.event_json(4, sent));
+  ASSERT_EQ(newer["trend"].size(), 1u);
+  EXPECT_EQ(newer["full"], false);
+  EXPECT_EQ(state.wait_newer(5, std::chrono::milliseconds(1)), 5u);
+}

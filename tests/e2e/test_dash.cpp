@@ -1,0 +1,281 @@
+// `noisemon dash` as a person uses it: noisemond on the simulated engine and the dash in a private network
+// namespace, Debian's headless Chromium on the page. The numbers on the page must equal those of the LCM cycle
+// reports of the same cycles (this test subscribes too), the page must keep updating when the daemon and when
+// the dash restart, and /metrics must parse and equal the status messages. A second test runs two cells on one
+// multicast group.
+#include <gtest/gtest.h>
+#include <httplib.h>
+
+#include <chrono>
+#include <cmath>
+#include <fstream>
+#include <functional>
+#include <regex>
+#include <sstream>
+#include <thread>
+
+#include "tests/drivers/unique_temp.hpp"
+#include "tests/e2e/chromium_cdp.hpp"
+#include "tests/e2e/dash_bus.hpp"
+#include "tests/e2e/private_network.hpp"
+
+namespace {
+
+using noisemon::test::kLcmUrl;
+using noisemon::test::spawn;
+using noisemon::test::wait_for;
+using nlohmann::json;
+const auto* const kEnv = ::testing::AddGlobalTestEnvironment(new noisemon::test::PrivateNetwork);
+
+// Skips without Chromium; fails instead on CI (CI=true), where scripts/install-deps.sh installs it.
+#define REQUIRE_CHROMIUM()                                                                               \
+  do {                                                                                                   \
+    if (access(noisemon::test::kChromium, X_OK) != 0) {                                                  \
+      const std::string why = std::string(noisemon::test::kChromium) + " missing (apt-get install chromium)"; \
+      if (const char* ci = std::getenv("CI"); ci && std::string(ci) == "true") FAIL() << why;            \
+      GTEST_SKIP() << why;                                                                               \
+    }                                                                                                    \
+  } while (0)
+
+std::string temp(const std::string& name) { return noisemon::test::unique_temp_dir() + "/" + name; }
+
+// Polls `done` every 100 ms until it holds or `seconds` pass.
+bool eventually(double seconds, const std::function<bool()>& done) {
+  const auto end = std::chrono::steady_clock::now() + std::chrono::duration<double>(seconds);
+  while (std::chrono::steady_clock::now() < end) {
+    if (done()) return true;
+    std::this_thread::sleep_for(std::chrono::milliseconds(100));
+  }
+  return done();
+}
+
+std::string http_get(int port, const std::string& path) {
+  httplib::Client client("127.0.0.1", port);
+  client.set_connection_timeout(2);
+  const auto res = client.Get(path.c_str());
+  return res && res->status == 200 ? res->body : std::string();
+}
+
+// A process of the test, killed when the test ends early (a failed ASSERT), so none outlives it.
+class Process {
+ public:
+  explicit Process(pid_t pid) : pid_(pid) {}
+  Process(Process&& other) noexcept : pid_(other.pid_) { other.pid_ = -1; }
+  Process& operator=(Process&& other) noexcept {
+    std::swap(pid_, other.pid_);
+    return *this;
+  }
+  ~Process() {
+    if (pid_ > 0) wait_for(pid_, std::chrono::seconds(0));
+  }
+  // SIGINT, as Ctrl-C; the exit status (-1: it had to be killed after 10 s).
+  int stop() {
+    kill(pid_, SIGINT);
+    const int status = wait_for(pid_, std::chrono::seconds(10));
+    pid_ = -1;
+    return status;
+  }
+  int wait(int seconds) {
+    const int status = wait_for(pid_, std::chrono::seconds(seconds));
+    pid_ = -1;
+    return status;
+  }
+
+ private:
+  pid_t pid_;
+};
+
+Process start_dash(int port, const std::vector<std::string>& extra, const std::string& name) {
+  std::vector<std::string> args{NOISEMON_PATH, "dash", "--lcm", kLcmUrl, "--listen", "127.0.0.1:" + std::to_string(port)};
+  args.insert(args.end(), extra.begin(), extra.end());
+  Process p(spawn(args, temp(name + ".out"), temp(name + ".err")));
+  eventually(5, [&] { return !http_get(port, "/api/state").empty(); });
+  return p;
+}
+
+Process start_daemon(const std::vector<std::string>& extra, const std::string& name) {
+  std::vector<std::string> args{NOISEMOND_PATH, "--lcm", kLcmUrl};
+  args.insert(args.end(), extra.begin(), extra.end());
+  return Process(spawn(args, temp(name + ".out"), temp(name + ".err")));
+}
+
+// Everything the page shows as text that the test compares, read in one go (the page cannot change meanwhile).
+const char* const kReadPage = R"JS((() => {
+  const t = (id) => { const e = document.getElementById(id); return e ? e.textContent : ''; };
+  if (!document.getElementById('cycle')) return { utime: '', received: 0 };  // still loading
+  const mics = [];
+  for (let i = 1; document.getElementById('mic-' + i); ++i) mics.push(t('mic-' + i));
+  return { utime: document.getElementById('cycle').dataset.utime || '', cycle: t('cycle'), conn: t('conn'),
+    lpa_m: t('lpa-meas'), lpa_p: t('lpa-pred'), lwa_m: t('lwa-meas'), lwa_p: t('lwa-pred'), speed: t('speed'),
+    soi: t('soi'), flags: t('flags'), published: t('published'), received: +t('received'), events: +t('events'),
+    restarts: +t('restarts'), mics };
+})())JS";
+
+std::int64_t page_utime(const json& page) {
+  const std::string u = page.value("utime", "");
+  return u.empty() ? 0 : std::stoll(u);
+}
+
+// The page's numbers against the report of the same cycle as this test received it.
+void expect_page_matches_bus(const json& page, noisemon::test::BusRecorder& bus) {
+  std::optional<noisemon::cycle_report_t> r;
+  eventually(2, [&] { return (r = bus.cycle_at(page_utime(page))).has_value(); });
+  ASSERT_TRUE(r) << "the page shows a cycle this test never heard: " << page.dump();
+  EXPECT_EQ(page["cycle"], std::to_string(r->cycle));
+  const auto near = [](const json& text, double value, double digits) {
+    EXPECT_NEAR(std::stod(text.get<std::string>()), value, 0.5 * std::pow(10.0, -digits) + 1e-9) << text;
+  };
+  near(page["lpa_m"], r->lpa_measured_db, 2);
+  near(page["lpa_p"], r->lpa_predicted_db, 2);
+  near(page["lwa_m"], r->lwa_measured_db, 2);
+  near(page["lwa_p"], r->lwa_predicted_db, 2);
+  near(page["speed"], r->speed_rpm, 1);
+  near(page["soi"], r->soi_deg_btdc, 1);
+  ASSERT_EQ(page["mics"].size(), static_cast<std::size_t>(r->nmics));
+  for (int m = 0; m < r->nmics; ++m) near(page["mics"][m], r->mic_lpa_db[m], 2);
+  EXPECT_EQ(page["flags"] == "ok", r->flags == 0) << page["flags"] << " for flags " << r->flags;
+}
+
+// name{labels} value, per the text format; a line that is neither this nor a comment fails the test.
+std::map<std::string, double> parse_metrics(const std::string& text) {
+  static const std::regex sample(R"(([a-zA-Z_:][a-zA-Z0-9_:]*(?:\{[^}]*\})?) (NaN|[+-]Inf|[-+]?[0-9.]+(?:[eE][-+]?[0-9]+)?))");
+  static const std::regex comment(R"(# (HELP|TYPE) [a-zA-Z_:][a-zA-Z0-9_:]* .*)");
+  std::map<std::string, double> out;
+  std::istringstream in(text);
+  std::string line;
+  std::smatch m;
+  while (std::getline(in, line)) {
+    if (std::regex_match(line, m, sample)) out[m[1]] = m[2] == "NaN" ? NAN : std::stod(m[2]);
+    else EXPECT_TRUE(std::regex_match(line, comment)) << line;
+  }
+  return out;
+}
+
+// /metrics against the status message it was made from (the one with the same cycles_published).
+void expect_metrics_match_bus(int port, noisemon::test::BusRecorder& bus) {
+  const auto metrics = parse_metrics(http_get(port, "/metrics"));
+  const std::string cell = "{cell=\"\"}";
+  ASSERT_TRUE(metrics.count("noisemon_cycles_published_total" + cell));
+  std::optional<noisemon::status_t> s;
+  eventually(2, [&] {
+    for (const auto& candidate : bus.statuses())
+      if (candidate.cycles_published == metrics.at("noisemon_cycles_published_total" + cell)) s = candidate;
+    return s.has_value();
+  });
+  ASSERT_TRUE(s) << "no status message with cycles_published " << metrics.at("noisemon_cycles_published_total" + cell);
+  EXPECT_EQ(metrics.at("noisemon_cycles_dropped_total" + cell), s->cycles_dropped);
+  EXPECT_DOUBLE_EQ(metrics.at("noisemon_latency_mean_seconds" + cell), s->latency_ms_mean * 1e-3);
+  EXPECT_DOUBLE_EQ(metrics.at("noisemon_processing_max_seconds" + cell), s->processing_ms_max * 1e-3);
+  for (int i = 0; i < s->nrings; ++i) {
+    const std::string labels = "{cell=\"\",ring=\"" + s->ring_name[i] + "\"}";
+    EXPECT_EQ(metrics.at("noisemon_ring_fill_ratio" + labels), s->ring_fill[i]) << labels;
+    EXPECT_EQ(metrics.at("noisemon_ring_overruns_total" + labels), s->ring_overruns[i]) << labels;
+  }
+  for (int i = 0; i < s->nthreads; ++i)
+    EXPECT_EQ(metrics.at("noisemon_thread_state{cell=\"\",thread=\"" + s->thread_name[i] + "\"}"), s->thread_state[i]);
+  const auto last = bus.newest_with_index("NOISEMON_CYCLE", static_cast<std::int64_t>(metrics.at("noisemon_last_cycle" + cell)));
+  ASSERT_TRUE(last);
+  EXPECT_DOUBLE_EQ(metrics.at("noisemon_lpa_measured_db" + cell), last->lpa_measured_db);
+  EXPECT_DOUBLE_EQ(metrics.at("noisemon_lpa_predicted_db" + cell), last->lpa_predicted_db);
+}
+
+}  // namespace
+
+TEST(Dash, PageShowsTheBusNumbersAndKeepsUpdatingAcrossRestartsOfTheDaemonAndTheDash) {
+  NOISEMON_REQUIRE_NAMESPACE();
+  REQUIRE_CHROMIUM();
+  constexpr int port = 18080;
+  noisemon::test::BusRecorder bus(kLcmUrl, {"NOISEMON_CYCLE"}, "NOISEMON_STATUS");
+  ASSERT_TRUE(bus.good());
+  Process dash = start_dash(port, {}, "dash");
+  Process daemon = start_daemon({}, "daemon");
+  noisemon::test::Chromium browser("http://127.0.0.1:" + std::to_string(port) + "/", temp("chromium-profile"),
+                                   temp("chromium.log"));
+  json page;
+  ASSERT_TRUE(eventually(15, [&] { return (page = browser.evaluate(kReadPage)).value("received", 0) >= 5; }))
+      << page.dump();
+  EXPECT_EQ(page["conn"], "live");
+
+  // Several updates in a row, each equal to its cycle's report.
+  std::set<std::int64_t> shown;
+  for (int i = 0; i < 6; ++i) {
+    page = browser.evaluate(kReadPage);
+    expect_page_matches_bus(page, bus);
+    shown.insert(page_utime(page));
+    std::this_thread::sleep_for(std::chrono::milliseconds(250));
+  }
+  EXPECT_GE(shown.size(), 4u) << "the page did not update";
+  ASSERT_TRUE(eventually(3, [&] { return !bus.statuses().empty(); }));
+  expect_metrics_match_bus(port, bus);
+  page = browser.evaluate(kReadPage);
+  bool published_matches = false;
+  for (const auto& s : bus.statuses()) published_matches |= page["published"] == std::to_string(s.cycles_published);
+  EXPECT_TRUE(published_matches) << "health shows " << page["published"];
+
+  // The daemon restarts: its cycle indices start again, the page goes on with the new run.
+  EXPECT_EQ(daemon.stop(), 0);
+  const auto restart_utime = std::chrono::duration_cast<std::chrono::microseconds>(
+                                 std::chrono::system_clock::now().time_since_epoch()).count();
+  daemon = start_daemon({}, "daemon2");
+  ASSERT_TRUE(eventually(15, [&] {
+    page = browser.evaluate(kReadPage);
+    return page_utime(page) > restart_utime && page["restarts"] >= 1;
+  })) << page.dump();
+  expect_page_matches_bus(page, bus);
+  std::this_thread::sleep_for(std::chrono::milliseconds(1500));  // a few cycles of the new run in the trend
+  browser.screenshot(DASH_SCREENSHOT);
+  std::printf("screenshot: %s\n", DASH_SCREENSHOT);
+
+  // The dash restarts: the page's EventSource reconnects by itself and shows new cycles.
+  EXPECT_EQ(dash.stop(), 0);
+  const std::int64_t before = page_utime(browser.evaluate(kReadPage));
+  dash = start_dash(port, {}, "dash2");
+  ASSERT_TRUE(eventually(15, [&] {
+    page = browser.evaluate(kReadPage);
+    return page["conn"] == "live" && page_utime(page) > before;
+  })) << page.dump();
+  std::this_thread::sleep_for(std::chrono::milliseconds(500));
+  page = browser.evaluate(kReadPage);
+  expect_page_matches_bus(page, bus);
+  EXPECT_EQ(daemon.stop(), 0);
+  EXPECT_EQ(dash.stop(), 0);
+}
+
+TEST(Dash, TwoCellsOnOneGroupAreToldApart) {
+  NOISEMON_REQUIRE_NAMESPACE();
+  constexpr int port = 18081;
+  noisemon::test::BusRecorder bus(kLcmUrl, {"NOISEMON_CYCLE", "NOISEMON_CYCLE_A", "NOISEMON_CYCLE_B"}, "NOISEMON_STATUS_A");
+  const std::string config_a = temp("a.toml"), config_b = temp("b.toml"), csv_b = temp("b.csv");
+  std::ofstream(config_a) << "[lcm]\ncell = \"A\"\npublish_raw = false\n";
+  std::ofstream(config_b) << "[lcm]\ncell = \"B\"\npublish_raw = false\n[sim]\nspeed_rpm = 2000.0\n";
+  Process dash = start_dash(port, {"--cell", "A"}, "dash");
+  Process watch(spawn({NOISEMON_PATH, "watch", "--lcm", kLcmUrl, "--cell", "B", "--count", "5", "--timeout", "20",
+                             "--csv", csv_b}, temp("watch.out"), temp("watch.err")));
+  std::this_thread::sleep_for(std::chrono::milliseconds(300));
+  Process a = start_daemon({"--config", config_a, "--cycles", "60"}, "daemon-a");
+  Process b = start_daemon({"--config", config_b, "--cycles", "40"}, "daemon-b");
+  EXPECT_EQ(a.wait(30), 0);
+  EXPECT_EQ(b.wait(30), 0);
+  EXPECT_EQ(watch.wait(10), 0);
+
+  const auto state = json::parse(http_get(port, "/api/state"));
+  EXPECT_EQ(state["cell"], "A");
+  const auto cycles_a = bus.cycles("NOISEMON_CYCLE_A"), cycles_b = bus.cycles("NOISEMON_CYCLE_B");
+  EXPECT_GE(cycles_a.size(), 50u);
+  EXPECT_GE(cycles_b.size(), 30u);
+  EXPECT_TRUE(bus.cycles("NOISEMON_CYCLE").empty()) << "a cell's daemon published on the plain channel";
+  ASSERT_EQ(state["trend"].size(), cycles_a.size());
+  for (const auto& point : state["trend"]) {  // every point the dash shows is one of cell A's reports
+    const auto utime = std::llround(point["t"].get<double>() * 1e6);
+    const auto it = cycles_a.lower_bound(utime - 2);
+    ASSERT_TRUE(it != cycles_a.end() && std::llabs(it->first - utime) <= 2) << point.dump();
+    EXPECT_EQ(point["cycle"], it->second.cycle);
+  }
+  std::ifstream in(csv_b);
+  std::string line;
+  int rows = -1;  // the header
+  while (std::getline(in, line)) ++rows;
+  EXPECT_EQ(rows, 5);
+  for (const auto& [utime, r] : cycles_b) EXPECT_NEAR(r.speed_rpm, 2000.0, 100.0);
+  EXPECT_EQ(dash.stop(), 0);
+}
