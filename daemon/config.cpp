@@ -448,6 +448,7 @@ void read_lcm(TableReader& top, const std::string& origin, LcmConfig& lcm) {
   l.string("raw_channel", lcm.raw_channel);
   l.string("operating_point_channel", lcm.operating_point_channel);
   l.string("session_channel", lcm.session_channel);
+  l.string("stats_channel", lcm.stats_channel);
   l.boolean("publish_raw", lcm.publish_raw);
   l.boolean("publish_operating_point", lcm.publish_operating_point);
   l.number("session_timeout_s", lcm.session_timeout_s, 0.01, 3600);
@@ -479,6 +480,10 @@ Config parse_table(const toml::table& root, const std::string& origin) {
   read_lcm(top, origin, c.lcm);
 
   read_engine(top, origin, c.engine);
+
+  TableReader st(top.table("statistics"), "statistics", origin);
+  st.integer("window_cycles", c.stats_window_cycles, 0, 100000);
+  st.reject_unknown();
 
   TableReader m(top.table("model"), "model", origin);
   read_block(m, c.model_name, c.model);
@@ -537,7 +542,7 @@ void set_cell(LcmConfig& lcm, const std::string& cell) {
       throw ConfigError("cell id '" + cell + "': only letters, digits and '-' are allowed");
   const std::string old_suffix = lcm.cell.empty() ? "" : "_" + lcm.cell;
   for (std::string* channel : {&lcm.report_channel, &lcm.status_channel, &lcm.raw_channel, &lcm.operating_point_channel,
-                               &lcm.session_channel}) {
+                               &lcm.session_channel, &lcm.stats_channel}) {
     if (!old_suffix.empty() && channel->ends_with(old_suffix)) channel->resize(channel->size() - old_suffix.size());
     if (!cell.empty()) *channel += "_" + cell;
   }

@@ -22,6 +22,7 @@ struct LcmConfig {
   std::string raw_channel = "NOISEMON_RAW";
   std::string operating_point_channel = "NOISEMON_OP";
   std::string session_channel = "NOISEMON_SESSION";
+  std::string stats_channel = "NOISEMON_STATS";  // the rolling statistics (cycle_stats_t)
   bool publish_raw = true;
   bool publish_operating_point = true;
   double session_timeout_s = 30.0;  // source "lcm": how long to wait for the session message
@@ -58,6 +59,7 @@ struct Config {
                                        // source's own (any source)
   ThreadsConfig threads;               // [threads]: handed to the sources and the pipeline
   model::EngineGeometry engine;        // [engine]: for the combustion metrics (default: the Yanmar L100V)
+  std::int64_t stats_window_cycles = 100;  // [statistics] window_cycles: the rolling statistics' window; 0: none
 };
 
 // A configuration error; what() names the file and the field.

@@ -148,6 +148,53 @@ CycleStatistics statistics_of(const std::vector<Report>& reports) {
   return acc.result();
 }
 
+noisemon::cycle_stats_t to_message(const CycleStatistics& s, std::int64_t window_cycles, std::int64_t utime) {
+  noisemon::cycle_stats_t m;
+  m.utime = utime;
+  m.window_cycles = static_cast<std::int32_t>(window_cycles);
+  m.cycles = static_cast<std::int32_t>(s.cycles);
+  m.valid = static_cast<std::int32_t>(s.valid);
+  m.flagged = static_cast<std::int32_t>(s.flagged);
+  m.seconds = s.seconds;
+  m.leq_a_measured_db = s.leq_a_measured_db;
+  m.leq_a_predicted_db = s.leq_a_predicted_db;
+  m.nscalars = static_cast<std::int16_t>(s.scalars.size());
+  for (const ScalarStats& v : s.scalars) {
+    m.name.push_back(v.name);
+    m.unit.push_back(v.unit);
+    m.level.push_back(v.level);
+    m.n.push_back(static_cast<std::int32_t>(v.n));
+    m.mean.push_back(v.mean);
+    m.stddev.push_back(v.std);
+    m.cov.push_back(v.cov);
+    m.min.push_back(v.min);
+    m.max.push_back(v.max);
+  }
+  m.nbands = static_cast<std::int16_t>(s.band_hz.size());
+  m.band_hz = s.band_hz;
+  m.spl_a_measured_db = s.spl_a_measured_db;
+  m.spl_a_predicted_db = s.spl_a_predicted_db;
+  m.cpl_db = s.cpl_db;
+  return m;
+}
+
+CycleStatistics from_message(const noisemon::cycle_stats_t& m) {
+  CycleStatistics s;
+  s.cycles = m.cycles;
+  s.valid = m.valid;
+  s.flagged = m.flagged;
+  s.seconds = m.seconds;
+  s.leq_a_measured_db = m.leq_a_measured_db;
+  s.leq_a_predicted_db = m.leq_a_predicted_db;
+  for (int i = 0; i < m.nscalars; ++i)
+    s.scalars.push_back({m.name[i], m.unit[i], m.level[i] != 0, m.n[i], m.mean[i], m.stddev[i], m.cov[i], m.min[i], m.max[i]});
+  s.band_hz = m.band_hz;
+  s.spl_a_measured_db = m.spl_a_measured_db;
+  s.spl_a_predicted_db = m.spl_a_predicted_db;
+  s.cpl_db = m.cpl_db;
+  return s;
+}
+
 std::string statistics_text(const CycleStatistics& s) {
   char line[256];
   std::snprintf(line, sizeof line, "cycles %lld: %lld valid, %lld flagged (settling, gap or encoder); %.2f s; Leq(A) measured %.2f dB, predicted %.2f dB\n",

@@ -13,6 +13,7 @@
 #include <vector>
 
 #include "noisemon/cycle_report_t.hpp"
+#include "noisemon/cycle_stats_t.hpp"
 
 namespace noisemon::daemon {
 
@@ -56,6 +57,10 @@ class CycleStatisticsAccumulator {
 
 // The statistics of a whole recording's reports.
 CycleStatistics statistics_of(const std::vector<noisemon::cycle_report_t>& reports);
+
+// The daemon's rolling statistics as the message it publishes (window_cycles: the configured window), and back.
+noisemon::cycle_stats_t to_message(const CycleStatistics& s, std::int64_t window_cycles, std::int64_t utime);
+CycleStatistics from_message(const noisemon::cycle_stats_t& m);
 
 // The counts and Leq(A), then one "name unit mean std cov min max n" line per scalar.
 std::string statistics_text(const CycleStatistics& s);

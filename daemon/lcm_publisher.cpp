@@ -29,5 +29,8 @@ void LcmPublisher::publish(const std::string& channel, const noisemon::raw_block
 void LcmPublisher::publish(const std::string& channel, const noisemon::operating_point_t& m, std::int64_t) {
   lcm_->publish(channel, &m);
 }
+void LcmPublisher::publish(const std::string& channel, const noisemon::cycle_stats_t& m, std::int64_t) {
+  lcm_->publish(channel, &m);
+}
 
 }  // namespace noisemon::daemon

@@ -23,6 +23,7 @@ class LcmPublisher final : public Publisher {
   void publish(const std::string& channel, const noisemon::session_t& m, std::int64_t utime) override;
   void publish(const std::string& channel, const noisemon::raw_block_t& m, std::int64_t utime) override;
   void publish(const std::string& channel, const noisemon::operating_point_t& m, std::int64_t utime) override;
+  void publish(const std::string& channel, const noisemon::cycle_stats_t& m, std::int64_t utime) override;
 
  private:
   std::unique_ptr<lcm::LCM> lcm_;

@@ -38,6 +38,9 @@ void LogPublisher::publish(const std::string& channel, const noisemon::raw_block
 void LogPublisher::publish(const std::string& channel, const noisemon::operating_point_t& m, std::int64_t utime) {
   write(channel, m, utime);
 }
+void LogPublisher::publish(const std::string& channel, const noisemon::cycle_stats_t& m, std::int64_t utime) {
+  write(channel, m, utime);
+}
 
 void LogPublisher::flush() {
   if (std::fflush(log_->getFilePtr()) != 0) throw std::runtime_error(path_ + ": cannot write log file (disk full?)");

@@ -27,6 +27,7 @@ class LogPublisher final : public Publisher {
   void publish(const std::string& channel, const noisemon::session_t& m, std::int64_t utime) override;
   void publish(const std::string& channel, const noisemon::raw_block_t& m, std::int64_t utime) override;
   void publish(const std::string& channel, const noisemon::operating_point_t& m, std::int64_t utime) override;
+  void publish(const std::string& channel, const noisemon::cycle_stats_t& m, std::int64_t utime) override;
   void flush() override;
 
  private:

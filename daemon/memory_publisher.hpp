@@ -34,6 +34,9 @@ class MemoryPublisher final : public Publisher {
   void publish(const std::string& channel, const noisemon::operating_point_t& m, std::int64_t utime) override {
     keep(operating_points_, channel, m, utime);
   }
+  void publish(const std::string& channel, const noisemon::cycle_stats_t& m, std::int64_t utime) override {
+    keep(statistics_, channel, m, utime);
+  }
 
   // Copies of what was published so far, in order.
   std::vector<Published<noisemon::cycle_report_t>> reports() const { return copy(reports_); }
@@ -41,6 +44,7 @@ class MemoryPublisher final : public Publisher {
   std::vector<Published<noisemon::session_t>> sessions() const { return copy(sessions_); }
   std::vector<Published<noisemon::raw_block_t>> raw_blocks() const { return copy(raw_blocks_); }
   std::vector<Published<noisemon::operating_point_t>> operating_points() const { return copy(operating_points_); }
+  std::vector<Published<noisemon::cycle_stats_t>> statistics() const { return copy(statistics_); }
 
  private:
   template <class Message>
@@ -60,6 +64,7 @@ class MemoryPublisher final : public Publisher {
   std::vector<Published<noisemon::session_t>> sessions_;
   std::vector<Published<noisemon::raw_block_t>> raw_blocks_;
   std::vector<Published<noisemon::operating_point_t>> operating_points_;
+  std::vector<Published<noisemon::cycle_stats_t>> statistics_;
 };
 
 }  // namespace noisemon::daemon

@@ -4,10 +4,12 @@
 
 #include <chrono>
 #include <cmath>
+#include <deque>
 #include <stdexcept>
 #include <thread>
 
 #include "daemon/cycle_processor.hpp"
+#include "daemon/cycle_statistics.hpp"
 #include "daemon/report_messages.hpp"
 #include "drivers/worker_thread.hpp"
 #include "noisemon/status_t.hpp"
@@ -50,6 +52,7 @@ struct Pipeline::Impl {
   dsp::SpscRing<drivers::OperatingPoint> op_publish_ring{64};
 
   std::unique_ptr<CycleProcessor> processor;  // made with the pipeline, run by the processing thread
+  std::deque<noisemon::cycle_report_t> stats_window;  // the latest reports, for the rolling statistics (publishing thread)
   std::atomic<std::int64_t> cycles_dropped{0};
   // Heartbeats: the steady clock (ns) at the top of the processing and publishing loops' latest iteration.
   std::atomic<std::int64_t> processing_beat_ns{0}, publishing_beat_ns{0};
@@ -89,6 +92,8 @@ struct Pipeline::Impl {
   void run_processing(const std::atomic<bool>& drain);
   void queue_report(const CycleReport& r);
   void run_publishing(std::atomic<std::int64_t>& published);
+  void remember_for_statistics(const noisemon::cycle_report_t& m);
+  void publish_statistics();
   noisemon::status_t make_status(std::int64_t published, const Stat& latency, const Stat& processing) const;
 };
 
@@ -220,6 +225,21 @@ noisemon::status_t Pipeline::Impl::make_status(std::int64_t published, const Sta
   return s;
 }
 
+void Pipeline::Impl::remember_for_statistics(const noisemon::cycle_report_t& m) {
+  if (config.stats_window_cycles <= 0) return;
+  stats_window.push_back(m);
+  if (static_cast<std::int64_t>(stats_window.size()) > config.stats_window_cycles) stats_window.pop_front();
+}
+
+// Once a second, with the status: the statistics of the window's reports (none before the first report).
+void Pipeline::Impl::publish_statistics() {
+  if (config.stats_window_cycles <= 0 || stats_window.empty()) return;
+  CycleStatisticsAccumulator window;
+  for (const noisemon::cycle_report_t& m : stats_window) window.add(m);
+  const std::int64_t utime = drivers::wall_utime();
+  publisher->publish(config.lcm.stats_channel, to_message(window.result(), config.stats_window_cycles, utime), utime);
+}
+
 void Pipeline::Impl::run_publishing(std::atomic<std::int64_t>& published) {
   Stat latency, processing;
   auto next_status = Clock::now() + std::chrono::seconds(1);
@@ -237,6 +257,7 @@ void Pipeline::Impl::run_publishing(std::atomic<std::int64_t>& published) {
     while (report_ring.read(&r, 1) == 1) {
       const noisemon::cycle_report_t msg = to_message(r);
       publisher->publish(config.lcm.report_channel, msg, r.window_end_utime);
+      remember_for_statistics(msg);
       ++published;
       latency.add(1e-3 * static_cast<double>(drivers::wall_utime() - r.window_end_utime));
       processing.add(r.processing_ms);
@@ -259,6 +280,7 @@ void Pipeline::Impl::run_publishing(std::atomic<std::int64_t>& published) {
       publish_session();
       const noisemon::status_t s = make_status(published.load(), latency, processing);
       publisher->publish(config.lcm.status_channel, s, s.utime);
+      publish_statistics();
       latency = Stat{};
       processing = Stat{};
       next_status += std::chrono::seconds(1);

@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "noisemon/cycle_report_t.hpp"
+#include "noisemon/cycle_stats_t.hpp"
 #include "noisemon/operating_point_t.hpp"
 #include "noisemon/raw_block_t.hpp"
 #include "noisemon/session_t.hpp"
@@ -29,6 +30,7 @@ class Publisher {
   virtual void publish(const std::string&, const noisemon::session_t&, std::int64_t) {}
   virtual void publish(const std::string&, const noisemon::raw_block_t&, std::int64_t) {}
   virtual void publish(const std::string&, const noisemon::operating_point_t&, std::int64_t) {}
+  virtual void publish(const std::string&, const noisemon::cycle_stats_t&, std::int64_t) {}
   // The run the following cycle reports belong to (session_t::condition; "" when unknown): replay starts one per
   // session of a log, before its pipeline publishes. Files that keep runs apart (CSV, HDF5) mark them.
   virtual void begin_run(const std::string& /*condition*/) {}
@@ -55,6 +57,9 @@ class FanoutPublisher final : public Publisher {
     for (const auto& p : publishers_) p->publish(channel, m, utime);
   }
   void publish(const std::string& channel, const noisemon::operating_point_t& m, std::int64_t utime) override {
+    for (const auto& p : publishers_) p->publish(channel, m, utime);
+  }
+  void publish(const std::string& channel, const noisemon::cycle_stats_t& m, std::int64_t utime) override {
     for (const auto& p : publishers_) p->publish(channel, m, utime);
   }
   void begin_run(const std::string& condition) override {

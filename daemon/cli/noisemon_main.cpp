@@ -15,12 +15,10 @@
 #include "daemon/cli/sim_command.hpp"
 #include "daemon/cli/watch.hpp"
 
-int main(int argc, char** argv) {
-  using namespace noisemon::daemon;
-  CLI::App app{"noisemon - command-line tools for the noisemon engine-noise monitor"};
-  app.require_subcommand(1);
+namespace {
 
-  WatchOptions watch;
+// `noisemon watch` and its options.
+CLI::App* add_watch(CLI::App& app, noisemon::daemon::WatchOptions& watch, std::string& cell) {
   CLI::App* w = app.add_subcommand("watch", "subscribe to noisemond's cycle reports and print one line per cycle");
   w->add_option("--lcm", watch.lcm_url, "LCM URL (default: LCM's default udpm URL)");
   w->add_option("--channel", watch.channel, "channel of the cycle reports")->capture_default_str();
@@ -31,8 +29,22 @@ int main(int argc, char** argv) {
   w->add_flag("--bands", watch.bands, "also print each report's 1/3-octave spectra");
   w->add_flag("--status", watch.status, "print the daemon's 1 Hz status messages instead (threads, rings, counters)");
   w->add_option("--status-channel", watch.status_channel, "channel of the status messages")->capture_default_str();
+  w->add_flag("--stats", watch.stats, "print the daemon's 1 Hz rolling statistics instead (mean, std, COV, min, max, Leq(A))");
+  w->add_option("--stats-channel", watch.stats_channel, "channel of the statistics messages")->capture_default_str();
+  w->add_option("--cell", cell, "test cell id: append _ID to the channels (docs/sources-and-formats.md)");
+  return w;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  using namespace noisemon::daemon;
+  CLI::App app{"noisemon - command-line tools for the noisemon engine-noise monitor"};
+  app.require_subcommand(1);
+
+  WatchOptions watch;
   std::string watch_cell;
-  w->add_option("--cell", watch_cell, "test cell id: append _ID to both channels (docs/sources-and-formats.md)");
+  CLI::App* w = add_watch(app, watch, watch_cell);
 
   ReplayOptions replay;
   std::string replay_config, replay_model;
@@ -64,9 +76,11 @@ int main(int argc, char** argv) {
       LcmConfig channels;
       channels.report_channel = watch.channel;
       channels.status_channel = watch.status_channel;
+      channels.stats_channel = watch.stats_channel;
       set_cell(channels, watch_cell);  // validates the id
       watch.channel = channels.report_channel;
       watch.status_channel = channels.status_channel;
+      watch.stats_channel = channels.stats_channel;
       return run_watch(watch);
     }
     if (const int status = import_export.run(); status >= 0) return status;

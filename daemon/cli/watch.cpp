@@ -12,7 +12,9 @@
 #include <lcm/lcm-cpp.hpp>
 #include <limits>
 
+#include "daemon/cycle_statistics.hpp"
 #include "daemon/report_messages.hpp"
+#include "noisemon/cycle_stats_t.hpp"
 #include "noisemon/status_t.hpp"
 
 namespace noisemon::daemon {
@@ -107,7 +109,17 @@ int run_watch(const WatchOptions& o) {
     ++received;
     last = std::chrono::steady_clock::now();
   };
-  if (o.status)
+  Handler<noisemon::cycle_stats_t> stats_handler;
+  stats_handler.fn = [&](const noisemon::cycle_stats_t* s) {
+    if (o.count > 0 && received >= o.count) return;
+    std::printf("stats  last %d of %d cycles\n%s", s->cycles, s->window_cycles, statistics_text(from_message(*s)).c_str());
+    std::fflush(stdout);
+    ++received;
+    last = std::chrono::steady_clock::now();
+  };
+  if (o.stats)
+    lcm.subscribe(o.stats_channel, &Handler<noisemon::cycle_stats_t>::on, &stats_handler);
+  else if (o.status)
     lcm.subscribe(o.status_channel, &Handler<noisemon::status_t>::on, &status_handler);
   else
     lcm.subscribe(o.channel, &Handler<noisemon::cycle_report_t>::on, &handler);
@@ -119,7 +131,8 @@ int run_watch(const WatchOptions& o) {
     const int ready = ::poll(&pfd, 1, 100);
     if (ready > 0) lcm.handle();
     if (o.timeout_s > 0 && std::chrono::duration<double>(std::chrono::steady_clock::now() - last).count() > o.timeout_s) {
-      std::fprintf(stderr, "noisemon watch: nothing on %s for %.1f s\n", (o.status ? o.status_channel : o.channel).c_str(), o.timeout_s);
+      const std::string& channel = o.stats ? o.stats_channel : o.status ? o.status_channel : o.channel;
+      std::fprintf(stderr, "noisemon watch: nothing on %s for %.1f s\n", channel.c_str(), o.timeout_s);
       return 2;
     }
   }

@@ -15,6 +15,8 @@ struct WatchOptions {
   bool bands = false;            // also print the band spectra of each report
   bool status = false;           // print the 1 Hz status messages instead of cycle reports
   std::string status_channel = "NOISEMON_STATUS";
+  bool stats = false;            // print the 1 Hz rolling statistics instead (cycle_stats_t)
+  std::string stats_channel = "NOISEMON_STATS";
 };
 
 // Returns the process exit code.

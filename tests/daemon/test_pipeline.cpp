@@ -7,6 +7,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <atomic>
 #include <chrono>
 #include <cmath>
@@ -345,6 +346,78 @@ TEST(Pipeline, TheRawStreamsAndTheSessionGoOutAsTheyCameIn) {
   ASSERT_EQ(ops.size(), 1u);
   EXPECT_EQ(ops[0].message.load_nm, 30);
   EXPECT_EQ(ops[0].channel, "NOISEMON_OP");
+}
+
+
+// The rolling statistics: once a second and when the pipeline finishes, the statistics of the last
+// stats_window_cycles reports on their own channel, as computed here from the published reports themselves
+// (energy mean of the levels, sample standard deviation, min and max; settling cycles counted, not averaged).
+TEST(Pipeline, TheRollingStatisticsAreThoseOfTheLastWindowOfPublishedReports) {
+  std::vector<Block> blocks = tone(80);  // the lowest bands' filters have settled for the last ten cycles
+  for (Block& b : blocks)  // a level that changes from cycle to cycle: 1 + 0.3 sin(cycle)
+    for (std::uint32_t f = 0; f < b.block.frames; ++f) {
+      const double gain = 1.0 + 0.3 * std::sin(static_cast<double>((b.block.first_index + f) / 1000));
+      double& x = b.block.data[f * b.block.channels];
+      x = b.stream == noisemon::raw_block_t::STREAM_MICS ? x * gain : 1e5 + (x - 1e5) * gain;
+    }
+  Config config = quiet_config();
+  config.stats_window_cycles = 10;
+  auto out = std::make_shared<MemoryPublisher>();
+  Pipeline pipeline(config, std::make_unique<MemorySource>(MemorySource::Script{blocks, true}), out);
+  pipeline.start();
+  ASSERT_TRUE(wait_for([&] { return pipeline.finished(); }));
+  pipeline.stop();
+  const auto reports = out->reports();
+  const auto stats = out->statistics();
+  ASSERT_GE(reports.size(), 20u);
+  ASSERT_FALSE(stats.empty());
+  const noisemon::cycle_stats_t& s = stats.back().message;  // the last: after every report
+  EXPECT_EQ(stats.back().channel, "NOISEMON_STATS");
+  EXPECT_EQ(s.window_cycles, 10);
+  ASSERT_EQ(s.cycles, 10);
+  double energy = 0, sum = 0, sum_sq = 0, lo = INFINITY, hi = -INFINITY, db_sum = 0, db_sq = 0;
+  int valid = 0;
+  for (std::size_t i = reports.size() - 10; i < reports.size(); ++i) {
+    const noisemon::cycle_report_t& r = reports[i].message;
+    if (r.flags & (noisemon::cycle_report_t::CYCLE_SETTLING | noisemon::cycle_report_t::CYCLE_GAP)) continue;
+    ++valid;
+    energy += std::pow(10.0, r.lpa_measured_db / 10);
+    db_sum += r.lpa_measured_db;
+    db_sq += r.lpa_measured_db * r.lpa_measured_db;
+    sum += r.peak_pressure_bar;
+    sum_sq += r.peak_pressure_bar * r.peak_pressure_bar;
+    lo = std::min(lo, r.peak_pressure_bar);
+    hi = std::max(hi, r.peak_pressure_bar);
+  }
+  ASSERT_GE(valid, 5);
+  EXPECT_EQ(s.valid, valid);
+  EXPECT_EQ(s.flagged, 10 - valid);
+  const auto at = [&s](const std::string& name) {
+    for (int i = 0; i < s.nscalars; ++i)
+      if (s.name[i] == name) return i;
+    ADD_FAILURE() << "no " << name;
+    return 0;
+  };
+  const int lpa = at("lpa_measured_db"), peak = at("peak_pressure_bar");
+  EXPECT_TRUE(s.level[lpa]);
+  EXPECT_NEAR(s.mean[lpa], 10 * std::log10(energy / valid), 1e-9);
+  const double db_mean = db_sum / valid;  // a level's spread is that of its dB values
+  EXPECT_NEAR(s.stddev[lpa], std::sqrt((db_sq - valid * db_mean * db_mean) / (valid - 1)), 1e-6);
+  EXPECT_GT(s.stddev[lpa], 0.5);  // the level did change from cycle to cycle
+  const double mean = sum / valid;
+  EXPECT_NEAR(s.mean[peak], mean, 1e-9);
+  EXPECT_NEAR(s.stddev[peak], std::sqrt((sum_sq - valid * mean * mean) / (valid - 1)), 1e-6);
+  EXPECT_NEAR(s.cov[peak], s.stddev[peak] / mean, 1e-9);
+  EXPECT_EQ(s.min[peak], lo);
+  EXPECT_EQ(s.max[peak], hi);
+  // A window of 0: no statistics at all.
+  config.stats_window_cycles = 0;
+  auto none = std::make_shared<MemoryPublisher>();
+  Pipeline quiet(config, std::make_unique<MemorySource>(MemorySource::Script{tone(10), true}), none);
+  quiet.start();
+  ASSERT_TRUE(wait_for([&] { return quiet.finished(); }));
+  quiet.stop();
+  EXPECT_TRUE(none->statistics().empty());
 }
 
 }  // namespace noisemon::daemon

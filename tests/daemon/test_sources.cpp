@@ -156,7 +156,7 @@ TEST(Noisemond, LcmSourceWithoutSessionExitsNonZeroAfterTheTimeout) {
   EXPECT_NE(err.find("no noisemon.session_t on 'NOISEMON_SESSION'"), std::string::npos) << err;
 }
 
-TEST(Noisemond, DriverCountersAppearInWatchStatus) {
+TEST(Noisemond, DriverCountersAppearInWatchStatusAndTheRollingStatisticsInWatchStats) {
   if (geteuid() != 0) {
     if (const char* ci = std::getenv("CI"); ci && std::string(ci) == "true") FAIL() << "needs root for unshare -n";
     GTEST_SKIP() << "needs root for a private network namespace (unshare -n)";
@@ -180,10 +180,12 @@ TEST(Noisemond, DriverCountersAppearInWatchStatus) {
     }
     const int watch = run({kNoisemon, "watch", "--status", "--lcm", url, "--count", "2", "--timeout", "5"}, dir + "/status.out",
                           dir + "/status.err", std::chrono::seconds(15));
+    const int stats = run({kNoisemon, "watch", "--stats", "--lcm", url, "--count", "1", "--timeout", "5"}, dir + "/stats.out",
+                          dir + "/stats.err", std::chrono::seconds(15));
     kill(daemon, SIGTERM);
     int status = 0;
     waitpid(daemon, &status, 0);
-    _exit(watch == 0 && WIFEXITED(status) && WEXITSTATUS(status) == 0 ? 0 : 1);
+    _exit(watch == 0 && stats == 0 && WIFEXITED(status) && WEXITSTATUS(status) == 0 ? 0 : 1);
   }
   int status = 0;
   waitpid(pid, &status, 0);
@@ -196,6 +198,12 @@ TEST(Noisemond, DriverCountersAppearInWatchStatus) {
   EXPECT_NE(out.find("counters:"), std::string::npos) << out;
   EXPECT_NE(out.find("candump.malformed_lines=1"), std::string::npos) << out;
   EXPECT_NE(out.find("candump.decoded_frames=2"), std::string::npos) << out;
+  // The rolling statistics of the cycles so far (the window is 100 by default; the daemon ran a few seconds).
+  const std::string stats = read_file(dir + "/stats.out");
+  EXPECT_NE(stats.find("of 100 cycles"), std::string::npos) << stats;
+  EXPECT_NE(stats.find("Leq(A) measured"), std::string::npos) << stats;
+  EXPECT_NE(stats.find("imep_net_bar"), std::string::npos) << stats;
+  EXPECT_NE(stats.find("(energy mean)"), std::string::npos) << stats;
 }
 
 TEST(LcmSource, BlocksOfAnotherSessionAreCountedNotMixedIn) {
