@@ -205,7 +205,7 @@ struct RationalResampler::Impl {
   }
 
   Impl(double in_hz, double out_hz, std::size_t ch)
-      : channels(ch), passband_hz(kPassbandFraction * std::min(in_hz, out_hz)), fir(make_fir(in_hz, out_hz, ch)),
+      : channels(ch), passband_hz(converter_passband_hz(std::min(in_hz, out_hz))), fir(make_fir(in_hz, out_hz, ch)),
         queue(ch, kPendingFrames) {
     // Before input frame 0 the signal is zero.
     const std::int64_t first = fir.start(0);

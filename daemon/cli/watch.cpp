@@ -89,33 +89,31 @@ int run_watch(const WatchOptions& o) {
   }
   std::int64_t received = 0;
   auto last = std::chrono::steady_clock::now();
-  Handler<noisemon::cycle_report_t> handler;
-  handler.fn = [&](const noisemon::cycle_report_t* received_report) {
+  // Every message shown counts toward --count and restarts the --timeout clock.
+  const auto show = [&](const auto& print) {
     if (o.count > 0 && received >= o.count) return;
-    const noisemon::cycle_report_t& r = *received_report;
-    if (received % 40 == 0) std::printf("%s\n", cycle_line_header().c_str());
-    std::printf("%s\n", cycle_line(r).c_str());
-    if (o.bands) print_bands(r);
+    print();
     std::fflush(stdout);
-    if (csv.is_open()) csv << cycle_csv_row(r) << std::flush;
     ++received;
     last = std::chrono::steady_clock::now();
+  };
+  Handler<noisemon::cycle_report_t> handler;
+  handler.fn = [&](const noisemon::cycle_report_t* r) {
+    show([&] {
+      if (received % 40 == 0) std::printf("%s\n", cycle_line_header().c_str());
+      std::printf("%s\n", cycle_line(*r).c_str());
+      if (o.bands) print_bands(*r);
+      if (csv.is_open()) csv << cycle_csv_row(*r) << std::flush;
+    });
   };
   Handler<noisemon::status_t> status_handler;
-  status_handler.fn = [&](const noisemon::status_t* s) {
-    if (o.count > 0 && received >= o.count) return;
-    print_status(*s);
-    std::fflush(stdout);
-    ++received;
-    last = std::chrono::steady_clock::now();
-  };
+  status_handler.fn = [&](const noisemon::status_t* s) { show([&] { print_status(*s); }); };
   Handler<noisemon::cycle_stats_t> stats_handler;
   stats_handler.fn = [&](const noisemon::cycle_stats_t* s) {
-    if (o.count > 0 && received >= o.count) return;
-    std::printf("stats  last %d of %d cycles\n%s", s->cycles, s->window_cycles, statistics_text(from_message(*s)).c_str());
-    std::fflush(stdout);
-    ++received;
-    last = std::chrono::steady_clock::now();
+    show([&] {
+      std::printf("stats  last %d of %d cycles\n%s", s->cycles, s->window_cycles,
+                  statistics_text(from_message(*s)).c_str());
+    });
   };
   if (o.stats)
     lcm.subscribe(o.stats_channel, &Handler<noisemon::cycle_stats_t>::on, &stats_handler);
