@@ -7,6 +7,7 @@
 #include <functional>
 #include <lcm/lcm-cpp.hpp>
 
+#include "daemon/cli/dash_reference.hpp"
 #include "daemon/cli/dash_server.hpp"
 #include "daemon/cli/dash_state.hpp"
 #include "daemon/config.hpp"
@@ -68,7 +69,7 @@ int DashCommand::run() {
                  config.lcm.url.empty() ? "default URL" : config.lcm.url.c_str());
     return 1;
   }
-  DashState state(config.lcm.cell, static_cast<std::size_t>(history_));
+  DashState state(config.lcm.cell, static_cast<std::size_t>(history_), linear_reference_json());
   Handler<noisemon::cycle_report_t> cycles{[&](const auto& m) { state.on_cycle(m); }};
   Handler<noisemon::status_t> status{[&](const auto& m) { state.on_status(m); }};
   Handler<noisemon::operating_point_t> ops{[&](const auto& m) { state.on_operating_point(m); }};

@@ -5,8 +5,8 @@
 
 namespace noisemon::daemon {
 
-DashState::DashState(std::string cell, std::size_t history_cycles)
-    : cell_(std::move(cell)), history_cycles_(history_cycles) {}
+DashState::DashState(std::string cell, std::size_t history_cycles, nlohmann::json reference)
+    : cell_(std::move(cell)), history_cycles_(history_cycles), reference_(std::move(reference)) {}
 
 void DashState::on_cycle(const noisemon::cycle_report_t& r) {
   nlohmann::json cycle = cycle_json(r);  // built outside the lock: the HTTP threads wait less
@@ -61,8 +61,10 @@ nlohmann::json DashState::snapshot_locked(std::uint64_t after) const {
   nlohmann::json trend = nlohmann::json::array();
   for (const auto& [seq, point] : trend_)
     if (seq > after) trend.push_back(point);
-  return {{"cell", cell_},    {"seq", sequence_}, {"history", history_cycles_}, {"full", after == 0},
-          {"cycle", cycle_}, {"status", status_}, {"op", operating_point_},       {"trend", std::move(trend)}};
+  nlohmann::json snapshot = {{"cell", cell_},    {"seq", sequence_}, {"history", history_cycles_}, {"full", after == 0},
+                             {"cycle", cycle_}, {"status", status_}, {"op", operating_point_},       {"trend", std::move(trend)}};
+  if (after == 0) snapshot["reference"] = reference_;
+  return snapshot;
 }
 
 std::string DashState::event_json(std::uint64_t after, std::uint64_t& sent) const {

@@ -20,7 +20,8 @@ namespace noisemon::daemon {
 
 class DashState {
  public:
-  DashState(std::string cell, std::size_t history_cycles);
+  // reference: a curve sent once with each client's first event (the thesis's linear attenuation curve).
+  DashState(std::string cell, std::size_t history_cycles, nlohmann::json reference = {});
 
   void on_cycle(const noisemon::cycle_report_t& r);
   void on_status(const noisemon::status_t& s);
@@ -35,7 +36,8 @@ class DashState {
   bool stopped() const;
 
   // One server-sent event's data: the newest cycle, status and operating point, and the trend points newer than
-  // `after` (those the client has not had yet); `sent` receives the sequence it covers.
+  // `after` (those the client has not had yet); `sent` receives the sequence it covers. The first (after == 0)
+  // also carries the reference curve.
   std::string event_json(std::uint64_t after, std::uint64_t& sent) const;
   // /api/state: the same with the whole history.
   std::string state_json() const;
@@ -47,6 +49,7 @@ class DashState {
 
   const std::string cell_;
   const std::size_t history_cycles_;
+  const nlohmann::json reference_;
   mutable std::mutex mutex_;
   std::condition_variable changed_;
   bool stopped_ = false;

@@ -108,7 +108,7 @@ const char* const kReadPage = R"JS((() => {
   return { utime: document.getElementById('cycle').dataset.utime || '', cycle: t('cycle'), conn: t('conn'),
     lpa_m: t('lpa-meas'), lpa_p: t('lpa-pred'), lwa_m: t('lwa-meas'), lwa_p: t('lwa-pred'), speed: t('speed'),
     soi: t('soi'), flags: t('flags'), published: t('published'), received: +t('received'), events: +t('events'),
-    restarts: +t('restarts'), mics };
+    restarts: +t('restarts'), mics, band_flags: t('band-flags'), reference: typeof charts !== 'undefined' && charts.attenuation ? charts.attenuation.data[3] : [] };
 })())JS";
 
 std::int64_t page_utime(const json& page) {
@@ -134,6 +134,21 @@ void expect_page_matches_bus(const json& page, noisemon::test::BusRecorder& bus)
   ASSERT_EQ(page["mics"].size(), static_cast<std::size_t>(r->nmics));
   for (int m = 0; m < r->nmics; ++m) near(page["mics"][m], r->mic_lpa_db[m], 2);
   EXPECT_EQ(page["flags"] == "ok", r->flags == 0) << page["flags"] << " for flags " << r->flags;
+  const std::string band_flags = page["band_flags"];
+  const std::pair<int, const char*> names[] = {{1, "nyquist-cut"}, {8, "below-firing"}, {16, "beyond-pressure"}, {32, "beyond-mic"}};
+  int any = 0;
+  for (int b = 0; b < r->nbands; ++b) any |= r->band_flags[b];
+  for (const auto& [bit, name] : names) EXPECT_EQ(band_flags.find(name) != std::string::npos, (any & bit) != 0) << band_flags;
+  EXPECT_EQ(band_flags == "none", any == 0) << band_flags;
+}
+
+// The attenuation plot's reference series: the thesis's linear curve the dash sent, at every band of the report.
+void expect_reference_drawn(const json& page, int port) {
+  const json state = json::parse(http_get(port, "/api/state"));
+  const json& ref = state["reference"];
+  ASSERT_EQ(page["reference"].size(), ref["att_db"].size()) << page["reference"].dump();
+  for (std::size_t b = 0; b < ref["att_db"].size(); ++b)
+    EXPECT_NEAR(page["reference"][b].get<double>(), ref["att_db"][b].get<double>(), 1e-9) << ref["band_hz"][b];
 }
 
 // name{labels} value, per the text format; a line that is neither this nor a comment fails the test.
@@ -205,6 +220,7 @@ TEST(Dash, PageShowsTheBusNumbersAndKeepsUpdatingAcrossRestartsOfTheDaemonAndThe
     std::this_thread::sleep_for(std::chrono::milliseconds(250));
   }
   EXPECT_GE(shown.size(), 4u) << "the page did not update";
+  expect_reference_drawn(page, port);
   ASSERT_TRUE(eventually(3, [&] { return !bus.statuses().empty(); }));
   expect_metrics_match_bus(port, bus);
   page = browser.evaluate(kReadPage);

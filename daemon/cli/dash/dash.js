@@ -4,6 +4,9 @@
 
 const CYCLE_FLAGS = [[1, 'settling'], [2, 'gap'], [4, 'no-op'], [8, 'odd-length'], [16, 'no-mics'], [32, 'encoder'],
   [64, 'overload'], [128, 'mic-excluded'], [256, 'pressure-fault']];
+// BAND_* bits of cycle_report_t (msgs/cycle_report_t.lcm); 8, 16 and 32 keep a band out of the overall levels.
+const BAND_FLAGS = [[1, 'nyquist-cut'], [2, 'slow'], [4, 'settling'], [8, 'below-firing'], [16, 'beyond-pressure-passband'],
+  [32, 'beyond-mic-passband']];
 const MIC_FLAGS = [[1, 'excluded'], [2, 'flat'], [4, 'overload'], [8, 'NaN'], [16, 'low']];
 const THREAD_STATES = ['idle', 'running', 'stopped', 'FAILED'];
 // Rows of the flag chart: the flags the operator watches for, and the rest together.
@@ -25,6 +28,7 @@ const trend = { max: 600, t: [], lpaM: [], lpaP: [], lwaM: [], lwaP: [], speed: 
 const seen = { received: 0, events: 0, restarts: 0, lastArrival: 0 };
 const charts = {};
 let bandHz = [];
+let reference = null;  // the thesis's linear attenuation curve: { band_hz, att_db }, sent with the first event
 
 function setText(id, text, cls) {
   const el = $(id);
@@ -40,6 +44,11 @@ function line(label, stroke, extra = {}) {
 
 function dots(label, stroke) {
   return { label, stroke, fill: stroke, paths: () => null, points: { show: true, size: 7, fill: stroke } };
+}
+
+// Hollow grey rings over the points of flagged bands.
+function flagged(label) {
+  return { label, stroke: '#9e9e9e', paths: () => null, points: { show: true, size: 13, width: 2, stroke: '#9e9e9e', fill: 'rgba(0,0,0,0)' } };
 }
 
 function makeChart(id, height, scales, series, axes) {
@@ -69,10 +78,13 @@ function makeBandCharts() {
   const hz = { label: 'band', value: (u, v) => (v == null ? '' : bandLabel(v)) };
   charts.spectrum = makeChart('spectrum', 260, logX, [hz,
     line('measured dB(A)', '#1565c0', { points: { show: true } }),
-    line('predicted dB(A)', '#c62828', { points: { show: true }, dash: [6, 4] })], [bandAxis, { label: 'dB(A)' }]);
+    line('predicted dB(A)', '#c62828', { points: { show: true }, dash: [6, 4] }),
+    flagged('flagged band')], [bandAxis, { label: 'dB(A)' }]);
   charts.attenuation = makeChart('attenuation', 260, logX, [hz,
     line('measured dB', '#1565c0', { points: { show: true } }),
-    line('predicted dB', '#c62828', { points: { show: true }, dash: [6, 4] })], [bandAxis, { label: 'dB' }]);
+    line('predicted dB', '#c62828', { points: { show: true }, dash: [6, 4] }),
+    line('thesis linear model (Table 4.1)', '#2e7d32', { dash: [2, 3] }),
+    flagged('flagged band')], [bandAxis, { label: 'dB' }]);
   charts.mics = makeChart('mic-chart', 200, { x: { time: false, range: (u, min, max) => [min - 0.6, max + 0.6] } },
     [{ label: 'mic' }, { label: 'Lp(A) dB(A)', stroke: '#1565c0', fill: '#90caf980', paths: uPlot.paths.bars({ size: [0.6, 60] }) }],
     [{ splits: (u) => u.data[0], values: (u, s) => s.map((v) => `mic${v}`) }, { label: 'dB(A)' }]);
@@ -123,9 +135,29 @@ function showCycle(c) {
   setText('speed', fmt(c.speed_rpm, 1)); setText('load', fmt(c.load_nm, 1)); setText('soi', fmt(c.soi_deg_btdc, 1));
   setText('cycle-proc', fmt(c.processing_ms, 3)); setText('peak', fmt(c.peak_pressure_bar, 1)); setText('imep', fmt(c.imep_net_bar, 2));
   bandHz = c.band_hz;
-  charts.spectrum.setData([c.band_hz, c.spl_a_measured_db, c.spl_a_predicted_db]);
-  charts.attenuation.setData([c.band_hz, c.att_measured_db, c.att_predicted_db]);
+  const mark = (values) => values.map((v, b) => (c.band_flags[b] ? v : null));
+  charts.spectrum.setData([c.band_hz, c.spl_a_measured_db, c.spl_a_predicted_db, mark(c.spl_a_measured_db)]);
+  charts.attenuation.setData([c.band_hz, c.att_measured_db, c.att_predicted_db, referenceAt(c.band_hz), mark(c.att_measured_db)]);
+  showBandFlags(c.band_hz, c.band_flags);
   showMics(c.mic_lpa_db, c.mic_flags);
+}
+
+// The reference curve at the report's bands (matched by nominal frequency), null where it has none.
+function referenceAt(bands) {
+  if (!reference) return bands.map(() => null);
+  return bands.map((hz) => {
+    const i = reference.band_hz.findIndex((r) => Math.abs(r / hz - 1) < 0.01);
+    return i < 0 ? null : reference.att_db[i];
+  });
+}
+
+// Which bands are flagged and why, one reason at a time: "nyquist-cut 20k; below-firing 20, 25".
+function showBandFlags(bands, flags) {
+  const parts = BAND_FLAGS.map(([bit, name]) => {
+    const hit = bands.filter((_, b) => flags[b] & bit).map(bandLabel);
+    return hit.length ? `${name} ${hit.join(', ')}` : '';
+  }).filter((part) => part);
+  setText('band-flags', parts.length ? parts.join('; ') : 'none', parts.length ? 'warn' : 'ok');
 }
 
 function showMics(levels, flags) {
@@ -161,6 +193,7 @@ function onEvent(message) {
   seen.events += 1;
   trend.max = e.history || trend.max;
   setText('cell-label', e.cell ? `cell ${e.cell}` : '');
+  if (e.reference && e.reference.band_hz) reference = e.reference;
   if (e.trend.length > 0) seen.lastArrival = Date.now();
   addTrend(e.trend, e.full);
   drawTrend();
