@@ -8,7 +8,12 @@
 #include <fstream>
 #include <set>
 #include <sstream>
+#include <filesystem>
 #include <toml++/toml.h>
+
+#include "daemon/background_run.hpp"
+#include "drivers/mic_positions.hpp"
+#include "dsp/sound_power.hpp"
 
 namespace noisemon::daemon {
 namespace {
@@ -167,11 +172,20 @@ void read_block(TableReader& r, std::string& preset_name, model::BlockParams& p)
   r.reject_unknown();
 }
 
-void read_positions(TableReader& r, const char* key, std::vector<std::array<double, 3>>& out) {
+// Microphone positions: an array of [x, y, z] (m), or a preset scaled to the hemisphere's radius: "iso3744" (ISO
+// 3744:2010 Annex B's ten key positions) or "table3.1" (the thesis's Table 3.1, drawn at r = 1.75 m).
+void read_positions(TableReader& r, const char* key, double radius_m, std::vector<std::array<double, 3>>& out) {
   const toml::node* n = r.node(key);
   if (!n) return;
+  if (n->is_string()) {
+    const std::string preset = *n->value<std::string>();
+    if (preset == "iso3744") out = dsp::iso3744_key_positions(radius_m);
+    else if (preset == "table3.1") out = drivers::thesis_mic_positions(radius_m / 1.75);
+    else r.fail(key, "unknown preset '" + preset + "' (expected iso3744, table3.1 or an array of [x, y, z])");
+    return;
+  }
   const toml::array* a = n->as_array();
-  if (!a) r.fail(key, "expected an array of [x, y, z] arrays (m)");
+  if (!a) r.fail(key, "expected an array of [x, y, z] arrays (m), or \"iso3744\" or \"table3.1\"");
   out.clear();
   for (const toml::node& e : *a) {
     const toml::array* xyz = e.as_array();
@@ -184,6 +198,49 @@ void read_positions(TableReader& r, const char* key, std::vector<std::array<doub
     }
     out.push_back(p);
   }
+}
+
+// [sound_power]: ISO 3744's corrections. A background run's path is relative to the configuration file.
+void read_sound_power(TableReader& top, const std::string& origin, SoundPowerConfig& sp) {
+  TableReader r(top.table("sound_power"), "sound_power", origin);
+  r.number("k2_db", sp.k2_db, 0, 30);
+  r.number("absorption_area_m2", sp.absorption_area_m2, 0, 1e6);
+  r.number("no_correction_above_db", sp.no_correction_above_db, 6, 30);
+  r.number("source_dimension_m", sp.source_dimension_m, 0, 100);
+  if (r.node("background_db") && r.node("background_run")) r.fail("background_run", "give background_db or background_run, not both");
+  if (const toml::node* n = r.node("background_db")) {
+    const toml::array* a = n->as_array();
+    if (!a || a->size() != kBackgroundBands)
+      r.fail("background_db", "expected 31 band levels, 20 Hz ... 20 kHz (dB re 20 uPa, unweighted; nan: not measured)");
+    for (const toml::node& v : *a) {
+      if (!v.is_number()) r.fail("background_db", "expected numbers (dB re 20 uPa; nan for a band not measured)");
+      sp.background_db.push_back(*v.value<double>());
+    }
+  }
+  if (const toml::node* n = r.node("area_weights")) {
+    if (n->is_string() && *n->value<std::string>() == "voronoi") sp.voronoi_area_weights = true;
+    else if (n->is_string() && *n->value<std::string>() == "equal") sp.voronoi_area_weights = false;
+    else if (const toml::array* a = n->as_array()) {
+      for (const toml::node& v : *a) {
+        if (!v.is_number() || !(*v.value<double>() > 0)) r.fail("area_weights", "expected positive numbers, one per microphone");
+        sp.area_weights.push_back(*v.value<double>());
+      }
+    } else {
+      r.fail("area_weights", "expected \"equal\", \"voronoi\" or one positive share per microphone");
+    }
+  }
+  std::string run;
+  r.string("background_run", run);
+  if (!run.empty()) {
+    std::filesystem::path path(run);
+    if (path.is_relative() && std::filesystem::path(origin).has_parent_path()) path = std::filesystem::path(origin).parent_path() / path;
+    try {
+      sp.background_db = background_from_run_dir(path);
+    } catch (const std::exception& e) {
+      r.fail("background_run", e.what());
+    }
+  }
+  r.reject_unknown();
 }
 
 // ---- [comedi] -----------------------------------------------------------------------------------------------
@@ -341,10 +398,10 @@ void read_comedi_mics(TableReader& r, const std::string& origin, drivers::Comedi
       if (!v.is_number() || !(*v.value<double>() > 0.0)) mr.fail(key, "expected positive numbers (mV/Pa)");
       return *v.value<double>();
     });
-  read_positions(mr, "positions_m", m.positions_m);
+  mr.number("radius_m", m.radius_m, 0.1, 100);
+  read_positions(mr, "positions_m", m.radius_m, m.positions_m);
   if (!m.positions_m.empty() && m.positions_m.size() != n)
     mr.fail("positions_m", "has " + std::to_string(m.positions_m.size()) + " positions but there are " + std::to_string(n) + " channels");
-  mr.number("radius_m", m.radius_m, 0.1, 100);
   mr.number("speed_of_sound_m_s", m.speed_of_sound_m_s, 100, 1000);
   mr.reject_unknown();
 }
@@ -488,6 +545,8 @@ Config parse_table(const toml::table& root, const std::string& origin) {
   TableReader m(top.table("model"), "model", origin);
   read_block(m, c.model_name, c.model);
 
+  read_sound_power(top, origin, c.sound_power);
+
   TableReader p(top.table("processing"), "processing", origin);
   p.number("acoustic_delay_s", c.acoustic_delay_s, -1, 1.0);
   p.number("ring_seconds", c.ring_seconds, 0.1, 60);
@@ -508,10 +567,10 @@ Config parse_table(const toml::table& root, const std::string& origin) {
   std::int64_t mic_count = s.mic_count;
   sr.integer("mic_count", mic_count, 1, static_cast<std::int64_t>(drivers::SampleBlock::kMaxChannels));
   s.mic_count = static_cast<std::uint32_t>(mic_count);
-  read_positions(sr, "mic_positions_m", s.mic_positions_m);
+  sr.number("radius_m", s.radius_m, 0.1, 100);
+  read_positions(sr, "mic_positions_m", s.radius_m, s.mic_positions_m);
   if (!s.mic_positions_m.empty() && s.mic_positions_m.size() != s.mic_count)
     sr.fail("mic_positions_m", "has " + std::to_string(s.mic_positions_m.size()) + " positions but mic_count is " + std::to_string(s.mic_count));
-  sr.number("radius_m", s.radius_m, 0.1, 100);
   sr.number("speed_of_sound_m_s", s.speed_of_sound_m_s, 100, 1000);
   sr.number("mic_rate_hz", s.mic_rate_hz, 40000, 1e6);
   sr.number("mic_gain_spread_db", s.mic_gain_spread_db, 0, 20);

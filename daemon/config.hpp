@@ -6,6 +6,7 @@
 #include <stdexcept>
 #include <string>
 
+#include "daemon/sound_power_setup.hpp"
 #include "drivers/can/can_source.hpp"
 #include "drivers/comedi/comedi_source.hpp"
 #include "drivers/sim/sim_source.hpp"
@@ -60,6 +61,7 @@ struct Config {
   ThreadsConfig threads;               // [threads]: handed to the sources and the pipeline
   model::EngineGeometry engine;        // [engine]: for the combustion metrics (default: the Yanmar L100V)
   std::int64_t stats_window_cycles = 100;  // [statistics] window_cycles: the rolling statistics' window; 0: none
+  SoundPowerConfig sound_power;        // [sound_power]: ISO 3744's K1 (background) and K2, the surface check
 };
 
 // A configuration error; what() names the file and the field.

@@ -62,6 +62,7 @@ CycleProcessor::CycleProcessor(const ProcessorConfig& config, const drivers::Str
       model_out_(drivers::SampleBlock::kMaxFrames),
       model_prime_(drivers::SampleBlock::kMaxFrames),
       bank_(kFs, 2 + info.mic_count),
+      sound_power_(config.sound_power, info, bank_.bands()),
       chunk_((2 + info.mic_count) * kChunkFrames),
       mean_square_((2 + info.mic_count) * 64),
       stats_(1 + info.mic_count),
@@ -457,57 +458,78 @@ CycleProcessor::PassbandLimits CycleProcessor::passband_limits(double duration_s
   return l;
 }
 
+// The bands' own flags (not the background's: that needs the level).
+std::int8_t CycleProcessor::band_flags(std::size_t b, double duration_s, double settled_s) const {
+  const dsp::ThirdOctaveBand& band = bank_.bands()[b];
+  const PassbandLimits limits = passband_limits(duration_s);
+  std::int8_t f = 0;
+  if (band.nyquist_cut) f |= kBandNyquistCut;
+  if (band.response_time_s > duration_s) f |= kBandSlow;
+  if (band.upper_edge_hz < 1.0 / duration_s) f |= kBandBelowFiring;  // one firing per 720 deg
+  if (band.upper_edge_hz > limits.pressure_hz) f |= kBandPressurePassband;
+  if (mics_ > 0 && band.upper_edge_hz > limits.mic_hz) f |= kBandMicPassband;
+  if (band.response_time_s > settled_s) f |= kBandSettling;
+  return f;
+}
+
+double CycleProcessor::measured_mean_square(const CycleReport& r, std::size_t b) const {
+  const std::size_t nb = bank_.band_count();
+  const std::vector<double>& weights = sound_power_.area_weights();
+  double sum = 0, weight_sum = 0;
+  for (std::size_t m = 0; m < mics_; ++m)
+    if (!(r.mic_flags[m] & kMicExcluded)) {
+      sum += weights[m] * mean_square_[(2 + m) * nb + b];
+      weight_sum += weights[m];
+    }
+  // Without a microphone nothing was measured: NaN, never a number.
+  return weight_sum > 0 ? sum / weight_sum : kNaN;
+}
+
 // Band levels, attenuation and overall levels; measured from the microphones not excluded (NaN without any),
-// predicted and CPL NaN when the pressure is faulty.
+// predicted and CPL NaN when the pressure is faulty. Sound power per ISO 3744: the measured band less its K1, the
+// bands too close to the background left out of both LW(A)s, less K2, plus 10 lg(S / S0).
 void CycleProcessor::band_levels(CycleReport& r, double settled_s, bool pressure_fault) const {
   const std::size_t nb = bank_.band_count();
-  const auto& bands = bank_.bands();
   const std::vector<double>& ms = mean_square_;
-  std::size_t used = 0;
-  for (std::size_t m = 0; m < mics_; ++m) used += (r.mic_flags[m] & kMicExcluded) ? 0 : 1;
-  double meas_sum = 0, pred_sum = 0;
-  const double firing_hz = 1.0 / r.duration_s;  // one firing per 720 deg
-  const PassbandLimits limits = passband_limits(r.duration_s);
+  constexpr std::int8_t kNotOverall = kBandBelowFiring | kBandPressurePassband | kBandMicPassband;
+  double meas_sum = 0, pred_sum = 0, lw_meas_sum = 0, lw_pred_sum = 0;
   for (std::size_t b = 0; b < nb; ++b) {
-    const double aw = dsp::a_weighting_db(bands[b].exact_mid_hz);
-    const bool below_firing = bands[b].upper_edge_hz < firing_hz;
-    const bool beyond_pressure = bands[b].upper_edge_hz > limits.pressure_hz;
-    const bool beyond_mics = mics_ > 0 && bands[b].upper_edge_hz > limits.mic_hz;
+    const double aw = dsp::a_weighting_db(bank_.bands()[b].exact_mid_hz);
     const double cpl = pressure_fault ? kNaN : dsp::level_db(ms[0 * nb + b]);
     const double pred_a = pressure_fault ? kNaN : dsp::level_db(ms[1 * nb + b]) + aw;
-    double mic_ms_sum = 0;
-    for (std::size_t m = 0; m < mics_; ++m)
-      if (!(r.mic_flags[m] & kMicExcluded)) mic_ms_sum += ms[(2 + m) * nb + b];
-    // Energy average over the microphones used; without any nothing was measured: NaN, never a number.
-    const double meas_a = used > 0 ? dsp::level_db(mic_ms_sum / static_cast<double>(used)) + aw : kNaN;
+    const double meas = dsp::level_db(measured_mean_square(r, b));
+    const double meas_a = meas + aw;
+    const dsp::BackgroundCorrection k1 = sound_power_.correction(b, meas);
+    std::int8_t f = band_flags(b, r.duration_s, settled_s);
+    if (k1.validity == dsp::BandValidity::kInvalid && !std::isnan(meas)) f |= kBandBackground;
+    if (f & kBandSettling) r.flags |= kCycleSettling;
     // Only the bands every stream carries and that have a per-cycle meaning make the overall levels, so that the
     // measured and predicted ones cover the same bands.
-    if (!below_firing && !beyond_pressure && !beyond_mics) {
+    if (!(f & kNotOverall)) {
       meas_sum += dsp::mean_square_from_level(meas_a);
       pred_sum += dsp::mean_square_from_level(pred_a);
+      if (!(f & kBandBackground)) {
+        lw_meas_sum += dsp::mean_square_from_level(meas_a - k1.k1_db);
+        lw_pred_sum += dsp::mean_square_from_level(pred_a);
+      }
     }
-    r.band_hz[b] = static_cast<float>(bands[b].nominal_hz);
+    r.band_hz[b] = static_cast<float>(bank_.bands()[b].nominal_hz);
     r.cpl_db[b] = static_cast<float>(cpl);
     r.spl_a_measured_db[b] = static_cast<float>(meas_a);
     r.spl_a_predicted_db[b] = static_cast<float>(pred_a);
     r.att_measured_db[b] = static_cast<float>(dsp::attenuation_db(cpl, meas_a));
     r.att_predicted_db[b] = static_cast<float>(dsp::attenuation_db(cpl, pred_a));
-    std::int8_t f = 0;
-    if (bands[b].nyquist_cut) f |= kBandNyquistCut;
-    if (bands[b].response_time_s > r.duration_s) f |= kBandSlow;
-    if (below_firing) f |= kBandBelowFiring;
-    if (beyond_pressure) f |= kBandPressurePassband;
-    if (beyond_mics) f |= kBandMicPassband;
-    if (bands[b].response_time_s > settled_s) {
-      f |= kBandSettling;
-      r.flags |= kCycleSettling;
-    }
+    r.k1_db[b] = static_cast<float>(k1.k1_db);
+    r.background_db[b] = static_cast<float>(sound_power_.background_db(b));
     r.band_flags[b] = f;
   }
-  r.lpa_measured_db = used > 0 ? dsp::level_db(meas_sum) : kNaN;
+  const bool measured = !std::isnan(measured_mean_square(r, 0));
+  const double lw_term = sound_power_.surface_term_db() - sound_power_.k2_db();
+  r.k2_db = sound_power_.k2_db();
+  r.lpa_measured_db = measured ? dsp::level_db(meas_sum) : kNaN;
   r.lpa_predicted_db = pressure_fault ? kNaN : dsp::level_db(pred_sum);
-  r.lwa_measured_db = dsp::sound_power_level_db(r.lpa_measured_db, info_.radius_m);
-  r.lwa_predicted_db = dsp::sound_power_level_db(r.lpa_predicted_db, info_.radius_m);
+  r.lwa_measured_db = measured ? dsp::level_db(lw_meas_sum) + lw_term : kNaN;
+  r.lwa_predicted_db = pressure_fault ? kNaN : dsp::level_db(lw_pred_sum) + lw_term;
 }
 
 }  // namespace noisemon::daemon

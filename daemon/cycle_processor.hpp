@@ -24,6 +24,7 @@
 
 #include "daemon/cycle_report.hpp"
 #include "daemon/frame_fifo.hpp"
+#include "daemon/sound_power_setup.hpp"
 #include "drivers/source.hpp"
 #include "dsp/third_octave_bank.hpp"
 #include "model/block_model.hpp"
@@ -42,6 +43,7 @@ struct ProcessorConfig {
   // only its converter's noise. With two microphones the median is their mean in dB: one of them is left out only
   // when they differ by more than twice this.
   double mic_low_db = 20.0;
+  SoundPowerConfig sound_power;  // K1 (background), K2, the surface check
 };
 
 struct ProcessorCounters {
@@ -70,6 +72,7 @@ class CycleProcessor {
   const ProcessorCounters& counters() const { return counters_; }
   const std::vector<dsp::ThirdOctaveBand>& bands() const { return bank_.bands(); }
   std::int64_t delay_frames() const { return delay_frames_; }
+  const SoundPowerSetup& sound_power() const { return sound_power_; }
 
  private:
   // Per-cycle health of one channel (0: pressure, 1 + m: microphone m), over the values the bank sees.
@@ -105,6 +108,9 @@ class CycleProcessor {
   };
   PassbandLimits passband_limits(double duration_s) const;
   void band_levels(CycleReport& r, double settled_s, bool pressure_fault) const;
+  std::int8_t band_flags(std::size_t b, double duration_s, double settled_s) const;
+  // The measured band's mean square (unweighted): the area-weighted energy mean over the microphones used.
+  double measured_mean_square(const CycleReport& r, std::size_t b) const;
 
   ProcessorConfig config_;
   drivers::StreamInfo info_;
@@ -124,6 +130,7 @@ class CycleProcessor {
   bool have_finite_pressure_ = false;  // until then, non-finite pressure is not data: the stream has not begun
 
   dsp::ThirdOctaveBank bank_;  // channels: pressure, predicted, mic 1..M
+  SoundPowerSetup sound_power_;
   std::vector<double> a_gain_;  // A-weighting per band as a mean-square factor
   std::vector<double> chunk_;  // combined frames waiting for the bank
   std::size_t chunk_frames_ = 0;

@@ -21,6 +21,7 @@ enum BandFlag : std::int8_t {
   kBandBelowFiring = 8,
   kBandPressurePassband = 16,
   kBandMicPassband = 32,
+  kBandBackground = 64,  // less than 6 dB above the background (ISO 3744): left out of the sound power
 };
 enum MicFlag : std::int8_t {
   kMicExcluded = 1,  // left out of the measured (array-average) levels of this cycle
@@ -49,8 +50,9 @@ struct CycleReport {
   double duration_s = 0;
   drivers::OperatingPoint op;
   double lpa_measured_db = 0, lpa_predicted_db = 0;
-  double lwa_measured_db = 0, lwa_predicted_db = 0;
+  double lwa_measured_db = 0, lwa_predicted_db = 0;  // this cycle's, K1 and K2 applied (ISO 3744)
   double radius_m = 0;
+  double k2_db = 0;                 // the environmental correction in lwa_*
   std::uint16_t nbands = 0;
   float band_hz[kMaxBands] = {};
   float spl_a_measured_db[kMaxBands] = {};
@@ -59,6 +61,8 @@ struct CycleReport {
   float att_measured_db[kMaxBands] = {};
   float att_predicted_db[kMaxBands] = {};
   std::int8_t band_flags[kMaxBands] = {};
+  float k1_db[kMaxBands] = {};      // background correction of the measured band (0: none; NaN: kBandBackground)
+  float background_db[kMaxBands] = {};  // the background band level behind k1_db (unweighted; NaN: none)
   std::uint16_t nmics = 0;
   float mic_lpa_db[kMaxMics] = {};   // every microphone's own level, excluded ones included
   std::int8_t mic_flags[kMaxMics] = {};  // MicFlag bits

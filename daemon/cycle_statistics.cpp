@@ -9,11 +9,12 @@
 #include <nlohmann/json.hpp>
 
 #include "dsp/levels.hpp"
+#include "dsp/sound_power.hpp"
+#include "dsp/weighting.hpp"
 
 namespace noisemon::daemon {
 namespace {
 
-constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 using Report = noisemon::cycle_report_t;
 
 struct Field {
@@ -93,8 +94,13 @@ void CycleStatisticsAccumulator::add(const Report& r) {
     bands_measured_.assign(band_hz_.size(), {});
     bands_predicted_.assign(band_hz_.size(), {});
     bands_cpl_.assign(band_hz_.size(), {});
+    band_flags_seen_.assign(band_hz_.size(), 0);
+    background_db_ = r.background_db;
+    k2_db_ = r.k2_db;
+    radius_m_ = r.radius_m;
   }
   for (std::size_t b = 0; b < band_hz_.size() && b < static_cast<std::size_t>(r.nbands); ++b) {
+    band_flags_seen_[b] |= r.band_flags[b];
     take(bands_measured_[b], r.spl_a_measured_db[b]);
     take(bands_predicted_[b], r.spl_a_predicted_db[b]);
     take(bands_cpl_[b], r.cpl_db[b]);
@@ -139,7 +145,33 @@ CycleStatistics CycleStatisticsAccumulator::result() const {
     s.spl_a_predicted_db.push_back(energy_mean_db(bands_predicted_[b].energy, bands_predicted_[b].n));
     s.cpl_db.push_back(energy_mean_db(bands_cpl_[b].energy, bands_cpl_[b].n));
   }
+  add_run_sound_power(s);
   return s;
+}
+
+// ISO 3744 over the cycles: see CycleStatistics::lwa_run_measured_db.
+void CycleStatisticsAccumulator::add_run_sound_power(CycleStatistics& s) const {
+  constexpr std::int8_t kNotOverall = Report::BAND_BELOW_FIRING | Report::BAND_PRESSURE_PASSBAND | Report::BAND_MIC_PASSBAND;
+  double measured = 0, predicted = 0;
+  bool any = false;
+  for (std::size_t b = 0; b < band_hz_.size(); ++b) {
+    const double mid = 1000.0 * std::pow(10.0, std::round(10.0 * std::log10(band_hz_[b] / 1000.0)) / 10.0);
+    const double background = b < background_db_.size() ? background_db_[b] : kNaN;
+    dsp::BackgroundCorrection k1;  // no background: uncorrected
+    if (!std::isnan(background)) k1 = dsp::background_correction(s.spl_a_measured_db[b] - dsp::a_weighting_db(mid), background);
+    std::int8_t validity = k1.validity == dsp::BandValidity::kInvalid ? kBandTooCloseToBackground
+                           : k1.validity == dsp::BandValidity::kCorrected ? kBandCorrected : kBandUncorrected;
+    if (band_flags_seen_[b] & kNotOverall) validity = kBandNotInOverall;
+    s.band_validity.push_back(validity);
+    s.k1_db.push_back(validity <= kBandCorrected ? k1.k1_db : kNaN);
+    if (validity > kBandCorrected) continue;
+    measured += std::pow(10.0, (s.spl_a_measured_db[b] - k1.k1_db) / 10.0);
+    predicted += std::pow(10.0, s.spl_a_predicted_db[b] / 10.0);
+    any = true;
+  }
+  const double term = dsp::hemisphere_area_term_db(radius_m_) - k2_db_;
+  s.lwa_run_measured_db = any ? 10.0 * std::log10(measured) + term : kNaN;
+  s.lwa_run_predicted_db = any ? 10.0 * std::log10(predicted) + term : kNaN;
 }
 
 CycleStatistics statistics_of(const std::vector<Report>& reports) {
@@ -175,6 +207,10 @@ noisemon::cycle_stats_t to_message(const CycleStatistics& s, std::int64_t window
   m.spl_a_measured_db = s.spl_a_measured_db;
   m.spl_a_predicted_db = s.spl_a_predicted_db;
   m.cpl_db = s.cpl_db;
+  m.lwa_run_measured_db = s.lwa_run_measured_db;
+  m.lwa_run_predicted_db = s.lwa_run_predicted_db;
+  m.k1_db = s.k1_db;
+  m.band_validity = s.band_validity;
   return m;
 }
 
@@ -192,8 +228,33 @@ CycleStatistics from_message(const noisemon::cycle_stats_t& m) {
   s.spl_a_measured_db = m.spl_a_measured_db;
   s.spl_a_predicted_db = m.spl_a_predicted_db;
   s.cpl_db = m.cpl_db;
+  s.lwa_run_measured_db = m.lwa_run_measured_db;
+  s.lwa_run_predicted_db = m.lwa_run_predicted_db;
+  s.k1_db = m.k1_db;
+  s.band_validity = m.band_validity;
   return s;
 }
+
+namespace {
+// "  bands corrected for the background: 5k (0.75 dB); too close to it: 8k, 500"; empty without either.
+std::string band_validity_text(const CycleStatistics& s) {
+  std::string corrected, invalid;
+  char item[48];
+  for (std::size_t b = 0; b < s.band_validity.size() && b < s.band_hz.size(); ++b) {
+    if (s.band_validity[b] == kBandCorrected) {
+      std::snprintf(item, sizeof item, "%s%g Hz (%.2f dB)", corrected.empty() ? "" : ", ", s.band_hz[b], s.k1_db[b]);
+      corrected += item;
+    } else if (s.band_validity[b] == kBandTooCloseToBackground) {
+      std::snprintf(item, sizeof item, "%s%g Hz", invalid.empty() ? "" : ", ", s.band_hz[b]);
+      invalid += item;
+    }
+  }
+  std::string out;
+  if (!corrected.empty()) out += "  bands corrected for the background (K1): " + corrected + "\n";
+  if (!invalid.empty()) out += "  bands under 6 dB above the background, left out of LW: " + invalid + "\n";
+  return out;
+}
+}  // namespace
 
 std::string statistics_text(const CycleStatistics& s) {
   char line[256];
@@ -201,6 +262,10 @@ std::string statistics_text(const CycleStatistics& s) {
                 static_cast<long long>(s.cycles), static_cast<long long>(s.valid), static_cast<long long>(s.flagged), s.seconds,
                 s.leq_a_measured_db, s.leq_a_predicted_db);
   std::string out = line;
+  std::snprintf(line, sizeof line, "LW(A) over the cycles (ISO 3744: energy-mean bands, K1, K2): measured %.2f dB, predicted %.2f dB\n",
+                s.lwa_run_measured_db, s.lwa_run_predicted_db);
+  out += line;
+  out += band_validity_text(s);
   out += "  quantity                  unit         mean        std      cov        min        max      n\n";
   for (const ScalarStats& v : s.scalars) {
     std::snprintf(line, sizeof line, "  %-25s %-8s %10.4g %10.4g %8.4f %10.4g %10.4g %6lld%s\n", v.name.c_str(), v.unit.c_str(),
@@ -217,8 +282,11 @@ std::string statistics_json(const CycleStatistics& s) {
   for (const ScalarStats& v : s.scalars)
     j["scalars"][v.name] = {{"unit", v.unit}, {"energy_mean", v.level}, {"n", v.n}, {"mean", num(v.mean)}, {"std", num(v.std)},
                             {"cov", num(v.cov)}, {"min", num(v.min)}, {"max", num(v.max)}};
+  j["lwa_run_measured_db"] = num(s.lwa_run_measured_db);
+  j["lwa_run_predicted_db"] = num(s.lwa_run_predicted_db);
   j["bands"]["hz"] = s.band_hz;
-  for (auto [key, values] : {std::pair{"spl_a_measured_db", &s.spl_a_measured_db}, {"spl_a_predicted_db", &s.spl_a_predicted_db}, {"cpl_db", &s.cpl_db}}) {
+  j["bands"]["band_validity"] = s.band_validity;
+  for (auto [key, values] : {std::pair{"spl_a_measured_db", &s.spl_a_measured_db}, {"spl_a_predicted_db", &s.spl_a_predicted_db}, {"cpl_db", &s.cpl_db}, {"k1_db", &s.k1_db}}) {
     nlohmann::json a = nlohmann::json::array();
     for (double v : *values) a.push_back(num(v));
     j["bands"][key] = a;
@@ -235,6 +303,10 @@ std::string statistics_csv_rows(const CycleStatistics& s, const std::string& run
   for (const ScalarStats& v : s.scalars) {
     std::snprintf(line, sizeof line, "%s,%s,%s,%d,%lld,%.6g,%.6g,%.6g,%.6g,%.6g\n", run.c_str(), v.name.c_str(), v.unit.c_str(),
                   v.level ? 1 : 0, static_cast<long long>(v.n), plain(v.mean), plain(v.std), plain(v.cov), plain(v.min), plain(v.max));
+    out += line;
+  }
+  for (auto [name, value] : {std::pair{"lwa_run_measured_db", s.lwa_run_measured_db}, {"lwa_run_predicted_db", s.lwa_run_predicted_db}}) {
+    std::snprintf(line, sizeof line, "%s,%s,dB(A),1,%lld,%.6g,nan,nan,nan,nan\n", run.c_str(), name, static_cast<long long>(s.valid), plain(value));
     out += line;
   }
   return out;

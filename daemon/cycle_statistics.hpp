@@ -9,6 +9,7 @@
 #pragma once
 
 #include <cstdint>
+#include <limits>
 #include <string>
 #include <vector>
 
@@ -16,6 +17,8 @@
 #include "noisemon/cycle_stats_t.hpp"
 
 namespace noisemon::daemon {
+
+inline constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 
 struct ScalarStats {
   std::string name;   // the cycle_report_t field, e.g. "imep_net_bar"
@@ -35,7 +38,15 @@ struct CycleStatistics {
   std::vector<ScalarStats> scalars;
   std::vector<float> band_hz;                       // of the first valid cycle
   std::vector<double> spl_a_measured_db, spl_a_predicted_db, cpl_db;  // energy means per band
+  // Sound power over the cycles as ISO 3744 computes it over a measurement time: each band's energy mean, its K1
+  // against the background (the reports' background_db; ISO 3744:1994's 10 dB limit), less K2, plus 10 lg(S / S0);
+  // the bands every valid cycle kept in its overall levels (none BELOW_FIRING or beyond a passband) and not too
+  // close to the background. The per-cycle LW(A)s' energy mean is the scalar lwa_measured_db.
+  double lwa_run_measured_db = kNaN, lwa_run_predicted_db = kNaN;
+  std::vector<double> k1_db;           // per band, of the energy mean (NaN: invalid or out)
+  std::vector<std::int8_t> band_validity;  // per band: BandRunValidity
 };
+enum BandRunValidity : std::int8_t { kBandUncorrected = 0, kBandCorrected = 1, kBandTooCloseToBackground = 2, kBandNotInOverall = 3 };
 
 class CycleStatisticsAccumulator {
  public:
@@ -44,6 +55,7 @@ class CycleStatisticsAccumulator {
   void clear();
 
  private:
+  void add_run_sound_power(CycleStatistics& s) const;
   struct Running {
     std::int64_t n = 0;
     double sum = 0, sum_sq = 0, energy = 0, min = 0, max = 0;
@@ -53,6 +65,9 @@ class CycleStatisticsAccumulator {
   std::vector<Running> scalars_;
   std::vector<float> band_hz_;
   std::vector<Running> bands_measured_, bands_predicted_, bands_cpl_;
+  std::vector<std::int8_t> band_flags_seen_;  // OR of the valid cycles' band flags
+  std::vector<float> background_db_;          // of the first valid cycle
+  double k2_db_ = 0, radius_m_ = 0;
 };
 
 // The statistics of a whole recording's reports.

@@ -104,6 +104,7 @@ std::unique_ptr<CycleProcessor> Pipeline::Impl::make_processor() {
   pc.engine = config.engine;
   pc.fifo_seconds = options.fifo_seconds > 0 ? options.fifo_seconds : std::max(1.0, 2 * config.ring_seconds);
   pc.mic_low_db = config.mic_low_db;
+  pc.sound_power = config.sound_power;
   return std::make_unique<CycleProcessor>(pc, info, [this](const CycleReport& r) { queue_report(r); });
 }
 
@@ -113,6 +114,8 @@ void Pipeline::Impl::run_processing(const std::atomic<bool>& drain) {
     spdlog::info("processing: acoustic delay {} frames, {} microphones, model k1={:.3g} k3={:.3g} b1={:.3g} b3={:.3g}",
                  processor.delay_frames(), info.mic_count, config.model.k1, config.model.k3, config.model.b1,
                  config.model.b3);
+  for (const std::string& problem : processor.sound_power().problems())
+    if (!options.quiet) spdlog::warn("sound power (ISO 3744): {}", problem);
   std::int64_t dropped_seen = 0;
   while (true) {
     processing_beat_ns.store(now_ns(), std::memory_order_relaxed);

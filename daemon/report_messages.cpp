@@ -22,6 +22,7 @@ noisemon::cycle_report_t to_message(const CycleReport& r) {
   m.lwa_measured_db = r.lwa_measured_db;
   m.lwa_predicted_db = r.lwa_predicted_db;
   m.radius_m = r.radius_m;
+  m.k2_db = r.k2_db;
   m.nbands = static_cast<std::int16_t>(r.nbands);
   m.band_hz.assign(r.band_hz, r.band_hz + r.nbands);
   m.spl_a_measured_db.assign(r.spl_a_measured_db, r.spl_a_measured_db + r.nbands);
@@ -30,6 +31,8 @@ noisemon::cycle_report_t to_message(const CycleReport& r) {
   m.att_measured_db.assign(r.att_measured_db, r.att_measured_db + r.nbands);
   m.att_predicted_db.assign(r.att_predicted_db, r.att_predicted_db + r.nbands);
   m.band_flags.assign(r.band_flags, r.band_flags + r.nbands);
+  m.k1_db.assign(r.k1_db, r.k1_db + r.nbands);
+  m.background_db.assign(r.background_db, r.background_db + r.nbands);
   m.nmics = static_cast<std::int16_t>(r.nmics);
   m.mic_lpa_db.assign(r.mic_lpa_db, r.mic_lpa_db + r.nmics);
   m.mic_flags.assign(r.mic_flags, r.mic_flags + r.nmics);
@@ -50,15 +53,9 @@ noisemon::cycle_report_t to_message(const CycleReport& r) {
   return m;
 }
 
-
-
-
-
-
-
 std::string cycle_csv_header() {
   return "cycle,utime,speed_rpm,load_nm,soi_deg_btdc,motored,lpa_measured_db,lpa_predicted_db,lwa_measured_db,"
-         "lwa_predicted_db,flags,peak_pressure_bar,peak_pressure_deg,max_rise_bar_per_deg,max_rise_deg,imep_gross_bar,"
+         "lwa_predicted_db,k2_db,flags,peak_pressure_bar,peak_pressure_deg,max_rise_bar_per_deg,max_rise_deg,imep_gross_bar,"
          "imep_net_bar,heat_release_j,ca10_deg,ca50_deg,ca90_deg,ringing_intensity_mw_m2,condition\n";
 }
 
@@ -70,10 +67,10 @@ double plain(double v) { return std::isnan(v) ? std::numeric_limits<double>::qui
 std::string cycle_csv_row(const noisemon::cycle_report_t& r, const std::string& condition) {
   char buf[768];
   std::snprintf(buf, sizeof buf,
-                "%lld,%lld,%.3f,%.3f,%.3f,%d,%.4f,%.4f,%.4f,%.4f,%d,%.3f,%.2f,%.4f,%.2f,%.4f,%.4f,%.2f,%.2f,%.2f,%.2f,%.4f,",
+                "%lld,%lld,%.3f,%.3f,%.3f,%d,%.4f,%.4f,%.4f,%.4f,%.2f,%d,%.3f,%.2f,%.4f,%.2f,%.4f,%.4f,%.2f,%.2f,%.2f,%.2f,%.4f,",
                 static_cast<long long>(r.cycle), static_cast<long long>(r.utime), plain(r.speed_rpm), plain(r.load_nm),
                 plain(r.soi_deg_btdc), r.motored ? 1 : 0, plain(r.lpa_measured_db), plain(r.lpa_predicted_db),
-                plain(r.lwa_measured_db), plain(r.lwa_predicted_db), r.flags, plain(r.peak_pressure_bar),
+                plain(r.lwa_measured_db), plain(r.lwa_predicted_db), plain(r.k2_db), r.flags, plain(r.peak_pressure_bar),
                 plain(r.peak_pressure_deg), plain(r.max_rise_bar_per_deg), plain(r.max_rise_deg), plain(r.imep_gross_bar),
                 plain(r.imep_net_bar), plain(r.heat_release_j), plain(r.ca10_deg), plain(r.ca50_deg), plain(r.ca90_deg),
                 plain(r.ringing_intensity_mw_m2));

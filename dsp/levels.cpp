@@ -4,6 +4,8 @@
 #include <limits>
 #include <numbers>
 
+#include "dsp/sound_power.hpp"
+
 namespace noisemon::dsp {
 namespace {
 
@@ -33,7 +35,7 @@ double energy_average_db(std::span<const double> levels_db) {
 }
 
 double hemisphere_area_term_db(double radius_m) {
-  return 10.0 * std::log10(2.0 * std::numbers::pi * radius_m * radius_m / kReferenceArea);
+  return 10.0 * std::log10(hemisphere_area_m2(radius_m) / kReferenceArea);
 }
 
 double sound_power_level_db(double lp_db, double radius_m) { return lp_db + hemisphere_area_term_db(radius_m); }

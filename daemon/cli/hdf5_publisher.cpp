@@ -48,10 +48,11 @@ const RealColumn kRealColumns[] = {
      [](auto& m) { return m.lpa_measured_db; }},
     {"lpa_predicted_db", "dB(A) re 20 uPa", "the block model's A-weighted level from the cylinder pressure",
      [](auto& m) { return m.lpa_predicted_db; }},
-    {"lwa_measured_db", "dB(A) re 1 pW", "per-cycle A-weighted sound power, hemisphere of radius_m",
+    {"lwa_measured_db", "dB(A) re 1 pW", "per-cycle A-weighted sound power (ISO 3744: K1 per band, K2), hemisphere of radius_m",
      [](auto& m) { return m.lwa_measured_db; }},
     {"lwa_predicted_db", "dB(A) re 1 pW", "the block model's per-cycle sound power", [](auto& m) { return m.lwa_predicted_db; }},
     {"radius_m", "m", "measurement hemisphere radius", [](auto& m) { return m.radius_m; }},
+    {"k2_db", "dB", "ISO 3744 environmental correction K2 in lwa_*", [](auto& m) { return m.k2_db; }},
     {"processing_ms", "ms", "CPU time the processing spent on the cycle",
      [](auto& m) { return static_cast<double>(m.processing_ms); }},
     {"peak_pressure_bar", "bar", "peak cylinder pressure", [](auto& m) { return m.peak_pressure_bar; }},
@@ -76,6 +77,10 @@ const BandColumn kBandColumns[] = {
     {"att_measured_db", "dB", "attenuation CPL - SPL(A), measured", [](auto& m, int b) { return m.att_measured_db[b]; }},
     {"att_predicted_db", "dB", "attenuation CPL - SPL(A), predicted", [](auto& m, int b) { return m.att_predicted_db[b]; }},
     {"band_flags", "1", "BAND_* bits of cycle_report_t", [](auto& m, int b) { return static_cast<float>(m.band_flags[b]); }},
+    {"k1_db", "dB", "ISO 3744 background correction K1 of the measured band (NaN: under 6 dB above the background)",
+     [](auto& m, int b) { return m.k1_db[b]; }},
+    {"background_db", "dB re 20 uPa", "background band level behind K1, unweighted (NaN: none)",
+     [](auto& m, int b) { return m.background_db[b]; }},
 };
 const BandColumn kMicColumns[] = {
     {"mic_lpa_db", "dB(A) re 20 uPa", "each microphone's own A-weighted level", [](auto& m, int i) { return m.mic_lpa_db[i]; }},

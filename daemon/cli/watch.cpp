@@ -31,10 +31,10 @@ struct Handler {
 void on_signal(int) { g_stop = 1; }
 
 void print_bands(const noisemon::cycle_report_t& r) {
-  std::printf("      band Hz   CPL dB   meas dB(A)  pred dB(A)  att meas  att pred  flags\n");
+  std::printf("      band Hz   CPL dB   meas dB(A)  pred dB(A)  att meas  att pred    K1 dB  flags\n");
   for (int b = 0; b < r.nbands; ++b)
-    std::printf("    %9.1f %8.1f %12.1f %11.1f %9.1f %9.1f  %d\n", r.band_hz[b], r.cpl_db[b], r.spl_a_measured_db[b],
-                r.spl_a_predicted_db[b], r.att_measured_db[b], r.att_predicted_db[b], r.band_flags[b]);
+    std::printf("    %9.1f %8.1f %12.1f %11.1f %9.1f %9.1f %8.2f  %d\n", r.band_hz[b], r.cpl_db[b], r.spl_a_measured_db[b],
+                r.spl_a_predicted_db[b], r.att_measured_db[b], r.att_predicted_db[b], r.k1_db[b], r.band_flags[b]);
 }
 
 const char* thread_state_name(std::int8_t s) {

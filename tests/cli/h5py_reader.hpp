@@ -33,6 +33,7 @@ r = {"groups": sorted(f.keys()),
      "spl_shape": list(f["bands/spl_a_measured_db"].shape),
      "spl": f["bands/spl_a_measured_db"][:].tolist(),
      "band_flags": f["bands/band_flags"][:].tolist(),
+     "k1_db": f["bands/k1_db"][:].tolist(),
      "mic_lpa": [[plain(v) for v in row] for row in f["mics/mic_lpa_db"][:].tolist()],
      "conditions": [c.decode() if isinstance(c, bytes) else c for c in f["runs/condition"][:].tolist()]}
 json.dump(r, open(sys.argv[2], "w"))

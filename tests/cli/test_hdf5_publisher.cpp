@@ -40,6 +40,8 @@ cycle_report_t report(std::int64_t cycle, int nbands, int nmics) {
     m.att_measured_db.push_back(static_cast<float>(90 - b - cycle));
     m.att_predicted_db.push_back(91.0f);
     m.band_flags.push_back(b == 0 ? cycle_report_t::BAND_BELOW_FIRING : 0);
+    m.k1_db.push_back(b == 1 ? 0.75f : 0.0f);
+    m.background_db.push_back(40.0f);
   }
   m.nmics = static_cast<std::int16_t>(nmics);
   for (int i = 0; i < nmics; ++i) {
@@ -77,6 +79,7 @@ TEST(Hdf5Publisher, H5pyReadsEveryValueShapeAndUnitAsWritten) {
   EXPECT_EQ(r["spl_shape"], json({4, 4}));
   EXPECT_EQ(r["spl"][2], json({62.0, 63.0, 64.0, 65.0}));
   EXPECT_EQ(r["band_flags"][0][0].get<double>(), static_cast<double>(cycle_report_t::BAND_BELOW_FIRING));
+  EXPECT_NEAR(r["k1_db"][0][1].get<double>(), 0.75, 1e-6);
   EXPECT_EQ(r["mic_lpa"][0], json({95.0, 96.0, 97.0}));
   EXPECT_EQ(r["mic_lpa"][3], json({95.0, 96.0, nullptr}));
 }

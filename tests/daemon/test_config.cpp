@@ -2,6 +2,7 @@
 // fields, and bad input is an error that names the file, the line or the key.
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <fstream>
 
 #include "daemon/config.hpp"
@@ -46,6 +47,12 @@ TEST(Config, DocumentedDefaultFileEqualsBuiltInDefaults) {
   EXPECT_EQ(file.model.b1, def.model.b1);
   EXPECT_EQ(file.acoustic_delay_s, def.acoustic_delay_s);
   EXPECT_EQ(file.ring_seconds, def.ring_seconds);
+  EXPECT_EQ(file.sound_power.k2_db, def.sound_power.k2_db);
+  EXPECT_EQ(file.sound_power.absorption_area_m2, def.sound_power.absorption_area_m2);
+  EXPECT_EQ(file.sound_power.no_correction_above_db, def.sound_power.no_correction_above_db);
+  EXPECT_EQ(file.sound_power.source_dimension_m, def.sound_power.source_dimension_m);
+  EXPECT_EQ(file.sound_power.voronoi_area_weights, def.sound_power.voronoi_area_weights);
+  EXPECT_TRUE(file.sound_power.background_db.empty());
   EXPECT_EQ(file.sim.speed_rpm, def.sim.speed_rpm);
   EXPECT_EQ(file.sim.load_nm, def.sim.load_nm);
   EXPECT_EQ(file.sim.full_load_nm, def.sim.full_load_nm);
@@ -211,6 +218,41 @@ TEST(Config, ErrorsNameFileAndKey) {
   EXPECT_NE(error_of("[sim]\nmic_count = 3\nmic_positions_m = [[0,0,1]]\n").find("sim.mic_positions_m"), std::string::npos);
   EXPECT_NE(error_of("[sim\nspeed_rpm = 1\n").find("test.toml:1:"), std::string::npos);  // syntax error: line named
   EXPECT_NE(error_of("bogus = 1\n").find("unknown key 'bogus'"), std::string::npos);
+}
+
+TEST(Config, SoundPowerCorrectionsAndPositionPresets) {
+  const Config c = parse_config(R"(
+[sound_power]
+k2_db = 1.5
+no_correction_above_db = 15.0
+area_weights = [1, 1, 2]
+background_db = [40, 40, 40, 40, 40, 40, 40, 40, 40, 40, 40, 40, 40, 40, 40, 40, 40, 40, 40, 40, 40, 40, 40, 40, 40, 40, 40, 40, 40, 40, nan]
+[sim]
+mic_count = 10
+radius_m = 2.0
+mic_positions_m = "iso3744"
+)", "sp.toml");
+  EXPECT_EQ(c.sound_power.k2_db, 1.5);
+  EXPECT_EQ(c.sound_power.no_correction_above_db, 15.0);
+  EXPECT_EQ(c.sound_power.area_weights, (std::vector<double>{1, 1, 2}));
+  ASSERT_EQ(c.sound_power.background_db.size(), 31u);
+  EXPECT_TRUE(std::isnan(c.sound_power.background_db[30]));
+  // ISO 3744 Annex B's top position is (0, 0, r); the first ring lies at z = 0.15 r.
+  ASSERT_EQ(c.sim.mic_positions_m.size(), 10u);
+  EXPECT_NEAR(c.sim.mic_positions_m[9][2], 2.0, 1e-9);
+  EXPECT_NEAR(c.sim.mic_positions_m[0][2], 0.3, 1e-9);
+  const Config t = parse_config("[sim]\nradius_m = 3.5\nmic_positions_m = \"table3.1\"\n", "t.toml");
+  EXPECT_NEAR(t.sim.mic_positions_m[4][2], 3.5, 1e-9);  // Table 3.1's mic 5 is the top one, scaled to 3.5 m
+  EXPECT_TRUE(parse_config("[sound_power]\narea_weights = \"voronoi\"\n", "v").sound_power.voronoi_area_weights);
+}
+
+TEST(Config, SoundPowerErrorsNameTheKey) {
+  EXPECT_NE(error_of("[sound_power]\nbackground_db = [40, 40]\n").find("sound_power.background_db: expected 31 band levels"), std::string::npos);
+  EXPECT_NE(error_of("[sound_power]\narea_weights = \"thirds\"\n").find("sound_power.area_weights"), std::string::npos);
+  EXPECT_NE(error_of("[sound_power]\nk2_db = -1.0\n").find("sound_power.k2_db: value -1 out of range"), std::string::npos);
+  EXPECT_NE(error_of("[sim]\nmic_positions_m = \"iso\"\n").find("sim.mic_positions_m: unknown preset 'iso'"), std::string::npos);
+  const std::string missing = error_of("[sound_power]\nbackground_run = \"/nonexistent/bg\"\n");
+  EXPECT_NE(missing.find("sound_power.background_run: /nonexistent/bg/run.json"), std::string::npos) << missing;
 }
 
 TEST(Config, MissingFileIsAnErrorNamingIt) {
