@@ -551,6 +551,10 @@ Config parse_table(const toml::table& root, const std::string& origin) {
   p.number("acoustic_delay_s", c.acoustic_delay_s, -1, 1.0);
   p.number("ring_seconds", c.ring_seconds, 0.1, 60);
   p.number("mic_low_db", c.mic_low_db, 1, 200);
+  std::string mic_average = c.mic_average_time ? "time" : "energy";
+  p.string("mic_average", mic_average);
+  if (mic_average != "energy" && mic_average != "time") p.fail("mic_average", "expected \"energy\" or \"time\"");
+  c.mic_average_time = mic_average == "time";
   p.reject_unknown();
 
   drivers::SimConfig& s = c.sim;

@@ -53,6 +53,7 @@ struct Config {
   model::BlockParams model = model::preset("linear");
   double acoustic_delay_s = -1;     // < 0: radius / speed of sound, as the source reports it
   double mic_low_db = 20.0;         // a microphone this far below the median of the others is left out (unplugged)
+  bool mic_average_time = false;    // [processing] mic_average = "time": the thesis's mean time history, not "energy"
   double ring_seconds = 0.5;        // capacity of each driver ring buffer
   drivers::SimConfig sim;
   drivers::ComediSourceConfig comedi;  // [comedi]: the DAQ hardware (source = "comedi")

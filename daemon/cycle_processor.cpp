@@ -51,6 +51,7 @@ CycleProcessor::CycleProcessor(const ProcessorConfig& config, const drivers::Str
       info_(info),
       sink_(std::move(sink)),
       mics_(info.mic_count),
+      bank_channels_(2 + info.mic_count + (config.time_average_mics && info.mic_count > 0 ? 1 : 0)),
       delay_frames_(std::llround((config.acoustic_delay_s >= 0 ? config.acoustic_delay_s : info.acoustic_delay_s) * kFs)),
       model_(config.model, kFs),
       model_latency_(static_cast<std::int64_t>(model_.latency_samples())),
@@ -61,10 +62,10 @@ CycleProcessor::CycleProcessor(const ProcessorConfig& config, const drivers::Str
       model_in_(drivers::SampleBlock::kMaxFrames),
       model_out_(drivers::SampleBlock::kMaxFrames),
       model_prime_(drivers::SampleBlock::kMaxFrames),
-      bank_(kFs, 2 + info.mic_count),
+      bank_(kFs, bank_channels_),
       sound_power_(config.sound_power, info, bank_.bands()),
-      chunk_((2 + info.mic_count) * kChunkFrames),
-      mean_square_((2 + info.mic_count) * 64),
+      chunk_(bank_channels_ * kChunkFrames),
+      mean_square_(bank_channels_ * 64),
       stats_(1 + info.mic_count),
       replaced_until_(1 + info.mic_count, INT64_MIN),
       pressure_overload_pa_(overload_level(info.pressure_full_scale_pa)),
@@ -74,7 +75,7 @@ CycleProcessor::CycleProcessor(const ProcessorConfig& config, const drivers::Str
   if (info.mic_count > kMaxMics)
     throw std::invalid_argument("CycleProcessor: microphone count must be 0.." + std::to_string(kMaxMics));
   if (bank_.band_count() > kMaxBands) throw std::logic_error("CycleProcessor: too many bands");
-  mean_square_.assign((2 + mics_) * bank_.band_count(), 0.0);
+  mean_square_.assign(bank_channels_ * bank_.band_count(), 0.0);
   for (const dsp::ThirdOctaveBand& b : bank_.bands()) a_gain_.push_back(std::pow(10.0, dsp::a_weighting_db(b.exact_mid_hz) / 10.0));
   reset_stats();
 }
@@ -239,8 +240,7 @@ void CycleProcessor::close_cycle(double crank_deg, double pressure_pa) {
 
 // Frame next_ into the bank's chunk (microphone samples made finite), and into the channels' statistics.
 void CycleProcessor::add_frame(const double* p) {
-  const std::size_t channels = 2 + mics_;
-  double* out = &chunk_[chunk_frames_ * channels];
+  double* out = &chunk_[chunk_frames_ * bank_channels_];
   const double pa = p[drivers::kPressureChannel];
   out[0] = pa;
   out[1] = predicted_.frame(next_)[0];
@@ -270,6 +270,12 @@ void CycleProcessor::add_frame(const double* p) {
       s.min = std::min(s.min, x);
       s.max = std::max(s.max, x);
       out[2 + c] = x;
+    }
+    if (config_.time_average_mics) {
+      const std::vector<double>& weights = sound_power_.area_weights();
+      double mean = 0;
+      for (std::size_t c = 0; c < mics_; ++c) mean += weights[c] * out[2 + c];
+      out[2 + mics_] = mean;
     }
   }
   if (++chunk_frames_ == kChunkFrames) flush_chunk();
@@ -474,6 +480,11 @@ std::int8_t CycleProcessor::band_flags(std::size_t b, double duration_s, double 
 
 double CycleProcessor::measured_mean_square(const CycleReport& r, std::size_t b) const {
   const std::size_t nb = bank_.band_count();
+  if (config_.time_average_mics) {
+    bool any = false;
+    for (std::size_t m = 0; m < mics_; ++m) any |= !(r.mic_flags[m] & kMicExcluded);
+    return any ? mean_square_[(2 + mics_) * nb + b] : kNaN;
+  }
   const std::vector<double>& weights = sound_power_.area_weights();
   double sum = 0, weight_sum = 0;
   for (std::size_t m = 0; m < mics_; ++m)

@@ -105,6 +105,7 @@ std::unique_ptr<CycleProcessor> Pipeline::Impl::make_processor() {
   pc.fifo_seconds = options.fifo_seconds > 0 ? options.fifo_seconds : std::max(1.0, 2 * config.ring_seconds);
   pc.mic_low_db = config.mic_low_db;
   pc.sound_power = config.sound_power;
+  pc.time_average_mics = config.mic_average_time;
   return std::make_unique<CycleProcessor>(pc, info, [this](const CycleReport& r) { queue_report(r); });
 }
 

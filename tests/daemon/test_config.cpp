@@ -47,6 +47,7 @@ TEST(Config, DocumentedDefaultFileEqualsBuiltInDefaults) {
   EXPECT_EQ(file.model.b1, def.model.b1);
   EXPECT_EQ(file.acoustic_delay_s, def.acoustic_delay_s);
   EXPECT_EQ(file.ring_seconds, def.ring_seconds);
+  EXPECT_EQ(file.mic_average_time, def.mic_average_time);
   EXPECT_EQ(file.sound_power.k2_db, def.sound_power.k2_db);
   EXPECT_EQ(file.sound_power.absorption_area_m2, def.sound_power.absorption_area_m2);
   EXPECT_EQ(file.sound_power.no_correction_above_db, def.sound_power.no_correction_above_db);
@@ -249,6 +250,8 @@ mic_positions_m = "iso3744"
 TEST(Config, SoundPowerErrorsNameTheKey) {
   EXPECT_NE(error_of("[sound_power]\nbackground_db = [40, 40]\n").find("sound_power.background_db: expected 31 band levels"), std::string::npos);
   EXPECT_NE(error_of("[sound_power]\narea_weights = \"thirds\"\n").find("sound_power.area_weights"), std::string::npos);
+  EXPECT_NE(error_of("[processing]\nmic_average = \"mean\"\n").find("processing.mic_average: expected"), std::string::npos);
+  EXPECT_TRUE(parse_config("[processing]\nmic_average = \"time\"\n", "t").mic_average_time);
   EXPECT_NE(error_of("[sound_power]\nk2_db = -1.0\n").find("sound_power.k2_db: value -1 out of range"), std::string::npos);
   EXPECT_NE(error_of("[sim]\nmic_positions_m = \"iso\"\n").find("sim.mic_positions_m: unknown preset 'iso'"), std::string::npos);
   const std::string missing = error_of("[sound_power]\nbackground_run = \"/nonexistent/bg\"\n");

@@ -68,9 +68,11 @@ struct Result {
 // Tones in the cylinder pressure whose eq. 4.1 response reaches every microphone, plus (sigma > 0) independent white
 // noise at each microphone: the prediction hears the tones only.
 Result run(const std::vector<Tone>& tones, double noise_sigma, const daemon::SoundPowerConfig& sp, double seconds = 1.0,
-           std::vector<std::array<double, 3>> positions = {}, std::vector<double> gains = {}) {
+           std::vector<std::array<double, 3>> positions = {}, std::vector<double> gains = {}, bool time_average = false) {
   drivers::StreamInfo info;
-  info.mic_count = positions.empty() ? kMics : static_cast<std::uint32_t>(positions.size());
+  info.mic_count = !positions.empty() ? static_cast<std::uint32_t>(positions.size())
+                   : !gains.empty()   ? static_cast<std::uint32_t>(gains.size())
+                                      : kMics;
   info.mic_positions_m = positions;
   info.radius_m = 1.75;
   info.acoustic_delay_s = kDelayFrames / kFs;
@@ -78,6 +80,7 @@ Result run(const std::vector<Tone>& tones, double noise_sigma, const daemon::Sou
   daemon::ProcessorConfig pc;
   pc.model = model::preset("linear");
   pc.sound_power = sp;
+  pc.time_average_mics = time_average;
   Result out;
   daemon::CycleProcessor p(pc, info, [&](const daemon::CycleReport& r) { out.reports.push_back(r); });
   std::mt19937_64 rng(7);
@@ -302,4 +305,26 @@ TEST(SoundPowerSetup, BackgroundRunWithoutMicrophonesIsRefusedNamingTheFile) {
   } catch (const std::runtime_error& e) {
     EXPECT_NE(std::string(e.what()).find((dir / "run.json").string()), std::string::npos) << e.what();
   }
+}
+
+// The thesis's averaging: the band level of the microphones' mean time history. Two microphones hear the same tone,
+// one at half the amplitude and inverted: the energy mean is (1 + 1/4) / 2 of the tone's power (-2.04 dB), the time
+// mean ((1 - 1/2) / 2)^2 of it (-12.04 dB). Uncorrelated noise at six microphones: the time mean keeps 1/6 of it.
+TEST(MicAverage, TimeMeanCancelsWhatDiffersInPhaseAndEnergyMeanDoesNot) {
+  const std::vector<Tone> tone{{1000.0, 0.5}};
+  const Result energy = run(tone, 0.0, {}, 0.5, {}, {1.0, -0.5});
+  const Result time = run(tone, 0.0, {}, 0.5, {}, {1.0, -0.5}, true);
+  const std::size_t b1k = energy.band(1000);
+  const double tone_db = level_of_ms(0.5 * 0.5 / 2) + a_weight(energy.bands[b1k].exact_mid_hz);
+  EXPECT_NEAR(settled_mean(energy, [&](const auto& c) { return c.spl_a_measured_db[b1k]; }), tone_db + 10 * std::log10(0.625), 0.15);
+  EXPECT_NEAR(settled_mean(time, [&](const auto& c) { return c.spl_a_measured_db[b1k]; }), tone_db + 20 * std::log10(0.25), 0.15);
+  // The prediction does not depend on how the microphones are averaged.
+  EXPECT_DOUBLE_EQ(settled_mean(energy, [](const auto& c) { return c.lpa_predicted_db; }),
+                   settled_mean(time, [](const auto& c) { return c.lpa_predicted_db; }));
+  const Result noise_energy = run({}, kNoiseSigmaPa, {}, 0.5);
+  const Result noise_time = run({}, kNoiseSigmaPa, {}, 0.5, {}, {}, true);
+  const std::size_t b4k = noise_energy.band(4000);
+  EXPECT_NEAR(settled_mean(noise_energy, [&](const auto& c) { return c.spl_a_measured_db[b4k]; }) -
+                  settled_mean(noise_time, [&](const auto& c) { return c.spl_a_measured_db[b4k]; }),
+              10 * std::log10(6.0), 0.5);
 }
