@@ -504,6 +504,8 @@ void CycleProcessor::band_levels(CycleReport& r, double settled_s, bool pressure
   const std::vector<double>& ms = mean_square_;
   constexpr std::int8_t kNotOverall = kBandBelowFiring | kBandPressurePassband | kBandMicPassband;
   double meas_sum = 0, pred_sum = 0, lw_meas_sum = 0, lw_pred_sum = 0;
+  double overall_cpl[kMaxBands], overall_hz[kMaxBands];
+  std::size_t overall_bands = 0;
   for (std::size_t b = 0; b < nb; ++b) {
     const double aw = dsp::a_weighting_db(bank_.bands()[b].exact_mid_hz);
     const double cpl = pressure_fault ? kNaN : dsp::level_db(ms[0 * nb + b]);
@@ -517,6 +519,8 @@ void CycleProcessor::band_levels(CycleReport& r, double settled_s, bool pressure
     // Only the bands every stream carries and that have a per-cycle meaning make the overall levels, so that the
     // measured and predicted ones cover the same bands.
     if (!(f & kNotOverall)) {
+      overall_cpl[overall_bands] = cpl;
+      overall_hz[overall_bands++] = bank_.bands()[b].exact_mid_hz;
       meas_sum += dsp::mean_square_from_level(meas_a);
       pred_sum += dsp::mean_square_from_level(pred_a);
       if (!(f & kBandBackground)) {
@@ -541,6 +545,8 @@ void CycleProcessor::band_levels(CycleReport& r, double settled_s, bool pressure
   r.lpa_predicted_db = pressure_fault ? kNaN : dsp::level_db(pred_sum);
   r.lwa_measured_db = measured ? dsp::level_db(lw_meas_sum) + lw_term : kNaN;
   r.lwa_predicted_db = pressure_fault ? kNaN : dsp::level_db(lw_pred_sum) + lw_term;
+  r.combustion_noise_db = model::combustion_noise_level_db({overall_cpl, overall_bands}, {overall_hz, overall_bands},
+                                                           model::cao2015_eq_4_1_attenuation());
 }
 
 }  // namespace noisemon::daemon

@@ -29,6 +29,7 @@
 #include "dsp/third_octave_bank.hpp"
 #include "model/block_model.hpp"
 #include "model/combustion_metrics.hpp"
+#include "model/combustion_noise.hpp"
 
 namespace noisemon::daemon {
 

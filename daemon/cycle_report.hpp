@@ -53,6 +53,7 @@ struct CycleReport {
   double lwa_measured_db = 0, lwa_predicted_db = 0;  // this cycle's, K1 and K2 applied (ISO 3744)
   double radius_m = 0;
   double k2_db = 0;                 // the environmental correction in lwa_*
+  double combustion_noise_db = 0;   // CPL through the thesis's fixed eq. 4.1 attenuation, A-weighted (model/combustion_noise)
   std::uint16_t nbands = 0;
   float band_hz[kMaxBands] = {};
   float spl_a_measured_db[kMaxBands] = {};

@@ -45,6 +45,7 @@ const std::vector<Field>& fields() {
       {"ca50_deg", "deg", false, [](const Report& r) { return r.ca50_deg; }},
       {"ca90_deg", "deg", false, [](const Report& r) { return r.ca90_deg; }},
       {"ringing_intensity_mw_m2", "MW/m^2", false, [](const Report& r) { return r.ringing_intensity_mw_m2; }},
+      {"combustion_noise_db", "dB(A)", true, [](const Report& r) { return r.combustion_noise_db; }},
       {"processing_ms", "ms", false, [](const Report& r) { return static_cast<double>(r.processing_ms); }},
   };
   return f;

@@ -67,6 +67,8 @@ const RealColumn kRealColumns[] = {
     {"ca90_deg", "deg", "crank angle of 90 % of the heat release", [](auto& m) { return m.ca90_deg; }},
     {"ringing_intensity_mw_m2", "MW/m^2", "ringing intensity (Eng, SAE 2002-01-2859)",
      [](auto& m) { return m.ringing_intensity_mw_m2; }},
+    {"combustion_noise_db", "dB(A)", "CPL through the thesis's fixed eq. 4.1 structure attenuation, A-weighted",
+     [](auto& m) { return m.combustion_noise_db; }},
 };
 const BandColumn kBandColumns[] = {
     {"spl_a_measured_db", "dB(A) re 20 uPa", "A-weighted band level, energy mean over the microphones",

@@ -168,6 +168,8 @@ TEST(CycleProcessor, SteadyTonesMatchAnalyticLevels) {
                         std::pow(10, (level(300 * std::abs(eq_4_1(5000))) + a_weight(r.bands[b5k].exact_mid_hz)) / 10));
     EXPECT_NEAR(c.lpa_measured_db, expected_lpa, 0.2);
     EXPECT_NEAR(c.lpa_predicted_db, expected_lpa, 0.2);
+    // The combustion-noise level: the CPL through eq. 4.1's fixed attenuation, A-weighted: the same two tones.
+    EXPECT_NEAR(c.combustion_noise_db, expected_lpa, 0.2);
     EXPECT_NEAR(c.lwa_measured_db - c.lpa_measured_db, 10 * std::log10(2 * kPi * 1.75 * 1.75), 1e-9);
     // Per-microphone levels follow the microphone gains (0.8, 1.0, 1.2 in mean square).
     EXPECT_NEAR(c.mic_lpa_db[2] - c.mic_lpa_db[0], 10 * std::log10(1.2 / 0.8), 0.05);
