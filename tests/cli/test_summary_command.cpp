@@ -117,3 +117,34 @@ TEST(SummaryCommand, StatisticsOfTheRealCyclesAgreeWithTheReplayCsv) {
   EXPECT_NE(missing.text.find("nothing"), std::string::npos) << missing.text;
   fs::remove_all(dir);
 }
+
+// ISO 3744's K1 from a background run that other code wrote: `noisemon sim --background-run` (the virtual cell with the
+// engine off: its floor and the microphones' self-noise). The engine at 3450 rpm is tens of dB above it everywhere
+// but in the 20 kHz band, where only the microphones' self-noise is left; a run taken as its own background is
+// nowhere 6 dB above it, and has no sound power.
+TEST(SummaryCommand, BackgroundRunFromTheVirtualCellFlagsOnlyTheBandsItReaches) {
+  const fs::path dir = noisemon::test::unique_temp("sim");
+  const Output sim = run("sim --condition full_mi12 --cycles 30 --background-run --no-progress -o " + dir.string());
+  ASSERT_EQ(sim.status, 0) << sim.text;
+  const fs::path config = dir / "bg.toml", self = dir / "self.toml";
+  std::ofstream(config) << "[sound_power]\nbackground_run = \"" << (dir / "background").string() << "\"\n";
+  std::ofstream(self) << "[sound_power]\nbackground_run = \"" << (dir / "full_mi12").string() << "\"\n";
+  const Output with = run("summary --json --no-progress --config " + config.string() + " " + (dir / "full_mi12").string());
+  const Output without = run("summary --json --no-progress " + (dir / "full_mi12").string());
+  const Output itself = run("summary --json --no-progress --config " + self.string() + " " + (dir / "full_mi12").string());
+  ASSERT_EQ(with.status, 0) << with.text;
+  ASSERT_EQ(itself.status, 0) << itself.text;
+  const auto stats = [](const Output& o) { return nlohmann::json::parse(o.text.substr(o.text.find('{'))).begin().value(); };
+  const nlohmann::json s = stats(with), plain = stats(without), own = stats(itself);
+  const auto& hz = s["bands"]["hz"];
+  const auto& validity = s["bands"]["band_validity"];
+  ASSERT_EQ(validity.size(), hz.size());
+  for (std::size_t b = 0; b < hz.size(); ++b) {
+    const double f = hz[b].get<double>();
+    if (f >= 100 && f <= 10000) EXPECT_EQ(validity[b], 0) << f << " Hz: the engine is far above the background here";
+    if (f == 20000) EXPECT_EQ(validity[b], 2) << "the 20 kHz band holds only the microphones' self-noise";
+  }
+  EXPECT_NEAR(s["lwa_run_measured_db"].get<double>(), plain["lwa_run_measured_db"].get<double>(), 0.05);
+  for (const auto& v : own["bands"]["band_validity"]) EXPECT_GE(v.get<int>(), 2);
+  EXPECT_TRUE(own["lwa_run_measured_db"].is_null());
+}
