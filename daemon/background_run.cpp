@@ -1,9 +1,7 @@
 #include "daemon/background_run.hpp"
 
 #include <algorithm>
-#include <fstream>
 #include <limits>
-#include <sstream>
 #include <stdexcept>
 
 #include "daemon/sound_power_setup.hpp"
@@ -12,22 +10,10 @@
 #include "dsp/third_octave_bank.hpp"
 
 namespace noisemon::daemon {
-namespace {
-
-std::string read_text(const std::filesystem::path& file) {
-  std::ifstream in(file, std::ios::binary);
-  if (!in) throw std::runtime_error(file.string() + ": cannot open");
-  std::ostringstream text;
-  text << in.rdbuf();
-  return text.str();
-}
-
-}  // namespace
 
 std::vector<double> background_from_run_dir(const std::filesystem::path& dir) {
-  const std::filesystem::path manifest_file = dir / "run.json";
-  const drivers::RunManifest manifest = drivers::parse_run_json(read_text(manifest_file), manifest_file.string());
-  if (!manifest.has_mics) throw std::runtime_error(manifest_file.string() + ": the background run has no microphones");
+  const drivers::RunManifest manifest = drivers::read_run_manifest(dir);
+  if (!manifest.has_mics) throw std::runtime_error((dir / "run.json").string() + ": the background run has no microphones");
   const std::filesystem::path wav = dir / manifest.mics_file;  // an absolute mics_file replaces dir
   drivers::RunDir run;
   drivers::read_mics_wav(wav, static_cast<std::uint32_t>(manifest.mic_positions_m.size()), manifest.full_scale_pa, run);

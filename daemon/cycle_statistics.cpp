@@ -10,11 +10,13 @@
 
 #include "dsp/levels.hpp"
 #include "dsp/sound_power.hpp"
+#include "dsp/third_octave_bank.hpp"
 #include "dsp/weighting.hpp"
 
 namespace noisemon::daemon {
 namespace {
 
+constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 using Report = noisemon::cycle_report_t;
 
 struct Field {
@@ -156,7 +158,7 @@ void CycleStatisticsAccumulator::add_run_sound_power(CycleStatistics& s) const {
   double measured = 0, predicted = 0;
   bool any = false;
   for (std::size_t b = 0; b < band_hz_.size(); ++b) {
-    const double mid = 1000.0 * std::pow(10.0, std::round(10.0 * std::log10(band_hz_[b] / 1000.0)) / 10.0);
+    const double mid = dsp::third_octave_exact_mid_hz(band_hz_[b]);
     const double background = b < background_db_.size() ? background_db_[b] : kNaN;
     dsp::BackgroundCorrection k1;  // no background: uncorrected
     if (!std::isnan(background)) k1 = dsp::background_correction(s.spl_a_measured_db[b] - dsp::a_weighting_db(mid), background);

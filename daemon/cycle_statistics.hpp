@@ -18,8 +18,6 @@
 
 namespace noisemon::daemon {
 
-inline constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
-
 struct ScalarStats {
   std::string name;   // the cycle_report_t field, e.g. "imep_net_bar"
   std::string unit;
@@ -42,7 +40,8 @@ struct CycleStatistics {
   // against the background (the reports' background_db; ISO 3744:1994's 10 dB limit), less K2, plus 10 lg(S / S0);
   // the bands every valid cycle kept in its overall levels (none BELOW_FIRING or beyond a passband) and not too
   // close to the background. The per-cycle LW(A)s' energy mean is the scalar lwa_measured_db.
-  double lwa_run_measured_db = kNaN, lwa_run_predicted_db = kNaN;
+  double lwa_run_measured_db = std::numeric_limits<double>::quiet_NaN();
+  double lwa_run_predicted_db = std::numeric_limits<double>::quiet_NaN();
   std::vector<double> k1_db;           // per band, of the energy mean (NaN: invalid or out)
   std::vector<std::int8_t> band_validity;  // per band: BandRunValidity
 };

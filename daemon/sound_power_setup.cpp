@@ -16,12 +16,7 @@ constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 
 int background_band_index(double nominal_hz) { return static_cast<int>(std::lround(10.0 * std::log10(nominal_hz / 20.0))); }
 
-double background_band_hz(int i) {
-  static const double kNominal[kBackgroundBands] = {20,   25,   31.5, 40,   50,   63,   80,    100,   125,   160,  200,
-                                                    250,  315,  400,  500,  630,  800,  1000,  1250,  1600,  2000, 2500,
-                                                    3150, 4000, 5000, 6300, 8000, 10000, 12500, 16000, 20000};
-  return kNominal[i];
-}
+double background_band_hz(int i) { return dsp::kThirdOctaveNominalHz[static_cast<std::size_t>(i)]; }
 
 SoundPowerSetup::SoundPowerSetup(const SoundPowerConfig& config, const drivers::StreamInfo& info,
                                  const std::vector<dsp::ThirdOctaveBand>& bands)

@@ -30,7 +30,7 @@ struct SoundPowerConfig {
   std::vector<double> area_weights;
 };
 
-inline constexpr int kBackgroundBands = 31;  // nominal 20 Hz ... 20 kHz
+inline constexpr int kBackgroundBands = static_cast<int>(dsp::kThirdOctaveNominalHz.size());  // 20 Hz ... 20 kHz
 // The nominal frequency of background band i (0: 20 Hz ... 30: 20 kHz), and the index of a nominal frequency.
 double background_band_hz(int i);
 int background_band_index(double nominal_hz);

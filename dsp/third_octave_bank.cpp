@@ -29,9 +29,6 @@ namespace {
 
 constexpr int kFirstBandIndex = -17;  // 1000 * 10^(-17/10) = 19.95 Hz, nominal 20 Hz
 constexpr int kLastBandIndex = 13;    // 19953 Hz, nominal 20 kHz
-constexpr double kNominal[] = {20,   25,   31.5, 40,   50,   63,   80,   100,  125,   160,   200,
-                               250,  315,  400,  500,  630,  800,  1000, 1250, 1600,  2000,  2500,
-                               3150, 4000, 5000, 6300, 8000, 10000, 12500, 16000, 20000};
 
 constexpr int kBandSections = 4;           // 8th-order Butterworth band-pass (see the top of the file)
 constexpr int kCutBandHighpassOrder = 2 * kBandSections;  // band cut by Nyquist: high-pass from its lower edge
@@ -249,6 +246,10 @@ struct ThirdOctaveBank::Impl {
   void reset();
 };
 
+double third_octave_exact_mid_hz(double nominal_hz) {
+  return 1000.0 * std::pow(10.0, std::round(10.0 * std::log10(nominal_hz / 1000.0)) / 10.0);
+}
+
 ThirdOctaveBank::Impl::Impl(double fs_hz, std::size_t ch) : fs(fs_hz), channels(ch) {
   if (!(fs_hz > 0) || ch == 0) throw std::invalid_argument("ThirdOctaveBank: need fs > 0 and channels > 0");
   padded = round_up(ch, kLaneAlign);
@@ -257,7 +258,7 @@ ThirdOctaveBank::Impl::Impl(double fs_hz, std::size_t ch) : fs(fs_hz), channels(
   std::vector<int> stage_of;
   for (int x = kFirstBandIndex; x <= kLastBandIndex; ++x) {
     ThirdOctaveBand b;
-    b.nominal_hz = kNominal[x - kFirstBandIndex];
+    b.nominal_hz = kThirdOctaveNominalHz[static_cast<std::size_t>(x - kFirstBandIndex)];
     b.exact_mid_hz = 1000.0 * std::pow(10.0, x / 10.0);
     b.lower_edge_hz = b.exact_mid_hz * std::pow(10.0, -1.0 / 20.0);
     b.upper_edge_hz = b.exact_mid_hz * std::pow(10.0, 1.0 / 20.0);

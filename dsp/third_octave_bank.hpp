@@ -10,11 +10,19 @@
 // closer together than its sample spacing and none arrived, the band repeats its previous value.
 #pragma once
 
+#include <array>
 #include <cstddef>
 #include <memory>
 #include <vector>
 
 namespace noisemon::dsp {
+
+// IEC 61260-1 nominal mid-band frequencies of the bank's bands, 20 Hz ... 20 kHz, in order.
+inline constexpr std::array<double, 31> kThirdOctaveNominalHz{
+    20,   25,   31.5, 40,   50,   63,   80,   100,  125,   160,   200,   250,   315,   400,   500,  630,
+    800,  1000, 1250, 1600, 2000, 2500, 3150, 4000, 5000,  6300,  8000,  10000, 12500, 16000, 20000};
+// The exact mid-band frequency 1000 * 10^(x/10) of the band whose nominal frequency is nominal_hz.
+double third_octave_exact_mid_hz(double nominal_hz);
 
 struct ThirdOctaveBand {
   double nominal_hz = 0;      // IEC 61260-1 nominal mid-band frequency (20, 25, 31.5, ... 20000)

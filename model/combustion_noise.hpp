@@ -25,13 +25,13 @@
 #include <cstddef>
 #include <span>
 
+#include "dsp/third_octave_bank.hpp"
+
 namespace noisemon::model {
 
 // IEC 61260-1 base-10 1/3-octave bands, nominal 20 Hz ... 20 kHz.
-inline constexpr std::size_t kSaBandCount = 31;
-inline constexpr std::array<double, kSaBandCount> kSaNominalBandsHz{
-    20,   25,   31.5, 40,   50,   63,   80,   100,  125,   160,   200,   250,   315,   400,   500,  630,
-    800,  1000, 1250, 1600, 2000, 2500, 3150, 4000, 5000,  6300,  8000,  10000, 12500, 16000, 20000};
+inline constexpr std::size_t kSaBandCount = dsp::kThirdOctaveNominalHz.size();
+inline constexpr const std::array<double, kSaBandCount>& kSaNominalBandsHz = dsp::kThirdOctaveNominalHz;
 // Exact mid-band frequency of table band i (0 = the 20 Hz band): 1000 * 10^((i - 17) / 10) Hz.
 double sa_band_exact_mid_hz(std::size_t band);
 

@@ -476,9 +476,13 @@ void parse_mics_wav(const std::uint8_t* data, std::size_t size, const std::strin
   read_sound(sf, info, file, channels, full_scale_pa, run);
 }
 
-RunDir read_run_dir(const std::filesystem::path& dir) {
+RunManifest read_run_manifest(const std::filesystem::path& dir) {
   const std::filesystem::path json_path = dir / "run.json";
-  const RunManifest m = parse_run_json(read_text_file(json_path, "run.json (is this a run directory?)"), json_path.string());
+  return parse_run_json(read_text_file(json_path, "run.json (is this a run directory?)"), json_path.string());
+}
+
+RunDir read_run_dir(const std::filesystem::path& dir) {
+  const RunManifest m = read_run_manifest(dir);
   RunDir run;
   run.condition = m.condition;
   const std::filesystem::path csv = dir / m.pressure_file;

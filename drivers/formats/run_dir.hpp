@@ -80,6 +80,9 @@ struct RunDirError : std::runtime_error {
 // Reads DIR/run.json and the files it names (paths relative to DIR).
 RunDir read_run_dir(const std::filesystem::path& dir);
 
+// DIR/run.json alone, checked (a background run needs only its microphones).
+RunManifest read_run_manifest(const std::filesystem::path& dir);
+
 // The pieces of read_run_dir, callable on bytes (`file` is the name used in messages):
 RunManifest parse_run_json(std::string_view text, const std::string& file);
 // Fills run.time_s, crank_deg, pressure_pa (pressure column times to_pa).
