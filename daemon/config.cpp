@@ -354,6 +354,7 @@ void read_comedi_encoder(TableReader& r, const std::string& origin, drivers::Com
   std::int64_t per_edge = e.counts_per_edge;
   er.integer("counts_per_edge", per_edge, 1, 64);
   e.counts_per_edge = static_cast<std::uint32_t>(per_edge);
+  er.number("max_rpm", e.max_rpm, 0, 100000);
   er.reject_unknown();
 }
 

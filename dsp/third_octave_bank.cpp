@@ -23,6 +23,7 @@
 #include <stdexcept>
 
 #include "dsp/iir_design.hpp"
+#include "dsp/kernel_clones.hpp"
 
 namespace noisemon::dsp {
 namespace {
@@ -84,17 +85,6 @@ struct Stage {
 };
 
 std::size_t round_up(std::size_t n, std::size_t a) { return (n + a - 1) / a * a; }
-
-// The kernels get an AVX2 + FMA clone picked at load time where the CPU has it (x86-64 only). Not under
-// ThreadSanitizer: the clone's resolver runs while the program is relocated, before TSan's runtime is up, and
-// its instrumented code crashes there.
-#if defined(__x86_64__) && defined(__GNUC__) && !defined(__SANITIZE_THREAD__)
-#define NOISEMON_KERNEL_CLONES __attribute__((target_clones("arch=x86-64-v3", "default")))
-#else
-#define NOISEMON_KERNEL_CLONES
-#endif
-// Kernel helpers are forced inline so that they are compiled for the clone that calls them.
-#define NOISEMON_INLINE inline __attribute__((always_inline))
 
 // kLaneAlign channels as one vector (GCC vector extension; lowered to narrower vectors without AVX). Only
 // used inside always-inline helpers, never across a call, so the AVX argument-passing ABI note is moot.

@@ -69,6 +69,7 @@ EdgeStreamConfig edge_stream_config(const ComediSourceConfig& c) {
   e.counts_per_rev = c.encoder.counts_per_rev;
   e.index_resets_counter = c.encoder.index_resets_counter;
   e.counts_per_edge = c.encoder.counts_per_edge;
+  e.max_rpm = c.encoder.max_rpm;
   e.index_angle_deg = c.encoder.index_angle_deg;
   e.timebase_hz = c.encoder.timebase_hz;
   e.timestamp_bits = c.encoder.timestamp_bits;

@@ -70,6 +70,7 @@ struct ComediSourceConfig {
     double index_angle_deg = 0.0;   // crank angle of the index pulse, degrees after a TDC
     bool index_resets_counter = true;  // the index resets the position counter: each revolution's count is checked
     std::uint32_t counts_per_edge = 1; // position counts between two clocking edges (4 for x4 decoding on one edge)
+    double max_rpm = 0.0;              // the engine's highest speed (sizes the resampler); 0: any encoder
   } encoder;
 
   PhaseSource phase = PhaseSource::kPressure;

@@ -30,6 +30,14 @@ std::int64_t floor_div(std::int64_t a, std::int64_t b) { return a / b - ((a % b 
 
 // ---------------------------------------------------------------------------------------------- edges
 
+namespace {
+dsp::NonuniformResampler make_resampler(const EdgeStreamConfig& c) {
+  if (!(c.max_rpm > 0.0)) return dsp::NonuniformResampler(kPipelineRateHz, 1);
+  const double edges_per_rev = static_cast<double>(c.counts_per_rev) / static_cast<double>(c.counts_per_edge);
+  return dsp::NonuniformResampler(kPipelineRateHz, 1, edges_per_rev * c.max_rpm / 60.0);
+}
+}  // namespace
+
 EdgeStreamAssembler::EdgeStreamAssembler(const EdgeStreamConfig& config, std::int64_t epoch_utime)
     : config_(config),
       epoch_utime_(epoch_utime),
@@ -96,7 +104,7 @@ void EdgeStreamAssembler::restart(std::int64_t origin_utime) {
   peg_known_ = !(config_.peg_pa > 0.0);
   peg_offset_ = peg_sum_ = 0.0;
   peg_n_ = 0;
-  resampler_ = dsp::NonuniformResampler(kPipelineRateHz, 1);
+  resampler_ = make_resampler(config_);
   batch_ = 0;
   history_end_ = cursor_ = 0;
   have_fed_ = false;
@@ -448,7 +456,7 @@ void EdgeStreamAssembler::emit(double t, double x, double theta, BlockRing& ring
 // at the next edge, leaving a gap in the stream rather than pressure and angle interpolated across the pause.
 void EdgeStreamAssembler::restart_resampler(BlockRing& ring) {
   run_batch(ring);
-  resampler_ = dsp::NonuniformResampler(kPipelineRateHz, 1);
+  resampler_ = make_resampler(config_);
   history_end_ = cursor_ = 0;
   have_fed_ = false;
 }

@@ -85,6 +85,9 @@ struct EdgeStreamConfig {
   // modulo counts_per_rev, nothing is checked or held (the behaviour before the checks).
   bool index_resets_counter = true;
   std::uint32_t counts_per_edge = 1;  // counter counts per clocking edge (counts_per_rev a multiple of it)
+  // The highest engine speed, rpm: sizes the resampler's fine grid to the highest edge rate (cheaper for slow
+  // engines and coarse encoders; see dsp::NonuniformResampler). 0: any encoder up to 600 kHz of edges.
+  double max_rpm = 0.0;
 };
 
 struct EdgeStreamCounters {

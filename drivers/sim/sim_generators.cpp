@@ -57,8 +57,10 @@ double EngineCycleCache::pressure_pa(double theta_deg) {
 namespace {
 
 // The decoder of the sim's encoder-clocked scans: one subdevice scanning pressure, position and timestamp.
-EdgeStreamConfig encoder_decoder_config(std::int64_t counts_per_rev, double index_angle_deg) {
+// The highest speed is the operating point's with room for the speed ripple and a cycle's variation.
+EdgeStreamConfig encoder_decoder_config(std::int64_t counts_per_rev, double index_angle_deg, double speed_rpm) {
   EdgeStreamConfig c;
+  c.max_rpm = 1.25 * speed_rpm;
   c.stream_channels = {3};
   c.pressure = {0, 0};
   c.position = {0, 1};
@@ -96,7 +98,9 @@ PressureGenerator::PressureGenerator(const SimConfig& config, double t_first_s)
       t_first_(t_first_s),
       origin_s_(1e-6 * static_cast<double>(std::llround((t_first_s - kPreRollS) * 1e6))),
       decoder_(std::make_unique<EdgeStreamAssembler>(
-          encoder_decoder_config(counts_per_rev_, static_cast<double>(index_edge_) * config.encoder_resolution_deg), 0)),
+          encoder_decoder_config(counts_per_rev_, static_cast<double>(index_edge_) * config.encoder_resolution_deg,
+                                 config.speed_rpm),
+          0)),
       staging_(16) {
   decoder_->restart(std::llround(origin_s_ * 1e6));
   // The counter as it stands at the first edge: counted from the last index (the card was started earlier).

@@ -1,8 +1,10 @@
 // Cost of resampling per second of data; the x_realtime counter is seconds of data processed per second
 // of CPU time (so 1 / x_realtime of a core is busy for the stream).
 //  - RationalResampler 51.2 kHz -> 40 kHz, 10 microphone channels, 256-frame input blocks.
-//  - NonuniformResampler -> 40 kHz, 2 channels, 183 kHz encoder edges (0.1 deg at 3050 rpm, 1 % speed
-//    ripple), 1 ms input blocks; and 6 kHz edges (1 deg at 1000 rpm) for the slow-encoder case.
+//  - NonuniformResampler -> 40 kHz, 1 ms input blocks: the pressure channel (1) from 207 kHz encoder edges
+//    (0.1 deg at 3450 rpm, 1 % speed ripple) with the highest edge rate given as 3450 rpm's and with the
+//    any-encoder default; 2 channels from 183 kHz edges (0.1 deg at 3050 rpm); and 6 kHz edges (1 deg at
+//    1000 rpm) for the slow-encoder case.
 #include <benchmark/benchmark.h>
 
 #include <cmath>
@@ -38,7 +40,9 @@ void BM_Rational(benchmark::State& state, double in_rate, double out_rate, std::
 }
 
 // Edge times of a crank with a 1 % speed ripple once per cycle (first-order inverse: plenty for timing).
-void BM_Nonuniform(benchmark::State& state, double rpm, double resolution_deg, std::size_t channels) {
+// max_edge_rate_hz 0: the resampler's any-encoder default.
+void BM_Nonuniform(benchmark::State& state, double rpm, double resolution_deg, std::size_t channels,
+                   double max_edge_rate_hz) {
   const double w0 = rpm * 6.0, rate = w0 / resolution_deg, ripple_w = 2.0 * std::numbers::pi * rpm / 120.0;
   const auto n = static_cast<std::size_t>(rate);  // one second
   std::vector<double> t(n), x(n * channels);
@@ -52,7 +56,8 @@ void BM_Nonuniform(benchmark::State& state, double rpm, double resolution_deg, s
   std::vector<double> out(4096 * channels);
   for (auto _ : state) {
     state.PauseTiming();
-    NonuniformResampler r(40000.0, channels);  // fresh stream: times restart at 0
+    NonuniformResampler r = max_edge_rate_hz > 0.0 ? NonuniformResampler(40000.0, channels, max_edge_rate_hz)
+                                                   : NonuniformResampler(40000.0, channels);  // times restart at 0
     state.ResumeTiming();
     for (std::size_t i = 0; i < n; i += block) {
       const std::size_t m = std::min(block, n - i);
@@ -66,8 +71,11 @@ void BM_Nonuniform(benchmark::State& state, double rpm, double resolution_deg, s
 
 BENCHMARK_CAPTURE(BM_Rational, mics_51k2_to_40k_10ch, 51200.0, 40000.0, 10)->Unit(benchmark::kMillisecond);
 BENCHMARK_CAPTURE(BM_Rational, sim_102k4_to_51k2_10ch, 102400.0, 51200.0, 10)->Unit(benchmark::kMillisecond);
-BENCHMARK_CAPTURE(BM_Nonuniform, edges_183k_2ch, 3050.0, 0.1, 2)->Unit(benchmark::kMillisecond);
-BENCHMARK_CAPTURE(BM_Nonuniform, edges_6k_2ch, 1000.0, 1.0, 2)->Unit(benchmark::kMillisecond);
+BENCHMARK_CAPTURE(BM_Nonuniform, edges_207k_1ch_max_3450rpm, 3450.0, 0.1, 1, 3450.0 * 3600.0 / 60.0)
+    ->Unit(benchmark::kMillisecond);
+BENCHMARK_CAPTURE(BM_Nonuniform, edges_207k_1ch_any_encoder, 3450.0, 0.1, 1, 0.0)->Unit(benchmark::kMillisecond);
+BENCHMARK_CAPTURE(BM_Nonuniform, edges_183k_2ch, 3050.0, 0.1, 2, 0.0)->Unit(benchmark::kMillisecond);
+BENCHMARK_CAPTURE(BM_Nonuniform, edges_6k_2ch, 1000.0, 1.0, 2, 0.0)->Unit(benchmark::kMillisecond);
 
 }  // namespace
 

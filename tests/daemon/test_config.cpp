@@ -108,6 +108,7 @@ TEST(Config, HardwareExampleFileIsAValidComediAndCanConfiguration) {
   EXPECT_DOUBLE_EQ(c.comedi.pressure.peg_pa, 101325.0);
   EXPECT_EQ(c.comedi.encoder.device, "/dev/comedi1");
   EXPECT_EQ(c.comedi.encoder.counts_per_rev, 3600u);
+  EXPECT_DOUBLE_EQ(c.comedi.encoder.max_rpm, 4000.0);
   ASSERT_EQ(c.comedi.mics.channels.size(), 10u);
   EXPECT_EQ(c.comedi.mics.channels[9].channel, 9u);
   EXPECT_EQ(c.comedi.mics.channels[9].aref, static_cast<unsigned>(AREF_DIFF));  // one value for all channels
@@ -131,6 +132,7 @@ TEST(Config, HardwareExampleFileIsAValidComediAndCanConfiguration) {
 TEST(Config, ComediAndCanErrorsNameFileAndKey) {
   EXPECT_NE(error_of("[comedi.pressure]\nchanel = 1\n").find("test.toml:2: unknown key 'comedi.pressure.chanel'"), std::string::npos);
   EXPECT_NE(error_of("[comedi.pressure]\naref = \"earth\"\n").find("comedi.pressure.aref: unknown value 'earth'"), std::string::npos);
+  EXPECT_NE(error_of("[comedi.encoder]\nmax_rpm = -1\n").find("comedi.encoder.max_rpm"), std::string::npos);
   EXPECT_NE(error_of("[comedi.encoder]\ntimestamp_bits = 48\n").find("comedi.encoder.timestamp_bits: value 48 out of range"), std::string::npos);
   EXPECT_NE(error_of("[comedi.mics]\nchannels = [0, 1]\nsensitivity_mv_per_pa = [50.0]\n").find("comedi.mics.sensitivity_mv_per_pa: has 1 entries but there are 2 channels"), std::string::npos);
   EXPECT_NE(error_of("[comedi]\nphase = \"crank\"\n").find("comedi.phase"), std::string::npos);

@@ -365,6 +365,19 @@ double nonuniform_error(const NuResult& res, std::size_t ch, std::size_t c, cons
 
 const Crank kIdle{3050.0, 0.01, -3.7e-6};  // 183 kHz edge rate at 0.1 deg; first edge 3.7 us after t = 0
 
+// The fast-edge checks run on both fine grids: the any-encoder default (8 x the output rate) and the one a
+// resampler told the highest edge rate picks (4 x for 183 kHz edges: content to 91.5 kHz must not fold into
+// the band, which a 160 kHz grid just allows).
+constexpr double kSizedMaxEdgeRateHz = 1.25 * 183000.0;
+const double kFineGrids[] = {NonuniformResampler::kAnyEncoderEdgeRateHz, kSizedMaxEdgeRateHz};
+
+TEST(NonuniformResampler, TheFineGridFollowsTheHighestEdgeRate) {
+  EXPECT_DOUBLE_EQ(NonuniformResampler(kOutRate, 1).max_edge_rate_hz(), 600000.0);
+  EXPECT_DOUBLE_EQ(NonuniformResampler(kOutRate, 1, kSizedMaxEdgeRateHz).max_edge_rate_hz(), 280000.0);
+  EXPECT_DOUBLE_EQ(NonuniformResampler(kOutRate, 1, 1.2e6).max_edge_rate_hz(), 1240000.0);
+  EXPECT_THROW(NonuniformResampler(kOutRate, 1, 0.0), std::invalid_argument);
+}
+
 TEST(NonuniformResampler, FastEdgesMatchTheAnalyticSignal) {
   const auto t = edge_times(kIdle, 0.1, 0.0, 183000 * 3 / 10);  // 0.3 s
   // Channel 1 rides on a large mean like absolute cylinder pressure (Pa).
@@ -373,48 +386,56 @@ TEST(NonuniformResampler, FastEdgesMatchTheAnalyticSignal) {
        {16000.0, 0.2, 0.6}},
       {{50.0, 2000.0, 1.0}, {2500.0, 500.0, 2.0}, {8000.0, 300.0, 3.0}, {12500.0, 200.0, 4.0}, {15000.0, 100.0, 5.0}}};
   const std::vector<double> offsets = {0.0, 1.0e5};
-  NonuniformResampler r(kOutRate, 2);
-  const NuResult res = run_nonuniform(r, t, sample_tones(tones, t, offsets), 256);
-  const double e0 = nonuniform_error(res, 2, 0, tones[0]);
-  const double e1 = nonuniform_error(res, 2, 1, tones[1], offsets[1]);
-  EXPECT_LT(e0, 1e-3);
-  EXPECT_LT(e1, 1e-3);
-  EXPECT_DOUBLE_EQ(r.passband_edge_hz(), 18000.0);
-  std::printf("nonuniform 183k edges tone mixes: relative rms error %.2e, %.2e (on a 1e5 mean)\n", e0, e1);
+  for (const double max_edge_rate : kFineGrids) {
+    NonuniformResampler r(kOutRate, 2, max_edge_rate);
+    const NuResult res = run_nonuniform(r, t, sample_tones(tones, t, offsets), 256);
+    const double e0 = nonuniform_error(res, 2, 0, tones[0]);
+    const double e1 = nonuniform_error(res, 2, 1, tones[1], offsets[1]);
+    EXPECT_LT(e0, 1e-3);
+    EXPECT_LT(e1, 1e-3);
+    EXPECT_DOUBLE_EQ(r.passband_edge_hz(), 18000.0);
+    std::printf("nonuniform 183k edges tone mixes (sized for %.0f kHz edges): relative rms error %.2e, %.2e "
+                "(on a 1e5 mean)\n", 1e-3 * max_edge_rate, e0, e1);
+  }
 }
 
 TEST(NonuniformResampler, FlatWithExactPhaseUpToThePassbandEdge) {
   const auto t = edge_times(kIdle, 0.1, 0.0, 183000 / 20);  // 50 ms per tone
-  double worst_db = 0.0, worst_phase = 0.0;
-  for (int i = 0; i <= 24; ++i) {
-    const double f = 20.0 * std::pow(18000.0 / 20.0, i / 24.0);
-    const Tone tone{f, 1.0, -0.4};
-    NonuniformResampler r(kOutRate, 1);
-    const NuResult res = run_nonuniform(r, t, sample_tones({{tone}}, t), 300);
-    std::vector<double> y, tk;
-    for (std::size_t j = static_cast<std::size_t>(kNonuniformSkipS * kOutRate); j < res.out.size(); ++j) {
-      y.push_back(res.out[j]);
-      tk.push_back(static_cast<double>(res.first_index + static_cast<std::int64_t>(j)) / kOutRate);
+  for (const double max_edge_rate : kFineGrids) {
+    double worst_db = 0.0, worst_phase = 0.0;
+    for (int i = 0; i <= 24; ++i) {
+      const double f = 20.0 * std::pow(18000.0 / 20.0, i / 24.0);
+      const Tone tone{f, 1.0, -0.4};
+      NonuniformResampler r(kOutRate, 1, max_edge_rate);
+      const NuResult res = run_nonuniform(r, t, sample_tones({{tone}}, t), 300);
+      std::vector<double> y, tk;
+      for (std::size_t j = static_cast<std::size_t>(kNonuniformSkipS * kOutRate); j < res.out.size(); ++j) {
+        y.push_back(res.out[j]);
+        tk.push_back(static_cast<double>(res.first_index + static_cast<std::int64_t>(j)) / kOutRate);
+      }
+      expect_unit_gain_and_phase(y, tk, f, tone.phase_rad, worst_db, worst_phase);
     }
-    expect_unit_gain_and_phase(y, tk, f, tone.phase_rad, worst_db, worst_phase);
+    std::printf("nonuniform 183k edges 20 Hz..18 kHz (sized for %.0f kHz edges): gain within %.1e dB, phase "
+                "within %.1e rad\n", 1e-3 * max_edge_rate, worst_db, worst_phase);
   }
-  std::printf("nonuniform 183k edges 20 Hz..18 kHz: gain within %.1e dB, phase within %.1e rad\n", worst_db,
-              worst_phase);
 }
 
 TEST(NonuniformResampler, RejectsContentAboveTheOutputNyquist) {
   const auto t = edge_times(kIdle, 0.1, 0.0, 183000 / 10);
-  double worst_db = -1000.0;
-  for (double f : {20050.0, 21000.0, 24000.0, 40000.0, 70000.0}) {
-    NonuniformResampler r(kOutRate, 1);
-    const NuResult res = run_nonuniform(r, t, sample_tones({{{f, 1.0, 0.0}}}, t), 256);
-    const std::vector<double> steady(res.out.begin() + static_cast<std::ptrdiff_t>(kNonuniformSkipS * kOutRate),
-                                     res.out.end());
-    const double level_db = 20.0 * std::log10(rms(steady) / std::sqrt(0.5));
-    worst_db = std::max(worst_db, level_db);
-    EXPECT_LT(level_db, -80.0) << f << " Hz";
+  for (const double max_edge_rate : kFineGrids) {
+    double worst_db = -1000.0;
+    for (double f : {20050.0, 21000.0, 24000.0, 40000.0, 70000.0, 90000.0}) {
+      NonuniformResampler r(kOutRate, 1, max_edge_rate);
+      const NuResult res = run_nonuniform(r, t, sample_tones({{{f, 1.0, 0.0}}}, t), 256);
+      const std::vector<double> steady(res.out.begin() + static_cast<std::ptrdiff_t>(kNonuniformSkipS * kOutRate),
+                                       res.out.end());
+      const double level_db = 20.0 * std::log10(rms(steady) / std::sqrt(0.5));
+      worst_db = std::max(worst_db, level_db);
+      EXPECT_LT(level_db, -80.0) << f << " Hz";
+    }
+    std::printf("nonuniform 183k edges alias rejection (sized for %.0f kHz edges): worst %.1f dB\n",
+                1e-3 * max_edge_rate, worst_db);
   }
-  std::printf("nonuniform 183k edges alias rejection: worst %.1f dB\n", worst_db);
 }
 
 TEST(NonuniformResampler, SlowEdgesAreAccurateUpToTheirOwnPassband) {
