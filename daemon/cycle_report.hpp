@@ -69,6 +69,7 @@ struct CycleReport {
   std::int8_t mic_flags[kMaxMics] = {};  // MicFlag bits
   std::int32_t flags = 0;
   float processing_ms = 0;
+  std::int64_t input_ns = 0;        // steady clock when the cycle's last block reached the processing thread
   model::CombustionMetrics combustion;  // from the pressure on a 0.25 deg grid; NaN unless the grid is complete and
                                       // the cycle has neither kCycleEncoder nor kCyclePressureFault
 };

@@ -10,7 +10,9 @@
 
 #include "daemon/cycle_processor.hpp"
 #include "daemon/cycle_statistics.hpp"
+#include "daemon/latency_window.hpp"
 #include "daemon/report_messages.hpp"
+#include "daemon/wakeup.hpp"
 #include "drivers/worker_thread.hpp"
 #include "noisemon/status_t.hpp"
 
@@ -56,6 +58,8 @@ struct Pipeline::Impl {
   std::atomic<std::int64_t> cycles_dropped{0};
   // Heartbeats: the steady clock (ns) at the top of the processing and publishing loops' latest iteration.
   std::atomic<std::int64_t> processing_beat_ns{0}, publishing_beat_ns{0};
+  std::int64_t last_input_ns = 0;  // processing thread: when it last took a block from a driver ring
+  Wakeup report_wakeup;            // a report is queued for the publishing thread
   static std::int64_t now_ns() {
     return std::chrono::duration_cast<std::chrono::nanoseconds>(Clock::now().time_since_epoch()).count();
   }
@@ -94,7 +98,8 @@ struct Pipeline::Impl {
   void run_publishing(std::atomic<std::int64_t>& published);
   void remember_for_statistics(const noisemon::cycle_report_t& m);
   void publish_statistics();
-  noisemon::status_t make_status(std::int64_t published, const Stat& latency, const Stat& processing) const;
+  noisemon::status_t make_status(std::int64_t published, const Stat& latency, const Stat& processing,
+                                 LatencyWindow& report_latency) const;
 };
 
 std::unique_ptr<CycleProcessor> Pipeline::Impl::make_processor() {
@@ -133,12 +138,14 @@ void Pipeline::Impl::run_processing(const std::atomic<bool>& drain) {
     for (int i = 0; i < 8; ++i) {
       bool got = false;
       if (const drivers::SampleBlock* b = pressure_ring.front()) {
+        last_input_ns = now_ns();
         processor.add_pressure(*b);
         if (config.lcm.publish_raw) raw_ring.push(RawItem{0, *b});
         pressure_ring.consume(1);
         got = true;
       }
       if (const drivers::SampleBlock* b = mic_ring.front()) {
+        last_input_ns = now_ns();
         processor.add_mics(*b);
         if (config.lcm.publish_raw) raw_ring.push(RawItem{1, *b});
         mic_ring.consume(1);
@@ -171,15 +178,19 @@ void Pipeline::Impl::queue_report(const CycleReport& r) {
   while (options.lossless && report_ring.size() == report_ring.capacity() &&
          publishing_thread.state() == drivers::ThreadState::kRunning)
     std::this_thread::sleep_for(std::chrono::microseconds(100));
-  if (!report_ring.push(r)) {
+  CycleReport stamped = r;
+  stamped.input_ns = last_input_ns;
+  if (!report_ring.push(stamped)) {
     ++report_overruns;
     ++cycles_dropped;
     return;
   }
   ++reports_queued;
+  report_wakeup.notify();
 }
 
-noisemon::status_t Pipeline::Impl::make_status(std::int64_t published, const Stat& latency, const Stat& processing) const {
+noisemon::status_t Pipeline::Impl::make_status(std::int64_t published, const Stat& latency, const Stat& processing,
+                                               LatencyWindow& report_latency) const {
   noisemon::status_t s;
   s.utime = drivers::wall_utime();
   s.uptime_s = std::chrono::duration<double>(Clock::now() - started).count();
@@ -212,6 +223,9 @@ noisemon::status_t Pipeline::Impl::make_status(std::int64_t published, const Sta
   s.latency_ms_max = static_cast<float>(latency.max);
   s.processing_ms_mean = processing.n ? static_cast<float>(processing.sum / processing.n) : 0.f;
   s.processing_ms_max = static_cast<float>(processing.max);
+  s.report_latency_ms_p50 = static_cast<float>(report_latency.quantile(0.5));
+  s.report_latency_ms_p99 = static_cast<float>(report_latency.quantile(0.99));
+  s.report_latency_ms_max = static_cast<float>(report_latency.max());
   for (const drivers::DriverCounter& c : source->counters()) {
     s.counter_name.push_back(c.name);
     s.counter_value.push_back(c.value);
@@ -246,6 +260,7 @@ void Pipeline::Impl::publish_statistics() {
 
 void Pipeline::Impl::run_publishing(std::atomic<std::int64_t>& published) {
   Stat latency, processing;
+  LatencyWindow report_latency;
   auto next_status = Clock::now() + std::chrono::seconds(1);
   // The session (time base, microphones) goes out before any raw block, then each second for late loggers.
   auto publish_session = [&] {
@@ -261,6 +276,7 @@ void Pipeline::Impl::run_publishing(std::atomic<std::int64_t>& published) {
     while (report_ring.read(&r, 1) == 1) {
       const noisemon::cycle_report_t msg = to_message(r);
       publisher->publish(config.lcm.report_channel, msg, r.window_end_utime);
+      if (r.input_ns > 0) report_latency.add(1e-6 * static_cast<double>(now_ns() - r.input_ns));
       remember_for_statistics(msg);
       ++published;
       latency.add(1e-3 * static_cast<double>(drivers::wall_utime() - r.window_end_utime));
@@ -282,16 +298,17 @@ void Pipeline::Impl::run_publishing(std::atomic<std::int64_t>& published) {
     const bool done = processing_thread.state() != drivers::ThreadState::kRunning;  // its last reports are queued
     if (Clock::now() >= next_status || (done && !any)) {
       publish_session();
-      const noisemon::status_t s = make_status(published.load(), latency, processing);
+      const noisemon::status_t s = make_status(published.load(), latency, processing, report_latency);
       publisher->publish(config.lcm.status_channel, s, s.utime);
       publish_statistics();
       latency = Stat{};
       processing = Stat{};
+      report_latency.clear();
       next_status += std::chrono::seconds(1);
     }
     if (!any) {
       if (done && report_ring.empty() && raw_ring.empty()) break;
-      std::this_thread::sleep_for(std::chrono::microseconds(500));
+      report_wakeup.wait_for(std::chrono::microseconds(500));  // a queued report wakes it at once
     }
   }
   publisher->flush();

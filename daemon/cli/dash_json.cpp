@@ -62,6 +62,9 @@ nlohmann::json status_json(const noisemon::status_t& s) {
           {"latency_ms_max", s.latency_ms_max},
           {"processing_ms_mean", s.processing_ms_mean},
           {"processing_ms_max", s.processing_ms_max},
+          {"report_latency_ms_p50", s.report_latency_ms_p50},
+          {"report_latency_ms_p99", s.report_latency_ms_p99},
+          {"report_latency_ms_max", s.report_latency_ms_max},
           {"counters", counters}};
 }
 

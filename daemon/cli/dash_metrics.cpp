@@ -52,6 +52,12 @@ void status_metrics(std::ostringstream& out, const std::string& cell, const nois
       .sample(s.latency_ms_mean * 1e-3);
   Family(out, cell, "noisemon_latency_max_seconds", "gauge", "End of a cycle's acoustic window to its report, maximum over the last second.")
       .sample(s.latency_ms_max * 1e-3);
+  Family report_latency(out, cell, "noisemon_report_latency_seconds", "gauge",
+                        "A cycle's last sample reaching the processing thread to its report leaving, over the last "
+                        "second: quantile 0.5, 0.99 and 1 (the maximum).");
+  report_latency.sample(s.report_latency_ms_p50 * 1e-3, "quantile", "0.5");
+  report_latency.sample(s.report_latency_ms_p99 * 1e-3, "quantile", "0.99");
+  report_latency.sample(s.report_latency_ms_max * 1e-3, "quantile", "1");
   Family(out, cell, "noisemon_processing_mean_seconds", "gauge", "Processing thread CPU time per cycle, mean over the last second.")
       .sample(s.processing_ms_mean * 1e-3);
   Family(out, cell, "noisemon_processing_max_seconds", "gauge", "Processing thread CPU time per cycle, maximum over the last second.")

@@ -48,10 +48,11 @@ const char* thread_state_name(std::int8_t s) {
 }
 
 void print_status(const noisemon::status_t& s) {
-  std::printf("status  source=%s uptime=%.1fs published=%lld dropped=%lld latency=%.1f/%.1fms processing=%.3f/%.3fms\n",
+  std::printf("status  source=%s uptime=%.1fs published=%lld dropped=%lld latency=%.1f/%.1fms processing=%.3f/%.3fms "
+              "report latency p50/p99/max=%.3f/%.3f/%.3fms\n",
               s.source.c_str(), s.uptime_s, static_cast<long long>(s.cycles_published),
               static_cast<long long>(s.cycles_dropped), s.latency_ms_mean, s.latency_ms_max, s.processing_ms_mean,
-              s.processing_ms_max);
+              s.processing_ms_max, s.report_latency_ms_p50, s.report_latency_ms_p99, s.report_latency_ms_max);
   std::printf("  threads:");
   for (int i = 0; i < s.nthreads; ++i) {
     std::printf(" %s=%s", s.thread_name[i].c_str(), thread_state_name(s.thread_state[i]));

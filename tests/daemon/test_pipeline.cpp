@@ -272,6 +272,15 @@ TEST(Pipeline, LostSamplesDropTheirCyclesAndTheStatusSaysSo) {
   EXPECT_EQ(counter("memory.blocks"), static_cast<std::int64_t>(blocks.size()));
   EXPECT_EQ(counter("processing.gap_frames"), ref.counters.gap_frames);
   EXPECT_GE(ref.counters.gap_frames, 200);
+  // Every report's latency (its last block taken by the processing thread -> published) is in one status.
+  float latency_max = 0.f;
+  for (const auto& st : statuses) {
+    EXPECT_LE(st.message.report_latency_ms_p50, st.message.report_latency_ms_p99);
+    EXPECT_LE(st.message.report_latency_ms_p99, st.message.report_latency_ms_max);
+    EXPECT_GE(st.message.report_latency_ms_p50, 0.f);
+    latency_max = std::max(latency_max, st.message.report_latency_ms_max);
+  }
+  EXPECT_GT(latency_max, 0.f);
   ASSERT_EQ(s.nthreads, 3);
   EXPECT_EQ(s.thread_name[0], "memory.feed");
   EXPECT_EQ(s.thread_name[1], "processing");
