@@ -6,8 +6,7 @@
 
 #include "daemon/config.hpp"
 #include "daemon/cli/import_export_cli.hpp"
-#include "daemon/cli/hdf5_publisher.hpp"
-#include "daemon/replay.hpp"
+#include "daemon/cli/replay_command.hpp"
 #include "daemon/cli/dash_command.hpp"
 #include "daemon/cli/diagnose_command.hpp"
 #include "daemon/cli/summary_command.hpp"
@@ -46,18 +45,7 @@ int main(int argc, char** argv) {
   std::string watch_cell;
   CLI::App* w = add_watch(app, watch, watch_cell);
 
-  ReplayOptions replay;
-  std::string replay_config, replay_model;
-  CLI::App* r = app.add_subcommand("replay", "run a raw LCM log (lcm-logger of noisemond's channels) through the processing");
-  r->add_option("LOG", replay.log_path, "LCM log holding NOISEMON_SESSION, NOISEMON_RAW and NOISEMON_OP")->required()->check(CLI::ExistingFile);
-  r->add_option("--out", replay.out_log, "write the cycle reports to this LCM log");
-  r->add_option("--csv", replay.csv_path, "write one CSV row per cycle to this file");
-  std::string replay_hdf5;
-  r->add_option("--hdf5", replay_hdf5, "write the cycle reports to this HDF5 file (h5py, MATLAB; docs/sources-and-formats.md)");
-  r->add_flag("--realtime", replay.realtime, "pace the events at their recorded times (default: as fast as possible)");
-  r->add_option("--config", replay_config, "noisemond TOML configuration for the model and channel names")->check(CLI::ExistingFile);
-  r->add_option("--model", replay_model, "model preset, overrides [model] preset (linear, nl_damper, nl_spring_damper, nl_spring_damper_opt)");
-  r->add_flag("!--no-progress", replay.progress, "no progress bar");
+  ReplayCommand replay(app);
 
   ImportExportCommands import_export(app);
   SimCommand sim(app);
@@ -89,17 +77,7 @@ int main(int argc, char** argv) {
     if (const int status = diagnose.run(argc, argv); status >= 0) return status;
     if (const int status = summary.run(); status >= 0) return status;
     if (const int status = dash.run(); status >= 0) return status;
-    if (r->parsed()) {
-      if (!replay_config.empty()) replay.config = load_config(replay_config);
-      if (!replay_model.empty()) replay.config.model = noisemon::model::preset(replay_model);
-      if (!replay_hdf5.empty()) replay.publishers.push_back(std::make_shared<Hdf5Publisher>(replay_hdf5));
-      const ReplaySummary s = run_replay(replay);
-      std::fprintf(stderr, "noisemon replay: %lld session(s), %lld events, %lld raw blocks, %lld cycles reported, %lld dropped, %lld events of other channels, %lld damaged events skipped\n",
-                   static_cast<long long>(s.sessions), static_cast<long long>(s.events), static_cast<long long>(s.raw_blocks), static_cast<long long>(s.reports),
-                   static_cast<long long>(s.cycles_dropped), static_cast<long long>(s.skipped_unknown),
-                   static_cast<long long>(s.skipped_damaged));
-      return 0;
-    }
+    if (const int status = replay.run(); status >= 0) return status;
   } catch (const std::exception& e) {
     std::fprintf(stderr, "noisemon: %s\n", e.what());
     return 1;

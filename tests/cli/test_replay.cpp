@@ -4,6 +4,9 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <sys/wait.h>
 #include <fstream>
 #include <iterator>
 #include <lcm/lcm-cpp.hpp>
@@ -15,6 +18,7 @@
 #include <vector>
 
 #include "daemon/cli/hdf5_publisher.hpp"
+#include "daemon/cli/replay_command.hpp"
 #include "daemon/cycle_processor.hpp"
 #include "daemon/replay.hpp"
 #include "daemon/report_messages.hpp"
@@ -415,4 +419,145 @@ TEST(Replay, Hdf5OutputHoldsEveryCycleWithItsRunAsTheCsvDoes) {
     EXPECT_EQ(std::stoll(cycles[i]), h5["cycle"][i].get<std::int64_t>()) << "row " << i;
     EXPECT_EQ(conditions[i], h5["run"][i].get<int>() == 0 ? "a" : "b") << "row " << i;
   }
+}
+
+// `noisemon replay -j 2` over two logs: each log's CSV is byte for byte the CSV of that log replayed alone, and
+// each log is reported once as it finishes.
+TEST(Replay, SeveralLogsWithTwoJobsGiveTheCsvOfEachReplayedAlone) {
+  const std::string dir = noisemon::test::unique_temp_dir();
+  const std::vector<std::string> logs{dir + "/mixed.lcmlog", dir + "/two_runs.lcmlog"};
+  write_mixed_log(logs[0]);
+  write_two_runs_with_changing_operating_points(logs[1]);
+  std::vector<std::string> alone;
+  for (const std::string& log : logs) {
+    daemon::ReplayOptions o;
+    o.log_path = log;
+    o.progress = false;
+    o.csv_path = log + ".alone.csv";
+    daemon::run_replay(o);
+    alone.push_back(read_bytes(o.csv_path));
+  }
+  std::filesystem::create_directory(dir + "/csv");
+  daemon::MultiReplayOptions m;
+  m.logs = logs;
+  m.csv_dir = dir + "/csv";
+  m.jobs = 2;
+  std::vector<std::size_t> done;
+  const auto results = daemon::run_replays(m, [&](const daemon::LogReplayResult& r, std::size_t n, std::size_t total) {
+    EXPECT_EQ(total, 2u);
+    EXPECT_TRUE(r.error.empty()) << r.log << ": " << r.error;
+    done.push_back(n);
+  });
+  EXPECT_EQ(done, (std::vector<std::size_t>{1, 2}));
+  ASSERT_EQ(results.size(), 2u);
+  EXPECT_EQ(results[0].summary.reports, 38);
+  EXPECT_EQ(results[1].summary.reports, 2 * 38);
+  EXPECT_EQ(read_bytes(dir + "/csv/mixed.csv"), alone[0]);
+  EXPECT_EQ(read_bytes(dir + "/csv/two_runs.csv"), alone[1]);
+  EXPECT_EQ(std::count(alone[1].begin(), alone[1].end(), '\n'), 1 + 2 * 38);
+}
+
+TEST(Replay, SeveralLogsOneFailingDoesNotStopTheOthers) {
+  const std::string dir = noisemon::test::unique_temp_dir();
+  const std::vector<std::string> logs{dir + "/bad.lcmlog", dir + "/good.lcmlog"};
+  std::ofstream(logs[0]) << "not an LCM log";
+  write_mixed_log(logs[1]);
+  daemon::MultiReplayOptions m;
+  m.logs = logs;
+  m.jobs = 2;
+  const auto results = daemon::run_replays(m);
+  ASSERT_EQ(results.size(), 2u);
+  EXPECT_NE(results[0].error.find(logs[0]), std::string::npos) << results[0].error;
+  EXPECT_TRUE(results[1].error.empty()) << results[1].error;
+  EXPECT_EQ(results[1].summary.reports, 38);
+}
+
+namespace {
+
+std::string multi_replay_error(const daemon::MultiReplayOptions& m) {
+  try {
+    daemon::check_multi_replay(m);
+  } catch (const std::invalid_argument& e) {
+    return e.what();
+  }
+  return "";
+}
+
+}  // namespace
+
+TEST(Replay, SeveralLogsRefuseAmbiguousOutputs) {
+  const std::string dir = noisemon::test::unique_temp_dir();
+  std::filesystem::create_directory(dir + "/other");
+  const std::string a = dir + "/a.lcmlog", c = dir + "/c.lcmlog", other_a = dir + "/other/a.lcmlog";
+  for (const std::string& log : {a, c, other_a}) write_mixed_log(log);
+  EXPECT_EQ(daemon::replay_output_name(a), "a");
+  EXPECT_EQ(daemon::replay_output_name(dir + "/lcmlog-2026-11-25.00"), "lcmlog-2026-11-25.00");
+
+  daemon::MultiReplayOptions m;
+  m.logs = {a, c};
+  m.csv_dir = dir + "/cycles.csv";  // a file name, not a directory
+  std::string err = multi_replay_error(m);
+  EXPECT_NE(err.find("--csv " + m.csv_dir + ": with 2 logs, --csv names an existing directory"), std::string::npos) << err;
+  m.csv_dir = a;  // an existing file
+  EXPECT_NE(multi_replay_error(m).find("is not one"), std::string::npos);
+  m.csv_dir = "";
+  m.out_dir = dir;  // DIR/a.lcmlog is the input a.lcmlog
+  err = multi_replay_error(m);
+  EXPECT_NE(err.find("--out " + dir + " would replace the input log"), std::string::npos) << err;
+  m.out_dir = "";
+  m.hdf5_dir = dir;
+  m.logs = {a, other_a};  // both would write DIR/a.h5
+  err = multi_replay_error(m);
+  EXPECT_NE(err.find("same name 'a'"), std::string::npos) << err;
+  EXPECT_NE(err.find(other_a), std::string::npos) << err;
+  m.hdf5_dir = "";
+  EXPECT_EQ(multi_replay_error(m), "");  // no outputs: nothing can collide
+  m.logs = {a, c};
+  m.csv_dir = m.out_dir = dir + "/other";
+  EXPECT_EQ(multi_replay_error(m), "");
+}
+
+namespace {
+
+struct Output {
+  int status = -1;
+  std::string text;
+};
+
+Output run_noisemon(const std::string& args) {
+  Output o;
+  FILE* p = popen((std::string(NOISEMON_BINARY_DIR) + "/daemon/noisemon " + args + " 2>&1").c_str(), "r");
+  if (!p) return o;
+  char buf[4096];
+  while (std::size_t n = std::fread(buf, 1, sizeof buf, p)) o.text.append(buf, n);
+  const int status = pclose(p);
+  o.status = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  return o;
+}
+
+}  // namespace
+
+// The command line: one line per finished log, the outputs per log, a file name refused for several logs, and one
+// log as before (a file).
+TEST(Replay, CommandLineWithSeveralLogsAndJobs) {
+  const std::string dir = noisemon::test::unique_temp_dir();
+  const std::string a = dir + "/a.lcmlog", c = dir + "/c.lcmlog";
+  write_mixed_log(a);
+  write_mixed_log(c);
+  std::filesystem::create_directory(dir + "/out");
+  Output o = run_noisemon("replay " + a + " " + c + " -j 2 --csv " + dir + "/out --out " + dir + "/out");
+  EXPECT_EQ(o.status, 0) << o.text;
+  EXPECT_NE(o.text.find("[1/2] "), std::string::npos) << o.text;
+  EXPECT_NE(o.text.find("[2/2] "), std::string::npos) << o.text;
+  EXPECT_NE(o.text.find("2 logs (-j 2)"), std::string::npos) << o.text;
+  EXPECT_EQ(read_bytes(dir + "/out/a.csv"), read_bytes(dir + "/out/c.csv"));  // the same log twice
+  EXPECT_TRUE(std::filesystem::exists(dir + "/out/a.lcmlog"));
+  o = run_noisemon("replay " + a + " " + c + " --csv " + dir + "/x.csv");
+  EXPECT_EQ(o.status, 1) << o.text;
+  EXPECT_NE(o.text.find("--csv names an existing directory"), std::string::npos) << o.text;
+  EXPECT_FALSE(std::filesystem::exists(dir + "/x.csv"));
+  o = run_noisemon("replay " + a + " --csv " + dir + "/one.csv --no-progress");
+  EXPECT_EQ(o.status, 0) << o.text;
+  EXPECT_NE(o.text.find("noisemon replay: 1 session(s), "), std::string::npos) << o.text;
+  EXPECT_EQ(read_bytes(dir + "/one.csv"), read_bytes(dir + "/out/a.csv"));
 }
