@@ -16,6 +16,8 @@ constexpr double kGasConstant = 287.0;  // J/(kg K), air
 struct Grid {
   std::span<const double> p;
   double first, step;
+  const double* volume;  // V and dV/dtheta at each angle (m3, m3/deg)
+  const double* dvolume;
   double angle(std::size_t i) const { return first + step * static_cast<double>(i); }
   double last() const { return angle(p.size() - 1); }
   // Index range [lo, hi] of the samples within [a, b] deg.
@@ -51,11 +53,11 @@ void slope_per_deg(const Grid& g, int half, std::vector<double>& out) {
 }
 
 // Integral of p dV over [a, b] deg (trapezoid on the samples, dV/dtheta analytic), J.
-double work_j(const Grid& g, const EngineGeometry& e, double a, double b) {
+double work_j(const Grid& g, double a, double b) {
   const auto [lo, hi] = g.range(a, b);
   double w = 0.0;
   for (std::size_t i = lo; i < hi; ++i)
-    w += 0.5 * g.step * (g.p[i] * e.dvolume_m3_per_deg(g.angle(i)) + g.p[i + 1] * e.dvolume_m3_per_deg(g.angle(i + 1)));
+    w += 0.5 * g.step * (g.p[i] * g.dvolume[i] + g.p[i + 1] * g.dvolume[i + 1]);
   return w;
 }
 
@@ -84,11 +86,11 @@ void max_rise(const Grid& g, const std::vector<double>& slope, const MetricsOpti
 
 // Apparent heat release (Heywood eq. 9.25) over the window, and the angles where its cumulative sum, counted from
 // its minimum before its maximum, reaches 10, 50 and 90 % of that rise.
-void heat_release(const Grid& g, const std::vector<double>& slope, const EngineGeometry& e, const MetricsOptions& o,
+void heat_release(const Grid& g, const std::vector<double>& slope, const MetricsOptions& o,
                   std::vector<double>& q, CombustionMetrics& m) {
   const auto [lo, hi] = g.range(o.heat_release_from_deg, o.heat_release_to_deg);
   const double k = o.gamma / (o.gamma - 1.0), kv = 1.0 / (o.gamma - 1.0);
-  auto rate = [&](std::size_t i) { return k * g.p[i] * e.dvolume_m3_per_deg(g.angle(i)) + kv * e.volume_m3(g.angle(i)) * slope[i]; };
+  auto rate = [&](std::size_t i) { return k * g.p[i] * g.dvolume[i] + kv * g.volume[i] * slope[i]; };
   q.assign(1, 0.0);
   for (std::size_t i = lo; i < hi; ++i) {
     if (!std::isfinite(slope[i]) || !std::isfinite(slope[i + 1])) return;
@@ -99,7 +101,7 @@ void heat_release(const Grid& g, const std::vector<double>& slope, const EngineG
   const double total = q[top] - q[bottom];
   // Without combustion the rise is noise and heat-transfer residue, a few % of the compression work; with it, several
   // times that work.
-  const double compression = std::abs(work_j(g, e, -180.0, 0.0));
+  const double compression = std::abs(work_j(g, -180.0, 0.0));
   if (!(total > 0.2 * compression)) return;
   m.heat_release_j = total;
   double* angles[] = {&m.ca10_deg, &m.ca50_deg, &m.ca90_deg};
@@ -139,6 +141,22 @@ void check(std::span<const double> p, double step, const EngineGeometry& e, cons
   if (!(o.gamma > 1)) throw std::invalid_argument("gamma must be above 1");
 }
 
+// V and dV/dtheta at the grid's angles, kept in the workspace for as long as the grid and the geometry stay.
+void volume_tables(std::size_t n, double first, double step, const EngineGeometry& e, MetricsWorkspace& w) {
+  if (w.volume_m3.size() == n && w.volume_first_deg == first && w.volume_step_deg == step && w.volume_engine == e)
+    return;
+  w.volume_m3.resize(n);
+  w.dvolume_m3_per_deg.resize(n);
+  const Grid g{{}, first, step, nullptr, nullptr};
+  for (std::size_t i = 0; i < n; ++i) {
+    w.volume_m3[i] = e.volume_m3(g.angle(i));
+    w.dvolume_m3_per_deg[i] = e.dvolume_m3_per_deg(g.angle(i));
+  }
+  w.volume_first_deg = first;
+  w.volume_step_deg = step;
+  w.volume_engine = e;
+}
+
 }  // namespace
 
 CombustionMetrics combustion_metrics(std::span<const double> pressure_pa, double first_deg, double step_deg,
@@ -151,7 +169,8 @@ CombustionMetrics combustion_metrics(std::span<const double> pressure_pa, double
                                      const EngineGeometry& engine, double speed_rpm, const MetricsOptions& options,
                                      MetricsWorkspace& scratch) {
   check(pressure_pa, step_deg, engine, options);
-  const Grid g{pressure_pa, first_deg, step_deg};
+  volume_tables(pressure_pa.size(), first_deg, step_deg, engine, scratch);
+  const Grid g{pressure_pa, first_deg, step_deg, scratch.volume_m3.data(), scratch.dvolume_m3_per_deg.data()};
   const int half = std::max(1, static_cast<int>(std::lround(options.derivative_half_width_deg / step_deg)));
   std::vector<double>& slope = scratch.slope;
   slope_per_deg(g, half, slope);
@@ -159,9 +178,9 @@ CombustionMetrics combustion_metrics(std::span<const double> pressure_pa, double
   peak(g, m);
   max_rise(g, slope, options, m);
   const double vd = engine.displacement_m3();
-  m.imep_gross_pa = g.covers(-180.0, 180.0) ? work_j(g, engine, -180.0, 180.0) / vd : kNaN;
-  m.imep_net_pa = g.covers(-360.0, 360.0) ? work_j(g, engine, -360.0, 360.0) / vd : kNaN;
-  heat_release(g, slope, engine, options, scratch.heat, m);
+  m.imep_gross_pa = g.covers(-180.0, 180.0) ? work_j(g, -180.0, 180.0) / vd : kNaN;
+  m.imep_net_pa = g.covers(-360.0, 360.0) ? work_j(g, -360.0, 360.0) / vd : kNaN;
+  heat_release(g, slope, options, scratch.heat, m);
   m.ringing_intensity_w_per_m2 = ringing_intensity(g, engine, speed_rpm, options, m);
   return m;
 }

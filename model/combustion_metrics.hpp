@@ -48,9 +48,13 @@ CombustionMetrics combustion_metrics(std::span<const double> pressure_pa, double
                                      const EngineGeometry& engine, double speed_rpm, const MetricsOptions& options = {});
 
 // The metrics' scratch space: sized by the first call and reused, so a caller that keeps one (the processing
-// thread) does not allocate per cycle.
+// thread) does not allocate per cycle. It also keeps the cylinder volume and its derivative at the grid's angles
+// (their sines and cosines were most of the metrics' time), recomputed only when the grid or the geometry change.
 struct MetricsWorkspace {
   std::vector<double> slope, heat;
+  std::vector<double> volume_m3, dvolume_m3_per_deg;
+  double volume_first_deg = 0.0, volume_step_deg = 0.0;
+  EngineGeometry volume_engine;
 };
 CombustionMetrics combustion_metrics(std::span<const double> pressure_pa, double first_deg, double step_deg,
                                      const EngineGeometry& engine, double speed_rpm, const MetricsOptions& options,

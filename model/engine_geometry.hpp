@@ -24,6 +24,8 @@ struct EngineGeometry {
   // the piston travel (Heywood, Internal Combustion Engine Fundamentals, ch. 2).
   double wall_area_m2(double theta_deg) const;
   double mean_piston_speed_m_s(double speed_rpm) const;
+
+  bool operator==(const EngineGeometry&) const = default;
 };
 
 // Crank angle versus time: a mean speed with a once-per-cycle ripple, slowest at firing TDC (the single
