@@ -38,13 +38,22 @@ std::int64_t utime_of(std::int64_t epoch, double frames) {
 
 }  // namespace
 
-// Adds the processing thread's CPU time spent in one call to cpu_spent_s_ (idle polling is not counted).
+// Adds the processing thread's CPU time spent in one call to cpu_spent_s_ (idle polling is not counted), unless a
+// CpuBatch around the call times it.
 struct CycleProcessor::CpuScope {
-  explicit CpuScope(double& sink) : sink_(sink), start_(thread_cpu_seconds()) {}
-  ~CpuScope() { sink_ += thread_cpu_seconds() - start_; }
-  double& sink_;
+  explicit CpuScope(CycleProcessor& p) : p_(p), start_(p.cpu_batch_open_ ? 0.0 : thread_cpu_seconds()) {}
+  ~CpuScope() {
+    if (!p_.cpu_batch_open_) p_.cpu_spent_s_ += thread_cpu_seconds() - start_;
+  }
+  CycleProcessor& p_;
   double start_;
 };
+
+CycleProcessor::CpuBatch::CpuBatch(CycleProcessor& p) : p_(p), start_(thread_cpu_seconds()) { p_.cpu_batch_open_ = true; }
+CycleProcessor::CpuBatch::~CpuBatch() {
+  p_.cpu_batch_open_ = false;
+  p_.cpu_spent_s_ += thread_cpu_seconds() - start_;
+}
 
 CycleProcessor::CycleProcessor(const ProcessorConfig& config, const drivers::StreamInfo& info, Sink sink)
     : config_(config),
@@ -107,7 +116,7 @@ std::uint32_t CycleProcessor::sanitise_pressure(const drivers::SampleBlock& bloc
 }
 
 void CycleProcessor::add_pressure(const drivers::SampleBlock& block) {
-  CpuScope cpu(cpu_spent_s_);
+  CpuScope cpu(*this);
   if (block.channels != drivers::kPressureStreamChannels)
     throw std::invalid_argument("CycleProcessor: pressure block with " + std::to_string(block.channels) + " channels");
   const std::uint32_t from = sanitise_pressure(block);
@@ -159,7 +168,7 @@ void CycleProcessor::run_model(std::int64_t first, std::size_t n) {
 }
 
 void CycleProcessor::add_mics(const drivers::SampleBlock& block) {
-  CpuScope cpu(cpu_spent_s_);
+  CpuScope cpu(*this);
   if (mics_ == 0) throw std::invalid_argument("CycleProcessor: microphone block for a stream without microphones");
   if (block.channels != mics_)
     throw std::invalid_argument("CycleProcessor: microphone block with " + std::to_string(block.channels) +
@@ -176,7 +185,7 @@ void CycleProcessor::set_operating_point(const drivers::OperatingPoint& op) {
 }
 
 void CycleProcessor::process() {
-  CpuScope cpu(cpu_spent_s_);
+  CpuScope cpu(*this);
   const bool with_mics = mics_ > 0;
   if (!pressure_.started() || (with_mics && !mics_fifo_.started()) || !predicted_.started()) return;
   if (next_ == INT64_MIN) {

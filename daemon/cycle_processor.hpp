@@ -76,6 +76,20 @@ class CycleProcessor {
   // Processes every combined frame whose inputs have all arrived; calls the sink once per completed cycle.
   void process();
 
+  // Times the calls made while it is open with one pair of CPU-clock reads (each a system call) instead of a
+  // pair per call: the processing thread opens one around each batch of blocks it feeds and processes.
+  class CpuBatch {
+   public:
+    explicit CpuBatch(CycleProcessor& p);
+    ~CpuBatch();
+    CpuBatch(const CpuBatch&) = delete;
+    CpuBatch& operator=(const CpuBatch&) = delete;
+
+   private:
+    CycleProcessor& p_;
+    double start_;
+  };
+
   const ProcessorCounters& counters() const { return counters_; }
   const std::vector<dsp::ThirdOctaveBand>& bands() const { return bank_.bands(); }
   std::int64_t delay_frames() const { return delay_frames_; }
@@ -169,6 +183,7 @@ class CycleProcessor {
   drivers::OperatingPoint op_;
   bool have_op_ = false;
   double cpu_spent_s_ = 0;  // CPU time spent in add_*/process since the last cycle was finished
+  bool cpu_batch_open_ = false;  // a CpuBatch times the calls
   struct CpuScope;
   ProcessorCounters counters_;
 };

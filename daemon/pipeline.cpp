@@ -5,6 +5,7 @@
 #include <chrono>
 #include <cmath>
 #include <deque>
+#include <optional>
 #include <stdexcept>
 #include <thread>
 
@@ -134,6 +135,9 @@ void Pipeline::Impl::run_processing(const std::atomic<bool>& drain) {
       processor.set_operating_point(op);
       if (config.lcm.publish_operating_point) op_publish_ring.push(op);
     }
+    // One CPU-time measurement for the batch (the idle polls are not counted).
+    std::optional<CycleProcessor::CpuBatch> cpu_batch;
+    if (pressure_ring.front() || mic_ring.front()) cpu_batch.emplace(processor);
     // Alternate between the streams so neither runs far ahead of the other.
     for (int i = 0; i < 8; ++i) {
       bool got = false;
@@ -155,6 +159,7 @@ void Pipeline::Impl::run_processing(const std::atomic<bool>& drain) {
       any = true;
     }
     processor.process();
+    cpu_batch.reset();
     const ProcessorCounters& counted = processor.counters();
     if (counted.cycles_dropped != dropped_seen) {
       cycles_dropped += counted.cycles_dropped - dropped_seen;
