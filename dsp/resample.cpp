@@ -28,28 +28,43 @@ constexpr std::size_t kPendingFrames = 8192;
 // Input frames copied into a FIR's history per pass.
 constexpr std::size_t kChunkFrames = 1024;
 
-// Four doubles as one vector (GCC vector extension: one AVX register in the x86-64-v3 clone, two SSE ones in
-// the default). Only used inside always-inline helpers, never across a call, so the ABI note is moot.
+// 32 bytes of samples as one vector (GCC vector extension: one AVX register in the x86-64-v3 clone, two SSE
+// ones in the default): 4 doubles or 8 floats. Only used inside always-inline helpers, never across a call, so
+// the ABI note is moot.
 #pragma GCC diagnostic ignored "-Wpsabi"
-typedef double Vd __attribute__((vector_size(4 * sizeof(double))));
-constexpr std::size_t kVd = 4;
+template <class T>
+struct Simd {
+  typedef T V __attribute__((vector_size(32)));
+  static constexpr std::size_t kLanes = 32 / sizeof(T);
+};
+using Vd = Simd<double>::V;
+constexpr std::size_t kVd = Simd<double>::kLanes;
 
-NOISEMON_INLINE Vd load(const double* p) {
-  Vd v;
+template <class T>
+NOISEMON_INLINE typename Simd<T>::V load(const T* p) {
+  typename Simd<T>::V v;
   std::memcpy(&v, p, sizeof v);
   return v;
 }
 
-// Two vector accumulators (8 partial sums) so consecutive multiply-adds do not wait on each other.
-NOISEMON_INLINE double dot(const double* a, const double* b, std::size_t n) {
-  Vd acc0 = {}, acc1 = {};
+template <class V>
+NOISEMON_INLINE auto lane_sum(V v) {
+  auto sum = v[0];
+  for (std::size_t l = 1; l < sizeof(V) / sizeof(v[0]); ++l) sum += v[l];
+  return sum;
+}
+
+// Two vector accumulators so consecutive multiply-adds do not wait on each other.
+template <class T>
+NOISEMON_INLINE T dot(const T* a, const T* b, std::size_t n) {
+  constexpr std::size_t kL = Simd<T>::kLanes;
+  typename Simd<T>::V acc0 = {}, acc1 = {};
   std::size_t i = 0;
-  for (; i + 2 * kVd <= n; i += 2 * kVd) {
+  for (; i + 2 * kL <= n; i += 2 * kL) {
     acc0 += load(a + i) * load(b + i);
-    acc1 += load(a + i + kVd) * load(b + i + kVd);
+    acc1 += load(a + i + kL) * load(b + i + kL);
   }
-  const Vd acc = acc0 + acc1;
-  double sum = (acc[0] + acc[2]) + (acc[1] + acc[3]);
+  T sum = lane_sum(acc0 + acc1);
   for (; i < n; ++i) sum += a[i] * b[i];
   return sum;
 }
@@ -103,15 +118,17 @@ class OutputQueue {
 
 // Four dot products sharing `a` (one load of a per four multiply-adds: the loads, not the arithmetic, bound a
 // single dot product). b[c] + i is channel c's history.
-NOISEMON_INLINE void dot4(const double* a, const double* const b[4], std::size_t n, double sums[4]) {
-  Vd acc[4] = {};
+template <class T>
+NOISEMON_INLINE void dot4(const T* a, const T* const b[4], std::size_t n, T sums[4]) {
+  constexpr std::size_t kL = Simd<T>::kLanes;
+  typename Simd<T>::V acc[4] = {};
   std::size_t i = 0;
-  for (; i + kVd <= n; i += kVd) {
-    const Vd av = load(a + i);
+  for (; i + kL <= n; i += kL) {
+    const auto av = load(a + i);
     for (int c = 0; c < 4; ++c) acc[c] += av * load(b[c] + i);
   }
   for (int c = 0; c < 4; ++c) {
-    sums[c] = (acc[c][0] + acc[c][2]) + (acc[c][1] + acc[c][3]);
+    sums[c] = lane_sum(acc[c]);
     for (std::size_t k = i; k < n; ++k) sums[c] += a[k] * b[c][k];
   }
 }
@@ -124,55 +141,78 @@ struct FirOutput {
   std::size_t frame_stride;
 };
 
-// Outputs k .. k + count - 1 of a polyphase FIR (see PolyphaseFir), all channels. The hot loop of both
-// resamplers: one dot product of a phase's taps with each channel's history per output.
-NOISEMON_KERNEL_CLONES void fir_outputs(const double* coef, std::size_t taps, std::int64_t up, std::int64_t down,
-                                        std::int64_t half, const double* history, std::size_t history_stride,
-                                        std::int64_t base, std::size_t channels, std::int64_t k, std::size_t count,
-                                        FirOutput out) {
+// A polyphase FIR's state as its hot loop reads it (see PolyphaseFir).
+template <class T>
+struct FirView {
+  const T* coef;
+  std::size_t taps;
+  std::int64_t up, down, half;
+  const T* history;
+  std::size_t history_stride;
+  std::int64_t base;  // absolute input index of history[0]
+  std::size_t channels;
+};
+
+// Outputs k .. k + count - 1 of a polyphase FIR, all channels: one dot product of a phase's taps with each
+// channel's history per output.
+template <class T>
+NOISEMON_INLINE void fir_outputs_body(const FirView<T>& f, std::int64_t k, std::size_t count, FirOutput out) {
   for (std::size_t j = 0; j < count; ++j, ++k) {
-    const std::int64_t tick = k * down + half;
-    const std::int64_t newest = tick / up;
-    const double* c = &coef[static_cast<std::size_t>(tick - newest * up) * taps];
-    const auto offset = static_cast<std::size_t>(newest - static_cast<std::int64_t>(taps) + 1 - base);
+    const std::int64_t tick = k * f.down + f.half;
+    const std::int64_t newest = tick / f.up;
+    const T* c = &f.coef[static_cast<std::size_t>(tick - newest * f.up) * f.taps];
+    const auto offset = static_cast<std::size_t>(newest - static_cast<std::int64_t>(f.taps) + 1 - f.base);
     double* frame = out.base + j * out.frame_stride;
     std::size_t ch = 0;
-    for (; ch + 4 <= channels; ch += 4) {
-      const double* rows[4];
-      for (std::size_t q = 0; q < 4; ++q) rows[q] = &history[(ch + q) * history_stride + offset];
-      double sums[4];
-      dot4(c, rows, taps, sums);
+    for (; ch + 4 <= f.channels; ch += 4) {
+      const T* rows[4];
+      for (std::size_t q = 0; q < 4; ++q) rows[q] = &f.history[(ch + q) * f.history_stride + offset];
+      T sums[4];
+      dot4(c, rows, f.taps, sums);
       for (std::size_t q = 0; q < 4; ++q) frame[(ch + q) * out.channel_stride] = sums[q];
     }
-    for (; ch < channels; ++ch) frame[ch * out.channel_stride] = dot(c, &history[ch * history_stride + offset], taps);
+    for (; ch < f.channels; ++ch)
+      frame[ch * out.channel_stride] = dot(c, &f.history[ch * f.history_stride + offset], f.taps);
   }
+}
+// The hot loop of both resamplers, in double (pressure: a small signal on a large mean) and in float
+// (microphones: float WAVs and ADC words, twice the lanes per vector).
+NOISEMON_KERNEL_CLONES void fir_outputs(const FirView<double>& f, std::int64_t k, std::size_t count, FirOutput out) {
+  fir_outputs_body(f, k, count, out);
+}
+NOISEMON_KERNEL_CLONES void fir_outputs(const FirView<float>& f, std::int64_t k, std::size_t count, FirOutput out) {
+  fir_outputs_body(f, k, count, out);
 }
 
 // Streaming zero-delay polyphase FIR: upsample by `up`, filter with the centred prototype h[-J..J]
 // (running at up * input rate), keep every `down`-th sample. Output k lands on tick k * down, input m on
 // tick m * up, so y[k] = sum_m x[m] h[k down - m up]: no delay, output k waits for input floor((k down + J) / up).
-// History is kept per channel (contiguous, for the dot products) with absolute input indices.
+// History is kept per channel (contiguous, for the dot products) with absolute input indices, in T.
+// Taps per phase padded with zeros (at the oldest end) to whole vectors: the dot products need no scalar tail.
+constexpr std::size_t padded_taps(std::size_t taps) { return (taps + 7) / 8 * 8; }
+
+template <class T>
 class PolyphaseFir {
  public:
   PolyphaseFir(const std::vector<double>& prototype, std::size_t up, std::size_t down, std::size_t channels)
       : up_(static_cast<std::int64_t>(up)),
         down_(static_cast<std::int64_t>(down)),
         half_(static_cast<std::int64_t>(prototype.size() / 2)),
-        taps_((prototype.size() + up - 1) / up),
+        taps_(padded_taps((prototype.size() + up - 1) / up)),
         channels_(channels),
         stride_(taps_ + kChunkFrames),
-        coef_(up * taps_, 0.0),
-        history_(channels * stride_, 0.0) {
+        coef_(up * taps_, T{0}),
+        history_(channels * stride_, T{0}) {
     // Phase p holds h0[p + i up] for i = taps-1 .. 0 (oldest input first), h0[n] = h[n - J].
+    std::vector<double> row(taps_);
     for (std::size_t p = 0; p < up; ++p) {
-      double* row = &coef_[p * taps_];
       for (std::size_t i = 0; i < taps_; ++i) {
         const std::size_t n = p + i * up;
         row[taps_ - 1 - i] = n < prototype.size() ? prototype[n] : 0.0;
       }
-      // Every phase passes DC exactly (pressure rides on a large mean).
-      const double sum = std::accumulate(row, row + taps_, 0.0);
-      for (std::size_t i = 0; i < taps_; ++i) row[i] /= sum;
+      // Every phase passes DC exactly in double (pressure rides on a large mean).
+      const double sum = std::accumulate(row.begin(), row.end(), 0.0);
+      for (std::size_t i = 0; i < taps_; ++i) coef_[p * taps_ + i] = static_cast<T>(row[i] / sum);
     }
   }
 
@@ -187,7 +227,7 @@ class PolyphaseFir {
 
   std::size_t room() const { return stride_ - len_; }
   std::size_t history_stride() const { return stride_; }
-  double* channel_tail(std::size_t c) { return &history_[c * stride_ + len_]; }
+  T* channel_tail(std::size_t c) { return &history_[c * stride_ + len_]; }
   void commit(std::size_t frames) { len_ += frames; }
   std::int64_t next_output() const { return next_k_; }
   std::size_t up() const { return static_cast<std::size_t>(up_); }
@@ -201,8 +241,8 @@ class PolyphaseFir {
     const std::int64_t end = base_ + static_cast<std::int64_t>(len_);
     std::size_t count = 0;
     while (count < max_out && newest_needed(next_k_ + static_cast<std::int64_t>(count)) < end) ++count;
-    fir_outputs(coef_.data(), taps_, up_, down_, half_, history_.data(), stride_, base_, channels_, next_k_, count,
-                out);
+    fir_outputs(FirView<T>{coef_.data(), taps_, up_, down_, half_, history_.data(), stride_, base_, channels_}, next_k_,
+                count, out);
     next_k_ += static_cast<std::int64_t>(count);
     drop_history(end);
     return count;
@@ -221,8 +261,8 @@ class PolyphaseFir {
     if (drop == 0) return;
     const std::size_t kept = len_ - drop;
     for (std::size_t ch = 0; ch < channels_; ++ch) {
-      double* h = &history_[ch * stride_];
-      std::memmove(h, h + drop, kept * sizeof(double));
+      T* h = &history_[ch * stride_];
+      std::memmove(h, h + drop, kept * sizeof(T));
     }
     len_ = kept;
     base_ = keep_from;
@@ -232,8 +272,8 @@ class PolyphaseFir {
   std::size_t taps_;      // per phase
   std::size_t channels_;
   std::size_t stride_;    // history capacity per channel
-  std::vector<double> coef_;
-  std::vector<double> history_;
+  std::vector<T> coef_;
+  std::vector<T> history_;
   std::int64_t base_ = 0;  // absolute input index of history_[ch * stride_]
   std::size_t len_ = 0;
   std::int64_t next_k_ = 0;
@@ -269,7 +309,7 @@ void require_channels(std::size_t channels, const char* who) {
 // RationalResampler
 
 struct RationalResampler::Impl {
-  static PolyphaseFir make_fir(double in_hz, double out_hz, std::size_t channels) {
+  static PolyphaseFir<float> make_fir(double in_hz, double out_hz, std::size_t channels) {
     const std::int64_t in = integer_rate(in_hz, "input rate");
     const std::int64_t out = integer_rate(out_hz, "output rate");
     const std::int64_t g = std::gcd(in, out);
@@ -278,8 +318,8 @@ struct RationalResampler::Impl {
     // Both bound the filter: its length grows with up * max(1, down / up) taps.
     if (up > 4096) throw std::invalid_argument("RationalResampler: rate ratio needs more than 4096 filter phases");
     if (down > 4096) throw std::invalid_argument("RationalResampler: rate ratio decimates by more than 4096");
-    return PolyphaseFir(design_lowpass(static_cast<double>(up) * in_hz, std::min(in_hz, out_hz)), up, down,
-                        channels);
+    return PolyphaseFir<float>(design_lowpass(static_cast<double>(up) * in_hz, std::min(in_hz, out_hz)), up, down,
+                               channels);
   }
 
   Impl(double in_hz, double out_hz, std::size_t ch)
@@ -288,13 +328,13 @@ struct RationalResampler::Impl {
     // Before input frame 0 the signal is zero.
     const std::int64_t first = fir.start(0);
     const auto zeros = static_cast<std::size_t>(-first);
-    for (std::size_t c = 0; c < channels; ++c) std::fill_n(fir.channel_tail(c), zeros, 0.0);
+    for (std::size_t c = 0; c < channels; ++c) std::fill_n(fir.channel_tail(c), zeros, 0.0f);
     fir.commit(zeros);
   }
 
   std::size_t channels;
   double passband_hz;
-  PolyphaseFir fir;
+  PolyphaseFir<float> fir;  // microphones: float words in, float precision (24 bits) is theirs
   OutputQueue queue;
   std::vector<double> scratch;  // one run's outputs, interleaved
 };
@@ -316,8 +356,8 @@ std::size_t RationalResampler::process(const double* in, std::size_t frames, dou
     const std::size_t n = std::min(frames - done, s.fir.room());
     const double* src = in + done * ch;
     for (std::size_t c = 0; c < ch; ++c) {
-      double* dst = s.fir.channel_tail(c);
-      for (std::size_t i = 0; i < n; ++i) dst[i] = src[i * ch + c];
+      float* dst = s.fir.channel_tail(c);
+      for (std::size_t i = 0; i < n; ++i) dst[i] = static_cast<float>(src[i * ch + c]);
     }
     s.fir.commit(n);
     done += n;
@@ -445,14 +485,14 @@ struct NonuniformResampler::Impl {
     while (static_cast<double>(factor) * out_hz < 0.5 * (max_edge_rate_hz + out_hz)) factor *= 2;
     return factor;
   }
-  static PolyphaseFir make_fine_to_mid(double out_hz, std::int64_t fine_factor, std::size_t ch) {
+  static PolyphaseFir<double> make_fine_to_mid(double out_hz, std::int64_t fine_factor, std::size_t ch) {
     const double fine_hz = static_cast<double>(fine_factor) * out_hz;
     const double mid_hz = static_cast<double>(kMidFactor) * out_hz;
-    return PolyphaseFir(kaiser_design(fine_hz, 0.5 * out_hz, mid_hz - 0.5 * out_hz), 1,
+    return PolyphaseFir<double>(kaiser_design(fine_hz, 0.5 * out_hz, mid_hz - 0.5 * out_hz), 1,
                         static_cast<std::size_t>(fine_factor / kMidFactor), ch);
   }
-  static PolyphaseFir make_mid_to_out(double out_hz, std::size_t ch) {
-    return PolyphaseFir(design_lowpass(static_cast<double>(kMidFactor) * out_hz, out_hz), 1,
+  static PolyphaseFir<double> make_mid_to_out(double out_hz, std::size_t ch) {
+    return PolyphaseFir<double>(design_lowpass(static_cast<double>(kMidFactor) * out_hz, out_hz), 1,
                         static_cast<std::size_t>(kMidFactor), ch);
   }
 
@@ -594,8 +634,8 @@ struct NonuniformResampler::Impl {
   double edge_rate_hz = 0.0;  // over the latest call
   std::vector<double> first_values;
   bool started = false;
-  PolyphaseFir fine_to_mid;    // fine grid -> kMidFactor * out_rate
-  PolyphaseFir mid_to_out;     // -> out_rate
+  PolyphaseFir<double> fine_to_mid;  // fine grid -> kMidFactor * out_rate
+  PolyphaseFir<double> mid_to_out;   // -> out_rate
   OutputQueue queue;
   std::vector<double> scratch;  // one run's outputs, interleaved
 };
