@@ -285,6 +285,13 @@ void read_int(TableReader& r, const char* key, int& out, std::int64_t min, std::
   out = static_cast<int>(v);
 }
 
+// buffer_bytes and wake_every_scan, the kernel buffer and wake-up of one acquisition ([comedi.pressure],
+// [comedi.encoder], [comedi.mics]). 0 bytes leaves the driver's buffer; at most 1 GiB.
+void read_kernel_buffer(TableReader& r, unsigned& buffer_bytes, bool& wake_every_scan) {
+  read_unsigned(r, "buffer_bytes", buffer_bytes, std::int64_t{1} << 30);
+  r.boolean("wake_every_scan", wake_every_scan);
+}
+
 // A key that is either one value for every microphone or an array of one per microphone.
 template <class T, class Read>
 std::vector<T> per_channel(TableReader& r, const char* key, std::size_t n, T fallback, Read read) {
@@ -321,6 +328,7 @@ void read_comedi_pressure(TableReader& r, const std::string& origin, drivers::Co
   read_int(pr, "cam_channel", p.cam_channel, -1, 65535);
   read_unsigned(pr, "cam_range", p.cam_range, 255);
   read_aref_key(pr, "cam_aref", p.cam_aref);
+  read_kernel_buffer(pr, p.buffer_bytes, p.wake_every_scan);
   pr.reject_unknown();
 }
 
@@ -355,6 +363,7 @@ void read_comedi_encoder(TableReader& r, const std::string& origin, drivers::Com
   er.integer("counts_per_edge", per_edge, 1, 64);
   e.counts_per_edge = static_cast<std::uint32_t>(per_edge);
   er.number("max_rpm", e.max_rpm, 0, 100000);
+  read_kernel_buffer(er, e.buffer_bytes, e.wake_every_scan);
   er.reject_unknown();
 }
 
@@ -404,6 +413,7 @@ void read_comedi_mics(TableReader& r, const std::string& origin, drivers::Comedi
   if (!m.positions_m.empty() && m.positions_m.size() != n)
     mr.fail("positions_m", "has " + std::to_string(m.positions_m.size()) + " positions but there are " + std::to_string(n) + " channels");
   mr.number("speed_of_sound_m_s", m.speed_of_sound_m_s, 100, 1000);
+  read_kernel_buffer(mr, m.buffer_bytes, m.wake_every_scan);
   mr.reject_unknown();
 }
 

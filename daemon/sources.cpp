@@ -31,6 +31,7 @@ std::unique_ptr<drivers::Source> make_stream_source(const Config& c) {
   if (c.source == "comedi") {
     drivers::ComediSourceConfig comedi = c.comedi;
     comedi.threads = {c.threads.pressure, c.threads.mics};
+    comedi.log_info = [](const std::string& m) { spdlog::info("{}", m); };
     try {
       return drivers::make_comedi_source(comedi);
     } catch (const std::invalid_argument& e) {

@@ -177,6 +177,34 @@ comedi_cmd external_scan_command(unsigned subdevice, unsigned external_trigger, 
   return cmd;
 }
 
+void apply_wake_flag(comedi_cmd& cmd, bool wake_every_scan) {
+  if (wake_every_scan) cmd.flags |= CMDF_WAKE_EOS;
+  else cmd.flags &= ~static_cast<unsigned>(CMDF_WAKE_EOS);
+}
+
+unsigned size_kernel_buffer(unsigned bytes, const KernelBufferCalls& calls, const std::string& device_path,
+                            unsigned subdevice) {
+  const std::string name = where(device_path, subdevice);
+  auto fail = [&](const std::string& what) { throw std::runtime_error(what + ": " + calls.error()); };
+  if (bytes > 0) {
+    const std::string size = std::to_string(bytes) + " bytes (buffer_bytes)";
+    const int max = calls.get_max_size();
+    if (max < 0) fail("cannot read the kernel buffer limit of " + name);
+    if (bytes > static_cast<unsigned>(max) && calls.set_max_size(bytes) < 0)
+      fail("cannot raise the kernel buffer limit of " + name + " from " + std::to_string(max) + " to " + size +
+           ": raising it needs root (CAP_SYS_ADMIN)");
+    if (calls.set_size(bytes) < 0) fail("cannot set the kernel buffer of " + name + " to " + size);
+  }
+  const int got = calls.get_size();
+  if (got < 0) fail("cannot read the kernel buffer size of " + name);
+  return static_cast<unsigned>(got);
+}
+
+double buffer_seconds(std::size_t buffer_bytes, std::size_t scan_bytes, double scan_rate_hz) {
+  if (scan_bytes == 0 || !(scan_rate_hz > 0.0)) return 0.0;
+  return static_cast<double>(buffer_bytes) / (static_cast<double>(scan_bytes) * scan_rate_hz);
+}
+
 void settle_command(comedi_cmd& cmd, const std::function<int(comedi_cmd&)>& test, const std::string& device_path,
                     unsigned subdevice, int max_passes) {
   // comedi_command_test return codes: 1 unsupported trigger source, 2 incompatible sources, 3 argument out of
@@ -278,6 +306,7 @@ ComediDevice::ComediDevice(ComediAcquisitionConfig config) : config_(std::move(c
     }
     if (calibration) comedi_cleanup_calibration(calibration);
     chanlist_ = pack_channel_list(config_.channels);
+    size_buffer();
   } catch (...) {
     comedi_close(dev_);
     throw;
@@ -292,6 +321,16 @@ ComediDevice::~ComediDevice() {
 }
 
 int ComediDevice::fd() const { return comedi_fileno(dev_); }
+
+void ComediDevice::size_buffer() {
+  const KernelBufferCalls calls{
+      .get_size = [this] { return comedi_get_buffer_size(dev_, subdevice_); },
+      .get_max_size = [this] { return comedi_get_max_buffer_size(dev_, subdevice_); },
+      .set_size = [this](unsigned n) { return comedi_set_buffer_size(dev_, subdevice_, n); },
+      .set_max_size = [this](unsigned n) { return comedi_set_max_buffer_size(dev_, subdevice_, n); },
+      .error = [] { return comedi_error(); }};
+  buffer_bytes_ = size_kernel_buffer(config_.buffer_bytes, calls, config_.device_path, subdevice_);
+}
 
 void ComediDevice::build_command() {
   const auto n = static_cast<unsigned>(chanlist_.size());
@@ -311,6 +350,7 @@ void ComediDevice::build_command() {
     cmd_ = external_scan_command(subdevice_, config_.external_trigger, chanlist_.data(), n, config_.start_trigger,
                                  config_.convert_src);
   }
+  apply_wake_flag(cmd_, config_.wake_every_scan);
   settle_command(cmd_, [this](comedi_cmd& c) { return comedi_command_test(dev_, &c); }, config_.device_path,
                  subdevice_);
   scan_period_s_ = cmd_.scan_begin_src == TRIG_TIMER ? cmd_.scan_begin_arg * 1e-9 : 0.0;

@@ -94,6 +94,8 @@ struct ComediAcquisitionConfig {
   int start_trigger = -1;            // kExternal: >= 0 starts on that external trigger (start_src TRIG_EXT)
   unsigned convert_src = TRIG_TIMER; // kExternal: TRIG_TIMER (fastest the card allows), TRIG_NOW or TRIG_FOLLOW
   bool use_soft_calibration = true;  // when the subdevice is SDF_SOFT_CALIBRATED and a calibration file exists
+  unsigned buffer_bytes = 0;         // > 0: size the kernel's acquisition buffer to this; 0: leave it as it is
+  bool wake_every_scan = false;      // CMDF_WAKE_EOS: the kernel wakes the reader after every scan
 };
 
 // Channel list entries CR_PACK(channel, range, aref) in configuration order.
@@ -105,6 +107,27 @@ std::vector<unsigned> pack_channel_list(const std::vector<ComediChannelConfig>& 
 comedi_cmd external_scan_command(unsigned subdevice, unsigned external_trigger, unsigned* chanlist,
                                  unsigned chanlist_len, int start_trigger = -1, unsigned convert_src = TRIG_TIMER);
 
+// Sets (or clears) CMDF_WAKE_EOS in cmd.flags: the kernel wakes a reader after every scan instead of per DMA
+// block or FIFO interrupt (lowest latency to the driver thread, more interrupts and wake-ups).
+void apply_wake_flag(comedi_cmd& cmd, bool wake_every_scan);
+
+// The libcomedi calls that size a subdevice's kernel buffer (injected, so tests need no card).
+struct KernelBufferCalls {
+  std::function<int()> get_size, get_max_size;               // comedi_get_buffer_size / _max_buffer_size
+  std::function<int(unsigned)> set_size, set_max_size;       // comedi_set_buffer_size / _max_buffer_size
+  std::function<std::string()> error;                        // the last call's error text
+};
+
+// Sizes the kernel buffer to bytes (0: leaves it), raising the subdevice's maximum first when bytes exceeds it
+// (that needs root, CAP_SYS_ADMIN). Returns the size the kernel reports afterwards (it rounds up to whole
+// pages). Throws std::runtime_error naming the device, the subdevice and the size.
+unsigned size_kernel_buffer(unsigned bytes, const KernelBufferCalls& calls, const std::string& device_path,
+                            unsigned subdevice);
+
+// How long a buffer of buffer_bytes holds scans of scan_bytes arriving at scan_rate_hz: the time the driver
+// thread may stall before the card overruns. 0 when the rate or the scan size is not positive.
+double buffer_seconds(std::size_t buffer_bytes, std::size_t scan_bytes, double scan_rate_hz);
+
 // Runs test until it returns 0 (at most max_passes). Throws std::runtime_error naming the device, the
 // subdevice and the command fields it could not settle, or the errno of a failing test.
 void settle_command(comedi_cmd& cmd, const std::function<int(comedi_cmd&)>& test, const std::string& device_path,
@@ -114,7 +137,8 @@ void settle_command(comedi_cmd& cmd, const std::function<int(comedi_cmd&)>& test
 
 class ComediDevice {
  public:
-  // Opens the device and inspects the subdevice; throws std::runtime_error naming the device path on failure.
+  // Opens the device, inspects the subdevice and sizes its kernel buffer (config.buffer_bytes); throws
+  // std::runtime_error naming the device path on failure.
   explicit ComediDevice(ComediAcquisitionConfig config);
   ~ComediDevice();
   ComediDevice(const ComediDevice&) = delete;
@@ -126,6 +150,7 @@ class ComediDevice {
   // Raw -> SI per configured channel (calibration x sensor sensitivity), for a ScanDecoder.
   const std::vector<ChannelConversion>& conversions() const { return conversions_; }
   double scan_period_s() const { return scan_period_s_; }  // kTimed: the period the card settled on
+  unsigned buffer_bytes() const { return buffer_bytes_; }  // the kernel buffer's size (what the kernel gave)
   int fd() const;
 
   void start();    // builds, settles and issues the command
@@ -134,6 +159,7 @@ class ComediDevice {
 
  private:
   void build_command();
+  void size_buffer();
 
   ComediAcquisitionConfig config_;
   comedi_t* dev_ = nullptr;
@@ -143,6 +169,7 @@ class ComediDevice {
   std::vector<unsigned> chanlist_;
   comedi_cmd cmd_{};
   double scan_period_s_ = 0.0;
+  unsigned buffer_bytes_ = 0;
 };
 
 }  // namespace noisemon::drivers

@@ -1,6 +1,9 @@
 #include "drivers/comedi/comedi_source.hpp"
 
 #include <atomic>
+#include <cmath>
+#include <cstdio>
+#include <sstream>
 #include <stdexcept>
 
 #include "drivers/mic_positions.hpp"
@@ -36,6 +39,7 @@ class DeviceAcquisition final : public Acquisition {
   }
   void cancel() override { device_.cancel(); }
   std::int64_t origin_utime() const override { return origin_; }
+  unsigned buffer_bytes() const override { return device_.buffer_bytes(); }
 
  private:
   ComediDevice device_;
@@ -86,8 +90,8 @@ class ComediSource final : public Source {
  public:
   ComediSource(const ComediSourceConfig& config, const AcquisitionFactory& factory, std::int64_t epoch_utime)
       : config_(config), edge_config_(edge_stream_config(config)), epoch_utime_(epoch_utime ? epoch_utime : wall_utime()) {
-    const std::vector<ComediAcquisitionConfig> acquisitions = comedi_acquisitions(config);
-    for (const ComediAcquisitionConfig& a : acquisitions) {
+    acquisition_configs_ = comedi_acquisitions(config);
+    for (const ComediAcquisitionConfig& a : acquisition_configs_) {
       acquisitions_.push_back(factory ? factory(a) : open_comedi_acquisition(a));
       if (acquisitions_.back()->conversions().size() != a.channels.size())
         throw std::runtime_error("comedi " + acquisitions_.back()->where() + ": " +
@@ -134,6 +138,7 @@ class ComediSource final : public Source {
     }
     edge_->restart(acquisitions_[timestamp_acquisition_]->origin_utime());
     mic_->restart(acquisitions_.back()->origin_utime());
+    note_buffers();
     started_ = true;
     edge_worker_.start("nm-pressure", config_.threads.pressure,
                        [this, ring = streams.pressure](const std::atomic<bool>& stop) { run_edges(*ring, stop); });
@@ -189,6 +194,25 @@ class ComediSource final : public Source {
     c.max_backoff = config_.max_backoff;
     c.max_consecutive_overruns = config_.max_consecutive_overruns;
     return c;
+  }
+
+  // One line per kernel buffer: its size and how long it holds at the highest scan rate expected.
+  void note_buffers() const {
+    for (std::size_t i = 0; i < acquisitions_.size(); ++i) {
+      const Acquisition& a = *acquisitions_[i];
+      if (a.buffer_bytes() == 0) continue;
+      const bool mic = i == edge_count_;
+      const std::string rate_what = mic ? "the card's settled scan rate" : edge_rate_what(config_.encoder);
+      const double rate = mic ? 1.0 / a.scan_period_s() : edge_scan_rate_hz(config_.encoder);
+      const std::string note = buffer_note(a, acquisition_configs_[i], rate, rate_what);
+      if (config_.log_info) config_.log_info(note);
+      else std::fprintf(stderr, "%s\n", note.c_str());
+    }
+  }
+
+  static std::string edge_rate_what(const ComediSourceConfig::Encoder& e) {
+    return e.max_rpm > 0.0 ? "encoder edges at max_rpm " + std::to_string(std::lround(e.max_rpm))
+                           : "max_rpm not set: the most edges the resampler accepts";
   }
 
   // A read loop that ended without a stop request ended the acquisition: the thread fails.
@@ -308,6 +332,7 @@ class ComediSource final : public Source {
   EdgeStreamConfig edge_config_;
   std::int64_t epoch_utime_;
   StreamInfo info_;
+  std::vector<ComediAcquisitionConfig> acquisition_configs_;  // as comedi_acquisitions() gives them
   std::vector<std::unique_ptr<Acquisition>> acquisitions_;  // encoder-clocked ones, then the microphones
   std::size_t edge_count_ = 0;
   std::uint32_t timestamp_acquisition_ = 1;
@@ -327,6 +352,25 @@ std::unique_ptr<Acquisition> open_comedi_acquisition(const ComediAcquisitionConf
   return std::make_unique<DeviceAcquisition>(config);
 }
 
+double edge_scan_rate_hz(const ComediSourceConfig::Encoder& e) {
+  if (!(e.max_rpm > 0.0)) return dsp::NonuniformResampler::kAnyEncoderEdgeRateHz;
+  return e.max_rpm / 60.0 * e.counts_per_rev / e.counts_per_edge;
+}
+
+std::string buffer_note(const Acquisition& a, const ComediAcquisitionConfig& config, double scan_rate_hz,
+                        const std::string& rate_what) {
+  const std::size_t scan_bytes = a.conversions().size() * static_cast<std::size_t>(a.sample_width());
+  std::ostringstream s;
+  s.precision(3);
+  s << "comedi " << a.where() << ": kernel buffer " << a.buffer_bytes() << " bytes ("
+    << (config.buffer_bytes > 0 ? "buffer_bytes = " + std::to_string(config.buffer_bytes) : std::string("the driver's"))
+    << ") holds " << buffer_seconds(a.buffer_bytes(), scan_bytes, scan_rate_hz) << " s of " << scan_bytes
+    << "-byte scans at " << std::lround(scan_rate_hz) << " scans/s (" << rate_what
+    << "): the driver thread may stall that long before the card overruns; the reader is woken "
+    << (config.wake_every_scan ? "every scan (wake_every_scan)" : "per block");
+  return s.str();
+}
+
 std::vector<ComediAcquisitionConfig> comedi_acquisitions(const ComediSourceConfig& c) {
   auto fail = [](const std::string& what) { throw std::invalid_argument(what); };
   std::vector<ComediAcquisitionConfig> out;
@@ -338,6 +382,8 @@ std::vector<ComediAcquisitionConfig> comedi_acquisitions(const ComediSourceConfi
   p.external_trigger = c.pressure.edge_trigger;
   p.start_trigger = c.pressure.start_trigger;
   p.convert_src = c.pressure.convert_src;
+  p.buffer_bytes = c.pressure.buffer_bytes;
+  p.wake_every_scan = c.pressure.wake_every_scan;
   ComediChannelConfig pc = c.pressure.channel;
   pc.si_per_volt = pressure_si_per_volt(c.pressure);
   p.channels.push_back(pc);
@@ -357,6 +403,8 @@ std::vector<ComediAcquisitionConfig> comedi_acquisitions(const ComediSourceConfi
   e.start_trigger = c.encoder.start_trigger;
   e.convert_src = c.encoder.convert_src;
   e.use_soft_calibration = false;
+  e.buffer_bytes = c.encoder.buffer_bytes;
+  e.wake_every_scan = c.encoder.wake_every_scan;
   const ComediChannelConfig position{.channel = c.encoder.position_channel, .range = 0, .aref = AREF_GROUND,
                                      .si_per_volt = 1.0, .raw_counts = true, .counter_mode = c.encoder.position_counter_mode};
   const ComediChannelConfig timestamp{.channel = c.encoder.timestamp_channel, .range = 0, .aref = AREF_GROUND,
@@ -387,6 +435,8 @@ std::vector<ComediAcquisitionConfig> comedi_acquisitions(const ComediSourceConfi
   mic.subdevice = m.subdevice;
   mic.clock = ScanClock::kTimed;
   mic.scan_rate_hz = m.scan_rate_hz;
+  mic.buffer_bytes = m.buffer_bytes;
+  mic.wake_every_scan = m.wake_every_scan;
   for (std::size_t i = 0; i < m.channels.size(); ++i) {
     ComediChannelConfig ch = m.channels[i];
     try {

@@ -50,6 +50,8 @@ struct ComediSourceConfig {
     unsigned cam_aref = AREF_GROUND;
     double peg_pa = 0.0;            // > 0: relative sensor, pegged to this pressure at peg_angle_deg every cycle
     double peg_angle_deg = -180.0;
+    unsigned buffer_bytes = 0;      // > 0: the kernel acquisition buffer's size; 0: leave the driver's
+    bool wake_every_scan = false;   // CMDF_WAKE_EOS: wake the driver thread after every scan
   } pressure;
 
   struct Encoder {
@@ -71,6 +73,8 @@ struct ComediSourceConfig {
     bool index_resets_counter = true;  // the index resets the position counter: each revolution's count is checked
     std::uint32_t counts_per_edge = 1; // position counts between two clocking edges (4 for x4 decoding on one edge)
     double max_rpm = 0.0;              // the engine's highest speed (sizes the resampler); 0: any encoder
+    unsigned buffer_bytes = 0;         // as for the pressure (also the separate timestamp subdevice's)
+    bool wake_every_scan = false;
   } encoder;
 
   PhaseSource phase = PhaseSource::kPressure;
@@ -86,11 +90,16 @@ struct ComediSourceConfig {
     std::vector<std::array<double, 3>> positions_m;   // empty: thesis Table 3.1 (up to 10 microphones)
     double radius_m = 1.75;
     double speed_of_sound_m_s = 343.0;
+    unsigned buffer_bytes = 0;
+    bool wake_every_scan = false;
   } mics;
 
   std::chrono::microseconds initial_backoff{10000};
   std::chrono::microseconds max_backoff{1000000};
   unsigned max_consecutive_overruns = 16;
+
+  // Start-up notes (each kernel buffer's size and the seconds it holds); empty: written to stderr.
+  std::function<void(const std::string&)> log_info;
 
   // Scheduling of the driver threads nm-pressure (encoder and pressure) and nm-mics (the daemon's [threads]).
   struct Threads {
@@ -112,6 +121,7 @@ class Acquisition {
   virtual void cancel() = 0;                 // stop acquiring (unblocks readers)
   virtual std::int64_t origin_utime() const = 0;  // host time of the first timer tick of the latest (re)start
   virtual ReadFunction read_function() const { return {}; }  // empty: ::read
+  virtual unsigned buffer_bytes() const { return 0; }  // the kernel buffer's size; 0: no kernel buffer
 };
 
 // The libcomedi-backed Acquisition (ComediDevice); origin_utime is the host time around comedi_command.
@@ -119,6 +129,15 @@ std::unique_ptr<Acquisition> open_comedi_acquisition(const ComediAcquisitionConf
 
 // How the source obtains its acquisitions (tests substitute descriptors they own).
 using AcquisitionFactory = std::function<std::unique_ptr<Acquisition>(const ComediAcquisitionConfig&)>;
+
+// The most scans per second an edge-clocked acquisition delivers: the edge rate at encoder.max_rpm, or with
+// max_rpm 0 the most the crank-angle resampler accepts (600 kHz).
+double edge_scan_rate_hz(const ComediSourceConfig::Encoder& encoder);
+
+// The start-up note on an acquisition's kernel buffer: its size, the scan rate and the seconds it holds then
+// (how long the driver thread may stall before the card overruns). rate_what says where the rate comes from.
+std::string buffer_note(const Acquisition& acquisition, const ComediAcquisitionConfig& config, double scan_rate_hz,
+                        const std::string& rate_what);
 
 // The acquisition configurations the source opens, in order: the encoder-clocked ones (pressure, encoder,
 // [separate timestamp counter]) then the microphones. Throws std::invalid_argument naming the config field.

@@ -87,6 +87,8 @@ TEST(Config, DocumentedDefaultFileEqualsBuiltInDefaults) {
   EXPECT_EQ(file.comedi.encoder.subdevice, def.comedi.encoder.subdevice);
   EXPECT_EQ(file.comedi.mics.channels.size(), def.comedi.mics.channels.size());
   EXPECT_EQ(file.comedi.phase, def.comedi.phase);
+  EXPECT_EQ(file.comedi.mics.buffer_bytes, def.comedi.mics.buffer_bytes);
+  EXPECT_EQ(file.comedi.encoder.wake_every_scan, def.comedi.encoder.wake_every_scan);
   EXPECT_FALSE(file.can.configured());
   EXPECT_TRUE(file.can.map.signals().empty());
   EXPECT_EQ(file.threads.lock_memory, def.threads.lock_memory);
@@ -142,6 +144,50 @@ TEST(Config, ComediAndCanErrorsNameFileAndKey) {
                 .find("test.toml: can.signal[0].length"), std::string::npos);
   EXPECT_NE(error_of("[lcm]\nsession_timeout_s = 0\n").find("lcm.session_timeout_s"), std::string::npos);
   EXPECT_EQ(error_of("[daemon]\nsource = \"comedi\"\n"), "");  // devices are checked when the source opens them
+}
+
+TEST(Config, ComediKernelBufferAndWakeUpPerAcquisition) {
+  const Config def;
+  EXPECT_EQ(def.comedi.pressure.buffer_bytes, 0u);  // leave the driver's buffer
+  EXPECT_FALSE(def.comedi.mics.wake_every_scan);
+  const Config c = parse_config(R"(
+[comedi.pressure]
+buffer_bytes = 1048576
+[comedi.encoder]
+buffer_bytes = 4194304
+wake_every_scan = true
+[comedi.mics]
+wake_every_scan = true
+)", "test.toml");
+  EXPECT_EQ(c.comedi.pressure.buffer_bytes, 1048576u);
+  EXPECT_FALSE(c.comedi.pressure.wake_every_scan);
+  EXPECT_EQ(c.comedi.encoder.buffer_bytes, 4194304u);
+  EXPECT_TRUE(c.comedi.encoder.wake_every_scan);
+  EXPECT_EQ(c.comedi.mics.buffer_bytes, 0u);
+  EXPECT_TRUE(c.comedi.mics.wake_every_scan);
+  // They reach the acquisitions the source opens (a separate timestamp counter shares the encoder's).
+  Config hw = load_config(NOISEMON_SOURCE_DIR "/systemd/noisemond.comedi.toml");
+  hw.comedi.pressure.buffer_bytes = 1048576;
+  hw.comedi.encoder = c.comedi.encoder;
+  hw.comedi.encoder.subdevice = 0;
+  hw.comedi.encoder.timestamp_subdevice = 1;
+  hw.comedi.mics.wake_every_scan = true;
+  const auto a = noisemon::drivers::comedi_acquisitions(hw.comedi);
+  ASSERT_EQ(a.size(), 4u);
+  EXPECT_EQ(a[0].buffer_bytes, 1048576u);
+  EXPECT_FALSE(a[0].wake_every_scan);
+  EXPECT_EQ(a[1].buffer_bytes, 4194304u);
+  EXPECT_EQ(a[2].buffer_bytes, 4194304u);
+  EXPECT_TRUE(a[2].wake_every_scan);
+  EXPECT_EQ(a[3].buffer_bytes, 0u);
+  EXPECT_TRUE(a[3].wake_every_scan);
+
+  EXPECT_NE(error_of("[comedi.pressure]\nbuffer_bytes = -1\n").find("comedi.pressure.buffer_bytes: value -1 out of range"), std::string::npos);
+  EXPECT_NE(error_of("[comedi.encoder]\nbuffer_bytes = 2147483648\n").find("comedi.encoder.buffer_bytes: value 2147483648 out of range"), std::string::npos);
+  EXPECT_NE(error_of("[comedi.mics]\nbuffer_bytes = 1.5e6\n").find("comedi.mics.buffer_bytes: expected an integer"), std::string::npos);
+  EXPECT_NE(error_of("[comedi.mics]\nwake_every_scan = \"yes\"\n").find("comedi.mics.wake_every_scan: expected true or false"), std::string::npos);
+  EXPECT_NE(error_of("[comedi.encoder]\nwake_every_scan = 1\n").find("comedi.encoder.wake_every_scan: expected true or false"), std::string::npos);
+  EXPECT_NE(error_of("[comedi]\nbuffer_bytes = 4096\n").find("unknown key 'comedi.buffer_bytes'"), std::string::npos);  // per acquisition only
 }
 
 TEST(Config, PresetAndOverridesAreApplied) {

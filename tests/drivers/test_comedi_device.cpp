@@ -1,7 +1,8 @@
 // Tests of the comedi device path that need no card: the open error on a missing device, the read loop's
 // overrun/restart/backoff and end-of-stream handling (scripted fake reads and real closed descriptors), the
-// command settling loop against scripted comedi_command_test behaviour, and CR_PACK against comedi.h's
-// documented bit layout (chan bits 0-15, range 16-23, aref 24-25).
+// command settling loop against scripted comedi_command_test behaviour, CR_PACK against comedi.h's
+// documented bit layout (chan bits 0-15, range 16-23, aref 24-25), the wake-every-scan flag, and the sizing of
+// the kernel buffer against scripted libcomedi buffer calls (and the start-up note on what it holds).
 #include "drivers/comedi/comedi_device.hpp"
 
 #include <fcntl.h>
@@ -14,6 +15,8 @@
 #include <chrono>
 #include <cstring>
 #include <deque>
+
+#include "drivers/comedi/comedi_source.hpp"
 
 namespace nd = noisemon::drivers;
 
@@ -220,4 +223,152 @@ TEST(ComediCommand, UnsettledFieldIsNamed) {
   // A failing test reports errno.
   EXPECT_THROW(nd::settle_command(cmd, [](comedi_cmd&) { errno = EINVAL; return -1; }, "/dev/comedi7", 3),
                std::runtime_error);
+}
+
+TEST(ComediCommand, WakeEveryScanSetsOnlyCmdfWakeEos) {
+  unsigned chanlist[1] = {0};
+  comedi_cmd cmd = nd::external_scan_command(0, 0, chanlist, 1);
+  EXPECT_EQ(cmd.flags & CMDF_WAKE_EOS, 0u);  // default: the kernel wakes the reader per block
+  cmd.flags = CMDF_PRIORITY;
+  nd::apply_wake_flag(cmd, true);
+  EXPECT_EQ(cmd.flags, static_cast<unsigned>(CMDF_PRIORITY | CMDF_WAKE_EOS));
+  nd::apply_wake_flag(cmd, true);  // idempotent
+  EXPECT_EQ(cmd.flags, static_cast<unsigned>(CMDF_PRIORITY | CMDF_WAKE_EOS));
+  nd::apply_wake_flag(cmd, false);
+  EXPECT_EQ(cmd.flags, static_cast<unsigned>(CMDF_PRIORITY));
+  EXPECT_EQ(CMDF_WAKE_EOS, TRIG_WAKE_EOS);  // the older name of the same bit
+}
+
+namespace {
+
+// A subdevice's kernel buffer as libcomedi sees it: sizes round up to whole pages; raising the maximum can be
+// refused (an unprivileged process).
+struct FakeKernelBuffer {
+  int size = 65536, max = 1 << 20;
+  bool may_raise_max = true;
+  int set_calls = 0, set_max_calls = 0;
+  std::string order;
+  static int pages(unsigned n) { return static_cast<int>((n + 4095) / 4096 * 4096); }
+  nd::KernelBufferCalls calls() {
+    return {.get_size = [this] { return size; },
+            .get_max_size = [this] { return max; },
+            .set_size = [this](unsigned n) {
+              ++set_calls;
+              order += "s";
+              return size = pages(n);
+            },
+            .set_max_size = [this](unsigned n) {
+              ++set_max_calls;
+              order += "m";
+              if (!may_raise_max) return errno = EPERM, -1;
+              return max = pages(n);
+            },
+            .error = [] { return std::string(std::strerror(EPERM)); }};
+  }
+};
+
+std::string error_of(const std::function<void()>& f) {
+  try {
+    f();
+  } catch (const std::runtime_error& e) {
+    return e.what();
+  }
+  return "";
+}
+
+}  // namespace
+
+TEST(ComediBuffer, ZeroLeavesTheDriversBuffer) {
+  FakeKernelBuffer k;
+  EXPECT_EQ(nd::size_kernel_buffer(0, k.calls(), "/dev/comedi7", 3), 65536u);
+  EXPECT_EQ(k.set_calls + k.set_max_calls, 0);
+}
+
+TEST(ComediBuffer, WithinTheLimitSetsTheSizeAndReportsWhatTheKernelGave) {
+  FakeKernelBuffer k;
+  EXPECT_EQ(nd::size_kernel_buffer(500000, k.calls(), "/dev/comedi7", 3), 503808u);  // 123 pages
+  EXPECT_EQ(k.order, "s");
+}
+
+TEST(ComediBuffer, AboveTheLimitRaisesTheLimitFirst) {
+  FakeKernelBuffer k;
+  EXPECT_EQ(nd::size_kernel_buffer(4 << 20, k.calls(), "/dev/comedi7", 3), 4u << 20);
+  EXPECT_EQ(k.order, "ms");
+  EXPECT_EQ(k.max, 4 << 20);
+}
+
+TEST(ComediBuffer, RefusedLimitNamesDeviceSubdeviceSizeAndRoot) {
+  FakeKernelBuffer k;
+  k.may_raise_max = false;
+  const std::string what = error_of([&] { nd::size_kernel_buffer(4 << 20, k.calls(), "/dev/comedi7", 3); });
+  EXPECT_NE(what.find("/dev/comedi7 subdevice 3"), std::string::npos) << what;
+  EXPECT_NE(what.find("4194304 bytes"), std::string::npos) << what;
+  EXPECT_NE(what.find("buffer_bytes"), std::string::npos) << what;
+  EXPECT_NE(what.find("needs root"), std::string::npos) << what;
+  EXPECT_NE(what.find(std::strerror(EPERM)), std::string::npos) << what;
+  EXPECT_EQ(k.set_calls, 0);  // the size is not attempted once the limit is refused
+}
+
+TEST(ComediBuffer, RefusedSizeNamesDeviceSubdeviceAndSize) {
+  FakeKernelBuffer k;
+  auto calls = k.calls();
+  calls.set_size = [](unsigned) { return errno = EBUSY, -1; };  // e.g. a command running on the subdevice
+  calls.error = [] { return std::string(std::strerror(EBUSY)); };
+  const std::string what = error_of([&] { nd::size_kernel_buffer(1 << 20, calls, "/dev/comedi7", 3); });
+  EXPECT_NE(what.find("cannot set the kernel buffer of /dev/comedi7 subdevice 3 to 1048576 bytes"), std::string::npos) << what;
+  EXPECT_NE(what.find(std::strerror(EBUSY)), std::string::npos) << what;
+}
+
+TEST(ComediBuffer, SecondsHeldAtTheScanRate) {
+  // 1 MiB of ten 16-bit microphone channels at 50 kHz: 1048576 / (20 x 50000) s.
+  EXPECT_DOUBLE_EQ(nd::buffer_seconds(1 << 20, 20, 50000.0), 1.048576);
+  EXPECT_EQ(nd::buffer_seconds(1 << 20, 20, 0.0), 0.0);
+  EXPECT_EQ(nd::buffer_seconds(1 << 20, 0, 50000.0), 0.0);
+  // Edge-clocked: the edge rate at max_rpm, else the most the resampler accepts.
+  nd::ComediSourceConfig::Encoder e;
+  e.counts_per_rev = 3600;
+  e.max_rpm = 4000;
+  EXPECT_DOUBLE_EQ(nd::edge_scan_rate_hz(e), 240000.0);
+  e.counts_per_edge = 4;
+  EXPECT_DOUBLE_EQ(nd::edge_scan_rate_hz(e), 60000.0);
+  e.max_rpm = 0;
+  EXPECT_DOUBLE_EQ(nd::edge_scan_rate_hz(e), 600000.0);
+}
+
+namespace {
+
+// Only what buffer_note reads: where, sample width, channel count and the kernel buffer's size.
+class NoteAcquisition final : public nd::Acquisition {
+ public:
+  std::string where() const override { return "/dev/comedi7 subdevice 3"; }
+  int fd() const override { return -1; }
+  nd::SampleWidth sample_width() const override { return nd::SampleWidth::k16Bit; }
+  const std::vector<nd::ChannelConversion>& conversions() const override { return conversions_; }
+  double scan_period_s() const override { return 2e-5; }
+  void start() override {}
+  bool restart() override { return true; }
+  void cancel() override {}
+  std::int64_t origin_utime() const override { return 0; }
+  unsigned buffer_bytes() const override { return 1 << 20; }
+
+ private:
+  std::vector<nd::ChannelConversion> conversions_ = std::vector<nd::ChannelConversion>(10);
+};
+
+}  // namespace
+
+TEST(ComediBuffer, StartUpNoteStatesSizeRateAndSeconds) {
+  const NoteAcquisition a;
+  nd::ComediAcquisitionConfig c;
+  c.buffer_bytes = 1000000;
+  c.wake_every_scan = true;
+  const std::string note = nd::buffer_note(a, c, 50000.0, "the card's settled scan rate");
+  for (const char* part : {"/dev/comedi7 subdevice 3", "kernel buffer 1048576 bytes", "buffer_bytes = 1000000",
+                           "holds 1.05 s", "20-byte scans", "50000 scans/s", "every scan"})
+    EXPECT_NE(note.find(part), std::string::npos) << part << " in: " << note;
+  c.buffer_bytes = 0;
+  c.wake_every_scan = false;
+  const std::string driver = nd::buffer_note(a, c, 50000.0, "x");
+  EXPECT_NE(driver.find("the driver's"), std::string::npos) << driver;
+  EXPECT_NE(driver.find("per block"), std::string::npos) << driver;
 }
