@@ -5,8 +5,10 @@
 #
 # Case 1: 250 cycles at 3050 rpm (sim idle_mi18), 0.1 deg encoder, 10 microphones at 51.2 kHz, linear model.
 # Case 2: 50 cycles, the same with a 0.2 bar rms pressure-chain floor (sim --pressure-floor 0.2), nl_damper;
-#   scipy_way.py twice: the spline straight onto 40 kHz, and --oversample 4 (anti-aliased: the floor above 20 kHz
-#   folds into the band otherwise). tests/bench/vs_scipy_report.py prints each case.
+#   scipy_way.py three times: the spline straight onto 40 kHz, and --oversample 4 (anti-aliased: the floor above
+#   20 kHz folds into the band otherwise), both with the model by the trapezoidal rule (--ode tustin); then
+#   --oversample 4 with the model by scipy.integrate.solve_ivp (--ode solve_ivp; about 5 s per second of engine
+#   time). tests/bench/vs_scipy_report.py prints each case.
 # Each case times `noisemon import` + `noisemon replay --model M` against `scipy_way.py --model M` (whole processes:
 # the Python start and the NumPy/SciPy imports count, as the program start does for noisemon); REPEATS=N (default
 # 1) runs each N times and keeps the fastest. Prints wall and CPU seconds, x real time (engine time / wall time),
@@ -39,10 +41,11 @@ best_time() {
   echo "$best" >"$out"
 }
 
-# run_case NAME CYCLES FLOOR_BAR MODEL OVERSAMPLE...: generates the run, times noisemon and scipy_way.py (once per
-# --oversample K given), prints the case's rows.
+# run_case NAME CYCLES FLOOR_BAR MODEL VARIANT...: generates the run, times noisemon and scipy_way.py (once per
+# VARIANT: K for --oversample K, or K:ODE for --oversample K --ode ODE), prints the case's rows.
+logs=()
 run_case() {
-  local name=$1 cycles=$2 floor=$3 model=$4 k
+  local name=$1 cycles=$2 floor=$3 model=$4 v k ode
   shift 4
   local run="$work/$name/idle_mi18"
   "$noisemon" sim --condition idle_mi18 --cycles "$cycles" --encoder-deg 0.1 --pressure-floor "$floor" \
@@ -52,10 +55,12 @@ run_case() {
   best_time "$work/$name.import" "$noisemon" import "$run" -o "$work/$name.lcmlog" --epoch-utime $epoch --no-progress
   best_time "$work/$name.replay" "$noisemon" replay "$work/$name.lcmlog" --model "$model" \
     --csv "$work/$name.noisemon.csv" --no-progress
-  for k in "$@"; do
-    best_time "$work/$name.scipy$k" "$python" "$here/scipy_way.py" "$run" --model "$model" --oversample "$k" \
-      --csv "$work/$name.scipy$k.csv" --quiet
-    cp "$work/last.log" "$work/$name.scipy$k.log"
+  for v in "$@"; do
+    k=${v%%:*} ode=${v#"$k"}
+    best_time "$work/$name.scipy$v" "$python" "$here/scipy_way.py" "$run" --model "$model" --oversample "$k" \
+      ${ode:+--ode "${ode#:}"} --csv "$work/$name.scipy$v.csv" --quiet
+    cp "$work/last.log" "$work/$name.scipy$v.log"
+    logs+=("$work/$name.scipy$v.log")
   done
   "$python" "$here/vs_scipy_report.py" "$name ($cycles cycles, $model, floor $floor bar)" "$engine_s" "$work/$name" \
     $epoch "$@"
@@ -63,10 +68,10 @@ run_case() {
 
 echo "noisemon $(cd "$here/../.." && git describe --always --dirty 2>/dev/null || echo '?') vs SciPy $("$python" -c \
   'import numpy, scipy; print(scipy.__version__ + ", NumPy " + numpy.__version__)'); $(nproc) cores, load $(cut -d' ' -f1-3 /proc/loadavg)"
-printf '  %-34s %8s %8s %10s\n' "" "wall s" "CPU s" "real time"
+printf '  %-44s %8s %8s %10s\n' "" "wall s" "CPU s" "real time"
 run_case long 250 0.02 linear 1
-run_case noisy 50 0.2 nl_damper 1 4
-for log in "$work"/long.scipy1.log "$work"/noisy.scipy1.log "$work"/noisy.scipy4.log; do
+run_case noisy 50 0.2 nl_damper 1:tustin 4:tustin 4:solve_ivp
+for log in "${logs[@]}"; do
   echo "scipy_way.py's stages, $(basename "$log" .log):"
   grep '^  ' "$log"
 done

@@ -1,11 +1,12 @@
 #!/usr/bin/python3
 """One case of tests/bench/vs_scipy.sh: the timing rows and how far scipy_way.py's levels lie from noisemon's.
 
-    vs_scipy_report.py LABEL ENGINE_S BASE EPOCH_UTIME OVERSAMPLE...
+    vs_scipy_report.py LABEL ENGINE_S BASE EPOCH_UTIME VARIANT...
 
-reads BASE.import, BASE.replay, BASE.scipyK ("wall cpu" seconds), BASE.noisemon.csv (replay --csv) and
-BASE.scipyK.csv (scipy_way.py --csv). Cycles are matched by their start time (noisemon: (utime - EPOCH) / 1e6);
-noisemon's settling cycles are left out.
+VARIANT: K (scipy_way.py --oversample K) or K:ODE (--oversample K --ode ODE). Reads BASE.import, BASE.replay,
+BASE.scipyVARIANT ("wall cpu" seconds), BASE.noisemon.csv (replay --csv) and BASE.scipyVARIANT.csv (scipy_way.py
+--csv). Cycles are matched by their start time (noisemon: (utime - EPOCH) / 1e6); noisemon's settling cycles are
+left out. A K:solve_ivp variant is also compared with K:tustin, cycle by cycle, when both are given.
 """
 import sys
 
@@ -17,7 +18,7 @@ def times(path):
 
 
 def row(what, wall, cpu, engine_s):
-    print(f"  {what:34s} {wall:8.2f} {cpu:8.2f} {engine_s / wall:9.1f}x")
+    print(f"  {what:44s} {wall:8.2f} {cpu:8.2f} {engine_s / wall:9.1f}x")
 
 
 def energy_mean(levels):
@@ -38,6 +39,14 @@ def agreement(base, k, epoch):
               f"(per cycle {np.min(a - b):+.2f} .. {np.max(a - b):+.2f})")
 
 
+def ode_agreement(base, k):
+    """Predicted Lp(A) per cycle, --ode solve_ivp against --ode tustin (same cycles: same run, same K)."""
+    a = np.genfromtxt(f"{base}.scipy{k}:solve_ivp.csv", delimiter=",", names=True)["lpa_predicted_db"]
+    b = np.genfromtxt(f"{base}.scipy{k}:tustin.csv", delimiter=",", names=True)["lpa_predicted_db"]
+    print(f"    Lp(A) predicted over {len(a)} cycles: solve_ivp - tustin {energy_mean(a) - energy_mean(b):+.3f} dB "
+          f"(per cycle {np.min(a - b):+.3f} .. {np.max(a - b):+.3f})")
+
+
 def main():
     label, engine_s, base, epoch = sys.argv[1], float(sys.argv[2]), sys.argv[3], int(sys.argv[4])
     variants = sys.argv[5:]
@@ -47,11 +56,15 @@ def main():
     row("noisemon import", *imp, engine_s)
     row("noisemon replay", *rep, engine_s)
     row("noisemon import + replay", *nm, engine_s)
-    for k in variants:
-        sp = times(f"{base}.scipy{k}")
-        row("scipy_way.py" + (f" --oversample {k}" if k != "1" else ""), *sp, engine_s)
-        print(f"    {'ratio noisemon / SciPy':32s} {nm[0] / sp[0]:8.2f} {nm[1] / sp[1]:8.2f}")
-        agreement(base, k, int(epoch))
+    for v in variants:
+        k, _, ode = v.partition(":")
+        sp = times(f"{base}.scipy{v}")
+        row("scipy_way.py" + (f" --oversample {k}" if k != "1" else "") + (f" --ode {ode}" if ode else ""), *sp,
+            engine_s)
+        print(f"    {'ratio noisemon / SciPy':42s} {nm[0] / sp[0]:8.2f} {nm[1] / sp[1]:8.2f}")
+        agreement(base, v, int(epoch))
+        if ode == "solve_ivp" and f"{k}:tustin" in variants:
+            ode_agreement(base, k)
 
 
 if __name__ == "__main__":
