@@ -50,6 +50,7 @@ void BM_CycleProcessing(benchmark::State& state) {
     for (std::int64_t b = 0; b < blocks; ++b) {
       pb[b].first_index = mb[b].first_index = offset + b * 256;
       // Keep the crank channel continuous across repetitions.
+      const daemon::CycleProcessor::CpuBatch cpu(p);  // as the processing thread times each batch of blocks
       p.add_pressure(pb[b]);
       p.add_mics(mb[b]);
       p.process();
