@@ -163,10 +163,11 @@ ImportSummary run_import(const ImportOptions& o) {
     progress.stage(prefix + " reading");
     drivers::Recording rec;
     {
-      const drivers::RunDir run = drivers::read_run_dir(dir);
+      drivers::RunDir run = drivers::read_run_dir(dir);
+      const drivers::RunCondition condition = run.condition;
       progress.stage(prefix + " resampling to 40 kHz");
-      rec = drivers::to_recording(run, epoch);
-      note_unknowns(dir, run.condition, rec.operating_points.front(), sum.notes);
+      rec = drivers::to_recording(std::move(run), epoch);  // frees the run's samples as they are resampled
+      note_unknowns(dir, condition, rec.operating_points.front(), sum.notes);
     }
     try {
       synthesize(o.synthesize_mics, rec);

@@ -3,11 +3,15 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <exception>
 #include <lcm/lcm-cpp.hpp>
 #include <limits>
+#include <span>
 #include <stdexcept>
+#include <thread>
 
 #include "drivers/formats/lcm_log_reader.hpp"
+#include "drivers/formats/run_both.hpp"
 #include "drivers/formats/stream_messages.hpp"
 #include "dsp/resample.hpp"
 
@@ -47,54 +51,103 @@ struct Stream {
   std::int64_t end() const { return first + static_cast<std::int64_t>(values.size() / channels); }
 };
 
-// Encoder samples -> 40 kHz pressure and crank. Returns the encoder step, degrees.
-double resample_pressure(const RunDir& run, Stream& pressure, Stream& crank) {
+// The encoder samples evenly spaced in angle, on the resampler's clock: views of the run's own columns, or filled
+// copies when samples are missing (crank steps of 1.5 .. kMaxCrankGapSteps encoder steps: linear interpolation in
+// time, crank angle and pressure) or the times must be shifted.
+struct EncoderSamples {
+  std::vector<double> t_own, th_own, p_own;
+  std::span<const double> t, th, p;
+  std::int64_t shift = 0;  // grid index of the resampler's t = 0
+};
+
+void fill_missing_samples(const RunDir& run, double step, EncoderSamples& s) {
   const std::size_t n = run.time_s.size();
-  // Encoder step; fill missing samples (the reader allows up to kMaxCrankGapSteps) so they are evenly spaced.
-  std::vector<double> steps(n - 1);
-  for (std::size_t i = 1; i < n; ++i) steps[i - 1] = run.crank_deg[i] - run.crank_deg[i - 1];
-  std::nth_element(steps.begin(), steps.begin() + static_cast<std::ptrdiff_t>(steps.size() / 2), steps.end());
-  const double step = steps[steps.size() / 2];
-  std::vector<double> t, th, p;
-  t.reserve(n);
-  th.reserve(n);
-  p.reserve(n);
+  s.t_own.reserve(n);
+  s.th_own.reserve(n);
+  s.p_own.reserve(n);
   for (std::size_t i = 0; i < n; ++i) {
     if (i > 0) {
       const double d = run.crank_deg[i] - run.crank_deg[i - 1];
       const long missing = d > 1.5 * step ? std::lround(d / step) - 1 : 0;
       for (long j = 1; j <= missing; ++j) {
         const double f = static_cast<double>(j) / static_cast<double>(missing + 1);
-        t.push_back(run.time_s[i - 1] + f * (run.time_s[i] - run.time_s[i - 1]));
-        th.push_back(run.crank_deg[i - 1] + f * d);
-        p.push_back(run.pressure_pa[i - 1] + f * (run.pressure_pa[i] - run.pressure_pa[i - 1]));
+        s.t_own.push_back(run.time_s[i - 1] + f * (run.time_s[i] - run.time_s[i - 1]));
+        s.th_own.push_back(run.crank_deg[i - 1] + f * d);
+        s.p_own.push_back(run.pressure_pa[i - 1] + f * (run.pressure_pa[i] - run.pressure_pa[i - 1]));
       }
     }
-    t.push_back(run.time_s[i]);
-    th.push_back(run.crank_deg[i]);
-    p.push_back(run.pressure_pa[i]);
+    s.t_own.push_back(run.time_s[i]);
+    s.th_own.push_back(run.crank_deg[i]);
+    s.p_own.push_back(run.pressure_pa[i]);
   }
-  // The resampler's clock starts at a grid instant at or before the first sample (it needs t >= 0).
-  const std::int64_t shift = t.front() < 0 ? static_cast<std::int64_t>(std::floor(t.front() * kFs)) : 0;
-  for (double& v : t) v -= static_cast<double>(shift) / kFs;
+  s.t = s.t_own;
+  s.th = s.th_own;
+  s.p = s.p_own;
+}
 
-  dsp::NonuniformResampler rs(kFs, 1);
+void encoder_samples(const RunDir& run, double step, EncoderSamples& s) {
+  s.t = run.time_s;
+  s.th = run.crank_deg;
+  s.p = run.pressure_pa;
+  for (std::size_t i = 1; i < run.crank_deg.size(); ++i)
+    if (run.crank_deg[i] - run.crank_deg[i - 1] > 1.5 * step) {
+      fill_missing_samples(run, step, s);
+      break;
+    }
+  // The resampler's clock starts at a grid instant at or before the first sample (it needs t >= 0).
+  s.shift = s.t.front() < 0 ? static_cast<std::int64_t>(std::floor(s.t.front() * kFs)) : 0;
+  if (s.shift != 0) {
+    if (s.t_own.empty()) s.t_own.assign(s.t.begin(), s.t.end());
+    for (double& v : s.t_own) v -= static_cast<double>(s.shift) / kFs;
+    s.t = s.t_own;
+  }
+}
+
+// The run's highest edge rate (its shortest step) with a 10 % margin: the resampler's fine grid is sized to it
+// (half the cost of the any-encoder grid for a 0.1 deg encoder below 4200 rpm).
+double highest_edge_rate_hz(std::span<const double> t) {
+  double shortest = std::numeric_limits<double>::infinity();
+  for (std::size_t i = 1; i < t.size(); ++i) shortest = std::min(shortest, t[i] - t[i - 1]);
+  return shortest > 0.0 && std::isfinite(shortest) ? 1.1 / shortest : dsp::NonuniformResampler::kAnyEncoderEdgeRateHz;
+}
+
+// The pressure through the NonuniformResampler (its start-up dropped); pressure.first on the resampler's clock.
+void resample_pressure_values(const EncoderSamples& s, Stream& pressure) {
+  const auto& t = s.t;
+  dsp::NonuniformResampler rs(kFs, 1, highest_edge_rate_hz(t));
   std::vector<double> out;
   bool started = false;
+  std::size_t drop = 0;  // start-up frames still to drop
+  pressure.values.reserve(static_cast<std::size_t>(std::ceil((t.back() - t.front()) * kFs)) + 64);
   constexpr std::size_t kChunk = 4096;
   for (std::size_t done = 0; done < t.size();) {
     const std::size_t take = std::min(kChunk, t.size() - done);
     const double from = done == 0 ? t.front() : t[done - 1];
     const auto room = static_cast<std::size_t>(std::ceil((t[done + take - 1] - from) * kFs)) + 8192 + 64;
-    out.resize(room);
-    const std::size_t got = rs.process(&t[done], &p[done], take, out.data(), room);
+    if (out.size() < room) out.resize(room);
+    const std::size_t got = rs.process(&t[done], &s.p[done], take, out.data(), room);
     if (got > 0 && !started) {
       pressure.first = rs.next_output_index() - static_cast<std::int64_t>(got);
       started = true;
+      drop = static_cast<std::size_t>(kResamplerEdgeFrames);
     }
-    pressure.values.insert(pressure.values.end(), out.begin(), out.begin() + static_cast<std::ptrdiff_t>(got));
+    const std::size_t skip = std::min(drop, got);
+    drop -= skip;
+    pressure.first += static_cast<std::int64_t>(skip);
+    pressure.values.insert(pressure.values.end(), out.begin() + static_cast<std::ptrdiff_t>(skip),
+                           out.begin() + static_cast<std::ptrdiff_t>(got));
     done += take;
   }
+}
+
+// Encoder samples -> 40 kHz pressure and crank (the unwrapped angle interpolated linearly in time, then wrapped).
+// Returns the encoder step, degrees.
+double resample_pressure(const RunDir& run, Stream& pressure, Stream& crank) {
+  const double step = crank_step_deg(run.crank_deg);
+  EncoderSamples s;
+  encoder_samples(run, step, s);
+  resample_pressure_values(s, pressure);
+  const auto& t = s.t;
   crank.first = pressure.first;
   crank.values.resize(pressure.values.size());
   std::size_t seg = 0;
@@ -102,17 +155,10 @@ double resample_pressure(const RunDir& run, Stream& pressure, Stream& crank) {
     const double tau = static_cast<double>(pressure.first + static_cast<std::int64_t>(f)) / kFs;
     while (seg + 2 < t.size() && t[seg + 1] <= tau) ++seg;
     const double a = (tau - t[seg]) / (t[seg + 1] - t[seg]);
-    crank.values[f] = wrap_crank(th[seg] + a * (th[seg + 1] - th[seg]));
+    crank.values[f] = wrap_crank(s.th[seg] + a * (s.th[seg + 1] - s.th[seg]));
   }
-  pressure.first += shift;
-  crank.first += shift;
-  if (started) {  // drop the resampler's start-up
-    const auto drop = static_cast<std::size_t>(std::min<std::int64_t>(kResamplerEdgeFrames, static_cast<std::int64_t>(pressure.values.size())));
-    pressure.values.erase(pressure.values.begin(), pressure.values.begin() + static_cast<std::ptrdiff_t>(drop));
-    crank.values.erase(crank.values.begin(), crank.values.begin() + static_cast<std::ptrdiff_t>(drop));
-    pressure.first += static_cast<std::int64_t>(drop);
-    crank.first += static_cast<std::int64_t>(drop);
-  }
+  pressure.first += s.shift;
+  crank.first += s.shift;
   return step;
 }
 
@@ -128,7 +174,8 @@ void resample_mics(const RunDir& run, Stream& mics) {
   dsp::RationalResampler rs(run.mic_rate_hz, kFs, ch);
   constexpr std::size_t kChunk = 8192;
   std::vector<double> in(kChunk * ch), out(rs.max_output_frames(kChunk) * ch);
-  mics.values.reserve(static_cast<std::size_t>(static_cast<double>(frames) * kFs / run.mic_rate_hz + 16) * ch);
+  mics.values.reserve(static_cast<std::size_t>(static_cast<double>(frames) * kFs / run.mic_rate_hz + 64) * ch);
+  auto drop = static_cast<std::size_t>(kResamplerEdgeFrames);  // the resampler's start-up, dropped
   for (std::size_t done = 0; done < frames;) {
     const std::size_t take = std::min(kChunk, frames - done);
     std::copy(run.mic_pa.begin() + static_cast<std::ptrdiff_t>(done * ch),
@@ -136,12 +183,22 @@ void resample_mics(const RunDir& run, Stream& mics) {
     const std::size_t room = rs.max_output_frames(take);
     if (out.size() < room * ch) out.resize(room * ch);
     const std::size_t got = rs.process(in.data(), take, out.data(), room);
-    mics.values.insert(mics.values.end(), out.begin(), out.begin() + static_cast<std::ptrdiff_t>(got * ch));
+    const std::size_t skip = std::min(drop, got);
+    drop -= skip;
+    mics.first += static_cast<std::int64_t>(skip);
+    mics.values.insert(mics.values.end(), out.begin() + static_cast<std::ptrdiff_t>(skip * ch),
+                       out.begin() + static_cast<std::ptrdiff_t>(got * ch));
     done += take;
   }
-  const auto drop = std::min<std::size_t>(kResamplerEdgeFrames, mics.values.size() / ch);
-  mics.values.erase(mics.values.begin(), mics.values.begin() + static_cast<std::ptrdiff_t>(drop * ch));
-  mics.first = static_cast<std::int64_t>(drop);
+}
+
+// Frames [from, from + frames) of a stream, moved out of it.
+std::vector<double> take_frames(Stream& s, std::int64_t from, std::size_t frames) {
+  std::vector<double> v = std::move(s.values);
+  const auto skip = static_cast<std::ptrdiff_t>(static_cast<std::size_t>(from - s.first) * s.channels);
+  if (skip > 0) v.erase(v.begin(), v.begin() + skip);
+  v.resize(frames * s.channels);
+  return v;
 }
 
 template <class Message>
@@ -382,7 +439,9 @@ std::vector<Recording> read_log(LcmLogReader& reader, const std::string& name, c
 
 }  // namespace
 
-Recording to_recording(const RunDir& run, std::int64_t epoch_utime) {
+namespace {
+
+void check_run(const RunDir& run) {
   const std::size_t n = run.time_s.size();
   if (n < 2 || run.crank_deg.size() != n || run.pressure_pa.size() != n)
     throw RunDirError("run '" + run.condition.name + "': time, crank and pressure columns must have the same length >= 2");
@@ -395,7 +454,36 @@ Recording to_recording(const RunDir& run, std::int64_t epoch_utime) {
     throw RunDirError("run '" + run.condition.name + "': time_s " + std::to_string(run.time_s.front()) + " .. " +
                       std::to_string(run.time_s.back()) + " s, expected a run within " +
                       std::to_string(static_cast<int>(kMaxRecordingSeconds)) + " s of time 0");
+}
 
+template <class T>
+void free_vector(std::vector<T>& v) {
+  std::vector<T>().swap(v);
+}
+
+// The pressure and crank streams; frees the run's columns when `release` is the run.
+void pressure_streams(const RunDir& run, RunDir* release, Recording& rec, Stream& pressure, Stream& crank) {
+  std::int64_t first = 0;
+  if (on_pipeline_grid(run.time_s, first)) {
+    rec.info.pressure_edges_per_rev = run.pressure_edges_per_rev.value_or(0.0);
+    pressure.first = crank.first = first;
+    crank.values.resize(run.time_s.size());
+    for (std::size_t i = 0; i < crank.values.size(); ++i) crank.values[i] = wrap_crank(run.crank_deg[i]);
+    pressure.values = release ? std::move(release->pressure_pa) : run.pressure_pa;
+  } else {
+    // What the encoder's edges carry (run.json says it only for samples already on the 40 kHz grid).
+    rec.info.pressure_edges_per_rev = 360.0 / resample_pressure(run, pressure, crank);
+  }
+  if (release) {
+    free_vector(release->time_s);
+    free_vector(release->crank_deg);
+    free_vector(release->pressure_pa);
+  }
+}
+
+// Run directory -> recording; `release`: the run itself when its sample columns may be freed once resampled.
+Recording convert(const RunDir& run, RunDir* release, std::int64_t epoch_utime) {
+  check_run(run);
   Recording rec;
   rec.condition = run.condition.name;
   rec.info.epoch_utime = epoch_utime;
@@ -405,23 +493,18 @@ Recording to_recording(const RunDir& run, std::int64_t epoch_utime) {
   rec.info.acoustic_delay_s = run.acoustic_delay_s >= 0 ? run.acoustic_delay_s
                               : run.mic_count > 0       ? run.radius_m / kSpeedOfSoundMS
                                                         : 0.0;
+  OperatingPoint op = operating_point_of(run, 0);  // before the columns it may measure the speed from are freed
 
-  Stream pressure, crank;
-  std::int64_t first = 0;
-  if (on_pipeline_grid(run.time_s, first)) {
-    rec.info.pressure_edges_per_rev = run.pressure_edges_per_rev.value_or(0.0);
-    pressure.first = crank.first = first;
-    pressure.values = run.pressure_pa;
-    crank.values.resize(n);
-    for (std::size_t i = 0; i < n; ++i) crank.values[i] = wrap_crank(run.crank_deg[i]);
-  } else {
-    // What the encoder's edges carry (run.json says it only for samples already on the 40 kHz grid).
-    rec.info.pressure_edges_per_rev = 360.0 / resample_pressure(run, pressure, crank);
-  }
+  // The two resamplers on two threads; errors as when the pressure is resampled first.
+  Stream pressure, crank, mics;
+  run_both([&] { pressure_streams(run, release, rec, pressure, crank); },
+           [&] {
+             if (run.mic_count == 0) return;
+             resample_mics(run, mics);
+             if (release) free_vector(release->mic_pa);
+           });
   std::int64_t from = pressure.first, to = pressure.end();
-  Stream mics;
   if (run.mic_count > 0) {
-    resample_mics(run, mics);
     rec.info.mic_passband_hz = run.mic_passband_hz.value_or(run.mic_rate_hz != kFs ? dsp::converter_passband_hz(run.mic_rate_hz) : 0.0);
     from = std::max(from, mics.first);
     to = std::min(to, mics.end());
@@ -432,16 +515,19 @@ Recording to_recording(const RunDir& run, std::int64_t epoch_utime) {
                                          : std::string("too short to resample")));
   const auto frames = static_cast<std::size_t>(to - from);
   rec.first_index = from;
-  const auto p0 = static_cast<std::ptrdiff_t>(from - pressure.first);
-  rec.pressure_pa.assign(pressure.values.begin() + p0, pressure.values.begin() + p0 + static_cast<std::ptrdiff_t>(frames));
-  rec.crank_deg.assign(crank.values.begin() + p0, crank.values.begin() + p0 + static_cast<std::ptrdiff_t>(frames));
-  if (run.mic_count > 0) {
-    const auto m0 = static_cast<std::ptrdiff_t>((from - mics.first) * run.mic_count);
-    rec.mics_pa.assign(mics.values.begin() + m0, mics.values.begin() + m0 + static_cast<std::ptrdiff_t>(frames * run.mic_count));
-  }
-  rec.operating_points.push_back(operating_point_of(run, utime_of_index(epoch_utime, from)));
+  rec.pressure_pa = take_frames(pressure, from, frames);
+  rec.crank_deg = take_frames(crank, from, frames);
+  if (run.mic_count > 0) rec.mics_pa = take_frames(mics, from, frames);
+  op.utime = utime_of_index(epoch_utime, from);
+  rec.operating_points.push_back(op);
   return rec;
 }
+
+}  // namespace
+
+Recording to_recording(const RunDir& run, std::int64_t epoch_utime) { return convert(run, nullptr, epoch_utime); }
+
+Recording to_recording(RunDir&& run, std::int64_t epoch_utime) { return convert(run, &run, epoch_utime); }
 
 OperatingPoint operating_point_of(const RunDir& run, std::int64_t utime) {
   const RunCondition& c = run.condition;
@@ -494,15 +580,41 @@ RunDir to_run_dir(const Recording& rec) {
 }
 
 struct RecordingLogWriter::Impl {
-  Impl(const std::filesystem::path& p, const LogChannels& c) : path(p), channels(c), log(p.string(), "w") {
+  Impl(const std::filesystem::path& p, const LogChannels& c)
+      : path(p), channels(c), file_buffer(std::size_t{1} << 20), log(p.string(), "w") {
     if (!log.good()) throw std::runtime_error(path.string() + ": cannot write log file");
+    // Large writes: the raw blocks' events go to the file a megabyte at a time, not a few kilobytes.
+    std::setvbuf(log.getFilePtr(), file_buffer.data(), _IOFBF, file_buffer.size());
   }
   std::filesystem::path path;
   LogChannels channels;
+  std::vector<char> file_buffer;  // the log's stdio buffer: declared before `log`, so it outlives log's last flush
   lcm::LogFile log;
   std::vector<std::int64_t> epochs;
   std::vector<char> buf;
+  // The raw block messages of the two streams, refilled for each block (their samples keep their storage).
+  noisemon::raw_block_t pressure_block, mic_block;
 };
+
+namespace {
+
+// block becomes the raw block message of frames [first_index, first_index + frames) of one stream, without its
+// samples yet (block.data holds frames * channels values to be filled).
+void start_raw_block(noisemon::raw_block_t& block, std::int8_t stream, std::int64_t epoch, std::int64_t first_index,
+                     std::size_t frames, std::uint32_t channels) {
+  std::vector<double> data = std::move(block.data);
+  SampleBlock header;  // what to_message makes of a block, less the samples
+  header.first_index = first_index;
+  header.frames = 0;
+  header.channels = channels;
+  block = to_message(header, stream, epoch);
+  block.frames = static_cast<std::int16_t>(frames);
+  block.nsamples = static_cast<std::int32_t>(frames * channels);
+  data.resize(frames * channels);
+  block.data = std::move(data);
+}
+
+}  // namespace
 
 RecordingLogWriter::RecordingLogWriter(const std::filesystem::path& log, const LogChannels& channels)
     : impl_(std::make_unique<Impl>(log, channels)) {}
@@ -521,7 +633,6 @@ void RecordingLogWriter::write(const Recording& rec, const ProgressFn& progress)
   const std::uint32_t mics = rec.info.mic_count;
   std::size_t next_op = 0;
   const OperatingPoint* current = nullptr;
-  SampleBlock b;
   for (std::size_t f = 0; f < rec.frames(); f += kBlockFrames) {
     const std::int64_t k = rec.first_index + static_cast<std::int64_t>(f);
     const std::int64_t utime = utime_of_index(epoch, k);
@@ -538,18 +649,18 @@ void RecordingLogWriter::write(const Recording& rec, const ProgressFn& progress)
     }
     if (repeat && !op_written && current)
       write_event(w.log, w.path, w.channels.operating_point, to_message(*current), utime, w.buf);
-    b.first_index = k;
-    b.frames = static_cast<std::uint32_t>(std::min(kBlockFrames, rec.frames() - f));
-    b.channels = kPressureStreamChannels;
-    for (std::uint32_t i = 0; i < b.frames; ++i) {
-      b.data[i * 2 + kPressureChannel] = rec.pressure_pa[f + i];
-      b.data[i * 2 + kCrankChannel] = rec.crank_deg[f + i];
+    const std::size_t frames = std::min(kBlockFrames, rec.frames() - f);
+    noisemon::raw_block_t& p = w.pressure_block;
+    start_raw_block(p, noisemon::raw_block_t::STREAM_PRESSURE, epoch, k, frames, kPressureStreamChannels);
+    for (std::size_t i = 0; i < frames; ++i) {
+      p.data[i * kPressureStreamChannels + kPressureChannel] = rec.pressure_pa[f + i];
+      p.data[i * kPressureStreamChannels + kCrankChannel] = rec.crank_deg[f + i];
     }
-    write_event(w.log, w.path, w.channels.raw, to_message(b, noisemon::raw_block_t::STREAM_PRESSURE, epoch), utime, w.buf);
+    write_event(w.log, w.path, w.channels.raw, p, utime, w.buf);
     if (mics > 0) {
-      b.channels = mics;
-      std::copy_n(&rec.mics_pa[f * mics], b.frames * mics, b.data);
-      write_event(w.log, w.path, w.channels.raw, to_message(b, noisemon::raw_block_t::STREAM_MICS, epoch), utime, w.buf);
+      start_raw_block(w.mic_block, noisemon::raw_block_t::STREAM_MICS, epoch, k, frames, mics);
+      std::copy_n(&rec.mics_pa[f * mics], frames * mics, w.mic_block.data.begin());
+      write_event(w.log, w.path, w.channels.raw, w.mic_block, utime, w.buf);
     }
     if (progress && (f / kBlockFrames) % 256 == 0)
       progress(static_cast<double>(f) / static_cast<double>(rec.frames()));

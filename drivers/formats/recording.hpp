@@ -41,6 +41,9 @@ struct Recording {
 //   last few hundred microseconds of the pressure are lost); operating_points holds one point from the
 //   run's condition (operating_point_of). Throws RunDirError when nothing is left or the run is inconsistent.
 Recording to_recording(const RunDir& run, std::int64_t epoch_utime);
+// The same, freeing the run's sample columns (time_s, crank_deg, pressure_pa, mic_pa) as soon as they are
+// resampled: the run keeps its condition and microphone layout, its columns are left empty.
+Recording to_recording(RunDir&& run, std::int64_t epoch_utime);
 // The operating point of a run's condition: unknown load, SOI and rail pressure stay NaN; an unknown speed
 // (NaN) is measured from the encoder (encoder_speed_rpm: the mean over the run); an unknown `motored` is
 // published as false (the message's field is a boolean; RunCondition::motored_known keeps the difference).

@@ -1,17 +1,24 @@
 #include "drivers/formats/run_dir.hpp"
 
+#include <fcntl.h>
 #include <sndfile.h>
+#include <sys/mman.h>
+#include <sys/stat.h>
+#include <unistd.h>
 
 #include <algorithm>
 #include <charconv>
 #include <cmath>
 #include <cstring>
+#include <exception>
 #include <fstream>
 #include <limits>
 #include <nlohmann/json.hpp>
 #include <numeric>
 #include <sstream>
+#include <thread>
 
+#include "drivers/formats/run_both.hpp"
 #include "drivers/source.hpp"
 #include "dsp/resample.hpp"
 
@@ -32,6 +39,55 @@ std::string read_text_file(const std::filesystem::path& file, const char* what) 
   if (in.bad()) throw RunDirError(file.string() + ": read error");
   return std::move(s).str();
 }
+
+// Asks for huge pages for the storage a vector has reserved: filling a large one then takes a few page faults
+// instead of one per 4 KiB (where the kernel offers them only on request; elsewhere this changes nothing).
+template <class T>
+void prefer_huge_pages(const std::vector<T>& v) {
+  constexpr std::uintptr_t kHugePage = std::uintptr_t{2} << 20;
+  const auto from = (reinterpret_cast<std::uintptr_t>(v.data()) + kHugePage - 1) / kHugePage * kHugePage;
+  const auto to = reinterpret_cast<std::uintptr_t>(v.data() + v.capacity()) / kHugePage * kHugePage;
+  if (to > from) ::madvise(reinterpret_cast<void*>(from), to - from, MADV_HUGEPAGE);
+}
+
+// A regular file mapped read-only (no copy of its bytes); empty when it cannot be mapped, the caller then reads
+// it with read_text_file (which names the problem). release() gives pages already parsed back to the kernel.
+class MappedFile {
+ public:
+  explicit MappedFile(const std::filesystem::path& file) {
+    const int fd = ::open(file.c_str(), O_RDONLY | O_CLOEXEC);
+    if (fd < 0) return;
+    struct stat st {};
+    if (::fstat(fd, &st) == 0 && S_ISREG(st.st_mode) && st.st_size > 0) {
+      void* p = ::mmap(nullptr, static_cast<std::size_t>(st.st_size), PROT_READ, MAP_PRIVATE, fd, 0);
+      if (p != MAP_FAILED) {
+        data_ = static_cast<const char*>(p);
+        size_ = static_cast<std::size_t>(st.st_size);
+        ::madvise(p, size_, MADV_SEQUENTIAL);
+      }
+    }
+    ::close(fd);
+  }
+  ~MappedFile() {
+    if (data_) ::munmap(const_cast<char*>(data_), size_);
+  }
+  MappedFile(const MappedFile&) = delete;
+  MappedFile& operator=(const MappedFile&) = delete;
+  bool mapped() const { return data_ != nullptr; }
+  std::string_view text() const { return {data_, size_}; }
+  // Drops the whole pages of [from, to) from this process (they stay in the page cache: reading them again is
+  // still correct, only slower).
+  void release(const char* from, const char* to) const {
+    const auto page = static_cast<std::uintptr_t>(::sysconf(_SC_PAGESIZE));
+    const std::uintptr_t a = (reinterpret_cast<std::uintptr_t>(from) + page - 1) / page * page;
+    const std::uintptr_t b = reinterpret_cast<std::uintptr_t>(to) / page * page;
+    if (b > a) ::madvise(reinterpret_cast<void*>(a), b - a, MADV_DONTNEED);
+  }
+
+ private:
+  const char* data_ = nullptr;
+  std::size_t size_ = 0;
+};
 
 // ------------------------------------------------------------------------------------------------ run.json
 
@@ -120,12 +176,6 @@ std::string quoted(std::string_view s) {
   return "\"" + std::string(s) + "\"";
 }
 
-double median(std::vector<double> v) {
-  const auto mid = v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2);
-  std::nth_element(v.begin(), mid, v.end());
-  return *mid;
-}
-
 // ------------------------------------------------------------------------------------------------ WAV
 
 struct MemoryFile {
@@ -165,6 +215,44 @@ const char* subtype_name(int subtype) {
     case SF_FORMAT_ALAW: return "A-law";
     default: return "a compressed or unusual encoding";
   }
+}
+
+// Scales samples [from, to) of mic by `scale` while they are still in the cache; the index of the first that is not
+// finite, or `to`.
+std::size_t scale_finite(std::vector<float>& mic, std::size_t from, std::size_t to, double scale) {
+  for (std::size_t i = from; i < to; ++i)
+    if (!std::isfinite(mic[i])) return i;
+  if (scale != 1.0)  // v * 1.0 is v: float samples keep their bits
+    for (std::size_t i = from; i < to; ++i) mic[i] = static_cast<float>(mic[i] * scale);
+  return to;
+}
+
+// The sound file's frames straight into mic, block by block, each block checked and scaled as it arrives. A
+// file that ends early is named before a non-finite sample (as when every sample was read first).
+void read_samples(SNDFILE* sf, sf_count_t frames, const std::string& file, std::uint32_t channels, double scale,
+                  std::vector<float>& mic) {
+  mic.reserve(static_cast<std::size_t>(frames) * channels);
+  prefer_huge_pages(mic);
+  mic.resize(static_cast<std::size_t>(frames) * channels);
+  constexpr sf_count_t kBlockFrames = 16384;
+  sf_count_t done = 0;
+  std::size_t bad = mic.size();  // the first non-finite sample
+  while (done < frames) {
+    const std::size_t at = static_cast<std::size_t>(done) * channels;
+    const sf_count_t n = sf_readf_float(sf, mic.data() + at, std::min(kBlockFrames, frames - done));
+    if (n <= 0) break;
+    done += n;
+    if (bad == mic.size()) {
+      const std::size_t to = static_cast<std::size_t>(done) * channels;
+      if (const std::size_t i = scale_finite(mic, at, to, scale); i < to) bad = i;
+    }
+  }
+  if (done != frames)
+    throw RunDirError(file + ": ends after frame " + std::to_string(done) + " of " + std::to_string(frames) +
+                      " (truncated or damaged)");
+  if (bad < mic.size())
+    throw RunDirError(file + ": frame " + std::to_string(bad / channels) + ", channel " + std::to_string(bad % channels + 1) +
+                      ": not a finite number");
 }
 
 // Checks and reads an opened sound file into run (closes it).
@@ -217,23 +305,7 @@ void read_sound(SNDFILE* sf, const SF_INFO& info, const std::string& file, std::
   }
   run.mic_rate_hz = rate;
   run.mic_count = channels;
-  run.mic_pa.resize(static_cast<std::size_t>(info.frames) * channels);
-  sf_count_t done = 0;
-  while (done < info.frames) {
-    const sf_count_t n = sf_readf_float(sf, run.mic_pa.data() + done * channels, std::min<sf_count_t>(65536, info.frames - done));
-    if (n <= 0) break;
-    done += n;
-  }
-  if (done != info.frames)
-    throw RunDirError(file + ": ends after frame " + std::to_string(done) + " of " + std::to_string(info.frames) +
-                      " (truncated or damaged)");
-  for (std::size_t i = 0; i < run.mic_pa.size(); ++i) {
-    float& v = run.mic_pa[i];
-    if (!std::isfinite(v))
-      throw RunDirError(file + ": frame " + std::to_string(i / channels) + ", channel " + std::to_string(i % channels + 1) +
-                        ": not a finite number");
-    v = static_cast<float>(v * scale);
-  }
+  read_samples(sf, info.frames, file, channels, scale, run.mic_pa);
 }
 
 }  // namespace
@@ -385,45 +457,42 @@ void append_row(RunDir& run, const double (&v)[3], double to_pa, std::string_vie
 }
 
 // Gaps: a crank step far above the encoder's (the median step) means lost samples; so does a sudden change of the
-// speed the rows imply (time jumping while the crank does not). lines: the file's line of each row.
-void check_crank_gaps(const RunDir& run, const std::vector<std::uint32_t>& lines, const std::string& file) {
+// speed the rows imply (time jumping while the crank does not). Row i is on line i + 2: the header is line 1, and a
+// blank line is only allowed after the last row.
+void check_crank_gaps(const RunDir& run, const std::string& file) {
   const std::size_t n = run.time_s.size();
-  std::vector<double> steps(n - 1);
-  for (std::size_t i = 1; i < n; ++i) steps[i - 1] = run.crank_deg[i] - run.crank_deg[i - 1];
-  const double step = median(steps);
+  const auto line_of = [](std::size_t row) { return static_cast<std::uint32_t>(row + 2); };
+  const double step = crank_step_deg(run.crank_deg);
+  double before = 0;  // the previous row's speed
   for (std::size_t i = 1; i < n; ++i) {
-    const double d = steps[i - 1];
+    const double d = run.crank_deg[i] - run.crank_deg[i - 1];
     if (d > (kMaxCrankGapSteps + 0.5) * step) {
       char buf[256];
       std::snprintf(buf, sizeof buf,
                     "crank_deg jumps by %.6g deg from %.6g to %.6g (%.1f encoder steps of %.6g deg); at most %.0f "
                     "steps expected (a few missing encoder samples are interpolated, more are lost data)",
                     d, run.crank_deg[i - 1], run.crank_deg[i], d / step, step, kMaxCrankGapSteps);
-      throw RunDirError(at_line(file, lines[i]) + buf);
+      throw RunDirError(at_line(file, line_of(i)) + buf);
     }
-    if (i >= 2) {
-      const double speed = d / (run.time_s[i] - run.time_s[i - 1]);
-      const double before = steps[i - 2] / (run.time_s[i - 1] - run.time_s[i - 2]);
-      if (speed < before / kMaxCrankGapSteps || speed > before * kMaxCrankGapSteps) {
-        char buf[256];
-        std::snprintf(buf, sizeof buf,
-                      "time_s jumps from %.9g to %.9g s while crank_deg moves %.6g deg: the speed changes %.1f-fold "
-                      "from the previous row (at most %.0f-fold expected: lost samples or a time error)",
-                      run.time_s[i - 1], run.time_s[i], d, std::max(speed / before, before / speed), kMaxCrankGapSteps);
-        throw RunDirError(at_line(file, lines[i]) + buf);
-      }
+    const double speed = d / (run.time_s[i] - run.time_s[i - 1]);
+    if (i >= 2 && (speed < before / kMaxCrankGapSteps || speed > before * kMaxCrankGapSteps)) {
+      char buf[256];
+      std::snprintf(buf, sizeof buf,
+                    "time_s jumps from %.9g to %.9g s while crank_deg moves %.6g deg: the speed changes %.1f-fold "
+                    "from the previous row (at most %.0f-fold expected: lost samples or a time error)",
+                    run.time_s[i - 1], run.time_s[i], d, std::max(speed / before, before / speed), kMaxCrankGapSteps);
+      throw RunDirError(at_line(file, line_of(i)) + buf);
     }
+    before = speed;
   }
 }
 
-}  // namespace
-
-void parse_pressure_csv(std::string_view text, const std::string& file, double to_pa, RunDir& run) {
+// The file line by line: every problem is reported at the first line that has one. The fast path below hands
+// every file it does not take as it is to this.
+void parse_rows_sequential(std::string_view text, const std::string& file, double to_pa, RunDir& run) {
   run.time_s.clear();
   run.crank_deg.clear();
   run.pressure_pa.clear();
-  std::vector<std::uint32_t> lines;  // line number of each row, for the checks after reading
-  if (text.substr(0, 3) == "\xEF\xBB\xBF") text.remove_prefix(3);  // UTF-8 byte-order mark
   std::size_t pos = 0;
   std::uint32_t line_no = 0;
   std::uint32_t blank_line = 0;  // first blank line seen (only trailing blank lines are allowed)
@@ -447,11 +516,208 @@ void parse_pressure_csv(std::string_view text, const std::string& file, double t
     double v[3];
     parse_csv_row(line, file, line_no, v);
     append_row(run, v, to_pa, line, file, line_no);
-    lines.push_back(line_no);
   }
   if (line_no == 0) throw RunDirError(file + ": empty file, expected the header \"" + kCsvHeader + "\" and rows");
   if (run.time_s.size() < 2) throw RunDirError(file + ": " + std::to_string(run.time_s.size()) + " data rows, expected at least 2");
-  check_crank_gaps(run, lines, file);
+}
+
+// ------------------------------------------------------------------------------------------------ CSV fast path
+// Most files are plain: three numbers a line, no blanks, no '+'. Their rows are parsed without per-line work
+// beyond the numbers, the two halves of a large file on two threads, each into its own columns. A line that is
+// not plain (a problem, or only unusual) makes parse_rows_fast give up: the file is then read sequentially,
+// which reports the first problem exactly as it always has. What the fast path accepts, it reads to the same
+// numbers as the sequential reading.
+
+constexpr std::size_t kParallelCsvBytes = std::size_t{1} << 20;  // smaller files: one thread
+constexpr std::size_t kReleaseBytes = std::size_t{8} << 20;      // mapped pages handed back every this many bytes
+
+struct CsvPart {
+  std::string_view text;  // whole lines of the data
+  std::vector<double> t, crank, p;
+  bool plain = true;         // every line was a plain row, or only blank lines follow the last row
+  bool blank_end = false;    // stopped at a blank line (only blank lines follow in this part)
+
+  void reserve(std::size_t rows) {
+    for (std::vector<double>* column : {&t, &crank, &p}) {
+      column->reserve(rows);
+      prefer_huge_pages(*column);
+    }
+  }
+};
+
+// Every line of text blank as the sequential reading sees it (one trailing '\r' dropped, then only ' ' and '\t').
+bool only_blank_lines(std::string_view text) {
+  std::size_t pos = 0;
+  while (pos < text.size()) {
+    std::size_t eol = text.find('\n', pos);
+    if (eol == std::string_view::npos) eol = text.size();
+    std::string_view line = text.substr(pos, eol - pos);
+    if (!line.empty() && line.back() == '\r') line.remove_suffix(1);
+    if (line.find_first_not_of(" \t") != std::string_view::npos) return false;
+    pos = eol + 1;
+  }
+  return true;
+}
+
+// A plain row at p: "a,b,c" ending at '\n', "\r\n" or the end, each number finite and nothing else in the line.
+// Moves p past the line; false (p anywhere) for any other line.
+bool plain_row(const char*& p, const char* end, double (&v)[3]) {
+  for (int i = 0; i < 3; ++i) {
+    const auto [q, ec] = std::from_chars(p, end, v[i]);
+    if (ec != std::errc() || !std::isfinite(v[i])) return false;
+    p = q;
+    if (i < 2) {
+      if (p == end || *p != ',') return false;
+      ++p;
+    }
+  }
+  if (p != end && *p == '\r') ++p;
+  if (p == end) return true;
+  if (*p != '\n') return false;
+  ++p;
+  return true;
+}
+
+// The part's rows, checked as append_row checks them; stops at the first line the fast path does not take.
+void parse_part(CsvPart& part, double to_pa, const MappedFile* map) {
+  const char* p = part.text.data();
+  const char* const end = p + part.text.size();
+  const char* released = p;
+  double v[3];
+  while (p < end) {
+    const char* const line = p;
+    if (!plain_row(p, end, v)) {
+      part.blank_end = only_blank_lines(std::string_view(line, static_cast<std::size_t>(end - line)));
+      part.plain = part.blank_end;
+      return;
+    }
+    const double pa = v[2] * to_pa;
+    if ((!part.t.empty() && !(v[0] > part.t.back() && v[1] > part.crank.back())) || !(std::abs(pa) <= 1e10)) {
+      part.plain = false;
+      return;
+    }
+    part.t.push_back(v[0]);
+    part.crank.push_back(v[1]);
+    part.p.push_back(pa);
+    if (map && static_cast<std::size_t>(p - released) >= kReleaseBytes) {
+      map->release(released, p);
+      released = p;
+    }
+  }
+}
+
+// Rows a stretch of data holds: its length over the shortest mean line length of windows of 64 lines spread
+// across it, and a little more (an estimate that falls short costs a reallocation, nothing else).
+std::size_t estimated_rows(std::string_view data) {
+  double bytes_per_row = 0;
+  for (std::size_t w = 0; w < 4; ++w) {
+    std::size_t pos = w == 0 ? 0 : data.find('\n', data.size() / 4 * w);
+    if (pos == std::string_view::npos) break;
+    pos += w == 0 ? 0 : 1;
+    const std::size_t start = pos;
+    std::size_t lines = 0;
+    for (std::size_t nl; lines < 64 && (nl = data.find('\n', pos)) != std::string_view::npos; ++lines) pos = nl + 1;
+    const double b = lines > 0 ? static_cast<double>(pos - start) / static_cast<double>(lines) : 0.0;
+    if (b > 0 && (bytes_per_row == 0 || b < bytes_per_row)) bytes_per_row = b;
+  }
+  if (bytes_per_row == 0) return 16;
+  return static_cast<std::size_t>(static_cast<double>(data.size()) / bytes_per_row * 1.05) + 64;
+}
+
+// Appends b's rows to a's: false when the two do not join into plain rows (b's first row must follow a's last,
+// and nothing but blank lines may follow a blank line).
+bool join_parts(CsvPart& a, const CsvPart& b) {
+  if (!a.plain || !b.plain) return false;
+  if (b.t.empty()) return true;
+  if (a.blank_end) return false;
+  if (!a.t.empty() && !(b.t.front() > a.t.back() && b.crank.front() > a.crank.back())) return false;
+  a.t.insert(a.t.end(), b.t.begin(), b.t.end());
+  a.crank.insert(a.crank.end(), b.crank.begin(), b.crank.end());
+  a.p.insert(a.p.end(), b.p.begin(), b.p.end());
+  return true;
+}
+
+// The fast path (text without its byte-order mark): fills run's columns and returns true when the header is
+// right and every line is a plain row or a trailing blank line; false otherwise (run's columns unspecified).
+bool parse_rows_fast(std::string_view text, double to_pa, RunDir& run, const MappedFile* map) {
+  const std::size_t nl = text.find('\n');
+  std::string_view header = text.substr(0, nl);
+  if (!header.empty() && header.back() == '\r') header.remove_suffix(1);
+  if (nl == std::string_view::npos || header != kCsvHeader) return false;
+  const std::string_view data = text.substr(nl + 1);
+  CsvPart first, second;
+  first.text = data;
+  const std::size_t cut = data.size() >= kParallelCsvBytes ? data.find('\n', data.size() / 2) : std::string_view::npos;
+  if (cut == std::string_view::npos || cut + 1 >= data.size()) {
+    first.reserve(estimated_rows(data));
+    parse_part(first, to_pa, map);
+  } else {
+    first.text = data.substr(0, cut + 1);
+    second.text = data.substr(cut + 1);
+    run_both(
+        [&] {
+          first.reserve(estimated_rows(data));  // room for both parts: joining them moves no row twice
+          parse_part(first, to_pa, map);
+        },
+        [&] {
+          second.reserve(estimated_rows(second.text));
+          parse_part(second, to_pa, map);
+        });
+  }
+  if (!join_parts(first, second) || first.t.size() < 2) return false;
+  run.time_s = std::move(first.t);
+  run.crank_deg = std::move(first.crank);
+  run.pressure_pa = std::move(first.p);
+  return true;
+}
+
+// pressure.csv's text; map: the file it is mapped from, whose pages are released as they are parsed (or null).
+void parse_pressure_text(std::string_view text, const std::string& file, double to_pa, RunDir& run,
+                         const MappedFile* map) {
+  if (text.substr(0, 3) == "\xEF\xBB\xBF") text.remove_prefix(3);  // UTF-8 byte-order mark
+  if (!parse_rows_fast(text, to_pa, run, map)) parse_rows_sequential(text, file, to_pa, run);
+  check_crank_gaps(run, file);
+}
+
+}  // namespace
+
+double crank_step_deg(const std::vector<double>& crank_deg) {
+  if (crank_deg.size() < 2) return std::numeric_limits<double>::quiet_NaN();
+  const std::size_t n = crank_deg.size() - 1;  // steps
+  const std::size_t k = n / 2;
+  const auto step = [&crank_deg](std::size_t i) { return crank_deg[i + 1] - crank_deg[i]; };
+  // A sorted sample of the steps brackets the median; one pass counts the steps below and within the bracket.
+  constexpr std::size_t kSample = 4096, kMargin = 128;  // the median is within +-4 sigma of the sample's
+  if (n >= 16 * kSample) {
+    std::vector<double> sample(kSample);
+    for (std::size_t j = 0; j < kSample; ++j) sample[j] = step(j * n / kSample);
+    std::sort(sample.begin(), sample.end());
+    const double lo = sample[kSample / 2 - kMargin], hi = sample[kSample / 2 + kMargin];
+    std::size_t below = 0, within = 0;
+    for (std::size_t i = 0; i < n; ++i) {
+      const double d = step(i);
+      below += d < lo;
+      within += d <= hi;
+    }
+    within -= below;
+    if (below <= k && k < below + within) {
+      if (lo == hi) return lo;
+      std::vector<double> mid;
+      mid.reserve(within);
+      for (std::size_t i = 0; i < n; ++i)
+        if (const double d = step(i); d >= lo && d <= hi) mid.push_back(d);
+      std::nth_element(mid.begin(), mid.begin() + static_cast<std::ptrdiff_t>(k - below), mid.end());
+      return mid[k - below];
+    }
+  }
+  std::vector<double> steps(n);  // small, or a bracket that missed: every step
+  for (std::size_t i = 0; i < n; ++i) steps[i] = step(i);
+  std::nth_element(steps.begin(), steps.begin() + static_cast<std::ptrdiff_t>(k), steps.end());
+  return steps[k];
+}
+
+void parse_pressure_csv(std::string_view text, const std::string& file, double to_pa, RunDir& run) {
+  parse_pressure_text(text, file, to_pa, run, nullptr);
 }
 
 void read_mics_wav(const std::filesystem::path& file, std::uint32_t channels, std::optional<double> full_scale_pa,
@@ -481,13 +747,16 @@ RunManifest read_run_manifest(const std::filesystem::path& dir) {
   return parse_run_json(read_text_file(json_path, "run.json (is this a run directory?)"), json_path.string());
 }
 
-RunDir read_run_dir(const std::filesystem::path& dir) {
-  const RunManifest m = read_run_manifest(dir);
-  RunDir run;
-  run.condition = m.condition;
+namespace {
+
+// DIR's pressure file into run, its rows' mean speed checked against run.json's.
+void read_pressure(const std::filesystem::path& dir, const RunManifest& m, RunDir& run) {
   const std::filesystem::path csv = dir / m.pressure_file;
-  parse_pressure_csv(read_text_file(csv, "the pressure file named by pressure.file in run.json"), csv.string(),
-                     m.pressure_to_pa, run);
+  if (const MappedFile map(csv); map.mapped())
+    parse_pressure_text(map.text(), csv.string(), m.pressure_to_pa, run, &map);
+  else  // not a regular file, empty, or not there: the reader names the problem
+    parse_pressure_csv(read_text_file(csv, "the pressure file named by pressure.file in run.json"), csv.string(),
+                       m.pressure_to_pa, run);
   // The rows' mean speed must be the declared one: otherwise time_s or crank_deg is in other units (ms, rad)
   // or rows are missing, and every frequency downstream would be silently wrong. (A null speed is unknown: the
   // rows' speed is then the run's.)
@@ -502,8 +771,22 @@ RunDir read_run_dir(const std::filesystem::path& dir) {
                   m.condition.speed_rpm, 100 * kSpeedTolerance);
     throw RunDirError(csv.string() + buf);
   }
+}
+
+}  // namespace
+
+RunDir read_run_dir(const std::filesystem::path& dir) {
+  const RunManifest m = read_run_manifest(dir);
+  RunDir run;
+  run.condition = m.condition;
+  // The microphones are read on another thread while the pressure is parsed (each fills its own members of run);
+  // a problem with the pressure file is still reported before one with the microphones'.
+  run_both([&] { read_pressure(dir, m, run); },
+           [&] {
+             if (m.has_mics)
+               read_mics_wav(dir / m.mics_file, static_cast<std::uint32_t>(m.mic_positions_m.size()), m.full_scale_pa, run);
+           });
   if (m.has_mics) {
-    read_mics_wav(dir / m.mics_file, static_cast<std::uint32_t>(m.mic_positions_m.size()), m.full_scale_pa, run);
     run.mic_positions_m = m.mic_positions_m;
     run.radius_m = m.radius_m;
     run.acoustic_delay_s = m.acoustic_delay_s;

@@ -77,7 +77,9 @@ struct RunDirError : std::runtime_error {
   using std::runtime_error::runtime_error;
 };
 
-// Reads DIR/run.json and the files it names (paths relative to DIR).
+// Reads DIR/run.json and the files it names (paths relative to DIR). The pressure file is mapped, not copied,
+// and the WAV is read on a second thread meanwhile; errors come as from a reading one file after the other
+// (the pressure file's first).
 RunDir read_run_dir(const std::filesystem::path& dir);
 
 // DIR/run.json alone, checked (a background run needs only its microphones).
@@ -85,7 +87,9 @@ RunManifest read_run_manifest(const std::filesystem::path& dir);
 
 // The pieces of read_run_dir, callable on bytes (`file` is the name used in messages):
 RunManifest parse_run_json(std::string_view text, const std::string& file);
-// Fills run.time_s, crank_deg, pressure_pa (pressure column times to_pa).
+// Fills run.time_s, crank_deg, pressure_pa (pressure column times to_pa). Over 1 MiB of plain rows (three numbers,
+// no blanks or '+') is parsed in two halves on two threads; anything else is read line by line. The numbers
+// and every error (its line) are those of the line-by-line reading.
 void parse_pressure_csv(std::string_view text, const std::string& file, double to_pa, RunDir& run);
 // Fills run.mic_rate_hz, mic_count, mic_pa. The WAV must hold `channels` channels of IEEE float (or PCM when
 // full_scale_pa is given: PCM full scale = that many Pa) at a rate of at least 40 kHz that resamples to 40 kHz.
@@ -97,6 +101,10 @@ void parse_mics_wav(const std::uint8_t* data, std::size_t size, const std::strin
 // The run's mean speed from its encoder samples: crank angle travelled over the time it took (first to last
 // row), rpm; NaN with fewer than two samples.
 double encoder_speed_rpm(const RunDir& run);
+
+// The encoder step of an increasing crank angle: the median of the steps between consecutive values (the step
+// of rank (n - 1) / 2 among the n - 1 steps, as std::nth_element gives it); NaN with fewer than two values.
+double crank_step_deg(const std::vector<double>& crank_deg);
 
 // Encoder steps a crank-angle gap may span (larger gaps are an error; smaller ones are filled by
 // interpolation when the run is resampled to 40 kHz).
