@@ -443,10 +443,13 @@ struct FinePlan {
 };
 
 // The fine-grid values of a plan, channel c of instant j to out[c * out_stride + j]. The hot loop of the
-// crank-angle resampler: a blend of two kernel rows, then one dot product per channel.
-NOISEMON_KERNEL_CLONES void interpolate_fine(const double* table, const FinePlan& plan, std::size_t count,
-                                             const double* values, std::size_t values_stride, std::size_t channels,
-                                             const double* hold, double* out, std::size_t out_stride) {
+// crank-angle resampler: a blend of two kernel rows, then one dot product per channel. (A template, like the
+// FIR's body, so that clang compiles its 32-byte vectors inside each clone instead of refusing them in the
+// default one; T is double.)
+template <class T>
+NOISEMON_INLINE void interpolate_fine_body(const T* table, const FinePlan& plan, std::size_t count, const T* values,
+                                           std::size_t values_stride, std::size_t channels, const T* hold, T* out,
+                                           std::size_t out_stride) {
   constexpr std::size_t kWeightVectors = kKernelTaps / kVd;
   static_assert(kKernelTaps % (2 * kVd) == 0, "the kernel is a whole number of vector pairs");
   for (std::size_t j = 0; j < count; ++j) {
@@ -475,6 +478,11 @@ NOISEMON_KERNEL_CLONES void interpolate_fine(const double* table, const FinePlan
       out[c * out_stride + j] = (acc[0] + acc[2]) + (acc[1] + acc[3]);
     }
   }
+}
+NOISEMON_KERNEL_CLONES void interpolate_fine(const double* table, const FinePlan& plan, std::size_t count,
+                                             const double* values, std::size_t values_stride, std::size_t channels,
+                                             const double* hold, double* out, std::size_t out_stride) {
+  interpolate_fine_body(table, plan, count, values, values_stride, channels, hold, out, out_stride);
 }
 }  // namespace
 
