@@ -7,6 +7,7 @@
 #include <numeric>
 #include <stdexcept>
 #include <string>
+#include <variant>
 #include <vector>
 
 #include "dsp/fir_design.hpp"
@@ -280,11 +281,12 @@ class PolyphaseFir {
 };
 
 // Low-pass running at filter_rate_hz, flat to pass_hz, >= kDesignAttenuationDb from stop_hz.
-std::vector<double> kaiser_design(double filter_rate_hz, double pass_hz, double stop_hz) {
+std::vector<double> kaiser_design(double filter_rate_hz, double pass_hz, double stop_hz,
+                                  double attenuation_db = kDesignAttenuationDb) {
   const double pass = pass_hz / filter_rate_hz;
   const double stop = stop_hz / filter_rate_hz;
-  const std::size_t half = fir::kaiser_half_length(kDesignAttenuationDb, stop - pass);
-  return fir::kaiser_lowpass(half, 0.5 * (pass + stop), fir::kaiser_beta(kDesignAttenuationDb));
+  const std::size_t half = fir::kaiser_half_length(attenuation_db, stop - pass);
+  return fir::kaiser_lowpass(half, 0.5 * (pass + stop), fir::kaiser_beta(attenuation_db));
 }
 
 // Low-pass for a resampler running at `filter_rate_hz`, passband edge kPassbandFraction * band_rate_hz.
@@ -309,7 +311,9 @@ void require_channels(std::size_t channels, const char* who) {
 // RationalResampler
 
 struct RationalResampler::Impl {
-  static PolyphaseFir<float> make_fir(double in_hz, double out_hz, std::size_t channels) {
+  using Fir = std::variant<PolyphaseFir<double>, PolyphaseFir<float>>;
+
+  static Fir make_fir(double in_hz, double out_hz, std::size_t channels, SamplePrecision precision) {
     const std::int64_t in = integer_rate(in_hz, "input rate");
     const std::int64_t out = integer_rate(out_hz, "output rate");
     const std::int64_t g = std::gcd(in, out);
@@ -318,30 +322,53 @@ struct RationalResampler::Impl {
     // Both bound the filter: its length grows with up * max(1, down / up) taps.
     if (up > 4096) throw std::invalid_argument("RationalResampler: rate ratio needs more than 4096 filter phases");
     if (down > 4096) throw std::invalid_argument("RationalResampler: rate ratio decimates by more than 4096");
-    return PolyphaseFir<float>(design_lowpass(static_cast<double>(up) * in_hz, std::min(in_hz, out_hz)), up, down,
-                               channels);
+    const std::vector<double> prototype = design_lowpass(static_cast<double>(up) * in_hz, std::min(in_hz, out_hz));
+    if (precision == SamplePrecision::kSingle) return PolyphaseFir<float>(prototype, up, down, channels);
+    return PolyphaseFir<double>(prototype, up, down, channels);
   }
 
-  Impl(double in_hz, double out_hz, std::size_t ch)
-      : channels(ch), passband_hz(converter_passband_hz(std::min(in_hz, out_hz))), fir(make_fir(in_hz, out_hz, ch)),
-        queue(ch, kPendingFrames), scratch(fir.max_ready() * ch) {
-    // Before input frame 0 the signal is zero.
-    const std::int64_t first = fir.start(0);
-    const auto zeros = static_cast<std::size_t>(-first);
-    for (std::size_t c = 0; c < channels; ++c) std::fill_n(fir.channel_tail(c), zeros, 0.0f);
-    fir.commit(zeros);
+  Impl(double in_hz, double out_hz, std::size_t ch, SamplePrecision precision)
+      : channels(ch),
+        passband_hz(converter_passband_hz(std::min(in_hz, out_hz))),
+        fir(make_fir(in_hz, out_hz, ch, precision)),
+        queue(ch, kPendingFrames) {
+    std::visit([&](auto& f) {
+      scratch.resize(f.max_ready() * ch);
+      // Before input frame 0 the signal is zero.
+      const auto zeros = static_cast<std::size_t>(-f.start(0));
+      for (std::size_t c = 0; c < channels; ++c) std::fill_n(f.channel_tail(c), zeros, 0);
+      f.commit(zeros);
+    }, fir);
+  }
+
+  // Copies interleaved input into the FIR's channel rows (in its precision) and runs it, as far as it goes.
+  template <class T>
+  void feed(PolyphaseFir<T>& f, const double* in, std::size_t frames) {
+    std::size_t done = 0;
+    while (done < frames) {
+      const std::size_t n = std::min(frames - done, f.room());
+      const double* src = in + done * channels;
+      for (std::size_t c = 0; c < channels; ++c) {
+        T* dst = f.channel_tail(c);
+        for (std::size_t i = 0; i < n; ++i) dst[i] = static_cast<T>(src[i * channels + c]);
+      }
+      f.commit(n);
+      done += n;
+      f.run(queue, scratch.data());
+    }
   }
 
   std::size_t channels;
   double passband_hz;
-  PolyphaseFir<float> fir;  // microphones: float words in, float precision (24 bits) is theirs
+  Fir fir;
   OutputQueue queue;
   std::vector<double> scratch;  // one run's outputs, interleaved
 };
 
-RationalResampler::RationalResampler(double in_rate_hz, double out_rate_hz, std::size_t channels) {
+RationalResampler::RationalResampler(double in_rate_hz, double out_rate_hz, std::size_t channels,
+                                     SamplePrecision precision) {
   require_channels(channels, "RationalResampler");
-  impl_ = std::make_unique<Impl>(in_rate_hz, out_rate_hz, channels);
+  impl_ = std::make_unique<Impl>(in_rate_hz, out_rate_hz, channels, precision);
 }
 RationalResampler::~RationalResampler() = default;
 RationalResampler::RationalResampler(RationalResampler&&) noexcept = default;
@@ -350,31 +377,20 @@ RationalResampler& RationalResampler::operator=(RationalResampler&&) noexcept = 
 std::size_t RationalResampler::process(const double* in, std::size_t frames, double* out, std::size_t max_out) {
   Impl& s = *impl_;
   s.queue.begin(out, max_out);
-  const std::size_t ch = s.channels;
-  std::size_t done = 0;
-  while (done < frames) {
-    const std::size_t n = std::min(frames - done, s.fir.room());
-    const double* src = in + done * ch;
-    for (std::size_t c = 0; c < ch; ++c) {
-      float* dst = s.fir.channel_tail(c);
-      for (std::size_t i = 0; i < n; ++i) dst[i] = static_cast<float>(src[i * ch + c]);
-    }
-    s.fir.commit(n);
-    done += n;
-    s.fir.run(s.queue, s.scratch.data());
-  }
+  std::visit([&](auto& f) { s.feed(f, in, frames); }, s.fir);
   return s.queue.written();
 }
 
 std::size_t RationalResampler::max_output_frames(std::size_t input_frames) const {
   // New input spans input_frames * up ticks; outputs fall every `down` ticks.
-  const std::size_t up = impl_->fir.up();
-  const std::size_t down = impl_->fir.down();
+  const std::size_t up = std::visit([](const auto& f) { return f.up(); }, impl_->fir);
+  const std::size_t down = std::visit([](const auto& f) { return f.down(); }, impl_->fir);
   return impl_->queue.pending() + (input_frames * up + down - 1) / down;
 }
 
 std::int64_t RationalResampler::next_output_index() const {
-  return impl_->fir.next_output() - static_cast<std::int64_t>(impl_->queue.pending());
+  const std::int64_t next = std::visit([](const auto& f) { return f.next_output(); }, impl_->fir);
+  return next - static_cast<std::int64_t>(impl_->queue.pending());
 }
 double RationalResampler::passband_edge_hz() const { return impl_->passband_hz; }
 std::size_t RationalResampler::channels() const { return impl_->channels; }
@@ -400,6 +416,9 @@ std::size_t RationalResampler::channels() const { return impl_->channels; }
 
 namespace {
 constexpr std::int64_t kMidFactor = 2;        // the decimation's intermediate rate, in output rates
+// The first decimation step is short (about 30 taps), so it is designed far below the second's ripple: the
+// pair then passes tones as flat as the single filter did.
+constexpr double kFirstStepAttenuationDb = 110.0;
 constexpr std::size_t kKernelHalfWidth = 16;  // taps each side of the interpolation instant
 constexpr std::size_t kKernelTaps = 2 * kKernelHalfWidth;
 constexpr std::size_t kKernelPhases = 1024;   // kernel table resolution (linear interpolation between rows)
@@ -496,8 +515,9 @@ struct NonuniformResampler::Impl {
   static PolyphaseFir<double> make_fine_to_mid(double out_hz, std::int64_t fine_factor, std::size_t ch) {
     const double fine_hz = static_cast<double>(fine_factor) * out_hz;
     const double mid_hz = static_cast<double>(kMidFactor) * out_hz;
-    return PolyphaseFir<double>(kaiser_design(fine_hz, 0.5 * out_hz, mid_hz - 0.5 * out_hz), 1,
-                        static_cast<std::size_t>(fine_factor / kMidFactor), ch);
+    return PolyphaseFir<double>(
+        kaiser_design(fine_hz, 0.5 * out_hz, mid_hz - 0.5 * out_hz, kFirstStepAttenuationDb), 1,
+        static_cast<std::size_t>(fine_factor / kMidFactor), ch);
   }
   static PolyphaseFir<double> make_mid_to_out(double out_hz, std::size_t ch) {
     return PolyphaseFir<double>(design_lowpass(static_cast<double>(kMidFactor) * out_hz, out_hz), 1,

@@ -171,7 +171,7 @@ void resample_mics(const RunDir& run, Stream& mics) {
     mics.values.assign(run.mic_pa.begin(), run.mic_pa.end());
     return;
   }
-  dsp::RationalResampler rs(run.mic_rate_hz, kFs, ch);
+  dsp::RationalResampler rs(run.mic_rate_hz, kFs, ch, dsp::SamplePrecision::kSingle);  // float WAV samples
   constexpr std::size_t kChunk = 8192;
   std::vector<double> in(kChunk * ch), out(rs.max_output_frames(kChunk) * ch);
   mics.values.reserve(static_cast<std::size_t>(static_cast<double>(frames) * kFs / run.mic_rate_hz + 64) * ch);

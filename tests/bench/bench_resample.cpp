@@ -1,6 +1,7 @@
 // Cost of resampling per second of data; the x_realtime counter is seconds of data processed per second
 // of CPU time (so 1 / x_realtime of a core is busy for the stream).
-//  - RationalResampler 51.2 kHz -> 40 kHz, 10 microphone channels, 256-frame input blocks.
+//  - RationalResampler 51.2 kHz -> 40 kHz, 10 microphone channels, 256-frame input blocks, in single precision
+//    (float WAVs, ADC words: import and the DAQ card) and double (the default; the virtual engine's 102.4 kHz).
 //  - NonuniformResampler -> 40 kHz, 1 ms input blocks: the pressure channel (1) from 207 kHz encoder edges
 //    (0.1 deg at 3450 rpm, 1 % speed ripple) with the highest edge rate given as 3450 rpm's and with the
 //    any-encoder default; 2 channels from 183 kHz edges (0.1 deg at 3050 rpm); and 6 kHz edges (1 deg at
@@ -19,14 +20,15 @@ namespace {
 using noisemon::dsp::NonuniformResampler;
 using noisemon::dsp::RationalResampler;
 
-void BM_Rational(benchmark::State& state, double in_rate, double out_rate, std::size_t channels) {
+void BM_Rational(benchmark::State& state, double in_rate, double out_rate, std::size_t channels,
+                 noisemon::dsp::SamplePrecision precision) {
   const auto frames = static_cast<std::size_t>(in_rate);  // one second
   std::vector<double> x(frames * channels);
   std::mt19937 rng(1);
   std::normal_distribution<double> noise(0.0, 1.0);
   for (double& v : x) v = noise(rng);
   constexpr std::size_t kBlock = 256;
-  RationalResampler r(in_rate, out_rate, channels);
+  RationalResampler r(in_rate, out_rate, channels, precision);
   std::vector<double> out(r.max_output_frames(kBlock) * channels);
   for (auto _ : state) {
     for (std::size_t i = 0; i < frames; i += kBlock) {
@@ -69,8 +71,15 @@ void BM_Nonuniform(benchmark::State& state, double rpm, double resolution_deg, s
       benchmark::Counter(static_cast<double>(state.iterations()), benchmark::Counter::kIsRate);
 }
 
-BENCHMARK_CAPTURE(BM_Rational, mics_51k2_to_40k_10ch, 51200.0, 40000.0, 10)->Unit(benchmark::kMillisecond);
-BENCHMARK_CAPTURE(BM_Rational, sim_102k4_to_51k2_10ch, 102400.0, 51200.0, 10)->Unit(benchmark::kMillisecond);
+BENCHMARK_CAPTURE(BM_Rational, mics_51k2_to_40k_10ch_single, 51200.0, 40000.0, 10,
+                  noisemon::dsp::SamplePrecision::kSingle)
+    ->Unit(benchmark::kMillisecond);
+BENCHMARK_CAPTURE(BM_Rational, mics_51k2_to_40k_10ch_double, 51200.0, 40000.0, 10,
+                  noisemon::dsp::SamplePrecision::kDouble)
+    ->Unit(benchmark::kMillisecond);
+BENCHMARK_CAPTURE(BM_Rational, sim_102k4_to_51k2_10ch_double, 102400.0, 51200.0, 10,
+                  noisemon::dsp::SamplePrecision::kDouble)
+    ->Unit(benchmark::kMillisecond);
 BENCHMARK_CAPTURE(BM_Nonuniform, edges_207k_1ch_max_3450rpm, 3450.0, 0.1, 1, 3450.0 * 3600.0 / 60.0)
     ->Unit(benchmark::kMillisecond);
 BENCHMARK_CAPTURE(BM_Nonuniform, edges_207k_1ch_any_encoder, 3450.0, 0.1, 1, 0.0)->Unit(benchmark::kMillisecond);

@@ -8,22 +8,23 @@
 //
 // Measured (RelWithDebInfo; printed by the tests; the assertions are looser: relative rms error < 1e-3,
 // gain within 0.01 dB, phase within 1e-4 rad, alias level < -80 dB):
-//   RationalResampler 51.2 kHz -> 40 kHz (passband 18 kHz, stopband from 20 kHz):
+//   RationalResampler 51.2 kHz -> 40 kHz (passband 18 kHz, stopband from 20 kHz), double / single precision:
 //     10 channels of tone mixes 20 Hz..17.5 kHz, relative rms error   3.1e-5 (worst channel)
 //     gain, 31 tones 20 Hz..18 kHz                                     within 4.9e-4 dB
-//     phase error, same tones (time alignment)                        within 7.6e-9 rad (< 0.1 ps)
+//     phase error, same tones (time alignment)                        within 1.6e-8 rad (< 0.2 ps)
 //     alias level, 20.05 / 20.2 / 21 / 24 / 25.5 kHz input            <= -85.7 dB (worst at 20.05 kHz)
 //   RationalResampler 102.4 -> 51.2 kHz, 44.1 -> 40 kHz, 16 -> 40 kHz:
 //     tones 0.2 %..97 % of the passband, relative rms error          1.6e-5 (worst ratio)
-//   NonuniformResampler -> 40 kHz, 183 kHz edges (0.1 deg at 3050 rpm, 1 % speed ripple):
-//     tone mixes 20 Hz..16 kHz, relative rms error                    5.8e-6; 1.2e-6 riding on a 1e5 mean
-//     gain, 25 tones 20 Hz..18 kHz                                     within 3.2e-4 dB
-//     phase error, same tones                                          within 4.7e-9 rad
-//     alias level, 20.05 / 21 / 24 / 40 / 70 kHz input                <= -85.5 dB (worst at 20.05 kHz)
-//     the same 5 hours into the stream (t ~ 18000 s)                  3.7e-6
+//   NonuniformResampler -> 40 kHz, 183 kHz edges (0.1 deg at 3050 rpm, 1 % speed ripple), on the any-encoder
+//   fine grid (8 x 40 kHz) / sized for 229 kHz edges (4 x):
+//     tone mixes 20 Hz..16 kHz, relative rms error                    4.6e-6 / 3.7e-6; 2.8e-6 / 2.1e-6 on a 1e5 mean
+//     gain, 25 tones 20 Hz..18 kHz                                     within 1.8e-4 / 1.5e-4 dB
+//     phase error, same tones                                          within 6.1e-9 / 9.7e-9 rad
+//     alias level, 20.05 / 21 / 24 / 40 / 70 / 90 kHz input           <= -84.6 / -84.5 dB (worst at 20.05 kHz)
+//     the same 5 hours into the stream (t ~ 18000 s)                  3.4e-6
 //     constant 1.234e6 input                                           exact to 1e-7 absolute
 //   NonuniformResampler -> 40 kHz, 6 kHz edges (1 deg at 1000 rpm, 1 % ripple), slower than the output:
-//     reported passband 0.41 * edge rate = 2478 Hz; tones 20 Hz..2.4 kHz, relative rms error 8.7e-6
+//     reported passband 0.41 * edge rate = 2478 Hz; tones 20 Hz..2.4 kHz, relative rms error 1.1e-5
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -127,6 +128,10 @@ double rational_error(const std::vector<double>& out, std::size_t ch, std::size_
   return rms(err) / rms(ref);
 }
 
+// Every accuracy check runs in both precisions (double: the default; single: float WAVs and ADC words).
+const SamplePrecision kPrecisions[] = {SamplePrecision::kDouble, SamplePrecision::kSingle};
+const char* name(SamplePrecision p) { return p == SamplePrecision::kSingle ? "single" : "double"; }
+
 // The first 10 ms see the zero signal before t = 0 through the filter; steady state is judged after it.
 constexpr double kRationalSkipS = 0.01;
 
@@ -182,48 +187,55 @@ TEST(RationalResampler, TenChannelToneMixesMatchTheAnalyticSignal) {
                      {20.0 + 37.0 * static_cast<double>(c), 0.3, 1.0},
                      {16000.0 - 611.0 * static_cast<double>(c), 0.1, 2.0}});
   }
-  RationalResampler r(in_rate, out_rate, 10);
-  const auto out = run_rational(r, uniform_input(tones, in_rate, 25600), 512);
-  double worst = 0.0;
-  for (std::size_t c = 0; c < 10; ++c) {
-    const double e = rational_error(out, 10, c, tones[c], out_rate, kRationalSkipS);
-    worst = std::max(worst, e);
-    EXPECT_LT(e, 1e-3) << "channel " << c;
+  for (const SamplePrecision precision : kPrecisions) {
+    RationalResampler r(in_rate, out_rate, 10, precision);
+    const auto out = run_rational(r, uniform_input(tones, in_rate, 25600), 512);
+    double worst = 0.0;
+    for (std::size_t c = 0; c < 10; ++c) {
+      const double e = rational_error(out, 10, c, tones[c], out_rate, kRationalSkipS);
+      worst = std::max(worst, e);
+      EXPECT_LT(e, 1e-3) << "channel " << c << ", " << name(precision);
+    }
+    std::printf("rational 51.2k->40k tone mixes (%s): worst relative rms error %.2e\n", name(precision), worst);
   }
-  std::printf("rational 51.2k->40k tone mixes: worst relative rms error %.2e\n", worst);
 }
 
 TEST(RationalResampler, FlatWithExactPhaseUpToThePassbandEdge) {
   const double in_rate = 51200.0, out_rate = 40000.0;
-  double worst_db = 0.0, worst_phase = 0.0;
-  for (int i = 0; i <= 30; ++i) {
-    const double f = 20.0 * std::pow(18000.0 / 20.0, i / 30.0);
-    const Tone tone{f, 1.0, 0.7};
-    RationalResampler r(in_rate, out_rate, 1);
-    const auto out = run_rational(r, uniform_input({{tone}}, in_rate, 10240), 1000);
-    std::vector<double> y, t;
-    for (std::size_t k = static_cast<std::size_t>(kRationalSkipS * out_rate); k < out.size(); ++k) {
-      y.push_back(out[k]);
-      t.push_back(static_cast<double>(k) / out_rate);
+  for (const SamplePrecision precision : kPrecisions) {
+    double worst_db = 0.0, worst_phase = 0.0;
+    for (int i = 0; i <= 30; ++i) {
+      const double f = 20.0 * std::pow(18000.0 / 20.0, i / 30.0);
+      const Tone tone{f, 1.0, 0.7};
+      RationalResampler r(in_rate, out_rate, 1, precision);
+      const auto out = run_rational(r, uniform_input({{tone}}, in_rate, 10240), 1000);
+      std::vector<double> y, t;
+      for (std::size_t k = static_cast<std::size_t>(kRationalSkipS * out_rate); k < out.size(); ++k) {
+        y.push_back(out[k]);
+        t.push_back(static_cast<double>(k) / out_rate);
+      }
+      expect_unit_gain_and_phase(y, t, f, tone.phase_rad, worst_db, worst_phase);
     }
-    expect_unit_gain_and_phase(y, t, f, tone.phase_rad, worst_db, worst_phase);
+    std::printf("rational 51.2k->40k 20 Hz..18 kHz (%s): gain within %.1e dB, phase within %.1e rad\n",
+                name(precision), worst_db, worst_phase);
   }
-  std::printf("rational 51.2k->40k 20 Hz..18 kHz: gain within %.1e dB, phase within %.1e rad\n", worst_db,
-              worst_phase);
 }
 
 TEST(RationalResampler, RejectsTonesAboveTheOutputNyquist) {
   const double in_rate = 51200.0, out_rate = 40000.0;
-  double worst_db = -1000.0;
-  for (double f : {20050.0, 20200.0, 21000.0, 24000.0, 25500.0}) {
-    RationalResampler r(in_rate, out_rate, 1);
-    const auto out = run_rational(r, uniform_input({{{f, 1.0, 0.0}}}, in_rate, 20480), 256);
-    const std::vector<double> steady(out.begin() + static_cast<std::ptrdiff_t>(kRationalSkipS * out_rate), out.end());
-    const double level_db = 20.0 * std::log10(rms(steady) / std::sqrt(0.5));
-    worst_db = std::max(worst_db, level_db);
-    EXPECT_LT(level_db, -80.0) << f << " Hz";
+  for (const SamplePrecision precision : kPrecisions) {
+    double worst_db = -1000.0;
+    for (double f : {20050.0, 20200.0, 21000.0, 24000.0, 25500.0}) {
+      RationalResampler r(in_rate, out_rate, 1, precision);
+      const auto out = run_rational(r, uniform_input({{{f, 1.0, 0.0}}}, in_rate, 20480), 256);
+      const std::vector<double> steady(out.begin() + static_cast<std::ptrdiff_t>(kRationalSkipS * out_rate),
+                                       out.end());
+      const double level_db = 20.0 * std::log10(rms(steady) / std::sqrt(0.5));
+      worst_db = std::max(worst_db, level_db);
+      EXPECT_LT(level_db, -80.0) << f << " Hz, " << name(precision);
+    }
+    std::printf("rational 51.2k->40k alias rejection (%s): worst %.1f dB\n", name(precision), worst_db);
   }
-  std::printf("rational 51.2k->40k alias rejection: worst %.1f dB\n", worst_db);
 }
 
 TEST(RationalResampler, OtherRatiosMatchTheAnalyticSignal) {
