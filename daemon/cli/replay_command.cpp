@@ -1,6 +1,7 @@
 #include "daemon/cli/replay_command.hpp"
 
 #include <CLI/CLI.hpp>
+#include <spdlog/spdlog.h>
 
 #include <algorithm>
 #include <atomic>
@@ -114,6 +115,9 @@ std::vector<LogReplayResult> run_replays(
     const MultiReplayOptions& m,
     const std::function<void(const LogReplayResult&, std::size_t, std::size_t)>& on_done) {
   check_multi_replay(m);
+  // spdlog's registry is built on first use; build it here, before the threads log (a race as ThreadSanitizer
+  // sees it: the library's own once-only initialisation is not instrumented).
+  spdlog::default_logger_raw();
   const std::size_t n = m.logs.size();
   std::vector<LogReplayResult> results(n);
   std::atomic<std::size_t> next{0};

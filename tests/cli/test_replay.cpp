@@ -6,7 +6,6 @@
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
-#include <sys/wait.h>
 #include <fstream>
 #include <iterator>
 #include <lcm/lcm-cpp.hpp>
@@ -25,6 +24,7 @@
 #include "daemon/cli/watch.hpp"
 #include "noisemon/cycle_report_t.hpp"
 #include "tests/cli/h5py_reader.hpp"
+#include "tests/cli/run_command.hpp"
 #include "tests/daemon/csv_column.hpp"
 #include "tests/drivers/unique_temp.hpp"
 
@@ -92,9 +92,26 @@ namespace {
 // and one foreign event after the session.
 constexpr int kCycle = 1000, kTotal = 40 * kCycle;
 
+// The 200-frame pressure (a tone of 1e3 Pa on 1e5 Pa, the crank angle of kCycle-frame cycles) and microphone
+// (1e-3 of the tone times mic_gain(k)) blocks from frame `first`.
+template <class MicGain>
+void tone_blocks(int first, double tone_hz, MicGain mic_gain, drivers::SampleBlock& p, drivers::SampleBlock& m) {
+  p.first_index = m.first_index = first;
+  p.frames = m.frames = 200;
+  p.channels = 2;
+  m.channels = 1;
+  for (int f = 0; f < 200; ++f) {
+    const int k = first + f;
+    const double x = 1e3 * std::sin(2 * std::numbers::pi * tone_hz * k / 40000.0);
+    p.data[2 * f] = 1e5 + x;
+    p.data[2 * f + 1] = -360.0 + 720.0 * (k % kCycle) / kCycle;
+    m.data[f] = 1e-3 * x * mic_gain(k);
+  }
+}
+
 // op: an operating point written after the session (none when not given).
 void write_mixed_log(const std::string& path, const drivers::OperatingPoint* op = nullptr) {
-  const int cycle = kCycle, total = kTotal;
+  const int total = kTotal;
   {
     lcm::LogFile log(path, "w");
     write(log, "NOISEMON_SESSION", daemon::to_message(info(), "test", 0), 0);
@@ -106,17 +123,7 @@ void write_mixed_log(const std::string& path, const drivers::OperatingPoint* op 
     log.writeEvent(&other);
     for (int first = 0; first < total; first += 200) {
       drivers::SampleBlock p, m;
-      p.first_index = m.first_index = first;
-      p.frames = m.frames = 200;
-      p.channels = 2;
-      m.channels = 1;
-      for (int f = 0; f < 200; ++f) {
-        const int k = first + f;
-        const double x = 1e3 * std::sin(2 * std::numbers::pi * 1000.0 * k / 40000.0);
-        p.data[2 * f] = 1e5 + x;
-        p.data[2 * f + 1] = -360.0 + 720.0 * (k % cycle) / cycle;
-        m.data[f] = 1e-3 * x;
-      }
+      tone_blocks(first, 1000.0, [](int) { return 1.0; }, p, m);
       write(log, "NOISEMON_RAW", daemon::to_message(p, 0, 1'000'000), 2);
       write(log, "NOISEMON_RAW", daemon::to_message(m, 1, 1'000'000), 2);
     }
@@ -287,17 +294,7 @@ void write_two_runs_with_changing_operating_points(const std::string& path) {
         if (n % 2 == 0) write(log, "NOISEMON_OP", daemon::to_message(op), op.utime + 1);  // a repeat
       }
       drivers::SampleBlock p, m;
-      p.first_index = m.first_index = first;
-      p.frames = m.frames = 200;
-      p.channels = 2;
-      m.channels = 1;
-      for (int f = 0; f < 200; ++f) {
-        const int k = first + f;
-        const double x = 1e3 * std::sin(2 * std::numbers::pi * (1000.0 + 300 * run) * k / 40000.0);
-        p.data[2 * f] = 1e5 + x;
-        p.data[2 * f + 1] = -360.0 + 720.0 * (k % kCycle) / kCycle;
-        m.data[f] = 1e-3 * x * (1 + 0.1 * (k / 5000));
-      }
+      tone_blocks(first, 1000.0 + 300 * run, [](int k) { return 1 + 0.1 * (k / 5000); }, p, m);
       write(log, "NOISEMON_RAW", daemon::to_message(p, 0, i.epoch_utime), i.epoch_utime + first * 25);
       write(log, "NOISEMON_RAW", daemon::to_message(m, 1, i.epoch_utime), i.epoch_utime + first * 25);
     }
@@ -519,20 +516,10 @@ TEST(Replay, SeveralLogsRefuseAmbiguousOutputs) {
 
 namespace {
 
-struct Output {
-  int status = -1;
-  std::string text;
-};
+using Output = test::CommandOutput;
 
 Output run_noisemon(const std::string& args) {
-  Output o;
-  FILE* p = popen((std::string(NOISEMON_BINARY_DIR) + "/daemon/noisemon " + args + " 2>&1").c_str(), "r");
-  if (!p) return o;
-  char buf[4096];
-  while (std::size_t n = std::fread(buf, 1, sizeof buf, p)) o.text.append(buf, n);
-  const int status = pclose(p);
-  o.status = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  return o;
+  return test::run_command(std::string(NOISEMON_BINARY_DIR) + "/daemon/noisemon " + args);
 }
 
 }  // namespace

@@ -11,6 +11,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "tests/cli/run_command.hpp"
 #include "tests/daemon/csv_column.hpp"
 #include "tests/drivers/unique_temp.hpp"
 
@@ -21,21 +22,9 @@ namespace {
 const std::string kNoisemon = std::string(NOISEMON_BINARY_DIR) + "/daemon/noisemon";
 const std::string kTable = std::string(NOISEMON_SHARED_DIR) + "/data/real/yanmar_l100v_fired_18Nm.txt";
 
-struct Output {
-  int status;
-  std::string text;
-};
+using Output = noisemon::test::CommandOutput;
 
-Output run(const std::string& args) {
-  Output o{-1, ""};
-  FILE* p = popen((kNoisemon + " " + args + " 2>&1").c_str(), "r");
-  if (!p) return o;
-  char buf[4096];
-  while (std::size_t n = std::fread(buf, 1, sizeof buf, p)) o.text.append(buf, n);
-  const int status = pclose(p);
-  o.status = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  return o;
-}
+Output run(const std::string& args) { return noisemon::test::run_command(kNoisemon + " " + args); }
 
 std::size_t column_of(const std::string& csv_path, const std::string& name) {
   std::ifstream in(csv_path);
