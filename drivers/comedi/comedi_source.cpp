@@ -353,8 +353,7 @@ std::unique_ptr<Acquisition> open_comedi_acquisition(const ComediAcquisitionConf
 }
 
 double edge_scan_rate_hz(const ComediSourceConfig::Encoder& e) {
-  if (!(e.max_rpm > 0.0)) return dsp::NonuniformResampler::kAnyEncoderEdgeRateHz;
-  return e.max_rpm / 60.0 * e.counts_per_rev / e.counts_per_edge;
+  return max_edge_rate_hz(e.counts_per_rev, e.counts_per_edge, e.max_rpm);
 }
 
 std::string buffer_note(const Acquisition& a, const ComediAcquisitionConfig& config, double scan_rate_hz,

@@ -32,11 +32,14 @@ std::int64_t floor_div(std::int64_t a, std::int64_t b) { return a / b - ((a % b 
 
 namespace {
 dsp::NonuniformResampler make_resampler(const EdgeStreamConfig& c) {
-  if (!(c.max_rpm > 0.0)) return dsp::NonuniformResampler(kPipelineRateHz, 1);
-  const double edges_per_rev = static_cast<double>(c.counts_per_rev) / static_cast<double>(c.counts_per_edge);
-  return dsp::NonuniformResampler(kPipelineRateHz, 1, edges_per_rev * c.max_rpm / 60.0);
+  return dsp::NonuniformResampler(kPipelineRateHz, 1, max_edge_rate_hz(c.counts_per_rev, c.counts_per_edge, c.max_rpm));
 }
 }  // namespace
+
+double max_edge_rate_hz(std::uint32_t counts_per_rev, std::uint32_t counts_per_edge, double max_rpm) {
+  if (!(max_rpm > 0.0)) return dsp::NonuniformResampler::kAnyEncoderEdgeRateHz;
+  return max_rpm / 60.0 * counts_per_rev / counts_per_edge;
+}
 
 EdgeStreamAssembler::EdgeStreamAssembler(const EdgeStreamConfig& config, std::int64_t epoch_utime)
     : config_(config),

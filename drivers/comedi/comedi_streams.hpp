@@ -90,6 +90,10 @@ struct EdgeStreamConfig {
   double max_rpm = 0.0;
 };
 
+// The highest encoder edge rate of an engine at max_rpm (edges per revolution = counts_per_rev / counts_per_edge);
+// with max_rpm 0 (not known) the most the crank-angle resampler accepts from any encoder (600 kHz).
+double max_edge_rate_hz(std::uint32_t counts_per_rev, std::uint32_t counts_per_edge, double max_rpm);
+
 struct EdgeStreamCounters {
   std::uint64_t edges = 0;             // paired encoder-clocked scans
   std::uint64_t edges_before_lock = 0; // not output: cam phase (or the first pegging) not known yet

@@ -3,12 +3,10 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
-#include <exception>
 #include <lcm/lcm-cpp.hpp>
 #include <limits>
 #include <span>
 #include <stdexcept>
-#include <thread>
 
 #include "drivers/formats/lcm_log_reader.hpp"
 #include "drivers/formats/run_both.hpp"
@@ -596,26 +594,6 @@ struct RecordingLogWriter::Impl {
   noisemon::raw_block_t pressure_block, mic_block;
 };
 
-namespace {
-
-// block becomes the raw block message of frames [first_index, first_index + frames) of one stream, without its
-// samples yet (block.data holds frames * channels values to be filled).
-void start_raw_block(noisemon::raw_block_t& block, std::int8_t stream, std::int64_t epoch, std::int64_t first_index,
-                     std::size_t frames, std::uint32_t channels) {
-  std::vector<double> data = std::move(block.data);
-  SampleBlock header;  // what to_message makes of a block, less the samples
-  header.first_index = first_index;
-  header.frames = 0;
-  header.channels = channels;
-  block = to_message(header, stream, epoch);
-  block.frames = static_cast<std::int16_t>(frames);
-  block.nsamples = static_cast<std::int32_t>(frames * channels);
-  data.resize(frames * channels);
-  block.data = std::move(data);
-}
-
-}  // namespace
-
 RecordingLogWriter::RecordingLogWriter(const std::filesystem::path& log, const LogChannels& channels)
     : impl_(std::make_unique<Impl>(log, channels)) {}
 RecordingLogWriter::~RecordingLogWriter() = default;
@@ -651,14 +629,14 @@ void RecordingLogWriter::write(const Recording& rec, const ProgressFn& progress)
       write_event(w.log, w.path, w.channels.operating_point, to_message(*current), utime, w.buf);
     const std::size_t frames = std::min(kBlockFrames, rec.frames() - f);
     noisemon::raw_block_t& p = w.pressure_block;
-    start_raw_block(p, noisemon::raw_block_t::STREAM_PRESSURE, epoch, k, frames, kPressureStreamChannels);
+    set_raw_block(p, k, frames, kPressureStreamChannels, noisemon::raw_block_t::STREAM_PRESSURE, epoch);
     for (std::size_t i = 0; i < frames; ++i) {
       p.data[i * kPressureStreamChannels + kPressureChannel] = rec.pressure_pa[f + i];
       p.data[i * kPressureStreamChannels + kCrankChannel] = rec.crank_deg[f + i];
     }
     write_event(w.log, w.path, w.channels.raw, p, utime, w.buf);
     if (mics > 0) {
-      start_raw_block(w.mic_block, noisemon::raw_block_t::STREAM_MICS, epoch, k, frames, mics);
+      set_raw_block(w.mic_block, k, frames, mics, noisemon::raw_block_t::STREAM_MICS, epoch);
       std::copy_n(&rec.mics_pa[f * mics], frames * mics, w.mic_block.data.begin());
       write_event(w.log, w.path, w.channels.raw, w.mic_block, utime, w.buf);
     }

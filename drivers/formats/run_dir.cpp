@@ -10,13 +10,11 @@
 #include <charconv>
 #include <cmath>
 #include <cstring>
-#include <exception>
 #include <fstream>
 #include <limits>
 #include <nlohmann/json.hpp>
 #include <numeric>
 #include <sstream>
-#include <thread>
 
 #include "drivers/formats/run_both.hpp"
 #include "drivers/source.hpp"
@@ -435,20 +433,26 @@ void parse_csv_row(std::string_view line, const std::string& file, std::uint32_t
 }
 
 // Appends a row (pressure converted to Pa) after checking it against the previous one and the plausible range.
+// The rules every row meets, shared by the line-by-line reading and the fast path: time and crank angle increase
+// from row to row, and the pressure is within +-1e5 bar (beyond any cylinder: a corrupted field, which would also
+// overflow once converted to Pa).
+bool time_increases(double t, double previous_t) { return t > previous_t; }
+bool crank_increases(double crank, double previous_crank) { return crank > previous_crank; }
+bool pressure_in_range(double pa) { return std::abs(pa) <= 1e10; }
+
 void append_row(RunDir& run, const double (&v)[3], double to_pa, std::string_view line, const std::string& file,
                 std::uint32_t line_no) {
   if (!run.time_s.empty()) {
-    if (!(v[0] > run.time_s.back()))
+    if (!time_increases(v[0], run.time_s.back()))
       throw RunDirError(at_line(file, line_no) + "time_s " + std::to_string(v[0]) +
                         " s does not increase (previous row " + std::to_string(run.time_s.back()) +
                         " s): rows out of order or repeated");
-    if (!(v[1] > run.crank_deg.back()))
+    if (!crank_increases(v[1], run.crank_deg.back()))
       throw RunDirError(at_line(file, line_no) + "crank_deg " + std::to_string(v[1]) +
                         " does not increase (previous row " + std::to_string(run.crank_deg.back()) +
                         "): crank_deg must be unwrapped and increasing");
   }
-  // Far beyond any cylinder (1e5 bar): a corrupted field, which would also overflow once converted to Pa.
-  if (!(std::abs(v[2] * to_pa) <= 1e10))
+  if (!pressure_in_range(v[2] * to_pa))
     throw RunDirError(at_line(file, line_no) + "field pressure is " + quoted(line.substr(line.rfind(',') + 1)) +
                       ", expected a cylinder pressure within +-1e5 bar");
   run.time_s.push_back(v[0]);
@@ -592,7 +596,8 @@ void parse_part(CsvPart& part, double to_pa, const MappedFile* map) {
       return;
     }
     const double pa = v[2] * to_pa;
-    if ((!part.t.empty() && !(v[0] > part.t.back() && v[1] > part.crank.back())) || !(std::abs(pa) <= 1e10)) {
+    const bool follows = part.t.empty() || (time_increases(v[0], part.t.back()) && crank_increases(v[1], part.crank.back()));
+    if (!follows || !pressure_in_range(pa)) {
       part.plain = false;
       return;
     }
@@ -630,7 +635,8 @@ bool join_parts(CsvPart& a, const CsvPart& b) {
   if (!a.plain || !b.plain) return false;
   if (b.t.empty()) return true;
   if (a.blank_end) return false;
-  if (!a.t.empty() && !(b.t.front() > a.t.back() && b.crank.front() > a.crank.back())) return false;
+  if (!a.t.empty() && !(time_increases(b.t.front(), a.t.back()) && crank_increases(b.crank.front(), a.crank.back())))
+    return false;
   a.t.insert(a.t.end(), b.t.begin(), b.t.end());
   a.crank.insert(a.crank.end(), b.crank.begin(), b.crank.end());
   a.p.insert(a.p.end(), b.p.begin(), b.p.end());

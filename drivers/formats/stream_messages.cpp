@@ -26,17 +26,23 @@ noisemon::operating_point_t to_message(const OperatingPoint& op) {
   return m;
 }
 
-noisemon::raw_block_t to_message(const SampleBlock& b, std::int8_t stream, std::int64_t epoch_utime) {
-  noisemon::raw_block_t m;
+void set_raw_block(noisemon::raw_block_t& m, std::int64_t first_index, std::size_t frames, std::uint32_t channels,
+                   std::int8_t stream, std::int64_t epoch_utime) {
   m.epoch_utime = epoch_utime;
-  m.first_index = b.first_index;
-  m.utime = epoch_utime + static_cast<std::int64_t>(std::llround(static_cast<double>(b.first_index) * 1e6 / kPipelineRateHz));
+  m.first_index = first_index;
+  m.utime = epoch_utime + static_cast<std::int64_t>(std::llround(static_cast<double>(first_index) * 1e6 / kPipelineRateHz));
   m.stream = stream;
   m.sample_rate_hz = kPipelineRateHz;
-  m.channels = static_cast<std::int16_t>(b.channels);
-  m.frames = static_cast<std::int16_t>(b.frames);
-  m.nsamples = static_cast<std::int32_t>(b.frames * b.channels);
-  m.data.assign(b.data, b.data + m.nsamples);
+  m.channels = static_cast<std::int16_t>(channels);
+  m.frames = static_cast<std::int16_t>(frames);
+  m.nsamples = static_cast<std::int32_t>(frames * channels);
+  m.data.resize(static_cast<std::size_t>(m.nsamples));
+}
+
+noisemon::raw_block_t to_message(const SampleBlock& b, std::int8_t stream, std::int64_t epoch_utime) {
+  noisemon::raw_block_t m;
+  set_raw_block(m, b.first_index, b.frames, b.channels, stream, epoch_utime);
+  std::copy_n(b.data, m.nsamples, m.data.begin());
   return m;
 }
 

@@ -14,6 +14,11 @@ namespace noisemon::drivers {
 
 noisemon::operating_point_t to_message(const OperatingPoint& op);
 noisemon::raw_block_t to_message(const SampleBlock& b, std::int8_t stream, std::int64_t epoch_utime);
+// The same message's fields for frames [first_index, first_index + frames) of `channels` channels, written into m,
+// whose data is sized for them and left for the caller to fill (its storage is reused: a writer of many blocks
+// keeps one message).
+void set_raw_block(noisemon::raw_block_t& m, std::int64_t first_index, std::size_t frames, std::uint32_t channels,
+                   std::int8_t stream, std::int64_t epoch_utime);
 // condition: the run's condition name (session_t::condition), "" when unknown.
 noisemon::session_t to_message(const StreamInfo& info, const std::string& source, std::int64_t utime,
                                const std::string& condition = "");
