@@ -27,6 +27,7 @@
 #include "tests/cli/run_command.hpp"
 #include "tests/daemon/csv_column.hpp"
 #include "tests/drivers/unique_temp.hpp"
+#include "tests/sanitizer.hpp"
 
 using namespace noisemon;
 
@@ -247,7 +248,7 @@ TEST(Replay, UnknownLoadAndSoiAreNaNInTheReportsNanInTheCsvAndNaOnTheWatchLines)
   w.lcm_url = "file://" + o.out_log + "?speed=0";
   w.channel = o.config.lcm.report_channel;
   w.count = 38;
-  w.timeout_s = 10;
+  w.timeout_s = noisemon::test::allowance_s(2.5);  // the longest silence: opening the log
   w.csv_path = dir + "/watch.csv";
   testing::internal::CaptureStdout();
   const int status = daemon::run_watch(w);

@@ -19,8 +19,10 @@
 
 #include "drivers/combined_source.hpp"
 #include "tests/drivers/unique_temp.hpp"
+#include "tests/sanitizer.hpp"
 
 namespace nd = noisemon::drivers;
+using noisemon::test::allowance;
 
 namespace {
 
@@ -128,7 +130,7 @@ std::int64_t counter(const nd::SourceBase& s, const std::string& name) {
 }
 
 void wait_until_stopped(const nd::SourceBase& s) {
-  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(10);
+  const auto deadline = std::chrono::steady_clock::now() + allowance(std::chrono::seconds(1));  // a thread ending
   while (s.thread_status().at(0).state == nd::ThreadState::kRunning && std::chrono::steady_clock::now() < deadline)
     std::this_thread::sleep_for(std::chrono::milliseconds(2));
 }
@@ -174,7 +176,7 @@ TEST(CandumpSource, PacedReplayKeepsTheRecordedSpacing) {
   const std::int64_t t0 = nd::wall_utime();
   source->start(ring);
   std::vector<std::pair<std::int64_t, nd::OperatingPoint>> arrivals;  // wall time seen, op
-  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(5);
+  const auto deadline = std::chrono::steady_clock::now() + allowance(std::chrono::seconds(1));  // 80 ms of frames
   while (arrivals.size() < 5 && std::chrono::steady_clock::now() < deadline) {
     nd::OperatingPoint op;
     if (ring.read(&op, 1) == 1) arrivals.emplace_back(nd::wall_utime(), op);
@@ -315,7 +317,7 @@ TEST_F(SocketCanPair, CombinedSourceTakesStreamsFromOneAndOperatingPointsFromThe
   send_frame(0x0CF00400 | CAN_EFF_FLAG, {0xFF, 0xFF, 0xFF, 0x40, 0x5F, 0xFF, 0xFF, 0xFF});
   send_frame(0x321, {0x00, 0xC8, 0x48});
   send_frame(0x322, {0xE8, 0x03, 0x01});
-  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(5);
+  const auto deadline = std::chrono::steady_clock::now() + allowance(std::chrono::seconds(1));  // 80 ms of frames
   std::vector<nd::OperatingPoint> ops;
   while (ops.empty() && std::chrono::steady_clock::now() < deadline) {
     ops = drain(ring);

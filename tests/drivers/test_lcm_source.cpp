@@ -13,6 +13,7 @@
 
 #include "drivers/formats/stream_messages.hpp"
 #include "tests/drivers/unique_temp.hpp"
+#include "tests/sanitizer.hpp"
 
 namespace nd = noisemon::drivers;
 
@@ -78,13 +79,14 @@ TEST(LcmSource, AMicrophoneBlockThatDoesNotFitTheSessionIsCountedNotDeliveredAnd
   }
   nd::LcmSourceConfig config;
   config.url = "file://" + path + "?speed=0";
-  config.session_timeout_s = 5;
+  config.session_timeout_s = noisemon::test::allowance_s(1);
   auto source = nd::make_lcm_source(config);
   EXPECT_EQ(source->info().mic_count, 2u);
   nd::BlockRing pressure(16), mics(16);
   nd::OperatingPointRing ops(16);
   source->start({&pressure, &mics, &ops});
-  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(10);
+  // A few messages from a file.
+  const auto deadline = std::chrono::steady_clock::now() + noisemon::test::allowance(std::chrono::seconds(1));
   while (ops.empty() && std::chrono::steady_clock::now() < deadline)
     std::this_thread::sleep_for(std::chrono::milliseconds(5));
   ASSERT_FALSE(ops.empty()) << "the operating point after the bad block never arrived";

@@ -19,12 +19,15 @@
 #include <stdexcept>
 #include <thread>
 
+#include "tests/sanitizer.hpp"
+
 namespace nd = noisemon::drivers;
 
 namespace {
 
 void wait_while_running(const nd::WorkerThread& w) {
-  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(10);
+  // A thread seeing its stop flag.
+  const auto deadline = std::chrono::steady_clock::now() + noisemon::test::allowance(std::chrono::seconds(1));
   while (w.state() == nd::ThreadState::kRunning && std::chrono::steady_clock::now() < deadline)
     std::this_thread::sleep_for(std::chrono::milliseconds(1));
 }

@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "dsp/spsc_ring.hpp"
+#include "tests/sanitizer.hpp"
 
 namespace noisemon::dsp {
 namespace {
@@ -108,8 +109,8 @@ TEST(SpscRing, PeekFrontAndConsume) {
 }
 
 // Producer and consumer threads; the consumer checks every item. Bounded: gives up after kTimeLimit, a guard
-// against a hang only (a fraction of a second normally; a sanitizer on a loaded machine took over 5 s).
-constexpr auto kTimeLimit = std::chrono::seconds(60);
+// against a hang only (a fraction of a second normally; ASan on a loaded machine took over 5 s).
+const auto kTimeLimit = noisemon::test::allowance(std::chrono::seconds(2));
 
 TEST(SpscRing, TwoThreadsRetryingProducerDeliversEveryItemOnceInOrder) {
   constexpr std::uint64_t kItems = 1u << 21;

@@ -16,6 +16,8 @@
 #include <thread>
 #include <vector>
 
+#include "tests/sanitizer.hpp"
+
 namespace noisemon::test {
 
 inline const char* const kLcmUrl = "udpm://239.255.76.67:7667?ttl=0";
@@ -70,7 +72,7 @@ inline pid_t spawn(const std::vector<std::string>& args, const std::string& stdo
 
 // Waits up to timeout for the child; then kills it (unless kill_after is false). Returns the exit status
 // (128 + signal when killed by one), or -1 on timeout.
-inline int wait_for(pid_t pid, std::chrono::seconds timeout, bool kill_after = true) {
+inline int wait_for(pid_t pid, std::chrono::milliseconds timeout, bool kill_after = true) {
   const auto deadline = std::chrono::steady_clock::now() + timeout;
   for (;;) {
     int status = 0;
@@ -83,6 +85,17 @@ inline int wait_for(pid_t pid, std::chrono::seconds timeout, bool kill_after = t
     waitpid(pid, nullptr, 0);
   }
   return -1;
+}
+
+// Waits until `done` holds, polling; false when the deadline passed first.
+template <class Condition>
+bool wait_until(Condition done, std::chrono::milliseconds timeout) {
+  const auto deadline = std::chrono::steady_clock::now() + timeout;
+  while (!done()) {
+    if (std::chrono::steady_clock::now() >= deadline) return false;
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  }
+  return true;
 }
 
 }  // namespace noisemon::test

@@ -21,6 +21,7 @@
 
 namespace {
 
+using noisemon::test::allowance;
 using noisemon::test::kLcmUrl;
 using noisemon::test::spawn;
 using noisemon::test::wait_for;
@@ -68,10 +69,10 @@ class Process {
   ~Process() {
     if (pid_ > 0) wait_for(pid_, std::chrono::seconds(0));
   }
-  // SIGINT, as Ctrl-C; the exit status (-1: it had to be killed after 10 s).
+  // SIGINT, as Ctrl-C; the exit status (-1: it had to be killed after the allowance for a second of work).
   int stop() {
     kill(pid_, SIGINT);
-    const int status = wait_for(pid_, std::chrono::seconds(10));
+    const int status = wait_for(pid_, allowance(std::chrono::seconds(1)));
     pid_ = -1;
     return status;
   }
