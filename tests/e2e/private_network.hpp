@@ -20,7 +20,11 @@
 
 namespace noisemon::test {
 
-inline const char* const kLcmUrl = "udpm://239.255.76.67:7667?ttl=0";
+// Every subscriber's socket holds 4 MB (the kernel's rmem_max here; LCM warns and takes what it may where it is less):
+// all of the group's traffic, the raw streams too (2.7 MB/s), reaches each subscriber, and the default 208 kB held
+// 80 ms of it, so a subscriber descheduled longer on a loaded 2-core machine lost packets (lcm-logger missed two
+// cycles' raw blocks beside two CPU-bound processes). A real network's loss is what the fault tests inject.
+inline const char* const kLcmUrl = "udpm://239.255.76.67:7667?ttl=0&recv_buf_size=4194304";
 
 // Enters a private network namespace once for the whole test program, with loopback up and a multicast route.
 class PrivateNetwork : public ::testing::Environment {
