@@ -25,6 +25,7 @@
 #include "drivers/lcm/lcm_source.hpp"
 #include "drivers/formats/stream_messages.hpp"
 #include "tests/drivers/unique_temp.hpp"
+#include "tests/e2e/private_network.hpp"
 #include "tests/sanitizer.hpp"
 
 using noisemon::daemon::Config;
@@ -37,9 +38,6 @@ using noisemon::test::allowance;
 using noisemon::test::allowance_s;
 using namespace std::chrono_literals;
 constexpr auto kStartUp = 1.5s;  // a process's start up to its first cycle, in the normal build on an idle machine
-// LCM in the tests' private network namespaces; each subscriber's socket holds 4 MB of the group's traffic (see
-// tests/e2e/private_network.hpp).
-const std::string kPrivateLcmUrl = "udpm://239.255.76.67:7667?ttl=0&recv_buf_size=4194304";
 
 const std::string kNoisemond = std::string(NOISEMON_BINARY_DIR) + "/daemon/noisemond";
 const std::string kNoisemon = std::string(NOISEMON_BINARY_DIR) + "/daemon/noisemon";
@@ -181,7 +179,7 @@ TEST(Noisemond, DriverCountersAppearInWatchStatusAndTheRollingStatisticsInWatchS
                                        "(1700000000.100000) can0 0CF00400#FFFFFF00640000FF\n");
     const std::string cfg =
         write_file("status.toml", noisemon::test::sim_pacing_toml() + "[can]\ncandump = \"" + log + "\"\n" + kSpeedSignal);
-    const std::string url = kPrivateLcmUrl;
+    const std::string url = noisemon::test::kLcmUrl;  // tests/e2e/private_network.hpp says why
     const pid_t daemon = fork();
     if (daemon == 0) {
       if (!std::freopen((dir + "/daemon.err").c_str(), "w", stderr)) _exit(126);
@@ -233,7 +231,7 @@ TEST(LcmSource, BlocksOfAnotherSessionAreCountedNotMixedIn) {
   const pid_t pid = fork();
   if (pid == 0) {
     if (unshare(CLONE_NEWNET) != 0 || std::system("ip link set lo up && ip route add 224.0.0.0/4 dev lo") != 0) _exit(125);
-    const std::string url = kPrivateLcmUrl;
+    const std::string url = noisemon::test::kLcmUrl;  // tests/e2e/private_network.hpp says why
     lcm::LCM pub(url);
     if (!pub.good()) _exit(124);
     noisemon::drivers::StreamInfo a;
