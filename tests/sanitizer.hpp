@@ -25,6 +25,9 @@ inline constexpr double kSanitizerSlowdown = 1.0;
 // Two CPU-bound processes beside a test on the 2-core machine leave its processes a third of the cores or less.
 inline constexpr double kLoadedMachineSlowdown = 4.0;
 
+// A process's start, from its exec to the daemon's first cycle, in the normal build on an idle machine.
+inline constexpr std::chrono::duration<double> kStartUp{1.5};
+
 // How long to wait for work that takes `idle` in the normal build on an idle machine, before calling it a hang: the
 // work stretched by this build's sanitizer and by a loaded machine. A guard, never a measure of speed.
 inline std::chrono::milliseconds allowance(std::chrono::duration<double> idle) {

@@ -36,8 +36,8 @@ namespace {
 
 using noisemon::test::allowance;
 using noisemon::test::allowance_s;
+using noisemon::test::kStartUp;
 using namespace std::chrono_literals;
-constexpr auto kStartUp = 1.5s;  // a process's start up to its first cycle, in the normal build on an idle machine
 
 const std::string kNoisemond = std::string(NOISEMON_BINARY_DIR) + "/daemon/noisemond";
 const std::string kNoisemon = std::string(NOISEMON_BINARY_DIR) + "/daemon/noisemon";

@@ -30,6 +30,7 @@ namespace {
 
 using noisemon::test::allowance;
 using noisemon::test::allowance_s;
+using noisemon::test::kStartUp;
 using noisemon::test::kLcmUrl;
 using noisemon::test::spawn;
 using noisemon::test::wait_for;
@@ -39,7 +40,6 @@ const auto* const kEnv = ::testing::AddGlobalTestEnvironment(new noisemon::test:
 
 // The work each wait below stands for, in the normal build on an idle machine (tests/sanitizer.hpp stretches it).
 constexpr double kCyclesPerSecond = 3050.0 / 120.0;                      // the sim's default speed
-constexpr auto kStartUp = 1.5s;                                            // a process's start, the daemon's first cycle
 constexpr auto kSubscribed = 75ms;                                        // a subscriber's start, up to its subscription
 std::chrono::duration<double> engine_time(int cycles) { return std::chrono::duration<double>(cycles / kCyclesPerSecond); }
 // watch's --timeout: the longest silence it may wait through (the daemon's start-up) before it calls it an error.
@@ -191,7 +191,9 @@ TEST(EndToEnd, SigintPublishesTheLastCompleteCycleAndExitsCleanly) {
   const auto t0 = std::chrono::steady_clock::now();
   EXPECT_EQ(wait_for(daemon, allowance(1s)), 0);
   // The cycle in progress is finished or dropped at once: promptly on the wall clock (a sanitizer's slowdown aside).
-  if (!noisemon::test::kSanitized) EXPECT_LT(std::chrono::steady_clock::now() - t0, 3s);
+  if (!noisemon::test::kSanitized) {
+    EXPECT_LT(std::chrono::steady_clock::now() - t0, 3s);
+  }
   ASSERT_TRUE(reached) << "the subscriber did not receive " << kCycles << " cycles";
   // The live display printed the same cycles the subscriber received, the last one included.
   const long long last_cycle = last_printed_cycle(log);
