@@ -49,6 +49,8 @@ json model_params(const model::ExtendedModel& m) {
     p["mode_db"] = e.mode_db;
     p["mode_hz"] = e.mode_hz;
     p["mode_q"] = e.mode_q;
+    p["mode_phase_deg"] = e.mode_phase_deg;
+    p["mode_rise_db"] = model::mode_rise_db(e);  // the level change at mode_hz the mode makes
   }
   if (m.on.speed) {
     p["speed_gain_db_per_krpm"] = e.speed_gain_db_per_krpm;

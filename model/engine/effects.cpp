@@ -29,9 +29,11 @@ enum : std::uint64_t {
   kStreamTransducer = 0x2001,
 };
 
-constexpr std::array<EffectQualifierInfo, 2> kSecondModeQualifiers{{
+constexpr std::array<EffectQualifierInfo, 3> kSecondModeQualifiers{{
     {"hz", "Hz", "frequency f2 of the mode", 2000.0, 50.0, 18000.0},
     {"q", "", "quality factor Q of the mode (bandwidth f2 / Q)", 5.0, 0.5, 50.0},
+    {"phase", "deg", "the mode's phase against the block's output at f2 (0: in phase; a panel elsewhere: a peak beside a dip)",
+     0.0, -180.0, 180.0},
 }};
 constexpr std::array<EffectQualifierInfo, 1> kMicGainQualifiers{{
     {"mic", "", "the miscalibrated microphone, 1-based (Table 3.1 numbering)", 1.0, 1.0, 16.0},
@@ -50,7 +52,8 @@ const std::array<EffectInfo, 9> kCatalog{{
      5.0e12, 1.0e12, 2.0e13, 0.0, 1.0e16, {}, false},
     {"second_mode", "dB",
      "a further structural resonance (cover panel): the structural response at f2 rises by M dB",
-     "y += (10^(M/20) - 1) R(y), R unit-peak resonance at f2 (default 2000 Hz, Q 5); negative M: an absorber. Off: 0.",
+     "y += (10^(M/20) - 1) (cos(phase) R(y) - sin(phase) D(y)), R unit-peak resonance at f2 (default 2000 Hz, Q 5, phase 0), "
+     "D its displacement-like partner; negative M: an absorber. Off: 0.",
      8.0, 3.0, 12.0, -20.0, 30.0, kSecondModeQualifiers, false},
     {"mechanical_noise", "dB(A)",
      "crank-angle-locked impacts (piston slap, valves, injector), Leq(A) at the microphones (energy mean) at 3050 rpm",
@@ -283,6 +286,7 @@ void Effects::add(const EffectSetting& setting) {
     second_mode_db = m;
     second_mode_hz = qualifier("hz");
     second_mode_q = qualifier("q");
+    second_mode_phase_deg = qualifier("phase");
   } else if (n == "mechanical_noise") {
     mechanical_noise_dba = m;
   } else if (n == "background_noise") {
@@ -339,6 +343,11 @@ SecondModeFilter::SecondModeFilter(const Effects& effects, double fs_hz) {
   b2_ = -alpha / a0;
   a1_ = -2.0 * std::cos(w0) / a0;
   a2_ = (1.0 - alpha) / a0;
+  // RBJ low-pass (1 - cos w0)/2 (1 + 2 z^-1 + z^-2), divided by Q: the displacement-like partner, -j at f2.
+  l0_ = (1.0 - std::cos(w0)) / 2.0 / a0 / effects.second_mode_q;
+  l1_ = 2.0 * l0_;
+  cos_ = std::cos(effects.second_mode_phase_deg * kPi / 180.0);
+  sin_ = std::sin(effects.second_mode_phase_deg * kPi / 180.0);
 }
 
 void SecondModeFilter::process(double* y, std::size_t n) {
@@ -346,11 +355,14 @@ void SecondModeFilter::process(double* y, std::size_t n) {
   for (std::size_t i = 0; i < n; ++i) {
     const double x = y[i];
     const double r = b0_ * x + b2_ * x2_ - a1_ * y1_ - a2_ * y2_;
+    const double d = l0_ * x + l1_ * x1_ + l0_ * x2_ - a1_ * d1_ - a2_ * d2_;
     x2_ = x1_;
     x1_ = x;
     y2_ = y1_;
     y1_ = r;
-    y[i] = x + a_ * r;
+    d2_ = d1_;
+    d1_ = d;
+    y[i] = x + a_ * (cos_ * r - sin_ * d);
   }
 }
 

@@ -102,6 +102,7 @@ struct Effects {
   double second_mode_db = 0.0;
   double second_mode_hz = 2000.0;
   double second_mode_q = 5.0;
+  double second_mode_phase_deg = 0.0;  // the mode's phase against the block's output at f2 (the diagnosis fits it)
   std::optional<double> mechanical_noise_dba;  // nullopt: off
   std::optional<double> background_noise_dba;  // nullopt: off
   double transducer_noise_bar = 0.0;            // rms per encoder sample
@@ -128,8 +129,12 @@ BlockParams with_structural_effects(const BlockParams& true_block, const Effects
 // Linear gain on the structural (combustion) noise path: speed_dependence and the foreign effect.
 double structural_gain(const Effects& effects, double speed_rpm, double soi_deg_btdc, bool motored);
 
-// second_mode: y + a R(y), R the unit-peak resonance at f2 discretised by the bilinear transform pre-warped at
-// f2 (so the gain at f2 is exactly 10^(M/20)). Streaming, no allocation. Inactive (exact pass-through) for M = 0.
+// second_mode: y + a (cos(phi) R(y) - sin(phi) D(y)), R the unit-peak resonance at f2 (velocity-like: 1 at f2) and D
+// its displacement-like partner (-j at f2), both discretised by the bilinear transform pre-warped at f2, so the
+// mode's contribution at f2 is exactly a e^(j phi), a = 10^(M/20) - 1. phi = 0 (the simulator's effect): a mode in
+// phase with the block's output, the gain at f2 exactly 10^(M/20); another phase is a mode radiating with its own
+// phase (a panel elsewhere on the engine), a peak beside a dip. Streaming, no allocation. Inactive (exact
+// pass-through) for M = 0.
 class SecondModeFilter {
  public:
   SecondModeFilter(const Effects& effects, double fs_hz);
@@ -137,9 +142,10 @@ class SecondModeFilter {
   void process(double* y, std::size_t n);
 
  private:
-  double a_ = 0.0;
-  double b0_ = 0, b2_ = 0, a1_ = 0, a2_ = 0;  // normalised biquad (b1 = 0)
-  double x1_ = 0, x2_ = 0, y1_ = 0, y2_ = 0;
+  double a_ = 0.0, cos_ = 1.0, sin_ = 0.0;
+  double b0_ = 0, b2_ = 0, a1_ = 0, a2_ = 0;  // normalised band-pass biquad (b1 = 0)
+  double l0_ = 0, l1_ = 0;                     // the low-pass partner's numerator (l2 = l0), over Q; same poles
+  double x1_ = 0, x2_ = 0, y1_ = 0, y2_ = 0, d1_ = 0, d2_ = 0;
 };
 
 // One crank-angle-locked impact source of mechanical_noise.

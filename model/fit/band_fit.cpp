@@ -15,11 +15,18 @@ namespace {
 
 using namespace band_fit_internal;
 
-// Start search of a second mode: every scored band centre from kModeSearchLowHz, as a resonance and as an
-// absorber of this gain and Q (a few dB, a few bands wide: the fit takes it from there).
+// Start search of a second mode: every scored band centre from kModeSearchLowHz, as a resonance in phase with the
+// block (+6 dB at f2) and as one in anti-phase (-6 dB at f2: a = 0.5 at 180 deg), each a few bands wide and narrow
+// (Q 4 and 12): the fit takes it from there, the phase included.
+struct ModeStart {
+  double db, phase_deg;
+};
 constexpr double kModeSearchLowHz = 100.0;
-constexpr double kModeSearchDb = 6.0;
-constexpr double kModeSearchQ = 4.0;
+constexpr ModeStart kModeSearchPeak{6.0, 0.0}, kModeSearchDip{3.5218, 180.0};
+constexpr double kModeSearchQ[] = {4.0, 12.0};
+// Fits within this share of the best objective are equally good; of those, the one that moved the block least is the
+// start: a mode must not stand in for the block's own resonance, moved elsewhere (the two can draw the same curve).
+constexpr double kModeObjectiveTie = 1e-3;
 constexpr std::size_t kModeSearchFits = 4;  // surrogate fits from the best-ranked starts, and as many from the
                                             // bands of the largest training gap
 
@@ -199,13 +206,15 @@ std::vector<ExtensionParams> ranked_mode_starts(const FitSetup& setup, const Anc
   std::vector<std::pair<double, ExtensionParams>> starts;
   for (const dsp::ThirdOctaveBand& band : setup.data->bands) {
     if (band.nyquist_cut || band.nominal_hz < kModeSearchLowHz) continue;
-    for (double gain_db : {kModeSearchDb, -kModeSearchDb}) {
-      ExtendedModel t = m;
-      t.ext.mode_hz = band.exact_mid_hz;
-      t.ext.mode_q = kModeSearchQ;
-      t.ext.mode_db = gain_db;
-      starts.emplace_back(refit_on_anchor(rank, an, t).objective, t.ext);
-    }
+    for (const ModeStart& st : {kModeSearchPeak, kModeSearchDip})
+      for (double q : kModeSearchQ) {
+        ExtendedModel t = m;
+        t.ext.mode_hz = band.exact_mid_hz;
+        t.ext.mode_q = q;
+        t.ext.mode_db = st.db;
+        t.ext.mode_phase_deg = st.phase_deg;
+        starts.emplace_back(refit_on_anchor(rank, an, t).objective, t.ext);
+      }
   }
   std::sort(starts.begin(), starts.end(), [](const auto& a, const auto& b) { return a.first < b.first; });
   starts.resize(std::min<std::size_t>(kModeSearchFits, starts.size()));
@@ -250,8 +259,10 @@ std::vector<ExtensionParams> gap_mode_starts(const FitSetup& setup, const Anchor
   for (std::size_t i = 0; i < std::min<std::size_t>(kModeSearchFits, by_gap.size()); ++i) {
     ExtensionParams e = m.ext;
     e.mode_hz = data.bands[by_gap[i]].exact_mid_hz;
-    e.mode_q = kModeSearchQ;
-    e.mode_db = std::copysign(kModeSearchDb, gap[by_gap[i]]);
+    const ModeStart& st = gap[by_gap[i]] > 0 ? kModeSearchPeak : kModeSearchDip;
+    e.mode_q = kModeSearchQ[0];
+    e.mode_db = st.db;
+    e.mode_phase_deg = st.phase_deg;
     out.push_back(e);
   }
   return out;
@@ -259,20 +270,27 @@ std::vector<ExtensionParams> gap_mode_starts(const FitSetup& setup, const Anchor
 
 // A second mode not yet placed: where it sits is a global question (the objective has a local minimum near every
 // band, and none at all in f2 while the mode's gain is 0 dB). On one anchor, run the surrogate fit from the ranked
-// and the gap starts and keep the best result as the start.
+// and the gap starts and keep the best result as the start (of equally good ones, the one that moved the block
+// least: kModeObjectiveTie).
 void place_second_mode(const FitSetup& setup, ExtendedModel& m, int& anchors) {
   const Anchor an = make_anchor(*setup.data, m.block, setup.train, setup.fit_cycles, setup.extensions.locked);
   ++anchors;
   std::vector<ExtensionParams> starts = ranked_mode_starts(setup, an, m);
   for (const ExtensionParams& e : gap_mode_starts(setup, an, m)) starts.push_back(e);
+  std::vector<FitOutcome> fits;
   double best_obj = std::numeric_limits<double>::infinity();
-  ExtensionParams best_ext = m.ext;
   for (const ExtensionParams& start : starts) {
     ExtendedModel t = m;
     t.ext = start;
-    const FitOutcome o = refit_on_anchor(setup, an, t);
-    if (o.objective < best_obj) {
-      best_obj = o.objective;
+    fits.push_back(refit_on_anchor(setup, an, t));
+    best_obj = std::min(best_obj, fits.back().objective);
+  }
+  ExtensionParams best_ext = m.ext;
+  double least_move = std::numeric_limits<double>::infinity();
+  for (const FitOutcome& o : fits) {
+    const double move = max_log_step(o.model.block, m.block);
+    if (o.objective <= best_obj * (1.0 + kModeObjectiveTie) && move < least_move) {
+      least_move = move;
       best_ext = o.model.ext;
     }
   }
@@ -281,6 +299,7 @@ void place_second_mode(const FitSetup& setup, ExtendedModel& m, int& anchors) {
   m.ext.mode_hz = best_ext.mode_hz;
   m.ext.mode_q = best_ext.mode_q;
   m.ext.mode_db = best_ext.mode_db;
+  m.ext.mode_phase_deg = best_ext.mode_phase_deg;
 }
 
 }  // namespace

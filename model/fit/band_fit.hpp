@@ -59,7 +59,11 @@ struct ExtensionSet {
 };
 
 struct ExtensionParams {
+  // The second mode (SecondModeFilter): coupling a = 10^(mode_db/20) - 1 >= 0 at mode_hz with mode_q, radiating at
+  // mode_phase_deg against the block's output (0: in phase, +-180: in anti-phase, a dip). Its level change at mode_hz
+  // is mode_rise_db().
   double mode_db = 0.0, mode_hz = 2000.0, mode_q = 5.0;
+  double mode_phase_deg = 0.0;
   double speed_gain_db_per_krpm = 0.0, speed_shift_per_krpm = 0.0, speed_ref_rpm = 3050.0;
   double transducer_density = 0.0;  // one-sided Pa^2/Hz at 1 kHz
   double transducer_slope = 0.0;    // density ~ (f / 1 kHz)^slope
@@ -68,6 +72,9 @@ struct ExtensionParams {
   double locked_speed_exp = 0.0;      // locked power ~ (n / speed_ref)^exp
   std::vector<double> mic_gain_db;    // per microphone: how many dB it reads high
 };
+
+// The second mode's level change at its frequency, 20 log10 |1 + a e^(j phase)|, dB.
+double mode_rise_db(const ExtensionParams& e);
 
 struct ExtendedModel {
   BlockParams block;

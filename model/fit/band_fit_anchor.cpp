@@ -50,6 +50,7 @@ void simulate_condition(const ConditionData& cond, const BlockParams& params, st
       e.second_mode_db = mode->mode_db;
       e.second_mode_hz = mode->mode_hz;
       e.second_mode_q = mode->mode_q;
+      e.second_mode_phase_deg = mode->mode_phase_deg;
       SecondModeFilter(e, kDatasetRateHz).process(y.data(), frames);
     }
     segment_band_powers(seg, y.data(), 1, nc, part, win_ms ? &wpart : nullptr);

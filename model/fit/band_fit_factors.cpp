@@ -24,6 +24,7 @@ void model_struct(const ExtendedModel& model, const BlockParams& anchor_block, d
   s[kSModeDb] = e.mode_db;
   s[kSModeLogF] = std::log(e.mode_hz / 1000.0);
   s[kSModeLogQ] = std::log(e.mode_q);
+  s[kSModePhase] = e.mode_phase_deg * kPi / 180.0;
   s[kSSpeedGain] = e.speed_gain_db_per_krpm;
   s[kSSpeedShift] = e.speed_shift_per_krpm;
   s[kSTnLogD] = e.transducer_density > 0 ? std::log10(e.transducer_density) : -300.0;

@@ -58,9 +58,9 @@ double band_power_response(const dsp::ThirdOctaveBand& band, double f_hz);
 // ------------------------------------------------------------------------------------------ structural variables
 
 // Structural (shared) variables of the surrogate, as Jet components.
-inline constexpr int kStruct = 14;
+inline constexpr int kStruct = 15;
 enum StructIndex : int { kSK1 = 0, kSB1, kSC0, kSC1, kSModeDb, kSModeLogF, kSModeLogQ, kSSpeedGain, kSSpeedShift,
-                         kSTnLogD, kSTnSlope, kSLockExp, kSK3, kSB3 };
+                         kSTnLogD, kSTnSlope, kSLockExp, kSK3, kSB3, kSModePhase };
 using Jet = ceres::Jet<double, kStruct>;
 
 inline constexpr BlockParam kLinearParams[] = {BlockParam::kK1, BlockParam::kB1, BlockParam::kC0, BlockParam::kC1};
@@ -104,7 +104,7 @@ struct Layout {
 // Parameter values of one problem (Ceres works on these in place).
 struct Values {
   std::vector<double> lin;                 // log(theta / anchor) per free linear parameter
-  std::array<double, 3> mode{};            // dB, log(f / 1 kHz), log Q
+  std::array<double, 4> mode{};            // dB, log(f / 1 kHz), log Q, phase (rad)
   std::array<double, 2> speed{};           // dB per krpm, relative shift per krpm
   std::array<double, 2> tn{};              // log10 density at 1 kHz, slope
   std::array<double, 1> lexp{};            // locked speed exponent

@@ -169,7 +169,7 @@ Values initial_values(const Layout& L, const ExtendedModel& start, const std::ve
     v.lin.push_back(std::log(param_value(start.block, p) / param_value(L.anchor, p)));
   }
   const ExtensionParams& e = start.ext;
-  v.mode = {e.mode_db, std::log(e.mode_hz / 1000.0), std::log(e.mode_q)};
+  v.mode = {e.mode_db, std::log(e.mode_hz / 1000.0), std::log(e.mode_q), e.mode_phase_deg * kPi / 180.0};
   v.speed = {e.speed_gain_db_per_krpm, e.speed_shift_per_krpm};
   v.tn = {e.transducer_density > 0 ? std::log10(e.transducer_density) : 0.0, e.transducer_slope};
   if (!(e.transducer_density > 0) && L.on.transducer) {
@@ -197,6 +197,8 @@ ExtendedModel model_from_values(const Layout& L, const Values& v, const Extended
     e.mode_db = v.mode[0];
     e.mode_hz = 1000.0 * std::exp(v.mode[1]);
     e.mode_q = std::exp(v.mode[2]);
+    e.mode_phase_deg = std::remainder(v.mode[3] * 180.0 / kPi, 360.0);
+    if (e.mode_phase_deg <= -180.0) e.mode_phase_deg += 360.0;
   }
   if (L.on.speed) {
     e.speed_gain_db_per_krpm = v.speed[0];

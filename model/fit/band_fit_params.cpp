@@ -1,5 +1,8 @@
-// Block parameters by name, and their place among the surrogate's structural variables.
+// Block parameters by name, and their place among the surrogate's structural variables; the second mode's level
+// change at its frequency.
 #include <algorithm>
+#include <cmath>
+#include <numbers>
 #include <stdexcept>
 #include <string>
 
@@ -7,6 +10,11 @@
 #include "model/fit/band_fit_internal.hpp"
 
 namespace noisemon::model {
+
+double mode_rise_db(const ExtensionParams& e) {
+  const double a = std::pow(10.0, e.mode_db / 20.0) - 1.0, phi = e.mode_phase_deg * std::numbers::pi / 180.0;
+  return 10.0 * std::log10(std::pow(1.0 + a * std::cos(phi), 2) + std::pow(a * std::sin(phi), 2));
+}
 
 std::string_view param_name(BlockParam p) {
   switch (p) {

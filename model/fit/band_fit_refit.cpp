@@ -34,7 +34,7 @@ BlockRefs block_refs(const Layout& L, Values& v) {
     b.kind.push_back(kind);
   };
   if (!v.lin.empty()) add(v.lin.data(), static_cast<int>(v.lin.size()), -1);
-  if (L.on.second_mode) add(v.mode.data(), 3, -2);
+  if (L.on.second_mode) add(v.mode.data(), 4, -2);
   if (L.on.speed) add(v.speed.data(), 2, -3);
   if (L.on.transducer) add(v.tn.data(), 2, -4);
   if (L.on.locked) add(v.lexp.data(), 1, -5);
@@ -49,7 +49,7 @@ BlockRefs block_refs(const Layout& L, Values& v) {
 std::vector<int> struct_indices(const Layout& L, int kind) {
   switch (kind) {
     case -1: return L.lin_free;
-    case -2: return {kSModeDb, kSModeLogF, kSModeLogQ};
+    case -2: return {kSModeDb, kSModeLogF, kSModeLogQ, kSModePhase};
     case -3: return {kSSpeedGain, kSSpeedShift};
     case -4: return {kSTnLogD, kSTnSlope};
     case -5: return {kSLockExp};
@@ -88,7 +88,7 @@ class ConditionCost final : public ceres::CostFunction {
       const double* p = parameters[i];
       switch (kind) {
         case -1: std::copy(p, p + refs_.size[i], v.lin.begin()); break;
-        case -2: std::copy(p, p + 3, v.mode.begin()); break;
+        case -2: std::copy(p, p + 4, v.mode.begin()); break;
         case -3: std::copy(p, p + 2, v.speed.begin()); break;
         case -4: std::copy(p, p + 2, v.tn.begin()); break;
         case -5: v.lexp[0] = p[0]; break;
@@ -223,12 +223,16 @@ void set_bounds(ceres::Problem& problem, const BlockRefs& refs, const Surrogate&
         }
         break;
       case -2:
-        problem.SetParameterLowerBound(p, 0, -20.0);
+        // a = 10^(dB/20) - 1 >= 0: a dip is a mode in anti-phase (the phase is free), one spelling per model.
+        problem.SetParameterLowerBound(p, 0, 0.0);
         problem.SetParameterUpperBound(p, 0, 30.0);
         problem.SetParameterLowerBound(p, 1, std::log(0.05));
         problem.SetParameterUpperBound(p, 1, std::log(18.0));
         problem.SetParameterLowerBound(p, 2, std::log(0.5));
         problem.SetParameterUpperBound(p, 2, std::log(50.0));
+        // The phase is periodic: room for a full turn either way from a start at +-180 deg (reported in (-180, 180]).
+        problem.SetParameterLowerBound(p, 3, -2.0 * kPi);
+        problem.SetParameterUpperBound(p, 3, 2.0 * kPi);
         break;
       case -3:
         problem.SetParameterLowerBound(p, 0, -40.0);

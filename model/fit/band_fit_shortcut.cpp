@@ -16,14 +16,20 @@ T block_gain2(const T& w, const T& k1, const T& b1, const T& c0, const T& c1, do
   return num / (re * re + im * im);
 }
 
-// |1 + a R(jw)|^2, R = (w2/Q) jw / (w2^2 - w^2 + j w w2/Q): the unit-peak resonance of a second mode.
+// |1 + a (cos(phi) R - sin(phi) D)|^2 (SecondModeFilter): R = (w2/Q) jw / (w2^2 - w^2 + j w w2/Q), the unit-peak
+// resonance of a second mode, and D = (w2^2/Q) / (w2^2 - w^2 + j w w2/Q), its displacement-like partner (-j at w2).
 template <typename T>
-T mode_factor2(double w, const T& a, const T& w2, const T& q) {
+T mode_factor2(double w, const T& a, const T& w2, const T& q, const T& phi) {
+  using std::cos;
+  using std::sin;
   const T bw = w2 / q * w;
   const T dre = w2 * w2 - w * w;
   const T den = dre * dre + bw * bw;
   const T rre = bw * bw / den, rim = bw * dre / den;
-  const T zr = 1.0 + a * rre, zi = a * rim;
+  const T dscale = w2 * w2 / q / den;
+  const T dr = dscale * dre, di = -dscale * bw;
+  const T c = cos(phi), s = sin(phi);
+  const T zr = 1.0 + a * (c * rre - s * dr), zi = a * (c * rim - s * di);
   return zr * zr + zi * zi;
 }
 
@@ -73,6 +79,7 @@ void struct_jets(const Layout& L, const Values& v, Jet* s, bool seed) {
   s[kSModeDb] = Jet(v.mode[0]);
   s[kSModeLogF] = Jet(v.mode[1]);
   s[kSModeLogQ] = Jet(v.mode[2]);
+  s[kSModePhase] = Jet(v.mode[3]);
   s[kSSpeedGain] = Jet(v.speed[0]);
   s[kSSpeedShift] = Jet(v.speed[1]);
   s[kSTnLogD] = Jet(v.tn[0]);
@@ -92,11 +99,12 @@ void band_sums(const Layout& L, const CondSetup& c, const T* s, const std::vecto
   const T c0 = L.anchor.c0 * exp(s[kSC0]), c1 = L.anchor.c1 * exp(s[kSC1]);
   T sigma = T(1.0);
   if (L.on.speed) sigma = 1.0 + s[kSSpeedShift] * c.dn_krpm;
-  T a = T(0.0), w2 = T(1.0), q = T(1.0);
+  T a = T(0.0), w2 = T(1.0), q = T(1.0), phi = T(0.0);
   if (L.on.second_mode) {
     a = pow(T(10.0), s[kSModeDb] / 20.0) - 1.0;
     w2 = 2.0 * kPi * 1000.0 * exp(s[kSModeLogF]);
     q = exp(s[kSModeLogQ]);
+    phi = s[kSModePhase];
   }
   T density = T(0.0);
   if (L.on.transducer) density = pow(T(10.0), s[kSTnLogD]);
@@ -106,7 +114,7 @@ void band_sums(const Layout& L, const CondSetup& c, const T* s, const std::vecto
   for (std::size_t j = 0; j < nbins; ++j) {
     const double w = 2.0 * kPi * sp.f_hz[j];
     T gj = block_gain2(T(w) / sigma, k1, b1, c0, c1, L.anchor.m);
-    if (L.on.second_mode) gj *= mode_factor2(w, a, w2, q);
+    if (L.on.second_mode) gj *= mode_factor2(w, a, w2, q, phi);
     g[j] = gj;
     // The noise in the bin, as a share of the bin's measured pressure power: what the model predicts from noise
     // alone. The chain's judged floor is known; the transducer candidate fits more on top.

@@ -105,19 +105,21 @@ TEST(BandFitShortcut, SpeedExtensionIsARescaledBlockTimesItsGain) {
 
 TEST(BandFitShortcut, SecondModeFactorMatchesTheTimeDomainModeFilter) {
   const BlockParams anchor = preset("linear");
-  for (const double mode_db : {6.0, -6.0}) {
+  for (const auto& [mode_db, phase_deg] : {std::pair{6.0, 0.0}, {-6.0, 0.0}, {6.0, 90.0}, {10.0, -135.0}}) {
     ExtendedModel m;
     m.block = anchor;
     m.on.second_mode = true;
     m.ext.mode_db = mode_db;
     m.ext.mode_hz = 1000.0;
     m.ext.mode_q = 4.0;
-    // predict_condition runs the mode in the time domain (SecondModeFilter); the shortcut as |1 + a R(f)|^2.
+    m.ext.mode_phase_deg = phase_deg;
+    // predict_condition runs the mode in the time domain (SecondModeFilter: two biquads); the shortcut as
+    // |1 + a (cos(phi) R(f) - sin(phi) D(f))|^2 of the analog responses.
     const ConditionPrediction time_domain = predict_condition(cell().data, 0, m, false, kCycles);
     const double err = worst_db(shortcut(anchor, m), time_domain.cycle_ms);
     const double moved = worst_db(time_domain.cycle_ms, resimulated(anchor));
-    std::printf("mode %+.0f dB: moves the bands by up to %.2f dB; shortcut vs time domain %.4f dB\n", mode_db, moved,
-                err);
+    std::printf("mode %+.0f dB at %+.0f deg: moves the bands by up to %.2f dB; shortcut vs time domain %.4f dB\n", mode_db,
+                phase_deg, moved, err);
     EXPECT_GT(moved, 3.0);
     EXPECT_LT(err, 0.1);
   }
