@@ -1,7 +1,6 @@
-// The independent test cell (see cell_synth.hpp). Standard library, Eigen's FFT, nlohmann-json, libsndfile only.
+// The independent test cell (see cell_synth.hpp): the records, the physics, the pressure and the microphones. Standard
+// library and Eigen's FFT only; the writers are in cell_writers.cpp.
 #include "cell_synth.hpp"
-
-#include <sndfile.h>
 
 #include <algorithm>
 #include <cmath>
@@ -13,7 +12,6 @@
 #include <random>
 #include <stdexcept>
 
-#include <nlohmann/json.hpp>
 #include <unsupported/Eigen/FFT>
 
 namespace indep {
@@ -25,9 +23,6 @@ constexpr double kPref = 20e-6;                 // Pa
 constexpr double kBarToPa = 1e5;
 constexpr double kDeviationCutoffHz = 1000;     // each cycle's deviation below it is kept whole (the floor is far below)
 constexpr double kMeanCutoffHz = 4000;          // the ensemble mean below it likewise
-constexpr double kFiredLoadNm = 18.0;           // the record's operating point
-constexpr double kSoiDegBtdc = 9.6;
-constexpr double kRailBar = 470.0;
 
 std::vector<cd> fft_fwd(const std::vector<double>& x) {
   Eigen::FFT<double> fft;
@@ -154,6 +149,14 @@ bool five_smooth(std::size_t n) {
   return n == 1;
 }
 
+// The second mode's panel, sized so that the total is +db at f0 over the structure alone: |1 + c z| = g with
+// z = R(f0) / H(f0) = 1 / H(f0), the positive root of c^2 |z|^2 + 2 c Re z + 1 - g^2 = 0.
+double panel_scale(const Structure& st, const Effects& fx) {
+  const cd z = 1.0 / eq41(fx.second_mode_hz, st);
+  const double g2 = std::pow(10.0, fx.second_mode_db / 10.0), a = std::norm(z), b = z.real();
+  return (-b + std::sqrt(b * b + a * (g2 - 1.0))) / a;
+}
+
 }  // namespace
 
 // ------------------------------------------------------------------------------------------ records
@@ -189,10 +192,10 @@ Sources load_sources(const std::string& dir) {
 
 // ------------------------------------------------------------------------------------------ physics
 
-std::complex<double> eq41(double f_hz) {
-  constexpr double ka = 11.885, wb = 2 * kPi * 100, zeta = 0.35, wn = 2 * kPi * 5000;
+std::complex<double> eq41(double f_hz, const Structure& st) {
+  const double wb = 2 * kPi * st.fb_hz, wn = 2 * kPi * st.fn_hz;
   const cd s(0.0, 2 * kPi * f_hz);
-  return ka * (s + wb) / (s * s + 2 * zeta * wn * s + wn * wn);
+  return st.ka * (s + wb) / (s * s + 2 * st.zeta * wn * s + wn * wn);
 }
 
 std::complex<double> resonance(double f_hz, double f0_hz, double q) {
@@ -247,6 +250,21 @@ std::vector<double> lowpass(const std::vector<double>& x, double cutoff, double 
   return fft_inv_real(X);
 }
 
+std::complex<double> structural_transfer(double f_hz, double speed_rpm, const Structure& st, const Effects& fx) {
+  const double speed_gain = std::pow(speed_rpm / fx.speed_ref_rpm, fx.speed_exponent);
+  cd h = eq41(f_hz, st);
+  if (fx.second_mode_db > 0 && f_hz > 0) h += panel_scale(st, fx) * resonance(f_hz, fx.second_mode_hz, fx.second_mode_q);
+  return speed_gain * h;
+}
+
+std::complex<double> mic_error(double f_hz, int mic, const Effects& fx) {
+  if (mic != fx.mic_gain_index || fx.mic_gain_db == 0) return 1.0;
+  const double g = std::pow(10.0, fx.mic_gain_db / 20.0);
+  if (fx.mic_gain_corner_hz <= 0) return g;
+  const cd x(0.0, f_hz / fx.mic_gain_corner_hz);
+  return 1.0 + (g - 1.0) * x / (1.0 + x);
+}
+
 namespace {
 double mean_square(const std::vector<cd>& X, double fs_hz, bool a_weighted) {
   const std::size_t n = X.size();
@@ -289,10 +307,13 @@ std::vector<std::vector<double>> excess_over_floor_db(const CycleTable& t, doubl
 
 // ------------------------------------------------------------------------------------------ the cell
 
-std::vector<Condition> default_conditions(int cycles) {
+std::vector<Condition> default_conditions(int cycles, std::uint64_t seed) {
   struct Fired { double rpm, load; bool unknown; };
   constexpr Fired fired[] = {{1500, 0.85, false}, {1800, 1.0, true}, {2000, 0.7, false}, {2200, 1.15, false}, {2600, 1.3, false}};
   const int last_first = 59 - cycles;  // 60 columns; cycles + 1 consecutive ones per run
+  const auto shift = [&](int first) {
+    return static_cast<int>((static_cast<std::uint64_t>(first) + 11 * (seed - 1)) % static_cast<std::uint64_t>(last_first + 1));
+  };
   std::vector<Condition> out;
   for (int i = 0; i < 5; ++i) {
     Condition c;
@@ -302,12 +323,12 @@ std::vector<Condition> default_conditions(int cycles) {
     c.speed_rpm = fired[i].rpm;
     c.load_scale = fired[i].load;
     c.load_unknown = fired[i].unknown;
-    c.first_cycle = static_cast<int>(std::lround(i * last_first / 4.0));
+    c.first_cycle = shift(static_cast<int>(std::lround(i * last_first / 4.0)));
     c.cycles = cycles;
     out.push_back(c);
   }
-  out.push_back({"motored_1800", 1800, 1.0, true, false, 0, cycles});
-  out.push_back({"motored_2600", 2600, 1.0, true, false, last_first, cycles});
+  out.push_back({"motored_1800", 1800, 1.0, true, false, shift(0), cycles});
+  out.push_back({"motored_2600", 2600, 1.0, true, false, shift(last_first), cycles});
   return out;
 }
 
@@ -381,10 +402,15 @@ double impact_shape(double t) {
   return std::exp(-t / kImpactDecayS) * (std::sin(2 * kPi * 2500 * t) + 0.7 * std::sin(2 * kPi * 5200 * t + 0.6));
 }
 
-// Unit-amplitude impacts of every cycle of the run as heard `delay_s` later, added to y (periodic: wraps). jitter_deg:
-// per cycle and impact [k * impacts + i], the impact's angle error (empty: none).
+// One impact of one cycle as it varies from cycle to cycle: its angle error and its amplitude factor.
+struct Hit {
+  double jitter_deg = 0.0, amplitude = 1.0;
+};
+
+// Unit-amplitude impacts of every cycle of the run as heard `delay_s` later, added to y (periodic: wraps). hits: per
+// cycle and impact [k * impacts + i] (empty: every impact at its angle, at its weight).
 void add_impacts(std::vector<double>& y, const Timing& t, int cycles, double fs_hz, double delay_s, double amplitude,
-                 const std::vector<double>& jitter_deg = {}) {
+                 const std::vector<Hit>& hits = {}) {
   const std::size_t n = y.size();
   const double deg_per_s = 6.0 * t.speed_rpm;
   const auto span = static_cast<std::size_t>(std::ceil(16 * kImpactDecayS * fs_hz));
@@ -392,12 +418,27 @@ void add_impacts(std::vector<double>& y, const Timing& t, int cycles, double fs_
   for (int k = 0; k < cycles; ++k)
     for (std::size_t i = 0; i < kCount; ++i) {
       const Impact& im = kImpacts[i];
-      const double jitter = jitter_deg.empty() ? 0.0 : jitter_deg[static_cast<std::size_t>(k) * kCount + i];
-      const double t0 = (im.angle_deg + jitter + 360.0 + 720.0 * k) / deg_per_s + delay_s;
+      const Hit hit = hits.empty() ? Hit{} : hits[static_cast<std::size_t>(k) * kCount + i];
+      const double t0 = (im.angle_deg + hit.jitter_deg + 360.0 + 720.0 * k) / deg_per_s + delay_s;
       const auto j0 = static_cast<std::size_t>(std::ceil(t0 * fs_hz));
       for (std::size_t j = j0; j < j0 + span; ++j)
-        y[j % n] += amplitude * im.weight * impact_shape(static_cast<double>(j) / fs_hz - t0);
+        y[j % n] += amplitude * hit.amplitude * im.weight * impact_shape(static_cast<double>(j) / fs_hz - t0);
     }
+}
+
+// Every impact's variation over the run (empty without any): Gaussian angle errors, log-normal energies whose mean is
+// the nominal energy (so the run's level is the specified one on average). The same at every microphone.
+std::vector<Hit> impact_hits(const Chain& chain, int condition, int cycles, const Effects& fx) {
+  if (fx.mechanical_jitter_deg <= 0 && fx.mechanical_energy_spread_db <= 0) return {};
+  std::mt19937_64 rng = rng_for(chain, condition, kMics, 7);
+  std::normal_distribution<double> normal(0.0, 1.0);
+  const double sigma_np = fx.mechanical_energy_spread_db * std::log(10.0) / 10.0;  // of the energy's logarithm
+  std::vector<Hit> hits(static_cast<std::size_t>(cycles) * std::size(kImpacts));
+  for (Hit& h : hits) {
+    h.jitter_deg = fx.mechanical_jitter_deg * normal(rng);
+    h.amplitude = std::exp(0.5 * (sigma_np * normal(rng) - 0.5 * sigma_np * sigma_np));
+  }
+  return hits;
 }
 
 // The impacts' amplitude for an array-average Leq(A) of `dba` at ref_rpm (energy per impact fixed).
@@ -411,12 +452,10 @@ double impact_amplitude(const Timing& t, int cycles, double fs_hz, double delay_
 }
 
 Transfer structural_path(int mic, double speed_rpm, const Chain& chain, const Effects& fx) {
-  const double gain = std::pow(10.0, (directivity_db()[mic] + fx.speed_db_per_krpm * (speed_rpm - fx.speed_ref_rpm) / 1000.0) / 20.0);
-  const double mode = std::pow(10.0, fx.second_mode_db / 20.0) - 1.0;
+  const double gain = std::pow(10.0, directivity_db()[mic] / 20.0);
   const double delay = chain.radius_m / chain.sound_speed_m_per_s;
   return [=](double f) {
-    const cd h = eq41(f) * (1.0 + (f > 0 ? mode * resonance(f, fx.second_mode_hz, fx.second_mode_q) : cd(0.0)));
-    return gain * h * std::polar(1.0, -2 * kPi * f * delay);
+    return gain * structural_transfer(f, speed_rpm, chain.structure, fx) * std::polar(1.0, -2 * kPi * f * delay);
   };
 }
 
@@ -449,94 +488,16 @@ Run synthesize(const Sources& src, const Condition& c, int condition_index, cons
   const double delay = chain.radius_m / chain.sound_speed_m_per_s;
   const double impacts =
       std::isfinite(fx.mechanical_dba) ? impact_amplitude(r.time, c.cycles, chain.fs_hz, delay, fx.mechanical_dba, fx.mechanical_ref_rpm) : 0.0;
-  std::vector<double> jitter;  // one per impact, heard alike at every microphone
-  if (fx.mechanical_jitter_deg > 0) {
-    std::mt19937_64 rng = rng_for(chain, condition_index, kMics, 7);
-    std::normal_distribution<double> normal(0.0, fx.mechanical_jitter_deg);
-    for (std::size_t i = 0; i < static_cast<std::size_t>(c.cycles) * std::size(kImpacts); ++i) jitter.push_back(normal(rng));
-  }
+  const std::vector<Hit> hits = impact_hits(chain, condition_index, c.cycles, fx);  // heard alike at every microphone
   for (int m = 0; m < kMics; ++m) {
     std::vector<double> y = radiate(u, r.time.n_out, r.time.period_s, structural_path(m, r.time.speed_rpm, chain, fx));
-    if (impacts > 0) add_impacts(y, r.time, c.cycles, chain.fs_hz, delay, impacts * std::pow(10.0, directivity_db()[m] / 20.0), jitter);
+    if (impacts > 0) add_impacts(y, r.time, c.cycles, chain.fs_hz, delay, impacts * std::pow(10.0, directivity_db()[m] / 20.0), hits);
     add_floors(y, condition_index, m, chain, fx);
-    if (m == fx.mic_gain_index && fx.mic_gain_db != 0) {
-      const double g = std::pow(10.0, fx.mic_gain_db / 20.0);
-      for (double& v : y) v *= g;
-    }
+    if (m == fx.mic_gain_index && fx.mic_gain_db != 0)
+      y = radiate(y, y.size(), r.time.period_s, [&](double f) { return mic_error(f, m, fx); });
     r.mics_pa.push_back(std::move(y));
   }
   return r;
-}
-
-// ------------------------------------------------------------------------------------------ writers
-
-namespace {
-
-nlohmann::ordered_json run_json(const Run& run, const Chain& chain) {
-  using json = nlohmann::ordered_json;
-  const Condition& c = run.condition;
-  json cond = {{"name", c.name}, {"speed_rpm", run.time.speed_rpm}};
-  cond["load_nm"] = c.motored ? json(0.0) : c.load_unknown ? json(nullptr) : json(kFiredLoadNm * c.load_scale);
-  cond["soi_deg_btdc"] = c.motored ? json(nullptr) : json(kSoiDegBtdc);
-  cond["rail_pressure_bar"] = c.motored ? json(nullptr) : json(kRailBar);
-  cond["motored"] = c.motored;
-  json positions = json::array();
-  for (const auto& p : mic_positions_m()) positions.push_back({p[0], p[1], p[2]});
-  return {{"condition", cond},
-          {"pressure", {{"file", "pressure.csv"}, {"units", "bar"}}},
-          {"mics", {{"file", "mics.wav"}, {"units", "Pa"}, {"positions_m", positions}, {"radius_m", chain.radius_m}}},
-          {"source", "tests/independent/cell_synth: real Yanmar L100V pressure record, eq. 4.1 in the frequency domain"}};
-}
-
-void write_pressure_csv(const Run& run, const std::filesystem::path& file) {
-  std::string text = "time_s,crank_deg,pressure\n";
-  const std::vector<double>& p = run.pressure.recorded_bar;
-  text.reserve(p.size() * 40);
-  char line[96];
-  for (std::size_t i = 0; i < p.size(); ++i) {
-    const double t = static_cast<double>(i) * run.time.period_s / static_cast<double>(p.size());
-    std::snprintf(line, sizeof line, "%.9f,%.1f,%.6f\n", t, -360.0 + kRecordStepDeg * static_cast<double>(i), p[i]);
-    text += line;
-  }
-  std::ofstream out(file, std::ios::binary);
-  out << text;
-  if (!out) throw std::runtime_error(file.string() + ": cannot write");
-}
-
-void write_wav(const Run& run, const std::filesystem::path& file) {
-  SF_INFO info{};
-  info.samplerate = static_cast<int>(run.fs_hz);
-  info.channels = static_cast<int>(run.mics_pa.size());
-  info.format = SF_FORMAT_WAV | SF_FORMAT_FLOAT;
-  SNDFILE* sf = sf_open(file.c_str(), SFM_WRITE, &info);
-  if (!sf) throw std::runtime_error(file.string() + ": cannot write (" + sf_strerror(nullptr) + ")");
-  const std::size_t n = run.time.n_out, ch = run.mics_pa.size();
-  std::vector<float> frames(n * ch);
-  for (std::size_t i = 0; i < n; ++i)
-    for (std::size_t m = 0; m < ch; ++m) frames[i * ch + m] = static_cast<float>(run.mics_pa[m][i]);
-  const sf_count_t written = sf_writef_float(sf, frames.data(), static_cast<sf_count_t>(n));
-  sf_close(sf);
-  if (written != static_cast<sf_count_t>(n)) throw std::runtime_error(file.string() + ": short write");
-}
-
-}  // namespace
-
-void write_run_dir(const Run& run, const Chain& chain, const std::filesystem::path& dir) {
-  std::filesystem::create_directories(dir);
-  std::ofstream(dir / "run.json") << run_json(run, chain).dump(2) << "\n";
-  write_pressure_csv(run, dir / "pressure.csv");
-  write_wav(run, dir / "mics.wav");
-}
-
-std::vector<std::filesystem::path> write_campaign(const Sources& src, const std::vector<Condition>& conditions,
-                                                  const Chain& chain, const Effects& fx, const std::filesystem::path& dir) {
-  std::vector<std::filesystem::path> out;
-  for (std::size_t i = 0; i < conditions.size(); ++i) {
-    const Run run = synthesize(src, conditions[i], static_cast<int>(i), chain, fx);
-    out.push_back(dir / conditions[i].name);
-    write_run_dir(run, chain, out.back());
-  }
-  return out;
 }
 
 }  // namespace indep

@@ -46,16 +46,26 @@
 //   directivity gain within +-1 dB, its own white self-noise (20 dB(A)) and an independent pink floor (40 dB
 //   re 20 uPa, unweighted, 20 Hz ... Nyquist).
 //
-// Effects (each independent of the project's implementation)
-//   second_mode        Y += a R(f) Y on the structural path, R a unit-peak band-pass (f0, Q), a = 10^(dB/20) - 1
-//   mic_gain           one microphone's whole channel (engine, impacts, floors, background) +dB
+// The structure (Structure, Chain::structure)
+//   Eq. 4.1's form with the cell's own constants, far from the thesis's (Table 4.1's linear preset is ka 11.885,
+//   100 Hz, zeta 0.35, 5 kHz): the diagnosis starts from the preset and must tune its baseline to this engine.
+//
+// Effects (each independent of the project's implementation, and none the form of a candidate exactly)
+//   second_mode        a panel radiating beside the block, driven by the same pressure: its own mass-spring-damper
+//                      velocity response (f0, Q) added to the structural path, Y = H U + c R(f) U, c real and sized
+//                      so that |Y| / |H U| is +magnitude dB at f0. The two paths' phases are the physics' (not the
+//                      candidate's |1 + a R|^2 on the block's output)
+//   mic_gain           one microphone's sensitivity error over its whole channel (engine, impacts, floors,
+//                      background), a first-order shelf G(f) = 1 + (g - 1) jf/fc / (1 + jf/fc), g = 10^(dB/20):
+//                      0 dB at low frequency, +dB well above the corner fc (a flat error with fc = 0)
 //   background_noise   stationary noise at every microphone, independent per microphone, spectrum 1/(1+(f/500)^2)
 //                      from 20 Hz, Lp(A) = magnitude at each microphone
-//   speed_dependence   structural path gain + magnitude dB per 1000 rpm relative to speed_ref_rpm
-//   mechanical_noise   crank-angle-locked decaying impacts (piston slap, valves) at fixed angles, the same
-//                      impacts per cycle in fired and motored runs; array-average Leq(A) = magnitude at
-//                      mechanical_ref_rpm (fixed energy per impact: +10 log10(rpm / ref) elsewhere); each impact
-//                      optionally jittered in angle from cycle to cycle (Gaussian, mechanical_jitter_deg rms)
+//   speed_dependence   structural path amplitude (speed / speed_ref)^exponent (a power law, not dB per krpm)
+//   mechanical_noise   crank-angle-locked decaying impacts (piston slap, valves) near fixed angles, the same
+//                      in fired and motored runs; array-average Leq(A) = magnitude at mechanical_ref_rpm (the mean
+//                      energy per impact fixed: +10 log10(rpm / ref) elsewhere); each impact jittered in angle from
+//                      cycle to cycle (Gaussian, mechanical_jitter_deg rms) and in energy (log-normal,
+//                      mechanical_energy_spread_db rms, mean energy kept)
 //   Not made here: cubic_damping and cubic_stiffness are amplitude-dependent (nonlinear) and cannot be made by a
 //   linear frequency-domain synthesis; transducer_noise (a pressure-chain floor) is not meaningful: the real
 //   record already carries its chain's floor, which every run here has, effect or not.
@@ -96,7 +106,13 @@ Sources load_sources(const std::string& real_data_dir);
 
 // ------------------------------------------------------------------------------------------ physics
 
-std::complex<double> eq41(double f_hz);                                  // Y/U of eq. 4.1, Pa per Pa
+// Eq. 4.1's form, Y/U in Pa per Pa: ka (j2pi f + wb) / ((j2pi f)^2 + 2 zeta wn j2pi f + wn^2).
+struct Structure {
+  double ka = 11.885, fb_hz = 100, zeta = 0.35, fn_hz = 5000;  // the thesis's constants (Table 4.1 linear)
+};
+// The cell's engine: other constants (a stiffer-damped, lower, quieter block than the thesis's).
+constexpr Structure kCellStructure{7.4, 170, 0.24, 3900};
+std::complex<double> eq41(double f_hz, const Structure& s = Structure{});
 std::complex<double> resonance(double f_hz, double f0_hz, double q);     // unit peak (1 at f0), band-pass
 double a_weighting_db(double f_hz);                                      // IEC 61672-1, 0 dB at 1 kHz
 
@@ -140,20 +156,31 @@ struct Condition {
 };
 
 // Five fired conditions (1500 ... 2600 rpm, load scale 0.7 ... 1.3, the 1800 rpm one with load null) and two
-// motored ones (1800, 2600 rpm), `cycles` cycles each from different parts of the records.
-std::vector<Condition> default_conditions(int cycles = 16);
+// motored ones (1800, 2600 rpm), `cycles` cycles each from different parts of the records. `seed` picks the parts:
+// seed 1 spreads them evenly over the records, every further seed moves each by 11 columns (wrapping), so that the
+// engine's own cycle-to-cycle variation, the larger noise here, differs from seed to seed as the chain's does.
+std::vector<Condition> default_conditions(int cycles = 16, std::uint64_t seed = 1);
 
 struct Effects {
   double second_mode_db = 0, second_mode_hz = 1600, second_mode_q = 5;
   double mic_gain_db = 0;
-  int mic_gain_index = 3;  // 0-based: microphone 4
+  int mic_gain_index = 3;           // 0-based: microphone 4
+  double mic_gain_corner_hz = 600;  // the shelf's corner (0: a flat error)
   double background_dba = std::numeric_limits<double>::quiet_NaN();  // NaN: none
-  double speed_db_per_krpm = 0, speed_ref_rpm = 1800;
+  double speed_exponent = 0, speed_ref_rpm = 1800;
   double mechanical_dba = std::numeric_limits<double>::quiet_NaN(), mechanical_ref_rpm = 1800;
-  double mechanical_jitter_deg = 0;  // rms timing error of every impact, cycle to cycle
+  double mechanical_jitter_deg = 0;        // rms angle error of every impact, cycle to cycle
+  double mechanical_energy_spread_db = 0;  // rms of every impact's energy, cycle to cycle (log-normal)
 };
 
+// The structural path's transfer at f (Pa per Pa, before directivity and delay): the structure, the second mode's
+// panel beside it and the speed's gain.
+std::complex<double> structural_transfer(double f_hz, double speed_rpm, const Structure& s, const Effects& fx);
+// The microphone error's transfer at f (1 for every microphone but fx.mic_gain_index, or without the effect).
+std::complex<double> mic_error(double f_hz, int mic, const Effects& fx);
+
 struct Chain {
+  Structure structure = kCellStructure;
   double fs_hz = 51200;
   double radius_m = 1.75;
   double sound_speed_m_per_s = 343;

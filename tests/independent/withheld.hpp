@@ -1,0 +1,60 @@
+// The withheld-effect family on the independent cell (cell_synth.hpp): the catalogue of cases (every effect the cell
+// makes at two magnitudes, second modes at three frequencies and Q, and the null), and one case run through the REAL
+// `noisemon diagnose` binary as a separate process, told nothing, its report.json scored.
+//
+// Scoring (issue 22): the PRIMARY verdict is what counts (verdict.effect; a partner in verdict.also does not
+// rescue a wrong verdict), and the fitted parameters of the expected effect's candidate are checked where the effect
+// has any a user would act on:
+//   second_mode       the fitted mode_hz within a third octave (a factor 2^(1/3)) of the panel's frequency, mode_db > 0
+//   mic_gain          the microphone with the largest fitted offset is the one with the error, its offset > 0
+//   speed_dependence  the fitted gain slope > 0 and within a factor 2 of the truth's slope at 2000 rpm
+//   background_noise, mechanical_noise: no parameter a test engineer would read off (levels per band / window)
+//
+// The magnitudes are fixed here, before any diagnosis was run on them: the additive sources relative to the cell's
+// engine level (the null run's array-average Lp(A) at 1800 rpm, a property of the synthesis alone).
+#pragma once
+
+#include <cstdint>
+#include <filesystem>
+#include <string>
+#include <vector>
+
+#include "cell_synth.hpp"
+
+namespace indep {
+
+struct Case {
+  std::string label;
+  std::string expect;  // DESIGN.md's effect name, or "none"
+  Effects fx;
+};
+
+// The null run's array-average A-weighted level at 1800 rpm (fired, load 1), dB re 20 uPa.
+double engine_level_dba(const Sources& src, const Chain& chain);
+
+// Every case of the catalogue (magnitudes of the additive ones relative to engine_dba).
+std::vector<Case> withheld_cases(double engine_dba);
+
+struct Outcome {
+  std::string effect;               // verdict.effect
+  std::vector<std::string> also;    // verdict.also
+  double before_db = 0, after_db = 0, closed = 0;
+  bool verdict_right = false;       // the primary verdict is the expected effect
+  bool params_checked = false;      // the effect has parameters to check
+  bool params_right = false;
+  std::string params;               // what was fitted, against the truth
+  std::string runner_up;            // the best candidate that is not the verdict, with its gap
+  double seconds = 0;
+  std::string error;                // non-empty: diagnose failed (its log's tail)
+};
+
+// Writes the case's campaign (Chain seed and the records' cycles: `seed`, see default_conditions) under dir/runs, runs
+// `noisemon diagnose` into dir/diag and scores its report.
+Outcome diagnose_case(const Sources& src, const Case& c, std::uint64_t seed, const std::filesystem::path& dir,
+                      const std::string& noisemon_path);
+
+// One line of a Markdown table for a case's outcome, and the header it goes under.
+std::string table_header();
+std::string table_row(const Case& c, std::uint64_t seed, const Outcome& o);
+
+}  // namespace indep
