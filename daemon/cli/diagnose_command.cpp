@@ -58,13 +58,16 @@ void print_band_summary(std::FILE* out, const model::DiagnosisResult& r) {
   std::fprintf(out, "baseline %s (tuned): train %.2f dB, held-out gap %.2f dB (thesis metric %.2f dB)\n",
                r.model_name.c_str(), r.baseline.train_rms_db, r.baseline.heldout_gap_db,
                r.baseline.heldout_thesis_rms_db);
-  std::fprintf(out, "%-18s %10s %10s %8s %12s\n", "candidate", "gap dB", "thesis dB", "closed", "significant");
-  for (const auto& c : r.candidates)
-    std::fprintf(out, "%-18s %10.2f %10.2f %7.0f%% %12s\n", c.name.c_str(), c.heldout_gap_db, c.heldout_thesis_rms_db,
-                 100.0 * c.gap_closed_fraction, c.significant ? "yes" : "no");
-  for (const auto& c : r.combinations)
-    std::fprintf(out, "%-18s %10.2f %10.2f %7.0f%% %12s\n", c.name.c_str(), c.heldout_gap_db, c.heldout_thesis_rms_db,
-                 100.0 * c.gap_closed_fraction, c.significant ? "yes" : "no");
+  // parameters: every fitted quantity (the block's four and the extension's), so that a flexible candidate's gap is
+  // read beside what it took to get there.
+  std::fprintf(out, "%-18s %10s %10s %8s %12s %11s\n", "candidate", "gap dB", "thesis dB", "closed", "significant",
+               "parameters");
+  auto row = [&](const model::ModelScore& c) {
+    std::fprintf(out, "%-18s %10.2f %10.2f %7.0f%% %12s %11d\n", c.name.c_str(), c.heldout_gap_db,
+                 c.heldout_thesis_rms_db, 100.0 * c.gap_closed_fraction, c.significant ? "yes" : "no", c.parameters);
+  };
+  for (const auto& c : r.candidates) row(c);
+  for (const auto& c : r.combinations) row(c);
   const model::Verdict& v = r.verdict;
   std::string also;
   for (const auto& a : v.also) also += " + " + a;
