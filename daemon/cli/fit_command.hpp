@@ -1,6 +1,6 @@
 // `noisemon fit`: tunes the block model (eq. 4.13; m fixed) and writes a parameter file the daemon loads
 // (daemon/params_file.hpp).
-//   band mode      DATA = run directories or raw LCM logs (daemon/band_data); the thesis metric: RMS over the
+//   band mode      DATA = run directories or raw LCM logs (daemon/cli/band_data); the thesis metric: RMS over the
 //                  scored 1/3-octave bands of the cycle-averaged attenuation-curve gap, averaged over
 //                  conditions (model/band_fit). --holdout takes condition patterns (model::condition_matches).
 //   waveform mode  DATA = CSV files of `u,y` sampled at --fs (drivers/waveform_csv); free-run simulation error

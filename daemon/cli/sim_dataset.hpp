@@ -1,4 +1,4 @@
-// In-memory sim campaigns as band datasets: the virtual engine (drivers/sim_run) run for a list of conditions
+// In-memory sim campaigns as band datasets: the virtual engine (drivers/sim/sim_run) run for a list of conditions
 // with effects injected, converted to 40 kHz recordings exactly as `noisemon diagnose` reads run directories
 // (drivers::to_recording, daemon::make_band_dataset), without touching the disk. What the withheld-effect
 // proof tests and the diagnosis benchmark generate.

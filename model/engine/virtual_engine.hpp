@@ -1,6 +1,6 @@
 // The acoustic side of the virtual engine: from the true cylinder pressure and crank angle (uniform grid) to the
 // microphone signals a test cell records, with the effects of model/engine/effects.hpp injected. One implementation,
-// used by the real-time sim source (drivers/sim_generators) and by the offline run generator (drivers/sim_run).
+// used by the real-time sim source (drivers/sim/sim_generators) and by the offline run generator (drivers/sim/sim_run).
 //
 // Signal path (input rate fs_in, e.g. 102.4 kHz = twice the card rate; output rate fs_out = fs_in / D):
 //   p_true --true block (eq. 4.13 + cubic_damping, cubic_stiffness)--> y

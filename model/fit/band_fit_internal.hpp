@@ -44,7 +44,7 @@ inline constexpr double kFloorAllowance = 0.3;
 // Time-domain re-simulation (the anchor) of one condition: block model on the pressure, through the bank.
 // Per cycle [c * bands + b] over the first `cycles` cycles of the condition (0: all); windows
 // [(c * W + w) * bands + b] when requested. With `mode`, its second mode (mode_db, mode_hz, mode_q) is applied to
-// the block's output in the time domain (model/effects' SecondModeFilter) before the bank.
+// the block's output in the time domain (model/engine/effects' SecondModeFilter) before the bank.
 void simulate_condition(const ConditionData& condition, const BlockParams& params, std::size_t cycles,
                         std::vector<double>& cycle_ms, std::vector<double>* win_ms = nullptr,
                         const ExtensionParams* mode = nullptr);
