@@ -64,7 +64,7 @@ void print_band_summary(std::FILE* out, const model::DiagnosisResult& r) {
                "parameters");
   auto row = [&](const model::ModelScore& c) {
     std::fprintf(out, "%-18s %10.2f %10.2f %7.0f%% %12s %11d\n", c.name.c_str(), c.heldout_gap_db,
-                 c.heldout_thesis_rms_db, 100.0 * c.gap_closed_fraction, c.significant ? "yes" : "no", c.parameters);
+                 c.heldout_thesis_rms_db, 100.0 * c.gap_closed_fraction, c.significant ? "yes" : c.refuted ? "refuted" : "no", c.parameters);
   };
   for (const auto& c : r.candidates) row(c);
   for (const auto& c : r.combinations) row(c);

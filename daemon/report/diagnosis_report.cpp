@@ -101,6 +101,12 @@ json score_json(const model::ModelScore& s) {
                     {"mic_calibration", number(s.closes_mic_db)},
                     {"crank_windows", number(s.closes_window_db)}};
   c["thesis_metric_worse"] = s.thesis_worse;
+  if (s.motored_law_checked) {
+    // An additive source claimed louder than all the motored runs hear (beyond 3 standard errors): refuted.
+    c["motored_law"] = {{"refuted", s.refuted},
+                        {"overshoot_db", number(s.motored_overshoot_db)},
+                        {"where", s.motored_overshoot_where}};
+  }
   c["params"] = model_params(s.model);
   return c;
 }

@@ -81,7 +81,7 @@ void compare_with(ModelScore& m, const ModelScore& ref, double min_improvement) 
       d.empty() ? (m.improvement_db > 0 ? 1.0 : 0.0) : static_cast<double>(wins) / static_cast<double>(d.size());
   // No part of the composite gap may crown a model that makes the held-out thesis metric worse.
   m.thesis_worse = m.heldout_thesis_rms_db > ref.heldout_thesis_rms_db + kThesisWorseDb;
-  m.significant = m.win_fraction >= 0.95 && m.improvement_db >= min_improvement && !m.thesis_worse;
+  m.significant = m.win_fraction >= 0.95 && m.improvement_db >= min_improvement && !m.thesis_worse && !m.refuted;
   m.closes_band_db = std::sqrt(ref.part_band_ms) - std::sqrt(m.part_band_ms);
   m.closes_mic_db = std::sqrt(ref.part_mic) - std::sqrt(m.part_mic);
   m.closes_window_db = std::sqrt(ref.part_window_ms) - std::sqrt(m.part_window_ms);

@@ -46,6 +46,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <functional>
+#include <limits>
 #include <string>
 #include <vector>
 
@@ -99,6 +100,12 @@ struct ModelScore {
   bool significant = false;            // alone, against the baseline
   bool significant_on_top = false;     // the verdict's partner: significant on top of the verdict's effect
   bool thesis_worse = false;           // its held-out thesis metric is worse than the baseline's: never significant
+  // The motored runs' law (additive candidates, motored_law.cpp): the source alone never louder than all the sound
+  // the motored runs measure. The largest excess over the measurement beyond 3 standard errors, dB, and where.
+  bool motored_law_checked = false;
+  double motored_overshoot_db = std::numeric_limits<double>::quiet_NaN();
+  std::string motored_overshoot_where;
+  bool refuted = false;                // the excess is above the margin: never significant
   // How much of each part of the baseline's gap it closes, dB (baseline part minus this part; negative: worse).
   double closes_band_db = 0.0, closes_mic_db = 0.0, closes_window_db = 0.0;
   double gap_closed_fraction = 0.0;    // 1 - gap / baseline gap

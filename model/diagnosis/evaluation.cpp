@@ -260,6 +260,7 @@ Evaluated evaluate(const Context& cx, const CandidateSpec& spec, const ExtendedM
   sc.fold_models = fold_models(cx, spec, setup, all);
   cx.t_folds += since(clk);
   sc.train_rms_db = training_rms(cx, all);
+  judge_motored_law(cx, sc);
   // Held-out predictions (exact re-simulation at the fold's block, every cycle, crank windows).
   since(clk);
   ev.floors = stationary_floors(cx, all.model);

@@ -4,6 +4,7 @@
 //   roles_and_floors.cpp  which condition trains, is held out, is a reference or a floor; the cells at a floor
 //   gap.cpp               the held-out gap of one condition (three parts) and the bootstrap draws over cycles
 //   evaluation.cpp        one model tuned on the training conditions, on every fold, scored on the held-out ones
+//   motored_law.cpp       an additive candidate never louder than what the motored runs hear: else refuted
 //   baseline.cpp          the start model tuned and scored: the gap every candidate is measured against
 //   candidates.cpp        each effect added to the baseline, judged against it and ranked; pairs on top of the best
 //   verdict.cpp           none, the effect (with its partner) or unexplained
@@ -142,6 +143,10 @@ std::vector<std::vector<double>> stationary_floors(const Context& cx, const Exte
 // and the gap's bootstrap replicates.
 Evaluated evaluate(const Context& cx, const CandidateSpec& spec, const ExtendedModel& start,
                    const std::vector<BlockParam>& base_free, bool is_baseline);
+
+// Additive candidates (background, impacts): the fitted source alone against all the sound the motored runs measure,
+// band by band; m.refuted when it claims more than they hear (ModelScore::motored_*).
+void judge_motored_law(const Context& cx, ModelScore& m);
 
 // ---------------------------------------------------------------------------------------- baseline
 

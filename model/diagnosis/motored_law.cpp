@@ -1,0 +1,92 @@
+// The law an additive candidate must obey (issue 22): a combustion-independent source is there in the motored runs
+// too, at the level its own speed law gives, on top of what the motored pressure drives: the model with the source
+// must not predict a motored run louder than its microphones measure (beyond the cycle-to-cycle error and a margin;
+// where the bare model already overshoots, only what the source adds on top counts). A fit that does bent the
+// source to sound only the fired runs hear, a pressure-driven effect, and is refuted. Bands where the motored
+// pressure is at its floor (the prediction only an upper bound) tell nothing and are skipped.
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <utility>
+
+#include "model/diagnosis/stages.hpp"
+
+namespace noisemon::model::diagnosis {
+namespace {
+
+constexpr double kMarginDb = 1.0;         // beyond the cycle-to-cycle error: the source alone this much above all sound
+constexpr double kStandardErrors = 3.0;   // of the motored run's cycle-mean level in the band
+
+// Cycle-mean band levels of a prediction, Pa^2.
+std::vector<double> cycle_mean(const std::vector<double>& cycle_ms, std::size_t nb) {
+  std::vector<double> m(nb, 0.0);
+  const std::size_t nc = cycle_ms.size() / nb;
+  for (std::size_t c = 0; c < nc; ++c)
+    for (std::size_t b = 0; b < nb; ++b) m[b] += cycle_ms[c * nb + b] / static_cast<double>(nc);
+  return m;
+}
+
+// A motored run's cycle-mean prediction per band by the model with its additive terms and without them; `upper`:
+// the bare prediction is only an upper bound there (the pressure within its floor's margin).
+struct MotoredPrediction {
+  std::vector<double> full, bare;
+  std::vector<char> upper;
+};
+
+MotoredPrediction predict_motored(const BandDataset& data, std::size_t k, const ExtendedModel& model) {
+  ExtendedModel bare = model;
+  bare.on.stationary = false;
+  bare.on.locked = false;
+  const std::size_t nb = data.band_count();
+  const ConditionPrediction without = predict_condition(data, k, bare, false);
+  MotoredPrediction p{cycle_mean(predict_condition(data, k, model, false).cycle_ms, nb),
+                      cycle_mean(without.cycle_ms, nb), without.upper};
+  p.upper.resize(nb, 0);
+  return p;
+}
+
+// The measured cycle-mean level of band b and its standard error in dB (spread of the cycles' levels / sqrt(n)).
+std::pair<double, double> measured_level(const ConditionData& d, std::size_t b, const ExtendedModel& model) {
+  const std::size_t nc = d.cycle_count();
+  double mean = 0.0, s = 0.0, s2 = 0.0;
+  for (std::size_t c = 0; c < nc; ++c) {
+    const double ms = measured_ms(d, c, b, model);
+    mean += ms / static_cast<double>(nc);
+    const double l = db(std::max(ms, 1e-30));
+    s += l;
+    s2 += l * l;
+  }
+  const double n = static_cast<double>(nc);
+  const double var = nc > 1 ? std::max(0.0, (s2 - s * s / n) / (n - 1.0)) : 0.0;
+  return {mean, std::sqrt(var / std::max(1.0, n))};
+}
+
+}  // namespace
+
+void judge_motored_law(const Context& cx, ModelScore& m) {
+  if (!(m.model.on.stationary || m.model.on.locked) || cx.refs.empty()) return;
+  const BandDataset& data = *cx.data;
+  m.motored_law_checked = true;
+  m.motored_overshoot_db = -std::numeric_limits<double>::infinity();
+  for (std::size_t k : cx.refs) {
+    const ConditionData& d = data.conditions[k];
+    const MotoredPrediction p = predict_motored(data, k, m.model);
+    for (std::size_t b = 0; b < data.band_count(); ++b) {
+      if (data.bands[b].nyquist_cut || data.band_line_free(k, b) || p.upper[b]) continue;
+      const double add = p.full[b] - p.bare[b];
+      const auto [meas, se_db] = measured_level(d, b, m.model);
+      if (!(meas > 0) || !(add > 0) || !(p.bare[b] > 0)) continue;
+      // What the source adds to the model's motored prediction beyond what the motored run measures (the bare
+      // model's own overshoot, if any, is not the source's), less the measurement's error.
+      const double beyond = db(p.full[b] / meas) - std::max(0.0, db(p.bare[b] / meas)) - kStandardErrors * se_db;
+      if (beyond > m.motored_overshoot_db) {
+        m.motored_overshoot_db = beyond;
+        m.motored_overshoot_where = d.info.name + " " + std::to_string(static_cast<int>(data.bands[b].nominal_hz)) +
+                                    " Hz";
+      }
+    }
+  }
+  m.refuted = m.motored_overshoot_db > kMarginDb;
+}
+
+}  // namespace noisemon::model::diagnosis
