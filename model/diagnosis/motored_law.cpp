@@ -14,7 +14,7 @@
 namespace noisemon::model::diagnosis {
 namespace {
 
-constexpr double kMarginDb = 1.0;         // beyond the cycle-to-cycle error: the source alone this much above all sound
+constexpr double kMarginDb = 1.0;         // beyond the cycle-to-cycle error: the model this much above the measurement
 constexpr double kStandardErrors = 3.0;   // of the motored run's cycle-mean level in the band
 
 // Cycle-mean band levels of a prediction, Pa^2.
