@@ -63,8 +63,9 @@ void print_band_summary(std::FILE* out, const model::DiagnosisResult& r) {
   std::fprintf(out, "%-18s %10s %10s %8s %12s %11s\n", "candidate", "gap dB", "thesis dB", "closed", "significant",
                "parameters");
   auto row = [&](const model::ModelScore& c) {
+    const char* significant = c.significant ? "yes" : c.refuted ? "refuted" : "no";
     std::fprintf(out, "%-18s %10.2f %10.2f %7.0f%% %12s %11d\n", c.name.c_str(), c.heldout_gap_db,
-                 c.heldout_thesis_rms_db, 100.0 * c.gap_closed_fraction, c.significant ? "yes" : c.refuted ? "refuted" : "no", c.parameters);
+                 c.heldout_thesis_rms_db, 100.0 * c.gap_closed_fraction, significant, c.parameters);
   };
   for (const auto& c : r.candidates) row(c);
   for (const auto& c : r.combinations) row(c);

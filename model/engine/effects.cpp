@@ -32,8 +32,9 @@ enum : std::uint64_t {
 constexpr std::array<EffectQualifierInfo, 3> kSecondModeQualifiers{{
     {"hz", "Hz", "frequency f2 of the mode", 2000.0, 50.0, 18000.0},
     {"q", "", "quality factor Q of the mode (bandwidth f2 / Q)", 5.0, 0.5, 50.0},
-    {"phase", "deg", "the mode's phase against the block's output at f2 (0: in phase; a panel elsewhere: a peak beside a dip)",
-     0.0, -180.0, 180.0},
+    {"phase", "deg",
+     "the mode's phase against the block's output at f2 (0: in phase; a panel elsewhere: a peak beside a dip)", 0.0,
+     -180.0, 180.0},
 }};
 constexpr std::array<EffectQualifierInfo, 1> kMicGainQualifiers{{
     {"mic", "", "the miscalibrated microphone, 1-based (Table 3.1 numbering)", 1.0, 1.0, 16.0},
@@ -52,8 +53,8 @@ const std::array<EffectInfo, 9> kCatalog{{
      5.0e12, 1.0e12, 2.0e13, 0.0, 1.0e16, {}, false},
     {"second_mode", "dB",
      "a further structural resonance (cover panel): the structural response at f2 rises by M dB",
-     "y += (10^(M/20) - 1) (cos(phase) R(y) - sin(phase) D(y)), R unit-peak resonance at f2 (default 2000 Hz, Q 5, phase 0), "
-     "D its displacement-like partner; negative M: an absorber. Off: 0.",
+     "y += (10^(M/20) - 1) (cos(phase) R(y) - sin(phase) D(y)), R unit-peak resonance at f2 "
+     "(default 2000 Hz, Q 5, phase 0), D its displacement-like partner; negative M: an absorber. Off: 0.",
      8.0, 3.0, 12.0, -20.0, 30.0, kSecondModeQualifiers, false},
     {"mechanical_noise", "dB(A)",
      "crank-angle-locked impacts (piston slap, valves, injector), Leq(A) at the microphones (energy mean) at 3050 rpm",

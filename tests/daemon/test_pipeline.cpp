@@ -390,7 +390,9 @@ TEST(Pipeline, TheRollingStatisticsAreThoseOfTheLastWindowOfPublishedReports) {
   int valid = 0;
   for (std::size_t i = reports.size() - 10; i < reports.size(); ++i) {
     const noisemon::cycle_report_t& r = reports[i].message;
-    if (r.flags & (static_cast<int>(noisemon::cycle_report_t::CYCLE_SETTLING) | static_cast<int>(noisemon::cycle_report_t::CYCLE_GAP))) continue;
+    constexpr int kNotValid = static_cast<int>(noisemon::cycle_report_t::CYCLE_SETTLING) |
+                              static_cast<int>(noisemon::cycle_report_t::CYCLE_GAP);
+    if (r.flags & kNotValid) continue;
     ++valid;
     energy += std::pow(10.0, r.lpa_measured_db / 10);
     db_sum += r.lpa_measured_db;

@@ -359,9 +359,10 @@ TEST(EndToEnd, LcmLoggerRecordingReplaysToTheLiveReportsOfflineAndThroughLcmLogp
   // subscriber waits as long for the first played cycle.
   const auto recorded = kStartUp + engine_time(kCycles);
   const auto playing = std::chrono::duration<double>(recorded) / speed;
-  const std::string play_timeout = std::to_string(allowance_s(kStartUp.count()) + playing.count() * noisemon::test::kLoadedMachineSlowdown);
-  const pid_t watch2 =
-      spawn({NOISEMON_PATH, "watch", "--lcm", kLcmUrl, "--count", cycles, "--timeout", play_timeout, "--csv", played}, "/dev/null");
+  const std::string play_timeout =
+      std::to_string(allowance_s(kStartUp.count()) + playing.count() * noisemon::test::kLoadedMachineSlowdown);
+  const pid_t watch2 = spawn(
+      {NOISEMON_PATH, "watch", "--lcm", kLcmUrl, "--count", cycles, "--timeout", play_timeout, "--csv", played}, "/dev/null");
   std::this_thread::sleep_for(allowance(kSubscribed));
   const pid_t player = spawn({"/usr/bin/lcm-logplayer", "--lcm-url", kLcmUrl, "-s", std::to_string(speed), "-e",
                               "NOISEMON_(RAW|OP|SESSION)", log},

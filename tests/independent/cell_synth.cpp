@@ -253,7 +253,8 @@ std::vector<double> lowpass(const std::vector<double>& x, double cutoff, double 
 std::complex<double> structural_transfer(double f_hz, double speed_rpm, const Structure& st, const Effects& fx) {
   const double speed_gain = std::pow(speed_rpm / fx.speed_ref_rpm, fx.speed_exponent);
   cd h = eq41(f_hz, st);
-  if (fx.second_mode_db > 0 && f_hz > 0) h += panel_scale(st, fx) * resonance(f_hz, fx.second_mode_hz, fx.second_mode_q);
+  if (fx.second_mode_db > 0 && f_hz > 0)
+    h += panel_scale(st, fx) * resonance(f_hz, fx.second_mode_hz, fx.second_mode_q);
   return speed_gain * h;
 }
 
@@ -312,7 +313,8 @@ std::vector<Condition> default_conditions(int cycles, std::uint64_t seed) {
   constexpr Fired fired[] = {{1500, 0.85, false}, {1800, 1.0, true}, {2000, 0.7, false}, {2200, 1.15, false}, {2600, 1.3, false}};
   const int last_first = 59 - cycles;  // 60 columns; cycles + 1 consecutive ones per run
   const auto shift = [&](int first) {
-    return static_cast<int>((static_cast<std::uint64_t>(first) + 11 * (seed - 1)) % static_cast<std::uint64_t>(last_first + 1));
+    const auto columns = static_cast<std::uint64_t>(last_first + 1);
+    return static_cast<int>((static_cast<std::uint64_t>(first) + 11 * (seed - 1)) % columns);
   };
   std::vector<Condition> out;
   for (int i = 0; i < 5; ++i) {
@@ -491,7 +493,8 @@ Run synthesize(const Sources& src, const Condition& c, int condition_index, cons
   const std::vector<Hit> hits = impact_hits(chain, condition_index, c.cycles, fx);  // heard alike at every microphone
   for (int m = 0; m < kMics; ++m) {
     std::vector<double> y = radiate(u, r.time.n_out, r.time.period_s, structural_path(m, r.time.speed_rpm, chain, fx));
-    if (impacts > 0) add_impacts(y, r.time, c.cycles, chain.fs_hz, delay, impacts * std::pow(10.0, directivity_db()[m] / 20.0), hits);
+    if (impacts > 0)
+      add_impacts(y, r.time, c.cycles, chain.fs_hz, delay, impacts * std::pow(10.0, directivity_db()[m] / 20.0), hits);
     add_floors(y, condition_index, m, chain, fx);
     if (m == fx.mic_gain_index && fx.mic_gain_db != 0)
       y = radiate(y, y.size(), r.time.period_s, [&](double f) { return mic_error(f, m, fx); });

@@ -53,13 +53,6 @@ const fs::path& scratch_root() {
   return dir;
 }
 
-fs::path scratch(const std::string& name) {
-  const fs::path d = scratch_root() / name;
-  fs::remove_all(d);
-  fs::create_directories(d);
-  return d;
-}
-
 // The real records, or a skip (a failure under CI=true) when they are missing.
 const indep::Sources* sources() {
   static const std::string dir = std::string(NOISEMON_SHARED_DIR) + "/data/real";
@@ -297,7 +290,7 @@ void expect_verdict(const std::string& label) {
   const auto& cases = catalogue(*src);
   const auto it = std::find_if(cases.begin(), cases.end(), [&](const indep::Case& c) { return c.label == label; });
   ASSERT_NE(it, cases.end()) << "no case " << label << " in the catalogue";
-  const indep::Outcome o = indep::diagnose_case(*src, *it, 1, scratch(label), NOISEMON_PATH);
+  const indep::Outcome o = indep::diagnose_case(*src, *it, 1, scratch_root() / label, NOISEMON_PATH);  // (re)made there
   ASSERT_TRUE(o.error.empty()) << o.error;
   std::printf("%s%s", indep::table_header().c_str(), indep::table_row(*it, 1, o).c_str());
   EXPECT_EQ(o.effect, it->expect) << "the primary verdict";

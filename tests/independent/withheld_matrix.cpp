@@ -93,7 +93,8 @@ int main(int argc, char** argv) try {
     if (c.label.find(args.only) != std::string::npos)
       for (std::uint64_t s : args.seeds) jobs.push_back({c, s, {}});
   const bool own_dir = args.dir.empty();
-  const fs::path root = own_dir ? fs::temp_directory_path() / ("indep-matrix-" + std::to_string(::getpid())) : fs::path(args.dir);
+  const fs::path root =
+      own_dir ? fs::temp_directory_path() / ("indep-matrix-" + std::to_string(::getpid())) : fs::path(args.dir);
   std::atomic<std::size_t> next{0}, done{0};
   std::mutex print;
   auto worker = [&] {

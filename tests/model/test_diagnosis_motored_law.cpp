@@ -19,7 +19,8 @@ constexpr double kNoisePa = 0.5;  // rms of the white noise at every microphone,
 
 testdata::Recipe with_noise(testdata::Recipe r, std::uint64_t seed) {
   const std::size_t frames = testdata::recording_frames(r);
-  for (std::size_t m = 0; m < r.mic_cycles.size(); ++m) r.mic_extra.push_back(testdata::white_noise(frames, kNoisePa, seed + m));
+  for (std::size_t m = 0; m < r.mic_cycles.size(); ++m)
+    r.mic_extra.push_back(testdata::white_noise(frames, kNoisePa, seed + m));
   return r;
 }
 
