@@ -38,8 +38,11 @@ FitSetup candidate_setup(const Context& cx, const CandidateSpec& spec, const std
   s.train.insert(s.train.end(), cx.refs.begin(), cx.refs.end());
   s.free = base_free;
   s.fit_cycles = cx.opt->fit_cycles;
-  // Only the additive-noise extensions can explain bands the combustion-independent noise dominates.
-  s.scored = (spec.ext.stationary || spec.ext.locked) ? cx.base_mask : cx.tune_mask;
+  // The baseline tunes only where combustion noise dominates: the block must not bend to fit noise it cannot make.
+  // A candidate is fitted on every scored band, motored runs included: what the motored runs hear beyond the start
+  // model may be its own doing (a panel the motored pressure drives too), and the joint fit over fired and motored
+  // runs is what tells a pressure-driven effect from an additive one.
+  s.scored = spec.effects.empty() ? cx.tune_mask : cx.base_mask;
   s.extensions = spec.ext;
   s.extensions.mic_gain = false;
   for (BlockParam p : spec.extra_free)
@@ -172,6 +175,36 @@ std::vector<double> replicate_gaps(const Context& cx, const Evaluated& ev) {
   return gaps;
 }
 
+// Leave-one-group-out: per speed group (Context::groups), the model refitted without the group's fired conditions
+// (a surrogate solve on the all-training anchor, like the condition folds), each of them re-simulated and scored;
+// the gap over all of them, NaN without groups. A flexible candidate that fits what is peculiar to one operating
+// point cannot carry it to another.
+double group_gap(const Context& cx, const CandidateSpec& spec, const FitSetup& setup, const FitOutcome& all,
+                 const Evaluated& ev) {
+  if (cx.groups.empty()) return kNaN;
+  const BandDataset& data = *cx.data;
+  double total = 0.0;
+  int scored = 0;
+  for (const std::vector<std::size_t>& group : cx.groups) {
+    FitSetup f = setup;
+    f.train.clear();
+    for (std::size_t h = 0; h < cx.heldout.size(); ++h)
+      if (std::find(group.begin(), group.end(), h) == group.end()) f.train.push_back(cx.heldout[h]);
+    f.train.insert(f.train.end(), cx.refs.begin(), cx.refs.end());
+    ExtendedModel start = all.model;
+    if (spec.ext.mic_gain) start.ext.mic_gain_db = estimate_mic_gains(cx, f.train);
+    const ExtendedModel model = refit_on_anchor(f, *all.anchor, start).model;
+    for (std::size_t h : group) {
+      const std::size_t k = cx.heldout[h];
+      const ConditionData& d = data.conditions[k];
+      total += score_condition(d, measured_side(d, model), predict_condition(data, k, model, true), cx.base_mask[k],
+                               cx.fast, ev.floors[h], nullptr, nullptr).total();
+      ++scored;
+    }
+  }
+  return scored > 0 ? std::sqrt(total / scored) : kNaN;
+}
+
 }  // namespace
 
 std::vector<double> estimate_mic_gains(const Context& cx, const std::vector<std::size_t>& conds) {
@@ -274,6 +307,9 @@ Evaluated evaluate(const Context& cx, const CandidateSpec& spec, const ExtendedM
   sc.part_window_ms = sum.window_ms / H;
   sc.heldout_gap_db = std::sqrt(sum.total() / H);
   sc.heldout_thesis_rms_db = thesis / H;
+  set_information_criterion(sc);
+  sc.heldout_group_gap_db = group_gap(cx, spec, setup, all, ev);
+  cx.t_groups += since(clk);
   sc.replicate_gaps = replicate_gaps(cx, ev);
   cx.t_bootstrap += since(clk);
   return ev;
