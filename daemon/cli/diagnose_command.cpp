@@ -55,17 +55,24 @@ void check_out_dir(const DiagnoseOptions& o) {
 }
 
 void print_band_summary(std::FILE* out, const model::DiagnosisResult& r) {
-  std::fprintf(out, "baseline %s (tuned): train %.2f dB, held-out gap %.2f dB (thesis metric %.2f dB)\n",
+  std::fprintf(out, "baseline %s (tuned): train %.2f dB, held-out gap %.2f dB (thesis metric %.2f dB)%s\n",
                r.model_name.c_str(), r.baseline.train_rms_db, r.baseline.heldout_gap_db,
-               r.baseline.heldout_thesis_rms_db);
+               r.baseline.heldout_thesis_rms_db,
+               std::isfinite(r.baseline.heldout_group_gap_db)
+                   ? fmt("; leaving out one speed at a time %.2f dB", r.baseline.heldout_group_gap_db).c_str()
+                   : "");
   // parameters: every fitted quantity (the block's four and the extension's), so that a flexible candidate's gap is
   // read beside what it took to get there.
-  std::fprintf(out, "%-18s %10s %10s %8s %12s %11s\n", "candidate", "gap dB", "thesis dB", "closed", "significant",
-               "parameters");
+  // group dB: the gap leaving out one operating speed at a time ("-": no speed holds several conditions). dIC: the
+  // information criterion over the baseline's (negative: the closed gap pays for the parameters).
+  std::fprintf(out, "%-18s %10s %10s %10s %8s %12s %11s %8s\n", "candidate", "gap dB", "thesis dB", "group dB",
+               "closed", "significant", "parameters", "dIC");
   auto row = [&](const model::ModelScore& c) {
     const char* significant = c.significant ? "yes" : c.refuted ? "refuted" : "no";
-    std::fprintf(out, "%-18s %10.2f %10.2f %7.0f%% %12s %11d\n", c.name.c_str(), c.heldout_gap_db,
-                 c.heldout_thesis_rms_db, 100.0 * c.gap_closed_fraction, significant, c.parameters);
+    const std::string group = std::isfinite(c.heldout_group_gap_db) ? fmt("%.2f", c.heldout_group_gap_db) : "-";
+    std::fprintf(out, "%-18s %10.2f %10.2f %10s %7.0f%% %12s %11d %8.0f\n", c.name.c_str(), c.heldout_gap_db,
+                 c.heldout_thesis_rms_db, group.c_str(), 100.0 * c.gap_closed_fraction, significant, c.parameters,
+                 c.information_criterion - r.baseline.information_criterion);
   };
   for (const auto& c : r.candidates) row(c);
   for (const auto& c : r.combinations) row(c);
@@ -77,6 +84,7 @@ void print_band_summary(std::FILE* out, const model::DiagnosisResult& r) {
                v.effect.c_str(), also.c_str(), v.heldout_rms_before_db, v.heldout_rms_after_db,
                100.0 * v.gap_closed_fraction, v.heldout_thesis_before_db, v.heldout_thesis_after_db, v.noise_db,
                v.explanation.c_str());
+  std::fprintf(out, "  %s\n", v.remaining.summary.c_str());
   std::fprintf(out, "%.1f s\n", r.seconds);
 }
 

@@ -93,6 +93,10 @@ json score_json(const model::ModelScore& s) {
   c["improvement_p05_db"] = number(s.improvement_p05_db);
   c["win_fraction"] = number(s.win_fraction);
   c["parameters"] = s.parameters;
+  // Parsimony: n ln(gap^2) + parameters ln(n) over the n held-out cells; a candidate must come below the baseline's.
+  c["information_criterion"] = {{"value", number(s.information_criterion)},
+                                {"heldout_cells", s.heldout_cells},
+                                {"pays_for_parameters", s.pays_for_parameters}};
   c["gap_parts"] = {{"band_ms_db2", number(s.part_band_ms)},
                     {"mic_rss_db", number(s.part_mic)},
                     {"window_ms_db2", number(s.part_window_ms)}};
@@ -101,6 +105,9 @@ json score_json(const model::ModelScore& s) {
                     {"mic_calibration", number(s.closes_mic_db)},
                     {"crank_windows", number(s.closes_window_db)}};
   c["thesis_metric_worse"] = s.thesis_worse;
+  // Leave-one-group-out by operating speed (null without groups), and whether it is worse there than the baseline.
+  c["heldout_group_rms_db"] = number(s.heldout_group_gap_db);
+  c["group_worse"] = s.group_worse;
   if (s.motored_law_checked) {
     // An additive source claimed louder than all the motored runs hear (beyond 3 standard errors): refuted.
     c["motored_law"] = {{"refuted", s.refuted},
@@ -237,6 +244,21 @@ json scores_json(const std::vector<model::ModelScore>& scores) {
   return a;
 }
 
+// What the verdict leaves: the selected model's gap, where it lies and how it scales across held-out conditions.
+json remaining_json(const model::RemainingGap& r) {
+  return {{"model", r.model},
+          {"heldout_gap_db", number(r.gap_db)},
+          {"largest_part", r.part},
+          {"largest_band_hz", number(r.largest_band_hz)},
+          {"largest_band_db", number(r.largest_band_db)},
+          {"band_range_hz", {number(r.from_hz), number(r.to_hz)}},
+          {"mean_gap_db", numbers(r.mean_gap_db)},
+          {"speed_slope_db_per_krpm", number(r.speed_slope_db_per_krpm)},
+          {"load_slope_db_per_nm", number(r.load_slope_db_per_nm)},
+          {"level_slope_db_per_db", number(r.level_slope_db_per_db)},
+          {"summary", r.summary}};
+}
+
 json band_verdict(const model::Verdict& v) {
   return {{"effect", v.effect},
           {"also", v.also},
@@ -249,7 +271,8 @@ json band_verdict(const model::Verdict& v) {
           {"noise_db", number(v.noise_db)},
           {"band_before_db", numbers(v.band_before_db)},
           {"band_after_db", numbers(v.band_after_db)},
-          {"explanation", v.explanation}};
+          {"explanation", v.explanation},
+          {"remaining", remaining_json(v.remaining)}};
 }
 
 // ---- waveform mode ----

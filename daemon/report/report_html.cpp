@@ -129,6 +129,8 @@ std::string header(Page& pg, const json& r, const std::string& mode) {
               " &middot; <b>" + pct(num(get(v, "gap_closed_fraction"))) + "</b> closed");
   if (const std::string e = text(get(v, "explanation")); !e.empty()) o += el("p", {"class", "expl"}, esc(e));
   o += "<p>Also significant: <b>" + joined(get(v, "also"), ", ") + "</b></p>";
+  if (const std::string rest = text(get(get(v, "remaining"), "summary")); !rest.empty())
+    o += el("p", {"class", "expl"}, esc(rest));
   if (get(v, "heldout_thesis_rms_before_db").is_number() || get(v, "noise_db").is_number())
     o += el("p", {"class", "small"},
             "Thesis metric (attenuation-curve RMS): " + pg.val(num(get(v, "heldout_thesis_rms_before_db"))) +
@@ -213,6 +215,9 @@ std::string candidate_name(const json& c, bool combination, const json* target, 
   if (finite(h) && finite(after) && std::fabs(h - after) <= 1e-9 * std::fabs(after))
     name += "<span class=\"tag\">= after</span>";
   if (flag(get(c, "thesis_metric_worse"))) name += "<span class=\"tag\">thesis metric worse</span>";
+  if (const json& ic = get(c, "information_criterion"); ic.is_object() && !flag(get(ic, "pays_for_parameters")))
+    name += "<span class=\"tag\">does not pay for its parameters</span>";
+  if (flag(get(c, "group_worse"))) name += "<span class=\"tag\">worse leaving out a speed</span>";
   if (const std::string e = text(get(c, "error")); !e.empty()) name += el("div", {"class", "small err"}, esc(e));
   return name;
 }

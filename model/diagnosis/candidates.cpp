@@ -1,6 +1,7 @@
 // The candidates: every effect of the list added to the baseline as a model extension, all parameters refitted
 // on the training conditions, scored on the held-out ones and judged against the baseline by the bootstrap over
-// cycles; ranked by the held-out gap, the simpler first when the better is not clearly better. Pairs: the best
+// cycles; ranked by the held-out gap, the simpler first when the better is not clearly better (by the bootstrap and by
+// the information criterion, which counts every free level). Pairs: the best
 // with every other one (one effect can hide another), and the close runner-up likewise.
 #include <algorithm>
 #include <cmath>
@@ -81,7 +82,10 @@ void compare_with(ModelScore& m, const ModelScore& ref, double min_improvement) 
       d.empty() ? (m.improvement_db > 0 ? 1.0 : 0.0) : static_cast<double>(wins) / static_cast<double>(d.size());
   // No part of the composite gap may crown a model that makes the held-out thesis metric worse.
   m.thesis_worse = m.heldout_thesis_rms_db > ref.heldout_thesis_rms_db + kThesisWorseDb;
-  m.significant = m.win_fraction >= 0.95 && m.improvement_db >= min_improvement && !m.thesis_worse && !m.refuted;
+  m.pays_for_parameters = m.information_criterion < ref.information_criterion;
+  m.group_worse = m.heldout_group_gap_db > ref.heldout_group_gap_db + kThesisWorseDb;
+  m.significant = m.win_fraction >= 0.95 && m.improvement_db >= min_improvement && !m.thesis_worse && !m.refuted &&
+                  m.pays_for_parameters;
   m.closes_band_db = std::sqrt(ref.part_band_ms) - std::sqrt(m.part_band_ms);
   m.closes_mic_db = std::sqrt(ref.part_mic) - std::sqrt(m.part_mic);
   m.closes_window_db = std::sqrt(ref.part_window_ms) - std::sqrt(m.part_window_ms);
@@ -126,7 +130,8 @@ std::vector<std::size_t> rank_candidates(const std::vector<Evaluated>& evals, do
     for (std::size_t i = 0; i + 1 < order.size(); ++i) {
       const ModelScore& a = evals[order[i]].score;
       const ModelScore& b = evals[order[i + 1]].score;
-      const bool clearly_better = beats(a, b) >= 0.95 && b.heldout_gap_db - a.heldout_gap_db >= min_improvement_db;
+      const bool clearly_better = beats(a, b) >= 0.95 && b.heldout_gap_db - a.heldout_gap_db >= min_improvement_db &&
+                                  a.information_criterion < b.information_criterion;
       if (b.parameters < a.parameters && b.significant && !clearly_better) std::swap(order[i], order[i + 1]);
     }
   return order;

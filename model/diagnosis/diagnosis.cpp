@@ -62,6 +62,7 @@ DiagnosisResult diagnose(const BandDataset& data, const BlockParams& start, cons
   res.timing.emplace_back("(of which) fits on all training conditions", cx.t_fit);
   res.timing.emplace_back("(of which) fold refits", cx.t_folds);
   res.timing.emplace_back("(of which) held-out re-simulation and scoring", cx.t_heldout);
+  res.timing.emplace_back("(of which) leave-one-group-out refits and scoring", cx.t_groups);
   res.timing.emplace_back("(of which) stationary floors (training re-simulation)", cx.t_floors);
   res.timing.emplace_back("(of which) bootstrap", cx.t_bootstrap);
   res.seconds = log.seconds();

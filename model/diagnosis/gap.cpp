@@ -230,4 +230,14 @@ void draw_bootstrap(Context& cx) {
   }
 }
 
+void set_information_criterion(ModelScore& m) {
+  int n = 0;
+  for (const auto& rows : {&m.gaps, &m.cell_gaps, &m.mic_resid})
+    for (const std::vector<double>& row : *rows)
+      n += static_cast<int>(std::count_if(row.begin(), row.end(), [](double x) { return std::isfinite(x); }));
+  m.heldout_cells = n;
+  const double gap2 = std::max(m.heldout_gap_db * m.heldout_gap_db, 1e-12);
+  m.information_criterion = n > 0 ? n * std::log(gap2) + m.parameters * std::log(static_cast<double>(n)) : 0.0;
+}
+
 }  // namespace noisemon::model::diagnosis

@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <numeric>
 #include <stdexcept>
 
 #include "model/diagnosis/stages.hpp"
@@ -100,6 +101,27 @@ void mark_condition(Context& cx, std::size_t k, double margin) {
   }
 }
 
+// Held-out conditions grouped by operating speed (leave-one-condition-out only): sorted by speed, a group holds the
+// conditions within kGroupSpeedShare of its slowest. Empty when every group would be one condition (the group folds
+// would be the condition folds) or when there is one group (nothing left to train on).
+std::vector<std::vector<std::size_t>> speed_groups(const Context& cx) {
+  constexpr double kGroupSpeedShare = 0.05;
+  if (!cx.loo) return {};
+  std::vector<std::size_t> by_speed(cx.heldout.size());
+  std::iota(by_speed.begin(), by_speed.end(), 0);
+  const auto speed = [&](std::size_t h) { return cx.data->conditions[cx.heldout[h]].mean_speed_rpm(); };
+  std::stable_sort(by_speed.begin(), by_speed.end(), [&](std::size_t a, std::size_t b) { return speed(a) < speed(b); });
+  std::vector<std::vector<std::size_t>> groups;
+  for (std::size_t h : by_speed) {
+    if (groups.empty() || speed(h) > (1.0 + kGroupSpeedShare) * speed(groups.back().front())) groups.emplace_back();
+    groups.back().push_back(h);
+  }
+  const bool all_single = std::all_of(groups.begin(), groups.end(), [](const auto& g) { return g.size() == 1; });
+  if (groups.size() < 2 || all_single) return {};
+  for (auto& g : groups) std::sort(g.begin(), g.end());  // dataset order within a group
+  return groups;
+}
+
 }  // namespace
 
 void assign_roles(Context& cx) {
@@ -126,6 +148,7 @@ void assign_roles(Context& cx) {
   if (cx.loo && cx.train_fired.size() < 2)
     throw std::invalid_argument(
         "diagnose: leave-one-condition-out needs at least two fired conditions (or give --holdout)");
+  cx.groups = speed_groups(cx);
 }
 
 void mark_bands_and_floors(Context& cx, const BlockParams& start) {

@@ -8,6 +8,7 @@
 //   baseline.cpp          the start model tuned and scored: the gap every candidate is measured against
 //   candidates.cpp        each effect added to the baseline, judged against it and ranked; pairs on top of the best
 //   verdict.cpp           none, the effect (with its partner) or unexplained
+//   remaining.cpp         what the verdict leaves: where the remaining gap lies, how it scales
 //   where.cpp             where the baseline's gap lies: bands, conditions, input level, speed, microphones, windows
 //   diagnosis.cpp         diagnose(): the stages in order, progress and timing
 #pragma once
@@ -40,6 +41,9 @@ struct Context {
   std::vector<std::size_t> fired, refs, backgrounds;  // fired, motored (references), engine off (floors)
   std::vector<std::size_t> train_fired, heldout;      // fired training conditions; the scored ones
   bool loo = true;                                    // leave-one-condition-out
+  // Leave-one-group-out (assign_roles): the held-out conditions (indices into heldout) grouped by operating speed;
+  // empty when the groups would be single conditions or one group, or under a given split.
+  std::vector<std::vector<std::size_t>> groups;
   // Bands and floors (mark_bands_and_floors), per condition and band unless said otherwise.
   std::vector<double> background_ms;                  // per band: the background runs' mean microphone level, Pa^2
   std::vector<std::vector<double>> motored_excess;    // motored runs only: measured beyond the start model, Pa^2
@@ -52,7 +56,7 @@ struct Context {
   std::vector<std::vector<char>> pfloor_win;   // per condition, per band * W: the window's pressure likewise
   std::vector<std::vector<std::vector<int>>> counts;  // bootstrap draws (draw_bootstrap): [replicate][heldout][cycle]
   // Where the time goes (seconds, summed over models).
-  mutable double t_fit = 0, t_folds = 0, t_heldout = 0, t_floors = 0, t_bootstrap = 0;
+  mutable double t_fit = 0, t_folds = 0, t_heldout = 0, t_groups = 0, t_floors = 0, t_bootstrap = 0;
 };
 
 // Progress lines (DiagnosisOptions::progress) and the stage timing of a diagnosis (DiagnosisResult::timing).
@@ -115,6 +119,11 @@ Parts score_condition(const ConditionData& d, const Measured& ms, const Conditio
                       const std::vector<char>& scored, const std::vector<char>& fast, const std::vector<double>& floor,
                       const std::vector<int>* counts, ScoreDetail* detail);
 
+// The held-out cells a model was scored on (finite band and crank-window gaps, microphones) into m.heldout_cells,
+// and its information criterion, n ln(gap^2) + parameters ln(n), into m.information_criterion: the likelihood of
+// n Gaussian cells whose rms is the held-out gap, charged for every free level.
+void set_information_criterion(ModelScore& m);
+
 // The bootstrap over cycles: DiagnosisOptions::bootstrap draws per held-out condition, the same for every model.
 void draw_bootstrap(Context& cx);
 
@@ -173,7 +182,7 @@ struct CandidateRound {
 CandidateRound evaluate_candidates(const Context& cx, const BlockParams& start, const Evaluated& base,
                                    const std::vector<BlockParam>& base_free, StageLog& log);
 // Ranking: held-out gap; a simpler significant candidate first when the better one does not beat it in 95 % of
-// the replicates by at least min_improvement_db.
+// the replicates by at least min_improvement_db, or does not have the lower information criterion.
 std::vector<std::size_t> rank_candidates(const std::vector<Evaluated>& evals, double min_improvement_db);
 // The best significant candidate (sig[0]) with every other one, and the runner-up (sig[1]) likewise when it is
 // close and no pair with the best reaches the tolerance. Appends to *combinations; returns the index there of
@@ -189,6 +198,9 @@ std::optional<std::size_t> try_pairs(const Context& cx, const CandidateRound& ro
 // partner marked in res.candidates).
 void judge(const Context& cx, const CandidateRound& round, const std::vector<BlockParam>& base_free,
            DiagnosisResult& res, StageLog& log);
+
+// What the model `after` leaves (remaining.cpp); band_rms: its per-band RMS over the held-out conditions.
+RemainingGap describe_remaining(const Context& cx, const ModelScore& after, const std::vector<double>& band_rms);
 
 // ---------------------------------------------------------------------------------------- where
 

@@ -125,6 +125,7 @@ void judge(const Context& cx, const CandidateRound& round, const std::vector<Blo
   const std::size_t nb = cx.data->band_count();
   v.band_before_db = per_band_rms(res.baseline, nb);
   v.band_after_db = per_band_rms(after, nb);
+  v.remaining = describe_remaining(cx, after, v.band_after_db);
 }
 
 }  // namespace noisemon::model::diagnosis

@@ -53,13 +53,16 @@ TEST(Candidates, EachEffectIsItsModelExtensionAndAPairIsTheUnionOfBoth) {
   EXPECT_EQ(combine(damping, damping).extra_free, std::vector<BlockParam>{BlockParam::kB3});
 }
 
-ModelScore scored(double gap, double thesis, std::vector<double> replicates, int parameters = 4) {
+// A model scored on `cells` held-out band cells, every one off by the gap.
+ModelScore scored(double gap, double thesis, std::vector<double> replicates, int parameters = 4, int cells = 200) {
   ModelScore m;
   m.heldout_gap_db = gap;
   m.heldout_thesis_rms_db = thesis;
   m.part_band_ms = thesis * thesis;
   m.replicate_gaps = std::move(replicates);
   m.parameters = parameters;
+  m.gaps = {std::vector<double>(static_cast<std::size_t>(cells), gap)};
+  set_information_criterion(m);
   return m;
 }
 
@@ -98,6 +101,34 @@ TEST(Candidates, SignificantWhenItBeatsTheBaselineIn95PercentOfTheReplicatesByAt
   ModelScore slightly = scored(0.4, 1.04, around(0.4, 0.05));
   compare_with(slightly, base, 0.1);
   EXPECT_TRUE(slightly.significant);
+}
+
+TEST(Candidates, TheInformationCriterionCountsTheScoredCellsAndChargesEveryFreeLevel) {
+  ModelScore m;
+  m.heldout_gap_db = 0.5;
+  m.parameters = 10;
+  m.gaps = {{0.4, kNaN, -0.6}, {0.5, 0.5, kNaN}};  // two held-out conditions: 4 band cells scored
+  m.cell_gaps = {{kNaN, 0.2, 0.3}, {0.1, kNaN, kNaN}};
+  m.mic_resid = {{0.0, 0.1}, {0.0, 0.0}};
+  set_information_criterion(m);
+  EXPECT_EQ(m.heldout_cells, 4 + 3 + 4);
+  // Gaussian cells of rms 0.5 dB: -2 ln L = n ln(0.25) + const; each parameter costs ln(n).
+  EXPECT_NEAR(m.information_criterion, 11 * std::log(0.25) + 10 * std::log(11.0), 1e-9);
+}
+
+TEST(Candidates, ACandidateWhoseClosedGapDoesNotPayForItsFreeLevelsIsNotSignificant) {
+  const ModelScore base = scored(0.40, 0.40, around(0.40, 0.02), 4);
+  // 90 free levels for 10 % of a 0.4 dB gap, better in every replicate: on 200 cells it does not pay for them.
+  ModelScore spectrum = scored(0.36, 0.36, around(0.36, 0.02), 90);
+  compare_with(spectrum, base, 0.01);
+  EXPECT_DOUBLE_EQ(spectrum.win_fraction, 1.0);
+  EXPECT_FALSE(spectrum.pays_for_parameters);
+  EXPECT_FALSE(spectrum.significant);
+  // Closing three quarters of the gap, it does.
+  ModelScore strong = scored(0.10, 0.10, around(0.10, 0.02), 90);
+  compare_with(strong, base, 0.01);
+  EXPECT_TRUE(strong.pays_for_parameters);
+  EXPECT_TRUE(strong.significant);
 }
 
 TEST(Candidates, BeatsIsTheShareOfReplicatesWithTheSmallerGap) {
@@ -143,6 +174,21 @@ TEST(Candidates, RankedByTheHeldOutGapTheSimplerFirstWhenTheBetterIsNotClearlyBe
   evals[1].score.replicate_gaps = complex_r;
   evals[2].score.significant = false;
   EXPECT_EQ(names(evals, rank_candidates(evals, 0.1)), (std::vector<std::string>{"complex", "simple", "worst"}));
+}
+
+TEST(Candidates, AManyLevelSpectrumDoesNotOutrankAFewParameterModeByFittingTheNoise) {
+  // The spectrum's gap is clearly smaller in every replicate, but with 90 parameters against 8 on 200 held-out
+  // cells its information criterion is the higher: the mode ranks first.
+  std::vector<double> mode_r = around(0.42, 0.02), spectrum_r = around(0.30, 0.02);
+  std::vector<Evaluated> evals{candidate("spectrum", 0.30, spectrum_r, 90, true),
+                               candidate("mode", 0.42, mode_r, 8, true)};
+  EXPECT_EQ(names(evals, rank_candidates(evals, 0.1)), (std::vector<std::string>{"mode", "spectrum"}));
+  // The same gaps on 5000 cells: the spectrum's closer fit there is worth its levels.
+  for (Evaluated& e : evals) {
+    e.score.gaps = {std::vector<double>(5000, e.score.heldout_gap_db)};
+    set_information_criterion(e.score);
+  }
+  EXPECT_EQ(names(evals, rank_candidates(evals, 0.1)), (std::vector<std::string>{"spectrum", "mode"}));
 }
 
 TEST(Candidates, AMiscalibratedMicrophoneIsFoundByTheMicGainCandidate) {

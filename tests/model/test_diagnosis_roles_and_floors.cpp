@@ -56,6 +56,40 @@ TEST(AssignRoles, LeaveOneOutTrainsOnAndScoresEveryFiredConditionMotoredAreRefer
   EXPECT_EQ(cx.backgrounds, (Idx{5}));
 }
 
+// Conditions at these speeds (info.speed_rpm: no cycles, so the stated speed is the mean), one motored run.
+BandDataset at_speeds(const std::vector<double>& rpm) {
+  BandDataset d;
+  for (std::size_t k = 0; k < rpm.size(); ++k) {
+    ConditionData c;
+    c.info.name = "fired_" + std::to_string(k);
+    c.info.speed_rpm = rpm[k];
+    d.conditions.push_back(c);
+  }
+  ConditionData m;
+  m.info.name = "motored";
+  m.info.motored = true;
+  m.info.speed_rpm = rpm.front();
+  d.conditions.push_back(m);
+  return d;
+}
+
+TEST(AssignRoles, LeaveOneGroupOutGroupsTheHeldOutConditionsByOperatingSpeed) {
+  const DiagnosisOptions opt;
+  // The thesis's two groups (idle at 3050 rpm, full load at 3450), listed interleaved; 3100 rpm is within 5 % of
+  // idle.
+  const BandDataset thesis = at_speeds({3450, 3050, 3450, 3100, 3050});
+  const Context cx = roles(thesis, opt);
+  EXPECT_EQ(cx.groups, (std::vector<Idx>{{1, 3, 4}, {0, 2}}));  // indices into heldout, slowest group first
+  // Every speed its own condition: the groups would be the condition folds, so there are none.
+  EXPECT_TRUE(roles(at_speeds({1500, 1800, 2000, 2600}), opt).groups.empty());
+  // One speed for every condition: nothing would be left to train on.
+  EXPECT_TRUE(roles(at_speeds({2000, 2010, 2020}), opt).groups.empty());
+  // A given split has no folds of its own.
+  DiagnosisOptions split;
+  split.holdout = {"fired_0"};
+  EXPECT_TRUE(roles(thesis, split).groups.empty());
+}
+
 TEST(AssignRoles, TheThesisProtocolTrainsAtIdleAndHoldsOutFullLoad) {
   const BandDataset data = named_conditions();
   DiagnosisOptions opt;
