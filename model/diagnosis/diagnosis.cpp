@@ -49,7 +49,14 @@ DiagnosisResult diagnose(const BandDataset& data, const BlockParams& start, cons
 
   log.say("baseline: tuning " + model_name + " on " + std::to_string(cx.train_fired.size()) + " fired and " +
           std::to_string(cx.refs.size()) + " motored condition(s)");
-  const Evaluated base = tune_baseline(cx, start, base_free);
+  Evaluated base = tune_baseline(cx, start, base_free);
+  // The start model may be far from the engine: what the motored runs hear beyond it is then mostly its own error,
+  // not combustion-independent noise. Judged again beyond the tuned block, and the baseline tuned once more if the
+  // bands it may be tuned on changed.
+  if (remark_noise_dominated(cx, base.score.model.block)) {
+    log.say("baseline: tuning again on the bands where the motored runs hear no more than the tuned model predicts");
+    base = tune_baseline(cx, base.score.model.block, base_free);
+  }
   res.baseline = base.score;
   log.stage("baseline");
 

@@ -10,8 +10,9 @@
 //
 // Baseline: the start model tuned (band_fit, default free k1, b1, c0, c1) on the training conditions, on the
 // bands where combustion noise dominates (at least 6 dB above the combustion-independent excess of the motored
-// runs: the block must not bend to fit noise it cannot make). Candidates: the baseline plus one extension,
-// every parameter refitted on ALL scored bands of the training conditions:
+// runs: the block must not bend to fit noise it cannot make; the excess judged beyond the start model, then again
+// beyond the tuned block, and the baseline tuned once more when the bands changed). Candidates: the baseline plus
+// one extension, every parameter refitted on ALL scored bands of the training conditions, fired and motored:
 //   cubic_damping      free b3                         cubic_stiffness   free k3
 //   second_mode        parallel resonance (dB, f2, Q)  speed_dependence  gain and frequency scaling per krpm
 //   mechanical_noise   additive, per band and crank window, scaling with a power of speed

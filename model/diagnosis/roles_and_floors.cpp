@@ -79,6 +79,14 @@ std::size_t nearest_ref(const BandDataset& data, const std::vector<std::size_t>&
   return best;
 }
 
+// Dominated by the combustion-independent noise of the motored run r (the nearest in speed): scored (the additive
+// candidates live there), but the baseline is not tuned on it. m: the cell's cycle-mean level.
+void mark_noise_dominated(Context& cx, std::size_t k, std::size_t b, std::size_t r, double m, double margin) {
+  const bool noisy = r < cx.data->conditions.size() && m < cx.motored_excess[r][b] * margin;
+  cx.noise_dominated[k][b] = noisy;
+  cx.tune_mask[k][b] = cx.base_mask[k][b] && !noisy;
+}
+
 // The masks of condition k, and its contribution to the band notes.
 void mark_condition(Context& cx, std::size_t k, double margin) {
   const BandDataset& data = *cx.data;
@@ -92,11 +100,7 @@ void mark_condition(Context& cx, std::size_t k, double margin) {
     const bool at_floor = (!cx.backgrounds.empty() && m < cx.background_ms[b] * margin) || cx.pfloor_band[k][b];
     cx.base_mask[k][b] = ok && !at_floor;
     cx.floor_limited[k][b] = ok && at_floor;
-    // Dominated by the combustion-independent noise of the motored runs: scored (the additive candidates live
-    // there), but the baseline is not tuned on it.
-    const bool noisy = r < K && m < cx.motored_excess[r][b] * margin;
-    cx.noise_dominated[k][b] = noisy;
-    cx.tune_mask[k][b] = cx.base_mask[k][b] && !noisy;
+    mark_noise_dominated(cx, k, b, r, m, margin);
     if (data.band_line_free(k, b) && cx.band_notes[b].empty()) cx.band_notes[b] = "line_free";
   }
 }
@@ -171,6 +175,18 @@ void mark_bands_and_floors(Context& cx, const BlockParams& start) {
   for (std::size_t b = 0; b < nb; ++b)
     if (data.bands[b].nyquist_cut) cx.band_notes[b] = "nyquist_cut";
   for (std::size_t k = 0; k < K; ++k) mark_condition(cx, k, margin);
+}
+
+bool remark_noise_dominated(Context& cx, const BlockParams& tuned) {
+  const BandDataset& data = *cx.data;
+  const double margin = std::pow(10.0, cx.opt->floor_margin_db / 10.0);
+  const std::vector<std::vector<char>> before = cx.tune_mask;
+  cx.motored_excess = motored_excess(data, cx.refs, tuned);
+  for (std::size_t k = 0; k < data.conditions.size(); ++k) {
+    const std::size_t r = nearest_ref(data, cx.refs, k);
+    for (std::size_t b = 0; b < data.band_count(); ++b) mark_noise_dominated(cx, k, b, r, mean_meas(data, k, b), margin);
+  }
+  return cx.tune_mask != before;
 }
 
 }  // namespace noisemon::model::diagnosis

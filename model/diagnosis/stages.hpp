@@ -82,6 +82,11 @@ void assign_roles(Context& cx);
 // pressure floors, fast bands, masks and band notes.
 void mark_bands_and_floors(Context& cx, const BlockParams& start);
 
+// The motored runs' excess judged again beyond the tuned block (what the motored runs hear beyond the model's
+// prediction from their pressure, not beyond the start model's, which may be far from the engine): the noise-dominated
+// cells and the tuning mask follow. True when the tuning mask changed (the baseline is then tuned again).
+bool remark_noise_dominated(Context& cx, const BlockParams& tuned);
+
 // ---------------------------------------------------------------------------------------- the gap
 
 // The measured side of a condition, corrected by a model's microphone gains.

@@ -334,6 +334,38 @@ std::vector<Condition> default_conditions(int cycles, std::uint64_t seed) {
   return out;
 }
 
+std::vector<Condition> second_cell_conditions(int cycles, std::uint64_t seed) {
+  struct Fired { double rpm, load; };
+  constexpr Fired fired[] = {{1400, 0.8}, {1400, 1.2}, {2000, 0.75}, {2000, 1.25}, {2400, 0.9}, {2400, 1.1}};
+  const int last_first = 59 - cycles;  // 60 columns; cycles + 1 consecutive ones per run
+  const auto shift = [&](int first) {
+    const auto columns = static_cast<std::uint64_t>(last_first + 1);
+    return static_cast<int>((static_cast<std::uint64_t>(first) + 11 * (seed - 1)) % columns);
+  };
+  std::vector<Condition> out;
+  for (int i = 0; i < 6; ++i) {
+    Condition c;
+    char name[40];
+    std::snprintf(name, sizeof name, "op_%04.0f_l%03.0f", fired[i].rpm, 100 * fired[i].load);
+    c.name = name;
+    c.speed_rpm = fired[i].rpm;
+    c.load_scale = fired[i].load;
+    c.first_cycle = shift(static_cast<int>(std::lround(i * last_first / 5.0)));
+    c.cycles = cycles;
+    out.push_back(c);
+  }
+  out.push_back({"motored_2000", 2000, 1.0, true, false, shift(last_first / 2), cycles});
+  return out;
+}
+
+Chain second_cell_chain(std::uint64_t seed) {
+  Chain chain;
+  chain.structure = kSecondCellStructure;
+  chain.added_pressure_noise_bar = 0.05;
+  chain.seed = seed;
+  return chain;
+}
+
 Timing timing(double nominal_rpm, int cycles, double fs_hz) {
   const double target = 120.0 * cycles / nominal_rpm * fs_hz;
   const auto t = static_cast<std::size_t>(std::llround(target));
@@ -483,6 +515,11 @@ Run synthesize(const Sources& src, const Condition& c, int condition_index, cons
   r.time = timing(c.speed_rpm, c.cycles, chain.fs_hz);
   r.fs_hz = chain.fs_hz;
   r.pressure = condition_pressure(src, c, r.time.speed_rpm);
+  if (chain.added_pressure_noise_bar > 0) {
+    std::mt19937_64 rng = rng_for(chain, condition_index, kMics, 11);
+    std::normal_distribution<double> noise(0.0, chain.added_pressure_noise_bar);
+    for (double& p : r.pressure.recorded_bar) p += noise(rng);
+  }
   std::vector<double> u(r.pressure.clean_bar.size());
   double mean = 0;
   for (double p : r.pressure.clean_bar) mean += p / static_cast<double>(u.size());

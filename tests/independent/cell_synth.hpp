@@ -112,6 +112,8 @@ struct Structure {
 };
 // The cell's engine: other constants (a stiffer-damped, lower, quieter block than the thesis's).
 constexpr Structure kCellStructure{7.4, 170, 0.24, 3900};
+// The second cell's engine: a louder, lightly damped block resonating higher than either (issue 22's second cell).
+constexpr Structure kSecondCellStructure{14.0, 90, 0.18, 6200};
 std::complex<double> eq41(double f_hz, const Structure& s = Structure{});
 std::complex<double> resonance(double f_hz, double f0_hz, double q);     // unit peak (1 at f0), band-pass
 double a_weighting_db(double f_hz);                                      // IEC 61672-1, 0 dB at 1 kHz
@@ -161,6 +163,11 @@ struct Condition {
 // engine's own cycle-to-cycle variation, the larger noise here, differs from seed to seed as the chain's does.
 std::vector<Condition> default_conditions(int cycles = 16, std::uint64_t seed = 1);
 
+// The second cell's campaign: six fired conditions at three speeds, two loads each (1400 rpm at 0.8 and 1.2,
+// 2000 at 0.75 and 1.25, 2400 at 0.9 and 1.1: every speed holds a group), one motored run at 2000 rpm, `cycles`
+// cycles each; `seed` moves the records' columns as in default_conditions.
+std::vector<Condition> second_cell_conditions(int cycles = 24, std::uint64_t seed = 1);
+
 struct Effects {
   double second_mode_db = 0, second_mode_hz = 1600, second_mode_q = 5;
   double mic_gain_db = 0;
@@ -187,7 +194,13 @@ struct Chain {
   double self_noise_dba = 20;
   double pink_floor_db = 40;
   std::uint64_t seed = 1;  // noise realisations depend on (seed, condition index, microphone) only
+  // A noisier pressure chain: white Gaussian noise of this rms per 0.2 deg sample added to pressure.csv (the engine
+  // does not hear it), beside the record's own floor; not stated in run.json (the diagnosis must estimate it).
+  double added_pressure_noise_bar = 0;
 };
+
+// The second cell's chain: its structure and a 0.05 bar floor added to the record's.
+Chain second_cell_chain(std::uint64_t seed);
 
 // The run's timing: the speed adjusted so that `cycles` cycles are n_out samples at fs, n_out 5-smooth.
 struct Timing {

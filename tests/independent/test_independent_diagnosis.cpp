@@ -200,6 +200,53 @@ TEST(IndependentSynth, PressureCsvKeepsTheRecordWhileTheEngineHearsItLessItsStat
   check_floor_is_stationary("motored 1800 rpm", m, 2);  // -180 ... -90 deg: the burst at intake valve closing
 }
 
+TEST(IndependentSynth, TheSecondCellHoldsThreeSpeedsOfTwoLoadsAndANoisierPressureChain) {
+  REQUIRE_SOURCES();
+  const std::vector<indep::Condition> cs = indep::second_cell_conditions(24, 1);
+  ASSERT_EQ(cs.size(), 7u);
+  int motored = 0;
+  for (const indep::Condition& c : cs) {
+    motored += c.motored ? 1 : 0;
+    EXPECT_EQ(c.cycles, 24);
+    EXPECT_GE(c.first_cycle, 0);
+    EXPECT_LE(c.first_cycle + c.cycles, 59);  // cycles + 1 consecutive columns of 60
+    if (c.motored) continue;
+    // Every fired speed holds exactly two conditions, at different loads.
+    const auto same = std::count_if(cs.begin(), cs.end(), [&](const indep::Condition& o) {
+      return !o.motored && o.speed_rpm == c.speed_rpm && o.load_scale != c.load_scale;
+    });
+    EXPECT_EQ(same, 1) << c.name;
+  }
+  EXPECT_EQ(motored, 1);
+  // Its structure is neither the thesis's preset nor the first cell's.
+  const indep::Structure st = indep::kSecondCellStructure, thesis{}, first = indep::kCellStructure;
+  for (const indep::Structure& other : {thesis, first}) {
+    EXPECT_GT(std::abs(std::log(st.fn_hz / other.fn_hz)), 0.2);
+    EXPECT_GT(std::abs(std::log(st.zeta / other.zeta)), 0.2);
+  }
+  // pressure.csv carries 0.05 bar of white noise per 0.2 deg sample beside the record's own floor, which the engine
+  // does not hear: the clean pressure is the first cell's, and recorded - clean grows in power by 0.05^2.
+  const indep::Condition c = cs.front();
+  const indep::Run noisy = indep::synthesize(*src, c, 0, indep::second_cell_chain(1), indep::Effects{});
+  indep::Chain quiet = indep::second_cell_chain(1);
+  quiet.added_pressure_noise_bar = 0;
+  const indep::Run plain = indep::synthesize(*src, c, 0, quiet, indep::Effects{});
+  ASSERT_EQ(noisy.pressure.recorded_bar.size(), plain.pressure.recorded_bar.size());
+  double added = 0, mean = 0;
+  const double n = static_cast<double>(noisy.pressure.recorded_bar.size());
+  for (std::size_t i = 0; i < noisy.pressure.recorded_bar.size(); ++i) {
+    EXPECT_EQ(noisy.pressure.clean_bar[i], plain.pressure.clean_bar[i]);
+    const double d = noisy.pressure.recorded_bar[i] - plain.pressure.recorded_bar[i];
+    added += d * d / n;
+    mean += d / n;
+  }
+  // 24 * 3600 samples: the rms within 1 % and the mean within 4 standard errors of zero.
+  EXPECT_NEAR(std::sqrt(added), 0.05, 0.0005);
+  EXPECT_LT(std::abs(mean), 4 * 0.05 / std::sqrt(n));
+  // The microphones do not hear it.
+  EXPECT_EQ(noisy.mics_pa[0], plain.mics_pa[0]);
+}
+
 TEST(IndependentSynth, EffectsHaveTheLevelsTheyAreSpecifiedBy) {
   REQUIRE_SOURCES();
   const indep::Chain chain;

@@ -19,6 +19,7 @@ namespace fs = std::filesystem;
 using nlohmann::json;
 
 constexpr int kCyclesPerCondition = 16;
+constexpr int kSecondCellCycles = 24;
 constexpr double kThirdOctave = 1.2599210498948732;  // 2^(1/3)
 
 std::string fmt(const char* f, double a, double b = 0, double c = 0) {
@@ -145,13 +146,37 @@ std::vector<Case> withheld_cases(double engine_dba) {
   return out;
 }
 
+std::vector<Case> second_cell_cases(double engine_dba) {
+  std::vector<Case> out{{"cell2_null", "none", {}, 2}};
+  for (const auto& [hz, q] : {std::pair{800.0, 5.0}, std::pair{2500.0, 10.0}}) {
+    Effects fx;
+    fx.second_mode_hz = hz, fx.second_mode_q = q, fx.second_mode_db = 8;
+    out.push_back({fmt("cell2_second_mode_8db_%.0fhz_q%.0f", hz, q), "second_mode", fx, 2});
+  }
+  Effects gain;
+  gain.mic_gain_db = 6, gain.mic_gain_index = 1, gain.mic_gain_corner_hz = 600;
+  out.push_back({"cell2_mic_gain_6db_mic2", "mic_gain", gain, 2});
+  Effects background;
+  background.background_dba = engine_dba - 9;
+  out.push_back({"cell2_background_noise_engine_minus_9db", "background_noise", background, 2});
+  Effects speed;
+  speed.speed_exponent = 6.0 / (20.0 * std::log10(2400.0 / 1400.0));
+  out.push_back({"cell2_speed_dependence_6db_1400_to_2400", "speed_dependence", speed, 2});
+  Effects impacts;
+  impacts.mechanical_dba = engine_dba - 6, impacts.mechanical_jitter_deg = 3, impacts.mechanical_energy_spread_db = 4;
+  out.push_back({"cell2_mechanical_noise_engine_minus_6db", "mechanical_noise", impacts, 2});
+  return out;
+}
+
 Outcome diagnose_case(const Sources& src, const Case& c, std::uint64_t seed, const fs::path& dir,
                       const std::string& noisemon_path) {
-  Chain chain;
+  Chain chain = c.cell == 2 ? second_cell_chain(seed) : Chain{};
   chain.seed = seed;
   fs::remove_all(dir);
   fs::create_directories(dir);
-  write_campaign(src, default_conditions(kCyclesPerCondition, seed), chain, c.fx, dir / "runs");
+  const std::vector<Condition> conditions = c.cell == 2 ? second_cell_conditions(kSecondCellCycles, seed)
+                                                        : default_conditions(kCyclesPerCondition, seed);
+  write_campaign(src, conditions, chain, c.fx, dir / "runs");
   const std::string cmd = quote(noisemon_path) + " diagnose " + quote((dir / "runs").string()) + " -o " +
                           quote((dir / "diag").string()) + " --bootstrap 100 --no-progress --force > " +
                           quote((dir / "diagnose.log").string()) + " 2>&1";

@@ -27,6 +27,7 @@ struct Case {
   std::string label;
   std::string expect;  // DESIGN.md's effect name, or "none"
   Effects fx;
+  int cell = 1;        // 1: default_conditions on Chain{}; 2: second_cell_conditions on second_cell_chain
 };
 
 // The null run's array-average A-weighted level at 1800 rpm (fired, load 1), dB re 20 uPa.
@@ -34,6 +35,9 @@ double engine_level_dba(const Sources& src, const Chain& chain);
 
 // Every case of the catalogue (magnitudes of the additive ones relative to engine_dba).
 std::vector<Case> withheld_cases(double engine_dba);
+// The second cell's cases (labels "cell2_..."): its null, two modes, a microphone, a background, the speed and the
+// impacts, one magnitude each, fixed before any diagnosis ran on that cell; engine_dba: its own engine's level.
+std::vector<Case> second_cell_cases(double engine_dba);
 
 struct Outcome {
   std::string effect;               // verdict.effect
@@ -48,8 +52,8 @@ struct Outcome {
   std::string error;                // non-empty: diagnose failed (its log's tail)
 };
 
-// Writes the case's campaign (Chain seed and the records' cycles: `seed`, see default_conditions) under dir/runs, runs
-// `noisemon diagnose` into dir/diag and scores its report.
+// Writes the case's campaign (its cell's; the chain's seed and the records' cycles: `seed`, see default_conditions)
+// under dir/runs, runs `noisemon diagnose` into dir/diag and scores its report.
 Outcome diagnose_case(const Sources& src, const Case& c, std::uint64_t seed, const std::filesystem::path& dir,
                       const std::string& noisemon_path);
 

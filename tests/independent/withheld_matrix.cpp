@@ -21,10 +21,11 @@ namespace {
 namespace fs = std::filesystem;
 
 constexpr const char* kUsage =
-    "usage: indep_withheld_matrix [--seeds 1,2] [--jobs 2] [--only TEXT] [--out TABLE.md] [--dir SCRATCH]\n"
-    "                             [--data REAL_DATA_DIR] [--noisemon PATH]\n"
+    "usage: indep_withheld_matrix [--cell 1|2] [--seeds 1,2] [--jobs 2] [--only TEXT] [--out TABLE.md]\n"
+    "                             [--dir SCRATCH] [--data REAL_DATA_DIR] [--noisemon PATH]\n"
     "Runs every withheld-effect case of the independent cell (tests/independent/withheld.hpp) at every seed through\n"
     "`noisemon diagnose` and prints the results as a Markdown table (also written to --out).\n"
+    "  --cell    1: the first cell's catalogue (default); 2: the second cell's (three speeds, two loads each)\n"
     "  --seeds   noise seeds of the cell, comma-separated (default 1,2)\n"
     "  --jobs    diagnoses run at once (default 2)\n"
     "  --only    only the cases whose label contains TEXT\n"
@@ -33,6 +34,7 @@ constexpr const char* kUsage =
 struct Args {
   std::vector<std::uint64_t> seeds{1, 2};
   unsigned jobs = 2;
+  int cell = 1;
   std::string only, out, dir, data = std::string(NOISEMON_SHARED_DIR) + "/data/real", noisemon = NOISEMON_PATH;
 };
 
@@ -61,6 +63,7 @@ Args parse(int argc, char** argv) {
     }
     const std::string v = argv[++i];
     if (k == "--seeds") a.seeds = parse_seeds(v);
+    else if (k == "--cell" && (v == "1" || v == "2")) a.cell = std::stoi(v);
     else if (k == "--jobs") a.jobs = static_cast<unsigned>(std::max(1, std::stoi(v)));
     else if (k == "--only") a.only = v;
     else if (k == "--out") a.out = v;
@@ -86,10 +89,11 @@ struct Job {
 int main(int argc, char** argv) try {
   const Args args = parse(argc, argv);
   const indep::Sources src = indep::load_sources(args.data);
-  const double engine = indep::engine_level_dba(src, indep::Chain{});
-  std::printf("the independent cell's engine: %.1f dB(A) array average at 1800 rpm\n", engine);
+  const indep::Chain chain = args.cell == 2 ? indep::second_cell_chain(1) : indep::Chain{};
+  const double engine = indep::engine_level_dba(src, chain);
+  std::printf("the independent cell %d's engine: %.1f dB(A) array average at 1800 rpm\n", args.cell, engine);
   std::vector<Job> jobs;
-  for (const indep::Case& c : indep::withheld_cases(engine))
+  for (const indep::Case& c : args.cell == 2 ? indep::second_cell_cases(engine) : indep::withheld_cases(engine))
     if (c.label.find(args.only) != std::string::npos)
       for (std::uint64_t s : args.seeds) jobs.push_back({c, s, {}});
   const bool own_dir = args.dir.empty();

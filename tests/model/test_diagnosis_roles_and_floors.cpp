@@ -269,5 +269,36 @@ TEST(MarkBandsAndFloors, BandsWithinTheMarginOfTheNearestMotoredRunsExcessAreSco
   }
 }
 
+TEST(MarkBandsAndFloors, NoiseDominanceIsJudgedAgainBeyondTheTunedBlockNotTheStartModel) {
+  // Every run hears the block `truth` exactly, 12 dB louder than the start preset: beyond the start model the motored
+  // run's whole sound is "excess", so every band is noise-dominated; beyond the tuned block (the truth) none is.
+  BlockParams truth = preset("linear");
+  truth.c0 *= 4.0;
+  truth.c1 *= 4.0;
+  const std::vector<double> gains(kMics, 0.0);
+  testdata::Recipe motored = testdata::fired("motored", kRpm, 0.9, truth, gains, 3);  // within 6 dB of the fired
+  motored.info.motored = true;
+  const BandDataset data = make_dataset({testdata::build(testdata::fired("fired_1", kRpm, 1.0, truth, gains, 1)),
+                                         testdata::build(testdata::fired("fired_2", kRpm, 0.95, truth, gains, 2)),
+                                         testdata::build(motored)});
+  const DiagnosisOptions opt;
+  Context cx = marked(data, opt);
+  int scored = 0, noisy = 0;
+  for (std::size_t b = 0; b < data.band_count(); ++b) {
+    scored += cx.base_mask[0][b];
+    noisy += cx.base_mask[0][b] && cx.noise_dominated[0][b];
+  }
+  ASSERT_GT(scored, 10);
+  EXPECT_EQ(noisy, scored);  // beyond the start model: all of it
+  EXPECT_TRUE(remark_noise_dominated(cx, truth));
+  for (std::size_t k = 0; k < 3; ++k)
+    for (std::size_t b = 0; b < data.band_count(); ++b) {
+      if (!cx.base_mask[k][b]) continue;  // not scored (Nyquist-cut, line-free): never tuned on either way
+      EXPECT_FALSE(cx.noise_dominated[k][b]) << k << " " << data.bands[b].nominal_hz;
+      EXPECT_TRUE(cx.tune_mask[k][b]);
+    }
+  EXPECT_FALSE(remark_noise_dominated(cx, truth));  // nothing changes a second time
+}
+
 }  // namespace
 }  // namespace noisemon::model::diagnosis
