@@ -19,7 +19,9 @@ std::string fixed(double x, int digits) {
   return buf;
 }
 
-std::string hz(double f) { return f >= 1000.0 ? fixed(f / 1000.0, f >= 10000.0 ? 0 : 1) + " kHz" : fixed(f, 0) + " Hz"; }
+std::string hz(double f) {
+  return f >= 1000.0 ? fixed(f / 1000.0, f >= 10000.0 ? 0 : 1) + " kHz" : fixed(f, 0) + " Hz";
+}
 
 // The largest per-band RMS and the contiguous range around it of bands at least kRangeShare of it.
 void band_range(const Context& cx, const std::vector<double>& band_rms, RemainingGap& r) {
@@ -31,7 +33,9 @@ void band_range(const Context& cx, const std::vector<double>& band_rms, Remainin
   r.largest_band_hz = bands[top].nominal_hz;
   r.largest_band_db = band_rms[top];
   std::size_t lo = top, hi = top;
-  const auto within = [&](std::size_t b) { return std::isfinite(band_rms[b]) && band_rms[b] >= kRangeShare * band_rms[top]; };
+  const auto within = [&](std::size_t b) {
+    return std::isfinite(band_rms[b]) && band_rms[b] >= kRangeShare * band_rms[top];
+  };
   while (lo > 0 && within(lo - 1)) --lo;
   while (hi + 1 < band_rms.size() && within(hi + 1)) ++hi;
   r.from_hz = bands[lo].nominal_hz;

@@ -184,7 +184,8 @@ bool remark_noise_dominated(Context& cx, const BlockParams& tuned) {
   cx.motored_excess = motored_excess(data, cx.refs, tuned);
   for (std::size_t k = 0; k < data.conditions.size(); ++k) {
     const std::size_t r = nearest_ref(data, cx.refs, k);
-    for (std::size_t b = 0; b < data.band_count(); ++b) mark_noise_dominated(cx, k, b, r, mean_meas(data, k, b), margin);
+    for (std::size_t b = 0; b < data.band_count(); ++b)
+      mark_noise_dominated(cx, k, b, r, mean_meas(data, k, b), margin);
   }
   return cx.tune_mask != before;
 }

@@ -326,9 +326,14 @@ TEST(IndependentSynth, ThePanelRaisesTheStructureBySpecifiedDbAtItsFrequencyAndH
 
 // The catalogue's cases this suite runs (seed 1): the whole family at two seeds is tests/independent/withheld_matrix
 // (about 30 s of one core per case; its table is in the README). Those run here are the ones the diagnosis reads right
-// in that table, one per effect; the others stay in the table, open.
+// in that table, one per effect, and the second cell's null and a mode (`--cell 2`); the others stay in the table.
 const std::vector<indep::Case>& catalogue(const indep::Sources& src) {
-  static const std::vector<indep::Case> cases = indep::withheld_cases(indep::engine_level_dba(src, indep::Chain{}));
+  static const std::vector<indep::Case> cases = [&] {
+    std::vector<indep::Case> all = indep::withheld_cases(indep::engine_level_dba(src, indep::Chain{}));
+    for (indep::Case& c : indep::second_cell_cases(indep::engine_level_dba(src, indep::second_cell_chain(1))))
+      all.push_back(std::move(c));
+    return all;
+  }();
   return cases;
 }
 
@@ -357,7 +362,8 @@ TEST_P(IndependentDiagnosis, PrimaryVerdictNamesTheWithheldEffectWithItsParamete
 INSTANTIATE_TEST_SUITE_P(WithheldEffects, IndependentDiagnosis,
                          ::testing::Values("null", "second_mode_10db_1600hz_q8", "mic_gain_6db_mic7",
                                            "background_noise_engine_minus_9db", "speed_dependence_6db_1500_to_2600",
-                                           "mechanical_noise_engine_minus_6db"),
+                                           "mechanical_noise_engine_minus_6db", "cell2_null",
+                                           "cell2_second_mode_8db_800hz_q5"),
                          [](const ::testing::TestParamInfo<std::string>& i) { return i.param; });
 
 }  // namespace
