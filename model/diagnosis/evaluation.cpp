@@ -20,14 +20,19 @@ double since(std::chrono::steady_clock::time_point& t) {
 
 bool contains(const std::vector<std::size_t>& v, std::size_t k) { return std::find(v.begin(), v.end(), k) != v.end(); }
 
-// The training conditions of fold h: the fired ones but the held-out one (all of them for a given split), and
-// the references.
-std::vector<std::size_t> fold_train(const Context& cx, std::size_t heldout_index) {
-  std::vector<std::size_t> t;
+// The model refitted without the held-out conditions `left_out` (indices into cx.heldout; leave-one-out folds only):
+// the fired training conditions but those, and the references, in a surrogate solve on the all-training anchor.
+ExtendedModel refit_without(const Context& cx, const CandidateSpec& spec, const FitSetup& setup, const FitOutcome& all,
+                            const std::vector<std::size_t>& left_out) {
+  FitSetup f = setup;
+  f.train.clear();
   for (std::size_t k : cx.train_fired)
-    if (!cx.loo || k != cx.heldout[heldout_index]) t.push_back(k);
-  t.insert(t.end(), cx.refs.begin(), cx.refs.end());
-  return t;
+    if (std::none_of(left_out.begin(), left_out.end(), [&](std::size_t h) { return cx.heldout[h] == k; }))
+      f.train.push_back(k);
+  f.train.insert(f.train.end(), cx.refs.begin(), cx.refs.end());
+  ExtendedModel start = all.model;
+  if (spec.ext.mic_gain) start.ext.mic_gain_db = estimate_mic_gains(cx, f.train);
+  return refit_on_anchor(f, *all.anchor, start).model;
 }
 
 // The fit on all training conditions: the spec's extensions and free parameters on the baseline's.
@@ -66,15 +71,7 @@ std::vector<ExtendedModel> fold_models(const Context& cx, const CandidateSpec& s
                                        const FitOutcome& all) {
   std::vector<ExtendedModel> folds;
   for (std::size_t h = 0; h < cx.heldout.size(); ++h) {
-    if (!cx.loo) {
-      folds.push_back(all.model);
-      continue;
-    }
-    FitSetup f = setup;
-    f.train = fold_train(cx, h);
-    ExtendedModel fs = all.model;
-    if (spec.ext.mic_gain) fs.ext.mic_gain_db = estimate_mic_gains(cx, f.train);
-    folds.push_back(refit_on_anchor(f, *all.anchor, fs).model);
+    folds.push_back(cx.loo ? refit_without(cx, spec, setup, all, {h}) : all.model);
   }
   return folds;
 }
@@ -176,7 +173,7 @@ std::vector<double> replicate_gaps(const Context& cx, const Evaluated& ev) {
 }
 
 // Leave-one-group-out: per speed group (Context::groups), the model refitted without the group's fired conditions
-// (a surrogate solve on the all-training anchor, like the condition folds), each of them re-simulated and scored;
+// (like the condition folds), each of them re-simulated and scored;
 // the gap over all of them, NaN without groups. A flexible candidate that fits what is peculiar to one operating
 // point cannot carry it to another.
 double group_gap(const Context& cx, const CandidateSpec& spec, const FitSetup& setup, const FitOutcome& all,
@@ -186,14 +183,7 @@ double group_gap(const Context& cx, const CandidateSpec& spec, const FitSetup& s
   double total = 0.0;
   int scored = 0;
   for (const std::vector<std::size_t>& group : cx.groups) {
-    FitSetup f = setup;
-    f.train.clear();
-    for (std::size_t h = 0; h < cx.heldout.size(); ++h)
-      if (std::find(group.begin(), group.end(), h) == group.end()) f.train.push_back(cx.heldout[h]);
-    f.train.insert(f.train.end(), cx.refs.begin(), cx.refs.end());
-    ExtendedModel start = all.model;
-    if (spec.ext.mic_gain) start.ext.mic_gain_db = estimate_mic_gains(cx, f.train);
-    const ExtendedModel model = refit_on_anchor(f, *all.anchor, start).model;
+    const ExtendedModel model = refit_without(cx, spec, setup, all, group);
     for (std::size_t h : group) {
       const std::size_t k = cx.heldout[h];
       const ConditionData& d = data.conditions[k];

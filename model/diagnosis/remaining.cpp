@@ -45,23 +45,12 @@ void band_range(const Context& cx, const std::vector<double>& band_rms, Remainin
 // Mean gap (measured over predicted) per held-out condition against its speed, load and overall input level.
 void trends(const Context& cx, const ModelScore& m, RemainingGap& r) {
   std::vector<double> speed, load, level, mean;
-  const std::size_t nb = cx.data->band_count();
   for (std::size_t h = 0; h < cx.heldout.size() && h < m.gaps.size(); ++h) {
     const ConditionData& d = cx.data->conditions[cx.heldout[h]];
-    double s = 0.0, cpl = 0.0;
-    int n = 0;
-    for (std::size_t b = 0; b < nb; ++b) {
-      if (!cx.data->bands[b].nyquist_cut)
-        for (std::size_t c = 0; c < d.cycle_count(); ++c) cpl += d.cpl_ms[c * nb + b] / d.cycle_count();
-      if (std::isfinite(m.gaps[h][b])) {
-        s += m.gaps[h][b];
-        ++n;
-      }
-    }
     speed.push_back(d.mean_speed_rpm() / 1000.0);
     load.push_back(d.info.load_nm);
-    level.push_back(cpl > 0 ? db(cpl / 4e-10) : kNaN);
-    mean.push_back(n > 0 ? s / n : kNaN);
+    level.push_back(overall_cpl_db(*cx.data, d));
+    mean.push_back(mean_finite(m.gaps[h]));
   }
   r.mean_gap_db = mean;
   r.speed_slope_db_per_krpm = linear_slope(speed, mean);

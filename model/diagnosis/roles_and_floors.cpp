@@ -90,7 +90,7 @@ void mark_noise_dominated(Context& cx, std::size_t k, std::size_t b, std::size_t
 // The masks of condition k, and its contribution to the band notes.
 void mark_condition(Context& cx, std::size_t k, double margin) {
   const BandDataset& data = *cx.data;
-  const std::size_t K = data.conditions.size(), nb = data.band_count();
+  const std::size_t nb = data.band_count();
   const std::size_t r = nearest_ref(data, cx.refs, k);
   for (std::size_t b = 0; b < nb; ++b) {
     const double m = mean_meas(data, k, b);

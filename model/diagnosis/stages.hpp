@@ -46,7 +46,8 @@ struct Context {
   std::vector<std::vector<std::size_t>> groups;
   // Bands and floors (mark_bands_and_floors), per condition and band unless said otherwise.
   std::vector<double> background_ms;                  // per band: the background runs' mean microphone level, Pa^2
-  std::vector<std::vector<double>> motored_excess;    // motored runs only: measured beyond the start model, Pa^2
+  std::vector<std::vector<double>> motored_excess;    // motored runs only: measured beyond the model, Pa^2 (the start
+                                                      // model's, then the tuned block's: remark_noise_dominated)
   std::vector<std::vector<char>> base_mask, tune_mask, floor_limited, noise_dominated;
   std::vector<std::string> band_notes;                // per band: "nyquist_cut", "line_free" or ""
   std::vector<char> fast;                             // per band: fast enough for a crank window
@@ -209,6 +210,10 @@ RemainingGap describe_remaining(const Context& cx, const ModelScore& after, cons
 
 // ---------------------------------------------------------------------------------------- where
 
+// A condition's overall cylinder pressure level, dB re 20 uPa: the cycle-mean band powers below the Nyquist cut.
+double overall_cpl_db(const BandDataset& data, const ConditionData& d);
+// The mean of the finite values (NaN when there is none).
+double mean_finite(const std::vector<double>& v);
 // Least-squares slope of y over x; pairs with an unknown (NaN) member are left out; NaN with fewer than two.
 double linear_slope(const std::vector<double>& xs, const std::vector<double>& ys);
 // The floors in the report (Where's pressure_floor_*, floor_limited_*, mic_floor_*, floor_summary).

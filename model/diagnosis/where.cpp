@@ -138,10 +138,9 @@ void roles_and_levels(const Context& cx, Where& wh) {
   }
 }
 
-// Condition d's measured attenuation and CPL per band, and its overall CPL (the bands below the Nyquist cut).
+// Condition d's measured attenuation and CPL per band, and its overall CPL.
 void input_levels(const BandDataset& data, const ConditionData& d, Where& wh) {
   const std::size_t nb = data.band_count(), nc = d.cycle_count();
-  double cpl = 0.0;
   std::vector<double> att_m(nb, kNaN), cpl_b(nb, kNaN);
   for (std::size_t b = 0; b < nb; ++b) {
     double c = 0.0, m = 0.0;
@@ -149,11 +148,10 @@ void input_levels(const BandDataset& data, const ConditionData& d, Where& wh) {
       c += d.cpl_ms[cy * nb + b];
       m += d.mic_avg_ms(cy, b);
     }
-    if (!data.bands[b].nyquist_cut) cpl += c / nc;
     if (c > 0 && m > 0) att_m[b] = db(c / m) - dsp::a_weighting_db(data.bands[b].exact_mid_hz);
     if (c > 0) cpl_b[b] = 10.0 * std::log10(c / nc / 4e-10);
   }
-  wh.cpl_overall_db.push_back(10.0 * std::log10(cpl / 4e-10));
+  wh.cpl_overall_db.push_back(overall_cpl_db(data, d));
   wh.att_meas.push_back(att_m);
   wh.cpl_db.push_back(cpl_b);
 }
@@ -198,14 +196,7 @@ void gap_against_conditions(const Context& cx, const Evaluated& base, Where& wh)
     const ConditionData& d = data.conditions[cx.heldout[h]];
     const std::vector<double>& gaps = base.score.gaps[h];
     wh.gap_per_condition_rms.push_back(rms_db(gaps));
-    double mg = 0.0;
-    int n = 0;
-    for (double g : gaps)
-      if (std::isfinite(g)) {
-        mg += g;
-        ++n;
-      }
-    wh.mean_gap_db.push_back(n > 0 ? mg / n : kNaN);
+    wh.mean_gap_db.push_back(mean_finite(gaps));
     input_levels(data, d, wh);
     speeds.push_back(d.mean_speed_rpm() / 1000.0);
     sois.push_back(d.info.soi_deg_btdc);
@@ -299,6 +290,29 @@ void coherence(const Context& cx, Where& wh) {
 }
 
 }  // namespace
+
+double overall_cpl_db(const BandDataset& data, const ConditionData& d) {
+  const std::size_t nb = data.band_count(), nc = d.cycle_count();
+  double cpl = 0.0;
+  for (std::size_t b = 0; b < nb; ++b) {
+    if (data.bands[b].nyquist_cut) continue;
+    double c = 0.0;
+    for (std::size_t cy = 0; cy < nc; ++cy) c += d.cpl_ms[cy * nb + b];
+    cpl += c / nc;
+  }
+  return 10.0 * std::log10(cpl / 4e-10);
+}
+
+double mean_finite(const std::vector<double>& v) {
+  double s = 0.0;
+  int n = 0;
+  for (double x : v)
+    if (std::isfinite(x)) {
+      s += x;
+      ++n;
+    }
+  return n > 0 ? s / n : kNaN;
+}
 
 double linear_slope(const std::vector<double>& xs, const std::vector<double>& ys) {
   std::vector<double> x, y;

@@ -308,14 +308,22 @@ std::vector<std::vector<double>> excess_over_floor_db(const CycleTable& t, doubl
 
 // ------------------------------------------------------------------------------------------ the cell
 
+namespace {
+
+// A run's first record column at `seed`: moved by 11 columns per seed after the first, wrapping within the columns a
+// run of last_first's length may start at.
+int shifted_column(int first, int last_first, std::uint64_t seed) {
+  const auto columns = static_cast<std::uint64_t>(last_first + 1);
+  return static_cast<int>((static_cast<std::uint64_t>(first) + 11 * (seed - 1)) % columns);
+}
+
+}  // namespace
+
 std::vector<Condition> default_conditions(int cycles, std::uint64_t seed) {
   struct Fired { double rpm, load; bool unknown; };
   constexpr Fired fired[] = {{1500, 0.85, false}, {1800, 1.0, true}, {2000, 0.7, false}, {2200, 1.15, false}, {2600, 1.3, false}};
   const int last_first = 59 - cycles;  // 60 columns; cycles + 1 consecutive ones per run
-  const auto shift = [&](int first) {
-    const auto columns = static_cast<std::uint64_t>(last_first + 1);
-    return static_cast<int>((static_cast<std::uint64_t>(first) + 11 * (seed - 1)) % columns);
-  };
+  const auto shift = [&](int first) { return shifted_column(first, last_first, seed); };
   std::vector<Condition> out;
   for (int i = 0; i < 5; ++i) {
     Condition c;
@@ -338,10 +346,7 @@ std::vector<Condition> second_cell_conditions(int cycles, std::uint64_t seed) {
   struct Fired { double rpm, load; };
   constexpr Fired fired[] = {{1400, 0.8}, {1400, 1.2}, {2000, 0.75}, {2000, 1.25}, {2400, 0.9}, {2400, 1.1}};
   const int last_first = 59 - cycles;  // 60 columns; cycles + 1 consecutive ones per run
-  const auto shift = [&](int first) {
-    const auto columns = static_cast<std::uint64_t>(last_first + 1);
-    return static_cast<int>((static_cast<std::uint64_t>(first) + 11 * (seed - 1)) % columns);
-  };
+  const auto shift = [&](int first) { return shifted_column(first, last_first, seed); };
   std::vector<Condition> out;
   for (int i = 0; i < 6; ++i) {
     Condition c;
