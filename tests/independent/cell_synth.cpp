@@ -2,6 +2,8 @@
 // library and Eigen's FFT only; the writers are in cell_writers.cpp.
 #include "cell_synth.hpp"
 
+#include "cell_block.hpp"
+
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -251,11 +253,14 @@ std::vector<double> lowpass(const std::vector<double>& x, double cutoff, double 
 }
 
 std::complex<double> structural_transfer(double f_hz, double speed_rpm, const Structure& st, const Effects& fx) {
-  const double speed_gain = std::pow(speed_rpm / fx.speed_ref_rpm, fx.speed_exponent);
-  cd h = eq41(f_hz, st);
-  if (fx.second_mode_db > 0 && f_hz > 0)
-    h += panel_scale(st, fx) * resonance(f_hz, fx.second_mode_hz, fx.second_mode_q);
-  return speed_gain * h;
+  return eq41(f_hz, st) * speed_gain(speed_rpm, fx) + panel_transfer(f_hz, speed_rpm, st, fx);
+}
+
+double speed_gain(double speed_rpm, const Effects& fx) { return std::pow(speed_rpm / fx.speed_ref_rpm, fx.speed_exponent); }
+
+std::complex<double> panel_transfer(double f_hz, double speed_rpm, const Structure& st, const Effects& fx) {
+  if (fx.second_mode_db <= 0 || f_hz <= 0) return 0.0;
+  return speed_gain(speed_rpm, fx) * panel_scale(st, fx) * resonance(f_hz, fx.second_mode_hz, fx.second_mode_q);
 }
 
 std::complex<double> mic_error(double f_hz, int mic, const Effects& fx) {
@@ -490,12 +495,44 @@ double impact_amplitude(const Timing& t, int cycles, double fs_hz, double delay_
   return std::pow(10.0, (at_this_speed - level_db(unit, fs_hz, true)) / 20.0) / std::sqrt(array_energy);
 }
 
-Transfer structural_path(int mic, double speed_rpm, const Chain& chain, const Effects& fx) {
+// From the structure's input (or, block_only, from the block's own output) to one microphone: the structural transfer
+// (or the speed's gain alone), the microphone's directivity and the delay.
+Transfer structural_path(int mic, double speed_rpm, const Chain& chain, const Effects& fx, bool block_only = false) {
   const double gain = std::pow(10.0, directivity_db()[mic] / 20.0);
   const double delay = chain.radius_m / chain.sound_speed_m_per_s;
   return [=](double f) {
-    return gain * structural_transfer(f, speed_rpm, chain.structure, fx) * std::polar(1.0, -2 * kPi * f * delay);
+    const cd path = block_only ? cd(speed_gain(speed_rpm, fx)) : structural_transfer(f, speed_rpm, chain.structure, fx);
+    return gain * path * std::polar(1.0, -2 * kPi * f * delay);
   };
+}
+
+// The panel's path to one microphone (beside a time-domain block).
+Transfer panel_path(int mic, double speed_rpm, const Chain& chain, const Effects& fx) {
+  const double gain = std::pow(10.0, directivity_db()[mic] / 20.0);
+  const double delay = chain.radius_m / chain.sound_speed_m_per_s;
+  return [=](double f) { return gain * panel_transfer(f, speed_rpm, chain.structure, fx) * std::polar(1.0, -2 * kPi * f * delay); };
+}
+
+// What one microphone hears of the structure: eq. 4.1 in the frequency domain, or a nonlinear block's output made in
+// the time domain (block non-empty) with the panel beside it.
+std::vector<double> structural_sound(const std::vector<double>& u, const BlockMotion& block, int mic, const Run& r,
+                                     const Chain& chain, const Effects& fx) {
+  const double rpm = r.time.speed_rpm, period = r.time.period_s;
+  if (block.y_pa.empty()) return radiate(u, r.time.n_out, period, structural_path(mic, rpm, chain, fx));
+  std::vector<double> y = radiate(block.y_pa, r.time.n_out, period, structural_path(mic, rpm, chain, fx, true));
+  if (fx.second_mode_db > 0) {
+    const std::vector<double> panel = radiate(u, r.time.n_out, period, panel_path(mic, rpm, chain, fx));
+    for (std::size_t i = 0; i < y.size(); ++i) y[i] += panel[i];
+  }
+  return y;
+}
+
+// White Gaussian noise of rms `bar` per sample added to the recorded pressure (stream picks the realisation).
+void add_pressure_noise(std::vector<double>& recorded_bar, double bar, const Chain& chain, int condition, int stream) {
+  if (bar <= 0) return;
+  std::mt19937_64 rng = rng_for(chain, condition, kMics, stream);
+  std::normal_distribution<double> noise(0.0, bar);
+  for (double& p : recorded_bar) p += noise(rng);
 }
 
 // The floors and the background at one microphone: stream 1 self-noise, 2 pink floor, 3 background.
@@ -514,27 +551,30 @@ void add_floors(std::vector<double>& y, int condition, int mic, const Chain& cha
 
 }  // namespace
 
+std::vector<double> engine_input_pa(const std::vector<double>& clean_bar) {
+  double mean = 0;
+  for (double p : clean_bar) mean += p / static_cast<double>(clean_bar.size());
+  std::vector<double> u(clean_bar.size());
+  for (std::size_t i = 0; i < u.size(); ++i) u[i] = (clean_bar[i] - mean) * kBarToPa;
+  return u;
+}
+
 Run synthesize(const Sources& src, const Condition& c, int condition_index, const Chain& chain, const Effects& fx) {
   Run r;
   r.condition = c;
   r.time = timing(c.speed_rpm, c.cycles, chain.fs_hz);
   r.fs_hz = chain.fs_hz;
   r.pressure = condition_pressure(src, c, r.time.speed_rpm);
-  if (chain.added_pressure_noise_bar > 0) {
-    std::mt19937_64 rng = rng_for(chain, condition_index, kMics, 11);
-    std::normal_distribution<double> noise(0.0, chain.added_pressure_noise_bar);
-    for (double& p : r.pressure.recorded_bar) p += noise(rng);
-  }
-  std::vector<double> u(r.pressure.clean_bar.size());
-  double mean = 0;
-  for (double p : r.pressure.clean_bar) mean += p / static_cast<double>(u.size());
-  for (std::size_t i = 0; i < u.size(); ++i) u[i] = (r.pressure.clean_bar[i] - mean) * kBarToPa;
+  add_pressure_noise(r.pressure.recorded_bar, chain.added_pressure_noise_bar, chain, condition_index, 11);
+  add_pressure_noise(r.pressure.recorded_bar, fx.transducer_noise_bar, chain, condition_index, 12);
+  const std::vector<double> u = engine_input_pa(r.pressure.clean_bar);
+  const BlockMotion block = fx.block.any() ? block_motion(u, r.time.period_s, chain.structure, fx.block) : BlockMotion{};
   const double delay = chain.radius_m / chain.sound_speed_m_per_s;
   const double impacts =
       std::isfinite(fx.mechanical_dba) ? impact_amplitude(r.time, c.cycles, chain.fs_hz, delay, fx.mechanical_dba, fx.mechanical_ref_rpm) : 0.0;
   const std::vector<Hit> hits = impact_hits(chain, condition_index, c.cycles, fx);  // heard alike at every microphone
   for (int m = 0; m < kMics; ++m) {
-    std::vector<double> y = radiate(u, r.time.n_out, r.time.period_s, structural_path(m, r.time.speed_rpm, chain, fx));
+    std::vector<double> y = structural_sound(u, block, m, r, chain, fx);
     if (impacts > 0)
       add_impacts(y, r.time, c.cycles, chain.fs_hz, delay, impacts * std::pow(10.0, directivity_db()[m] / 20.0), hits);
     add_floors(y, condition_index, m, chain, fx);

@@ -66,9 +66,11 @@
 //                      energy per impact fixed: +10 log10(rpm / ref) elsewhere); each impact jittered in angle from
 //                      cycle to cycle (Gaussian, mechanical_jitter_deg rms) and in energy (log-normal,
 //                      mechanical_energy_spread_db rms, mean energy kept)
-//   Not made here: cubic_damping and cubic_stiffness are amplitude-dependent (nonlinear) and cannot be made by a
-//   linear frequency-domain synthesis; transducer_noise (a pressure-chain floor) is not meaningful: the real
-//   record already carries its chain's floor, which every run here has, effect or not.
+//   block stop         (for cubic_stiffness) a symmetric piecewise-linear hardening of the block: beyond |z| = z0 a
+//                      second spring of ratio * k1; made in the time domain (cell_block.hpp)
+//   quadratic drag     (for cubic_damping) a damping force b2 z'|z'|, likewise in the time domain
+//   transducer_noise   white noise per 0.2 deg sample added to pressure.csv on top of the record's own floor (which
+//                      every run has, effect or not); the engine does not hear it
 #pragma once
 
 #include <array>
@@ -168,7 +170,17 @@ std::vector<Condition> default_conditions(int cycles = 16, std::uint64_t seed = 
 // cycles each; `seed` moves the records' columns as in default_conditions.
 std::vector<Condition> second_cell_conditions(int cycles = 24, std::uint64_t seed = 1);
 
+// The block's nonlinearities (made in the time domain: cell_block.hpp).
+struct Nonlinearity {
+  double stop_at_m = 0;          // 0: no stop
+  double stop_ratio = 0;         // the stop's stiffness over k1
+  double quadratic_damping = 0;  // N s^2 / m^2 (per kg)
+  [[nodiscard]] bool any() const { return (stop_at_m > 0 && stop_ratio > 0) || quadratic_damping > 0; }
+};
+
 struct Effects {
+  Nonlinearity block;               // none: the block is eq. 4.1 exactly, synthesised in the frequency domain
+  double transducer_noise_bar = 0;  // white noise per 0.2 deg sample added to pressure.csv (the engine does not hear it)
   double second_mode_db = 0, second_mode_hz = 1600, second_mode_q = 5;
   double mic_gain_db = 0;
   int mic_gain_index = 3;           // 0-based: microphone 4
@@ -183,6 +195,9 @@ struct Effects {
 // The structural path's transfer at f (Pa per Pa, before directivity and delay): the structure, the second mode's
 // panel beside it and the speed's gain.
 std::complex<double> structural_transfer(double f_hz, double speed_rpm, const Structure& s, const Effects& fx);
+// The speed's gain on the structural path, and the panel's own path (0 without a second mode), both in Pa per Pa.
+double speed_gain(double speed_rpm, const Effects& fx);
+std::complex<double> panel_transfer(double f_hz, double speed_rpm, const Structure& s, const Effects& fx);
 // The microphone error's transfer at f (1 for every microphone but fx.mic_gain_index, or without the effect).
 std::complex<double> mic_error(double f_hz, int mic, const Effects& fx);
 
@@ -224,6 +239,9 @@ struct Run {
   CellPressure pressure;
   std::vector<std::vector<double>> mics_pa;  // [mic][sample], n_out each
 };
+
+// What the structure is driven by: the clean pressure in Pa less its mean over the run.
+std::vector<double> engine_input_pa(const std::vector<double>& clean_bar);
 
 // condition_index picks the noise realisations (see Chain::seed).
 Run synthesize(const Sources& src, const Condition& c, int condition_index, const Chain& chain, const Effects& fx);

@@ -8,9 +8,12 @@
 #include <cstdlib>
 #include <fstream>
 #include <iterator>
+#include <numbers>
 #include <stdexcept>
 
 #include <nlohmann/json.hpp>
+
+#include "cell_block.hpp"
 
 namespace indep {
 namespace {
@@ -50,6 +53,9 @@ const json* candidate(const json& report, const std::string& effect) {
 // The truth's speed slope at 2000 rpm, dB per 1000 rpm: d/dn of 20 p log10(n / ref).
 double true_speed_slope(const Effects& fx) { return 20.0 * fx.speed_exponent / std::log(10.0) * 1000.0 / 2000.0; }
 
+// The added transducer noise's one-sided amplitude density at 2000 rpm (0.2 deg samples at 60 kHz), Pa/sqrt(Hz).
+double added_noise_density(const Effects& fx) { return fx.transducer_noise_bar * 1e5 * std::sqrt(2.0 / (30.0 * 2000.0)); }
+
 // The fitted parameters of the expected effect's candidate against the truth (see withheld.hpp).
 void check_params(const Case& c, const json& report, Outcome& o) {
   const json* cand = candidate(report, c.expect);
@@ -69,6 +75,17 @@ void check_params(const Case& c, const json& report, Outcome& o) {
     o.params_checked = true;
     o.params_right = !g.empty() && static_cast<int>(worst) == c.fx.mic_gain_index && num(g[worst]) > 0;
     o.params = fmt("mic%.0f %+.1f dB", static_cast<double>(worst + 1), g.empty() ? NAN : num(g[worst]));
+  } else if (c.expect == "cubic_stiffness" || c.expect == "cubic_damping") {
+    const bool stiffness = c.expect == "cubic_stiffness";
+    const double k = num(p[stiffness ? "k3_n_per_m3" : "b3_n_s3_per_m3"]);
+    o.params_checked = true;
+    o.params_right = k > 0;  // hardening, or damping that grows with the velocity
+    o.params = fmt(stiffness ? "k3 %.3g N/m^3" : "b3 %.3g N s^3/m^3", k);
+  } else if (c.expect == "transducer_noise") {
+    const double got = num(p["transducer_noise_pa_per_rthz_at_1khz"]), added = added_noise_density(c.fx);
+    o.params_checked = true;
+    o.params_right = got >= added / 2;
+    o.params = fmt("%.0f Pa/rtHz (added %.0f)", got, added);
   } else if (c.expect == "speed_dependence") {
     const double slope = num(p["speed_gain_db_per_krpm"]), truth = true_speed_slope(c.fx);
     o.params_checked = true;
@@ -102,8 +119,24 @@ Outcome score(const Case& c, const json& report) {
 
 }  // namespace
 
+Condition reference_condition() { return {"level", 1800, 1.0, false, false, 5, kCyclesPerCondition}; }
+
+ReferenceMotion reference_motion(const Sources& src, const Chain& chain) {
+  const Condition c = reference_condition();
+  const Timing t = timing(c.speed_rpm, c.cycles, chain.fs_hz);
+  const BlockMotion m = block_motion(engine_input_pa(condition_pressure(src, c, t.speed_rpm).clean_bar), t.period_s,
+                                     chain.structure, Nonlinearity{});
+  ReferenceMotion ref;
+  for (std::size_t i = 0; i < m.z_m.size(); ++i) {
+    ref.z_peak_m = std::max(ref.z_peak_m, std::abs(m.z_m[i]));
+    ref.v_peak_m_per_s = std::max(ref.v_peak_m_per_s, std::abs(m.v_m_per_s[i]));
+  }
+  ref.b1_per_kg = 2 * chain.structure.zeta * 2 * std::numbers::pi * chain.structure.fn_hz;
+  return ref;
+}
+
 double engine_level_dba(const Sources& src, const Chain& chain) {
-  const Condition c{"level", 1800, 1.0, false, false, 5, kCyclesPerCondition};
+  const Condition c = reference_condition();
   const Run r = synthesize(src, c, 0, chain, Effects{});
   double e = 0;
   for (const auto& y : r.mics_pa) e += std::pow(10.0, level_db(y, chain.fs_hz, true) / 10.0) / kMics;
@@ -146,6 +179,31 @@ std::vector<Case> withheld_cases(double engine_dba) {
   return out;
 }
 
+// The block's nonlinearities and the pressure chain's noise (magnitudes fixed with the rest, before any diagnosis).
+std::vector<Case> block_and_chain_cases(const ReferenceMotion& ref, int cell, const std::string& prefix,
+                                        const std::vector<double>& stop_ratios, const std::vector<double>& drags,
+                                        const std::vector<double>& noises_bar) {
+  std::vector<Case> out;
+  // A stop at half the reference's peak displacement: the restoring force there is 1 + ratio / 2 times the linear.
+  for (const double ratio : stop_ratios) {
+    Effects fx;
+    fx.block.stop_at_m = 0.5 * ref.z_peak_m, fx.block.stop_ratio = ratio;
+    out.push_back({prefix + fmt("block_stop_%.0fpct_at_peak", 50 * ratio), "cubic_stiffness", fx, cell});
+  }
+  // Quadratic drag: at the reference's peak velocity it adds `ratio` times the linear damping force.
+  for (const double ratio : drags) {
+    Effects fx;
+    fx.block.quadratic_damping = ratio * ref.b1_per_kg / ref.v_peak_m_per_s;
+    out.push_back({prefix + fmt("quadratic_drag_%.0fx_at_peak", ratio), "cubic_damping", fx, cell});
+  }
+  for (const double bar : noises_bar) {
+    Effects fx;
+    fx.transducer_noise_bar = bar;
+    out.push_back({prefix + fmt("transducer_noise_%.2fbar", bar), "transducer_noise", fx, cell});
+  }
+  return out;
+}
+
 std::vector<Case> second_cell_cases(double engine_dba) {
   std::vector<Case> out{{"cell2_null", "none", {}, 2}};
   for (const auto& [hz, q] : {std::pair{800.0, 5.0}, std::pair{2500.0, 10.0}}) {
@@ -165,6 +223,17 @@ std::vector<Case> second_cell_cases(double engine_dba) {
   Effects impacts;
   impacts.mechanical_dba = engine_dba - 6, impacts.mechanical_jitter_deg = 3, impacts.mechanical_energy_spread_db = 4;
   out.push_back({"cell2_mechanical_noise_engine_minus_6db", "mechanical_noise", impacts, 2});
+  return out;
+}
+
+std::vector<Case> cell_catalogue(const Sources& src, int cell) {
+  const Chain chain = cell == 2 ? second_cell_chain(1) : Chain{};
+  const double engine = engine_level_dba(src, chain);
+  const ReferenceMotion ref = reference_motion(src, chain);
+  std::vector<Case> out = cell == 2 ? second_cell_cases(engine) : withheld_cases(engine);
+  const std::vector<Case> more = cell == 2 ? block_and_chain_cases(ref, 2, "cell2_", {1.0}, {3.0}, {0.3})
+                                           : block_and_chain_cases(ref, 1, "", {0.4, 1.0}, {1.0, 3.0}, {0.2, 0.4});
+  out.insert(out.end(), more.begin(), more.end());
   return out;
 }
 

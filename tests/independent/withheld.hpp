@@ -8,6 +8,9 @@
 //   second_mode       the fitted mode_hz within a third octave (a factor 2^(1/3)) of the panel's frequency, mode_db > 0
 //   mic_gain          the microphone with the largest fitted offset is the one with the error, its offset > 0
 //   speed_dependence  the fitted gain slope > 0 and within a factor 2 of the truth's slope at 2000 rpm
+//   cubic_stiffness, cubic_damping   the fitted k3 (b3) > 0: a hardening (a damping growing with the velocity)
+//   transducer_noise  the fitted amplitude density at 1 kHz at least half the added noise's at 2000 rpm (the record's
+//                     own floor is under it too, so only a lower bound is the truth's)
 //   background_noise, mechanical_noise: no parameter a test engineer would read off (levels per band / window)
 //
 // The magnitudes are fixed here, before any diagnosis was run on them: the additive sources relative to the cell's
@@ -33,11 +36,28 @@ struct Case {
 // The null run's array-average A-weighted level at 1800 rpm (fired, load 1), dB re 20 uPa.
 double engine_level_dba(const Sources& src, const Chain& chain);
 
+// The linear block's peak displacement and velocity in the same null run (what the block's nonlinearities are sized
+// by), and its linear damping per kg.
+struct ReferenceMotion {
+  double z_peak_m = 0, v_peak_m_per_s = 0, b1_per_kg = 0;
+};
+ReferenceMotion reference_motion(const Sources& src, const Chain& chain);
+
 // Every case of the catalogue (magnitudes of the additive ones relative to engine_dba).
 std::vector<Case> withheld_cases(double engine_dba);
+// The block's nonlinearities and the pressure chain's noise, sized by ref: a stop at half the peak displacement per
+// stop ratio, quadratic drag adding `drag` times the linear damping force at the peak velocity, white noise per
+// 0.2 deg sample (bar). Labels start with prefix.
+std::vector<Case> block_and_chain_cases(const ReferenceMotion& ref, int cell, const std::string& prefix,
+                                        const std::vector<double>& stop_ratios, const std::vector<double>& drags,
+                                        const std::vector<double>& noises_bar);
 // The second cell's cases (labels "cell2_..."): its null, two modes, a microphone, a background, the speed and the
 // impacts, one magnitude each, fixed before any diagnosis ran on that cell; engine_dba: its own engine's level.
 std::vector<Case> second_cell_cases(double engine_dba);
+
+// A cell's whole catalogue (1: withheld_cases with the block's and the chain's at two magnitudes; 2: second_cell_cases
+// with one of each), sized by that cell's own engine level and reference motion at seed 1.
+std::vector<Case> cell_catalogue(const Sources& src, int cell);
 
 struct Outcome {
   std::string effect;               // verdict.effect

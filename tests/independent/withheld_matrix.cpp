@@ -93,7 +93,7 @@ int main(int argc, char** argv) try {
   const double engine = indep::engine_level_dba(src, chain);
   std::printf("the independent cell %d's engine: %.1f dB(A) array average at 1800 rpm\n", args.cell, engine);
   std::vector<Job> jobs;
-  for (const indep::Case& c : args.cell == 2 ? indep::second_cell_cases(engine) : indep::withheld_cases(engine))
+  for (const indep::Case& c : indep::cell_catalogue(src, args.cell))
     if (c.label.find(args.only) != std::string::npos)
       for (std::uint64_t s : args.seeds) jobs.push_back({c, s, {}});
   const bool own_dir = args.dir.empty();
