@@ -34,13 +34,11 @@ struct MotoredPrediction {
 };
 
 MotoredPrediction predict_motored(const BandDataset& data, std::size_t k, const ExtendedModel& model) {
-  ExtendedModel bare = model;
-  bare.on.stationary = false;
-  bare.on.locked = false;
   const std::size_t nb = data.band_count();
-  const ConditionPrediction without = predict_condition(data, k, bare, false);
-  MotoredPrediction p{cycle_mean(predict_condition(data, k, model, false).cycle_ms, nb),
-                      cycle_mean(without.cycle_ms, nb), without.upper};
+  const ConditionPrediction with = predict_condition(data, k, model, false);
+  MotoredPrediction p{cycle_mean(with.cycle_ms, nb), {}, with.upper};
+  p.bare = p.full;  // the additive sources add to the structure's prediction, which they do not change
+  for (std::size_t b = 0; b < nb && b < with.additive_ms.size(); ++b) p.bare[b] -= with.additive_ms[b];
   p.upper.resize(nb, 0);
   return p;
 }

@@ -75,6 +75,8 @@ struct ExtensionParams {
 
 // The second mode's level change at its frequency, 20 log10 |1 + a e^(j phase)|, dB.
 double mode_rise_db(const ExtensionParams& e);
+// The second mode's phase in radians (held and reported in degrees).
+double mode_phase_rad(const ExtensionParams& e);
 
 struct ExtendedModel {
   BlockParams block;
@@ -195,6 +197,7 @@ struct ConditionPrediction {
   std::vector<double> win_ms;    // [(c * W + w) * bands + b]
   std::vector<char> upper;       // per band: the prediction is an upper bound (see apply_factors); may be empty
   std::vector<char> upper_win;   // per band * W
+  std::vector<double> additive_ms;  // per band: the cycle mean of the additive sources' part of cycle_ms (or empty)
 };
 ConditionPrediction predict_condition(const BandDataset& data, std::size_t condition, const ExtendedModel& model,
                                       bool windows, std::size_t cycles = 0);

@@ -24,7 +24,7 @@ void model_struct(const ExtendedModel& model, const BlockParams& anchor_block, d
   s[kSModeDb] = e.mode_db;
   s[kSModeLogF] = std::log(e.mode_hz / 1000.0);
   s[kSModeLogQ] = std::log(e.mode_q);
-  s[kSModePhase] = e.mode_phase_deg * kPi / 180.0;
+  s[kSModePhase] = mode_phase_rad(e);
   s[kSSpeedGain] = e.speed_gain_db_per_krpm;
   s[kSSpeedShift] = e.speed_shift_per_krpm;
   s[kSTnLogD] = e.transducer_density > 0 ? std::log10(e.transducer_density) : -300.0;
@@ -43,6 +43,21 @@ std::vector<double> window_fractions(const ConditionData& cond) {
     }
   for (double& x : frac) x /= tot;
   return frac;
+}
+
+// Per band: the mean over the first `cycles` cycles of the additive part apply_factors gives each cycle (its windows'
+// additive levels weighted by the cycle's own window lengths).
+std::vector<double> additive_cycle_mean(const ConditionFactors& f, const ConditionData& cond, std::size_t cycles) {
+  const std::size_t nb = f.add.size();
+  std::vector<double> mean(nb, 0.0);
+  for (std::size_t c = 0; c < cycles; ++c) {
+    double tot = 0.0;
+    for (std::size_t w = 0; w < kW; ++w) tot += cond.win_frames[c * kW + w];
+    for (std::size_t b = 0; b < nb; ++b)
+      for (std::size_t w = 0; w < kW; ++w)
+        mean[b] += f.add_win[b * kW + w] * cond.win_frames[c * kW + w] / tot / static_cast<double>(cycles);
+  }
+  return mean;
 }
 
 }  // namespace
@@ -155,8 +170,9 @@ ConditionPrediction predict_condition(const BandDataset& data, std::size_t k, co
   const bool floor = !data.conditions[k].info.floor_density.empty();
   if (!(on.speed || on.transducer || on.stationary || on.locked || floor)) return p;
   const ConditionSpectrum spec = condition_spectrum(data, k, cycles);
-  apply_factors(extension_factors(data, k, spec, model.block, rest), data.conditions[k], p.cycle_ms,
-                windows ? &p.win_ms : nullptr, &p.upper, &p.upper_win);
+  const ConditionFactors f = extension_factors(data, k, spec, model.block, rest);
+  apply_factors(f, data.conditions[k], p.cycle_ms, windows ? &p.win_ms : nullptr, &p.upper, &p.upper_win);
+  p.additive_ms = additive_cycle_mean(f, data.conditions[k], p.cycle_ms.size() / data.band_count());
   return p;
 }
 

@@ -169,7 +169,7 @@ Values initial_values(const Layout& L, const ExtendedModel& start, const std::ve
     v.lin.push_back(std::log(param_value(start.block, p) / param_value(L.anchor, p)));
   }
   const ExtensionParams& e = start.ext;
-  v.mode = {e.mode_db, std::log(e.mode_hz / 1000.0), std::log(e.mode_q), e.mode_phase_deg * kPi / 180.0};
+  v.mode = {e.mode_db, std::log(e.mode_hz / 1000.0), std::log(e.mode_q), mode_phase_rad(e)};
   v.speed = {e.speed_gain_db_per_krpm, e.speed_shift_per_krpm};
   v.tn = {e.transducer_density > 0 ? std::log10(e.transducer_density) : 0.0, e.transducer_slope};
   if (!(e.transducer_density > 0) && L.on.transducer) {

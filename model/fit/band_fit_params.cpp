@@ -11,8 +11,10 @@
 
 namespace noisemon::model {
 
+double mode_phase_rad(const ExtensionParams& e) { return e.mode_phase_deg * std::numbers::pi / 180.0; }
+
 double mode_rise_db(const ExtensionParams& e) {
-  const double a = std::pow(10.0, e.mode_db / 20.0) - 1.0, phi = e.mode_phase_deg * std::numbers::pi / 180.0;
+  const double a = std::pow(10.0, e.mode_db / 20.0) - 1.0, phi = mode_phase_rad(e);
   return 10.0 * std::log10(std::pow(1.0 + a * std::cos(phi), 2) + std::pow(a * std::sin(phi), 2));
 }
 

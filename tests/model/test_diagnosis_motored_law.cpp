@@ -93,6 +93,32 @@ TEST(MotoredLaw, ASourceAtTheNoisesTrueLevelObeysItAndOneSixDbAboveIsRefuted) {
   EXPECT_LT(wrong.motored_overshoot_db, 6.5);
 }
 
+TEST(MotoredLaw, ThePredictionsAdditivePartIsWhatTheSourceAddsToTheBarePrediction) {
+  // The law reads the bare prediction as the full one less its additive part: held to a second prediction made
+  // without the source.
+  Cell c;
+  make_cell(c);
+  const std::size_t k = c.cx.refs.front(), nb = c.data.band_count();
+  ModelScore m = with_source(c.data, noise_per_band(c));
+  m.model.on.locked = true;  // and a crank-locked source of 1 Pa^2 in the first window of every band
+  m.model.ext.locked_ms.assign(nb * kCrankWindows, 0.0);
+  for (std::size_t b = 0; b < nb; ++b) m.model.ext.locked_ms[b * kCrankWindows] = 1.0;
+  m.model.ext.speed_ref_rpm = 3000;
+  ExtendedModel bare;
+  bare.block = preset("linear");
+  const ConditionPrediction with = predict_condition(c.data, k, m.model, false),
+                            without = predict_condition(c.data, k, bare, false);
+  ASSERT_EQ(with.additive_ms.size(), nb);
+  const std::size_t cycles = with.cycle_ms.size() / nb;
+  for (std::size_t b = 0; b < nb; ++b) {
+    double added = 0.0;
+    for (std::size_t cy = 0; cy < cycles; ++cy)
+      added += (with.cycle_ms[cy * nb + b] - without.cycle_ms[cy * nb + b]) / static_cast<double>(cycles);
+    EXPECT_NEAR(with.additive_ms[b], added, 1e-9 * std::max(1.0, added)) << "band " << b;
+    EXPECT_GT(with.additive_ms[b], m.model.ext.stationary_ms[b]);  // the locked source adds its window's share
+  }
+}
+
 TEST(MotoredLaw, OnlyAdditiveModelsAreJudged) {
   Cell c;
   make_cell(c);
