@@ -287,6 +287,20 @@ double level_db(const std::vector<double>& x_pa, double fs_hz, bool a_weighted) 
   return 10.0 * std::log10(mean_square(fft_fwd(x_pa), fs_hz, a_weighted) / (kPref * kPref));
 }
 
+double median_second_difference_bar(const CycleTable& t) {
+  std::vector<double> d;
+  for (const std::vector<double>& p : t.cycles_bar)
+    for (std::size_t i = 1; i + 1 < p.size(); ++i)
+      if (t.crank_deg[i] >= -120 && t.crank_deg[i] <= -60) d.push_back(std::abs(p[i + 1] - 2 * p[i] + p[i - 1]));
+  std::nth_element(d.begin(), d.begin() + static_cast<std::ptrdiff_t>(d.size() / 2), d.end());
+  return d[d.size() / 2];
+}
+
+double record_floor_bar(const CycleTable& t) {
+  constexpr double kHalfNormalMedian = 0.6744897501960817;  // median of |N(0, 1)|
+  return median_second_difference_bar(t) / (kHalfNormalMedian * std::sqrt(6.0));
+}
+
 std::vector<std::vector<double>> excess_over_floor_db(const CycleTable& t, double speed_rpm) {
   const int cycles = static_cast<int>(t.cycles_bar.size()) - 1;
   const std::vector<double> x = lay_out(t, 0, cycles);
@@ -567,6 +581,8 @@ Run synthesize(const Sources& src, const Condition& c, int condition_index, cons
   r.pressure = condition_pressure(src, c, r.time.speed_rpm);
   add_pressure_noise(r.pressure.recorded_bar, chain.added_pressure_noise_bar, chain, condition_index, 11);
   add_pressure_noise(r.pressure.recorded_bar, fx.transducer_noise_bar, chain, condition_index, 12);
+  if (chain.states_floor)
+    r.stated_floor_bar = std::hypot(record_floor_bar(c.motored ? src.motored : src.fired), chain.added_pressure_noise_bar);
   const std::vector<double> u = engine_input_pa(r.pressure.clean_bar);
   const BlockMotion block = fx.block.any() ? block_motion(u, r.time.period_s, chain.structure, fx.block) : BlockMotion{};
   const double delay = chain.radius_m / chain.sound_speed_m_per_s;

@@ -144,6 +144,13 @@ constexpr std::size_t kFloorBands = 15;
 // (the chain's floor in that band: its level where the record is quietest; what stands above it is pressure).
 std::vector<std::vector<double>> excess_over_floor_db(const CycleTable& t, double speed_rpm);
 
+// The chain's floor as a commissioning engineer would state it, bar rms per 0.2 deg sample: from the median absolute
+// second difference along the crank angle over the compression stroke from -120 to -60 deg of every cycle (white
+// noise's second difference is normal with variance 6 sigma^2; a median, unlike an rms, ignores the record's few
+// bursts; the pressure's own curvature there is far below either). The data README gives 0.25 fired, 0.17 motored.
+double median_second_difference_bar(const CycleTable& t);
+double record_floor_bar(const CycleTable& t);
+
 // A-weighted (or unweighted) level of a periodic record, dB re 20 uPa, from its spectrum.
 double level_db(const std::vector<double>& x_pa, double fs_hz, bool a_weighted);
 
@@ -212,6 +219,9 @@ struct Chain {
   // A noisier pressure chain: white Gaussian noise of this rms per 0.2 deg sample added to pressure.csv (the engine
   // does not hear it), beside the record's own floor; not stated in run.json (the diagnosis must estimate it).
   double added_pressure_noise_bar = 0;
+  // run.json states the chain's commissioned floor (pressure.noise_floor_bar): the record's own (record_floor_bar of
+  // the run's table) with added_pressure_noise_bar in quadrature; never the effects' transducer noise.
+  bool states_floor = false;
 };
 
 // The second cell's chain: its structure and a 0.05 bar floor added to the record's.
@@ -238,6 +248,7 @@ struct Run {
   double fs_hz = 0;
   CellPressure pressure;
   std::vector<std::vector<double>> mics_pa;  // [mic][sample], n_out each
+  double stated_floor_bar = std::numeric_limits<double>::quiet_NaN();  // NaN: run.json states none
 };
 
 // What the structure is driven by: the clean pressure in Pa less its mean over the run.

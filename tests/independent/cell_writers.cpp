@@ -2,6 +2,7 @@
 // in DESIGN.md's interchange format, by the cell's own code (nlohmann-json, libsndfile).
 #include <sndfile.h>
 
+#include <cmath>
 #include <cstdio>
 #include <fstream>
 #include <stdexcept>
@@ -28,8 +29,10 @@ nlohmann::ordered_json run_json(const Run& run, const Chain& chain) {
   cond["motored"] = c.motored;
   json positions = json::array();
   for (const auto& p : mic_positions_m()) positions.push_back({p[0], p[1], p[2]});
+  json pressure = {{"file", "pressure.csv"}, {"units", "bar"}};
+  if (std::isfinite(run.stated_floor_bar)) pressure["noise_floor_bar"] = run.stated_floor_bar;
   return {{"condition", cond},
-          {"pressure", {{"file", "pressure.csv"}, {"units", "bar"}}},
+          {"pressure", pressure},
           {"mics", {{"file", "mics.wav"}, {"units", "Pa"}, {"positions_m", positions}, {"radius_m", chain.radius_m}}},
           {"source", "tests/independent/cell_synth: real Yanmar L100V pressure record, eq. 4.1 with the cell's own constants in the frequency domain"}};
 }

@@ -402,13 +402,25 @@ TEST(IndependentBlock, TheCataloguesBlockAndChainCasesHaveTheirSpecifiedSizes) {
       double ss = 0;
       for (std::size_t i = 0; i < with.pressure.recorded_bar.size(); ++i)
         ss += std::pow(with.pressure.recorded_bar[i] - without.pressure.recorded_bar[i], 2);
-      EXPECT_NEAR(std::sqrt(ss / static_cast<double>(with.pressure.recorded_bar.size())), ++noises == 1 ? 0.2 : 0.4, 0.01) << c.label;
+      EXPECT_NEAR(std::sqrt(ss / static_cast<double>(with.pressure.recorded_bar.size())), c.fx.transducer_noise_bar, 0.01) << c.label;
       EXPECT_EQ(with.mics_pa[0], without.mics_pa[0]) << "the engine does not hear the chain's noise";
+      noises += c.fx.transducer_noise_bar == 0.2 || c.fx.transducer_noise_bar == 0.4;
     }
   }
   EXPECT_EQ(stops, 2);
   EXPECT_EQ(drags, 2);
-  EXPECT_EQ(noises, 2);
+  EXPECT_EQ(noises, 4);  // 0.2 and 0.4 bar, each beyond a stated floor and with none stated
+  // The stated floor: the data README's (0.25 bar fired, 0.17 motored, from the second differences of early
+  // compression), and what run.json says of a run with the floor stated.
+  const double fired_floor = indep::record_floor_bar(src->fired);
+  std::printf("the records' floors: %.3f bar fired, %.3f motored\n", fired_floor, indep::record_floor_bar(src->motored));
+  EXPECT_NEAR(fired_floor, 0.25, 0.03);
+  EXPECT_NEAR(indep::record_floor_bar(src->motored), 0.17, 0.03);
+  indep::Chain stating = chain;
+  stating.states_floor = true;
+  const indep::Run stated = indep::synthesize(*src, indep::default_conditions(4)[1], 1, stating, {});
+  EXPECT_DOUBLE_EQ(stated.stated_floor_bar, fired_floor);
+  EXPECT_TRUE(std::isnan(indep::synthesize(*src, indep::default_conditions(4)[1], 1, chain, {}).stated_floor_bar));
 }
 
 // ------------------------------------------------------------------------------------------ the diagnosis

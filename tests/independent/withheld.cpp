@@ -94,6 +94,22 @@ void check_params(const Case& c, const json& report, Outcome& o) {
   }
 }
 
+// With the floor unstated, the diagnosis's estimate (the fired runs' median) within the case's bounds, give or take
+// 10 % (the estimate's own error).
+void check_estimated_floor(const Case& c, const json& report, Outcome& o) {
+  const json& floors = report["where"]["floors"];
+  const json& conditions = report["where"]["conditions"];
+  std::vector<double> fired;
+  for (std::size_t k = 0; k < floors["pressure_estimated_bar"].size() && k < conditions.size(); ++k)
+    if (!conditions[k].value("motored", false)) fired.push_back(num(floors["pressure_estimated_bar"][k]));
+  if (fired.empty()) return;
+  std::sort(fired.begin(), fired.end());
+  const double median = fired[fired.size() / 2];
+  o.params_checked = true;
+  o.params_right = median >= 0.9 * c.floor_at_least_bar && median <= 1.1 * c.floor_at_most_bar;
+  o.params = fmt("floor estimated %.3f bar (%.3f ... %.3f)", median, c.floor_at_least_bar, c.floor_at_most_bar);
+}
+
 // The best candidate other than the verdict's effect, with its held-out gap.
 std::string runner_up(const json& report, const std::string& verdict) {
   for (const json& c : report["candidates"]) {
@@ -113,6 +129,7 @@ Outcome score(const Case& c, const json& report) {
   o.closed = num(v["gap_closed_fraction"]);
   o.verdict_right = o.effect == c.expect;
   if (c.expect != "none") check_params(c, report, o);
+  if (std::isfinite(c.floor_at_least_bar)) check_estimated_floor(c, report, o);
   o.runner_up = runner_up(report, o.effect);
   return o;
 }
@@ -182,8 +199,11 @@ std::vector<Case> withheld_cases(double engine_dba) {
 // The block's nonlinearities and the pressure chain's noise (magnitudes fixed with the rest, before any diagnosis).
 std::vector<Case> block_and_chain_cases(const ReferenceMotion& ref, int cell, const std::string& prefix,
                                         const std::vector<double>& stop_ratios, const std::vector<double>& drags,
-                                        const std::vector<double>& noises_bar) {
+                                        const std::vector<double>& noises_bar, double chain_floor_bar) {
   std::vector<Case> out;
+  Case stated_null{prefix + "null_floor_stated", "none", {}, cell};
+  stated_null.states_floor = true;
+  out.push_back(stated_null);
   // A stop at half the reference's peak displacement: the restoring force there is 1 + ratio / 2 times the linear.
   for (const double ratio : stop_ratios) {
     Effects fx;
@@ -199,7 +219,13 @@ std::vector<Case> block_and_chain_cases(const ReferenceMotion& ref, int cell, co
   for (const double bar : noises_bar) {
     Effects fx;
     fx.transducer_noise_bar = bar;
-    out.push_back({prefix + fmt("transducer_noise_%.2fbar", bar), "transducer_noise", fx, cell});
+    Case over{prefix + fmt("transducer_noise_%.2fbar_over_stated", bar), "transducer_noise", fx, cell};
+    over.states_floor = true;
+    out.push_back(over);
+    Case unstated{prefix + fmt("transducer_noise_%.2fbar_unstated", bar), "none", fx, cell};
+    unstated.floor_at_least_bar = bar;
+    unstated.floor_at_most_bar = std::hypot(chain_floor_bar, bar);
+    out.push_back(unstated);
   }
   return out;
 }
@@ -231,8 +257,9 @@ std::vector<Case> cell_catalogue(const Sources& src, int cell) {
   const double engine = engine_level_dba(src, chain);
   const ReferenceMotion ref = reference_motion(src, chain);
   std::vector<Case> out = cell == 2 ? second_cell_cases(engine) : withheld_cases(engine);
-  const std::vector<Case> more = cell == 2 ? block_and_chain_cases(ref, 2, "cell2_", {1.0}, {3.0}, {0.3})
-                                           : block_and_chain_cases(ref, 1, "", {0.4, 1.0}, {1.0, 3.0}, {0.2, 0.4});
+  const double floor = std::hypot(record_floor_bar(src.fired), chain.added_pressure_noise_bar);
+  const std::vector<Case> more = cell == 2 ? block_and_chain_cases(ref, 2, "cell2_", {1.0}, {3.0}, {0.3}, floor)
+                                           : block_and_chain_cases(ref, 1, "", {0.4, 1.0}, {1.0, 3.0}, {0.2, 0.4}, floor);
   out.insert(out.end(), more.begin(), more.end());
   return out;
 }
@@ -241,6 +268,7 @@ Outcome diagnose_case(const Sources& src, const Case& c, std::uint64_t seed, con
                       const std::string& noisemon_path) {
   Chain chain = c.cell == 2 ? second_cell_chain(seed) : Chain{};
   chain.seed = seed;
+  chain.states_floor = c.states_floor;
   fs::remove_all(dir);
   fs::create_directories(dir);
   const std::vector<Condition> conditions = c.cell == 2 ? second_cell_conditions(kSecondCellCycles, seed)

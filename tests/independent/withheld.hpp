@@ -18,6 +18,7 @@
 #pragma once
 
 #include <cstdint>
+#include <limits>
 #include <filesystem>
 #include <string>
 #include <vector>
@@ -31,6 +32,12 @@ struct Case {
   std::string expect;  // DESIGN.md's effect name, or "none"
   Effects fx;
   int cell = 1;        // 1: default_conditions on Chain{}; 2: second_cell_conditions on second_cell_chain
+  bool states_floor = false;  // run.json states the chain's commissioned floor (Chain::states_floor)
+  // With the floor unstated, the bounds the diagnosis's estimate of the fired runs' floor (bar per 0.2 deg sample)
+  // must keep: at least the added white noise's, at most the broadband floor of the whole chain (the record's own by
+  // its second differences, with the added in quadrature); the record's own floor is not white, so its share in the
+  // analysed bands is known only to lie between. NaN: not checked.
+  double floor_at_least_bar = std::numeric_limits<double>::quiet_NaN(), floor_at_most_bar = floor_at_least_bar;
 };
 
 // The null run's array-average A-weighted level at 1800 rpm (fired, load 1), dB re 20 uPa.
@@ -46,11 +53,14 @@ ReferenceMotion reference_motion(const Sources& src, const Chain& chain);
 // Every case of the catalogue (magnitudes of the additive ones relative to engine_dba).
 std::vector<Case> withheld_cases(double engine_dba);
 // The block's nonlinearities and the pressure chain's noise, sized by ref: a stop at half the peak displacement per
-// stop ratio, quadratic drag adding `drag` times the linear damping force at the peak velocity, white noise per
-// 0.2 deg sample (bar). Labels start with prefix.
+// stop ratio, quadratic drag adding `drag` times the linear damping force at the peak velocity, and white noise per
+// 0.2 deg sample (bar) twice: beyond the floor run.json states (transducer_noise) and with no floor stated (`none`:
+// the diagnosis estimates the floor, checked against Case::floor_at_least_bar and floor_at_most_bar; chain_floor_bar:
+// the fired record's broadband floor with the chain's added noise); and the null with the floor stated. Labels start
+// with prefix.
 std::vector<Case> block_and_chain_cases(const ReferenceMotion& ref, int cell, const std::string& prefix,
                                         const std::vector<double>& stop_ratios, const std::vector<double>& drags,
-                                        const std::vector<double>& noises_bar);
+                                        const std::vector<double>& noises_bar, double chain_floor_bar);
 // The second cell's cases (labels "cell2_..."): its null, two modes, a microphone, a background, the speed and the
 // impacts, one magnitude each, fixed before any diagnosis ran on that cell; engine_dba: its own engine's level.
 std::vector<Case> second_cell_cases(double engine_dba);
