@@ -120,8 +120,8 @@ int run_watch(const WatchOptions& o) {
     lcm.subscribe(o.stats_channel, &Handler<noisemon::cycle_stats_t>::on, &stats_handler);
   else if (o.status)
     lcm.subscribe(o.status_channel, &Handler<noisemon::status_t>::on, &status_handler);
-  else
-    lcm.subscribe(o.channel, &Handler<noisemon::cycle_report_t>::on, &handler);
+  else  // a second's reports and more wait while a loaded machine leaves this process unscheduled (LCM's default: 30)
+    lcm.subscribe(o.channel, &Handler<noisemon::cycle_report_t>::on, &handler)->setQueueCapacity(1024);
 
   std::signal(SIGINT, on_signal);
   std::signal(SIGTERM, on_signal);

@@ -9,6 +9,12 @@
 namespace noisemon::drivers {
 namespace {
 
+// Messages LCM holds for a subscription until they are handled; beyond it drops the newest. LCM's default (30, under
+// 0.1 s of raw blocks) lost the first cycles of a played log: nothing is handled between the session's arrival and
+// start(), while the pipeline is built, nor while a loaded machine leaves this thread unscheduled. 4096 raw blocks are
+// about 10 s of a full-rate stream (some 20 MB held only while a stall lasts).
+constexpr int kQueuedMessages = 4096;
+
 class LcmSource final : public Source {
  public:
   explicit LcmSource(const LcmSourceConfig& c)
@@ -17,7 +23,7 @@ class LcmSource final : public Source {
     const std::string where = "'" + c.session_channel + "' at " + (c.url.empty() ? std::string("LCM's default URL") : c.url);
     if (!lcm_.good()) throw std::runtime_error("lcm source: cannot open LCM " + where + " (is there a multicast route?)");
     for (const std::string* channel : {&c.session_channel, &c.raw_channel, &c.operating_point_channel})
-      lcm_.subscribe(*channel, &LcmSource::on_message, this);
+      lcm_.subscribe(*channel, &LcmSource::on_message, this)->setQueueCapacity(kQueuedMessages);
     const auto deadline = std::chrono::steady_clock::now() + std::chrono::duration<double>(c.session_timeout_s);
     while (!decoder_.has_session() && std::chrono::steady_clock::now() < deadline) lcm_.handleTimeout(100);
     if (!decoder_.has_session())
