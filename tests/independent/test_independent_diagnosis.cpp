@@ -446,11 +446,10 @@ void expect_verdict(const std::string& label) {
   ASSERT_TRUE(o.error.empty()) << o.error;
   std::printf("%s%s", indep::table_header().c_str(), indep::table_row(*it, 1, o).c_str());
   EXPECT_EQ(o.effect, it->expect) << "the primary verdict";
-  if (it->expect == "none") return;
-  EXPECT_GE(o.closed, 0.6);
   if (o.params_checked) {
     EXPECT_TRUE(o.params_right) << o.params;
   }
+  if (it->expect != "none") EXPECT_GE(o.closed, 0.6);
 }
 
 class IndependentDiagnosis : public ::testing::TestWithParam<std::string> {};
@@ -462,8 +461,13 @@ TEST_P(IndependentDiagnosis, PrimaryVerdictNamesTheWithheldEffectWithItsParamete
 INSTANTIATE_TEST_SUITE_P(WithheldEffects, IndependentDiagnosis,
                          ::testing::Values("null", "second_mode_10db_1600hz_q8", "mic_gain_6db_mic7",
                                            "background_noise_engine_minus_9db", "speed_dependence_6db_1500_to_2600",
-                                           "mechanical_noise_engine_minus_6db", "cell2_null",
-                                           "cell2_second_mode_8db_800hz_q5"),
-                         [](const ::testing::TestParamInfo<std::string>& i) { return i.param; });
+                                           "mechanical_noise_engine_minus_6db", "quadratic_drag_3x_at_peak",
+                                           "transducer_noise_0.40bar_over_stated", "transducer_noise_0.40bar_unstated",
+                                           "cell2_null", "cell2_second_mode_8db_800hz_q5"),
+                         [](const ::testing::TestParamInfo<std::string>& i) {
+                           std::string name = i.param;  // a test's name holds letters, digits and underscores only
+                           std::replace(name.begin(), name.end(), '.', '_');
+                           return name;
+                         });
 
 }  // namespace

@@ -85,7 +85,7 @@ void check_params(const Case& c, const json& report, Outcome& o) {
     const double got = num(p["transducer_noise_pa_per_rthz_at_1khz"]), added = added_noise_density(c.fx);
     o.params_checked = true;
     o.params_right = got >= added / 2;
-    o.params = fmt("%.0f Pa/rtHz (added %.0f)", got, added);
+    o.params = fmt("%.0f Pa/rtHz at 1 kHz, slope %+.1f (added %.0f)", got, num(p["transducer_slope"]), added);
   } else if (c.expect == "speed_dependence") {
     const double slope = num(p["speed_gain_db_per_krpm"]), truth = true_speed_slope(c.fx);
     o.params_checked = true;
