@@ -114,6 +114,12 @@ json score_json(const model::ModelScore& s) {
                         {"overshoot_db", number(s.motored_overshoot_db)},
                         {"where", s.motored_overshoot_where}};
   }
+  if (s.pressure_law_checked) {
+    // A pressure-driven fit that predicts the motored runs worse than the baseline (beyond 3 standard errors): refuted.
+    c["pressure_law"] = {{"refuted", s.refuted},
+                         {"motored_worse_db", number(s.motored_worse_db)},
+                         {"where", s.motored_worse_where}};
+  }
   c["params"] = model_params(s.model);
   return c;
 }

@@ -26,6 +26,7 @@ void pairs_from(const Context& cx, const CandidateRound& round, std::size_t firs
     log.say("combination " + round.evals[first].score.name + " + " + round.evals[i].score.name);
     Evaluated e = evaluate(cx, combine(round.specs[first], round.specs[i]), round.evals[first].score.model, base_free,
                            false);
+    judge_pressure_law(cx, baseline, e.score);
     compare_with(e.score, baseline, cx.opt->min_improvement_db);
     combinations->push_back(e.score);
     if (!best_pair || e.score.heldout_gap_db < (*combinations)[*best_pair].heldout_gap_db)
@@ -111,6 +112,7 @@ CandidateRound evaluate_candidates(const Context& cx, const BlockParams& start, 
     // already bent to imitate them.
     const bool cubic = !round.specs.back().extra_free.empty();
     Evaluated e = evaluate(cx, round.specs.back(), cubic ? start_model : base.score.model, base_free, false);
+    judge_pressure_law(cx, base.score, e.score);
     compare_with(e.score, base.score, opt.min_improvement_db);
     round.evals.push_back(std::move(e));
     log.stage("candidate " + n);

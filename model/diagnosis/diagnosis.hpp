@@ -121,7 +121,12 @@ struct ModelScore {
   bool motored_law_checked = false;
   double motored_overshoot_db = std::numeric_limits<double>::quiet_NaN();
   std::string motored_overshoot_where;
-  bool refuted = false;                // the excess is above the margin: never significant
+  // The pressure-driven candidates' law (motored_law.cpp): the motored runs predicted no worse than by the baseline.
+  // How much worse (RMS over the bands, beyond 3 standard errors), dB, and in which run.
+  bool pressure_law_checked = false;
+  double motored_worse_db = std::numeric_limits<double>::quiet_NaN();
+  std::string motored_worse_where;
+  bool refuted = false;                // either law broken beyond the margin: never significant
   // How much of each part of the baseline's gap it closes, dB (baseline part minus this part; negative: worse).
   double closes_band_db = 0.0, closes_mic_db = 0.0, closes_window_db = 0.0;
   double gap_closed_fraction = 0.0;    // 1 - gap / baseline gap

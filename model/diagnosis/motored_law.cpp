@@ -4,6 +4,9 @@
 // where the bare model already overshoots, only what the source adds on top counts). A fit that does bent the
 // source to sound only the fired runs hear, a pressure-driven effect, and is refuted. Bands where the motored
 // pressure is at its floor (the prediction only an upper bound) tell nothing and are skipped.
+// And the law a pressure-driven candidate must obey: what it changes, it changes in the motored runs too, which it is
+// fitted on jointly with the fired ones; a fit that buys the fired runs' gap by predicting the motored runs worse than
+// the baseline (their RMS error over the bands, beyond the cycle-to-cycle error and the same margin) is refuted.
 #include <algorithm>
 #include <cmath>
 #include <limits>
@@ -59,7 +62,56 @@ std::pair<double, double> measured_level(const ConditionData& d, std::size_t b, 
   return {mean, std::sqrt(var / std::max(1.0, n))};
 }
 
+std::vector<double> cycle_mean_prediction(const BandDataset& data, std::size_t k, const ExtendedModel& model,
+                                          std::vector<char>& upper) {
+  const ConditionPrediction p = predict_condition(data, k, model, false);
+  for (std::size_t b = 0; b < p.upper.size() && b < upper.size(); ++b) upper[b] = upper[b] || p.upper[b];
+  return cycle_mean(p.cycle_ms, data.band_count());
+}
+
+// How much worse the candidate predicts motored run k than the baseline does, dB: the RMS over the judged bands of
+// each model's error against the measurement (its own microphone gains applied), less the measurement's error.
+// Judged: the bands the baseline is tuned on (`judged`: the structure's sound, not the combustion-independent noise
+// that any added prediction would seem to explain), with the pressure above its floor. NaN when none.
+double motored_worse_db(const BandDataset& data, std::size_t k, const std::vector<char>& judged,
+                        const ExtendedModel& candidate, const ExtendedModel& baseline) {
+  const std::size_t nb = data.band_count();
+  std::vector<char> upper(nb, 0);
+  const std::vector<double> pc = cycle_mean_prediction(data, k, candidate, upper);
+  const std::vector<double> pb = cycle_mean_prediction(data, k, baseline, upper);
+  const ConditionData& d = data.conditions[k];
+  double ss_c = 0.0, ss_b = 0.0, ss_se = 0.0;
+  std::size_t n = 0;
+  for (std::size_t b = 0; b < nb; ++b) {
+    if (b >= judged.size() || !judged[b] || upper[b]) continue;
+    const auto [meas_c, se_db] = measured_level(d, b, candidate);
+    const double meas_b = measured_level(d, b, baseline).first;
+    if (!(meas_c > 0) || !(meas_b > 0) || !(pc[b] > 0) || !(pb[b] > 0)) continue;
+    ss_c += std::pow(db(pc[b] / meas_c), 2);
+    ss_b += std::pow(db(pb[b] / meas_b), 2);
+    ss_se += se_db * se_db;
+    ++n;
+  }
+  if (n == 0) return std::numeric_limits<double>::quiet_NaN();
+  const double nn = static_cast<double>(n);
+  return std::sqrt(ss_c / nn) - std::sqrt(ss_b / nn) - kStandardErrors * std::sqrt(ss_se / nn);
+}
+
 }  // namespace
+
+void judge_pressure_law(const Context& cx, const ModelScore& baseline, ModelScore& m) {
+  if (m.model.on.stationary || m.model.on.locked || cx.refs.empty()) return;
+  m.pressure_law_checked = true;
+  m.motored_worse_db = -std::numeric_limits<double>::infinity();
+  for (std::size_t k : cx.refs) {
+    const double worse = motored_worse_db(*cx.data, k, cx.tune_mask[k], m.model, baseline.model);
+    if (worse > m.motored_worse_db) {
+      m.motored_worse_db = worse;
+      m.motored_worse_where = cx.data->conditions[k].info.name;
+    }
+  }
+  if (m.motored_worse_db > kMarginDb) m.refuted = true;
+}
 
 void judge_motored_law(const Context& cx, ModelScore& m) {
   if (!(m.model.on.stationary || m.model.on.locked) || cx.refs.empty()) return;

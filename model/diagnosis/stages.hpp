@@ -4,7 +4,8 @@
 //   roles_and_floors.cpp  which condition trains, is held out, is a reference or a floor; the cells at a floor
 //   gap.cpp               the held-out gap of one condition (three parts) and the bootstrap draws over cycles
 //   evaluation.cpp        one model tuned on the training conditions, on every fold, scored on the held-out ones
-//   motored_law.cpp       an additive candidate never louder than what the motored runs hear: else refuted
+//   motored_law.cpp       an additive candidate never louder than what the motored runs hear, a pressure-driven one
+//                         never predicting them worse than the baseline: else refuted
 //   baseline.cpp          the start model tuned and scored: the gap every candidate is measured against
 //   candidates.cpp        each effect added to the baseline, judged against it and ranked; pairs on top of the best
 //   verdict.cpp           none, the effect (with its partner) or unexplained
@@ -162,6 +163,9 @@ Evaluated evaluate(const Context& cx, const CandidateSpec& spec, const ExtendedM
 // Additive candidates (background, impacts): the fitted source alone against all the sound the motored runs measure,
 // band by band; m.refuted when it claims more than they hear (ModelScore::motored_*).
 void judge_motored_law(const Context& cx, ModelScore& m);
+// Pressure-driven candidates (every one without an additive source): the motored runs predicted no worse than by the
+// baseline, beyond their measurement's error and a margin; else m.refuted (ModelScore::motored_worse_*).
+void judge_pressure_law(const Context& cx, const ModelScore& baseline, ModelScore& m);
 
 // ---------------------------------------------------------------------------------------- baseline
 

@@ -2,7 +2,8 @@
 // the model claims must fit under what the motored run measures. The data: the true block heard exactly, plus white
 // noise at the microphones of known level; the models: the true block with a stationary source set by hand (no fit),
 // so the answer is known: a source at the noise's true level obeys the law, one 6 dB above it is refuted, and a
-// pressure-driven model is not judged by it.
+// pressure-driven model is not judged by it. The pressure-driven law likewise: a mode the motored run does not hear is
+// refuted, the true block is not.
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -117,6 +118,35 @@ TEST(MotoredLaw, ThePredictionsAdditivePartIsWhatTheSourceAddsToTheBarePredictio
     EXPECT_NEAR(with.additive_ms[b], added, 1e-9 * std::max(1.0, added)) << "band " << b;
     EXPECT_GT(with.additive_ms[b], m.model.ext.stationary_ms[b]);  // the locked source adds its window's share
   }
+}
+
+TEST(PressureLaw, AModeTheMotoredRunDoesNotHaveIsRefutedAndTheTrueBlockIsNot) {
+  // The motored run hears the true block and the noise: the true block as a "candidate" predicts it as well as the
+  // baseline (the same block); a 10 dB mode at 250 Hz, which the run does not hear, predicts it worse where the block
+  // dominates what the run hears and is refuted (where the noise dominates, any added sound would seem to explain it:
+  // those bands are not judged); an additive model is left to the other law.
+  Cell c;
+  make_cell(c);
+  ModelScore baseline;
+  baseline.model.block = preset("linear");
+  ModelScore same = baseline;
+  judge_pressure_law(c.cx, baseline, same);
+  ModelScore mode = baseline;
+  mode.model.on.second_mode = true;
+  mode.model.ext.mode_db = 10.0;
+  mode.model.ext.mode_hz = 250.0;  // where the run hears the block (above 500 Hz: the noise)
+  mode.model.ext.mode_q = 5.0;
+  judge_pressure_law(c.cx, baseline, mode);
+  std::printf("the true block: %.2f dB worse; a 10 dB mode at 250 Hz: %.2f dB worse in %s\n", same.motored_worse_db,
+              mode.motored_worse_db, mode.motored_worse_where.c_str());
+  EXPECT_TRUE(same.pressure_law_checked);
+  EXPECT_LE(same.motored_worse_db, 0.0);  // identical predictions: only the measurement's error comes off
+  EXPECT_FALSE(same.refuted);
+  EXPECT_TRUE(mode.refuted);
+  EXPECT_GT(mode.motored_worse_db, 1.0);
+  ModelScore additive = with_source(c.data, noise_per_band(c));
+  judge_pressure_law(c.cx, baseline, additive);
+  EXPECT_FALSE(additive.pressure_law_checked);
 }
 
 TEST(MotoredLaw, OnlyAdditiveModelsAreJudged) {
