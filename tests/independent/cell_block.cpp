@@ -28,9 +28,11 @@ State step(const State& x, double u0, double u_mid, double u1, double h, const S
 
 }  // namespace
 
+double linear_damping_per_kg(const Structure& s) { return 2 * s.zeta * 2 * kPi * s.fn_hz; }
+
 double block_force(double z, double v, const Structure& s, const Nonlinearity& nl) {
   const double wn = 2 * kPi * s.fn_hz;
-  double f = wn * wn * z + 2 * s.zeta * wn * v + nl.quadratic_damping * v * std::abs(v);
+  double f = wn * wn * z + linear_damping_per_kg(s) * v + nl.quadratic_damping * v * std::abs(v);
   if (nl.stop_at_m > 0 && std::abs(z) > nl.stop_at_m)
     f += nl.stop_ratio * wn * wn * std::copysign(std::abs(z) - nl.stop_at_m, z);
   return f;

@@ -24,6 +24,9 @@ struct BlockMotion {
 [[nodiscard]] BlockMotion block_motion(const std::vector<double>& u, double period_s, const Structure& s,
                                        const Nonlinearity& nl);
 
+// The linear block's damping per kg, b1 = 2 zeta wn (N s/m per kg).
+[[nodiscard]] double linear_damping_per_kg(const Structure& s);
+
 // The restoring and damping forces per kg (N/kg) at displacement z and velocity v.
 [[nodiscard]] double block_force(double z, double v, const Structure& s, const Nonlinearity& nl);
 

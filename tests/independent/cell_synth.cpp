@@ -509,33 +509,26 @@ double impact_amplitude(const Timing& t, int cycles, double fs_hz, double delay_
   return std::pow(10.0, (at_this_speed - level_db(unit, fs_hz, true)) / 20.0) / std::sqrt(array_energy);
 }
 
-// From the structure's input (or, block_only, from the block's own output) to one microphone: the structural transfer
-// (or the speed's gain alone), the microphone's directivity and the delay.
-Transfer structural_path(int mic, double speed_rpm, const Chain& chain, const Effects& fx, bool block_only = false) {
+// A path to one microphone: `path` (Pa per Pa at f), the microphone's directivity and the delay.
+Transfer to_mic(int mic, const Chain& chain, const Transfer& path) {
   const double gain = std::pow(10.0, directivity_db()[mic] / 20.0);
   const double delay = chain.radius_m / chain.sound_speed_m_per_s;
-  return [=](double f) {
-    const cd path = block_only ? cd(speed_gain(speed_rpm, fx)) : structural_transfer(f, speed_rpm, chain.structure, fx);
-    return gain * path * std::polar(1.0, -2 * kPi * f * delay);
-  };
+  return [=](double f) { return gain * path(f) * std::polar(1.0, -2 * kPi * f * delay); };
 }
 
-// The panel's path to one microphone (beside a time-domain block).
-Transfer panel_path(int mic, double speed_rpm, const Chain& chain, const Effects& fx) {
-  const double gain = std::pow(10.0, directivity_db()[mic] / 20.0);
-  const double delay = chain.radius_m / chain.sound_speed_m_per_s;
-  return [=](double f) { return gain * panel_transfer(f, speed_rpm, chain.structure, fx) * std::polar(1.0, -2 * kPi * f * delay); };
-}
-
-// What one microphone hears of the structure: eq. 4.1 in the frequency domain, or a nonlinear block's output made in
-// the time domain (block non-empty) with the panel beside it.
+// What one microphone hears of the structure: eq. 4.1 (and the panel) in the frequency domain, or a nonlinear block's
+// output made in the time domain (block non-empty), at the speed's gain, with the panel beside it.
 std::vector<double> structural_sound(const std::vector<double>& u, const BlockMotion& block, int mic, const Run& r,
                                      const Chain& chain, const Effects& fx) {
   const double rpm = r.time.speed_rpm, period = r.time.period_s;
-  if (block.y_pa.empty()) return radiate(u, r.time.n_out, period, structural_path(mic, rpm, chain, fx));
-  std::vector<double> y = radiate(block.y_pa, r.time.n_out, period, structural_path(mic, rpm, chain, fx, true));
+  const Structure& st = chain.structure;
+  if (block.y_pa.empty())
+    return radiate(u, r.time.n_out, period, to_mic(mic, chain, [&](double f) { return structural_transfer(f, rpm, st, fx); }));
+  const double gain = speed_gain(rpm, fx);
+  std::vector<double> y = radiate(block.y_pa, r.time.n_out, period, to_mic(mic, chain, [=](double) { return cd(gain); }));
   if (fx.second_mode_db > 0) {
-    const std::vector<double> panel = radiate(u, r.time.n_out, period, panel_path(mic, rpm, chain, fx));
+    const Transfer panel_path = to_mic(mic, chain, [&](double f) { return panel_transfer(f, rpm, st, fx); });
+    const std::vector<double> panel = radiate(u, r.time.n_out, period, panel_path);
     for (std::size_t i = 0; i < y.size(); ++i) y[i] += panel[i];
   }
   return y;

@@ -449,7 +449,9 @@ void expect_verdict(const std::string& label) {
   if (o.params_checked) {
     EXPECT_TRUE(o.params_right) << o.params;
   }
-  if (it->expect != "none") EXPECT_GE(o.closed, 0.6);
+  if (it->expect != "none") {
+    EXPECT_GE(o.closed, 0.6);
+  }
 }
 
 class IndependentDiagnosis : public ::testing::TestWithParam<std::string> {};

@@ -8,7 +8,6 @@
 #include <cstdlib>
 #include <fstream>
 #include <iterator>
-#include <numbers>
 #include <stdexcept>
 
 #include <nlohmann/json.hpp>
@@ -148,7 +147,7 @@ ReferenceMotion reference_motion(const Sources& src, const Chain& chain) {
     ref.z_peak_m = std::max(ref.z_peak_m, std::abs(m.z_m[i]));
     ref.v_peak_m_per_s = std::max(ref.v_peak_m_per_s, std::abs(m.v_m_per_s[i]));
   }
-  ref.b1_per_kg = 2 * chain.structure.zeta * 2 * std::numbers::pi * chain.structure.fn_hz;
+  ref.b1_per_kg = linear_damping_per_kg(chain.structure);
   return ref;
 }
 
