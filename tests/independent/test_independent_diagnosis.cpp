@@ -385,6 +385,9 @@ TEST(IndependentBlock, TheCataloguesBlockAndChainCasesHaveTheirSpecifiedSizes) {
   std::printf("reference: peak displacement %.3g m (u/k1 of 55 bar: %.3g), peak velocity %.3g m/s\n", ref.z_peak_m,
               55e5 / k1, ref.v_peak_m_per_s);
   EXPECT_NEAR(ref.z_peak_m / (55e5 / k1), 1.0, 0.3);  // quasi-static: the fired peak less the run's mean, over k1
+  const double b1 = 2 * chain.structure.zeta * 2 * kPi * chain.structure.fn_hz;  // per kg (m = 1 kg)
+  const indep::Condition cond = indep::default_conditions(4)[1];
+  const indep::Run without = indep::synthesize(*src, cond, 1, chain, {});
   int stops = 0, drags = 0, noises = 0;
   for (const indep::Case& c : indep::cell_catalogue(*src, 1)) {
     const indep::Nonlinearity& nl = c.fx.block;
@@ -393,12 +396,11 @@ TEST(IndependentBlock, TheCataloguesBlockAndChainCasesHaveTheirSpecifiedSizes) {
       EXPECT_NEAR(over, ++stops == 1 ? 0.2 : 0.5, 1e-9) << c.label;
     }
     if (nl.quadratic_damping > 0) {  // the damping force at the peak velocity: 2 and 4 times the linear
-      const double times = indep::block_force(0, ref.v_peak_m_per_s, chain.structure, nl) / (ref.b1_per_kg * ref.v_peak_m_per_s);
+      const double times = indep::block_force(0, ref.v_peak_m_per_s, chain.structure, nl) / (b1 * ref.v_peak_m_per_s);
       EXPECT_NEAR(times, ++drags == 1 ? 2.0 : 4.0, 1e-9) << c.label;
     }
     if (c.fx.transducer_noise_bar > 0) {  // what pressure.csv carries beyond the null's: the stated rms per sample
-      const indep::Condition cond = indep::default_conditions(4)[1];
-      const indep::Run with = indep::synthesize(*src, cond, 1, chain, c.fx), without = indep::synthesize(*src, cond, 1, chain, {});
+      const indep::Run with = indep::synthesize(*src, cond, 1, chain, c.fx);
       double ss = 0;
       for (std::size_t i = 0; i < with.pressure.recorded_bar.size(); ++i)
         ss += std::pow(with.pressure.recorded_bar[i] - without.pressure.recorded_bar[i], 2);
@@ -418,9 +420,9 @@ TEST(IndependentBlock, TheCataloguesBlockAndChainCasesHaveTheirSpecifiedSizes) {
   EXPECT_NEAR(indep::record_floor_bar(src->motored), 0.17, 0.03);
   indep::Chain stating = chain;
   stating.states_floor = true;
-  const indep::Run stated = indep::synthesize(*src, indep::default_conditions(4)[1], 1, stating, {});
+  const indep::Run stated = indep::synthesize(*src, cond, 1, stating, {});
   EXPECT_DOUBLE_EQ(stated.stated_floor_bar, fired_floor);
-  EXPECT_TRUE(std::isnan(indep::synthesize(*src, indep::default_conditions(4)[1], 1, chain, {}).stated_floor_bar));
+  EXPECT_TRUE(std::isnan(without.stated_floor_bar));
 }
 
 // ------------------------------------------------------------------------------------------ the diagnosis
