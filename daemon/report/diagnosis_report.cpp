@@ -278,6 +278,8 @@ json band_verdict(const model::Verdict& v) {
           {"band_before_db", numbers(v.band_before_db)},
           {"band_after_db", numbers(v.band_after_db)},
           {"explanation", v.explanation},
+          {"below_tolerance", v.below_tolerance.empty() ? json(nullptr) : json(v.below_tolerance)},
+          {"below_tolerance_after_db", v.below_tolerance.empty() ? json(nullptr) : number(v.below_tolerance_after_db)},
           {"remaining", remaining_json(v.remaining)}};
 }
 

@@ -211,6 +211,10 @@ struct Verdict {
   std::vector<double> band_before_db;   // per band: RMS over held-out conditions
   std::vector<double> band_after_db;
   std::string explanation;              // one or two sentences
+  // When `none` by the tolerance alone (the gap above its noise): the best significant candidate, the likeliest
+  // cause of an effect too small to matter at this tolerance (empty otherwise). Not the verdict.
+  std::string below_tolerance;
+  double below_tolerance_after_db = 0.0;  // its held-out gap
   RemainingGap remaining;
 };
 

@@ -3,6 +3,7 @@
 // min_closed_fraction of the gap or leaves no more than the tolerance; otherwise `unexplained`, never a forced name.
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <limits>
 
 #include "model/diagnosis/stages.hpp"
@@ -91,6 +92,17 @@ void conclude(Verdict& v, const ModelScore& selected, const DiagnosisOptions& op
   }
 }
 
+// A gap within the tolerance that a candidate still closes significantly: named beside `none`, not as the verdict
+// (the tolerance is the user's line between agreement and a gap worth a cause).
+void note_below_tolerance(const ModelScore& best, Verdict& v) {
+  v.below_tolerance = best.name;
+  v.below_tolerance_after_db = best.heldout_gap_db;
+  char text[160];
+  std::snprintf(text, sizeof text, "; below it, %s closes the gap significantly (%.2f -> %.2f dB)", best.name.c_str(),
+                v.heldout_rms_before_db, best.heldout_gap_db);
+  v.explanation += text;
+}
+
 }  // namespace
 
 void judge(const Context& cx, const CandidateRound& round, const std::vector<BlockParam>& base_free,
@@ -109,6 +121,7 @@ void judge(const Context& cx, const CandidateRound& round, const std::vector<Blo
     v.effect = "none";
     v.explanation = "the tuned baseline already agrees with the held-out conditions within the tolerance (" +
                     std::to_string(opt.tolerance_db).substr(0, 4) + " dB) and the cycle-to-cycle noise";
+    if (!sig.empty() && v.heldout_rms_before_db > 2.0 * v.noise_db) note_below_tolerance(round.evals[sig[0]].score, v);
   } else if (sig.empty()) {
     v.effect = "unexplained";
     v.explanation = "a significant gap remains and no candidate effect reduces it significantly";

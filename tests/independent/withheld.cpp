@@ -123,6 +123,7 @@ Outcome score(const Case& c, const json& report) {
   const json& v = report["verdict"];
   o.effect = v.value("effect", "");
   for (const json& a : v.value("also", json::array())) o.also.push_back(a.get<std::string>());
+  if (v.contains("below_tolerance") && v["below_tolerance"].is_string()) o.below_tolerance = v["below_tolerance"];
   o.before_db = num(v["heldout_rms_before_db"]);
   o.after_db = num(v["heldout_rms_after_db"]);
   o.closed = num(v["gap_closed_fraction"]);
@@ -293,7 +294,7 @@ Outcome diagnose_case(const Sources& src, const Case& c, std::uint64_t seed, con
 }
 
 std::string table_header() {
-  return "| case | seed | expected | verdict (also) | held-out gap before → after, dB | closed | fitted | runner-up |\n"
+  return "| case | seed | expected | verdict (also) [below the tolerance] | held-out gap before → after, dB | closed | fitted | runner-up |\n"
          "|---|---|---|---|---|---|---|---|\n";
 }
 
@@ -302,6 +303,7 @@ std::string table_row(const Case& c, std::uint64_t seed, const Outcome& o) {
   std::string also;
   for (const std::string& a : o.also) also += (also.empty() ? " (" : ", ") + a;
   if (!also.empty()) also += ")";
+  if (!o.below_tolerance.empty()) also += " [below the tolerance: " + o.below_tolerance + "]";
   const std::string mark = o.verdict_right ? "✓ " : "✗ ";
   const std::string fitted = !o.params_checked ? "—" : (o.params_right ? "✓ " : "✗ ") + o.params;
   return "| " + c.label + " | " + std::to_string(seed) + " | " + c.expect + " | " + mark + o.effect + also + " | " +

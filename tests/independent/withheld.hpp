@@ -72,6 +72,7 @@ std::vector<Case> cell_catalogue(const Sources& src, int cell);
 struct Outcome {
   std::string effect;               // verdict.effect
   std::vector<std::string> also;    // verdict.also
+  std::string below_tolerance;      // verdict.below_tolerance: named beside `none`, not scored
   double before_db = 0, after_db = 0, closed = 0;
   bool verdict_right = false;       // the primary verdict is the expected effect
   bool params_checked = false;      // the effect has parameters to check

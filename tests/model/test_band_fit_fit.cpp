@@ -110,6 +110,32 @@ TEST(BandFitFit, RecoversASpeedDependentGain) {
   EXPECT_LT(o.train_rms_db, 0.02);
 }
 
+// A structure whose frequencies scale with speed (f -> f / sigma, sigma = 1 + shift dn): the shift is found from no
+// shift at all, at each sign and at a size that moves the block's resonances by a fifth across the speeds.
+TEST(BandFitFit, RecoversASpeedScaledStructureFromNoShift) {
+  for (const double shift_per_krpm : {0.22, -0.15}) {
+    std::vector<test_cell::CellCondition> conds = three_speeds();
+    const double ref_rpm = (conds[0].rpm + conds[1].rpm + conds[2].rpm) / 3.0;
+    for (test_cell::CellCondition& c : conds) {
+      const double sigma = 1.0 + shift_per_krpm * (c.rpm - ref_rpm) / 1000.0;
+      c.extra = [sigma](double f) {
+        return test_cell::block_response(truth(), f / sigma) / test_cell::block_response(truth(), f);
+      };
+    }
+    const BandDataset data = test_cell::block_dataset(truth(), conds);
+    FitSetup s = setup_for(data);
+    s.extensions.speed = true;
+    ExtendedModel start;
+    start.block = truth();
+    const FitOutcome o = fit_model(s, start);
+    std::printf("speed scaling: shift %.4f per krpm (truth %.2f), gain %.4f dB/krpm, train RMS %.4f dB\n",
+                o.model.ext.speed_shift_per_krpm, shift_per_krpm, o.model.ext.speed_gain_db_per_krpm, o.train_rms_db);
+    EXPECT_NEAR(o.model.ext.speed_shift_per_krpm, shift_per_krpm, 0.01) << shift_per_krpm;
+    EXPECT_NEAR(o.model.ext.speed_gain_db_per_krpm, 0.0, 0.1) << shift_per_krpm;
+    EXPECT_LT(o.train_rms_db, 0.05) << shift_per_krpm;
+  }
+}
+
 TEST(BandFitFit, FindsAndRecoversASecondModeWithItsPhase) {
   // In phase (the peak), and radiating at 120 deg against the block (a peak beside a dip).
   for (const double phase_deg : {0.0, 120.0}) {

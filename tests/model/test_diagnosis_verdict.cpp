@@ -63,6 +63,18 @@ TEST(Verdict, NoneWhenTheBaselineAgreesWithinTheTolerance) {
   EXPECT_DOUBLE_EQ(v.heldout_rms_after_db, 0.4);
   EXPECT_DOUBLE_EQ(v.heldout_thesis_after_db, 0.3);
   EXPECT_DOUBLE_EQ(v.gap_closed_fraction, 0.0);
+  // The significant candidate is named beside `none`, not as the verdict.
+  EXPECT_EQ(v.below_tolerance, "second_mode");
+  EXPECT_DOUBLE_EQ(v.below_tolerance_after_db, 0.1);
+  EXPECT_NE(v.explanation.find("second_mode closes the gap significantly (0.40 -> 0.10 dB)"), std::string::npos);
+}
+
+TEST(Verdict, NothingBelowTheToleranceWhenNoCandidateIsSignificant) {
+  Case c(scored("baseline", 0.4, 0.3), {scored("second_mode", 0.3, 0.3, false)});
+  const Verdict& v = c.judged();
+  EXPECT_EQ(v.effect, "none");
+  EXPECT_TRUE(v.below_tolerance.empty());
+  EXPECT_EQ(v.explanation.find("significantly"), std::string::npos);
 }
 
 TEST(Verdict, NoneWhenTheGapIsWithinTwiceTheBaselinesBootstrapNoise) {
@@ -72,6 +84,7 @@ TEST(Verdict, NoneWhenTheGapIsWithinTwiceTheBaselinesBootstrapNoise) {
   const Verdict& v = c.judged();
   EXPECT_NEAR(v.noise_db, 0.6 * std::sqrt(50.0 / 49.0), 1e-12);  // sample standard deviation of +-0.6
   EXPECT_EQ(v.effect, "none");
+  EXPECT_TRUE(v.below_tolerance.empty());  // a gap within its noise has no cause to name
 }
 
 TEST(Verdict, UnexplainedWhenNoCandidateIsSignificant) {
