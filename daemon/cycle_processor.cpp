@@ -354,10 +354,13 @@ model::CombustionMetrics CycleProcessor::take_combustion(std::int64_t start, std
   model::CombustionMetrics combustion;  // NaN throughout unless the grid is complete
   const bool grid_complete = wanted && start != INT64_MIN &&
                              std::none_of(grid_.begin(), grid_.end(), [](double v) { return std::isnan(v); });
-  if (grid_complete)
+  if (grid_complete) {
+    model::MetricsOptions options = config_.metrics;  // dp/dtheta max from this cycle's start of injection
+    options.soi_deg_btdc = have_op_ && !op_.motored ? op_.soi_deg_btdc : kNaN;
     combustion = model::combustion_metrics(grid_, -360.0, kGridStepDeg, config_.engine,
-                                           720.0 / 360.0 * 60.0 * kFs / static_cast<double>(end_index - start), config_.metrics,
+                                           720.0 / 360.0 * 60.0 * kFs / static_cast<double>(end_index - start), options,
                                            metrics_scratch_);
+  }
   std::fill(grid_.begin(), grid_.end(), kNaN);
   return combustion;
 }

@@ -5,6 +5,7 @@
 #include <cstdio>
 #include <functional>
 #include <limits>
+#include <string_view>
 
 #include <nlohmann/json.hpp>
 
@@ -114,13 +115,17 @@ namespace {
 
 double energy_mean_db(double energy, std::int64_t n) { return n > 0 ? 10.0 * std::log10(energy / static_cast<double>(n)) : kNaN; }
 
+// COV (std / mean) means something only on a scale with a true zero: not for a level in dB, nor for a crank angle,
+// whose zero is TDC by convention (a CA50 at 1 deg would scatter "100 %" at the same spread as one at 20 deg at 5 %).
+bool has_true_zero(const Field& f) { return !f.level && std::string_view(f.unit) != "deg"; }
+
 ScalarStats finish(const Field& f, std::int64_t n, double sum, double sum_sq, double energy, double min, double max) {
   ScalarStats s{f.name, f.unit, f.level, n, kNaN, kNaN, kNaN, kNaN, kNaN};
   if (n == 0) return s;
   const double mean = sum / static_cast<double>(n);
   s.mean = f.level ? energy_mean_db(energy, n) : mean;
   if (n > 1) s.std = std::sqrt(std::max(0.0, (sum_sq - sum * mean) / static_cast<double>(n - 1)));
-  if (!f.level && mean != 0 && n > 1) s.cov = s.std / std::abs(mean);
+  if (has_true_zero(f) && mean != 0 && n > 1) s.cov = s.std / std::abs(mean);
   s.min = min;
   s.max = max;
   return s;

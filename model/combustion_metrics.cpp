@@ -12,6 +12,7 @@ namespace {
 
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 constexpr double kGasConstant = 287.0;  // J/(kg K), air
+constexpr double kValleyHalfWidthDeg = 2.0;  // dp/dtheta max: the window's initial descent, followed on this average
 
 struct Grid {
   std::span<const double> p;
@@ -75,8 +76,27 @@ void peak(const Grid& g, CombustionMetrics& m) {
   m.peak_pressure_pa = b - 0.25 * (a - c) * d;
 }
 
+// The start of the combustion window (see MetricsOptions).
+double rise_from_deg(const MetricsOptions& o) {
+  if (std::isfinite(o.rise_from_deg)) return o.rise_from_deg;
+  if (std::isfinite(o.soi_deg_btdc)) return -o.soi_deg_btdc;
+  return o.heat_release_from_deg;
+}
+
+// dp/dtheta max in the combustion window, after the slope's initial descent: a slope still falling where the window
+// opens is the tail of what came before it (the compression, or a fumigated fuel's early burn), not this window's
+// rise. The descent is followed on the slope averaged over +-kValleyHalfWidthDeg, so that noise does not end it.
 void max_rise(const Grid& g, const std::vector<double>& slope, const MetricsOptions& o, CombustionMetrics& m) {
-  const auto [lo, hi] = g.range(o.heat_release_from_deg, o.heat_release_to_deg);
+  auto [lo, hi] = g.range(rise_from_deg(o), o.rise_to_deg);
+  const auto half = static_cast<std::size_t>(std::max(1.0, std::round(kValleyHalfWidthDeg / g.step)));
+  const auto smooth = [&](std::size_t i) {
+    double s = 0.0;
+    int n = 0;
+    for (std::size_t k = i > half ? i - half : 0; k <= std::min(i + half, slope.size() - 1); ++k)
+      if (std::isfinite(slope[k])) s += slope[k], ++n;
+    return n > 0 ? s / n : kNaN;
+  };
+  while (lo < hi && smooth(lo + 1) < smooth(lo)) ++lo;
   for (std::size_t i = lo; i <= hi; ++i)
     if (std::isfinite(slope[i]) && !(slope[i] <= m.max_rise_pa_per_deg)) {
       m.max_rise_pa_per_deg = slope[i];

@@ -22,6 +22,12 @@ struct MetricsOptions {
   double derivative_half_width_deg = 0.5;  // dp/dtheta: least-squares slope over +-this (a Savitzky-Golay derivative)
   double heat_release_from_deg = -60.0;    // the heat release integrates over [from, to] (deg re firing TDC)
   double heat_release_to_deg = 90.0;
+  // dp/dtheta max in the combustion window [from, rise_to_deg]: from rise_from_deg when it is set, else from the
+  // start of injection (-soi_deg_btdc, the cycle's), else (no injection known: motored, or unknown) from
+  // heat_release_from_deg. Before the injection the steepest slope is the compression's, not combustion's.
+  double rise_from_deg = std::numeric_limits<double>::quiet_NaN();
+  double rise_to_deg = 60.0;
+  double soi_deg_btdc = std::numeric_limits<double>::quiet_NaN();  // per cycle, set by the caller
   double ringing_beta_s = 0.05e-3;         // Eng's beta
   double intake_temperature_k = 313.0;     // trapped charge at intake valve closing, for T_max
   double ivc_deg = -150.0;                 // intake valve closing (deg re firing TDC)
@@ -31,7 +37,8 @@ struct MetricsOptions {
 struct CombustionMetrics {
   static constexpr double kUnknown = std::numeric_limits<double>::quiet_NaN();
   double peak_pressure_pa = kUnknown, peak_angle_deg = kUnknown;
-  double max_rise_pa_per_deg = kUnknown, max_rise_angle_deg = kUnknown;  // with derivative_half_width_deg's smoothing
+  double max_rise_pa_per_deg = kUnknown, max_rise_angle_deg = kUnknown;  // in the combustion window (MetricsOptions),
+                                                                          // with derivative_half_width_deg's smoothing
   double imep_gross_pa = kUnknown, imep_net_pa = kUnknown;  // NaN when the cycle misses more than 2 deg of
                                                             // -180 ... 180 (gross) or -360 ... 360 (net)
   double heat_release_j = kUnknown;                 // cumulative apparent heat release, minimum to maximum

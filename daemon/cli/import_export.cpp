@@ -132,6 +132,45 @@ std::string dir_name_for(const std::string& condition, std::size_t index) {
   return s;
 }
 
+// The motored table's thermodynamic TDC on the tables' scale (about the nominal tdc_deg), for the fired table:
+// the same resolution and (within 2 %) speed, or a clear error naming the file.
+model::MotoredTdc table_tdc(const CycleTableImportOptions& o, const drivers::CycleTable& fired) {
+  const drivers::CycleTable m = drivers::read_cycle_table(o.motored_table);
+  const auto step = [](const drivers::CycleTable& t) {
+    return (t.crank_deg.back() - t.crank_deg.front()) / static_cast<double>(t.crank_deg.size() - 1);
+  };
+  if (std::abs(step(m) - step(fired)) > 1e-6 * step(fired))
+    throw std::runtime_error(o.motored_table + ": " + value_text(step(m), "deg") + " steps, the fired table " + o.table +
+                             " has " + value_text(step(fired), "deg") + ": give a motored table of the same resolution");
+  const double rpm = o.motored_rpm > 0 ? o.motored_rpm : o.table_options.speed_rpm;
+  if (std::abs(rpm / o.table_options.speed_rpm - 1.0) > 0.02)
+    throw std::runtime_error(o.motored_table + ": motored at " + value_text(rpm, "rpm") + ", the fired table at " +
+                             value_text(o.table_options.speed_rpm, "rpm") +
+                             ": the loss angle depends on speed; record the motored cycles at the fired speed");
+  drivers::CycleTableOptions mo;
+  mo.speed_rpm = rpm;
+  const bool drop = drivers::cycle_table_to_run(m, mo, o.motored_table).pegging_row_dropped;
+  std::vector<std::vector<double>> cycles;
+  for (const std::vector<double>& c : m.cycles_bar) cycles.emplace_back(c.begin() + (drop ? 1 : 0), c.end());
+  const double first = m.crank_deg[drop ? 1 : 0] - o.table_options.tdc_deg;
+  try {
+    return model::motored_tdc(cycles, first, step(m), model::EngineGeometry{}, o.loss_angle_deg);
+  } catch (const std::invalid_argument& e) {
+    throw std::runtime_error(o.motored_table + ": " + e.what());
+  }
+}
+
+void note_tdc(const model::MotoredTdc& t, std::vector<std::string>& notes) {
+  char buf[512];
+  std::snprintf(buf, sizeof buf,
+                "thermodynamic TDC from %d motored cycles: peak %.2f bar at %+.2f deg; + loss angle %.2f deg = "
+                "%+.2f deg (used: the fired angles move by %+.2f deg); the polytropic fit, which needs no loss angle: "
+                "%+.2f deg (n %.3f)",
+                t.cycles, t.peak_bar, t.peak_deg, t.loss_angle_deg, t.tdc_by_loss_angle_deg, -t.tdc_by_loss_angle_deg,
+                t.tdc_by_polytropic_deg, t.polytropic_exponent);
+  notes.push_back(buf);
+}
+
 }  // namespace
 
 MicSynthesizer mic_synthesizer(const std::string& name) {
@@ -192,6 +231,13 @@ ImportSummary run_import_cycle_table(const CycleTableImportOptions& o) {
   progress.stage("import " + o.table + ": reading");
   const drivers::CycleTable table = drivers::read_cycle_table(o.table);
   drivers::CycleTableOptions to = o.table_options;
+  if (!o.motored_table.empty()) {
+    progress.stage("import " + o.table + ": thermodynamic TDC from " + o.motored_table);
+    const model::MotoredTdc tdc = table_tdc(o, table);
+    to.tdc_deg += tdc.tdc_by_loss_angle_deg;
+    sum.tdc = tdc;
+    note_tdc(tdc, sum.notes);
+  }
   if (to.condition.name.empty()) to.condition.name = fs::path(o.table).stem().string();
   const drivers::CycleTableConversion conv = drivers::cycle_table_to_run(table, to, o.table);
   progress.stage("import " + o.table + ": resampling to 40 kHz");
@@ -211,8 +257,9 @@ ImportSummary run_import_cycle_table(const CycleTableImportOptions& o) {
                 conv.pegging_row_dropped ? "taken as the pegging value and dropped" : "kept as a sample");
   sum.notes.push_back(buf);
   std::snprintf(buf, sizeof buf,
-                "replay will report %zu cycles: the pipeline's cycles run from -360 to +360 deg, so the stretch before "
-                "the first complete one only warms the filters up",
+                "replay will report %zu cycles, each one column whole: the pipeline's cycles run from -360 to +360 deg "
+                "and are counted from boundary to boundary, so the first column only warms the filters up and the "
+                "last has no boundary after it",
                 expected_reports(rec));
   sum.notes.push_back(buf);
   if (rec.info.mic_count == 0)

@@ -11,11 +11,13 @@
 
 #include <cstdint>
 #include <functional>
+#include <optional>
 #include <string>
 #include <vector>
 
 #include "drivers/formats/cycle_table.hpp"
 #include "drivers/formats/recording.hpp"
+#include "model/motored_tdc.hpp"
 
 namespace noisemon::daemon {
 
@@ -43,6 +45,11 @@ struct ImportOptions : ImportCommon {
 struct CycleTableImportOptions : ImportCommon {
   std::string table;
   drivers::CycleTableOptions table_options;  // speed_rpm required; condition name defaults to the file's stem
+  // Thermodynamic TDC (model/motored_tdc.hpp): a motored table of the same engine, speed and resolution; its peak
+  // plus the loss angle moves table_options.tdc_deg. Empty: the table's scale is taken as it is.
+  std::string motored_table;
+  double loss_angle_deg = 0.7;  // model::kDefaultLossAngleDeg
+  double motored_rpm = 0.0;     // the motored table's speed when it differs from the fired one (0: the same)
 };
 
 struct ImportedRun {
@@ -56,6 +63,7 @@ struct ImportedRun {
 struct ImportSummary {
   std::vector<ImportedRun> runs;
   std::vector<std::string> notes;  // what the user should know (pegging row dropped, cycles expected, ...)
+  std::optional<model::MotoredTdc> tdc;  // a cycle table's thermodynamic TDC, when a motored table was given
 };
 
 // Throw (drivers::RunDirError, std::runtime_error) naming the file and what is wrong; the output log is then

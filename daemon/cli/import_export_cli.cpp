@@ -30,6 +30,20 @@ ImportExportCommands::ImportExportCommands(CLI::App& app) {
                       "the table's crank angle of firing TDC (0 when the table runs -180..540; 360 for 0..720)")
       ->capture_default_str()
       ->needs(table);
+  import_->add_option("--motored-table", table_.motored_table,
+                      "a motored cycle table of the same engine, speed and resolution: firing TDC is set to its "
+                      "pressure peak plus the loss angle (thermodynamic TDC), and the fired table's angles move by it")
+      ->check(CLI::ExistingFile)
+      ->needs(table);
+  import_->add_option("--loss-angle-deg", table_.loss_angle_deg,
+                      "thermodynamic loss angle: how far before TDC the motored peak lies (0 ... 3; measured "
+                      "0.4 ... 1.3 on motored engines)")
+      ->capture_default_str()
+      ->needs(table);
+  import_->add_option("--motored-rpm", table_.motored_rpm,
+                      "speed of the motored table (default: --rpm); more than 2 % from --rpm is refused")
+      ->check(CLI::PositiveNumber)
+      ->needs(table);
   import_->add_option("--pegging", pegging_,
                       "first row of each cycle: auto (a pegging value when equal in every cycle), first-row "
                       "(always a pegging value: dropped), none (a sample)")
@@ -46,6 +60,8 @@ ImportExportCommands::ImportExportCommands(CLI::App& app) {
       "Examples:\n"
       "  noisemon import runs/idle_mi12 runs/full_mi18 -o runs.lcmlog\n"
       "  noisemon import --cycles-table yanmar_l100v_fired_18Nm.txt --rpm 1799.9 --load 18 --soi 9.6 -o fired.lcmlog\n"
+      "  noisemon import --cycles-table yanmar_l100v_fired_18Nm.txt --motored-table yanmar_l100v_motored.txt \\\n"
+      "      --rpm 1799.9 --load 18 --soi 9.6 -o fired.lcmlog\n"
       "  noisemon replay fired.lcmlog --csv fired.csv");
 
   export_ = app.add_subcommand("export", "write the sessions of a raw LCM log as run directories (run.json, pressure.csv, mics.wav)");

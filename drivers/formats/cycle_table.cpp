@@ -1,5 +1,6 @@
 #include "drivers/formats/cycle_table.hpp"
 
+#include <algorithm>
 #include <charconv>
 #include <cmath>
 #include <cstring>
@@ -175,11 +176,22 @@ CycleTableConversion cycle_table_to_run(const CycleTable& table, const CycleTabl
   run.time_s.reserve(per_cycle * cycles);
   run.crank_deg.reserve(per_cycle * cycles);
   run.pressure_pa.reserve(per_cycle * cycles);
-  const double theta0 = table.crank_deg[first_row] - o.tdc_deg;
+  // Each column is one recorded cycle with its own pegging offset: it becomes the pipeline's cycle j, [720 j - 360,
+  // 720 j + 360) about its firing TDC, whole. The part of the column past +360 (the next intake, same recording) is
+  // rotated to the front, so the seams between recordings fall on the cycle boundaries (gas-exchange TDC, where
+  // dV/dtheta = 0 and no window of a cycle crosses them), never inside a cycle.
+  std::vector<std::size_t> order(per_cycle);
+  for (std::size_t i = 0; i < per_cycle; ++i) order[i] = first_row + i;
+  const auto wrapped = [&](std::size_t r) {
+    const double a = table.crank_deg[r] - o.tdc_deg;
+    return a >= 360.0 ? a - 720.0 : a < -360.0 ? a + 720.0 : a;
+  };
+  std::stable_sort(order.begin(), order.end(), [&](std::size_t x, std::size_t y) { return wrapped(x) < wrapped(y); });
+  const double theta0 = wrapped(order.front());
   const double deg_per_s = 6.0 * o.speed_rpm;
   for (std::size_t j = 0; j < cycles; ++j) {
-    for (std::size_t r = first_row; r < rows; ++r) {
-      const double theta = 720.0 * static_cast<double>(j) + table.crank_deg[r] - o.tdc_deg;
+    for (std::size_t r : order) {
+      const double theta = 720.0 * static_cast<double>(j) + wrapped(r);
       run.crank_deg.push_back(theta);
       run.time_s.push_back((theta - theta0) / deg_per_s);
       run.pressure_pa.push_back(table.cycles_bar[j][r] * 1e5);

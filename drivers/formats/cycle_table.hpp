@@ -8,13 +8,16 @@
 //   ...
 //    539.8   1.262  1.170  ...
 //
-// Conversion to a run directory lays the cycles end to end at a constant speed (time from crank angle,
-// t = (theta - theta_first) / (6 rpm)) and unwraps the crank angle so that 0 is the firing TDC of the first
-// cycle: cycle j's table angle a becomes 720 j + a - tdc_deg. A table whose window is not centred on TDC (the
-// Yanmar tables run -180 .. 539.8) is therefore mapped correctly: each sample lands at its true angle, and the
-// pipeline's cycles [720k - 360, 720k + 360) take their pieces from two consecutive table columns. The first
-// table cycle starts at -180 deg, half-way into the pipeline's first cycle, so that cycle is incomplete and only
-// warms the filters: a table of N cycles gives N - 1 cycle reports.
+// Conversion to a run directory keeps every column whole: column j becomes the pipeline's cycle j, crank angles
+// [720 j - 360, 720 j + 360) with 0 at the column's firing TDC (table angle tdc_deg), and time from a constant
+// speed. Each column of an indicating system's export is one recorded cycle with its own pegging offset (the Yanmar
+// tables: a column's end and its own start differ by 0.05 bar rms, consecutive columns by 0.4), so the pipeline's
+// cycle must not take its intake stroke from one column and the rest from the next. A table whose window is not
+// centred on TDC (the Yanmar tables run -180 .. 539.8) has the part of each column past +360 (its next intake, the
+// same recording) rotated to the front of its cycle: the seams between recordings fall on the cycle boundaries
+// (gas-exchange TDC, where dV/dtheta = 0), never inside a cycle. A table of N cycles gives N whole cycles, of which
+// replay reports N - 2: the pipeline counts cycles from boundary to boundary, so the first only warms its filters
+// up and the last has no boundary after it.
 //
 // Pegging row: many exports write the pegging (absolute-pressure reference) value into the first row of every
 // cycle instead of a measured sample. It is not a sample of the cycle: the converter drops it, which leaves one

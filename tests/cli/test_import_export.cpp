@@ -113,31 +113,25 @@ double band_mean_square(const std::vector<double>& x, double fs, double f_lo, do
   return sum / (static_cast<double>(n) * static_cast<double>(n));
 }
 
-// The table's samples of the pipeline cycle that starts at unwrapped angle 720 k - 360 (table columns k - 1 and
-// k; the pegging rows, not samples, replaced by the mean of their neighbours as the importer documents).
+// The table's samples of the pipeline cycle k, [720 k - 360, 720 k + 360): column k whole, its rows past +360 deg
+// (its next intake) first, then the rest from -180 deg; the pegging row, not a sample, replaced by the mean of its
+// neighbours (the column's own last row and its second) as the importer documents.
 std::vector<double> table_cycle_pa(const drivers::CycleTable& t, long k) {
-  std::vector<double> x;
+  const std::vector<double>& col = t.cycles_bar[static_cast<std::size_t>(k)];
   const std::size_t rows = t.crank_deg.size();
-  for (long j = k - 1; j <= k; ++j) {
-    for (std::size_t r = 0; r < rows; ++r) {
-      const double theta = 720.0 * static_cast<double>(j) + t.crank_deg[r];
-      if (theta < 720.0 * static_cast<double>(k) - 360.0 - 1e-6 || theta >= 720.0 * static_cast<double>(k) + 360.0 - 1e-6) continue;
-      double p = t.cycles_bar[static_cast<std::size_t>(j)][r];
-      if (r == 0) {
-        const double before = t.cycles_bar[static_cast<std::size_t>(j - 1)][rows - 1];
-        p = 0.5 * (before + t.cycles_bar[static_cast<std::size_t>(j)][1]);
-      }
-      x.push_back(p * 1e5);
-    }
-  }
+  std::vector<double> x;
+  for (std::size_t r = 0; r < rows; ++r)
+    if (t.crank_deg[r] >= 360.0 - 1e-6) x.push_back(col[r] * 1e5);
+  for (std::size_t r = 0; r < rows; ++r)
+    if (t.crank_deg[r] < 360.0 - 1e-6) x.push_back((r == 0 ? 0.5 * (col[rows - 1] + col[1]) : col[r]) * 1e5);
   return x;
 }
 
-// Pipeline cycle index k of a report: its start instant on the imported time base (time 0 at the first table
-// sample kept, -179.8 deg) converted to crank angle at the table's speed.
+// Pipeline cycle index k of a report: its start instant on the imported time base (time 0 at the first sample kept,
+// column 0's 360 deg, now -360) converted to crank angle at the table's speed.
 long cycle_of(const noisemon::cycle_report_t& r) {
   const double t = static_cast<double>(r.utime - kEpoch) * 1e-6;
-  const double theta = -179.8 + 6.0 * kRpm * t;
+  const double theta = -360.0 + 6.0 * kRpm * t;
   return std::lround((theta + 360.0) / 720.0);
 }
 
@@ -180,11 +174,12 @@ class YanmarTables : public ::testing::Test {
 TableRun* YanmarTables::fired_ = nullptr;
 TableRun* YanmarTables::motored_ = nullptr;
 
-TEST_F(YanmarTables, OneReportPerCycleExceptTheDocumentedFirst) {
+TEST_F(YanmarTables, OneReportPerColumnExceptTheDocumentedFirstAndLast) {
   for (const TableRun* t : {fired_, motored_}) {
-    // 60 table cycles -180..540 deg: the pipeline's cycle 0 (-360..360) is incomplete and only warms the filters,
-    // so 59 reports, for pipeline cycles 1..59 (each centred on table column k's firing TDC).
-    ASSERT_EQ(t->reports.size(), 59u);
+    // 60 table columns, each a whole pipeline cycle about its own firing TDC: the pipeline counts cycles from
+    // boundary to boundary, so column 0 only warms the filters and column 59 has no boundary after it: 58 reports,
+    // for pipeline cycles (= columns) 1..58.
+    ASSERT_EQ(t->reports.size(), 58u);
     for (std::size_t i = 0; i < t->reports.size(); ++i) {
       const auto& r = t->reports[i];
       EXPECT_EQ(r.cycle, static_cast<std::int64_t>(i));
@@ -320,9 +315,93 @@ TEST_F(YanmarTables, ImportedPeakPressureMatchesTheTable) {
       }
       peak = std::max(peak, rec.pressure_pa[i]);
     }
-    EXPECT_EQ(compared, 59);
+    EXPECT_EQ(compared, 58);
     std::printf("peak pressure, imported vs table: worst %.3f %%\n", 100 * worst);
   }
+}
+
+// Firing TDC from the motored table (--motored-table): the fired table's angles move by the motored peak plus the
+// loss angle; the figures then obey what an engineer checks first (net IMEP above the recorded 18 N m's BMEP, net
+// scattering like gross), and the TDC is checked against an estimate made here: the motored table's mean cycle's
+// largest sample, which a 0.2 deg grid places within a step or two of the parabola's vertex.
+TEST_F(YanmarTables, MotoredTableSetsFiringTdcAndTheFiguresObeyThePhysics) {
+  daemon::CycleTableImportOptions o;
+  o.table = shared_file("yanmar_l100v_fired_18Nm.txt");
+  o.motored_table = shared_file("yanmar_l100v_motored.txt");
+  o.out_log = temp("fired_tdc.lcmlog").string();
+  o.epoch_utime = kEpoch;
+  o.progress = false;
+  o.table_options.speed_rpm = kRpm;
+  o.table_options.condition.name = "fired_tdc";
+  o.table_options.condition.load_nm = 18;
+  o.table_options.condition.soi_deg_btdc = 9.6;
+  const daemon::ImportSummary sum = daemon::run_import_cycle_table(o);
+  ASSERT_TRUE(sum.tdc.has_value());
+  double top = -1e300, top_deg = 0;
+  for (std::size_t r = 1; r < motored_->table.crank_deg.size(); ++r) {
+    double mean = 0;
+    for (const auto& c : motored_->table.cycles_bar) mean += c[r] / static_cast<double>(motored_->table.cycles_bar.size());
+    if (mean > top) top = mean, top_deg = motored_->table.crank_deg[r];
+  }
+  EXPECT_NEAR(sum.tdc->peak_deg, top_deg, 0.5);
+  EXPECT_NEAR(sum.tdc->tdc_by_loss_angle_deg, sum.tdc->peak_deg + 0.7, 1e-9);
+  EXPECT_NEAR(sum.tdc->tdc_by_polytropic_deg, sum.tdc->tdc_by_loss_angle_deg, 0.5);  // the two methods agree
+  const auto reports = replay(o.out_log);
+  ASSERT_EQ(reports.size(), 58u);
+  double n = 0, gross = 0, net = 0, gross2 = 0, net2 = 0;
+  for (const auto& r : reports) {
+    if (r.flags & noisemon::cycle_report_t::CYCLE_SETTLING) continue;
+    ++n;
+    gross += r.imep_gross_bar, net += r.imep_net_bar;
+    gross2 += r.imep_gross_bar * r.imep_gross_bar, net2 += r.imep_net_bar * r.imep_net_bar;
+    EXPECT_GT(r.max_rise_deg, -9.6) << "cycle " << r.cycle;  // the rise after the injection
+  }
+  ASSERT_GT(n, 40);
+  const double bmep_bar = 4 * kPi * 18.0 / (kPi / 4 * 0.086 * 0.086 * 0.075) / 1e5;  // 4 pi T / Vd: 5.19 bar
+  const double mg = gross / n, mn = net / n;
+  const double cov_g = std::sqrt((gross2 / n - mg * mg) * n / (n - 1)) / mg, cov_n = std::sqrt((net2 / n - mn * mn) * n / (n - 1)) / mn;
+  std::printf("TDC %+.2f deg (polytropic %+.2f): IMEP gross %.3f net %.3f bar (BMEP %.3f), COV %.2f / %.2f %%\n",
+              sum.tdc->tdc_by_loss_angle_deg, sum.tdc->tdc_by_polytropic_deg, mg, mn, bmep_bar, 100 * cov_g, 100 * cov_n);
+  EXPECT_GT(mn, bmep_bar);
+  EXPECT_LT(mn, mg);
+  EXPECT_LT(cov_n, cov_g + 0.005);
+}
+
+TEST_F(YanmarTables, BadMotoredTablesAreRefusedNamingTheFile) {
+  daemon::CycleTableImportOptions o;
+  o.table = shared_file("yanmar_l100v_fired_18Nm.txt");
+  o.out_log = temp("fired_bad_tdc.lcmlog").string();
+  o.progress = false;
+  o.table_options.speed_rpm = kRpm;
+  const auto error = [&] {
+    try {
+      daemon::run_import_cycle_table(o);
+    } catch (const std::exception& e) {
+      return std::string(e.what());
+    }
+    return std::string("(no error)");
+  };
+  o.motored_table = o.table;  // a fired table is not motored
+  EXPECT_NE(error().find("not a motored cycle"), std::string::npos) << error();
+  EXPECT_NE(error().find("yanmar_l100v_fired_18Nm.txt"), std::string::npos) << error();
+  o.motored_table = shared_file("yanmar_l100v_motored.txt");
+  o.loss_angle_deg = 5.0;
+  EXPECT_NE(error().find("loss angle 5"), std::string::npos) << error();
+  o.loss_angle_deg = 0.7;
+  o.motored_rpm = 1500;
+  EXPECT_NE(error().find("motored at 1500 rpm"), std::string::npos) << error();
+  o.motored_rpm = 0;
+  const std::string coarse = noisemon::test::unique_temp_dir() + "/motored_1deg.txt";
+  {
+    std::ifstream in(o.motored_table);
+    std::ofstream out(coarse);
+    std::size_t row = 0;
+    for (std::string line; std::getline(in, line);)
+      if (row++ % 5 == 0) out << line << "\n";
+  }
+  o.motored_table = coarse;
+  EXPECT_NE(error().find("same resolution"), std::string::npos) << error();
+  EXPECT_FALSE(fs::exists(o.out_log));  // nothing written
 }
 
 TEST_F(YanmarTables, ExportThenImportGivesTheSameReports) {
@@ -394,8 +473,8 @@ TEST_F(YanmarTables, SeveralRunsInOneLogReplayAsSeparateSessions) {
   EXPECT_EQ(line.substr(line.size() - 10), ",condition");
   std::map<std::string, int> per_condition;
   while (std::getline(in, line)) ++per_condition[line.substr(line.rfind(',') + 1)];
-  EXPECT_EQ(per_condition["fired_18Nm"], 59);
-  EXPECT_EQ(per_condition["motored"], 59);
+  EXPECT_EQ(per_condition["fired_18Nm"], 58);
+  EXPECT_EQ(per_condition["motored"], 58);
 }
 
 TEST(ImportExport, RecordingWithMicrophonesExportsAndImportsToTheSameReports) {
@@ -489,7 +568,7 @@ TEST(ImportExport, MicsSimGivesTheRealCyclesTheVirtualEnginesAcousticSide) {
   o.synthesize_mics = daemon::mic_synthesizer("sim");
   daemon::run_import_cycle_table(o);
   const auto reports = replay(o.out_log);
-  ASSERT_EQ(reports.size(), 59u);  // the same cycles as the pressure-only import
+  ASSERT_EQ(reports.size(), 58u);  // the same cycles as the pressure-only import
   int compared = 0;
   for (const auto& r : reports) {
     EXPECT_EQ(r.nmics, 10);  // the sim's default layout (thesis Table 3.1)

@@ -19,6 +19,8 @@ noisemon::cycle_report_t report(double lpa, double imep, double duration, std::i
   r.lpa_predicted_db = lpa + 1.0;
   r.lwa_measured_db = r.lwa_predicted_db = lpa + 12.8;
   r.imep_net_bar = imep;
+  r.ca50_deg = imep + 10.0;  // angles with a mean away from 0: a COV could be computed, and must not be
+  r.peak_pressure_deg = imep;
   r.load_nm = r.soi_deg_btdc = r.rail_pressure_bar = std::numeric_limits<double>::quiet_NaN();
   r.nbands = 2;
   r.band_hz = {1000.f, 2000.f};
@@ -54,6 +56,10 @@ TEST(CycleStatistics, LevelsAreEnergyMeansAndOtherScalarsArithmetic) {
   EXPECT_NEAR(imep.mean, 6.0, 1e-12);
   EXPECT_NEAR(imep.std, std::sqrt(2.0), 1e-12);  // sample standard deviation of {5, 7}
   EXPECT_NEAR(imep.cov, std::sqrt(2.0) / 6.0, 1e-12);
+  // A crank angle has a spread but no COV: its zero is TDC by convention. Nor has a level.
+  EXPECT_TRUE(std::isnan(scalar(s, "ca50_deg").cov));
+  EXPECT_TRUE(std::isnan(scalar(s, "peak_pressure_deg").cov));
+  EXPECT_TRUE(std::isnan(lpa.cov));
   // Unknown values: no statistics, not zeros.
   EXPECT_EQ(scalar(s, "load_nm").n, 0);
   EXPECT_TRUE(std::isnan(scalar(s, "load_nm").mean));

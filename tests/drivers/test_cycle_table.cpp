@@ -1,5 +1,6 @@
 // Cycle tables (crank angle + one pressure column per cycle) -> run directory: the angle mapping written out
-// independently from the documented rule (cycle j, table angle a -> 720 j + a - tdc; t from a constant speed),
+// independently from the documented rule (column j is cycle j, [720 j - 360, 720 j + 360) about its own TDC, whole;
+// t from a constant speed),
 // the pegging row, the bad inputs, and the real Yanmar L100V tables.
 #include <gtest/gtest.h>
 
@@ -57,8 +58,9 @@ std::string shared_file(const std::string& name) {
 
 }  // namespace
 
-TEST(CycleTable, WindowNotCentredOnTdcMapsToUnwrappedAnglesWithTdcAtZero) {
-  // -180 .. 539.5 deg in 0.5 deg steps, 3 cycles, a pegging value of 0.97 in the first row.
+TEST(CycleTable, EachColumnBecomesOneWholeCycleAboutItsFiringTdc) {
+  // -180 .. 539.5 deg in 0.5 deg steps, 3 cycles, a pegging value of 0.97 in the first row; cell(j, a) carries the
+  // column's index, so a sample from another column would show.
   const CycleTable t = parse_cycle_table(make_table(-180.0, 0.5, 3, 0.97, cell), "t.txt");
   ASSERT_EQ(t.crank_deg.size(), 1440u);
   ASSERT_EQ(t.cycles_bar.size(), 3u);
@@ -73,17 +75,28 @@ TEST(CycleTable, WindowNotCentredOnTdcMapsToUnwrappedAnglesWithTdcAtZero) {
   EXPECT_EQ(run.condition.speed_rpm, 1200.0);
   EXPECT_EQ(run.condition.load_nm, 5);
   EXPECT_EQ(run.mic_count, 0u);
-  for (int j = 0; j < 3; ++j)
-    for (int r = 1; r < 1440; ++r) {  // row 0 was the pegging row
-      const std::size_t i = static_cast<std::size_t>(j * 1439 + r - 1);
-      const double a = -180.0 + 0.5 * r;
-      const double theta = 720.0 * j + a;  // firing TDC of table cycle j at 720 j
-      ASSERT_NEAR(run.crank_deg[i], theta, 1e-9);
-      ASSERT_NEAR(run.time_s[i], (theta - (-179.5)) / 7200.0, 1e-12);
-      ASSERT_NEAR(run.pressure_pa[i], cell(j, a) * 1e5, 1e-3);
-    }
-  // The step across the dropped pegging rows is two encoder steps (filled when resampled).
-  EXPECT_NEAR(run.crank_deg[1439] - run.crank_deg[1438], 1.0, 1e-9);
+  // Cycle j is [720 j - 360, 720 j + 360); its first 180 deg are the column's own 360 .. 539.5 (its next intake).
+  EXPECT_NEAR(run.crank_deg.front(), -360.0, 1e-9);
+  EXPECT_NEAR(run.crank_deg.back(), 720.0 * 2 + 359.5, 1e-9);
+  for (std::size_t i = 0; i < run.crank_deg.size(); ++i) {
+    const double theta = run.crank_deg[i];
+    const int j = static_cast<int>(std::floor((theta + 360.0) / 720.0));
+    const double in_cycle = theta - 720.0 * j, table_angle = in_cycle < -180.0 ? in_cycle + 720.0 : in_cycle;
+    ASSERT_NEAR(run.pressure_pa[i], cell(j, table_angle) * 1e5, 1e-3) << theta;
+    ASSERT_NEAR(run.time_s[i], (theta + 360.0) / 7200.0, 1e-12);
+    if (i > 0) ASSERT_GT(theta, run.crank_deg[i - 1]);
+  }
+  // Cycle by cycle, whole: 1439 samples each, and the only wider step is the dropped pegging row's at -180.
+  for (int j = 0; j < 3; ++j) {
+    int n = 0;
+    for (double theta : run.crank_deg) n += theta >= 720.0 * j - 360.0 && theta < 720.0 * j + 360.0;
+    EXPECT_EQ(n, 1439) << j;
+  }
+  for (std::size_t i = 1; i < run.crank_deg.size(); ++i) {
+    const double step = run.crank_deg[i] - run.crank_deg[i - 1];
+    const double at = std::remainder(run.crank_deg[i], 720.0);
+    ASSERT_NEAR(step, std::abs(at - (-179.5)) < 1e-9 ? 1.0 : 0.5, 1e-9) << run.crank_deg[i];
+  }
 }
 
 TEST(CycleTable, TableOverZeroTo720WithTdcAt360) {
@@ -93,8 +106,9 @@ TEST(CycleTable, TableOverZeroTo720WithTdcAt360) {
   o.tdc_deg = 360.0;
   const CycleTableConversion c = cycle_table_to_run(t, o, "t.txt");
   EXPECT_FALSE(c.pegging_row_dropped);  // the first rows differ between cycles: samples
-  EXPECT_NEAR(c.run.crank_deg.front(), -360.0, 1e-12);
+  EXPECT_NEAR(c.run.crank_deg.front(), -360.0, 1e-12);  // a window centred on TDC needs no rotation
   EXPECT_NEAR(c.run.crank_deg[360], 0.0, 1e-12);  // table 360 deg = firing TDC
+  EXPECT_NEAR(c.run.pressure_pa[360], cell(0, 360.0) * 1e5, 1e-3);
   EXPECT_NEAR(c.run.crank_deg.back(), 720.0 + 719.0 - 360.0, 1e-12);
   EXPECT_NEAR(c.run.time_s.back(), (720.0 + 719.0) / 3600.0, 1e-12);
 }
