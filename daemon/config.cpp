@@ -206,6 +206,9 @@ void read_sound_power(TableReader& top, const std::string& origin, SoundPowerCon
   r.number("k2_db", sp.k2_db, 0, 30);
   r.number("absorption_area_m2", sp.absorption_area_m2, 0, 1e6);
   r.number("no_correction_above_db", sp.no_correction_above_db, 6, 30);
+  r.number("air_temperature_c", sp.air_temperature_c, -50, 60);
+  r.number("air_pressure_kpa", sp.air_pressure_kpa, 50, 120);
+  r.boolean("lw_full_range", sp.full_range);
   r.number("source_dimension_m", sp.source_dimension_m, 0, 100);
   if (r.node("background_db") && r.node("background_run")) r.fail("background_run", "give background_db or background_run, not both");
   if (const toml::node* n = r.node("background_db")) {

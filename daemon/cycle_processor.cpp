@@ -509,8 +509,9 @@ double CycleProcessor::measured_mean_square(const CycleReport& r, std::size_t b)
 }
 
 // Band levels, attenuation and overall levels; measured from the microphones not excluded (NaN without any),
-// predicted and CPL NaN when the pressure is faulty. Sound power per ISO 3744: the measured band less its K1, the
-// bands too close to the background left out of both LW(A)s, less K2, plus 10 lg(S / S0).
+// predicted and CPL NaN when the pressure is faulty. Sound power per ISO 3744:2010 over its band range (100 Hz ...
+// 10 kHz unless [sound_power] full_range): the measured band less its K1 (1.3 dB within 6 dB of the background,
+// which makes the cycle's LW(A) an upper bound), less K2, plus 10 lg(S / S0), C1 and C2.
 void CycleProcessor::band_levels(CycleReport& r, double settled_s, bool pressure_fault) const {
   const std::size_t nb = bank_.band_count();
   const std::vector<double>& ms = mean_square_;
@@ -526,7 +527,7 @@ void CycleProcessor::band_levels(CycleReport& r, double settled_s, bool pressure
     const double meas_a = meas + aw;
     const dsp::BackgroundCorrection k1 = sound_power_.correction(b, meas);
     std::int8_t f = band_flags(b, r.duration_s, settled_s);
-    if (k1.validity == dsp::BandValidity::kInvalid && !std::isnan(meas)) f |= kBandBackground;
+    if (k1.validity == dsp::BandValidity::kUpperBound && !std::isnan(meas)) f |= kBandBackground;
     if (f & kBandSettling) r.flags |= kCycleSettling;
     // Only the bands every stream carries and that have a per-cycle meaning make the overall levels, so that the
     // measured and predicted ones cover the same bands.
@@ -535,9 +536,10 @@ void CycleProcessor::band_levels(CycleReport& r, double settled_s, bool pressure
       overall_hz[overall_bands++] = bank_.bands()[b].exact_mid_hz;
       meas_sum += dsp::mean_square_from_level(meas_a);
       pred_sum += dsp::mean_square_from_level(pred_a);
-      if (!(f & kBandBackground)) {
+      if (sound_power_.in_lw_range(bank_.bands()[b].nominal_hz)) {
         lw_meas_sum += dsp::mean_square_from_level(meas_a - k1.k1_db);
         lw_pred_sum += dsp::mean_square_from_level(pred_a);
+        if (f & kBandBackground) r.flags |= kCycleLwUpperBound;
       }
     }
     r.band_hz[b] = static_cast<float>(bank_.bands()[b].nominal_hz);
@@ -551,8 +553,12 @@ void CycleProcessor::band_levels(CycleReport& r, double settled_s, bool pressure
     r.band_flags[b] = f;
   }
   const bool measured = !std::isnan(measured_mean_square(r, 0));
-  const double lw_term = sound_power_.surface_term_db() - sound_power_.k2_db();
+  const double lw_term = sound_power_.surface_term_db() - sound_power_.k2_db() + sound_power_.c1_db() + sound_power_.c2_db();
   r.k2_db = sound_power_.k2_db();
+  r.c1_db = sound_power_.c1_db();
+  r.c2_db = sound_power_.c2_db();
+  r.lw_low_hz = static_cast<float>(sound_power_.lw_low_hz());
+  r.lw_high_hz = static_cast<float>(sound_power_.lw_high_hz());
   r.lpa_measured_db = measured ? dsp::level_db(meas_sum) : kNaN;
   r.lpa_predicted_db = pressure_fault ? kNaN : dsp::level_db(pred_sum);
   r.lwa_measured_db = measured ? dsp::level_db(lw_meas_sum) + lw_term : kNaN;

@@ -21,7 +21,7 @@ enum BandFlag : std::int8_t {
   kBandBelowFiring = 8,
   kBandPressurePassband = 16,
   kBandMicPassband = 32,
-  kBandBackground = 64,  // less than 6 dB above the background (ISO 3744): left out of the sound power
+  kBandBackground = 64,  // 6 dB or less above the background (ISO 3744:2010): K1 1.3 dB, an upper bound
 };
 enum MicFlag : std::int8_t {
   kMicExcluded = 1,  // left out of the measured (array-average) levels of this cycle
@@ -41,6 +41,7 @@ enum CycleFlag : std::int32_t {
   kCycleMicExcluded = 128,     // a microphone was left out of the measured levels (see mic_flags)
   kCyclePressureFault = 256,   // pressure flat, overloaded or non-finite (or ringing from replaced samples):
                                // CPL, predictions, attenuation and combustion metrics are NaN
+  kCycleLwUpperBound = 512,    // a band of the measured LW(A) is 6 dB or less above the background: an upper bound
 };
 
 struct CycleReport {
@@ -50,9 +51,11 @@ struct CycleReport {
   double duration_s = 0;
   drivers::OperatingPoint op;
   double lpa_measured_db = 0, lpa_predicted_db = 0;
-  double lwa_measured_db = 0, lwa_predicted_db = 0;  // this cycle's, K1 and K2 applied (ISO 3744)
+  double lwa_measured_db = 0, lwa_predicted_db = 0;  // this cycle's, K1, K2, C1, C2 applied (ISO 3744:2010)
   double radius_m = 0;
   double k2_db = 0;                 // the environmental correction in lwa_*
+  double c1_db = 0, c2_db = 0;      // the meteorological corrections in lwa_* (ISO 3744:2010)
+  float lw_low_hz = 0, lw_high_hz = 0;  // the nominal band range lwa_* are summed over
   double combustion_noise_db = 0;   // CPL through the thesis's fixed eq. 4.1 attenuation, A-weighted (model/combustion_noise)
   std::uint16_t nbands = 0;
   float band_hz[kMaxBands] = {};
@@ -62,7 +65,7 @@ struct CycleReport {
   float att_measured_db[kMaxBands] = {};
   float att_predicted_db[kMaxBands] = {};
   std::int8_t band_flags[kMaxBands] = {};
-  float k1_db[kMaxBands] = {};      // background correction of the measured band (0: none; NaN: kBandBackground)
+  float k1_db[kMaxBands] = {};      // background correction of the measured band (0: none; 1.3: kBandBackground)
   float background_db[kMaxBands] = {};  // the background band level behind k1_db (unweighted; NaN: none)
   std::uint16_t nmics = 0;
   float mic_lpa_db[kMaxMics] = {};   // every microphone's own level, excluded ones included

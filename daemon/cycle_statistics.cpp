@@ -102,6 +102,10 @@ void CycleStatisticsAccumulator::add(const Report& r) {
     background_db_ = r.background_db;
     k2_db_ = r.k2_db;
     radius_m_ = r.radius_m;
+    c1_db_ = r.c1_db;
+    c2_db_ = r.c2_db;
+    lw_low_hz_ = r.lw_low_hz;
+    lw_high_hz_ = r.lw_high_hz;
   }
   for (std::size_t b = 0; b < band_hz_.size() && b < static_cast<std::size_t>(r.nbands); ++b) {
     band_flags_seen_[b] |= r.band_flags[b];
@@ -167,19 +171,26 @@ void CycleStatisticsAccumulator::add_run_sound_power(CycleStatistics& s) const {
     const double background = b < background_db_.size() ? background_db_[b] : kNaN;
     dsp::BackgroundCorrection k1;  // no background: uncorrected
     if (!std::isnan(background)) k1 = dsp::background_correction(s.spl_a_measured_db[b] - dsp::a_weighting_db(mid), background);
-    std::int8_t validity = k1.validity == dsp::BandValidity::kInvalid ? kBandTooCloseToBackground
+    std::int8_t validity = k1.validity == dsp::BandValidity::kUpperBound ? kBandUpperBound
                            : k1.validity == dsp::BandValidity::kCorrected ? kBandCorrected : kBandUncorrected;
     if (band_flags_seen_[b] & kNotOverall) validity = kBandNotInOverall;
+    else if (band_hz_[b] < lw_low_hz_ || band_hz_[b] > lw_high_hz_) validity = kBandOutsideLwRange;
     s.band_validity.push_back(validity);
-    s.k1_db.push_back(validity <= kBandCorrected ? k1.k1_db : kNaN);
-    if (validity > kBandCorrected) continue;
+    const bool in = validity <= kBandUpperBound && std::isfinite(k1.k1_db);
+    s.k1_db.push_back(in ? k1.k1_db : kNaN);
+    if (!in) continue;
     measured += std::pow(10.0, (s.spl_a_measured_db[b] - k1.k1_db) / 10.0);
     predicted += std::pow(10.0, s.spl_a_predicted_db[b] / 10.0);
+    s.lwa_run_upper_bound = s.lwa_run_upper_bound || validity == kBandUpperBound;
     any = true;
   }
-  const double term = dsp::hemisphere_area_term_db(radius_m_) - k2_db_;
+  const double term = dsp::hemisphere_area_term_db(radius_m_) - k2_db_ + c1_db_ + c2_db_;
   s.lwa_run_measured_db = any ? 10.0 * std::log10(measured) + term : kNaN;
   s.lwa_run_predicted_db = any ? 10.0 * std::log10(predicted) + term : kNaN;
+  s.c1_db = c1_db_;
+  s.c2_db = c2_db_;
+  s.lw_low_hz = lw_low_hz_;
+  s.lw_high_hz = lw_high_hz_;
 }
 
 CycleStatistics statistics_of(const std::vector<Report>& reports) {
@@ -217,6 +228,11 @@ noisemon::cycle_stats_t to_message(const CycleStatistics& s, std::int64_t window
   m.cpl_db = s.cpl_db;
   m.lwa_run_measured_db = s.lwa_run_measured_db;
   m.lwa_run_predicted_db = s.lwa_run_predicted_db;
+  m.lwa_run_upper_bound = s.lwa_run_upper_bound;
+  m.c1_db = s.c1_db;
+  m.c2_db = s.c2_db;
+  m.lw_low_hz = s.lw_low_hz;
+  m.lw_high_hz = s.lw_high_hz;
   m.k1_db = s.k1_db;
   m.band_validity = s.band_validity;
   return m;
@@ -238,28 +254,39 @@ CycleStatistics from_message(const noisemon::cycle_stats_t& m) {
   s.cpl_db = m.cpl_db;
   s.lwa_run_measured_db = m.lwa_run_measured_db;
   s.lwa_run_predicted_db = m.lwa_run_predicted_db;
+  s.lwa_run_upper_bound = m.lwa_run_upper_bound;
+  s.c1_db = m.c1_db;
+  s.c2_db = m.c2_db;
+  s.lw_low_hz = m.lw_low_hz;
+  s.lw_high_hz = m.lw_high_hz;
   s.k1_db = m.k1_db;
   s.band_validity = m.band_validity;
   return s;
 }
 
 namespace {
-// "  bands corrected for the background: 5k (0.75 dB); too close to it: 8k, 500"; empty without either.
+std::string fmt_range(float low_hz, float high_hz) {
+  char buf[48];
+  std::snprintf(buf, sizeof buf, "%g Hz ... %g kHz", low_hz, high_hz / 1000.0);
+  return buf;
+}
+
+// "  bands corrected for the background (K1): 5000 Hz (0.75 dB)" and the bands within 6 dB of it; empty without either.
 std::string band_validity_text(const CycleStatistics& s) {
-  std::string corrected, invalid;
+  std::string corrected, bound;
   char item[48];
   for (std::size_t b = 0; b < s.band_validity.size() && b < s.band_hz.size(); ++b) {
     if (s.band_validity[b] == kBandCorrected) {
       std::snprintf(item, sizeof item, "%s%g Hz (%.2f dB)", corrected.empty() ? "" : ", ", s.band_hz[b], s.k1_db[b]);
       corrected += item;
-    } else if (s.band_validity[b] == kBandTooCloseToBackground) {
-      std::snprintf(item, sizeof item, "%s%g Hz", invalid.empty() ? "" : ", ", s.band_hz[b]);
-      invalid += item;
+    } else if (s.band_validity[b] == kBandUpperBound) {
+      std::snprintf(item, sizeof item, "%s%g Hz", bound.empty() ? "" : ", ", s.band_hz[b]);
+      bound += item;
     }
   }
   std::string out;
   if (!corrected.empty()) out += "  bands corrected for the background (K1): " + corrected + "\n";
-  if (!invalid.empty()) out += "  bands under 6 dB above the background, left out of LW: " + invalid + "\n";
+  if (!bound.empty()) out += "  bands 6 dB or less above the background (K1 1.3 dB, LW an upper bound): " + bound + "\n";
   return out;
 }
 }  // namespace
@@ -270,8 +297,12 @@ std::string statistics_text(const CycleStatistics& s) {
                 static_cast<long long>(s.cycles), static_cast<long long>(s.valid), static_cast<long long>(s.flagged), s.seconds,
                 s.leq_a_measured_db, s.leq_a_predicted_db);
   std::string out = line;
-  std::snprintf(line, sizeof line, "LW(A) over the cycles (ISO 3744: energy-mean bands, K1, K2): measured %.2f dB, predicted %.2f dB\n",
-                s.lwa_run_measured_db, s.lwa_run_predicted_db);
+  const std::string range = std::isfinite(s.lw_high_hz) ? fmt_range(s.lw_low_hz, s.lw_high_hz) : std::string("all bands");
+  std::snprintf(line, sizeof line,
+                "LW(A) over the cycles (ISO 3744:2010, %s: energy-mean bands, K1, K2, C1 %+.2f, C2 %+.2f dB): "
+                "measured %.2f dB%s, predicted %.2f dB\n",
+                range.c_str(), s.c1_db, s.c2_db, s.lwa_run_measured_db, s.lwa_run_upper_bound ? " (an upper bound)" : "",
+                s.lwa_run_predicted_db);
   out += line;
   out += band_validity_text(s);
   out += "  quantity                  unit         mean        std      cov        min        max      n\n";
@@ -292,6 +323,10 @@ std::string statistics_json(const CycleStatistics& s) {
                             {"cov", num(v.cov)}, {"min", num(v.min)}, {"max", num(v.max)}};
   j["lwa_run_measured_db"] = num(s.lwa_run_measured_db);
   j["lwa_run_predicted_db"] = num(s.lwa_run_predicted_db);
+  j["lwa_run_upper_bound"] = s.lwa_run_upper_bound;
+  j["c1_db"] = num(s.c1_db);
+  j["c2_db"] = num(s.c2_db);
+  j["lw_band_range_hz"] = {num(s.lw_low_hz), num(s.lw_high_hz)};
   j["bands"]["hz"] = s.band_hz;
   j["bands"]["band_validity"] = s.band_validity;
   for (auto [key, values] : {std::pair{"spl_a_measured_db", &s.spl_a_measured_db}, {"spl_a_predicted_db", &s.spl_a_predicted_db}, {"cpl_db", &s.cpl_db}, {"k1_db", &s.k1_db}}) {

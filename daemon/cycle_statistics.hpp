@@ -37,16 +37,26 @@ struct CycleStatistics {
   std::vector<ScalarStats> scalars;
   std::vector<float> band_hz;                       // of the first valid cycle
   std::vector<double> spl_a_measured_db, spl_a_predicted_db, cpl_db;  // energy means per band
-  // Sound power over the cycles as ISO 3744 computes it over a measurement time: each band's energy mean, its K1
-  // against the background (the reports' background_db; ISO 3744:1994's 10 dB limit), less K2, plus 10 lg(S / S0);
-  // the bands every valid cycle kept in its overall levels (none BELOW_FIRING or beyond a passband) and not too
-  // close to the background. The per-cycle LW(A)s' energy mean is the scalar lwa_measured_db.
+  // Sound power over the cycles as ISO 3744:2010 computes it over a measurement time: each band's energy mean, its K1
+  // against the background (the reports' background_db; 15 dB limit; 1.3 dB within 6 dB of it, which makes the
+  // result an upper bound), less K2, plus 10 lg(S / S0), C1 and C2 (the reports'); over the reports' LW band range
+  // and the bands every valid cycle kept in its overall levels (none BELOW_FIRING or beyond a passband). The
+  // per-cycle LW(A)s' energy mean is the scalar lwa_measured_db.
   double lwa_run_measured_db = std::numeric_limits<double>::quiet_NaN();
   double lwa_run_predicted_db = std::numeric_limits<double>::quiet_NaN();
-  std::vector<double> k1_db;           // per band, of the energy mean (NaN: invalid or out)
+  bool lwa_run_upper_bound = false;    // a band of lwa_run_measured_db lies within 6 dB of the background
+  double c1_db = 0, c2_db = 0;         // in lwa_run_* (of the first valid cycle)
+  float lw_low_hz = 0, lw_high_hz = 0; // the nominal band range of lwa_run_*
+  std::vector<double> k1_db;           // per band, of the energy mean (NaN: out of the sound power)
   std::vector<std::int8_t> band_validity;  // per band: BandRunValidity
 };
-enum BandRunValidity : std::int8_t { kBandUncorrected = 0, kBandCorrected = 1, kBandTooCloseToBackground = 2, kBandNotInOverall = 3 };
+enum BandRunValidity : std::int8_t {
+  kBandUncorrected = 0,    // more than 15 dB above the background, or none
+  kBandCorrected = 1,      // 6 ... 15 dB above it: K1 by the formula
+  kBandUpperBound = 2,     // 6 dB or less above it: K1 1.3 dB, an upper bound (in the sound power)
+  kBandNotInOverall = 3,   // not in the overall levels (below the firing frequency, beyond a passband)
+  kBandOutsideLwRange = 4, // outside the sound power's band range (100 Hz ... 10 kHz unless full_range)
+};
 
 class CycleStatisticsAccumulator {
  public:
@@ -67,7 +77,8 @@ class CycleStatisticsAccumulator {
   std::vector<Running> bands_measured_, bands_predicted_, bands_cpl_;
   std::vector<std::int8_t> band_flags_seen_;  // OR of the valid cycles' band flags
   std::vector<float> background_db_;          // of the first valid cycle
-  double k2_db_ = 0, radius_m_ = 0;
+  double k2_db_ = 0, radius_m_ = 0, c1_db_ = 0, c2_db_ = 0;
+  float lw_low_hz_ = 0, lw_high_hz_ = 0;
 };
 
 // The statistics of a whole recording's reports.

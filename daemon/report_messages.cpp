@@ -23,6 +23,10 @@ noisemon::cycle_report_t to_message(const CycleReport& r) {
   m.lwa_predicted_db = r.lwa_predicted_db;
   m.radius_m = r.radius_m;
   m.k2_db = r.k2_db;
+  m.c1_db = r.c1_db;
+  m.c2_db = r.c2_db;
+  m.lw_low_hz = r.lw_low_hz;
+  m.lw_high_hz = r.lw_high_hz;
   m.nbands = static_cast<std::int16_t>(r.nbands);
   m.band_hz.assign(r.band_hz, r.band_hz + r.nbands);
   m.spl_a_measured_db.assign(r.spl_a_measured_db, r.spl_a_measured_db + r.nbands);
@@ -103,6 +107,7 @@ std::string cycle_flags_text(std::int32_t flags) {
   add(noisemon::cycle_report_t::CYCLE_OVERLOAD, "overload");
   add(noisemon::cycle_report_t::CYCLE_MIC_EXCLUDED, "mic-excluded");
   add(noisemon::cycle_report_t::CYCLE_PRESSURE_FAULT, "pressure-fault");
+  add(noisemon::cycle_report_t::CYCLE_LW_UPPER_BOUND, "lw-bound");
   return s;
 }
 

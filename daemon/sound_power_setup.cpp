@@ -39,6 +39,10 @@ SoundPowerSetup::SoundPowerSetup(const SoundPowerConfig& config, const drivers::
   const double surface_m2 = dsp::hemisphere_area_m2(info.radius_m);
   surface_term_db_ = dsp::hemisphere_area_term_db(info.radius_m);
   k2_db_ = config.absorption_area_m2 > 0 ? dsp::environmental_correction_k2_db(surface_m2, config.absorption_area_m2) : config.k2_db;
+  c1_db_ = dsp::reference_quantity_correction_c1_db(config.air_temperature_c, config.air_pressure_kpa);
+  c2_db_ = dsp::radiation_impedance_correction_c2_db(config.air_temperature_c, config.air_pressure_kpa);
+  lw_low_hz_ = config.full_range ? 0.0 : dsp::kIso3744LowestBandHz;
+  lw_high_hz_ = config.full_range ? std::numeric_limits<double>::infinity() : dsp::kIso3744HighestBandHz;
   background_.assign(bands.size(), kNaN);
   has_background_ = !config.background_db.empty();
   for (std::size_t b = 0; b < bands.size() && has_background_; ++b) {

@@ -106,10 +106,20 @@ double weighted_energy_average_db(std::span<const double> levels_db, std::span<c
 BackgroundCorrection background_correction(double level_with_source_db, double background_db,
                                            double no_correction_above_db) {
   const double difference = level_with_source_db - background_db;
-  if (!(difference >= kMinBackgroundDifferenceDb))
-    return {std::numeric_limits<double>::quiet_NaN(), BandValidity::kInvalid};
+  if (std::isnan(difference)) return {std::numeric_limits<double>::quiet_NaN(), BandValidity::kUpperBound};
+  if (!(difference > kMinBackgroundDifferenceDb)) return {kUpperBoundK1Db, BandValidity::kUpperBound};
   if (difference > no_correction_above_db) return {0.0, BandValidity::kUncorrected};
   return {-10.0 * std::log10(1.0 - std::pow(10.0, -0.1 * difference)), BandValidity::kCorrected};
+}
+
+double reference_quantity_correction_c1_db(double temperature_c, double pressure_kpa) {
+  return -10.0 * std::log10(pressure_kpa / kReferenceStaticPressureKpa) +
+         5.0 * std::log10((273.15 + temperature_c) / 314.0);
+}
+
+double radiation_impedance_correction_c2_db(double temperature_c, double pressure_kpa) {
+  return -10.0 * std::log10(pressure_kpa / kReferenceStaticPressureKpa) +
+         15.0 * std::log10((273.15 + temperature_c) / 296.0);
 }
 
 double environmental_correction_k2_db(double surface_m2, double absorption_area_m2) {

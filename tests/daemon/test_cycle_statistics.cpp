@@ -107,42 +107,58 @@ TEST(CycleStatistics, TextJsonAndCsvCarryEveryScalar) {
   EXPECT_NE(json.find("null"), std::string::npos);  // the unknown load
 }
 
-// ISO 3744 over the cycles, by hand: the 1 kHz band's energy mean is 87.404 dB(A) (80 and 90); its background, given
-// unweighted, sits 8 dB below it in A-weighted terms: K1 = -10 lg(1 - 10^-0.8) = 0.7494 dB. The 2 kHz band holds 70
-// dB(A) against a background 30 dB under it: uncorrected. A third band is BELOW_FIRING in one valid cycle and a
-// fourth is 3 dB above its background: both are out. LW = 10 lg(10^((87.404 - 0.7494) / 10) + 10^7) - K2 + 10 lg(2 pi r^2).
+// ISO 3744:2010 over the cycles, by hand: the 1 kHz band's energy mean is 87.404 dB(A) (80 and 90); its background,
+// given unweighted, sits 8 dB below it in A-weighted terms: K1 = -10 lg(1 - 10^-0.8) = 0.7494 dB. The 2 kHz band
+// holds 70 dB(A) against a background 30 dB under it: uncorrected. A third band is BELOW_FIRING in one valid cycle:
+// out. A fourth is 3 dB above its background: K1 = 1.3 dB, and the result an upper bound. A fifth, 12.5 kHz, lies
+// outside the standard's 100 Hz ... 10 kHz: out. LW = 10 lg(10^((87.404 - 0.7494) / 10) + 10^7 + 10^((50 - 1.3) / 10))
+// - K2 + 10 lg(2 pi r^2) + C1 + C2.
 TEST(CycleStatistics, SoundPowerOverTheCyclesCorrectsTheEnergyMeanBandsForTheBackground) {
   const double a_1k = 0.0, a_2k = 1.2016;  // IEC 61672-1 A-weighting at the exact mid-bands 1000 and 1995.3 Hz
   auto with_background = [&](double lpa, std::int8_t third_band_flags) {
     noisemon::cycle_report_t r = report(lpa, 5.0, 0.04);
-    r.nbands = 4;
-    r.band_hz = {1000.f, 2000.f, 20.f, 4000.f};
-    r.spl_a_measured_db = {static_cast<float>(lpa), 70.f, 60.f, 50.f};
-    r.spl_a_predicted_db = {static_cast<float>(lpa), 70.f, 60.f, 50.f};
-    r.cpl_db = {150.f, 140.f, 150.f, 140.f};
-    r.band_flags = {0, 0, third_band_flags, 0};
-    r.background_db = {static_cast<float>(87.4036 - 8.0 - a_1k), static_cast<float>(40.0 - a_2k), NAN, static_cast<float>(47.0 - 0.9642)};
+    r.nbands = 5;
+    r.band_hz = {1000.f, 2000.f, 20.f, 4000.f, 12500.f};
+    r.spl_a_measured_db = {static_cast<float>(lpa), 70.f, 60.f, 50.f, 60.f};
+    r.spl_a_predicted_db = {static_cast<float>(lpa), 70.f, 60.f, 50.f, 60.f};
+    r.cpl_db = {150.f, 140.f, 150.f, 140.f, 120.f};
+    r.band_flags = {0, 0, third_band_flags, 0, 0};
+    r.background_db = {static_cast<float>(87.4036 - 8.0 - a_1k), static_cast<float>(40.0 - a_2k), NAN,
+                       static_cast<float>(47.0 - 0.9642), NAN};
     r.k2_db = 1.5;
+    r.c1_db = -0.13;
+    r.c2_db = 0.01;
+    r.lw_low_hz = 100.f;
+    r.lw_high_hz = 10000.f;
     r.radius_m = 1.75;
     return r;
   };
   const auto s = daemon::statistics_of({with_background(80.0, 0), with_background(90.0, noisemon::cycle_report_t::BAND_BELOW_FIRING)});
-  ASSERT_EQ(s.band_validity.size(), 4u);
+  ASSERT_EQ(s.band_validity.size(), 5u);
   EXPECT_EQ(s.band_validity[0], daemon::kBandCorrected);
   EXPECT_EQ(s.band_validity[1], daemon::kBandUncorrected);
   EXPECT_EQ(s.band_validity[2], daemon::kBandNotInOverall);
-  EXPECT_EQ(s.band_validity[3], daemon::kBandTooCloseToBackground);
+  EXPECT_EQ(s.band_validity[3], daemon::kBandUpperBound);
+  EXPECT_EQ(s.band_validity[4], daemon::kBandOutsideLwRange);
   const double k1 = -10 * std::log10(1 - std::pow(10, -0.8));
   EXPECT_NEAR(s.k1_db[0], k1, 1e-3);
   EXPECT_EQ(s.k1_db[1], 0.0);
-  const double surface = 10 * std::log10(2 * 3.141592653589793 * 1.75 * 1.75);
-  EXPECT_NEAR(s.lwa_run_measured_db, 10 * std::log10(std::pow(10, (87.4036 - k1) / 10) + 1e7) - 1.5 + surface, 2e-3);
-  EXPECT_NEAR(s.lwa_run_predicted_db, 10 * std::log10(std::pow(10, 8.74036) + 1e7) - 1.5 + surface, 2e-3);
-  // The text names the corrected and the rejected bands; the message carries the figures.
+  EXPECT_EQ(s.k1_db[3], 1.3);
+  EXPECT_TRUE(std::isnan(s.k1_db[4]));
+  EXPECT_TRUE(s.lwa_run_upper_bound);
+  const double surface = 10 * std::log10(2 * 3.141592653589793 * 1.75 * 1.75), c = -0.13 + 0.01;
+  EXPECT_NEAR(s.lwa_run_measured_db,
+              10 * std::log10(std::pow(10, (87.4036 - k1) / 10) + 1e7 + std::pow(10, 4.87)) - 1.5 + surface + c, 2e-3);
+  EXPECT_NEAR(s.lwa_run_predicted_db, 10 * std::log10(std::pow(10, 8.74036) + 1e7 + 1e5) - 1.5 + surface + c, 2e-3);
+  // The text names the corrected and the bounding bands, the range and the corrections; the message carries them.
   const std::string text = daemon::statistics_text(s);
   EXPECT_NE(text.find("corrected for the background (K1): 1000 Hz (0.75 dB)"), std::string::npos) << text;
-  EXPECT_NE(text.find("left out of LW: 4000 Hz"), std::string::npos) << text;
+  EXPECT_NE(text.find("(K1 1.3 dB, LW an upper bound): 4000 Hz"), std::string::npos) << text;
+  EXPECT_NE(text.find("100 Hz ... 10 kHz"), std::string::npos) << text;
+  EXPECT_NE(text.find("(an upper bound)"), std::string::npos) << text;
   const auto back = daemon::from_message(daemon::to_message(s, 100, 0));
   EXPECT_EQ(back.lwa_run_measured_db, s.lwa_run_measured_db);
   EXPECT_EQ(back.band_validity, s.band_validity);
+  EXPECT_EQ(back.lwa_run_upper_bound, true);
+  EXPECT_EQ(back.c1_db, -0.13);
 }

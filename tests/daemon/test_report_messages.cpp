@@ -83,7 +83,8 @@ TEST(ReportMessages, EveryCycleFlagHasAName) {
   EXPECT_EQ(daemon::cycle_flags_text(daemon::kCycleEncoder | daemon::kCycleOverload | daemon::kCycleMicExcluded |
                                      daemon::kCyclePressureFault),
             "encoder,overload,mic-excluded,pressure-fault");
-  for (std::int32_t bit = 1; bit <= daemon::kCyclePressureFault; bit <<= 1)
+  EXPECT_EQ(daemon::kCycleLwUpperBound, +noisemon::cycle_report_t::CYCLE_LW_UPPER_BOUND);
+  for (std::int32_t bit = 1; bit <= daemon::kCycleLwUpperBound; bit <<= 1)
     EXPECT_NE(daemon::cycle_flags_text(bit), "") << bit;
 }
 

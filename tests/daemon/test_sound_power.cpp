@@ -1,5 +1,6 @@
-// Sound power as ISO 3744 computes it, through the cycle processor: the background correction K1 against the same
-// tones measured without the background, the bands too close to the background left out, K2 from the room's
+// Sound power as ISO 3744:2010 computes it, through the cycle processor: the background correction K1 against the
+// same tones measured without the background, the bands too close to the background bounded (K1 1.3 dB), the band
+// range (100 Hz ... 10 kHz or all), the meteorological C1 and C2, K2 from the room's
 // absorption area, area weights for microphones that are not equal-area; and the set-up against closed forms.
 // References: white noise's band level sigma^2 * bandwidth / (fs / 2); eq. 4.1 and the IEC 61672-1 A-weighting
 // formula written out here; ISO 3744 eq. 16 (K1) and A.2 (K2) evaluated by hand.
@@ -141,7 +142,10 @@ std::vector<Tone> tones_over(double sigma, std::vector<std::pair<double, double>
 
 }  // namespace
 
-TEST(SoundPower, BackgroundCorrectionRecoversTheSourceAloneAndLeavesOutBandsTooCloseToTheBackground) {
+// ISO 3744:2010's meteorological corrections at the default air (23.0 deg C, 101.325 kPa), by hand.
+constexpr double kC1C2Db = -0.1271 + 0.0033;  // 5 lg(296.15 / 314) + 15 lg(296.15 / 296)
+
+TEST(SoundPower, BackgroundCorrectionRecoversTheSourceAloneAndBoundsBandsTooCloseToTheBackground) {
   const std::vector<Tone> tones = tones_over(kNoiseSigmaPa);
   const Result noisy = run(tones, kNoiseSigmaPa, white_background(kNoiseSigmaPa));
   const Result clean = run(tones, 0.0, {});
@@ -150,7 +154,7 @@ TEST(SoundPower, BackgroundCorrectionRecoversTheSourceAloneAndLeavesOutBandsTooC
   const auto unweighted = [&](const daemon::CycleReport& c, std::size_t b) {
     return c.spl_a_measured_db[b] - a_weight(noisy.bands[b].exact_mid_hz);
   };
-  // 2 kHz: 20 dB above the background, no correction (ISO 3744: over 10 dB).
+  // 2 kHz: 20 dB above the background, no correction (ISO 3744:2010: over 15 dB).
   EXPECT_NEAR(settled_mean(noisy, [&](const auto& c) { return c.k1_db[b2k]; }), 0.0, 1e-9);
   // 5 kHz: 8 dB above, corrected: the band less K1 is the tone alone (the background adds 0.75 dB).
   const double tone_5k = settled_mean(clean, [&](const auto& c) { return unweighted(c, b5k); });
@@ -161,24 +165,57 @@ TEST(SoundPower, BackgroundCorrectionRecoversTheSourceAloneAndLeavesOutBandsTooC
     if (c.cycle < 8) continue;
     EXPECT_EQ(c.band_flags[b2k] & daemon::kBandBackground, 0);
     EXPECT_EQ(c.band_flags[b5k] & daemon::kBandBackground, 0);
-    // 8 kHz: the tone doubles the background (3 dB), 500 Hz holds only the background: no valid K1.
+    // 8 kHz: the tone doubles the background (3 dB), 500 Hz holds only the background: K1 1.3 dB, an upper bound.
     EXPECT_NE(c.band_flags[b8k] & daemon::kBandBackground, 0) << c.cycle;
     EXPECT_NE(c.band_flags[b500] & daemon::kBandBackground, 0) << c.cycle;
-    EXPECT_TRUE(std::isnan(c.k1_db[b8k]));
+    EXPECT_EQ(c.k1_db[b8k], 1.3f);
+    EXPECT_NE(c.flags & daemon::kCycleLwUpperBound, 0) << c.cycle;
   }
-  // LW(A): the 2 and 5 kHz tones alone (the 8 kHz band is out), as without any background, plus 10 lg(2 pi r^2).
-  const double expected = 10 * std::log10(std::pow(10, (settled_mean(clean, [&](const auto& c) { return c.spl_a_measured_db[b2k]; })) / 10) +
-                                          std::pow(10, (tone_5k + a_weight(noisy.bands[b5k].exact_mid_hz)) / 10)) +
-                          10 * std::log10(2 * kPi * 1.75 * 1.75);
-  EXPECT_NEAR(settled_mean(noisy, [](const auto& c) { return c.lwa_measured_db; }), expected, 0.2);
-  EXPECT_NEAR(settled_mean(noisy, [](const auto& c) { return c.lwa_predicted_db; }), expected, 0.2);
-  // The 5 kHz tone alone: its LW(A) is the corrected band's, 0.75 dB under the band as measured.
-  const Result alone = run(tones_over(kNoiseSigmaPa, {{5000.0, 8.0}}), kNoiseSigmaPa, white_background(kNoiseSigmaPa));
-  EXPECT_NEAR(settled_mean(alone, [](const auto& c) { return c.lwa_measured_db; }),
-              tone_5k + a_weight(noisy.bands[b5k].exact_mid_hz) + 10 * std::log10(2 * kPi * 1.75 * 1.75), 0.25);
+  // LW(A) over 100 Hz ... 10 kHz: the 2 and 5 kHz tones alone; every other band, background only (its white-noise
+  // level; twice it at 8 kHz, where the tone equals it), less 1.3 dB; plus 10 lg(2 pi r^2), C1 and C2.
+  double tones_and_bounds = std::pow(10, settled_mean(clean, [&](const auto& c) { return c.spl_a_measured_db[b2k]; }) / 10) +
+                            std::pow(10, (tone_5k + a_weight(noisy.bands[b5k].exact_mid_hz)) / 10);
+  double tones_only = tones_and_bounds;
+  for (const dsp::ThirdOctaveBand& band : noisy.bands) {
+    if (band.nominal_hz < 100 || band.nominal_hz > 10000 || band.nominal_hz == 2000 || band.nominal_hz == 5000) continue;
+    const double background = noise_band_db(band.nominal_hz, kNoiseSigmaPa, kFs) + (band.nominal_hz == 8000 ? 10 * std::log10(2.0) : 0.0);
+    tones_and_bounds += std::pow(10, (background + a_weight(band.exact_mid_hz) - 1.3) / 10);
+    if (band.nominal_hz == 8000) tones_only += std::pow(10, (background - 10 * std::log10(2.0) + a_weight(band.exact_mid_hz)) / 10);
+  }
+  const double surface = 10 * std::log10(2 * kPi * 1.75 * 1.75);
+  EXPECT_NEAR(settled_mean(noisy, [](const auto& c) { return c.lwa_measured_db; }), 10 * std::log10(tones_and_bounds) + surface + kC1C2Db, 0.2);
+  // The prediction hears the tones only, the 8 kHz one included; no K1 applies to it.
+  EXPECT_NEAR(settled_mean(noisy, [](const auto& c) { return c.lwa_predicted_db; }), 10 * std::log10(tones_only) + surface + kC1C2Db, 0.2);
   // Lp(A) stays what the microphones heard: the background is in it.
   EXPECT_GT(settled_mean(noisy, [](const auto& c) { return c.lpa_measured_db; }),
             settled_mean(clean, [](const auto& c) { return c.lpa_measured_db; }) + 0.5);
+}
+
+TEST(SoundPower, LwOverTheStandardsBandsByDefaultAndEveryBandWhenAsked) {
+  // A 63 Hz and a 12.5 kHz tone outside ISO 3744's 100 Hz ... 10 kHz, a 1 kHz tone inside; no background.
+  const std::vector<Tone> tones{{exact_mid(63.0), 0.5}, {exact_mid(1000.0), 0.5}, {exact_mid(12500.0), 0.5}};
+  daemon::SoundPowerConfig sp;
+  const Result standard = run(tones, 0.0, sp);
+  sp.full_range = true;
+  const Result full = run(tones, 0.0, sp);
+  const double surface = 10 * std::log10(2 * kPi * 1.75 * 1.75), ms = 0.5 * 0.5 / 2;
+  const auto tone_a = [&](double nominal) { return level_of_ms(ms) + a_weight(exact_mid(nominal)); };
+  const double inside = tone_a(1000);
+  const double all = 10 * std::log10(std::pow(10, tone_a(63) / 10) + std::pow(10, inside / 10) + std::pow(10, tone_a(12500) / 10));
+  EXPECT_NEAR(settled_mean(standard, [](const auto& c) { return c.lwa_measured_db; }), inside + surface + kC1C2Db, 0.1);
+  EXPECT_NEAR(settled_mean(full, [](const auto& c) { return c.lwa_measured_db; }), all + surface + kC1C2Db, 0.1);
+  EXPECT_EQ(standard.reports.back().lw_low_hz, 100.f);
+  EXPECT_EQ(standard.reports.back().lw_high_hz, 10000.f);
+  // Lp(A) covers every band of the overall levels either way.
+  EXPECT_NEAR(settled_mean(standard, [](const auto& c) { return c.lpa_measured_db; }), all, 0.1);
+  // Air at 35 deg C and 92 kPa: C1 + C2 = -20 lg(92 / 101.325) + 5 lg(308.15 / 314) + 15 lg(308.15 / 296).
+  sp.full_range = false;
+  sp.air_temperature_c = 35.0;
+  sp.air_pressure_kpa = 92.0;
+  const Result hot = run(tones, 0.0, sp);
+  const double c = -20 * std::log10(92.0 / 101.325) + 5 * std::log10(308.15 / 314.0) + 15 * std::log10(308.15 / 296.0);
+  EXPECT_NEAR(settled_mean(hot, [](const auto& c) { return c.lwa_measured_db; }), inside + surface + c, 0.1);
+  EXPECT_NEAR(hot.reports.back().c1_db + hot.reports.back().c2_db, c, 1e-9);
 }
 
 TEST(SoundPower, EnvironmentalCorrectionK2FromTheAbsorptionAreaLowersBothSoundPowers) {

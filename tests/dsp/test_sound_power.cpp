@@ -17,7 +17,7 @@ double energy(double level_db) { return std::pow(10.0, level_db / 10.0); }
 
 TEST(SoundPower, BackgroundCorrectionRemovesTheBackgroundEnergy) {
   // Second method: subtract the background's energy from the total's.
-  for (double difference : {6.0, 8.0, 10.0}) {
+  for (double difference : {6.01, 8.0, 10.0, 15.0}) {
     const double total = 70.0, background = total - difference;
     const double source_alone = 10 * std::log10(energy(total) - energy(background));
     const BackgroundCorrection k1 = background_correction(total, background);
@@ -25,19 +25,36 @@ TEST(SoundPower, BackgroundCorrectionRemovesTheBackgroundEnergy) {
     EXPECT_NEAR(total - k1.k1_db, source_alone, 1e-9) << difference;
   }
   // ISO 3744's figures: about 1.3 dB at the 6 dB limit, 0.5 dB at 10 dB.
-  EXPECT_NEAR(background_correction(76.0, 70.0).k1_db, 1.26, 0.005);
+  EXPECT_NEAR(background_correction(76.01, 70.0).k1_db, 1.25, 0.005);
   EXPECT_NEAR(background_correction(80.0, 70.0).k1_db, 0.46, 0.005);
 }
 
-TEST(SoundPower, BandsAreInvalidUnderSixDecibelsAndUncorrectedAboveTheLimit) {
-  EXPECT_EQ(background_correction(75.9, 70.0).validity, BandValidity::kInvalid);
-  EXPECT_TRUE(std::isnan(background_correction(75.9, 70.0).k1_db));
-  EXPECT_EQ(background_correction(60.0, 70.0).validity, BandValidity::kInvalid);
-  EXPECT_EQ(background_correction(80.1, 70.0).validity, BandValidity::kUncorrected);  // ISO 3744:1994: over 10 dB
-  EXPECT_EQ(background_correction(80.1, 70.0).k1_db, 0.0);
-  EXPECT_EQ(background_correction(80.1, 70.0, 15.0).validity, BandValidity::kCorrected);  // ISO 3744:2010: 15 dB
-  EXPECT_EQ(background_correction(85.1, 70.0, 15.0).k1_db, 0.0);
-  EXPECT_EQ(background_correction(NAN, 70.0).validity, BandValidity::kInvalid);  // no measurement is no correction
+TEST(SoundPower, Iso3744Of2010BoundsTheBandsWithinSixDecibelsAndStopsCorrectingAboveFifteen) {
+  // 6 dB or less: K1 = 1.3 dB and an upper bound (ISO 3744:2010 8.2.3), however close or far below.
+  for (double level : {76.0, 75.9, 70.0, 60.0}) {
+    EXPECT_EQ(background_correction(level, 70.0).validity, BandValidity::kUpperBound) << level;
+    EXPECT_EQ(background_correction(level, 70.0).k1_db, 1.3) << level;
+  }
+  EXPECT_EQ(background_correction(80.1, 70.0).validity, BandValidity::kCorrected);  // the 1994 edition stopped at 10
+  EXPECT_EQ(background_correction(85.1, 70.0).validity, BandValidity::kUncorrected);
+  EXPECT_EQ(background_correction(85.1, 70.0).k1_db, 0.0);
+  EXPECT_EQ(background_correction(80.1, 70.0, 10.0).validity, BandValidity::kUncorrected);  // 1994's, when asked
+  EXPECT_TRUE(std::isnan(background_correction(NAN, 70.0).k1_db));  // no measurement is no correction
+}
+
+TEST(SoundPower, MeteorologicalCorrectionsFollowTheAirsImpedance) {
+  // C1 refers the level to a characteristic impedance of 400 Pa s/m: 10 lg(400 / rho c) with rho c = p sqrt(gamma /
+  // (R T)) of dry air (gamma 1.4, R 287.05 J/(kg K)), which is 400 at 314 K and 101.325 kPa; within 0.01 dB.
+  for (const auto [celsius, kpa] : {std::pair{23.0, 101.325}, {40.0, 95.0}, {5.0, 103.0}, {-10.0, 99.0}}) {
+    const double rho_c = kpa * 1e3 * std::sqrt(1.4 / (287.05 * (273.15 + celsius)));
+    EXPECT_NEAR(reference_quantity_correction_c1_db(celsius, kpa), 10 * std::log10(400.0 / rho_c), 0.01) << celsius;
+  }
+  // At the reference atmosphere (23.0 deg C, 101.325 kPa) C2 vanishes; by hand: 15 lg(296.15 / 296) = 0.0033 dB.
+  EXPECT_NEAR(radiation_impedance_correction_c2_db(23.0, 101.325), 0.0033, 5e-5);
+  EXPECT_NEAR(reference_quantity_correction_c1_db(23.0, 101.325), -0.127, 5e-4);  // 5 lg(296.15 / 314)
+  // Lower pressure, the same temperature: both rise by 10 lg(p0 / p).
+  EXPECT_NEAR(radiation_impedance_correction_c2_db(23.0, 90.0) - radiation_impedance_correction_c2_db(23.0, 101.325),
+              10 * std::log10(101.325 / 90.0), 1e-12);
 }
 
 TEST(SoundPower, EnvironmentalCorrectionFollowsTheRoomsAbsorption) {

@@ -161,7 +161,11 @@ TEST(EndToEnd, MeasuredAndPredictedAgreeWhenTheModelIsTheTrueBlock) {
   ASSERT_GE(s.rows.size(), 50u);
   for (const Row& r : s.rows) {
     EXPECT_NEAR(r.lpa_pred, r.lpa_meas, 0.5) << "cycle " << r.cycle;
-    EXPECT_NEAR(r.lwa_pred - r.lpa_pred, 10 * std::log10(2 * M_PI * 1.75 * 1.75), 1e-3);
+    // LW(A) adds 10 lg(2 pi r^2) and C1 + C2 at 23 deg C, 101.325 kPa (5 lg(296.15 / 314) + 15 lg(296.15 / 296), by
+    // hand) over ISO 3744's 100 Hz ... 10 kHz, which hold all but a few hundredths of a dB of the engine's sound.
+    const double lw_over_lp = 10 * std::log10(2 * M_PI * 1.75 * 1.75) - 0.1271 + 0.0033;
+    EXPECT_LE(r.lwa_pred - r.lpa_pred, lw_over_lp + 1e-3);
+    EXPECT_GE(r.lwa_pred - r.lpa_pred, lw_over_lp - 0.1);
     EXPECT_NEAR(r.speed, 3050.0, 3050.0 * 0.03);  // the sim's default idle speed, with its ripple
     EXPECT_DOUBLE_EQ(r.soi, 18.0);
     EXPECT_GT(r.lpa_meas, 40.0);  // well above the background floor: the engine is heard
