@@ -486,6 +486,32 @@ void read_engine(TableReader& top, const std::string& origin, model::EngineGeome
   if (r.node("rod_mm")) e.conrod_m = rod_mm / 1000.0;
 }
 
+// ---- [combustion] -------------------------------------------------------------------------------------------
+
+// Pegging and the combustion window (model/combustion_metrics.hpp).
+void read_combustion(TableReader& top, const std::string& origin, model::MetricsOptions& o) {
+  TableReader r(top.table("combustion"), "combustion", origin);
+  std::string pegging = "none";
+  r.string("pegging", pegging);
+  if (pegging == "intake") o.pegging = model::Pegging::kIntake;
+  else if (pegging == "polytropic") o.pegging = model::Pegging::kPolytropic;
+  else if (pegging != "none") r.fail("pegging", "expected \"none\", \"intake\" or \"polytropic\"");
+  double intake_bar = o.peg_intake_pa / 1e5, exponent = 0.0;
+  r.number("intake_pressure_bar", intake_bar, 0.1, 10);
+  r.number("pegging_window_deg", o.peg_half_width_deg, 1, 90);
+  r.number("polytropic_exponent", exponent, 0, 1.7);
+  if (r.node("polytropic_exponent") && exponent != 0.0 && exponent < 1.0)
+    r.fail("polytropic_exponent", "expected 1.0 ... 1.7, or 0 for a fitted exponent");
+  r.number("polytropic_from_deg", o.peg_poly_from_deg, -180, 0);
+  r.number("polytropic_to_deg", o.peg_poly_to_deg, -180, 0);
+  if (!(o.peg_poly_from_deg < o.peg_poly_to_deg)) r.fail("polytropic_to_deg", "must lie after polytropic_from_deg");
+  r.number("rise_from_deg", o.rise_from_deg, -180, 180);
+  r.number("rise_to_deg", o.rise_to_deg, -180, 360);
+  r.reject_unknown();
+  o.peg_intake_pa = intake_bar * 1e5;
+  o.peg_exponent = exponent > 0 ? exponent : std::numeric_limits<double>::quiet_NaN();
+}
+
 // ---- [threads] ----------------------------------------------------------------------------------------------
 
 // [threads.<name>]: priority = SCHED_FIFO priority (0: normal scheduling), cpu = CPU index (-1: any).
@@ -551,6 +577,7 @@ Config parse_table(const toml::table& root, const std::string& origin) {
   read_lcm(top, origin, c.lcm);
 
   read_engine(top, origin, c.engine);
+  read_combustion(top, origin, c.combustion);
 
   TableReader st(top.table("statistics"), "statistics", origin);
   st.integer("window_cycles", c.stats_window_cycles, 0, 100000);

@@ -12,6 +12,7 @@
 #include "drivers/sim/sim_source.hpp"
 #include "drivers/worker_thread.hpp"
 #include "model/block_params.hpp"
+#include "model/combustion_metrics.hpp"
 #include "model/engine_geometry.hpp"
 
 namespace noisemon::daemon {
@@ -61,6 +62,7 @@ struct Config {
                                        // source's own (any source)
   ThreadsConfig threads;               // [threads]: handed to the sources and the pipeline
   model::EngineGeometry engine;        // [engine]: for the combustion metrics (default: the Yanmar L100V)
+  model::MetricsOptions combustion;    // [combustion]: pegging and the combustion window of dp/dtheta max
   std::int64_t stats_window_cycles = 100;  // [statistics] window_cycles: the rolling statistics' window; 0: none
   SoundPowerConfig sound_power;        // [sound_power]: ISO 3744's K1 (background) and K2, the surface check
 };

@@ -49,6 +49,7 @@ const std::vector<Field>& fields() {
       {"ca90_deg", "deg", false, [](const Report& r) { return r.ca90_deg; }},
       {"ringing_intensity_mw_m2", "MW/m^2", false, [](const Report& r) { return r.ringing_intensity_mw_m2; }},
       {"combustion_noise_db", "dB(A)", true, [](const Report& r) { return r.combustion_noise_db; }},
+      {"pegging_offset_bar", "bar", false, [](const Report& r) { return r.pegging_offset_bar; }},
       {"processing_ms", "ms", false, [](const Report& r) { return static_cast<double>(r.processing_ms); }},
   };
   return f;
@@ -129,7 +130,8 @@ ScalarStats finish(const Field& f, std::int64_t n, double sum, double sum_sq, do
   const double mean = sum / static_cast<double>(n);
   s.mean = f.level ? energy_mean_db(energy, n) : mean;
   if (n > 1) s.std = std::sqrt(std::max(0.0, (sum_sq - sum * mean) / static_cast<double>(n - 1)));
-  if (has_true_zero(f) && mean != 0 && n > 1) s.cov = s.std / std::abs(mean);
+  // ... and on values of one sign: a COV of an offset scattering about 0 is a ratio of noise to nothing.
+  if (has_true_zero(f) && (min > 0 || max < 0) && n > 1) s.cov = s.std / std::abs(mean);
   s.min = min;
   s.max = max;
   return s;

@@ -24,7 +24,7 @@ struct ScalarStats {
   bool level = false;  // a level in dB: its mean is the energy mean, its std the std of the dB values
   std::int64_t n = 0;  // cycles with a finite value
   double mean = 0, std = 0, cov = 0, min = 0, max = 0;  // NaN when n == 0 (std, cov: n < 2; cov: a level, an
-                                                        // angle or a mean of 0)
+                                                        // angle, or values of both signs)
 };
 
 struct CycleStatistics {

@@ -108,6 +108,7 @@ std::unique_ptr<CycleProcessor> Pipeline::Impl::make_processor() {
   pc.model = config.model;
   pc.acoustic_delay_s = config.acoustic_delay_s;
   pc.engine = config.engine;
+  pc.metrics = config.combustion;
   pc.fifo_seconds = options.fifo_seconds > 0 ? options.fifo_seconds : std::max(1.0, 2 * config.ring_seconds);
   pc.mic_low_db = config.mic_low_db;
   pc.sound_power = config.sound_power;

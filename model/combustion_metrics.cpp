@@ -12,7 +12,8 @@ namespace {
 
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 constexpr double kGasConstant = 287.0;  // J/(kg K), air
-constexpr double kValleyHalfWidthDeg = 2.0;  // dp/dtheta max: the window's initial descent, followed on this average
+constexpr double kValleyHalfWidthDeg = 2.0;
+constexpr double kPegExponentLow = 1.20, kPegExponentHigh = 1.45, kPegExponentStep = 0.005;  // a fitted pegging n  // dp/dtheta max: the window's initial descent, followed on this average
 
 struct Grid {
   std::span<const double> p;
@@ -177,6 +178,47 @@ void volume_tables(std::size_t n, double first, double step, const EngineGeometr
   w.volume_engine = e;
 }
 
+// The intake pegging's offset: the window's mean set to the intake pressure.
+double intake_offset(const Grid& g, const MetricsOptions& o) {
+  const auto [lo, hi] = g.range(o.peg_intake_deg - o.peg_half_width_deg, o.peg_intake_deg + o.peg_half_width_deg);
+  double sum = 0.0;
+  for (std::size_t i = lo; i <= hi; ++i) sum += g.p[i];
+  return o.peg_intake_pa - sum / static_cast<double>(hi - lo + 1);
+}
+
+// The polytropic pegging's offset for exponent n: p + offset = K V^-n over the window, by least squares in K and the
+// offset; *sse: the residual sum of squares.
+double polytropic_offset(const Grid& g, const MetricsOptions& o, double n, double* sse) {
+  const auto [lo, hi] = g.range(o.peg_poly_from_deg, o.peg_poly_to_deg);
+  double sx = 0, sy = 0, sxx = 0, sxy = 0, syy = 0;
+  const double m = static_cast<double>(hi - lo + 1);
+  for (std::size_t i = lo; i <= hi; ++i) {
+    const double x = std::pow(g.volume[i], -n), y = g.p[i];
+    sx += x, sy += y, sxx += x * x, sxy += x * y, syy += y * y;
+  }
+  const double k = (m * sxy - sx * sy) / (m * sxx - sx * sx), c = (sy - k * sx) / m;  // p = k x + c
+  *sse = std::max(0.0, syy - k * sxy - c * sy);
+  return -c;
+}
+
+// The pegging's offset and exponent (NaN for intake pegging); (0, NaN) without pegging.
+std::pair<double, double> pegging(const Grid& g, const MetricsOptions& o) {
+  if (o.pegging == Pegging::kIntake) {
+    if (!g.covers(o.peg_intake_deg - o.peg_half_width_deg, o.peg_intake_deg + o.peg_half_width_deg)) return {kNaN, kNaN};
+    return {intake_offset(g, o), kNaN};
+  }
+  if (o.pegging == Pegging::kPolytropic && !g.covers(o.peg_poly_from_deg, o.peg_poly_to_deg)) return {kNaN, kNaN};
+  if (o.pegging != Pegging::kPolytropic) return {0.0, kNaN};
+  double sse = 0.0;
+  if (std::isfinite(o.peg_exponent)) return {polytropic_offset(g, o, o.peg_exponent, &sse), o.peg_exponent};
+  double best = std::numeric_limits<double>::infinity(), offset = 0.0, exponent = kNaN;
+  for (double n = kPegExponentLow; n <= kPegExponentHigh + 1e-9; n += kPegExponentStep) {
+    const double off = polytropic_offset(g, o, n, &sse);
+    if (sse < best) best = sse, offset = off, exponent = n;
+  }
+  return {offset, exponent};
+}
+
 }  // namespace
 
 CombustionMetrics combustion_metrics(std::span<const double> pressure_pa, double first_deg, double step_deg,
@@ -190,7 +232,15 @@ CombustionMetrics combustion_metrics(std::span<const double> pressure_pa, double
                                      MetricsWorkspace& scratch) {
   check(pressure_pa, step_deg, engine, options);
   volume_tables(pressure_pa.size(), first_deg, step_deg, engine, scratch);
-  const Grid g{pressure_pa, first_deg, step_deg, scratch.volume_m3.data(), scratch.dvolume_m3_per_deg.data()};
+  const Grid raw{pressure_pa, first_deg, step_deg, scratch.volume_m3.data(), scratch.dvolume_m3_per_deg.data()};
+  const auto [offset, exponent] = pegging(raw, options);
+  std::span<const double> pressure = pressure_pa;
+  if (options.pegging != Pegging::kNone) {
+    scratch.pegged.assign(pressure_pa.begin(), pressure_pa.end());
+    for (double& p : scratch.pegged) p += offset;
+    pressure = scratch.pegged;
+  }
+  const Grid g{pressure, first_deg, step_deg, scratch.volume_m3.data(), scratch.dvolume_m3_per_deg.data()};
   const int half = std::max(1, static_cast<int>(std::lround(options.derivative_half_width_deg / step_deg)));
   std::vector<double>& slope = scratch.slope;
   slope_per_deg(g, half, slope);
@@ -202,6 +252,8 @@ CombustionMetrics combustion_metrics(std::span<const double> pressure_pa, double
   m.imep_net_pa = g.covers(-360.0, 360.0) ? work_j(g, -360.0, 360.0) / vd : kNaN;
   heat_release(g, slope, options, scratch.heat, m);
   m.ringing_intensity_w_per_m2 = ringing_intensity(g, engine, speed_rpm, options, m);
+  m.pegging_offset_pa = offset;
+  m.pegging_exponent = exponent;
   return m;
 }
 

@@ -17,7 +17,20 @@
 
 namespace noisemon::model {
 
+// Pegging: a piezoelectric transducer measures pressure changes; the cycle's absolute level is set from the cycle
+// itself, one offset for the whole cycle (-360 ... 360), before any figure. Intake: the mean over
+// peg_intake_deg +- peg_half_width_deg (intake BDC) is set to peg_intake_pa (the measured or configured manifold
+// pressure). Polytropic: over the compression window [peg_poly_from_deg, peg_poly_to_deg] the offset that makes the
+// pressure the closest K V^-n, with n fixed (peg_exponent) or fitted (NaN: 1.20 ... 1.45).
+enum class Pegging { kNone, kIntake, kPolytropic };
+
 struct MetricsOptions {
+  Pegging pegging = Pegging::kNone;
+  double peg_intake_pa = 1.0e5;
+  double peg_intake_deg = -180.0;
+  double peg_half_width_deg = 10.0;
+  double peg_poly_from_deg = -100.0, peg_poly_to_deg = -40.0;
+  double peg_exponent = std::numeric_limits<double>::quiet_NaN();
   double gamma = 1.35;                    // ratio of specific heats for the heat release (Heywood: 1.3 ... 1.35)
   double derivative_half_width_deg = 0.5;  // dp/dtheta: least-squares slope over +-this (a Savitzky-Golay derivative)
   double heat_release_from_deg = -60.0;    // the heat release integrates over [from, to] (deg re firing TDC)
@@ -44,6 +57,8 @@ struct CombustionMetrics {
   double heat_release_j = kUnknown;                 // cumulative apparent heat release, minimum to maximum
   double ca10_deg = kUnknown, ca50_deg = kUnknown, ca90_deg = kUnknown;  // 10, 50, 90 % of it (NaN without combustion)
   double ringing_intensity_w_per_m2 = kUnknown;     // NaN without the speed
+  double pegging_offset_pa = kUnknown;              // added to the whole cycle before the figures (0: no pegging)
+  double pegging_exponent = kUnknown;               // the polytropic pegging's n (fixed or fitted)
 };
 
 // Metrics of one cycle: pressure_pa[i] at crank angle first_deg + i * step_deg (0 = firing TDC); the whole
@@ -58,7 +73,7 @@ CombustionMetrics combustion_metrics(std::span<const double> pressure_pa, double
 // thread) does not allocate per cycle. It also keeps the cylinder volume and its derivative at the grid's angles
 // (their sines and cosines were most of the metrics' time), recomputed only when the grid or the geometry change.
 struct MetricsWorkspace {
-  std::vector<double> slope, heat;
+  std::vector<double> slope, heat, pegged;
   std::vector<double> volume_m3, dvolume_m3_per_deg;
   double volume_first_deg = 0.0, volume_step_deg = 0.0;
   EngineGeometry volume_engine;

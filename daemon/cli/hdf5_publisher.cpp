@@ -73,6 +73,8 @@ const RealColumn kRealColumns[] = {
     {"ca90_deg", "deg", "crank angle of 90 % of the heat release", [](auto& m) { return m.ca90_deg; }},
     {"ringing_intensity_mw_m2", "MW/m^2", "ringing intensity (Eng, SAE 2002-01-2859)",
      [](auto& m) { return m.ringing_intensity_mw_m2; }},
+    {"pegging_offset_bar", "bar", "pegging offset added to the whole cycle ([combustion] pegging; 0: none)",
+     [](auto& m) { return m.pegging_offset_bar; }},
     {"combustion_noise_db", "dB(A)", "CPL through the thesis's fixed eq. 4.1 structure attenuation, A-weighted",
      [](auto& m) { return m.combustion_noise_db; }},
 };

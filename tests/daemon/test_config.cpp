@@ -295,6 +295,33 @@ mic_positions_m = "iso3744"
   EXPECT_TRUE(parse_config("[sound_power]\narea_weights = \"voronoi\"\n", "v").sound_power.voronoi_area_weights);
 }
 
+TEST(Config, CombustionPeggingAndWindow) {
+  const Config c = parse_config(R"(
+[combustion]
+pegging = "polytropic"
+polytropic_exponent = 0
+polytropic_from_deg = -110
+rise_from_deg = -30
+[sound_power]
+air_temperature_c = 35
+air_pressure_kpa = 92
+lw_full_range = true
+)", "c.toml");
+  EXPECT_EQ(c.combustion.pegging, noisemon::model::Pegging::kPolytropic);
+  EXPECT_TRUE(std::isnan(c.combustion.peg_exponent));  // 0: fitted
+  EXPECT_EQ(c.combustion.peg_poly_from_deg, -110.0);
+  EXPECT_EQ(c.combustion.rise_from_deg, -30.0);
+  EXPECT_EQ(c.sound_power.air_temperature_c, 35.0);
+  EXPECT_EQ(c.sound_power.air_pressure_kpa, 92.0);
+  EXPECT_TRUE(c.sound_power.full_range);
+  const Config d = parse_config("[combustion]\npegging = \"intake\"\nintake_pressure_bar = 1.2\n", "d.toml");
+  EXPECT_EQ(d.combustion.pegging, noisemon::model::Pegging::kIntake);
+  EXPECT_NEAR(d.combustion.peg_intake_pa, 1.2e5, 1e-9);
+  EXPECT_TRUE(std::isnan(parse_config("", "e").combustion.rise_from_deg));  // default: from the start of injection
+  EXPECT_NE(error_of("[combustion]\npegging = \"tdc\"\n").find("combustion.pegging"), std::string::npos);
+  EXPECT_NE(error_of("[combustion]\npolytropic_exponent = 0.8\n").find("combustion.polytropic_exponent"), std::string::npos);
+}
+
 TEST(Config, SoundPowerErrorsNameTheKey) {
   EXPECT_NE(error_of("[sound_power]\nbackground_db = [40, 40]\n").find("sound_power.background_db: expected 31 band levels"), std::string::npos);
   EXPECT_NE(error_of("[sound_power]\narea_weights = \"thirds\"\n").find("sound_power.area_weights"), std::string::npos);

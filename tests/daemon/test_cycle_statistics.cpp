@@ -21,6 +21,7 @@ noisemon::cycle_report_t report(double lpa, double imep, double duration, std::i
   r.imep_net_bar = imep;
   r.ca50_deg = imep + 10.0;  // angles with a mean away from 0: a COV could be computed, and must not be
   r.peak_pressure_deg = imep;
+  r.pegging_offset_bar = imep - 6.0;  // -1 and +1 in the two valid cycles: both signs
   r.load_nm = r.soi_deg_btdc = r.rail_pressure_bar = std::numeric_limits<double>::quiet_NaN();
   r.nbands = 2;
   r.band_hz = {1000.f, 2000.f};
@@ -60,6 +61,8 @@ TEST(CycleStatistics, LevelsAreEnergyMeansAndOtherScalarsArithmetic) {
   EXPECT_TRUE(std::isnan(scalar(s, "ca50_deg").cov));
   EXPECT_TRUE(std::isnan(scalar(s, "peak_pressure_deg").cov));
   EXPECT_TRUE(std::isnan(lpa.cov));
+  EXPECT_TRUE(std::isnan(scalar(s, "pegging_offset_bar").cov));  // values of both signs: no COV
+  EXPECT_NEAR(scalar(s, "pegging_offset_bar").std, std::sqrt(2.0), 1e-12);
   // Unknown values: no statistics, not zeros.
   EXPECT_EQ(scalar(s, "load_nm").n, 0);
   EXPECT_TRUE(std::isnan(scalar(s, "load_nm").mean));
