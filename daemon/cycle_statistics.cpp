@@ -47,8 +47,13 @@ const std::vector<Field>& fields() {
       {"ca10_deg", "deg", false, [](const Report& r) { return r.ca10_deg; }},
       {"ca50_deg", "deg", false, [](const Report& r) { return r.ca50_deg; }},
       {"ca90_deg", "deg", false, [](const Report& r) { return r.ca90_deg; }},
-      {"ringing_intensity_mw_m2", "MW/m^2", false, [](const Report& r) { return r.ringing_intensity_mw_m2; }},
+      {"ringing_intensity_MW_per_m2", "MW/m^2", false, [](const Report& r) { return r.ringing_intensity_MW_per_m2; }},
       {"combustion_noise_db", "dB(A)", true, [](const Report& r) { return r.combustion_noise_db; }},
+      {"pmep_bar", "bar", false, [](const Report& r) { return r.pmep_bar; }},
+      {"n_compression", "1", false, [](const Report& r) { return r.n_compression; }},
+      {"n_expansion", "1", false, [](const Report& r) { return r.n_expansion; }},
+      {"ca05_deg", "deg", false, [](const Report& r) { return r.ca05_deg; }},
+      {"burn_duration_deg", "deg", false, [](const Report& r) { return r.burn_duration_deg; }},
       {"pegging_offset_bar", "bar", false, [](const Report& r) { return r.pegging_offset_bar; }},
       {"processing_ms", "ms", false, [](const Report& r) { return static_cast<double>(r.processing_ms); }},
   };
@@ -307,9 +312,9 @@ std::string statistics_text(const CycleStatistics& s) {
                 s.lwa_run_predicted_db);
   out += line;
   out += band_validity_text(s);
-  out += "  quantity                  unit         mean        std      cov        min        max      n\n";
+  out += "  quantity                     unit         mean        std      cov        min        max      n\n";
   for (const ScalarStats& v : s.scalars) {
-    std::snprintf(line, sizeof line, "  %-25s %-8s %10.4g %10.4g %8.4f %10.4g %10.4g %6lld%s\n", v.name.c_str(), v.unit.c_str(),
+    std::snprintf(line, sizeof line, "  %-28s %-8s %10.4g %10.4g %8.4f %10.4g %10.4g %6lld%s\n", v.name.c_str(), v.unit.c_str(),
                   v.mean, v.std, v.cov, v.min, v.max, static_cast<long long>(v.n), v.level ? "  (energy mean)" : "");
     out += line;
   }

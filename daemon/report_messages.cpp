@@ -53,8 +53,13 @@ noisemon::cycle_report_t to_message(const CycleReport& r) {
   m.ca10_deg = c.ca10_deg;
   m.ca50_deg = c.ca50_deg;
   m.ca90_deg = c.ca90_deg;
-  m.ringing_intensity_mw_m2 = c.ringing_intensity_w_per_m2 * 1e-6;
+  m.ringing_intensity_MW_per_m2 = c.ringing_intensity_w_per_m2 * 1e-6;
   m.pegging_offset_bar = c.pegging_offset_pa * 1e-5;
+  m.pmep_bar = c.pmep_pa * 1e-5;
+  m.n_compression = c.n_compression;
+  m.n_expansion = c.n_expansion;
+  m.ca05_deg = c.ca05_deg;
+  m.burn_duration_deg = c.burn_duration_deg;
   m.combustion_noise_db = r.combustion_noise_db;
   return m;
 }
@@ -62,8 +67,8 @@ noisemon::cycle_report_t to_message(const CycleReport& r) {
 std::string cycle_csv_header() {
   return "cycle,utime,speed_rpm,load_nm,soi_deg_btdc,motored,lpa_measured_db,lpa_predicted_db,lwa_measured_db,"
          "lwa_predicted_db,k2_db,flags,peak_pressure_bar,peak_pressure_deg,max_rise_bar_per_deg,max_rise_deg,imep_gross_bar,"
-         "imep_net_bar,heat_release_j,ca10_deg,ca50_deg,ca90_deg,ringing_intensity_mw_m2,combustion_noise_db,"
-         "pegging_offset_bar,condition\n";
+         "imep_net_bar,heat_release_j,ca10_deg,ca50_deg,ca90_deg,ringing_intensity_MW_per_m2,combustion_noise_db,"
+         "pmep_bar,n_compression,n_expansion,ca05_deg,burn_duration_deg,pegging_offset_bar,condition\n";
 }
 
 namespace {
@@ -72,15 +77,16 @@ double plain(double v) { return std::isnan(v) ? std::numeric_limits<double>::qui
 }  // namespace
 
 std::string cycle_csv_row(const noisemon::cycle_report_t& r, const std::string& condition) {
-  char buf[768];
+  char buf[1024];
   std::snprintf(buf, sizeof buf,
-                "%lld,%lld,%.3f,%.3f,%.3f,%d,%.4f,%.4f,%.4f,%.4f,%.2f,%d,%.3f,%.2f,%.4f,%.2f,%.4f,%.4f,%.2f,%.2f,%.2f,%.2f,%.4f,%.3f,%.4f,",
+                "%lld,%lld,%.3f,%.3f,%.3f,%d,%.4f,%.4f,%.4f,%.4f,%.2f,%d,%.3f,%.2f,%.4f,%.2f,%.4f,%.4f,%.2f,%.2f,%.2f,%.2f,%.4f,%.3f,%.4f,%.4f,%.4f,%.2f,%.2f,%.4f,",
                 static_cast<long long>(r.cycle), static_cast<long long>(r.utime), plain(r.speed_rpm), plain(r.load_nm),
                 plain(r.soi_deg_btdc), r.motored ? 1 : 0, plain(r.lpa_measured_db), plain(r.lpa_predicted_db),
                 plain(r.lwa_measured_db), plain(r.lwa_predicted_db), plain(r.k2_db), r.flags, plain(r.peak_pressure_bar),
                 plain(r.peak_pressure_deg), plain(r.max_rise_bar_per_deg), plain(r.max_rise_deg), plain(r.imep_gross_bar),
                 plain(r.imep_net_bar), plain(r.heat_release_j), plain(r.ca10_deg), plain(r.ca50_deg), plain(r.ca90_deg),
-                plain(r.ringing_intensity_mw_m2), plain(r.combustion_noise_db), plain(r.pegging_offset_bar));
+                plain(r.ringing_intensity_MW_per_m2), plain(r.combustion_noise_db), plain(r.pmep_bar), plain(r.n_compression),
+                plain(r.n_expansion), plain(r.ca05_deg), plain(r.burn_duration_deg), plain(r.pegging_offset_bar));
   std::string row = buf;
   // RFC 4180 quoting when the name needs it.
   if (condition.find_first_of(",\"\r\n") == std::string::npos) {
@@ -98,7 +104,9 @@ std::string cycle_flags_text(std::int32_t flags) {
   if (flags == 0) return "ok";
   std::string s;
   auto add = [&](std::int32_t bit, const char* name) {
-    if (flags & bit) s += (s.empty() ? "" : ",") + std::string(name);
+    if (!(flags & bit)) return;
+    if (!s.empty()) s += ',';
+    s += name;
   };
   add(noisemon::cycle_report_t::CYCLE_SETTLING, "settling");
   add(noisemon::cycle_report_t::CYCLE_GAP, "gap");

@@ -125,9 +125,9 @@ void heat_release(const Grid& g, const std::vector<double>& slope, const Metrics
   const double compression = std::abs(work_j(g, -180.0, 0.0));
   if (!(total > 0.2 * compression)) return;
   m.heat_release_j = total;
-  double* angles[] = {&m.ca10_deg, &m.ca50_deg, &m.ca90_deg};
-  const double fractions[] = {0.1, 0.5, 0.9};
-  for (int f = 0; f < 3; ++f) {
+  double* angles[] = {&m.ca05_deg, &m.ca10_deg, &m.ca50_deg, &m.ca90_deg};
+  const double fractions[] = {0.05, 0.1, 0.5, 0.9};
+  for (int f = 0; f < 4; ++f) {
     const double target = q[bottom] + fractions[f] * total;
     for (std::size_t j = bottom; j < top; ++j)
       if (q[j + 1] >= target) {
@@ -136,6 +136,21 @@ void heat_release(const Grid& g, const std::vector<double>& slope, const Metrics
         break;
       }
   }
+}
+
+// The polytropic exponent over [a, b]: minus the least-squares slope of ln p against ln V (NaN where p is not positive
+// or the grid does not reach the window).
+double polytropic_exponent(const Grid& g, double a, double b) {
+  if (!g.covers(a, b)) return kNaN;
+  const auto [lo, hi] = g.range(a, b);
+  double sx = 0, sy = 0, sxx = 0, sxy = 0;
+  const double n = static_cast<double>(hi - lo + 1);
+  for (std::size_t i = lo; i <= hi; ++i) {
+    if (!(g.p[i] > 0)) return kNaN;
+    const double x = std::log(g.volume[i]), y = std::log(g.p[i]);
+    sx += x, sy += y, sxx += x * x, sxy += x * y;
+  }
+  return -(n * sxy - sx * sy) / (n * sxx - sx * sx);
 }
 
 // Eng (SAE 2002-01-2859): RI = (beta (dp/dt)max)^2 / (2 gamma pmax) sqrt(gamma R Tmax), Tmax from the ideal gas law
@@ -250,8 +265,12 @@ CombustionMetrics combustion_metrics(std::span<const double> pressure_pa, double
   const double vd = engine.displacement_m3();
   m.imep_gross_pa = g.covers(-180.0, 180.0) ? work_j(g, -180.0, 180.0) / vd : kNaN;
   m.imep_net_pa = g.covers(-360.0, 360.0) ? work_j(g, -360.0, 360.0) / vd : kNaN;
+  m.pmep_pa = m.imep_net_pa - m.imep_gross_pa;
+  m.n_compression = polytropic_exponent(g, options.compression_from_deg, options.compression_to_deg);
+  m.n_expansion = polytropic_exponent(g, options.expansion_from_deg, options.expansion_to_deg);
   heat_release(g, slope, options, scratch.heat, m);
   m.ringing_intensity_w_per_m2 = ringing_intensity(g, engine, speed_rpm, options, m);
+  m.burn_duration_deg = m.ca90_deg - m.ca10_deg;
   m.pegging_offset_pa = offset;
   m.pegging_exponent = exponent;
   return m;

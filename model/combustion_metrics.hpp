@@ -41,6 +41,10 @@ struct MetricsOptions {
   double rise_from_deg = std::numeric_limits<double>::quiet_NaN();
   double rise_to_deg = 60.0;
   double soi_deg_btdc = std::numeric_limits<double>::quiet_NaN();  // per cycle, set by the caller
+  // The per-cycle polytropic exponents (a health check: TDC, thermal shock of the transducer), deg re firing TDC: the
+  // compression before any injection and the expansion after the burn, before the exhaust valve opens.
+  double compression_from_deg = -90.0, compression_to_deg = -40.0;
+  double expansion_from_deg = 60.0, expansion_to_deg = 110.0;
   double ringing_beta_s = 0.05e-3;         // Eng's beta
   double intake_temperature_k = 313.0;     // trapped charge at intake valve closing, for T_max
   double ivc_deg = -150.0;                 // intake valve closing (deg re firing TDC)
@@ -54,8 +58,12 @@ struct CombustionMetrics {
                                                                           // with derivative_half_width_deg's smoothing
   double imep_gross_pa = kUnknown, imep_net_pa = kUnknown;  // NaN when the cycle misses more than 2 deg of
                                                             // -180 ... 180 (gross) or -360 ... 360 (net)
+  double pmep_pa = kUnknown;                        // pumping: net - gross (negative for a naturally aspirated engine)
+  double n_compression = kUnknown, n_expansion = kUnknown;  // polytropic exponents (MetricsOptions' windows)
   double heat_release_j = kUnknown;                 // cumulative apparent heat release, minimum to maximum
-  double ca10_deg = kUnknown, ca50_deg = kUnknown, ca90_deg = kUnknown;  // 10, 50, 90 % of it (NaN without combustion)
+  double ca05_deg = kUnknown, ca10_deg = kUnknown, ca50_deg = kUnknown, ca90_deg = kUnknown;  // 5, 10, 50, 90 % of it
+                                                                                            // (NaN without combustion)
+  double burn_duration_deg = kUnknown;              // CA10 to CA90
   double ringing_intensity_w_per_m2 = kUnknown;     // NaN without the speed
   double pegging_offset_pa = kUnknown;              // added to the whole cycle before the figures (0: no pegging)
   double pegging_exponent = kUnknown;               // the polytropic pegging's n (fixed or fitted)

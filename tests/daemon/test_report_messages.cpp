@@ -139,11 +139,13 @@ TEST(ReportMessages, EveryUnknownValueIsPlainNanInTheCsv) {
   for (double* v : {&r.combustion.peak_pressure_pa, &r.combustion.peak_angle_deg, &r.combustion.max_rise_pa_per_deg,
                     &r.combustion.max_rise_angle_deg, &r.combustion.imep_gross_pa, &r.combustion.imep_net_pa,
                     &r.combustion.heat_release_j, &r.combustion.ca10_deg, &r.combustion.ca50_deg, &r.combustion.ca90_deg,
-                    &r.combustion.ringing_intensity_w_per_m2, &r.combustion.pegging_offset_pa})
+                    &r.combustion.ringing_intensity_w_per_m2, &r.combustion.pegging_offset_pa, &r.combustion.pmep_pa,
+                    &r.combustion.n_compression, &r.combustion.n_expansion, &r.combustion.ca05_deg,
+                    &r.combustion.burn_duration_deg})
     *v = -std::numeric_limits<double>::quiet_NaN();
   const std::string row = daemon::cycle_csv_row(daemon::to_message(r), "c");
   EXPECT_EQ(row.find("-nan"), std::string::npos) << row;
   std::size_t nans = 0;
   for (std::size_t at = row.find("nan"); at != std::string::npos; at = row.find("nan", at + 1)) ++nans;
-  EXPECT_EQ(nans, 13u) << row;
+  EXPECT_EQ(nans, 18u) << row;
 }
