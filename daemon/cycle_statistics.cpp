@@ -137,6 +137,7 @@ ScalarStats finish(const Field& f, std::int64_t n, double sum, double sum_sq, do
   if (n > 1) s.std = std::sqrt(std::max(0.0, (sum_sq - sum * mean) / static_cast<double>(n - 1)));
   // ... and on values of one sign: a COV of an offset scattering about 0 is a ratio of noise to nothing.
   if (has_true_zero(f) && (min > 0 || max < 0) && n > 1) s.cov = s.std / std::abs(mean);
+  if (has_true_zero(f) && min > 0) s.lnv = min / mean;
   s.min = min;
   s.max = max;
   return s;
@@ -318,6 +319,16 @@ std::string statistics_text(const CycleStatistics& s) {
                   v.mean, v.std, v.cov, v.min, v.max, static_cast<long long>(v.n), v.level ? "  (energy mean)" : "");
     out += line;
   }
+  const auto lnv = [&](const char* name) {
+    for (const ScalarStats& v : s.scalars)
+      if (v.name == name) return v.lnv;
+    return kNaN;
+  };
+  if (std::isfinite(lnv("imep_gross_bar")) || std::isfinite(lnv("imep_net_bar"))) {
+    std::snprintf(line, sizeof line, "  LNV of IMEP (lowest / mean): gross %.1f %%, net %.1f %%\n", 100 * lnv("imep_gross_bar"),
+                  100 * lnv("imep_net_bar"));
+    out += line;
+  }
   return out;
 }
 
@@ -327,7 +338,7 @@ std::string statistics_json(const CycleStatistics& s) {
                       {"leq_a_measured_db", num(s.leq_a_measured_db)}, {"leq_a_predicted_db", num(s.leq_a_predicted_db)}};
   for (const ScalarStats& v : s.scalars)
     j["scalars"][v.name] = {{"unit", v.unit}, {"energy_mean", v.level}, {"n", v.n}, {"mean", num(v.mean)}, {"std", num(v.std)},
-                            {"cov", num(v.cov)}, {"min", num(v.min)}, {"max", num(v.max)}};
+                            {"cov", num(v.cov)}, {"min", num(v.min)}, {"max", num(v.max)}, {"lnv", num(v.lnv)}};
   j["lwa_run_measured_db"] = num(s.lwa_run_measured_db);
   j["lwa_run_predicted_db"] = num(s.lwa_run_predicted_db);
   j["lwa_run_upper_bound"] = s.lwa_run_upper_bound;

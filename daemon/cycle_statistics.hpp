@@ -25,6 +25,8 @@ struct ScalarStats {
   std::int64_t n = 0;  // cycles with a finite value
   double mean = 0, std = 0, cov = 0, min = 0, max = 0;  // NaN when n == 0 (std, cov: n < 2; cov: a level, an
                                                         // angle, or values of both signs)
+  double lnv = std::numeric_limits<double>::quiet_NaN();  // lowest normalised value, min / mean: where COV is, for
+                                                          // positive values (the IMEPs' stability figure)
 };
 
 struct CycleStatistics {

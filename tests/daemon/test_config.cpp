@@ -302,6 +302,7 @@ pegging = "polytropic"
 polytropic_exponent = 0
 polytropic_from_deg = -110
 rise_from_deg = -30
+gamma = 1.32
 [sound_power]
 air_temperature_c = 35
 air_pressure_kpa = 92
@@ -311,6 +312,7 @@ lw_full_range = true
   EXPECT_TRUE(std::isnan(c.combustion.peg_exponent));  // 0: fitted
   EXPECT_EQ(c.combustion.peg_poly_from_deg, -110.0);
   EXPECT_EQ(c.combustion.rise_from_deg, -30.0);
+  EXPECT_EQ(c.combustion.gamma, 1.32);
   EXPECT_EQ(c.sound_power.air_temperature_c, 35.0);
   EXPECT_EQ(c.sound_power.air_pressure_kpa, 92.0);
   EXPECT_TRUE(c.sound_power.full_range);

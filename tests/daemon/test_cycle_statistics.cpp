@@ -57,6 +57,7 @@ TEST(CycleStatistics, LevelsAreEnergyMeansAndOtherScalarsArithmetic) {
   EXPECT_NEAR(imep.mean, 6.0, 1e-12);
   EXPECT_NEAR(imep.std, std::sqrt(2.0), 1e-12);  // sample standard deviation of {5, 7}
   EXPECT_NEAR(imep.cov, std::sqrt(2.0) / 6.0, 1e-12);
+  EXPECT_NEAR(imep.lnv, 5.0 / 6.0, 1e-12);  // the lowest normalised value: 5 of a mean of 6
   // A crank angle has a spread but no COV: its zero is TDC by convention. Nor has a level.
   EXPECT_TRUE(std::isnan(scalar(s, "ca50_deg").cov));
   EXPECT_TRUE(std::isnan(scalar(s, "peak_pressure_deg").cov));

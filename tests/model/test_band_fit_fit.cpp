@@ -89,18 +89,30 @@ TEST(BandFitFit, OneSurrogateSolveOnAnAnchorElsewhereLandsNearTheTruth) {
   for (double sigma : o.sigma) EXPECT_TRUE(std::isfinite(sigma) && sigma >= 0.0);
 }
 
-TEST(BandFitFit, RecoversASpeedDependentGain) {
-  const double gain_db_per_krpm = 4.0;
-  std::vector<test_cell::CellCondition> conds = three_speeds();
-  const double ref_rpm = (conds[0].rpm + conds[1].rpm + conds[2].rpm) / 3.0;  // the fired mean speed
-  for (test_cell::CellCondition& c : conds)
-    c.mic_gain = std::pow(10.0, gain_db_per_krpm * (c.rpm - ref_rpm) / 1000.0 / 20.0);
+// The fired conditions' mean speed: the speed candidate's reference.
+double mean_speed(const std::vector<test_cell::CellCondition>& conds) {
+  double sum = 0.0;
+  for (const test_cell::CellCondition& c : conds) sum += c.rpm;
+  return sum / static_cast<double>(conds.size());
+}
+
+// The speed candidate fitted to the cell's conditions from the true block.
+FitOutcome fit_speed(const std::vector<test_cell::CellCondition>& conds) {
   const BandDataset data = test_cell::block_dataset(truth(), conds);
   FitSetup s = setup_for(data);
   s.extensions.speed = true;
   ExtendedModel start;
   start.block = truth();
-  const FitOutcome o = fit_model(s, start);
+  return fit_model(s, start);
+}
+
+TEST(BandFitFit, RecoversASpeedDependentGain) {
+  const double gain_db_per_krpm = 4.0;
+  std::vector<test_cell::CellCondition> conds = three_speeds();
+  const double ref_rpm = mean_speed(conds);
+  for (test_cell::CellCondition& c : conds)
+    c.mic_gain = std::pow(10.0, gain_db_per_krpm * (c.rpm - ref_rpm) / 1000.0 / 20.0);
+  const FitOutcome o = fit_speed(conds);
   std::printf("speed: gain %.4f dB/krpm (truth %.1f), shift %.5f, train RMS %.4f dB\n",
               o.model.ext.speed_gain_db_per_krpm, gain_db_per_krpm, o.model.ext.speed_shift_per_krpm, o.train_rms_db);
   EXPECT_NEAR(o.model.ext.speed_gain_db_per_krpm, gain_db_per_krpm, 0.02);
@@ -115,19 +127,14 @@ TEST(BandFitFit, RecoversASpeedDependentGain) {
 TEST(BandFitFit, RecoversASpeedScaledStructureFromNoShift) {
   for (const double shift_per_krpm : {0.22, -0.15}) {
     std::vector<test_cell::CellCondition> conds = three_speeds();
-    const double ref_rpm = (conds[0].rpm + conds[1].rpm + conds[2].rpm) / 3.0;
+    const double ref_rpm = mean_speed(conds);
     for (test_cell::CellCondition& c : conds) {
       const double sigma = 1.0 + shift_per_krpm * (c.rpm - ref_rpm) / 1000.0;
       c.extra = [sigma](double f) {
         return test_cell::block_response(truth(), f / sigma) / test_cell::block_response(truth(), f);
       };
     }
-    const BandDataset data = test_cell::block_dataset(truth(), conds);
-    FitSetup s = setup_for(data);
-    s.extensions.speed = true;
-    ExtendedModel start;
-    start.block = truth();
-    const FitOutcome o = fit_model(s, start);
+    const FitOutcome o = fit_speed(conds);
     std::printf("speed scaling: shift %.4f per krpm (truth %.2f), gain %.4f dB/krpm, train RMS %.4f dB\n",
                 o.model.ext.speed_shift_per_krpm, shift_per_krpm, o.model.ext.speed_gain_db_per_krpm, o.train_rms_db);
     EXPECT_NEAR(o.model.ext.speed_shift_per_krpm, shift_per_krpm, 0.01) << shift_per_krpm;
