@@ -357,7 +357,12 @@ model::CombustionMetrics CycleProcessor::take_combustion(std::int64_t start, std
   if (grid_complete) {
     model::MetricsOptions options = config_.metrics;  // dp/dtheta max from this cycle's start of injection
     options.soi_deg_btdc = have_op_ && !op_.motored ? op_.soi_deg_btdc : kNaN;
-    combustion = model::combustion_metrics(grid_, -360.0, kGridStepDeg, config_.engine,
+    // Firing TDC at the encoder's tdc_deg: the grid turned by whole steps (its ends are gas-exchange TDC, where the
+    // cycle meets itself), the rest in its first angle, so that the figures see the piston's angles.
+    const auto n = static_cast<long>(grid_.size()), k = std::lround(config_.metrics.tdc_deg / kGridStepDeg);
+    std::rotate(grid_.begin(), grid_.begin() + ((k % n) + n) % n, grid_.end());
+    const double first = -360.0 + static_cast<double>(k) * kGridStepDeg - config_.metrics.tdc_deg;
+    combustion = model::combustion_metrics(grid_, first, kGridStepDeg, config_.engine,
                                            720.0 / 360.0 * 60.0 * kFs / static_cast<double>(end_index - start), options,
                                            metrics_scratch_);
   }
@@ -414,6 +419,7 @@ void CycleProcessor::finish_cycle(std::int64_t end_index) {
   r.cycle = cycle;
   r.duration_s = duration;
   r.op = op_;
+  r.tdc_deg = config_.metrics.tdc_deg;
   r.op.speed_rpm = 720.0 / 360.0 * 60.0 / duration;  // two revolutions per cycle
   r.radius_m = info_.radius_m;
   r.nbands = static_cast<std::uint16_t>(bank_.band_count());

@@ -73,6 +73,7 @@ struct CycleReport {
   std::int32_t flags = 0;
   float processing_ms = 0;
   std::int64_t input_ns = 0;        // steady clock when the cycle's last block reached the processing thread
+  double tdc_deg = 0;               // the encoder's angle of firing TDC the combustion metrics used ([combustion])
   model::CombustionMetrics combustion;  // from the pressure on a 0.25 deg grid; NaN unless the grid is complete and
                                       // the cycle has neither kCycleEncoder nor kCyclePressureFault
 };

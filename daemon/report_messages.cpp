@@ -55,6 +55,7 @@ noisemon::cycle_report_t to_message(const CycleReport& r) {
   m.ca90_deg = c.ca90_deg;
   m.ringing_intensity_MW_per_m2 = c.ringing_intensity_w_per_m2 * 1e-6;
   m.pegging_offset_bar = c.pegging_offset_pa * 1e-5;
+  m.tdc_deg = r.tdc_deg;
   m.pmep_bar = c.pmep_pa * 1e-5;
   m.n_compression = c.n_compression;
   m.n_expansion = c.n_expansion;

@@ -25,6 +25,9 @@ namespace noisemon::model {
 enum class Pegging { kNone, kIntake, kPolytropic };
 
 struct MetricsOptions {
+  // The encoder's angle of firing TDC (thermodynamic TDC: `noisemon tdc`): the cycle processor turns its crank-angle
+  // grid by it before the figures, so that the volume they integrate against is the piston's. 0: the encoder's zero.
+  double tdc_deg = 0.0;
   Pegging pegging = Pegging::kNone;
   double peg_intake_pa = 1.0e5;
   double peg_intake_deg = -180.0;

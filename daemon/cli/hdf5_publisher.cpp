@@ -78,6 +78,8 @@ const RealColumn kRealColumns[] = {
     {"n_expansion", "1", "polytropic exponent of the expansion (60 ... 110 deg)", [](auto& m) { return m.n_expansion; }},
     {"ca05_deg", "deg", "crank angle of 5 % of the heat release", [](auto& m) { return m.ca05_deg; }},
     {"burn_duration_deg", "deg", "CA10 to CA90", [](auto& m) { return m.burn_duration_deg; }},
+    {"tdc_deg", "deg", "the encoder's angle of firing TDC the combustion metrics used ([combustion] tdc_deg)",
+     [](auto& m) { return m.tdc_deg; }},
     {"pegging_offset_bar", "bar", "pegging offset added to the whole cycle ([combustion] pegging; 0: none)",
      [](auto& m) { return m.pegging_offset_bar; }},
     {"combustion_noise_db", "dB(A)", "CPL through the thesis's fixed eq. 4.1 structure attenuation, A-weighted",

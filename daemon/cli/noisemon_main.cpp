@@ -1,4 +1,5 @@
-// noisemon: the command-line tool beside the daemon (watch, replay, import, export, sim, fit, diagnose).
+// noisemon: the command-line tool beside the daemon (watch, replay, import, export, sim, fit, diagnose, summary, dash,
+// tdc).
 #include <CLI/CLI.hpp>
 
 #include <cstdio>
@@ -10,6 +11,7 @@
 #include "daemon/cli/dash_command.hpp"
 #include "daemon/cli/diagnose_command.hpp"
 #include "daemon/cli/summary_command.hpp"
+#include "daemon/cli/tdc_command.hpp"
 #include "daemon/cli/fit_command.hpp"
 #include "daemon/cli/sim_command.hpp"
 #include "daemon/cli/watch.hpp"
@@ -53,6 +55,7 @@ int main(int argc, char** argv) {
   DiagnoseCommand diagnose(app);
   SummaryCommand summary(app);
   DashCommand dash(app);
+  TdcCommand tdc(app);
 
   try {
     app.parse(argc, argv);
@@ -77,6 +80,7 @@ int main(int argc, char** argv) {
     if (const int status = diagnose.run(argc, argv); status >= 0) return status;
     if (const int status = summary.run(); status >= 0) return status;
     if (const int status = dash.run(); status >= 0) return status;
+    if (const int status = tdc.run(); status >= 0) return status;
     if (const int status = replay.run(); status >= 0) return status;
   } catch (const std::exception& e) {
     std::fprintf(stderr, "noisemon: %s\n", e.what());

@@ -376,7 +376,59 @@ TEST(CycleProcessor, CombustionMetricsOfEachCycleMatchThoseOfThePressureOnTheCra
   }
   const noisemon::cycle_report_t m = daemon::to_message(reports.back());
   EXPECT_NEAR(m.peak_pressure_bar, 41.5, 0.01);
+  EXPECT_EQ(m.tdc_deg, 0.0);
   EXPECT_NE(daemon::cycle_csv_row(m, "x").find(",41.49"), std::string::npos) << daemon::cycle_csv_row(m, "x");
+}
+
+// [combustion] tdc_deg: the encoder's angle of firing TDC. An encoder whose zero lies 2.6 deg after firing TDC reads
+// the pulse (peak 8 deg after TDC) at 5.4: with tdc_deg = -2.6 the figures are the pulse's own again, the peak at
+// 8 deg and the IMEPs those of the pulse on the piston's angles (a grid written out here); with tdc_deg = 0 they
+// are not.
+TEST(CycleProcessor, TdcDegTurnsTheGridToThePistonsAngles) {
+  const double tdc = -2.6;
+  const auto pulse = [](double theta) { return 1.5e5 + 40e5 * std::exp(-std::pow((theta - 8.0) / 15.0, 2)); };
+  std::vector<double> grid(2881);
+  for (std::size_t i = 0; i < grid.size(); ++i) grid[i] = pulse(-360.0 + 0.25 * static_cast<double>(i));
+  const model::CombustionMetrics want = model::combustion_metrics(grid, -360.0, 0.25, model::EngineGeometry{}, 3000.0);
+  for (const double configured : {tdc, 0.0}) {
+    drivers::StreamInfo info;
+    info.epoch_utime = 1'000'000;
+    info.mic_count = 1;
+    info.radius_m = 1.75;
+    daemon::ProcessorConfig pc;
+    pc.model = model::preset("linear");
+    pc.metrics.tdc_deg = configured;
+    std::vector<daemon::CycleReport> reports;
+    daemon::CycleProcessor p(pc, info, [&](const daemon::CycleReport& r) { reports.push_back(r); });
+    drivers::SampleBlock pb, mb;
+    for (std::int64_t b = 0; b * 256 < 40000; ++b) {
+      pb.first_index = mb.first_index = b * 256;
+      pb.frames = mb.frames = 256;
+      pb.channels = drivers::kPressureStreamChannels;
+      mb.channels = 1;
+      for (int f = 0; f < 256; ++f) {
+        const double encoder = crank(b * 256 + f);  // the piston's angle is encoder - tdc
+        const double piston = encoder - tdc;
+        pb.data[f * 2 + drivers::kPressureChannel] = pulse(piston - 720.0 * std::round(piston / 720.0));
+        pb.data[f * 2 + drivers::kCrankChannel] = encoder;
+        mb.data[f] = 0.0;
+      }
+      p.add_pressure(pb);
+      p.add_mics(mb);
+      p.process();
+    }
+    ASSERT_GE(reports.size(), 20u);
+    const daemon::CycleReport& r = reports.back();
+    EXPECT_EQ(r.tdc_deg, configured);
+    if (configured == tdc) {
+      EXPECT_NEAR(r.combustion.peak_angle_deg, 8.0, 0.03);
+      EXPECT_NEAR(r.combustion.imep_gross_pa, want.imep_gross_pa, 3e-3 * std::abs(want.imep_gross_pa));
+      EXPECT_NEAR(r.combustion.imep_net_pa, want.imep_net_pa, 3e-3 * std::abs(want.imep_net_pa));
+    } else {
+      EXPECT_NEAR(r.combustion.peak_angle_deg, 8.0 + tdc, 0.03);
+      EXPECT_GT(std::abs(r.combustion.imep_gross_pa - want.imep_gross_pa), 0.02 * std::abs(want.imep_gross_pa));
+    }
+  }
 }
 
 // At 3000 rpm the engine fires 25 times a second: the 20 Hz band (upper edge 22.4 Hz) has no per-cycle meaning.

@@ -1,0 +1,88 @@
+// `noisemon tdc`: thermodynamic TDC on the real Yanmar motored record two ways — from the cycle table (its own scale)
+// and from a run directory made of it by `import` and `export` (40 kHz frames with the crank angle of each, as a
+// recorder writes them): both must put TDC at the same angle. And --write-config sets [combustion] tdc_deg, which
+// the daemon's configuration reader then reads, the rest of the file kept.
+#include <gtest/gtest.h>
+
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <regex>
+#include <sstream>
+#include <string>
+
+#include "daemon/cli/tdc_command.hpp"
+#include "daemon/config.hpp"
+#include "tests/cli/run_command.hpp"
+#include "tests/drivers/unique_temp.hpp"
+
+namespace fs = std::filesystem;
+
+namespace {
+
+const std::string kNoisemon = std::string(NOISEMON_BINARY_DIR) + "/daemon/noisemon";
+const std::string kMotored = std::string(NOISEMON_SHARED_DIR) + "/data/real/yanmar_l100v_motored.txt";
+
+noisemon::test::CommandOutput run(const std::string& args) {
+  return noisemon::test::run_command(kNoisemon + " " + args);
+}
+
+// The "firing TDC by the loss angle" figure a `tdc` run printed.
+double tdc_printed(const std::string& text) {
+  std::smatch m;
+  if (!std::regex_search(text, m, std::regex(R"(by the loss angle \([0-9.]+ deg\): ([-+][0-9.]+) deg)"))) return NAN;
+  return std::stod(m[1]);
+}
+
+std::string slurp(const fs::path& p) {
+  std::ifstream in(p);
+  std::stringstream s;
+  s << in.rdbuf();
+  return s.str();
+}
+
+}  // namespace
+
+TEST(TdcCommand, TheTableAndARunDirectoryOfItAgree) {
+  if (!fs::exists(kMotored)) {
+    if (std::getenv("CI")) FAIL() << "missing " << kMotored;
+    GTEST_SKIP() << "missing " << kMotored;
+  }
+  const fs::path dir = noisemon::test::unique_temp("tdc");
+  fs::create_directories(dir);
+  const auto table = run("tdc --cycles-table " + kMotored + " --rpm 1799.9");
+  ASSERT_EQ(table.status, 0) << table.text;
+  ASSERT_EQ(run("import --cycles-table " + kMotored + " --rpm 1799.9 --motored --load 0 --no-progress -o " +
+                (dir / "m.lcmlog").string()).status, 0);
+  ASSERT_EQ(run("export " + (dir / "m.lcmlog").string() + " --no-progress -o " + (dir / "run").string()).status, 0);
+  const auto from_run = run("tdc " + (dir / "run").string());
+  ASSERT_EQ(from_run.status, 0) << from_run.text;
+  const double a = tdc_printed(table.text), b = tdc_printed(from_run.text);
+  std::printf("TDC from the table %+.2f deg, from its run directory %+.2f deg\n", a, b);
+  EXPECT_NEAR(a, -1.84, 0.05);  // docs/sources-and-formats.md: the peak at -2.54 plus 0.7
+  EXPECT_NEAR(b, a, 0.1);
+  // A fired run is refused, naming it.
+  const auto fired = run("tdc --cycles-table " + std::string(NOISEMON_SHARED_DIR) + "/data/real/yanmar_l100v_fired_18Nm.txt --rpm 1799.9");
+  EXPECT_NE(fired.status, 0);
+  EXPECT_NE(fired.text.find("not a motored cycle"), std::string::npos) << fired.text;
+  fs::remove_all(dir);
+}
+
+TEST(TdcCommand, WriteConfigSetsTdcDegAndKeepsTheRest) {
+  const fs::path dir = noisemon::test::unique_temp("tdc_config");
+  fs::create_directories(dir);
+  const fs::path with_key = dir / "a.toml", with_table = dir / "b.toml", without = dir / "c.toml";
+  std::ofstream(with_key) << "# cell 3\n[combustion]\npegging = \"intake\"\ntdc_deg = 0.0  # old\n[engine]\nbore_mm = 86.0\n";
+  std::ofstream(with_table) << "[combustion]\npegging = \"intake\"\n\n[engine]\nbore_mm = 86.0\n";
+  std::ofstream(without) << "[engine]\nbore_mm = 86.0\n";
+  for (const fs::path& p : {with_key, with_table, without}) {
+    noisemon::daemon::write_tdc_deg(p.string(), -1.84);
+    const noisemon::daemon::Config c = noisemon::daemon::load_config(p.string());
+    EXPECT_NEAR(c.combustion.tdc_deg, -1.84, 1e-9) << p;
+    EXPECT_NEAR(c.engine.bore_m, 0.086, 1e-12) << p;
+  }
+  EXPECT_NE(slurp(with_key).find("# cell 3\n"), std::string::npos);
+  EXPECT_EQ(slurp(with_key).find("old"), std::string::npos);  // the line replaced
+  EXPECT_EQ(noisemon::daemon::load_config(with_key.string()).combustion.pegging, noisemon::model::Pegging::kIntake);
+  fs::remove_all(dir);
+}
