@@ -333,17 +333,13 @@ TEST(CycleProcessor, AStalledStreamDropsTheCyclesItTouchesAndProcessingResumes) 
     }
 }
 
-// The combustion metrics of every cycle come from the 40 kHz pressure put back on a crank-angle grid: on a smooth
-// combustion pulse (3000 rpm: 0.45 deg per frame) they match the metrics of the pulse sampled on the grid directly.
-TEST(CycleProcessor, CombustionMetricsOfEachCycleMatchThoseOfThePressureOnTheCrankAngleGrid) {
-  const auto pulse = [](double theta) { return 1.5e5 + 40e5 * std::exp(-std::pow((theta - 8.0) / 15.0, 2)); };
+// One second of a stream with one silent microphone: pressure(encoder angle) at the cell's crank angles.
+std::vector<daemon::CycleReport> pressure_run(const daemon::ProcessorConfig& pc, const std::function<double(double)>& pressure) {
   drivers::StreamInfo info;
   info.epoch_utime = 1'000'000;
   info.mic_count = 1;
   info.radius_m = 1.75;
   info.acoustic_delay_s = 0;
-  daemon::ProcessorConfig pc;
-  pc.model = model::preset("linear");
   std::vector<daemon::CycleReport> reports;
   daemon::CycleProcessor p(pc, info, [&](const daemon::CycleReport& r) { reports.push_back(r); });
   drivers::SampleBlock pb, mb;
@@ -353,15 +349,25 @@ TEST(CycleProcessor, CombustionMetricsOfEachCycleMatchThoseOfThePressureOnTheCra
     pb.channels = drivers::kPressureStreamChannels;
     mb.channels = 1;
     for (int f = 0; f < 256; ++f) {
-      const std::int64_t k = b * 256 + f;
-      pb.data[f * 2 + drivers::kPressureChannel] = pulse(crank(k));
-      pb.data[f * 2 + drivers::kCrankChannel] = crank(k);
+      const double encoder = crank(b * 256 + f);
+      pb.data[f * 2 + drivers::kPressureChannel] = pressure(encoder);
+      pb.data[f * 2 + drivers::kCrankChannel] = encoder;
       mb.data[f] = 0.0;
     }
     p.add_pressure(pb);
     p.add_mics(mb);
     p.process();
   }
+  return reports;
+}
+
+// The combustion metrics of every cycle come from the 40 kHz pressure put back on a crank-angle grid: on a smooth
+// combustion pulse (3000 rpm: 0.45 deg per frame) they match the metrics of the pulse sampled on the grid directly.
+TEST(CycleProcessor, CombustionMetricsOfEachCycleMatchThoseOfThePressureOnTheCrankAngleGrid) {
+  const auto pulse = [](double theta) { return 1.5e5 + 40e5 * std::exp(-std::pow((theta - 8.0) / 15.0, 2)); };
+  daemon::ProcessorConfig pc;
+  pc.model = model::preset("linear");
+  const std::vector<daemon::CycleReport> reports = pressure_run(pc, pulse);
   std::vector<double> grid(2881);
   for (std::size_t i = 0; i < grid.size(); ++i) grid[i] = pulse(-360.0 + 0.25 * static_cast<double>(i));
   const model::CombustionMetrics want = model::combustion_metrics(grid, -360.0, 0.25, model::EngineGeometry{}, 3000.0);
@@ -391,32 +397,13 @@ TEST(CycleProcessor, TdcDegTurnsTheGridToThePistonsAngles) {
   for (std::size_t i = 0; i < grid.size(); ++i) grid[i] = pulse(-360.0 + 0.25 * static_cast<double>(i));
   const model::CombustionMetrics want = model::combustion_metrics(grid, -360.0, 0.25, model::EngineGeometry{}, 3000.0);
   for (const double configured : {tdc, 0.0}) {
-    drivers::StreamInfo info;
-    info.epoch_utime = 1'000'000;
-    info.mic_count = 1;
-    info.radius_m = 1.75;
     daemon::ProcessorConfig pc;
     pc.model = model::preset("linear");
     pc.metrics.tdc_deg = configured;
-    std::vector<daemon::CycleReport> reports;
-    daemon::CycleProcessor p(pc, info, [&](const daemon::CycleReport& r) { reports.push_back(r); });
-    drivers::SampleBlock pb, mb;
-    for (std::int64_t b = 0; b * 256 < 40000; ++b) {
-      pb.first_index = mb.first_index = b * 256;
-      pb.frames = mb.frames = 256;
-      pb.channels = drivers::kPressureStreamChannels;
-      mb.channels = 1;
-      for (int f = 0; f < 256; ++f) {
-        const double encoder = crank(b * 256 + f);  // the piston's angle is encoder - tdc
-        const double piston = encoder - tdc;
-        pb.data[f * 2 + drivers::kPressureChannel] = pulse(piston - 720.0 * std::round(piston / 720.0));
-        pb.data[f * 2 + drivers::kCrankChannel] = encoder;
-        mb.data[f] = 0.0;
-      }
-      p.add_pressure(pb);
-      p.add_mics(mb);
-      p.process();
-    }
+    const std::vector<daemon::CycleReport> reports = pressure_run(pc, [&](double encoder) {
+      const double piston = encoder - tdc;  // the piston's angle
+      return pulse(piston - 720.0 * std::round(piston / 720.0));
+    });
     ASSERT_GE(reports.size(), 20u);
     const daemon::CycleReport& r = reports.back();
     EXPECT_EQ(r.tdc_deg, configured);
