@@ -41,6 +41,7 @@ const std::vector<Field>& fields() {
       {"peak_pressure_deg", "deg", false, [](const Report& r) { return r.peak_pressure_deg; }},
       {"max_rise_bar_per_deg", "bar/deg", false, [](const Report& r) { return r.max_rise_bar_per_deg; }},
       {"max_rise_deg", "deg", false, [](const Report& r) { return r.max_rise_deg; }},
+      {"max_rise_motored_bar_per_deg", "bar/deg", false, [](const Report& r) { return r.max_rise_motored_bar_per_deg; }},
       {"imep_gross_bar", "bar", false, [](const Report& r) { return r.imep_gross_bar; }},
       {"imep_net_bar", "bar", false, [](const Report& r) { return r.imep_net_bar; }},
       {"heat_release_j", "J", false, [](const Report& r) { return r.heat_release_j; }},

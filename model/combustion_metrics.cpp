@@ -138,19 +138,30 @@ void heat_release(const Grid& g, const std::vector<double>& slope, const Metrics
   }
 }
 
-// The polytropic exponent over [a, b]: minus the least-squares slope of ln p against ln V (NaN where p is not positive
-// or the grid does not reach the window).
-double polytropic_exponent(const Grid& g, double a, double b) {
-  if (!g.covers(a, b)) return kNaN;
+// The polytropic over [a, b]: ln p = ln K - n ln V by least squares; n NaN where p is not positive or the grid does
+// not reach the window.
+struct Polytropic {
+  double n = kNaN, ln_k = kNaN;
+};
+Polytropic polytropic_fit(const Grid& g, double a, double b) {
+  if (!g.covers(a, b)) return {};
   const auto [lo, hi] = g.range(a, b);
   double sx = 0, sy = 0, sxx = 0, sxy = 0;
   const double n = static_cast<double>(hi - lo + 1);
   for (std::size_t i = lo; i <= hi; ++i) {
-    if (!(g.p[i] > 0)) return kNaN;
+    if (!(g.p[i] > 0)) return {};
     const double x = std::log(g.volume[i]), y = std::log(g.p[i]);
     sx += x, sy += y, sxx += x * x, sxy += x * y;
   }
-  return -(n * sxy - sx * sy) / (n * sxx - sx * sx);
+  const double slope = (n * sxy - sx * sy) / (n * sxx - sx * sx);
+  return {-slope, (sy - slope * sx) / n};
+}
+
+// The motored-equivalent slope at theta: the compression's polytropic K V^-n carried on, dp/dtheta = -n p V' / V.
+double motored_slope(const Polytropic& c, const EngineGeometry& e, double theta) {
+  if (!std::isfinite(c.n) || !std::isfinite(theta)) return kNaN;
+  const double v = e.volume_m3(theta), p = std::exp(c.ln_k - c.n * std::log(v));
+  return -c.n * p * e.dvolume_m3_per_deg(theta) / v;
 }
 
 // Eng (SAE 2002-01-2859): RI = (beta (dp/dt)max)^2 / (2 gamma pmax) sqrt(gamma R Tmax), Tmax from the ideal gas law
@@ -266,8 +277,10 @@ CombustionMetrics combustion_metrics(std::span<const double> pressure_pa, double
   m.imep_gross_pa = g.covers(-180.0, 180.0) ? work_j(g, -180.0, 180.0) / vd : kNaN;
   m.imep_net_pa = g.covers(-360.0, 360.0) ? work_j(g, -360.0, 360.0) / vd : kNaN;
   m.pmep_pa = m.imep_net_pa - m.imep_gross_pa;
-  m.n_compression = polytropic_exponent(g, options.compression_from_deg, options.compression_to_deg);
-  m.n_expansion = polytropic_exponent(g, options.expansion_from_deg, options.expansion_to_deg);
+  const Polytropic compression = polytropic_fit(g, options.compression_from_deg, options.compression_to_deg);
+  m.n_compression = compression.n;
+  m.n_expansion = polytropic_fit(g, options.expansion_from_deg, options.expansion_to_deg).n;
+  m.max_rise_motored_pa_per_deg = motored_slope(compression, engine, m.max_rise_angle_deg);
   heat_release(g, slope, options, scratch.heat, m);
   m.ringing_intensity_w_per_m2 = ringing_intensity(g, engine, speed_rpm, options, m);
   m.burn_duration_deg = m.ca90_deg - m.ca10_deg;

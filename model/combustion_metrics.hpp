@@ -59,6 +59,8 @@ struct CombustionMetrics {
   double peak_pressure_pa = kUnknown, peak_angle_deg = kUnknown;
   double max_rise_pa_per_deg = kUnknown, max_rise_angle_deg = kUnknown;  // in the combustion window (MetricsOptions),
                                                                           // with derivative_half_width_deg's smoothing
+  double max_rise_motored_pa_per_deg = kUnknown;  // beside it: the motored-equivalent slope at that angle, the
+                                                  // compression's polytropic carried on (what the burn adds is the rest)
   double imep_gross_pa = kUnknown, imep_net_pa = kUnknown;  // NaN when the cycle misses more than 2 deg of
                                                             // -180 ... 180 (gross) or -360 ... 360 (net)
   double pmep_pa = kUnknown;                        // pumping: net - gross (negative for a naturally aspirated engine)

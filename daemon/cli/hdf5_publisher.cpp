@@ -73,6 +73,8 @@ const RealColumn kRealColumns[] = {
     {"ca90_deg", "deg", "crank angle of 90 % of the heat release", [](auto& m) { return m.ca90_deg; }},
     {"ringing_intensity_MW_per_m2", "MW/m^2", "ringing intensity (Eng, SAE 2002-01-2859)",
      [](auto& m) { return m.ringing_intensity_MW_per_m2; }},
+    {"max_rise_motored_bar_per_deg", "bar/deg", "the motored-equivalent slope at max_rise_deg (the compression's polytropic)",
+     [](auto& m) { return m.max_rise_motored_bar_per_deg; }},
     {"pmep_bar", "bar", "pumping mean effective pressure (net - gross IMEP)", [](auto& m) { return m.pmep_bar; }},
     {"n_compression", "1", "polytropic exponent of the compression (-90 ... -40 deg)", [](auto& m) { return m.n_compression; }},
     {"n_expansion", "1", "polytropic exponent of the expansion (60 ... 110 deg)", [](auto& m) { return m.n_expansion; }},

@@ -184,7 +184,8 @@ MicSynthesizer mic_synthesizer(const std::string& name) {
         if (std::isnan(value))
           throw std::invalid_argument(std::string("--mics sim: the virtual engine needs condition.") + key +
                                       ", which is null (unknown)");
-      drivers::synthesize_recording_mics(rec, drivers::SimRunSpec{});
+      const drivers::SimRunSpec installation;  // the defaults
+      drivers::synthesize_recording_mics(rec, installation);
     };
   throw std::invalid_argument("--mics " + name + ": unknown, expected \"sim\"");
 }

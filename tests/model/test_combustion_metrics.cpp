@@ -163,6 +163,8 @@ TEST(CombustionMetrics, PeggingRestoresTheOffsetOfTheWholeCycle) {
   }
   // The cycle's own polytropic exponents, compression and expansion: 1.33 where it is true; the 0.7 bar lost bends
   // them (the health check they are for: an offset, a thermal shock, a wrong TDC show there first).
+  // Without a burn, the motored-equivalent slope (the compression's polytropic carried on) is the slope itself.
+  EXPECT_NEAR(reference.max_rise_motored_pa_per_deg, reference.max_rise_pa_per_deg, 0.005 * reference.max_rise_pa_per_deg);
   EXPECT_NEAR(reference.n_compression, n, 0.002);
   EXPECT_NEAR(reference.n_expansion, n, 0.002);
   EXPECT_NEAR(fitted.n_compression, n, 0.01);
@@ -203,6 +205,15 @@ TEST(CombustionMetrics, BurnAnglesOfAWiebeHeatRelease) {
   EXPECT_NEAR(m.ca50_deg, ca(0.5), 0.2);
   EXPECT_NEAR(m.ca90_deg, ca(0.9), 0.2);
   EXPECT_NEAR(m.ca05_deg, ca(0.05), 0.2);
+  // Without a start of injection the window opens at -60 deg, and this gentle burn's rise stays under the
+  // compression's own steepest: the motored-equivalent slope is the slope there. From the burn's start, the burn's
+  // rise: the compression's polytropic alone would be falling by then.
+  EXPECT_NEAR(m.max_rise_motored_pa_per_deg, m.max_rise_pa_per_deg, 0.01 * m.max_rise_pa_per_deg);
+  nm::MetricsOptions from_burn = o;
+  from_burn.soi_deg_btdc = -theta0;
+  const nm::CombustionMetrics b = nm::combustion_metrics(p, kFirst, kStep, e, 1800.0, from_burn);
+  EXPECT_GT(b.max_rise_angle_deg, theta0);
+  EXPECT_LT(b.max_rise_motored_pa_per_deg, 0.5 * b.max_rise_pa_per_deg);
   EXPECT_NEAR(m.burn_duration_deg, ca(0.9) - ca(0.1), 0.3);
   EXPECT_NEAR(m.heat_release_j, q0, 0.01 * q0);
 }
