@@ -147,17 +147,7 @@ model::MotoredTdc table_tdc(const CycleTableImportOptions& o, const drivers::Cyc
     throw std::runtime_error(o.motored_table + ": motored at " + value_text(rpm, "rpm") + ", the fired table at " +
                              value_text(o.table_options.speed_rpm, "rpm") +
                              ": the loss angle depends on speed; record the motored cycles at the fired speed");
-  drivers::CycleTableOptions mo;
-  mo.speed_rpm = rpm;
-  const bool drop = drivers::cycle_table_to_run(m, mo, o.motored_table).pegging_row_dropped;
-  std::vector<std::vector<double>> cycles;
-  for (const std::vector<double>& c : m.cycles_bar) cycles.emplace_back(c.begin() + (drop ? 1 : 0), c.end());
-  const double first = m.crank_deg[drop ? 1 : 0] - o.table_options.tdc_deg;
-  try {
-    return model::motored_tdc(cycles, first, step(m), model::EngineGeometry{}, o.loss_angle_deg);
-  } catch (const std::invalid_argument& e) {
-    throw std::runtime_error(o.motored_table + ": " + e.what());
-  }
+  return motored_table_tdc(m, o.motored_table, o.table_options.tdc_deg, o.loss_angle_deg);
 }
 
 void note_tdc(const model::MotoredTdc& t, std::vector<std::string>& notes) {
@@ -188,6 +178,20 @@ MicSynthesizer mic_synthesizer(const std::string& name) {
       drivers::synthesize_recording_mics(rec, installation);
     };
   throw std::invalid_argument("--mics " + name + ": unknown, expected \"sim\"");
+}
+
+model::MotoredTdc motored_table_tdc(const drivers::CycleTable& table, const std::string& file, double nominal_tdc_deg,
+                                    double loss_angle_deg) {
+  const bool drop = drivers::drops_pegging_row(table, drivers::PeggingRow::kAuto);
+  std::vector<std::vector<double>> cycles;
+  for (const std::vector<double>& c : table.cycles_bar) cycles.emplace_back(c.begin() + (drop ? 1 : 0), c.end());
+  const double step = (table.crank_deg.back() - table.crank_deg.front()) / static_cast<double>(table.crank_deg.size() - 1);
+  try {
+    return model::motored_tdc(cycles, table.crank_deg[drop ? 1 : 0] - nominal_tdc_deg, step, model::EngineGeometry{},
+                              loss_angle_deg);
+  } catch (const std::invalid_argument& e) {
+    throw std::runtime_error(file + ": " + e.what());
+  }
 }
 
 ImportSummary run_import(const ImportOptions& o) {

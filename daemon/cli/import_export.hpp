@@ -52,6 +52,11 @@ struct CycleTableImportOptions : ImportCommon {
   double motored_rpm = 0.0;     // the motored table's speed when it differs from the fired one (0: the same)
 };
 
+// A motored cycle table's thermodynamic TDC on its own scale (nominal TDC at nominal_tdc_deg; the pegging row, when
+// there is one, left out); errors name the file.
+model::MotoredTdc motored_table_tdc(const drivers::CycleTable& table, const std::string& file, double nominal_tdc_deg,
+                                    double loss_angle_deg);
+
 struct ImportedRun {
   std::string source;       // run directory or table file
   std::string condition;

@@ -8,6 +8,7 @@
 #include <sstream>
 #include <stdexcept>
 
+#include "daemon/cli/import_export.hpp"
 #include "drivers/formats/cycle_table.hpp"
 #include "drivers/formats/run_dir.hpp"
 
@@ -22,17 +23,6 @@ void print(const std::string& source, const model::MotoredTdc& t, const char* sc
   std::printf("  firing TDC by the loss angle (%.2f deg): %+.2f deg\n", t.loss_angle_deg, t.tdc_by_loss_angle_deg);
   std::printf("  firing TDC by the polytropic fit (no loss angle): %+.2f deg (n %.3f, rms %.2f %%)\n",
               t.tdc_by_polytropic_deg, t.polytropic_exponent, 100 * t.fit_rms);
-}
-
-model::MotoredTdc from_table(const std::string& file, double tdc_deg, double rpm, double loss) {
-  const drivers::CycleTable t = drivers::read_cycle_table(file);
-  drivers::CycleTableOptions o;
-  o.speed_rpm = rpm;
-  const bool drop = drivers::cycle_table_to_run(t, o, file).pegging_row_dropped;
-  std::vector<std::vector<double>> cycles;
-  for (const std::vector<double>& c : t.cycles_bar) cycles.emplace_back(c.begin() + (drop ? 1 : 0), c.end());
-  const double step = (t.crank_deg.back() - t.crank_deg.front()) / static_cast<double>(t.crank_deg.size() - 1);
-  return model::motored_tdc(cycles, t.crank_deg[drop ? 1 : 0] - tdc_deg, step, model::EngineGeometry{}, loss);
 }
 
 }  // namespace
@@ -115,7 +105,8 @@ int TdcCommand::run() {
     }
     if (!table_.empty()) {
       if (!(rpm_ > 0)) throw std::runtime_error("--cycles-table needs --rpm");
-      print(table_, from_table(table_, table_tdc_deg_, rpm_, loss_angle_deg_), "the table's scale");
+      print(table_, motored_table_tdc(drivers::read_cycle_table(table_), table_, table_tdc_deg_, loss_angle_deg_),
+            "the table's scale");
       return 0;
     }
     const drivers::RunDir run = drivers::read_run_dir(run_dir_);

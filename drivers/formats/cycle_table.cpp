@@ -155,6 +155,13 @@ CycleTable parse_cycle_table(std::string_view text, const std::string& file) {
   return t;
 }
 
+bool drops_pegging_row(const CycleTable& table, PeggingRow pegging) {
+  if (pegging != PeggingRow::kAuto || table.cycles_bar.size() < 2) return pegging == PeggingRow::kFirstRow;
+  for (const auto& c : table.cycles_bar)
+    if (c.front() != table.cycles_bar.front().front()) return false;
+  return true;
+}
+
 CycleTableConversion cycle_table_to_run(const CycleTable& table, const CycleTableOptions& o, const std::string& file) {
   if (!(o.speed_rpm > 0) || !std::isfinite(o.speed_rpm))
     throw RunDirError(file + ": the engine speed must be given (rpm > 0): a cycle table holds no time");
@@ -162,11 +169,7 @@ CycleTableConversion cycle_table_to_run(const CycleTable& table, const CycleTabl
   if (rows < 2 || cycles == 0) throw RunDirError(file + ": empty cycle table");
   CycleTableConversion out;
   out.cycles = cycles;
-  bool drop = o.pegging == PeggingRow::kFirstRow;
-  if (o.pegging == PeggingRow::kAuto && cycles >= 2) {
-    drop = true;
-    for (const auto& c : table.cycles_bar) drop = drop && c.front() == table.cycles_bar.front().front();
-  }
+  const bool drop = drops_pegging_row(table, o.pegging);
   out.pegging_row_dropped = drop;
   RunDir& run = out.run;
   run.condition = o.condition;

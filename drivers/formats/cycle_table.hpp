@@ -52,6 +52,10 @@ CycleTable parse_cycle_table(std::string_view text, const std::string& file);
 
 enum class PeggingRow { kAuto, kFirstRow, kNone };
 
+// Whether the first row is a pegging value, not a sample (PeggingRow::kAuto: the same value in every one of two or
+// more cycles).
+bool drops_pegging_row(const CycleTable& table, PeggingRow pegging);
+
 struct CycleTableOptions {
   double speed_rpm = 0.0;        // required: the speed the cycles were recorded at
   double tdc_deg = 0.0;          // table crank angle of firing TDC (0 for the Yanmar tables, 360 for 0..720 tables)

@@ -84,7 +84,9 @@ TEST(CycleTable, EachColumnBecomesOneWholeCycleAboutItsFiringTdc) {
     const double in_cycle = theta - 720.0 * j, table_angle = in_cycle < -180.0 ? in_cycle + 720.0 : in_cycle;
     ASSERT_NEAR(run.pressure_pa[i], cell(j, table_angle) * 1e5, 1e-3) << theta;
     ASSERT_NEAR(run.time_s[i], (theta + 360.0) / 7200.0, 1e-12);
-    if (i > 0) ASSERT_GT(theta, run.crank_deg[i - 1]);
+    if (i > 0) {
+      ASSERT_GT(theta, run.crank_deg[i - 1]);
+    }
   }
   // Cycle by cycle, whole: 1439 samples each, and the only wider step is the dropped pegging row's at -180.
   for (int j = 0; j < 3; ++j) {
