@@ -15,8 +15,8 @@ namespace {
 constexpr double kFs = drivers::kPipelineRateHz;
 constexpr std::size_t kChunkFrames = 512;
 constexpr std::size_t kModelPrimeFrames = 4096;  // 0.1 s: many time constants of the block model's modes
-constexpr double kGridStepDeg = 0.25;              // the combustion metrics' crank-angle grid
-constexpr std::size_t kGridPoints = 2881;          // -360 ... 360 deg
+constexpr double kGridStepDeg = 0.25;              // the combustion metrics' crank-angle grid from the 40 kHz frames
+constexpr std::int64_t kAngleWaitFrames = 20000;   // 0.5 s: how long the processing waits for a crank-angle stream
 constexpr std::size_t kReplacedChannel = drivers::kPressureStreamChannels;  // pressure FIFO: 1 where replaced
 constexpr std::size_t kPressureFifoChannels = drivers::kPressureStreamChannels + 1;
 constexpr double kOverloadFraction = 0.99;  // of the full scale: a sample there was clipped
@@ -79,7 +79,8 @@ CycleProcessor::CycleProcessor(const ProcessorConfig& config, const drivers::Str
       replaced_until_(1 + info.mic_count, INT64_MIN),
       pressure_overload_pa_(overload_level(info.pressure_full_scale_pa)),
       mic_overload_pa_(overload_level(info.mic_full_scale_pa)),
-      grid_(kGridPoints, kNaN) {
+      frame_grid_(kGridStepDeg),
+      angle_(info.pressure_angle_step_deg > 0 ? std::make_unique<AngleCycles>(info.pressure_angle_step_deg) : nullptr) {
   // 0 microphones: a pressure-only recording (an imported cycle table); measured levels are then NaN.
   if (info.mic_count > kMaxMics)
     throw std::invalid_argument("CycleProcessor: microphone count must be 0.." + std::to_string(kMaxMics));
@@ -167,6 +168,26 @@ void CycleProcessor::run_model(std::int64_t first, std::size_t n) {
       static_cast<std::int64_t>(predicted_.append(first - model_latency_, model_out_.data(), n).dropped);
 }
 
+void CycleProcessor::add_pressure_angle(const drivers::SampleBlock& block) {
+  CpuScope cpu(*this);
+  if (!angle_) throw std::invalid_argument("CycleProcessor: crank-angle block for a stream without a crank-angle stream");
+  if (block.channels != drivers::kAngleStreamChannels)
+    throw std::invalid_argument("CycleProcessor: crank-angle block with " + std::to_string(block.channels) + " channels");
+  angle_->add(block);
+}
+
+// How far the crank-angle stream lets the processing go. Until its first block has come the processing waits, at
+// most kAngleWaitFrames of pressure (a log of a source that had the stream but did not record it): whether a
+// cycle's figures come from the edges then depends on what the streams hold, not on which arrived first.
+std::int64_t CycleProcessor::angle_end(std::int64_t end) {
+  if (angle_->started()) return angle_->covered_until();
+  if (angle_abandoned_) return end;
+  const auto wait = std::min(kAngleWaitFrames, static_cast<std::int64_t>(pressure_.capacity() / 2));
+  if (end - next_ <= wait) return next_;
+  angle_abandoned_ = true;
+  return end;
+}
+
 void CycleProcessor::add_mics(const drivers::SampleBlock& block) {
   CpuScope cpu(*this);
   if (mics_ == 0) throw std::invalid_argument("CycleProcessor: microphone block for a stream without microphones");
@@ -200,10 +221,11 @@ void CycleProcessor::process() {
     note_gap(next_, earliest);
     next_ = earliest;
     have_last_crank_ = false;  // a cycle boundary may lie in the gap
-    grid_has_last_ = false;
+    frame_grid_.break_line();
   }
   std::int64_t end = std::min(pressure_.end_index(), predicted_.end_index());
   if (with_mics) end = std::min(end, mics_fifo_.end_index() - delay_frames_);
+  if (angle_ && !streams_ended_) end = std::min(end, angle_end(end));
   for (; next_ < end; ++next_) {
     const double* p = pressure_.frame(next_);
     const double crank = p[drivers::kCrankChannel];
@@ -212,7 +234,7 @@ void CycleProcessor::process() {
     } else {
       // A cycle starts where the crank angle wraps from just below +360 to -360.
       if (have_last_crank_ && crank < last_crank_ - 360.0) close_cycle(crank, p[drivers::kPressureChannel]);
-      grid_pressure(crank, p[drivers::kPressureChannel]);
+      frame_grid_.add(crank, p[drivers::kPressureChannel]);
       last_crank_ = crank;
       have_last_crank_ = true;
       crank_unknown_ = false;
@@ -230,19 +252,15 @@ void CycleProcessor::unknown_crank() {
   ++counters_.crank_unknown_frames;
   crank_unknown_ = true;
   cycle_encoder_ = true;
-  grid_has_last_ = false;
+  frame_grid_.break_line();
 }
 
 void CycleProcessor::close_cycle(double crank_deg, double pressure_pa) {
   // The ending cycle's grid reaches +360 deg with this frame; the new one's starts from the last frame.
-  const double prev_deg = grid_last_deg_ - 720.0, prev_pa = grid_last_pa_;
-  const bool prev_has = grid_has_last_;
-  grid_pressure(crank_deg + 720.0, pressure_pa);
+  frame_grid_.close(crank_deg, pressure_pa);
   flush_chunk();
   finish_cycle(next_);
-  grid_last_deg_ = prev_deg;
-  grid_last_pa_ = prev_pa;
-  grid_has_last_ = prev_has;
+  frame_grid_.reopen(-360.0);
   // The first known angle after an unknown stretch: the wrap happened somewhere inside it, the start is uncertain.
   cycle_encoder_ = crank_unknown_;
 }
@@ -290,21 +308,6 @@ void CycleProcessor::add_frame(const double* p) {
   if (++chunk_frames_ == kChunkFrames) flush_chunk();
 }
 
-void CycleProcessor::grid_pressure(double crank_deg, double pressure_pa) {
-  if (grid_has_last_ && crank_deg > grid_last_deg_) {
-    // Grid points in (last, this]: linear between the two frames.
-    const double from = (grid_last_deg_ + 360.0) / kGridStepDeg, to = (crank_deg + 360.0) / kGridStepDeg;
-    const auto first = static_cast<std::int64_t>(std::floor(from)) + 1, last = static_cast<std::int64_t>(std::floor(to));
-    for (std::int64_t k = std::max<std::int64_t>(first, 0); k <= std::min<std::int64_t>(last, kGridPoints - 1); ++k) {
-      const double x = (static_cast<double>(k) - from) / (to - from);
-      grid_[static_cast<std::size_t>(k)] = grid_last_pa_ + x * (pressure_pa - grid_last_pa_);
-    }
-  }
-  grid_last_deg_ = crank_deg;
-  grid_last_pa_ = pressure_pa;
-  grid_has_last_ = true;
-}
-
 void CycleProcessor::flush_chunk() {
   if (chunk_frames_ == 0) return;
   bank_.process(chunk_.data(), chunk_frames_);
@@ -350,23 +353,30 @@ CycleProcessor::CycleHealth CycleProcessor::take_health(std::int64_t start, std:
 }
 
 // The combustion metrics of the cycle just ended, then a fresh grid (only complete grids give numbers).
-model::CombustionMetrics CycleProcessor::take_combustion(std::int64_t start, std::int64_t end_index, bool wanted) {
+// The grid of the cycle [start, end_index): the crank-angle stream's cycle that closes at end_index, or the frames'
+// when the stream has none. Its closing edge lies within an edge spacing after end_index, its block begins at most a
+// block's span before that edge: the tolerance is a block of this cycle's edges and two more (an eighth of the cycle
+// and a little: neighbouring cycles stay apart).
+CrankGrid* CycleProcessor::combustion_grid(std::int64_t start, std::int64_t end_index, bool& angle_gap) {
+  if (!angle_ || !angle_->started()) return &frame_grid_;
+  const double cycle = start == INT64_MIN ? 0.0 : static_cast<double>(end_index - start);
+  const double block = cycle * drivers::max_edges_per_angle_block(angle_->step_deg()) * angle_->step_deg() / 720.0;
+  CrankGrid* grid = angle_->take(end_index, 2.0 + block + cycle * angle_->step_deg() / 360.0);
+  angle_gap = grid == nullptr || !grid->complete();
+  return grid;
+}
+
+model::CombustionMetrics CycleProcessor::take_combustion(std::int64_t start, std::int64_t end_index, bool wanted,
+                                                          bool& angle_gap) {
   model::CombustionMetrics combustion;  // NaN throughout unless the grid is complete
-  const bool grid_complete = wanted && start != INT64_MIN &&
-                             std::none_of(grid_.begin(), grid_.end(), [](double v) { return std::isnan(v); });
-  if (grid_complete) {
+  angle_gap = false;
+  CrankGrid* grid = combustion_grid(start, end_index, angle_gap);
+  if (wanted && start != INT64_MIN && grid && grid->complete()) {
     model::MetricsOptions options = config_.metrics;  // dp/dtheta max from this cycle's start of injection
     options.soi_deg_btdc = have_op_ && !op_.motored ? op_.soi_deg_btdc : kNaN;
-    // Firing TDC at the encoder's tdc_deg: the grid turned by whole steps (its ends are gas-exchange TDC, where the
-    // cycle meets itself), the rest in its first angle, so that the figures see the piston's angles.
-    const auto n = static_cast<long>(grid_.size()), k = std::lround(config_.metrics.tdc_deg / kGridStepDeg);
-    std::rotate(grid_.begin(), grid_.begin() + ((k % n) + n) % n, grid_.end());
-    const double first = -360.0 + static_cast<double>(k) * kGridStepDeg - config_.metrics.tdc_deg;
-    combustion = model::combustion_metrics(grid_, first, kGridStepDeg, config_.engine,
-                                           720.0 / 360.0 * 60.0 * kFs / static_cast<double>(end_index - start), options,
-                                           metrics_scratch_);
+    combustion = grid->metrics(config_.engine, 720.0 / 360.0 * 60.0 * kFs / static_cast<double>(end_index - start),
+                               options, metrics_scratch_);
   }
-  std::fill(grid_.begin(), grid_.end(), kNaN);
   return combustion;
 }
 
@@ -400,7 +410,9 @@ void CycleProcessor::finish_cycle(std::int64_t end_index) {
   cpu_spent_s_ = 0;
   const CycleHealth health = take_health(start, end_index);
   const bool encoder = cycle_encoder_;
-  const model::CombustionMetrics combustion = take_combustion(start, end_index, !encoder && !health.pressure_fault);
+  bool angle_gap = false;
+  const model::CombustionMetrics combustion =
+      take_combustion(start, end_index, !encoder && !health.pressure_fault, angle_gap);
   if (start == INT64_MIN) return;  // frames before the first boundary only warm the filters up
 
   const bool gap = take_gaps(start, end_index);
@@ -430,6 +442,7 @@ void CycleProcessor::finish_cycle(std::int64_t end_index) {
   if (encoder) r.flags |= kCycleEncoder;
   if (health.overload) r.flags |= kCycleOverload;
   if (health.pressure_fault) r.flags |= kCyclePressureFault;
+  if (angle_gap) r.flags |= kCycleAngleGap;
   std::copy(health.mic_flags, health.mic_flags + mics_, r.mic_flags);
 
   mic_levels(r);

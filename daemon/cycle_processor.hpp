@@ -22,6 +22,8 @@
 #include <memory>
 #include <vector>
 
+#include "daemon/angle_cycles.hpp"
+#include "daemon/crank_grid.hpp"
 #include "daemon/cycle_report.hpp"
 #include "daemon/frame_fifo.hpp"
 #include "daemon/sound_power_setup.hpp"
@@ -72,6 +74,12 @@ class CycleProcessor {
 
   void add_pressure(const drivers::SampleBlock& block);
   void add_mics(const drivers::SampleBlock& block);
+  // The crank-angle stream (drivers::kAngleStreamChannels), when the source's info has pressure_angle_step_deg > 0:
+  // the combustion figures then come from its edges, and a cycle boundary is processed only once an edge beyond it
+  // has arrived (or end_of_streams() said none will).
+  void add_pressure_angle(const drivers::SampleBlock& block);
+  // The streams have ended (a log is exhausted, the drivers have stopped): process() no longer waits for edges.
+  void end_of_streams() { streams_ended_ = true; }
   void set_operating_point(const drivers::OperatingPoint& op);
   // Processes every combined frame whose inputs have all arrived; calls the sink once per completed cycle.
   void process();
@@ -117,7 +125,7 @@ class CycleProcessor {
   void add_frame(const double* pressure_frame);
   void reset_stats();
   CycleHealth take_health(std::int64_t start, std::int64_t end_index);
-  model::CombustionMetrics take_combustion(std::int64_t start, std::int64_t end_index, bool wanted);
+  model::CombustionMetrics take_combustion(std::int64_t start, std::int64_t end_index, bool wanted, bool& angle_gap);
   bool take_gaps(std::int64_t start, std::int64_t end_index);
   void count_dropped(double duration_s);
   void finish_cycle(std::int64_t end_index);
@@ -173,12 +181,15 @@ class CycleProcessor {
   struct Gap { std::int64_t from, to; };  // combined-frame interval affected by lost samples
   std::vector<Gap> gaps_;
   void note_gap(std::int64_t from, std::int64_t to);
-  // The cycle's pressure on a uniform crank-angle grid (kGridStepDeg from -360), for the combustion metrics.
-  void grid_pressure(double crank_deg, double pressure_pa);
-  std::vector<double> grid_;            // NaN where no frame has reached yet
+  // The cycle's pressure on a uniform crank-angle grid, for the combustion metrics: from the crank-angle stream's
+  // edges when the source has one, else from the 40 kHz frames (a kGridStepDeg grid).
+  CrankGrid* combustion_grid(std::int64_t start, std::int64_t end_index, bool& angle_gap);
+  CrankGrid frame_grid_;                 // NaN where no frame has reached yet
+  std::unique_ptr<AngleCycles> angle_;   // the crank-angle stream's cycles (nullptr: the source has none)
+  bool angle_abandoned_ = false;          // none came while kAngleWaitFrames of pressure did: the frames' grid
+  bool streams_ended_ = false;
+  std::int64_t angle_end(std::int64_t end);
   model::MetricsWorkspace metrics_scratch_;  // sized by the first cycle, reused: no allocation per cycle
-  double grid_last_deg_ = 0, grid_last_pa_ = 0;
-  bool grid_has_last_ = false;
   double last_duration_s_ = 0;          // of the last reported cycle without kCycleEncoder
   drivers::OperatingPoint op_;
   bool have_op_ = false;

@@ -41,7 +41,8 @@ enum CycleFlag : std::int32_t {
   kCycleMicExcluded = 128,     // a microphone was left out of the measured levels (see mic_flags)
   kCyclePressureFault = 256,   // pressure flat, overloaded or non-finite (or ringing from replaced samples):
                                // CPL, predictions, attenuation and combustion metrics are NaN
-  kCycleLwUpperBound = 512,    // a band of the measured LW(A) is 6 dB or less above the background: an upper bound
+  kCycleLwUpperBound = 512,
+  kCycleAngleGap = 1024,       // the crank-angle stream misses edges of this cycle: combustion metrics NaN    // a band of the measured LW(A) is 6 dB or less above the background: an upper bound
 };
 
 struct CycleReport {

@@ -24,6 +24,7 @@ class FrameFifo {
   std::int64_t begin_index() const { return begin_; }           // index of the oldest frame held
   std::int64_t end_index() const { return begin_ + static_cast<std::int64_t>(size_); }  // one past the newest
   std::size_t size() const { return size_; }
+  std::size_t capacity() const { return capacity_; }
 
   struct Appended {
     std::size_t held = 0;     // frames filled in by holding the last frame (a gap shorter than the capacity)

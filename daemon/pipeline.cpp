@@ -49,9 +49,10 @@ struct Pipeline::Impl {
 
   std::size_t ring_blocks;
   drivers::BlockRing pressure_ring, mic_ring;
+  drivers::BlockRing angle_ring;  // the crank-angle stream, when the source has one (one edge per frame: larger)
   drivers::OperatingPointRing op_ring;
   dsp::SpscRing<CycleReport> report_ring{256};
-  dsp::SpscRing<RawItem> raw_ring;  // both streams' blocks on their way to NOISEMON_RAW: twice a driver ring
+  dsp::SpscRing<RawItem> raw_ring;  // every stream's blocks on their way to NOISEMON_RAW: the driver rings' room
   dsp::SpscRing<drivers::OperatingPoint> op_publish_ring{64};
 
   std::unique_ptr<CycleProcessor> processor;  // made with the pipeline, run by the processing thread
@@ -76,6 +77,9 @@ struct Pipeline::Impl {
   drivers::WorkerThread processing_thread{"processing"};
   drivers::WorkerThread publishing_thread{"lcm"};  // the status name it has always had
 
+  // Edges per second over 40 kHz frames per second at 0.1 deg and 6000 rpm, where the crank-angle stream's blocks
+  // are full (the 40 kHz stream's are half full at worst).
+  static constexpr std::size_t kAngleRingFactor = 5;
   static std::size_t blocks_for(double seconds) {
     return static_cast<std::size_t>(std::ceil(seconds * drivers::kPipelineRateHz / 128.0));  // room even for half-full blocks
   }
@@ -89,8 +93,9 @@ struct Pipeline::Impl {
         ring_blocks(blocks_for(c.ring_seconds)),
         pressure_ring(ring_blocks),
         mic_ring(ring_blocks),
+        angle_ring(info.pressure_angle_step_deg > 0 ? kAngleRingFactor * ring_blocks : 1),
         op_ring(256),
-        raw_ring(c.lcm.publish_raw ? 2 * ring_blocks : 1),
+        raw_ring(c.lcm.publish_raw ? 2 * ring_blocks + (info.pressure_angle_step_deg > 0 ? kAngleRingFactor * ring_blocks : 0) : 1),
         processor(make_processor()) {}
 
   std::unique_ptr<CycleProcessor> make_processor();
@@ -125,6 +130,7 @@ void Pipeline::Impl::run_processing(const std::atomic<bool>& drain) {
   for (const std::string& problem : processor.sound_power().problems())
     if (!options.quiet) spdlog::warn("sound power (ISO 3744): {}", problem);
   std::int64_t dropped_seen = 0;
+  bool ended = false;  // end_of_streams() told
   while (true) {
     processing_beat_ns.store(now_ns(), std::memory_order_relaxed);
     const bool draining = drain.load(std::memory_order_acquire);
@@ -138,7 +144,7 @@ void Pipeline::Impl::run_processing(const std::atomic<bool>& drain) {
     }
     // One CPU-time measurement for the batch (the idle polls are not counted).
     std::optional<CycleProcessor::CpuBatch> cpu_batch;
-    if (pressure_ring.front() || mic_ring.front()) cpu_batch.emplace(processor);
+    if (pressure_ring.front() || mic_ring.front() || angle_ring.front()) cpu_batch.emplace(processor);
     // Alternate between the streams so neither runs far ahead of the other.
     for (int i = 0; i < 8; ++i) {
       bool got = false;
@@ -154,6 +160,15 @@ void Pipeline::Impl::run_processing(const std::atomic<bool>& drain) {
         processor.add_mics(*b);
         if (config.lcm.publish_raw) raw_ring.push(RawItem{1, *b});
         mic_ring.consume(1);
+        got = true;
+      }
+      // Edges come many to a 40 kHz frame: take what the ring holds, so the stream is never what waits.
+      for (int k = 0; k < 8; ++k) {
+        const drivers::SampleBlock* b = angle_ring.front();
+        if (!b) break;
+        processor.add_pressure_angle(*b);
+        if (config.lcm.publish_raw) raw_ring.push(RawItem{noisemon::raw_block_t::STREAM_PRESSURE_ANGLE, *b});
+        angle_ring.consume(1);
         got = true;
       }
       if (!got) break;
@@ -172,7 +187,13 @@ void Pipeline::Impl::run_processing(const std::atomic<bool>& drain) {
     crank_unknown_frames.store(counted.crank_unknown_frames, std::memory_order_relaxed);
     if (config.cycles > 0 && reports_queued.load() >= config.cycles) break;
     if (!any) {
-      if (draining) break;  // drivers are joined and the rings are empty
+      if (draining && !ended) {  // drivers are joined and the rings are empty: process what waited for edges
+        ended = true;
+        processor.end_of_streams();
+        processor.process();
+        continue;
+      }
+      if (draining) break;
       std::this_thread::sleep_for(std::chrono::microseconds(options.lossless ? 100 : 1000));
     }
   }
@@ -219,6 +240,7 @@ noisemon::status_t Pipeline::Impl::make_status(std::int64_t published, const Sta
   };
   ring("pressure", pressure_ring.fill_fraction(), pressure_ring.overrun_events());
   ring("mics", mic_ring.fill_fraction(), mic_ring.overrun_events());
+  if (info.pressure_angle_step_deg > 0) ring("pressure_angle", angle_ring.fill_fraction(), angle_ring.overrun_events());
   ring("operating_point", op_ring.fill_fraction(), op_ring.overrun_events());
   ring("reports", report_ring.fill_fraction(), report_ring.overrun_events());
   ring("raw_publish", raw_ring.fill_fraction(), raw_ring.overrun_events());
@@ -334,7 +356,7 @@ void Pipeline::start() {
   // spdlog's registry is a static made on first use: make it here, before the threads that log. (Its guard lives
   // in libspdlog, which ThreadSanitizer does not see into: two threads' first logs were reported as a race.)
   spdlog::default_logger_raw();
-  drivers::Streams streams{&d.pressure_ring, &d.mic_ring, &d.op_ring};
+  drivers::Streams streams{&d.pressure_ring, &d.mic_ring, &d.op_ring, &d.angle_ring};
   // Processing first: the publishing thread ends once the processing thread no longer runs.
   d.processing_thread.start("nm-processing", d.config.threads.processing,
                      [this](const std::atomic<bool>& drain) { impl_->run_processing(drain); });

@@ -122,6 +122,7 @@ std::string cycle_flags_text(std::int32_t flags) {
   add(noisemon::cycle_report_t::CYCLE_MIC_EXCLUDED, "mic-excluded");
   add(noisemon::cycle_report_t::CYCLE_PRESSURE_FAULT, "pressure-fault");
   add(noisemon::cycle_report_t::CYCLE_LW_UPPER_BOUND, "lw-bound");
+  add(noisemon::cycle_report_t::CYCLE_ANGLE_GAP, "angle-gap");
   return s;
 }
 

@@ -2,6 +2,7 @@
 // sources that produce 40 kHz frames one at a time (sim generators, comedi stream assemblers).
 #pragma once
 
+#include <cmath>
 #include <cstdint>
 
 #include "drivers/source.hpp"
@@ -19,6 +20,13 @@ class BlockWriter {
         (block_.frames > 0 && index != block_.first_index + static_cast<std::int64_t>(block_.frames)))
       flush(ring);
     if (block_.frames == 0) block_.first_index = index;
+    return &block_.data[static_cast<std::size_t>(block_.frames++) * block_.channels];
+  }
+  // A frame off the 40 kHz grid (the crank-angle stream's edges, in order), at most max_frames a block: a new
+  // block's first_index is the 40 kHz frame at or before its first edge, frame_index the edge's instant in frames.
+  double* edge(double frame_index, std::uint32_t max_frames, BlockRing& ring) {
+    if (block_.frames >= max_frames) flush(ring);
+    if (block_.frames == 0) block_.first_index = static_cast<std::int64_t>(std::floor(frame_index));
     return &block_.data[static_cast<std::size_t>(block_.frames++) * block_.channels];
   }
   void flush(BlockRing& ring) {

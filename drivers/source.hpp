@@ -43,6 +43,26 @@ inline constexpr std::uint32_t kCrankChannel = 1;     // crank angle, degrees in
                                                       // NaN where the angle is not known (encoder fault, before a resync)
 inline constexpr std::uint32_t kPressureStreamChannels = 2;
 
+// The crank-angle stream (a source whose pressure is sampled on encoder edges): each edge's sample as taken, before
+// the resampling to 40 kHz, so that the combustion figures see the encoder's own resolution. One "frame" per edge,
+// in order; a block's first_index is the 40 kHz frame at or before its first edge, and a block spans at most
+// kMaxAngleBlockDeg of crank angle (max_edges_per_angle_block): the instants of its edges are known to that.
+inline constexpr std::uint32_t kAngleCrankChannel = 0;     // crank angle as on the pressure stream; NaN when not known
+inline constexpr std::uint32_t kAnglePressureChannel = 1;  // cylinder pressure, Pa (absolute), as the 40 kHz stream's
+inline constexpr std::uint32_t kAngleStreamChannels = 2;
+inline constexpr double kMinAngleStepDeg = 0.01, kMaxAngleStepDeg = 6.0;  // the encoder resolutions a stream may have
+inline constexpr double kMaxAngleBlockDeg = 90.0;
+// The edges a crank-angle block of an encoder of this step holds at most (0 for a step outside the range above).
+inline std::uint32_t max_edges_per_angle_block(double step_deg) {
+  if (!(step_deg >= kMinAngleStepDeg && step_deg <= kMaxAngleStepDeg)) return 0;
+  const auto n = static_cast<std::uint32_t>(kMaxAngleBlockDeg / step_deg + 1e-9);
+  return n < 256 ? n : 256;  // SampleBlock::kMaxFrames
+}
+// The crank-angle stream's step of a session: one edge per encoder edge, when their step is in range; else 0.
+inline double angle_step_deg(double edges_per_rev) {
+  return edges_per_rev > 0 && max_edges_per_angle_block(360.0 / edges_per_rev) > 0 ? 360.0 / edges_per_rev : 0.0;
+}
+
 struct OperatingPoint {
   std::int64_t utime = 0;
   double speed_rpm = 0.0;
@@ -60,6 +80,7 @@ struct Streams {
   BlockRing* pressure = nullptr;  // kPressureStreamChannels channels
   BlockRing* mics = nullptr;      // StreamInfo::mic_count channels, Pa
   OperatingPointRing* operating_point = nullptr;
+  BlockRing* pressure_angle = nullptr;  // kAngleStreamChannels channels, when StreamInfo::pressure_angle_step_deg > 0
 };
 
 struct StreamInfo {
@@ -75,6 +96,10 @@ struct StreamInfo {
   // pressure carries up to dsp::crank_angle_passband_hz of its edge rate, which follows the speed.
   double pressure_edges_per_rev = 0.0;  // encoder edges per revolution that clock the pressure samples
   double mic_passband_hz = 0.0;         // upper edge of the microphone converter's passband, Hz
+  // > 0: the source may deliver the crank-angle stream (Streams::pressure_angle), one sample per encoder edge this
+  // many degrees apart (angle_step_deg(pressure_edges_per_rev)); once its first block has come, the combustion
+  // figures are computed from it. 0: they come from the 40 kHz pressure.
+  double pressure_angle_step_deg = 0.0;
 };
 
 enum class ThreadState : std::uint8_t { kIdle = 0, kRunning = 1, kStopped = 2, kFailed = 3 };

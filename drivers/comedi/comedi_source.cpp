@@ -110,6 +110,8 @@ class ComediSource final : public Source {
     info_.radius_m = config.mics.radius_m;
     info_.acoustic_delay_s = config.mics.radius_m / config.mics.speed_of_sound_m_s;
     info_.pressure_edges_per_rev = static_cast<double>(config.encoder.counts_per_rev) / config.encoder.counts_per_edge;
+    // (A coarser encoder, a trigger wheel, has too few edges for the figures: they come from the 40 kHz pressure.)
+    info_.pressure_angle_step_deg = angle_step_deg(info_.pressure_edges_per_rev);
     info_.mic_passband_hz = dsp::converter_passband_hz(config.mics.scan_rate_hz);
   }
   ~ComediSource() override { stop(); }
@@ -123,6 +125,7 @@ class ComediSource final : public Source {
     decoders_.clear();
     for (const auto& a : acquisitions_) decoders_.emplace_back(a->sample_width(), a->conversions());
     edge_ = std::make_unique<EdgeStreamAssembler>(edge_config_, epoch_utime_);
+    if (info_.pressure_angle_step_deg > 0) edge_->set_angle_ring(streams.pressure_angle);
     std::size_t started = 0;
     try {
       for (; started < acquisitions_.size(); ++started) acquisitions_[started]->start();

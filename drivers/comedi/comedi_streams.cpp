@@ -87,6 +87,15 @@ EdgeStreamAssembler::EdgeStreamAssembler(const EdgeStreamConfig& config, std::in
 
 EdgeStreamAssembler::~EdgeStreamAssembler() = default;
 
+void EdgeStreamAssembler::set_angle_ring(BlockRing* ring) {
+  const double step = 360.0 * std::max<std::uint32_t>(config_.counts_per_edge, 1) / config_.counts_per_rev;
+  angle_block_edges_ = max_edges_per_angle_block(step);
+  if (ring && angle_block_edges_ == 0)
+    throw std::invalid_argument("encoder-clocked streams: an encoder step of " + std::to_string(step) +
+                                " deg has no crank-angle stream");
+  angle_ring_ = ring;
+}
+
 void EdgeStreamAssembler::restart(std::int64_t origin_utime) {
   origin_s_ = 1e-6 * static_cast<double>(origin_utime - epoch_utime_);
   for (Fifo& f : fifos_) f.head = f.count = 0;
@@ -448,6 +457,11 @@ void EdgeStreamAssembler::emit(double t, double x, double theta, BlockRing& ring
   t_[batch_] = t;
   x_[batch_] = x;
   ++batch_;
+  if (angle_ring_) {
+    double* e = angle_writer_.edge(t * kPipelineRateHz, angle_block_edges_, *angle_ring_);
+    e[kAngleCrankChannel] = model::CrankKinematics::cycle_angle(theta);
+    e[kAnglePressureChannel] = x;
+  }
   history_[history_end_ % kHistory] = {t, theta};
   ++history_end_;
   have_fed_ = true;
@@ -499,7 +513,11 @@ void EdgeStreamAssembler::deliver(BlockRing& ring, bool all) {
     rev_.bad = true;
   }
   run_batch(ring);
-  if (all || writer_.pending_frames() >= SampleBlock::kMaxFrames / 2) writer_.flush(ring);
+  if (all || writer_.pending_frames() >= SampleBlock::kMaxFrames / 2) {
+    writer_.flush(ring);
+    // The edges go out with the 40 kHz frames made from them (the processing waits for both streams).
+    if (angle_ring_) angle_writer_.flush(*angle_ring_);
+  }
 }
 
 // ---------------------------------------------------------------------------------------------- timed

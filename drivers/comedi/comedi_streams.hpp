@@ -125,6 +125,12 @@ class EdgeStreamAssembler {
   // and the rest of their revolution follows with NaN crank).
   void deliver(BlockRing& ring, bool all);
 
+  // Also writes each edge's sample, as it goes into the resampler, to this ring (the crank-angle stream of
+  // drivers/source.hpp; flushed by deliver()). nullptr: not written.
+  // Needs an encoder step of kMinAngleStepDeg ... kMaxAngleStepDeg (counts_per_edge of counts_per_rev); throws
+  // std::invalid_argument otherwise.
+  void set_angle_ring(BlockRing* ring);
+
   bool locked() const { return locked_ && peg_known_; }
   const EdgeStreamCounters& counters() const { return counters_; }
   std::uint64_t blocks_written() const { return writer_.blocks_written(); }
@@ -206,6 +212,9 @@ class EdgeStreamAssembler {
   bool have_fed_ = false;  // the resampler has had an edge (since the last (soft) restart)
   double last_fed_t_ = 0.0;
   BlockWriter writer_;
+  BlockRing* angle_ring_ = nullptr;
+  BlockWriter angle_writer_{kAngleStreamChannels};
+  std::uint32_t angle_block_edges_ = 0;  // max_edges_per_angle_block of the encoder
   EdgeStreamCounters counters_;
 };
 

@@ -8,6 +8,13 @@
 
 namespace noisemon::drivers {
 
+BlockRing* ring_of(const Streams& streams, std::int8_t stream) {
+  if (stream == noisemon::raw_block_t::STREAM_PRESSURE) return streams.pressure;
+  if (stream == noisemon::raw_block_t::STREAM_MICS) return streams.mics;
+  if (stream == noisemon::raw_block_t::STREAM_PRESSURE_ANGLE) return streams.pressure_angle;
+  return nullptr;
+}
+
 RawStreamDecoder::RawStreamDecoder(RawStreamDecoderOptions options) : options_(std::move(options)) {}
 
 const RawEvent& RawStreamDecoder::decode(std::string_view channel, const void* data, std::size_t size) {

@@ -61,11 +61,15 @@ struct RawEvent {
   RawEventKind kind = RawEventKind::kOtherChannel;
   RawChannel channel = RawChannel::kOther;
   bool session_started = false;  // kSession: the first session, or (kFollow) another run's
-  std::int8_t stream = 0;        // kBlock: noisemon::raw_block_t::STREAM_PRESSURE or STREAM_MICS
+  std::int8_t stream = 0;        // kBlock: noisemon::raw_block_t::STREAM_PRESSURE, STREAM_MICS or STREAM_PRESSURE_ANGLE
   SampleBlock block;             // kBlock
   OperatingPoint operating_point;
   std::string reason;            // kDamaged, kBadBlock, kOtherSessionBlock
 };
+
+// The ring of `streams` a raw block of `stream` (noisemon::raw_block_t::STREAM_*) goes to; nullptr when it has none
+// (a reader that does not take the crank-angle stream).
+BlockRing* ring_of(const Streams& streams, std::int8_t stream);
 
 // Not thread-safe: one reader thread at a time. Decoding a raw block allocates only while its sample buffer
 // grows (the first blocks).

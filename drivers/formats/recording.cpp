@@ -8,6 +8,7 @@
 #include <span>
 #include <stdexcept>
 
+#include "drivers/formats/angle_edges.hpp"
 #include "drivers/formats/lcm_log_reader.hpp"
 #include "drivers/formats/run_both.hpp"
 #include "drivers/formats/stream_messages.hpp"
@@ -138,12 +139,24 @@ void resample_pressure_values(const EncoderSamples& s, Stream& pressure) {
   }
 }
 
-// Encoder samples -> 40 kHz pressure and crank (the unwrapped angle interpolated linearly in time, then wrapped).
-// Returns the encoder step, degrees.
-double resample_pressure(const RunDir& run, Stream& pressure, Stream& crank) {
+// The encoder samples as the crank-angle stream's edges (instants on the recording's 40 kHz clock).
+std::vector<double> angle_edges_of(const EncoderSamples& s) {
+  std::vector<double> edges(kEdgeValues * s.t.size());
+  for (std::size_t i = 0; i < s.t.size(); ++i) {
+    edges[i * kEdgeValues + kEdgeInstant] = s.t[i] * kFs + static_cast<double>(s.shift);
+    edges[i * kEdgeValues + kEdgeCrank] = wrap_crank(s.th[i]);
+    edges[i * kEdgeValues + kEdgePressure] = s.p[i];
+  }
+  return edges;
+}
+
+// Encoder samples -> 40 kHz pressure and crank (the unwrapped angle interpolated linearly in time, then wrapped);
+// the samples themselves into `edges` when their step is an encoder's. Returns the encoder step, degrees.
+double resample_pressure(const RunDir& run, Stream& pressure, Stream& crank, std::vector<double>& edges) {
   const double step = crank_step_deg(run.crank_deg);
   EncoderSamples s;
   encoder_samples(run, step, s);
+  if (angle_step_deg(360.0 / step) > 0) edges = angle_edges_of(s);
   resample_pressure_values(s, pressure);
   const auto& t = s.t;
   crank.first = pressure.first;
@@ -220,7 +233,7 @@ struct SessionData {
   StreamInfo info;
   std::string condition;
   std::string source;
-  std::vector<RawBlock> pressure, mics;
+  std::vector<RawBlock> pressure, mics, angle;
   std::vector<OperatingPoint> ops;
 };
 
@@ -266,6 +279,15 @@ void gather(const std::vector<RawBlock>& blocks, std::size_t channels, std::int6
   }
 }
 
+// The crank-angle blocks in the order of their first frames (a block's edges in order; blocks of one first frame
+// in the log's order).
+std::vector<EdgeBlock> edge_blocks(std::vector<RawBlock>& blocks) {
+  std::stable_sort(blocks.begin(), blocks.end(), [](const RawBlock& a, const RawBlock& b) { return a.first < b.first; });
+  std::vector<EdgeBlock> out;
+  for (const RawBlock& b : blocks) out.push_back({b.first, b.data});
+  return out;
+}
+
 // Mean speed of a stretch of the wrapped crank channel (for a recording without operating points).
 double speed_from_crank(const std::vector<double>& crank) {
   double unwrapped = 0;
@@ -309,7 +331,7 @@ class LogAssembler {
     switch (ev.kind) {
       case RawEventKind::kSession:
         if (!ev.session_started) return;  // the same session, repeated
-        sessions_.push_back({decoder_.info(), decoder_.condition(), decoder_.source(), {}, {}, {}});
+        sessions_.push_back({decoder_.info(), decoder_.condition(), decoder_.source(), {}, {}, {}, {}});
         ++stats_.sessions;
         return;
       case RawEventKind::kBlock:
@@ -364,6 +386,7 @@ class LogAssembler {
           rec.crank_deg[f] = p[f * kPressureStreamChannels + kCrankChannel];
         }
         if (s.info.mic_count > 0) gather(s.mics, s.info.mic_count, span.from, span.to, rec.mics_pa);
+        gather_edges(edge_blocks(s.angle), span.from, span.to, rec.angle_edges);
         // The operating point in force at the start, and every change during the stretch.
         const std::int64_t u0 = utime_of_index(s.info.epoch_utime, span.from);
         const std::int64_t u1 = utime_of_index(s.info.epoch_utime, span.to);
@@ -397,7 +420,10 @@ class LogAssembler {
     const SampleBlock& b = ev.block;
     RawBlock rb{b.first_index, b.frames, std::vector<double>(b.data, b.data + std::size_t{b.frames} * b.channels)};
     SessionData& s = sessions_.back();
-    (ev.stream == noisemon::raw_block_t::STREAM_PRESSURE ? s.pressure : s.mics).push_back(std::move(rb));
+    if (ev.stream == noisemon::raw_block_t::STREAM_PRESSURE_ANGLE)
+      s.angle.push_back(std::move(rb));
+    else
+      (ev.stream == noisemon::raw_block_t::STREAM_PRESSURE ? s.pressure : s.mics).push_back(std::move(rb));
   }
   void damage(const LcmLogEvent& e, const std::string& what) {
     ++stats_.damaged;
@@ -470,7 +496,9 @@ void pressure_streams(const RunDir& run, RunDir* release, Recording& rec, Stream
     pressure.values = release ? std::move(release->pressure_pa) : run.pressure_pa;
   } else {
     // What the encoder's edges carry (run.json says it only for samples already on the 40 kHz grid).
-    rec.info.pressure_edges_per_rev = 360.0 / resample_pressure(run, pressure, crank);
+    const double step = resample_pressure(run, pressure, crank, rec.angle_edges);
+    rec.info.pressure_edges_per_rev = 360.0 / step;
+    if (!rec.angle_edges.empty()) rec.info.pressure_angle_step_deg = angle_step_deg(rec.info.pressure_edges_per_rev);
   }
   if (release) {
     free_vector(release->time_s);
@@ -516,6 +544,7 @@ Recording convert(const RunDir& run, RunDir* release, std::int64_t epoch_utime) 
   rec.pressure_pa = take_frames(pressure, from, frames);
   rec.crank_deg = take_frames(crank, from, frames);
   if (run.mic_count > 0) rec.mics_pa = take_frames(mics, from, frames);
+  if (!rec.angle_edges.empty()) rec.angle_edges = edges_within(rec.angle_edges, from, to);
   op.utime = utime_of_index(epoch_utime, from);
   rec.operating_points.push_back(op);
   return rec;
@@ -591,7 +620,7 @@ struct RecordingLogWriter::Impl {
   std::vector<std::int64_t> epochs;
   std::vector<char> buf;
   // The raw block messages of the two streams, refilled for each block (their samples keep their storage).
-  noisemon::raw_block_t pressure_block, mic_block;
+  noisemon::raw_block_t pressure_block, mic_block, angle_block;
 };
 
 RecordingLogWriter::RecordingLogWriter(const std::filesystem::path& log, const LogChannels& channels)
@@ -603,13 +632,16 @@ void RecordingLogWriter::write(const Recording& rec, const ProgressFn& progress)
   if (rec.crank_deg.size() != rec.frames() || rec.mics_pa.size() != rec.frames() * rec.info.mic_count ||
       rec.info.mic_count > SampleBlock::kMaxChannels || rec.info.mic_positions_m.size() < rec.info.mic_count)
     throw std::invalid_argument(w.path.string() + ": recording '" + rec.condition + "' has streams of different lengths");
+  if (rec.angle_edges.size() % kEdgeValues != 0 || (!rec.angle_edges.empty() && !(rec.info.pressure_angle_step_deg > 0)))
+    throw std::invalid_argument(w.path.string() + ": recording '" + rec.condition +
+                                "' has crank-angle edges without a crank-angle step (or a partial edge)");
   if (std::find(w.epochs.begin(), w.epochs.end(), rec.info.epoch_utime) != w.epochs.end())
     throw std::invalid_argument(w.path.string() + ": recording '" + rec.condition +
                                 "' has the epoch of an earlier one; each run needs its own");
   w.epochs.push_back(rec.info.epoch_utime);
   const std::int64_t epoch = rec.info.epoch_utime;
   const std::uint32_t mics = rec.info.mic_count;
-  std::size_t next_op = 0;
+  std::size_t next_op = 0, next_edge = 0;
   const OperatingPoint* current = nullptr;
   for (std::size_t f = 0; f < rec.frames(); f += kBlockFrames) {
     const std::int64_t k = rec.first_index + static_cast<std::int64_t>(f);
@@ -640,6 +672,11 @@ void RecordingLogWriter::write(const Recording& rec, const ProgressFn& progress)
       std::copy_n(&rec.mics_pa[f * mics], frames * mics, w.mic_block.data.begin());
       write_event(w.log, w.path, w.channels.raw, w.mic_block, utime, w.buf);
     }
+    // The edges before the next block's first frame (all that are left after the last block).
+    const double until = f + frames < rec.frames() ? static_cast<double>(k) + static_cast<double>(frames)
+                                                   : std::numeric_limits<double>::infinity();
+    while (next_edge_block(rec.angle_edges, next_edge, until, rec.info.pressure_angle_step_deg, epoch, w.angle_block))
+      write_event(w.log, w.path, w.channels.raw, w.angle_block, w.angle_block.utime, w.buf);
     if (progress && (f / kBlockFrames) % 256 == 0)
       progress(static_cast<double>(f) / static_cast<double>(rec.frames()));
   }

@@ -25,6 +25,9 @@ struct Recording {
   std::vector<double> pressure_pa;   // one per frame
   std::vector<double> crank_deg;     // one per frame, wrapped to [-360, 360) as on the pressure stream
   std::vector<double> mics_pa;       // frames * info.mic_count, frame-major; empty without microphones
+  // The crank-angle stream (info.pressure_angle_step_deg > 0): the encoder edges within the frames, frame-major,
+  // kEdgeValues values each (angle_edges.hpp); empty without one.
+  std::vector<double> angle_edges;
   std::vector<OperatingPoint> operating_points;  // at least one; utime on the recording's time base
 
   std::size_t frames() const { return pressure_pa.size(); }
@@ -37,6 +40,8 @@ struct Recording {
 // - Missing encoder samples (crank steps of 1.5 .. kMaxCrankGapSteps encoder steps) are filled by linear
 //   interpolation in time, crank angle and pressure first: the resampler expects samples evenly spaced in angle.
 // - The crank channel is the unwrapped crank angle interpolated linearly at each 40 kHz instant, then wrapped.
+// - The encoder samples themselves (filled as above) become the crank-angle stream (Recording::angle_edges), when
+//   their step is an encoder's (kMinAngleStepDeg ... kMaxAngleStepDeg): the combustion figures are computed on them.
 // - Both streams are cut to the stretch where both exist and the resamplers have full support (the first and
 //   last few hundred microseconds of the pressure are lost); operating_points holds one point from the
 //   run's condition (operating_point_of). Throws RunDirError when nothing is left or the run is inconsistent.

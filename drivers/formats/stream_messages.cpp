@@ -97,6 +97,7 @@ StreamInfo from_message(const noisemon::session_t& m) {
   info.mic_full_scale_pa = m.mic_full_scale_pa;
   info.pressure_edges_per_rev = m.pressure_edges_per_rev;
   info.mic_passband_hz = m.mic_passband_hz;
+  info.pressure_angle_step_deg = angle_step_deg(m.pressure_edges_per_rev);
   for (const auto& p : m.mic_positions_m) info.mic_positions_m.push_back({p[0], p[1], p[2]});
   return info;
 }
@@ -189,6 +190,28 @@ bool decode_message(const void* data, std::size_t size, noisemon::operating_poin
   return decode_exact(data, size, m);
 }
 
+namespace {
+
+const char* stream_name(std::int8_t stream) {
+  if (stream == noisemon::raw_block_t::STREAM_PRESSURE) return "pressure";
+  if (stream == noisemon::raw_block_t::STREAM_MICS) return "microphone";
+  return "crank-angle";
+}
+
+// A crank-angle block's edges: no more than its encoder's block holds, angles within [-360, 360] or NaN (not known).
+std::string angle_block_problem(const noisemon::raw_block_t& m, const StreamInfo& info) {
+  if (static_cast<std::uint32_t>(m.frames) > max_edges_per_angle_block(info.pressure_angle_step_deg))
+    return "crank-angle block of " + std::to_string(m.frames) + " edges: more than " + std::to_string(kMaxAngleBlockDeg) +
+           " deg of crank angle";
+  for (std::int16_t f = 0; f < m.frames; ++f) {
+    const double c = m.data[static_cast<std::size_t>(f) * kAngleStreamChannels + kAngleCrankChannel];
+    if (c < -360.0 || c > 360.0) return "crank angle outside [-360, 360] deg";
+  }
+  return "";
+}
+
+}  // namespace
+
 std::string raw_block_problem(const noisemon::raw_block_t& m, const StreamInfo& info) {
   if (m.sample_rate_hz != kPipelineRateHz) return "sample rate " + std::to_string(m.sample_rate_hz) + " Hz, expected 40000";
   if (m.frames < 0 || m.frames > static_cast<int>(SampleBlock::kMaxFrames) || m.channels < 1 ||
@@ -205,13 +228,18 @@ std::string raw_block_problem(const noisemon::raw_block_t& m, const StreamInfo& 
     expected = kPressureStreamChannels;
   else if (m.stream == noisemon::raw_block_t::STREAM_MICS)
     expected = info.mic_count;
+  else if (m.stream == noisemon::raw_block_t::STREAM_PRESSURE_ANGLE && info.pressure_angle_step_deg > 0)
+    expected = kAngleStreamChannels;
+  else if (m.stream == noisemon::raw_block_t::STREAM_PRESSURE_ANGLE)
+    return "crank-angle block in a session whose encoder (pressure_edges_per_rev) has no crank-angle stream";
   else
     return "unknown stream " + std::to_string(m.stream);
   if (static_cast<std::size_t>(m.channels) != expected)
-    return std::string(m.stream == noisemon::raw_block_t::STREAM_PRESSURE ? "pressure" : "microphone") + " block with " +
-           std::to_string(m.channels) + " channels, expected " + std::to_string(expected);
+    return std::string(stream_name(m.stream)) + " block with " + std::to_string(m.channels) + " channels, expected " +
+           std::to_string(expected);
   for (double v : m.data)
     if (std::isinf(v)) return "infinite sample";
+  if (m.stream == noisemon::raw_block_t::STREAM_PRESSURE_ANGLE) return angle_block_problem(m, info);
   if (m.stream == noisemon::raw_block_t::STREAM_PRESSURE)
     for (std::int16_t f = 0; f < m.frames; ++f) {
       const double c = m.data[static_cast<std::size_t>(f) * kPressureStreamChannels + kCrankChannel];

@@ -59,7 +59,7 @@ class LcmSource final : public Source {
     switch (e.kind) {
       case RawEventKind::kBlock:
         if (!streams_.pressure) return;  // before start(): nothing to feed yet
-        (e.stream == noisemon::raw_block_t::STREAM_PRESSURE ? streams_.pressure : streams_.mics)->write(&e.block, 1);
+        if (BlockRing* ring = ring_of(streams_, e.stream)) ring->write(&e.block, 1);
         worker_.add_blocks_written();  // a full ring counts the overrun itself
         return;
       case RawEventKind::kOperatingPoint:

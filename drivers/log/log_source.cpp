@@ -133,8 +133,8 @@ class LogSource final : public Source {
         break;
       }
       if (ev->kind == RawEventKind::kBlock) {
-        BlockRing& ring = ev->stream == noisemon::raw_block_t::STREAM_PRESSURE ? *streams.pressure : *streams.mics;
-        if (!push_waiting(ring, ev->block, stop)) break;
+        BlockRing* ring = ring_of(streams, ev->stream);
+        if (ring && !push_waiting(*ring, ev->block, stop)) break;
         ++s.counts.raw_blocks;
         worker_.add_blocks_written();
       } else if (ev->kind == RawEventKind::kOperatingPoint) {
@@ -155,7 +155,10 @@ class LogSource final : public Source {
     if (have_last_ && same_values(last_, op)) return push_waiting(*streams.operating_point, op, stop);
     last_ = op;
     have_last_ = true;
-    return wait_until(stop, kTakenInterval, [&] { return streams.pressure->empty() && streams.mics->empty(); }) &&
+    const auto taken = [&] {
+      return streams.pressure->empty() && streams.mics->empty() && (!streams.pressure_angle || streams.pressure_angle->empty());
+    };
+    return wait_until(stop, kTakenInterval, taken) &&
            push_waiting(*streams.operating_point, op, stop) &&
            wait_until(stop, kTakenInterval, [&] { return streams.operating_point->empty(); });
   }

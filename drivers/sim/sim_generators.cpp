@@ -101,7 +101,8 @@ PressureGenerator::PressureGenerator(const SimConfig& config, double t_first_s)
           encoder_decoder_config(counts_per_rev_, static_cast<double>(index_edge_) * config.encoder_resolution_deg,
                                  config.speed_rpm),
           0)),
-      staging_(16) {
+      staging_(16),
+      angle_staging_(64) {
   decoder_->restart(std::llround(origin_s_ * 1e6));
   // The counter as it stands at the first edge: counted from the last index (the card was started earlier).
   counter_ = static_cast<std::uint32_t>(floor_mod(next_edge_ - 1 - index_edge_, counts_per_rev_));
@@ -127,6 +128,18 @@ void PressureGenerator::advance(double t_end_s, BlockRing& ring) {
   }
   decoder_->deliver(staging_, false);
   forward(ring);
+  forward_angles();
+}
+
+void PressureGenerator::set_angle_ring(BlockRing* ring) {
+  angle_out_ = ring;
+  decoder_->set_angle_ring(ring ? &angle_staging_ : nullptr);
+}
+
+// The decoder's crank-angle blocks to their ring, those that begin in the pre-roll (before first_index_) left out.
+void PressureGenerator::forward_angles() {
+  for (const SampleBlock* b = angle_staging_.front(); b; angle_staging_.consume(1), b = angle_staging_.front())
+    if (angle_out_ && b->first_index >= first_index_) angle_out_->push(*b);
 }
 
 // The true pressure at the next edges before t_end_s (an overload fault scales it before the converter).

@@ -68,6 +68,9 @@ class PressureGenerator {
   PressureGenerator(const SimConfig& config, double t_first_s);
   ~PressureGenerator();
   void advance(double t_end_s, BlockRing& ring);  // every edge before t_end_s
+  // The crank-angle stream (each edge's sample) goes to this ring too, its blocks that begin at first_index() or
+  // later; nullptr: nowhere.
+  void set_angle_ring(BlockRing* ring);
   std::uint64_t blocks_written() const { return forwarded_; }
   std::int64_t first_index() const { return first_index_; }
   std::uint64_t clipped_samples() const { return chain_.clipped_samples(); }  // encoder samples the ADC clipped
@@ -79,6 +82,7 @@ class PressureGenerator {
   void count_edge(std::int64_t edge, double t, double pressure, BlockRing& ring);
   void scan(double t, double pressure, BlockRing& ring);
   void forward(BlockRing& ring);
+  void forward_angles();
 
   model::CrankKinematics kin_;
   EngineCycleCache cache_;
@@ -96,6 +100,8 @@ class PressureGenerator {
   std::unique_ptr<EdgeStreamAssembler> decoder_;
   BlockRing staging_;                // the decoder's output, passed on from first_index_ (pre-roll frames trimmed)
   SampleBlock trimmed_;
+  BlockRing* angle_out_ = nullptr;   // the crank-angle stream's ring
+  BlockRing angle_staging_;          // the decoder's crank-angle blocks, passed on from first_index_
   std::uint64_t forwarded_ = 0;      // blocks written to the ring
   std::size_t batch_;                // edges per chain call
   std::vector<double> t_, x_;

@@ -78,6 +78,7 @@ class SimSource final : public Source {
     if (config_.pressure_chain.adc_bits > 0) info_.pressure_full_scale_pa = config_.pressure_chain.adc_max_bar * 1e5;
     if (config_.mic_chain.adc_bits > 0) info_.mic_full_scale_pa = config_.mic_chain.adc_range_pa;
     info_.pressure_edges_per_rev = 360.0 / config_.encoder_resolution_deg;
+    info_.pressure_angle_step_deg = angle_step_deg(info_.pressure_edges_per_rev);
     info_.mic_passband_hz = dsp::converter_passband_hz(config_.mic_rate_hz);
   }
   ~SimSource() override { stop(); }
@@ -94,6 +95,7 @@ class SimSource final : public Source {
     const double t_first = std::ceil(std::max(now_s, 0.0) / sim::kGridAlignS) * sim::kGridAlignS;
     // Generators are built here (allocation happens now, not in the threads).
     auto pressure = std::make_shared<sim::PressureGenerator>(config_, t_first);
+    pressure->set_angle_ring(streams.pressure_angle);
     auto mics = std::make_shared<sim::MicGenerator>(config_, t_first);
     const SimConfig::Threads& policy = config_.threads;
     for (auto& p : progress_) p.store(t_first, std::memory_order_relaxed);

@@ -98,8 +98,12 @@ TEST(SummaryCommand, StatisticsOfTheRealCyclesAgreeWithTheReplayCsv) {
   ASSERT_EQ(from_dir.status, 0) << from_dir.text;
   const nlohmann::json d = nlohmann::json::parse(from_dir.text);
   ASSERT_EQ(d.size(), 1u);
+  // The run directory holds the 40 kHz pressure, not the table's own 0.2 deg samples (export writes no crank-angle
+  // stream): its figures come from the resampled pressure, whose peaks the resampler's low-pass rounds off a little.
+  EXPECT_NEAR(d.begin().value()["scalars"]["imep_net_bar"]["mean"].get<double>(),
+              s["scalars"]["imep_net_bar"]["mean"].get<double>(), 0.02);
   EXPECT_NEAR(d.begin().value()["scalars"]["peak_pressure_bar"]["mean"].get<double>(),
-              s["scalars"]["peak_pressure_bar"]["mean"].get<double>(), 0.05);
+              s["scalars"]["peak_pressure_bar"]["mean"].get<double>(), 0.5);
   // A path that is not there is a clear error.
   const Output missing = run("summary " + (dir / "nothing").string());
   EXPECT_NE(missing.status, 0);

@@ -84,7 +84,8 @@ TEST(ReportMessages, EveryCycleFlagHasAName) {
                                      daemon::kCyclePressureFault),
             "encoder,overload,mic-excluded,pressure-fault");
   EXPECT_EQ(daemon::kCycleLwUpperBound, +noisemon::cycle_report_t::CYCLE_LW_UPPER_BOUND);
-  for (std::int32_t bit = 1; bit <= daemon::kCycleLwUpperBound; bit <<= 1)
+  EXPECT_EQ(daemon::kCycleAngleGap, +noisemon::cycle_report_t::CYCLE_ANGLE_GAP);
+  for (std::int32_t bit = 1; bit <= daemon::kCycleAngleGap; bit <<= 1)
     EXPECT_NE(daemon::cycle_flags_text(bit), "") << bit;
 }
 

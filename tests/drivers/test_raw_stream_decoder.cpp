@@ -204,5 +204,43 @@ TEST_F(Decoder, ChannelNamesAreTheConfiguredOnes) {
   EXPECT_EQ(feed("R", pressure_block()).kind, RawEventKind::kBlock);
 }
 
+// The crank-angle stream: a session whose encoder has a step of 0.01 ... 6 deg may carry it (two channels an edge,
+// at most a 90 deg block); another session may not, and a block that breaks those bounds gives its reason.
+TEST_F(Decoder, CrankAngleBlocksBelongToAnEncodersSessionAndKeepToTheirBounds) {
+  const auto angle_block = [](std::uint32_t edges, double first_angle) {
+    SampleBlock b;
+    b.first_index = 512;
+    b.frames = edges;
+    b.channels = kAngleStreamChannels;
+    for (std::uint32_t f = 0; f < edges; ++f) {
+      b.data[2 * f + kAngleCrankChannel] = first_angle + 0.5 * f;
+      b.data[2 * f + kAnglePressureChannel] = 1e5;
+    }
+    return to_message(b, noisemon::raw_block_t::STREAM_PRESSURE_ANGLE, kEpoch);
+  };
+  StreamInfo info = two_mics();
+  info.pressure_edges_per_rev = 720;  // 0.5 deg: 180 edges make 90 deg
+  session(info);
+  EXPECT_EQ(decoder.info().pressure_angle_step_deg, 0.5);
+  const RawEvent& ok = feed("NOISEMON_RAW", angle_block(180, -100.0));
+  EXPECT_EQ(ok.kind, RawEventKind::kBlock) << ok.reason;
+  EXPECT_EQ(int{ok.stream}, int{noisemon::raw_block_t::STREAM_PRESSURE_ANGLE});
+  EXPECT_EQ(ok.block.frames, 180u);
+  const RawEvent& wide = feed("NOISEMON_RAW", angle_block(181, -100.0));
+  EXPECT_EQ(wide.kind, RawEventKind::kBadBlock);
+  EXPECT_NE(wide.reason.find("181 edges"), std::string::npos) << wide.reason;
+  const RawEvent& outside = feed("NOISEMON_RAW", angle_block(10, 356.0));
+  EXPECT_EQ(outside.kind, RawEventKind::kBadBlock);
+  EXPECT_NE(outside.reason.find("outside [-360, 360]"), std::string::npos) << outside.reason;
+
+  RawStreamDecoder timed;  // a session sampled in time (no encoder edges): no crank-angle stream
+  const std::vector<std::uint8_t> s = bytes_of(to_message(two_mics(), "test", kEpoch, "run"));
+  timed.decode("NOISEMON_SESSION", s.data(), s.size());
+  const std::vector<std::uint8_t> b = bytes_of(angle_block(10, 0.0));
+  const RawEvent& refused = timed.decode("NOISEMON_RAW", b.data(), b.size());
+  EXPECT_EQ(refused.kind, RawEventKind::kBadBlock);
+  EXPECT_NE(refused.reason.find("no crank-angle stream"), std::string::npos) << refused.reason;
+}
+
 }  // namespace
 }  // namespace noisemon::drivers

@@ -22,6 +22,7 @@
 #include <limits>
 #include <numbers>
 
+#include "drivers/formats/angle_edges.hpp"
 #include "drivers/formats/lcm_log_reader.hpp"
 #include "drivers/formats/recording.hpp"
 #include "drivers/formats/stream_messages.hpp"
@@ -208,6 +209,33 @@ TEST(Recording, RunDirToLogAndBackMatchesTheAnalyticSignals) {
   EXPECT_EQ(back[0].pressure_pa, rec.pressure_pa);
   EXPECT_EQ(back[0].crank_deg, rec.crank_deg);
   EXPECT_EQ(back[0].mics_pa, rec.mics_pa);
+  // The encoder samples within the frames, as the run has them, are the crank-angle stream: read back, each edge's
+  // angle and pressure exactly, its instant its block's first frame (at most a block's 90 deg before it).
+  const double step = 360.0 / rec.info.pressure_edges_per_rev;
+  EXPECT_NEAR(rec.info.pressure_angle_step_deg, step, 1e-12);
+  const std::size_t edges = rec.angle_edges.size() / kEdgeValues;
+  std::size_t within = 0;
+  for (std::size_t i = 0; i < run.time_s.size(); ++i) {
+    const double t = run.time_s[i] * 40000.0;
+    if (t < static_cast<double>(rec.first_index) || t >= static_cast<double>(rec.first_index + static_cast<std::int64_t>(rec.frames())))
+      continue;
+    ASSERT_LT(within, edges);
+    EXPECT_EQ(rec.angle_edges[within * kEdgeValues + kEdgeInstant], t);
+    EXPECT_EQ(rec.angle_edges[within * kEdgeValues + kEdgePressure], run.pressure_pa[i]);
+    EXPECT_NEAR(rec.angle_edges[within * kEdgeValues + kEdgeCrank], wrap(run.crank_deg[i]), 1e-9);
+    ++within;
+  }
+  EXPECT_EQ(within, edges);
+  EXPECT_GT(edges, 1000u);
+  ASSERT_EQ(back[0].angle_edges.size(), rec.angle_edges.size());
+  const double block_frames = 1.05 * 90.0 / 360.0 * 60.0 / 2000.0 * 40000.0;  // 90 deg at 2000 rpm (1 % ripple)
+  for (std::size_t i = 0; i < edges; ++i) {
+    EXPECT_EQ(back[0].angle_edges[i * kEdgeValues + kEdgeCrank], rec.angle_edges[i * kEdgeValues + kEdgeCrank]);
+    EXPECT_EQ(back[0].angle_edges[i * kEdgeValues + kEdgePressure], rec.angle_edges[i * kEdgeValues + kEdgePressure]);
+    const double lag = rec.angle_edges[i * kEdgeValues + kEdgeInstant] - back[0].angle_edges[i * kEdgeValues + kEdgeInstant];
+    ASSERT_GE(lag, 0.0) << i;
+    ASSERT_LE(lag, block_frames + 1.0) << i;
+  }
   EXPECT_EQ(back[0].condition, "analytic");
   EXPECT_EQ(back[0].info.epoch_utime, rec.info.epoch_utime);
   EXPECT_EQ(back[0].info.mic_positions_m, run.mic_positions_m);

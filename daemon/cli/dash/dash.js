@@ -3,7 +3,7 @@
 'use strict';
 
 const CYCLE_FLAGS = [[1, 'settling'], [2, 'gap'], [4, 'no-op'], [8, 'odd-length'], [16, 'no-mics'], [32, 'encoder'],
-  [64, 'overload'], [128, 'mic-excluded'], [256, 'pressure-fault'], [512, 'lw-bound']];
+  [64, 'overload'], [128, 'mic-excluded'], [256, 'pressure-fault'], [512, 'lw-bound'], [1024, 'angle-gap']];
 // BAND_* bits of cycle_report_t (msgs/cycle_report_t.lcm); 8, 16 and 32 keep a band out of the overall levels.
 const BAND_FLAGS = [[1, 'nyquist-cut'], [2, 'slow'], [4, 'settling'], [8, 'below-firing'], [16, 'beyond-pressure-passband'],
   [32, 'beyond-mic-passband']];
