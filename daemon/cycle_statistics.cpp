@@ -56,6 +56,8 @@ const std::vector<Field>& fields() {
       {"ca05_deg", "deg", false, [](const Report& r) { return r.ca05_deg; }},
       {"burn_duration_deg", "deg", false, [](const Report& r) { return r.burn_duration_deg; }},
       {"pegging_offset_bar", "bar", false, [](const Report& r) { return r.pegging_offset_bar; }},
+      // The encoder's angle of firing TDC the figures used ([combustion] tdc_deg): its std says whether it changed.
+      {"tdc_deg", "deg", false, [](const Report& r) { return r.tdc_deg; }},
       {"processing_ms", "ms", false, [](const Report& r) { return static_cast<double>(r.processing_ms); }},
   };
   return f;
@@ -356,19 +358,21 @@ std::string statistics_json(const CycleStatistics& s) {
   return j.dump(1);
 }
 
-std::string statistics_csv_header() { return "run,quantity,unit,energy_mean,n,mean,std,cov,min,max\n"; }
+std::string statistics_csv_header() { return "run,quantity,unit,energy_mean,n,mean,std,cov,min,max,lnv\n"; }
 
 std::string statistics_csv_rows(const CycleStatistics& s, const std::string& run) {
   std::string out;
   char line[320];
   auto plain = [](double v) { return std::isnan(v) ? kNaN : v; };
   for (const ScalarStats& v : s.scalars) {
-    std::snprintf(line, sizeof line, "%s,%s,%s,%d,%lld,%.6g,%.6g,%.6g,%.6g,%.6g\n", run.c_str(), v.name.c_str(), v.unit.c_str(),
-                  v.level ? 1 : 0, static_cast<long long>(v.n), plain(v.mean), plain(v.std), plain(v.cov), plain(v.min), plain(v.max));
+    std::snprintf(line, sizeof line, "%s,%s,%s,%d,%lld,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g\n", run.c_str(), v.name.c_str(),
+                  v.unit.c_str(), v.level ? 1 : 0, static_cast<long long>(v.n), plain(v.mean), plain(v.std), plain(v.cov),
+                  plain(v.min), plain(v.max), plain(v.lnv));
     out += line;
   }
   for (auto [name, value] : {std::pair{"lwa_run_measured_db", s.lwa_run_measured_db}, {"lwa_run_predicted_db", s.lwa_run_predicted_db}}) {
-    std::snprintf(line, sizeof line, "%s,%s,dB(A),1,%lld,%.6g,nan,nan,nan,nan\n", run.c_str(), name, static_cast<long long>(s.valid), plain(value));
+    std::snprintf(line, sizeof line, "%s,%s,dB(A),1,%lld,%.6g,nan,nan,nan,nan,nan\n", run.c_str(), name,
+                  static_cast<long long>(s.valid), plain(value));
     out += line;
   }
   return out;

@@ -91,7 +91,15 @@ TEST(SummaryCommand, StatisticsOfTheRealCyclesAgreeWithTheReplayCsv) {
   // CSV output: a header and one row per quantity; the same run as a run directory gives the same cycles.
   const Output csv_out = run("summary " + log + " --csv --no-progress");
   ASSERT_EQ(csv_out.status, 0);
-  EXPECT_EQ(csv_out.text.rfind("run,quantity,unit,energy_mean,n,mean,std,cov,min,max\n", 0), 0u) << csv_out.text;
+  EXPECT_EQ(csv_out.text.rfind("run,quantity,unit,energy_mean,n,mean,std,cov,min,max,lnv\n", 0), 0u) << csv_out.text;
+  // The lowest normalised value of net IMEP (lowest over mean), from the replay CSV's column; the TDC the figures used.
+  const std::string imep_row = "yanmar_l100v_fired_18Nm,imep_net_bar,bar,0,";
+  const std::size_t at = csv_out.text.find(imep_row);
+  ASSERT_NE(at, std::string::npos) << csv_out.text;
+  const std::string row = csv_out.text.substr(at, csv_out.text.find('\n', at) - at);
+  EXPECT_NEAR(std::stod(row.substr(row.rfind(',') + 1)), lo / (sum / n), 1e-4) << row;
+  EXPECT_NE(csv_out.text.find("yanmar_l100v_fired_18Nm,tdc_deg,deg,0," + std::to_string(static_cast<int>(n)) + ",0,0,"),
+            std::string::npos) << csv_out.text;
   EXPECT_NE(csv_out.text.find("yanmar_l100v_fired_18Nm,ca50_deg,deg,0,"), std::string::npos);
   ASSERT_EQ(run("export " + log + " -o " + (dir / "fired_run").string()).status, 0);
   const Output from_dir = run("summary " + (dir / "fired_run").string() + " --json --no-progress");
