@@ -509,6 +509,12 @@ void read_combustion(TableReader& top, const std::string& origin, model::Metrics
   r.number("tdc_deg", o.tdc_deg, -30, 30);
   r.number("rise_from_deg", o.rise_from_deg, -180, 180);
   r.number("rise_to_deg", o.rise_to_deg, -180, 360);
+  r.number("mapo_low_hz", o.mapo_low_hz, 100, 100e3);
+  r.number("mapo_high_hz", o.mapo_high_hz, 100, 200e3);
+  if (!(o.mapo_low_hz < o.mapo_high_hz)) r.fail("mapo_high_hz", "must lie above mapo_low_hz");
+  r.number("mapo_from_deg", o.mapo_from_deg, -180, 180);
+  r.number("mapo_to_deg", o.mapo_to_deg, -180, 180);
+  if (!(o.mapo_from_deg < o.mapo_to_deg)) r.fail("mapo_to_deg", "must lie after mapo_from_deg");
   r.reject_unknown();
   o.peg_intake_pa = intake_bar * 1e5;
   o.peg_exponent = exponent > 0 ? exponent : std::numeric_limits<double>::quiet_NaN();

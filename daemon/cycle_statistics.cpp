@@ -56,6 +56,7 @@ const std::vector<Field>& fields() {
       {"ca05_deg", "deg", false, [](const Report& r) { return r.ca05_deg; }},
       {"burn_duration_deg", "deg", false, [](const Report& r) { return r.burn_duration_deg; }},
       {"pegging_offset_bar", "bar", false, [](const Report& r) { return r.pegging_offset_bar; }},
+      {"mapo_bar", "bar", false, [](const Report& r) { return r.mapo_bar; }},
       // The encoder's angle of firing TDC the figures used ([combustion] tdc_deg): its std says whether it changed.
       {"tdc_deg", "deg", false, [](const Report& r) { return r.tdc_deg; }},
       {"processing_ms", "ms", false, [](const Report& r) { return static_cast<double>(r.processing_ms); }},

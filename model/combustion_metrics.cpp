@@ -245,6 +245,40 @@ std::pair<double, double> pegging(const Grid& g, const MetricsOptions& o) {
   return {offset, exponent};
 }
 
+// The cascade over x in place, forward then backward (zero phase, the magnitude squared).
+void filter_both_ways(const std::vector<dsp::Biquad>& sections, std::vector<double>& x) {
+  for (int pass = 0; pass < 2; ++pass) {
+    for (const dsp::Biquad& s : sections) {
+      double z1 = 0.0, z2 = 0.0;  // transposed direct form II
+      for (double& v : x) {
+        const double y = s.b0 * v + z1;
+        z1 = s.b1 * v - s.a1 * y + z2;
+        z2 = s.b2 * v - s.a2 * y;
+        v = y;
+      }
+    }
+    std::reverse(x.begin(), x.end());
+  }
+}
+
+// MAPO: the largest |band-passed pressure| in the window (MetricsOptions), on the grid's own sample rate.
+double mapo(const Grid& g, double speed_rpm, const MetricsOptions& o, MetricsWorkspace& w) {
+  const double fs = speed_rpm / 60.0 * 360.0 / g.step;
+  if (!(speed_rpm > 0) || !(o.mapo_low_hz < 0.4 * fs) || !g.covers(o.mapo_from_deg, o.mapo_to_deg)) return kNaN;
+  const double high = std::min(o.mapo_high_hz, 0.45 * fs);
+  if (w.mapo_filter.empty() || std::abs(fs / w.mapo_fs_hz - 1.0) > 0.01 || w.mapo_low_hz != o.mapo_low_hz ||
+      w.mapo_high_hz != high) {
+    w.mapo_filter = dsp::butterworth_bandpass(2, o.mapo_low_hz, high, fs);
+    w.mapo_fs_hz = fs, w.mapo_low_hz = o.mapo_low_hz, w.mapo_high_hz = high;
+  }
+  w.band.assign(g.p.begin(), g.p.end());
+  filter_both_ways(w.mapo_filter, w.band);
+  const auto [lo, hi] = g.range(o.mapo_from_deg, o.mapo_to_deg);
+  double most = 0.0;
+  for (std::size_t i = lo; i <= hi; ++i) most = std::max(most, std::abs(w.band[i]));
+  return most;
+}
+
 }  // namespace
 
 CombustionMetrics combustion_metrics(std::span<const double> pressure_pa, double first_deg, double step_deg,
@@ -283,6 +317,7 @@ CombustionMetrics combustion_metrics(std::span<const double> pressure_pa, double
   m.max_rise_motored_pa_per_deg = motored_slope(compression, engine, m.max_rise_angle_deg);
   heat_release(g, slope, options, scratch.heat, m);
   m.ringing_intensity_w_per_m2 = ringing_intensity(g, engine, speed_rpm, options, m);
+  m.mapo_pa = mapo(g, speed_rpm, options, scratch);
   m.burn_duration_deg = m.ca90_deg - m.ca10_deg;
   m.pegging_offset_pa = offset;
   m.pegging_exponent = exponent;

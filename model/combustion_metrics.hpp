@@ -13,6 +13,7 @@
 #include <span>
 #include <vector>
 
+#include "dsp/iir_design.hpp"
 #include "model/engine_geometry.hpp"
 
 namespace noisemon::model {
@@ -49,6 +50,13 @@ struct MetricsOptions {
   double compression_from_deg = -90.0, compression_to_deg = -40.0;
   double expansion_from_deg = 60.0, expansion_to_deg = 110.0;
   double ringing_beta_s = 0.05e-3;         // Eng's beta
+  // MAPO (maximum amplitude of pressure oscillations, the knock figure of AVL IndiCom and Kistler KiBox): the largest
+  // |p| of the pressure band-passed (Butterworth, 4th order, forward and backward: zero phase) to
+  // [mapo_low_hz, mapo_high_hz] on the grid itself, within [mapo_from_deg, mapo_to_deg]. The grid's sample rate
+  // follows the speed (360 / step edges a revolution); an upper edge above 0.45 of it is taken down to there, a
+  // lower edge above 0.4 of it leaves MAPO NaN.
+  double mapo_low_hz = 4000.0, mapo_high_hz = 20000.0;
+  double mapo_from_deg = -20.0, mapo_to_deg = 90.0;
   double intake_temperature_k = 313.0;     // trapped charge at intake valve closing, for T_max
   double ivc_deg = -150.0;                 // intake valve closing (deg re firing TDC)
 };
@@ -70,6 +78,7 @@ struct CombustionMetrics {
                                                                                             // (NaN without combustion)
   double burn_duration_deg = kUnknown;              // CA10 to CA90
   double ringing_intensity_w_per_m2 = kUnknown;     // NaN without the speed
+  double mapo_pa = kUnknown;                        // NaN without the speed, or a band the grid cannot carry
   double pegging_offset_pa = kUnknown;              // added to the whole cycle before the figures (0: no pegging)
   double pegging_exponent = kUnknown;               // the polytropic pegging's n (fixed or fitted)
 };
@@ -86,7 +95,9 @@ CombustionMetrics combustion_metrics(std::span<const double> pressure_pa, double
 // thread) does not allocate per cycle. It also keeps the cylinder volume and its derivative at the grid's angles
 // (their sines and cosines were most of the metrics' time), recomputed only when the grid or the geometry change.
 struct MetricsWorkspace {
-  std::vector<double> slope, heat, pegged;
+  std::vector<double> slope, heat, pegged, band;
+  std::vector<dsp::Biquad> mapo_filter;  // designed for mapo_fs_hz (and the options' band); again when they move 1 %
+  double mapo_fs_hz = 0.0, mapo_low_hz = 0.0, mapo_high_hz = 0.0;
   std::vector<double> volume_m3, dvolume_m3_per_deg;
   double volume_first_deg = 0.0, volume_step_deg = 0.0;
   EngineGeometry volume_engine;

@@ -84,6 +84,8 @@ const RealColumn kRealColumns[] = {
      [](auto& m) { return m.tdc_deg; }},
     {"pegging_offset_bar", "bar", "pegging offset added to the whole cycle ([combustion] pegging; 0: none)",
      [](auto& m) { return m.pegging_offset_bar; }},
+    {"mapo_bar", "bar", "MAPO: largest |pressure| band-passed to [combustion] mapo_low_hz ... mapo_high_hz, in its window",
+     [](auto& m) { return m.mapo_bar; }},
     {"combustion_noise_db", "dB(A)", "CPL through the thesis's fixed eq. 4.1 structure attenuation, A-weighted",
      [](auto& m) { return m.combustion_noise_db; }},
 };

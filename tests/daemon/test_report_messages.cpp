@@ -142,11 +142,11 @@ TEST(ReportMessages, EveryUnknownValueIsPlainNanInTheCsv) {
                     &r.combustion.heat_release_j, &r.combustion.ca10_deg, &r.combustion.ca50_deg, &r.combustion.ca90_deg,
                     &r.combustion.ringing_intensity_w_per_m2, &r.combustion.pegging_offset_pa, &r.combustion.pmep_pa,
                     &r.combustion.n_compression, &r.combustion.n_expansion, &r.combustion.ca05_deg,
-                    &r.combustion.burn_duration_deg, &r.combustion.max_rise_motored_pa_per_deg})
+                    &r.combustion.burn_duration_deg, &r.combustion.max_rise_motored_pa_per_deg, &r.combustion.mapo_pa})
     *v = -std::numeric_limits<double>::quiet_NaN();
   const std::string row = daemon::cycle_csv_row(daemon::to_message(r), "c");
   EXPECT_EQ(row.find("-nan"), std::string::npos) << row;
   std::size_t nans = 0;
   for (std::size_t at = row.find("nan"); at != std::string::npos; at = row.find("nan", at + 1)) ++nans;
-  EXPECT_EQ(nans, 19u) << row;
+  EXPECT_EQ(nans, 20u) << row;
 }
