@@ -82,7 +82,6 @@ TdcCommand::TdcCommand(CLI::App& app) {
   CLI::Option* table = tdc_->add_option("--cycles-table", table_, "a motored cycle table instead (its own scale)")
                            ->check(CLI::ExistingFile)
                            ->excludes(dir);
-  tdc_->add_option("--rpm", rpm_, "the table's speed (with --cycles-table)")->check(CLI::PositiveNumber)->needs(table);
   tdc_->add_option("--tdc-deg", table_tdc_deg_, "the table's nominal angle of firing TDC")->capture_default_str()->needs(table);
   tdc_->add_option("--loss-angle-deg", loss_angle_deg_, "how far before TDC the motored peak lies (0 ... 3; measured "
                                                         "0.4 ... 1.3)")
@@ -93,7 +92,7 @@ TdcCommand::TdcCommand(CLI::App& app) {
       ->excludes(table);
   tdc_->footer("Examples:\n"
                "  noisemon tdc runs/motored_1800 --write-config /etc/noisemon/noisemond.toml\n"
-               "  noisemon tdc --cycles-table yanmar_l100v_motored.txt --rpm 1799.9");
+               "  noisemon tdc --cycles-table yanmar_l100v_motored.txt");
 }
 
 int TdcCommand::run() {
@@ -104,7 +103,6 @@ int TdcCommand::run() {
       return 2;
     }
     if (!table_.empty()) {
-      if (!(rpm_ > 0)) throw std::runtime_error("--cycles-table needs --rpm");
       print(table_, motored_table_tdc(drivers::read_cycle_table(table_), table_, table_tdc_deg_, loss_angle_deg_),
             "the table's scale");
       return 0;

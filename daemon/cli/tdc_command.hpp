@@ -30,7 +30,7 @@ class TdcCommand {
  private:
   CLI::App* tdc_ = nullptr;
   std::string run_dir_, table_, write_config_;
-  double rpm_ = 0.0, loss_angle_deg_ = model::kDefaultLossAngleDeg, table_tdc_deg_ = 0.0;
+  double loss_angle_deg_ = model::kDefaultLossAngleDeg, table_tdc_deg_ = 0.0;
 };
 
 }  // namespace noisemon::daemon
