@@ -506,6 +506,11 @@ void read_combustion(TableReader& top, const std::string& origin, model::Metrics
   r.number("polytropic_to_deg", o.peg_poly_to_deg, -180, 0);
   if (!(o.peg_poly_from_deg < o.peg_poly_to_deg)) r.fail("polytropic_to_deg", "must lie after polytropic_from_deg");
   r.number("gamma", o.gamma, 1.1, 1.67);
+  std::string gamma_model = o.gamma_of_temperature ? "temperature" : "constant";
+  r.string("gamma_model", gamma_model);
+  if (gamma_model != "constant" && gamma_model != "temperature")
+    r.fail("gamma_model", "expected \"constant\" (gamma) or \"temperature\" (Brunt et al.'s gamma(T))");
+  o.gamma_of_temperature = gamma_model == "temperature";
   r.number("tdc_deg", o.tdc_deg, -30, 30);
   r.number("rise_from_deg", o.rise_from_deg, -180, 180);
   r.number("rise_to_deg", o.rise_to_deg, -180, 360);

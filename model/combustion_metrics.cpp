@@ -34,10 +34,12 @@ struct Grid {
     const double slack = std::max(step, 2.0);
     return first <= a + slack && last() >= b - slack;
   }
-  double at(double theta) const {
+  double at(double theta) const { return interpolate(p.data(), theta); }
+  double volume_at(double theta) const { return interpolate(volume, theta); }
+  double interpolate(const double* v, double theta) const {
     const double x = std::clamp((theta - first) / step, 0.0, static_cast<double>(p.size() - 1));
     const auto i = std::min(static_cast<std::size_t>(x), p.size() - 2);
-    return p[i] + (x - static_cast<double>(i)) * (p[i + 1] - p[i]);
+    return v[i] + (x - static_cast<double>(i)) * (v[i + 1] - v[i]);
   }
 };
 
@@ -110,8 +112,20 @@ void max_rise(const Grid& g, const std::vector<double>& slope, const MetricsOpti
 void heat_release(const Grid& g, const std::vector<double>& slope, const MetricsOptions& o,
                   std::vector<double>& q, CombustionMetrics& m) {
   const auto [lo, hi] = g.range(o.heat_release_from_deg, o.heat_release_to_deg);
-  const double k = o.gamma / (o.gamma - 1.0), kv = 1.0 / (o.gamma - 1.0);
-  auto rate = [&](std::size_t i) { return k * g.p[i] * g.dvolume[i] + kv * g.volume[i] * slope[i]; };
+  // m R of the trapped charge, for the temperature (and gamma) at each angle.
+  double mass_r = kNaN;
+  if (o.gamma_of_temperature && g.covers(o.ivc_deg, o.ivc_deg))
+    mass_r = g.at(o.ivc_deg) * g.volume_at(o.ivc_deg) / o.intake_temperature_k;
+  if (o.gamma_of_temperature && !(mass_r > 0)) return;
+  auto gamma = [&](std::size_t i) {
+    if (!o.gamma_of_temperature) return o.gamma;
+    const double t = g.p[i] * g.volume[i] / mass_r;
+    return 1.338 - 6.0e-5 * t + 1.0e-8 * t * t;
+  };
+  auto rate = [&](std::size_t i) {
+    const double y = gamma(i);
+    return y / (y - 1.0) * g.p[i] * g.dvolume[i] + 1.0 / (y - 1.0) * g.volume[i] * slope[i];
+  };
   q.assign(1, 0.0);
   for (std::size_t i = lo; i < hi; ++i) {
     if (!std::isfinite(slope[i]) || !std::isfinite(slope[i + 1])) return;

@@ -36,6 +36,10 @@ struct MetricsOptions {
   double peg_poly_from_deg = -100.0, peg_poly_to_deg = -40.0;
   double peg_exponent = std::numeric_limits<double>::quiet_NaN();
   double gamma = 1.35;                    // ratio of specific heats for the heat release (Heywood: 1.3 ... 1.35)
+  // Or gamma of the gas temperature at each angle (the heat release only): T from the ideal gas law with the charge
+  // trapped at ivc_deg at intake_temperature_k, gamma(T) = 1.338 - 6.0e-5 T + 1.0e-8 T^2 (Brunt, Rai and Emtage,
+  // SAE 981052, for diesel combustion products and air). NaN heat release when the grid misses ivc_deg.
+  bool gamma_of_temperature = false;
   double derivative_half_width_deg = 0.5;  // dp/dtheta: least-squares slope over +-this (a Savitzky-Golay derivative)
   double heat_release_from_deg = -60.0;    // the heat release integrates over [from, to] (deg re firing TDC)
   double heat_release_to_deg = 90.0;
