@@ -1,4 +1,5 @@
 #include "daemon/cli/import_export.hpp"
+#include "daemon/cli/tdc_command.hpp"
 
 #include <unistd.h>
 
@@ -201,6 +202,11 @@ ImportSummary run_import(const ImportOptions& o) {
   drivers::RecordingLogWriter writer(o.out_log, o.channels);
   Progress progress(o.progress);
   std::int64_t epoch = first_epoch(o.epoch_utime);
+  if (!o.motored_run.empty()) {
+    progress.stage("import: thermodynamic TDC from " + o.motored_run);
+    sum.tdc = motored_run_tdc(o.motored_run, o.loss_angle_deg);
+    note_tdc(*sum.tdc, sum.notes);
+  }
   for (std::size_t i = 0; i < o.run_dirs.size(); ++i) {
     const std::string& dir = o.run_dirs[i];
     const std::string prefix = "import " + std::to_string(i + 1) + "/" + std::to_string(o.run_dirs.size()) + " " + dir + ":";
@@ -208,6 +214,8 @@ ImportSummary run_import(const ImportOptions& o) {
     drivers::Recording rec;
     {
       drivers::RunDir run = drivers::read_run_dir(dir);
+      if (sum.tdc)  // firing TDC at the encoder's tdc: the piston's angle is the encoder's less it
+        for (double& a : run.crank_deg) a -= sum.tdc->tdc_by_loss_angle_deg;
       const drivers::RunCondition condition = run.condition;
       progress.stage(prefix + " resampling to 40 kHz");
       rec = drivers::to_recording(std::move(run), epoch);  // frees the run's samples as they are resampled

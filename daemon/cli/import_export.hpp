@@ -40,6 +40,11 @@ struct ImportCommon {
 
 struct ImportOptions : ImportCommon {
   std::vector<std::string> run_dirs;
+  // Thermodynamic TDC (model/motored_tdc.hpp): a motored run directory of the same engine and encoder; every run's
+  // crank angles move by its TDC (on the encoder's scale: `noisemon tdc`), so the logs are on the piston's angles.
+  // Empty: the runs' angles are taken as they are.
+  std::string motored_run;
+  double loss_angle_deg = 0.7;  // model::kDefaultLossAngleDeg
 };
 
 struct CycleTableImportOptions : ImportCommon {

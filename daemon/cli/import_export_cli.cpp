@@ -35,11 +35,15 @@ ImportExportCommands::ImportExportCommands(CLI::App& app) {
                       "pressure peak plus the loss angle (thermodynamic TDC), and the fired table's angles move by it")
       ->check(CLI::ExistingFile)
       ->needs(table);
-  import_->add_option("--loss-angle-deg", table_.loss_angle_deg,
+  import_->add_option("--motored-run", dirs_.motored_run,
+                      "a motored run directory of the same engine and encoder: firing TDC is its pressure peak plus "
+                      "the loss angle (as `noisemon tdc` finds it), and every run's angles move by it")
+      ->check(CLI::ExistingDirectory)
+      ->excludes(table);
+  import_->add_option("--loss-angle-deg", loss_angle_deg_,
                       "thermodynamic loss angle: how far before TDC the motored peak lies (0 ... 3; measured "
-                      "0.4 ... 1.3 on motored engines)")
-      ->capture_default_str()
-      ->needs(table);
+                      "0.4 ... 1.3 on motored engines), with --motored-table or --motored-run")
+      ->capture_default_str();
   import_->add_option("--motored-rpm", table_.motored_rpm,
                       "speed of the motored table (default: --rpm); more than 2 % from --rpm is refused")
       ->check(CLI::PositiveNumber)
@@ -97,6 +101,11 @@ int ImportExportCommands::import_command() {
     std::fprintf(stderr, "noisemon import: --cycles-table needs --rpm (a cycle table holds no time)\n");
     return 2;
   }
+  if (import_->count("--loss-angle-deg") > 0 && table_.motored_table.empty() && dirs_.motored_run.empty()) {
+    std::fprintf(stderr, "noisemon import: --loss-angle-deg needs --motored-table or --motored-run\n");
+    return 2;
+  }
+  table_.loss_angle_deg = dirs_.loss_angle_deg = loss_angle_deg_;
   MicSynthesizer synth = mics_.empty() ? MicSynthesizer{} : mic_synthesizer(mics_);
   ImportSummary sum;
   if (from_table) {

@@ -29,6 +29,7 @@ class ImportExportCommands {
   std::string mics_;
   std::string pegging_ = "auto";
   double rail_bar_ = -1;
+  double loss_angle_deg_ = 0.7;  // model::kDefaultLossAngleDeg, for --motored-table or --motored-run
   ExportOptions export_options_;
 };
 

@@ -46,6 +46,14 @@ std::vector<std::vector<double>> motored_cycles_bar(const std::vector<double>& c
   return cycles;
 }
 
+model::MotoredTdc motored_run_tdc(const std::string& run_dir, double loss_angle_deg) {
+  const drivers::RunDir run = drivers::read_run_dir(run_dir);
+  if (run.condition.motored_known && !run.condition.motored)
+    throw std::runtime_error(run_dir + ": run.json says the engine was fired; give a motored run");
+  const auto cycles = motored_cycles_bar(run.crank_deg, run.pressure_pa, kRunGridStepDeg);
+  return model::motored_tdc(cycles, -360.0, kRunGridStepDeg, model::EngineGeometry{}, loss_angle_deg);
+}
+
 void write_tdc_deg(const std::string& path, double tdc_deg) {
   std::ifstream in(path);
   if (!in) throw std::runtime_error(path + ": cannot read the configuration");
@@ -107,11 +115,7 @@ int TdcCommand::run() {
             "the table's scale");
       return 0;
     }
-    const drivers::RunDir run = drivers::read_run_dir(run_dir_);
-    if (run.condition.motored_known && !run.condition.motored)
-      throw std::runtime_error(run_dir_ + ": run.json says the engine was fired; give a motored run");
-    const auto cycles = motored_cycles_bar(run.crank_deg, run.pressure_pa, kRunGridStepDeg);
-    const model::MotoredTdc t = model::motored_tdc(cycles, -360.0, kRunGridStepDeg, model::EngineGeometry{}, loss_angle_deg_);
+    const model::MotoredTdc t = motored_run_tdc(run_dir_, loss_angle_deg_);
     print(run_dir_, t, "the encoder's scale");
     if (!write_config_.empty()) {
       write_tdc_deg(write_config_, t.tdc_by_loss_angle_deg);

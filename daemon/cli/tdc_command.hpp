@@ -17,6 +17,10 @@ namespace noisemon::daemon {
 std::vector<std::vector<double>> motored_cycles_bar(const std::vector<double>& crank_deg,
                                                     const std::vector<double>& pressure_pa, double step_deg);
 
+// A motored run directory's thermodynamic TDC on its encoder's scale (what [combustion] tdc_deg holds); throws naming
+// the directory for a fired run (run.json) or cycles that are not motored (model::motored_tdc).
+model::MotoredTdc motored_run_tdc(const std::string& run_dir, double loss_angle_deg);
+
 // Sets tdc_deg in the [combustion] table of the TOML file at path (the line replaced when it is there, added under
 // the table otherwise, the table added at the end when there is none); the rest of the file as it was.
 void write_tdc_deg(const std::string& path, double tdc_deg);
