@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <filesystem>
 #include <fstream>
 #include <regex>
 #include <sstream>
@@ -10,6 +11,8 @@
 
 #include "daemon/cli/import_export.hpp"
 #include "drivers/formats/cycle_table.hpp"
+#include "drivers/formats/recording.hpp"
+#include "drivers/formats/run_dir.hpp"
 #include "drivers/formats/run_dir.hpp"
 
 namespace noisemon::daemon {
@@ -46,10 +49,18 @@ std::vector<std::vector<double>> motored_cycles_bar(const std::vector<double>& c
   return cycles;
 }
 
-model::MotoredTdc motored_run_tdc(const std::string& run_dir, double loss_angle_deg) {
-  const drivers::RunDir run = drivers::read_run_dir(run_dir);
+model::MotoredTdc motored_run_tdc(const std::string& path, double loss_angle_deg) {
+  drivers::RunDir run;
+  if (std::filesystem::is_directory(path)) {
+    run = drivers::read_run_dir(path);
+  } else {  // a raw log the daemon recorded while motoring: its first run, unwrapped as export writes it
+    const std::vector<drivers::Recording> recs = drivers::read_recordings_log(path);
+    if (recs.front().operating_points.front().motored == false && recs.front().operating_points.front().soi_deg_btdc > 0)
+      throw std::runtime_error(path + ": the log's first run was fired (its operating point); record a motored run");
+    run = drivers::to_run_dir(recs.front());
+  }
   if (run.condition.motored_known && !run.condition.motored)
-    throw std::runtime_error(run_dir + ": run.json says the engine was fired; give a motored run");
+    throw std::runtime_error(path + ": run.json says the engine was fired; give a motored run");
   const auto cycles = motored_cycles_bar(run.crank_deg, run.pressure_pa, kRunGridStepDeg);
   return model::motored_tdc(cycles, -360.0, kRunGridStepDeg, model::EngineGeometry{}, loss_angle_deg);
 }
@@ -84,9 +95,10 @@ void write_tdc_deg(const std::string& path, double tdc_deg) {
 TdcCommand::TdcCommand(CLI::App& app) {
   tdc_ = app.add_subcommand("tdc", "thermodynamic TDC from motored cycles: the motored pressure peak plus the loss angle, "
                                    "and a polytropic fit that needs none (model/motored_tdc.hpp)");
-  CLI::Option* dir = tdc_->add_option("RUN_DIR", run_dir_, "a motored run directory: the result is on the encoder's "
-                                                         "scale, [combustion] tdc_deg")
-                         ->check(CLI::ExistingDirectory);
+  CLI::Option* dir = tdc_->add_option("RUN", run_dir_, "a motored run directory, or a raw log (.lcmlog) the daemon "
+                                                     "recorded while motoring (its first run): the result is on the "
+                                                     "encoder's scale, [combustion] tdc_deg")
+                         ->check(CLI::ExistingPath);
   CLI::Option* table = tdc_->add_option("--cycles-table", table_, "a motored cycle table instead (its own scale)")
                            ->check(CLI::ExistingFile)
                            ->excludes(dir);

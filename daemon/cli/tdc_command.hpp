@@ -17,9 +17,10 @@ namespace noisemon::daemon {
 std::vector<std::vector<double>> motored_cycles_bar(const std::vector<double>& crank_deg,
                                                     const std::vector<double>& pressure_pa, double step_deg);
 
-// A motored run directory's thermodynamic TDC on its encoder's scale (what [combustion] tdc_deg holds); throws naming
-// the directory for a fired run (run.json) or cycles that are not motored (model::motored_tdc).
-model::MotoredTdc motored_run_tdc(const std::string& run_dir, double loss_angle_deg);
+// A motored run's thermodynamic TDC on its encoder's scale (what [combustion] tdc_deg holds): a run directory, or a
+// raw log the daemon recorded while motoring (its first run). Throws naming it for a fired run (run.json, the log's
+// operating point) or cycles that are not motored (model::motored_tdc).
+model::MotoredTdc motored_run_tdc(const std::string& path, double loss_angle_deg);
 
 // Sets tdc_deg in the [combustion] table of the TOML file at path (the line replaced when it is there, added under
 // the table otherwise, the table added at the end when there is none); the rest of the file as it was.

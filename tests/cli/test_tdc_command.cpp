@@ -1,6 +1,6 @@
 // `noisemon tdc`: thermodynamic TDC on the real Yanmar motored record two ways — from the cycle table (its own scale)
 // and from a run directory made of it by `import` and `export` (40 kHz frames with the crank angle of each, as a
-// recorder writes them): both must put TDC at the same angle. And --write-config sets [combustion] tdc_deg, which
+// recorder writes them), and from the raw log: all must put TDC at the same angle. And --write-config sets [combustion] tdc_deg, which
 // the daemon's configuration reader then reads, the rest of the file kept.
 #include <gtest/gtest.h>
 
@@ -61,6 +61,10 @@ TEST(TdcCommand, TheTableAndARunDirectoryOfItAgree) {
   std::printf("TDC from the table %+.2f deg, from its run directory %+.2f deg\n", a, b);
   EXPECT_NEAR(a, -1.84, 0.05);  // docs/sources-and-formats.md: the peak at -2.54 plus 0.7
   EXPECT_NEAR(b, a, 0.1);
+  // The raw log itself (what the daemon records while motoring) gives the same.
+  const auto from_log = run("tdc " + (dir / "m.lcmlog").string());
+  ASSERT_EQ(from_log.status, 0) << from_log.text;
+  EXPECT_NEAR(tdc_printed(from_log.text), b, 1e-6);
   // A fired run is refused, naming it.
   const auto fired = run("tdc --cycles-table " + std::string(NOISEMON_SHARED_DIR) + "/data/real/yanmar_l100v_fired_18Nm.txt");
   EXPECT_NE(fired.status, 0);
