@@ -48,6 +48,24 @@ std::vector<double> sampled(const std::function<double(double)>& f) {
   return p;
 }
 
+// The single-zone first law dp/dtheta = dp(theta, p) integrated here (RK4 on a 0.01 deg grid) from p0 at from_deg to
+// 180 deg, sampled on the grid; p0 elsewhere.
+std::vector<double> first_law(const std::function<double(double, double)>& dp, double from_deg, double p0) {
+  std::vector<double> p(kSamples, p0);
+  double t = from_deg, pc = p0;
+  const double h = 0.01;
+  for (std::size_t i = 0; i < kSamples; ++i) {
+    if (angle(i) < from_deg || angle(i) > 180.0) continue;
+    while (t < angle(i) - 1e-9) {
+      const double k1 = dp(t, pc), k2 = dp(t + h / 2, pc + h / 2 * k1), k3 = dp(t + h / 2, pc + h / 2 * k2), k4 = dp(t + h, pc + h * k3);
+      pc += h / 6 * (k1 + 2 * k2 + 2 * k3 + k4);
+      t += h;
+    }
+    p[i] = pc;
+  }
+  return p;
+}
+
 }  // namespace
 
 TEST(CombustionMetrics, ImepOfAnIdealCycleIsItsClosedForm) {
@@ -183,18 +201,7 @@ TEST(CombustionMetrics, BurnAnglesOfAWiebeHeatRelease) {
     return q0 * a * (mw + 1) / duration * std::pow(x, mw) * std::exp(-a * std::pow(x, mw + 1));
   };
   auto dp = [&](double t, double p) { return ((g - 1) * dq(t) - g * p * e.dvolume_m3_per_deg(t)) / e.volume_m3(t); };
-  std::vector<double> p(kSamples, 1.0e5);
-  double t = -180.0, pc = 1.0e5;
-  const double h = 0.01;
-  for (std::size_t i = 0; i < kSamples; ++i) {
-    if (angle(i) < -180.0 || angle(i) > 180.0) continue;
-    while (t < angle(i) - 1e-9) {
-      const double k1 = dp(t, pc), k2 = dp(t + h / 2, pc + h / 2 * k1), k3 = dp(t + h / 2, pc + h / 2 * k2), k4 = dp(t + h, pc + h * k3);
-      pc += h / 6 * (k1 + 2 * k2 + 2 * k3 + k4);
-      t += h;
-    }
-    p[i] = pc;
-  }
+  const std::vector<double> p = first_law(dp, -180.0, 1.0e5);
   nm::MetricsOptions o;
   o.gamma = g;
   const nm::CombustionMetrics m = nm::combustion_metrics(p, kFirst, kStep, e, 1800.0, o);
@@ -238,18 +245,7 @@ TEST(CombustionMetrics, TemperatureDependentGammaRecoversTheHeatOfAHotBurn) {
     const double v = e.volume_m3(t), g = gamma(p, v);
     return ((g - 1) * dq(t) - g * p * e.dvolume_m3_per_deg(t)) / v;
   };
-  std::vector<double> p(kSamples, p_ivc);
-  double t = -150.0, pc = p_ivc;
-  const double h = 0.01;
-  for (std::size_t i = 0; i < kSamples; ++i) {
-    if (angle(i) < -150.0 || angle(i) > 180.0) continue;
-    while (t < angle(i) - 1e-9) {
-      const double k1 = dp(t, pc), k2 = dp(t + h / 2, pc + h / 2 * k1), k3 = dp(t + h / 2, pc + h / 2 * k2), k4 = dp(t + h, pc + h * k3);
-      pc += h / 6 * (k1 + 2 * k2 + 2 * k3 + k4);
-      t += h;
-    }
-    p[i] = pc;
-  }
+  const std::vector<double> p = first_law(dp, -150.0, p_ivc);
   const double burnt = q0 * (1 - std::exp(-a * std::pow(1.5, mw + 1)));
   nm::MetricsOptions of_t;
   of_t.gamma_of_temperature = true;
