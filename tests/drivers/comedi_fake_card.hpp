@@ -7,6 +7,7 @@
 // expected values at any instant come from inverting the angle-time law here, never from the source.
 #pragma once
 
+#include <array>
 #include <fcntl.h>
 #include <unistd.h>
 
@@ -284,7 +285,7 @@ constexpr std::int64_t kMicOriginUs = 1000;
 struct Harness {
   std::vector<PipeAcquisition*> acquisitions;
   std::unique_ptr<nd::Source> source;
-  nd::BlockRing pressure{1024}, mics{1024};
+  nd::BlockRing pressure{1024}, mics{1024}, angle{4096};
   nd::OperatingPointRing op{16};
 
   explicit Harness(const nd::ComediSourceConfig& config) {
@@ -305,7 +306,7 @@ struct Harness {
   }
   // Starts, waits until every byte was read, stops; returns the frames by 40 kHz index.
   void run() {
-    source->start(nd::Streams{&pressure, &mics, &op});
+    source->start(nd::Streams{&pressure, &mics, &op, &angle});
     const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(20);
     for (bool done = false; !done && std::chrono::steady_clock::now() < deadline;) {
       drain();
@@ -324,6 +325,12 @@ struct Harness {
         ring->consume(1);
       }
     }
+    while (const nd::SampleBlock* b = angle.front()) {  // the crank-angle stream: {first_index, crank, pressure}
+      for (std::uint32_t f = 0; f < b->frames; ++f)
+        edges.push_back({static_cast<double>(b->first_index), b->data[f * b->channels + nd::kAngleCrankChannel],
+                         b->data[f * b->channels + nd::kAnglePressureChannel]});
+      angle.consume(1);
+    }
   }
   std::int64_t counter(const std::string& name) const {
     for (const auto& c : source->counters())
@@ -331,6 +338,7 @@ struct Harness {
     throw std::runtime_error("no counter " + name);
   }
   std::map<std::int64_t, std::vector<double>> pressure_frames, mic_frames;
+  std::vector<std::array<double, 3>> edges;
 };
 
 }  // namespace comedi_fake

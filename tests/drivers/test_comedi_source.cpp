@@ -88,6 +88,20 @@ TEST_P(ComediSourcePipes, CardBytesBecomeTheAnalytic40kHzStreams) {
   EXPECT_LT(c.rms_p_err, 600.0);
   EXPECT_LT(c.max_crank_err, 1e-3);
 
+  // The crank-angle stream: every edge on the encoder's 0.25 deg grid (the index at 37.5 deg), its pressure the
+  // analytic one there within the same quantisation budget, in order, each block begun at or before its edges.
+  EXPECT_EQ(h.source->info().pressure_angle_step_deg, kResolution);
+  ASSERT_GT(h.edges.size(), 1000u);
+  double max_edge_err = 0, max_off_grid = 0;
+  for (const auto& [first_index, crank, pa] : h.edges) {
+    max_off_grid = std::max(max_off_grid, std::abs(std::remainder(crank - kIndexDeg, kResolution)));
+    max_edge_err = std::max(max_edge_err, std::abs(pa - pressure_pa(crank)));
+  }
+  std::printf("crank-angle stream: %zu edges, off the grid by at most %.1e deg, pressure max |error| %.0f Pa\n",
+              h.edges.size(), max_off_grid, max_edge_err);
+  EXPECT_LT(max_off_grid, 1e-9);
+  EXPECT_LT(max_edge_err, 2000.0);
+
   // Microphones: each tone at its instant, from the first frame after the resampler settled.
   ASSERT_FALSE(h.mic_frames.empty());
   EXPECT_EQ(h.mic_frames.begin()->first, 40 + nd::TimedStreamAssembler::kSettleFrames);  // origin at frame 40
