@@ -25,6 +25,8 @@ constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 
 std::int64_t floor_mod2(std::int64_t j) { return ((j % 2) + 2) % 2; }
 std::int64_t floor_div(std::int64_t a, std::int64_t b) { return a / b - ((a % b != 0 && (a < 0) != (b < 0)) ? 1 : 0); }
+// The engine cycle an unwrapped crank angle lies in: [720 k - 360, 720 k + 360).
+std::int64_t cycle_of(double theta) { return static_cast<std::int64_t>(std::floor((theta + 360.0) / 720.0)); }
 
 }  // namespace
 
@@ -76,6 +78,8 @@ EdgeStreamAssembler::EdgeStreamAssembler(const EdgeStreamConfig& config, std::in
     slack_ = c.counts_per_edge * std::clamp<std::uint64_t>(edges / 32, 2, 64);
     held_.resize(2 * edges + slack_ + kEdgeBatch);  // a revolution awaiting its phase, the open one, a margin
   }
+  if (c.peg_pa > 0.0)  // the edges of up to two revolutions wait for their cycle's pegging
+    peg_wait_.resize(2 * (c.counts_per_rev / std::max<std::uint32_t>(c.counts_per_edge, 1)) + kEdgeBatch);
   for (std::uint32_t n : c.stream_channels) {
     Fifo f;
     f.channels = n;
@@ -114,7 +118,9 @@ void EdgeStreamAssembler::restart(std::int64_t origin_utime) {
   release_on_lock_ = false;
   held_head_ = held_n_ = confirmed_n_ = 0;
   peg_known_ = !(config_.peg_pa > 0.0);
-  peg_offset_ = peg_sum_ = 0.0;
+  peg_offset_ = peg_prev_offset_ = peg_sum_ = 0.0;
+  peg_cycle_ = INT64_MIN;
+  peg_wait_head_ = peg_wait_n_ = 0;
   peg_n_ = 0;
   resampler_ = make_resampler(config_);
   batch_ = 0;
@@ -172,7 +178,7 @@ void EdgeStreamAssembler::add_edge(std::uint64_t position, std::uint64_t ticks_r
     release_held(confirmed_n_, true, ring);
   }
   if (!gate(psi, pressure)) return;
-  const double x = pressure + peg_offset_;
+  const double x = pressure;  // pegged in emit(), with its cycle's offset
   if (!config_.index_resets_counter)
     emit(t, x, psi + 360.0 * phase_, ring);
   else if (rev_.bad)
@@ -415,7 +421,9 @@ void EdgeStreamAssembler::peg(double theta, double pressure) {
     peg_sum_ += pressure;
     ++peg_n_;
   } else if (peg_n_ > 0) {  // just left the pegging window: the relative sensor's offset for this cycle
+    peg_prev_offset_ = peg_offset_;
     peg_offset_ = config_.peg_pa - peg_sum_ / static_cast<double>(peg_n_);
+    peg_cycle_ = cycle_of(theta);
     peg_known_ = true;
     peg_sum_ = 0.0;
     peg_n_ = 0;
@@ -446,8 +454,40 @@ void EdgeStreamAssembler::release_held(std::size_t n, bool angles, BlockRing& ri
   confirmed_n_ -= std::min(confirmed_n_, n);
 }
 
-// One edge into the resampler (pressure) and the crank-angle history.
+// The offset of the pegging that belongs to the cycle of theta (the previous cycle's for an edge held that long; the
+// latest for an unknown angle or an older cycle).
+double EdgeStreamAssembler::peg_offset_of(double theta) const {
+  if (std::isfinite(theta) && peg_cycle_ != INT64_MIN && cycle_of(theta) == peg_cycle_ - 1) return peg_prev_offset_;
+  return peg_offset_;
+}
+
+// A relative sensor's edge is pegged with its own cycle's offset, measured at peg_angle_deg of that cycle: the
+// edges before it wait for it (and the edges after them, to stay in order), so that one offset holds for the whole
+// cycle. No pegging for two revolutions (a window missed): the waiting edges go with the offset in hand.
 void EdgeStreamAssembler::emit(double t, double x, double theta, BlockRing& ring) {
+  if (!(config_.peg_pa > 0.0)) return feed(t, x, theta, ring);
+  while (peg_wait_n_ > 0) {
+    const Held& w = peg_wait_[peg_wait_head_];
+    if (std::isfinite(w.psi) && cycle_of(w.psi) > peg_cycle_ && peg_wait_n_ < peg_wait_.size()) break;
+    feed(w.t, w.x + peg_offset_of(w.psi), w.psi, ring);
+    peg_wait_head_ = (peg_wait_head_ + 1) % peg_wait_.size();
+    --peg_wait_n_;
+  }
+  if (peg_wait_n_ == 0 && !(std::isfinite(theta) && cycle_of(theta) > peg_cycle_))
+    return feed(t, x + peg_offset_of(theta), theta, ring);
+  peg_wait_[(peg_wait_head_ + peg_wait_n_++) % peg_wait_.size()] = {t, x, theta};
+}
+
+// What waits for its pegging goes out with the offset in hand (at a stop, before a restart).
+void EdgeStreamAssembler::release_pegged(BlockRing& ring) {
+  for (; peg_wait_n_ > 0; --peg_wait_n_, peg_wait_head_ = (peg_wait_head_ + 1) % peg_wait_.size()) {
+    const Held& w = peg_wait_[peg_wait_head_];
+    feed(w.t, w.x + peg_offset_of(w.psi), w.psi, ring);
+  }
+}
+
+// One edge into the resampler (pressure) and the crank-angle history.
+void EdgeStreamAssembler::feed(double t, double x, double theta, BlockRing& ring) {
   const bool checked = config_.index_resets_counter;
   if (checked && have_fed_ && t - last_fed_t_ > kMaxEdgeGapS) restart_resampler(ring);
   if (have_fed_ && !(t > last_fed_t_)) {  // cannot happen with positive tick steps; keep the resampler safe
@@ -512,6 +552,7 @@ void EdgeStreamAssembler::deliver(BlockRing& ring, bool all) {
     release_held(held_n_, false, ring);
     rev_.bad = true;
   }
+  if (all) release_pegged(ring);
   run_batch(ring);
   if (all || writer_.pending_frames() >= SampleBlock::kMaxFrames / 2) {
     writer_.flush(ring);

@@ -152,6 +152,9 @@ class EdgeStreamAssembler {
   void hold(double t, double x, double psi, BlockRing& ring);
   void release_held(std::size_t n, bool angles, BlockRing& ring);
   void emit(double t, double x, double theta, BlockRing& ring);
+  void feed(double t, double x, double theta, BlockRing& ring);
+  double peg_offset_of(double theta) const;
+  void release_pegged(BlockRing& ring);
   void restart_resampler(BlockRing& ring);
   void run_batch(BlockRing& ring);
   double crank_at(double t);
@@ -197,9 +200,12 @@ class EdgeStreamAssembler {
   std::vector<Held> held_;            // ring: a confirmed revolution awaiting its phase, then the open one
   std::size_t held_head_ = 0, held_n_ = 0, confirmed_n_ = 0;
 
-  // Pegging.
+  // Pegging: peg_offset_ is cycle peg_cycle_'s, peg_prev_offset_ the cycle's before; edges of a later cycle wait.
   bool peg_known_ = false;
-  double peg_offset_ = 0.0, peg_sum_ = 0.0;
+  double peg_offset_ = 0.0, peg_prev_offset_ = 0.0, peg_sum_ = 0.0;
+  std::int64_t peg_cycle_ = INT64_MIN;
+  std::vector<Held> peg_wait_;  // ring (psi holds the crank angle theta here)
+  std::size_t peg_wait_head_ = 0, peg_wait_n_ = 0;
   std::size_t peg_n_ = 0;
 
   // Resampling.

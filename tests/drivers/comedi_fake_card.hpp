@@ -181,14 +181,20 @@ struct EngineSetup {
   bool period_timestamps = false;
   bool separate_timestamp = false;
   std::uint32_t timestamp_bits = 24;  // wraps every 0.21 s at 80 MHz
+  double offset_step_bar = 0.0;       // charge chain: the sensor's offset moves by +-this at each gas-exchange TDC
 };
 
 constexpr double kDriftBar = -3.0;  // the relative sensor's offset (bar) the pegging must remove
 
 // Volts at the card for a pressure, through the sensor chain written out here (not the driver's helpers).
-inline double chain_volts(double p_pa, bool charge) {
+inline double chain_volts(double p_pa, bool charge, double drift_bar = kDriftBar) {
   const double bar = p_pa / 1e5;
-  return charge ? (bar + kDriftBar) * 10.0 /*pC/bar*/ * 5.0 /*mV/pC*/ * 1e-3 : bar * 100.0 /*mV/bar*/ * 1e-3;
+  return charge ? (bar + drift_bar) * 10.0 /*pC/bar*/ * 5.0 /*mV/pC*/ * 1e-3 : bar * 100.0 /*mV/bar*/ * 1e-3;
+}
+// The drift in the cycle of theta: kDriftBar, +-offset_step_bar alternately from cycle to cycle.
+inline double drift_bar(double theta, double offset_step_bar) {
+  const auto cycle = static_cast<std::int64_t>(std::floor((theta + 360.0) / 720.0));
+  return kDriftBar + ((cycle % 2 + 2) % 2 == 0 ? offset_step_bar : -offset_step_bar);
 }
 
 inline EdgeBytes engine_bytes(const EngineSetup& s, double t_from = 0.0) {
@@ -207,7 +213,7 @@ inline EdgeBytes engine_bytes(const EngineSetup& s, double t_from = 0.0) {
     if (theta >= theta_end) break;
     const double t = time_at(theta);
     const auto ticks = static_cast<std::uint64_t>(std::floor(t * kTimebase));
-    append(b.pressure, code16(chain_volts(pressure_pa(theta, s.second_peak), s.charge_chain), 0));
+    append(b.pressure, code16(chain_volts(pressure_pa(theta, s.second_peak), s.charge_chain, drift_bar(theta, s.offset_step_bar)), 0));
     if (s.cam) {
       const double a = wrap720(theta);
       append(b.pressure, code16(a >= -100.0 && a < -40.0 ? 5.0 : 0.2, 0));  // cam high from -100 deg
