@@ -489,7 +489,7 @@ void read_engine(TableReader& top, const std::string& origin, model::EngineGeome
 // ---- [combustion] -------------------------------------------------------------------------------------------
 
 // Pegging and the combustion window (model/combustion_metrics.hpp).
-void read_combustion(TableReader& top, const std::string& origin, model::MetricsOptions& o) {
+void read_combustion(TableReader& top, const std::string& origin, model::MetricsOptions& o, bool& tdc_configured) {
   TableReader r(top.table("combustion"), "combustion", origin);
   std::string pegging = "none";
   r.string("pegging", pegging);
@@ -512,6 +512,7 @@ void read_combustion(TableReader& top, const std::string& origin, model::Metrics
     r.fail("gamma_model", "expected \"constant\" (gamma) or \"temperature\" (Brunt et al.'s gamma(T))");
   o.gamma_of_temperature = gamma_model == "temperature";
   r.number("tdc_deg", o.tdc_deg, -30, 30);
+  tdc_configured = r.node("tdc_deg") != nullptr;
   r.number("rise_from_deg", o.rise_from_deg, -180, 180);
   r.number("rise_to_deg", o.rise_to_deg, -180, 360);
   r.number("mapo_low_hz", o.mapo_low_hz, 100, 100e3);
@@ -590,7 +591,7 @@ Config parse_table(const toml::table& root, const std::string& origin) {
   read_lcm(top, origin, c.lcm);
 
   read_engine(top, origin, c.engine);
-  read_combustion(top, origin, c.combustion);
+  read_combustion(top, origin, c.combustion, c.tdc_deg_configured);
 
   TableReader st(top.table("statistics"), "statistics", origin);
   st.integer("window_cycles", c.stats_window_cycles, 0, 100000);

@@ -63,6 +63,7 @@ struct Config {
   ThreadsConfig threads;               // [threads]: handed to the sources and the pipeline
   model::EngineGeometry engine;        // [engine]: for the combustion metrics (default: the Yanmar L100V)
   model::MetricsOptions combustion;    // [combustion]: pegging and the combustion window of dp/dtheta max
+  bool tdc_deg_configured = false;     // [combustion] tdc_deg was given (else a replay takes its session's)
   std::int64_t stats_window_cycles = 100;  // [statistics] window_cycles: the rolling statistics' window; 0: none
   SoundPowerConfig sound_power;        // [sound_power]: ISO 3744's K1 (background) and K2, the surface check
 };

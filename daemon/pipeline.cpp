@@ -114,6 +114,10 @@ std::unique_ptr<CycleProcessor> Pipeline::Impl::make_processor() {
   pc.acoustic_delay_s = config.acoustic_delay_s;
   pc.engine = config.engine;
   pc.metrics = config.combustion;
+  // The configured TDC, else the one the stream's producer used (a replayed log's session): replay gives the live
+  // figures. The session this pipeline publishes says which it uses.
+  if (!config.tdc_deg_configured) pc.metrics.tdc_deg = info.tdc_deg;
+  info.tdc_deg = pc.metrics.tdc_deg;
   pc.fifo_seconds = options.fifo_seconds > 0 ? options.fifo_seconds : std::max(1.0, 2 * config.ring_seconds);
   pc.mic_low_db = config.mic_low_db;
   pc.sound_power = config.sound_power;

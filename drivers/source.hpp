@@ -100,6 +100,9 @@ struct StreamInfo {
   // many degrees apart (angle_step_deg(pressure_edges_per_rev)); once its first block has come, the combustion
   // figures are computed from it. 0: they come from the 40 kHz pressure.
   double pressure_angle_step_deg = 0.0;
+  // The crank angle of firing TDC on this stream's scale that its processing uses ([combustion] tdc_deg; session_t
+  // tdc_deg). 0: the angles are the piston's.
+  double tdc_deg = 0.0;
 };
 
 enum class ThreadState : std::uint8_t { kIdle = 0, kRunning = 1, kStopped = 2, kFailed = 3 };

@@ -6,6 +6,8 @@
 #include <limits>
 #include <stdexcept>
 
+#include "noisemon/session_v1_t.hpp"
+
 namespace noisemon::drivers {
 namespace {
 
@@ -60,6 +62,7 @@ noisemon::session_t to_message(const StreamInfo& info, const std::string& source
   m.mic_full_scale_pa = info.mic_full_scale_pa;
   m.pressure_edges_per_rev = info.pressure_edges_per_rev;
   m.mic_passband_hz = info.mic_passband_hz;
+  m.tdc_deg = info.tdc_deg;
   m.nmics = static_cast<std::int16_t>(info.mic_count);
   m.mic_positions_m.assign(info.mic_count, std::vector<double>(3, 0.0));
   for (std::size_t i = 0; i < info.mic_count; ++i) {
@@ -98,6 +101,9 @@ StreamInfo from_message(const noisemon::session_t& m) {
   info.pressure_edges_per_rev = m.pressure_edges_per_rev;
   info.mic_passband_hz = m.mic_passband_hz;
   info.pressure_angle_step_deg = angle_step_deg(m.pressure_edges_per_rev);
+  if (!(std::abs(m.tdc_deg) <= 30.0))
+    throw std::invalid_argument("session with firing TDC at " + std::to_string(m.tdc_deg) + " deg (-30 ... 30 expected)");
+  info.tdc_deg = m.tdc_deg;
   for (const auto& p : m.mic_positions_m) info.mic_positions_m.push_back({p[0], p[1], p[2]});
   return info;
 }
@@ -158,22 +164,39 @@ bool decode_exact(const void* data, std::size_t size, Message& m) {
   }
 }
 
+// The session's layout up to its trailing doubles (pressure_full_scale_pa, mic_full_scale_pa, pressure_edges_per_rev,
+// mic_passband_hz and, since session_t's tdc_deg, that): how many bytes follow the condition string; SIZE_MAX when the
+// lengths do not fit.
+std::size_t session_tail_bytes(const void* data, std::size_t size) {
+  // fingerprint, utime, epoch_utime, source, sample_rate_hz, radius_m, acoustic_delay_s, nmics, positions, condition
+  const auto* d = static_cast<const std::uint8_t*>(data);
+  std::size_t pos = 24;
+  if (size < pos || !skip_string(d, size, pos)) return SIZE_MAX;
+  pos += 24;
+  if (size < pos + 2) return SIZE_MAX;
+  const std::int16_t nmics = be16(d + pos);
+  pos += 2;
+  if (nmics < 0 || static_cast<std::size_t>(nmics) * 24 > size - pos) return SIZE_MAX;
+  pos += static_cast<std::size_t>(nmics) * 24;
+  if (!skip_string(d, size, pos)) return SIZE_MAX;
+  return size - pos;
+}
+
 }  // namespace
 
 bool decode_message(const void* data, std::size_t size, noisemon::session_t& m) {
-  // fingerprint, utime, epoch_utime, source, sample_rate_hz, radius_m, acoustic_delay_s, nmics, positions, condition,
-  // pressure_full_scale_pa, mic_full_scale_pa, pressure_edges_per_rev, mic_passband_hz
-  const auto* d = static_cast<const std::uint8_t*>(data);
-  std::size_t pos = 24;
-  if (size < pos || !skip_string(d, size, pos)) return false;
-  pos += 24;
-  if (size < pos + 2) return false;
-  const std::int16_t nmics = be16(d + pos);
-  pos += 2;
-  if (nmics < 0 || static_cast<std::size_t>(nmics) * 24 > size - pos) return false;
-  pos += static_cast<std::size_t>(nmics) * 24;
-  if (!skip_string(d, size, pos) || size - pos != 4 * 8) return false;
-  return decode_exact(data, size, m);
+  const std::size_t tail = session_tail_bytes(data, size);
+  if (tail == 5 * 8) return decode_exact(data, size, m);
+  noisemon::session_v1_t old;  // a log from before tdc_deg
+  if (tail != 4 * 8 || !decode_exact(data, size, old)) return false;
+  m = noisemon::session_t{};
+  m.utime = old.utime, m.epoch_utime = old.epoch_utime, m.source = old.source, m.sample_rate_hz = old.sample_rate_hz;
+  m.radius_m = old.radius_m, m.acoustic_delay_s = old.acoustic_delay_s, m.nmics = old.nmics;
+  m.mic_positions_m = old.mic_positions_m, m.condition = old.condition;
+  m.pressure_full_scale_pa = old.pressure_full_scale_pa, m.mic_full_scale_pa = old.mic_full_scale_pa;
+  m.pressure_edges_per_rev = old.pressure_edges_per_rev, m.mic_passband_hz = old.mic_passband_hz;
+  m.tdc_deg = 0.0;
+  return true;
 }
 
 bool decode_message(const void* data, std::size_t size, noisemon::raw_block_t& m) {

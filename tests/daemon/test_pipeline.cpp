@@ -86,12 +86,17 @@ class MemorySource final : public nd::Source {
     std::vector<Block> blocks;
     bool finite = false;
     std::size_t fail_at = SIZE_MAX;  // throws "device unplugged" instead of delivering this block
+    double tdc_deg = 0.0;            // the session's (a log's producer's) firing TDC
   };
   explicit MemorySource(Script script) : script_(std::move(script)) {}
   ~MemorySource() override { stop(); }
 
   std::string name() const override { return "memory"; }
-  nd::StreamInfo info() const override { return one_mic(); }
+  nd::StreamInfo info() const override {
+    nd::StreamInfo i = one_mic();
+    i.tdc_deg = script_.tdc_deg;
+    return i;
+  }
   void start(const nd::Streams& s) override {
     worker_.start("nm-memory", {}, [this, s](const std::atomic<bool>& stop) { run(s, stop); });
   }
@@ -431,6 +436,25 @@ TEST(Pipeline, TheRollingStatisticsAreThoseOfTheLastWindowOfPublishedReports) {
   ASSERT_TRUE(wait_for([&] { return quiet.finished(); }));
   quiet.stop();
   EXPECT_TRUE(none->statistics().empty());
+}
+
+// The TDC a log's producer used (its session's tdc_deg) is what a replay uses unless [combustion] tdc_deg is given:
+// then the figures are the live ones. The session the pipeline publishes says which TDC its processing uses.
+TEST(Pipeline, TheSessionsTdcIsUsedUnlessTheConfigurationSetsOne) {
+  for (const bool configured : {false, true}) {
+    Config config = quiet_config();
+    config.lcm.publish_raw = true;
+    config.tdc_deg_configured = configured;  // [combustion] tdc_deg = 0
+    auto out = std::make_shared<MemoryPublisher>();
+    Pipeline pipeline(config, std::make_unique<MemorySource>(MemorySource::Script{tone(12), false, SIZE_MAX, -2.6}), out);
+    pipeline.start();
+    ASSERT_TRUE(wait_for([&] { return out->reports().size() >= 5; }));
+    pipeline.stop();
+    const double want = configured ? 0.0 : -2.6;
+    for (const auto& r : out->reports()) EXPECT_EQ(r.message.tdc_deg, want) << configured;
+    ASSERT_FALSE(out->sessions().empty());
+    EXPECT_EQ(out->sessions().front().message.tdc_deg, want) << configured;
+  }
 }
 
 }  // namespace noisemon::daemon

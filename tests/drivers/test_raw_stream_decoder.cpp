@@ -2,6 +2,7 @@
 // condition); a block comes out with the samples that went in; every kind of damage is refused with its reason,
 // and the kind tells a reader whether to count it as damage or as another run's block.
 #include "drivers/formats/raw_stream_decoder.hpp"
+#include "noisemon/session_v1_t.hpp"
 
 #include <gtest/gtest.h>
 
@@ -240,6 +241,35 @@ TEST_F(Decoder, CrankAngleBlocksBelongToAnEncodersSessionAndKeepToTheirBounds) {
   const RawEvent& refused = timed.decode("NOISEMON_RAW", b.data(), b.size());
   EXPECT_EQ(refused.kind, RawEventKind::kBadBlock);
   EXPECT_NE(refused.reason.find("no crank-angle stream"), std::string::npos) << refused.reason;
+}
+
+// A log recorded before session_t had tdc_deg holds session_v1_t payloads (the same fingerprint): they decode, with
+// tdc_deg 0; today's carry it; an impossible one is damage that names it.
+TEST_F(Decoder, SessionsFromBeforeTdcDegDecodeWithItZero) {
+  StreamInfo info = two_mics();
+  info.tdc_deg = -1.84;
+  const noisemon::session_t now = to_message(info, "test", info.epoch_utime, "run");
+  noisemon::session_v1_t old;
+  old.utime = now.utime, old.epoch_utime = now.epoch_utime, old.source = now.source, old.sample_rate_hz = now.sample_rate_hz;
+  old.radius_m = now.radius_m, old.acoustic_delay_s = now.acoustic_delay_s, old.nmics = now.nmics;
+  old.mic_positions_m = now.mic_positions_m, old.condition = now.condition;
+  old.pressure_full_scale_pa = now.pressure_full_scale_pa, old.mic_full_scale_pa = now.mic_full_scale_pa;
+  old.pressure_edges_per_rev = now.pressure_edges_per_rev, old.mic_passband_hz = now.mic_passband_hz;
+  const RawEvent& e = feed("NOISEMON_SESSION", old);
+  ASSERT_EQ(e.kind, RawEventKind::kSession) << e.reason;
+  EXPECT_EQ(decoder.info().tdc_deg, 0.0);
+  EXPECT_EQ(decoder.info().mic_positions_m, info.mic_positions_m);
+  RawStreamDecoder fresh;
+  const std::vector<std::uint8_t> b = bytes_of(now);
+  ASSERT_EQ(fresh.decode("NOISEMON_SESSION", b.data(), b.size()).kind, RawEventKind::kSession);
+  EXPECT_EQ(fresh.info().tdc_deg, -1.84);
+  noisemon::session_t wild = now;
+  wild.tdc_deg = 45.0;
+  const std::vector<std::uint8_t> w = bytes_of(wild);
+  RawStreamDecoder third;
+  const RawEvent& bad = third.decode("NOISEMON_SESSION", w.data(), w.size());
+  EXPECT_EQ(bad.kind, RawEventKind::kDamaged);
+  EXPECT_NE(bad.reason.find("firing TDC at 45"), std::string::npos) << bad.reason;
 }
 
 }  // namespace
