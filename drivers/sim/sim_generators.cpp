@@ -91,6 +91,7 @@ PressureGenerator::PressureGenerator(const SimConfig& config, double t_first_s)
       chain_(config.pressure_chain, config.effects, config.seed),
       faults_(config.faults),
       resolution_deg_(config.encoder_resolution_deg),
+      nominal_rpm_(config.speed_rpm),
       counts_per_rev_(std::llround(360.0 / config.encoder_resolution_deg)),
       index_edge_(std::llround(kIndexAngleDeg / config.encoder_resolution_deg)),
       next_edge_(static_cast<std::int64_t>(std::ceil(kin_.theta_deg(t_first_s - kPreRollS) / config.encoder_resolution_deg))),
@@ -136,10 +137,14 @@ void PressureGenerator::set_angle_ring(BlockRing* ring) {
   decoder_->set_angle_ring(ring ? &angle_staging_ : nullptr);
 }
 
-// The decoder's crank-angle blocks to their ring, those that begin in the pre-roll (before first_index_) left out.
+// The decoder's crank-angle blocks to their ring, those wholly in the pre-roll left out: a block spans at most
+// kMaxAngleBlockDeg, so one that begins that much before first_index_ may still reach it (the first cycle needs its
+// edges whole).
 void PressureGenerator::forward_angles() {
+  const double lead_s = 1.5 * kMaxAngleBlockDeg / (6.0 * nominal_rpm_);  // 1.5: the speed's fluctuation, and more
+  const std::int64_t from = first_index_ - static_cast<std::int64_t>(std::ceil(lead_s * kPipelineRateHz)) - 1;
   for (const SampleBlock* b = angle_staging_.front(); b; angle_staging_.consume(1), b = angle_staging_.front())
-    if (angle_out_ && b->first_index >= first_index_) angle_out_->push(*b);
+    if (angle_out_ && b->first_index >= from) angle_out_->push(*b);
 }
 
 // The true pressure at the next edges before t_end_s (an overload fault scales it before the converter).
@@ -192,6 +197,7 @@ void PressureGenerator::scan(double t, double pressure, BlockRing& ring) {
   const double values[3] = {pressure, static_cast<double>(counter_), static_cast<double>(ticks)};
   decoder_->add_scan(0, values, staging_);
   forward(ring);
+  forward_angles();  // as often as the frames: a held revolution released at once is more than the staging holds
 }
 
 // The decoder's blocks to the ring, from first_index_ on (the pre-roll settles the decoder; it is not published).

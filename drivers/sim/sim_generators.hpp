@@ -89,6 +89,7 @@ class PressureGenerator {
   model::PressureChain chain_;
   std::vector<SimFault> faults_;
   double resolution_deg_;
+  double nominal_rpm_;
   std::int64_t counts_per_rev_;
   std::int64_t index_edge_;          // an edge at the index (edges index_edge_ + k * counts_per_rev_)
   std::int64_t next_edge_;           // edge m at m * resolution

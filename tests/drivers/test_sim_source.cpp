@@ -66,6 +66,7 @@ struct SimRun {
   nd::StreamInfo info;
   Captured pressure, mics;
   std::vector<nd::OperatingPoint> ops;
+  std::vector<nd::SampleBlock> angle_blocks;  // the crank-angle stream
   std::uint64_t overruns = 0;
   bool was_running = false;
   std::vector<nd::DriverThreadStatus> status_running, status_stopped;
@@ -77,7 +78,8 @@ struct Rings {
   nd::BlockRing pressure{512};
   nd::BlockRing mics{512};
   nd::OperatingPointRing ops{64};
-  nd::Streams streams() { return {&pressure, &mics, &ops}; }
+  nd::BlockRing angle{4096};
+  nd::Streams streams() { return {&pressure, &mics, &ops, &angle}; }
 };
 
 double process_cpu_s() {
@@ -106,6 +108,7 @@ void capture(nd::Source& src, Rings& rings, SimRun& run, double seconds) {
     while (rings.pressure.read(&block, 1)) run.pressure.take(block);
     while (rings.mics.read(&block, 1)) run.mics.take(block);
     while (rings.ops.read(&op, 1)) run.ops.push_back(op);
+    while (rings.angle.read(&block, 1)) run.angle_blocks.push_back(block);
     if (src.running()) run.was_running = true;
   }
   run.status_running = src.thread_status();
@@ -117,7 +120,9 @@ void capture(nd::Source& src, Rings& rings, SimRun& run, double seconds) {
   while (rings.pressure.read(&block, 1)) run.pressure.take(block);
   while (rings.mics.read(&block, 1)) run.mics.take(block);
   while (rings.ops.read(&op, 1)) run.ops.push_back(op);
-  run.overruns = rings.pressure.overrun_events() + rings.mics.overrun_events() + rings.ops.overrun_events();
+  while (rings.angle.read(&block, 1)) run.angle_blocks.push_back(block);
+  run.overruns = rings.pressure.overrun_events() + rings.mics.overrun_events() + rings.ops.overrun_events() +
+                 rings.angle.overrun_events();
 }
 
 // `seconds` of the engine's data. Under a sanitizer the sim cannot keep the wall clock's pace, so it runs unpaced
@@ -286,6 +291,32 @@ TEST(SimSource, StreamsAreContiguousAlignedAndPacedWithoutOverruns) {
     EXPECT_TRUE(s.error.empty());
   }
   for (const auto& s : r.status_stopped) EXPECT_EQ(s.state, nd::ThreadState::kStopped) << s.name;
+}
+
+// The crank-angle stream: every encoder edge from before the first 40 kHz frame on, one step apart (no edge lost,
+// the start-up's released revolution included), in blocks of at most 90 deg that begin no later than their edges.
+TEST(SimSource, TheCrankAngleStreamHoldsEveryEdgeFromTheStart) {
+  const SimRun& r = fired_run();
+  ASSERT_FALSE(r.angle_blocks.empty());
+  EXPECT_EQ(r.info.pressure_angle_step_deg, 0.1);
+  EXPECT_LE(r.angle_blocks.front().first_index, r.pressure.first_index);
+  double last = NAN;
+  std::size_t edges = 0, skips = 0;
+  for (const nd::SampleBlock& b : r.angle_blocks) {
+    EXPECT_LE(b.frames, nd::max_edges_per_angle_block(0.1));
+    for (std::uint32_t f = 0; f < b.frames; ++f, ++edges) {
+      const double crank = b.data[f * b.channels + nd::kAngleCrankChannel];
+      if (std::isfinite(last)) {
+        double step = crank - last;
+        if (step < -360.0) step += 720.0;
+        if (std::abs(step - 0.1) > 1e-6) ++skips;
+      }
+      last = crank;
+    }
+  }
+  std::printf("crank-angle stream: %zu edges in %zu blocks\n", edges, r.angle_blocks.size());
+  EXPECT_EQ(skips, 0u);
+  EXPECT_GT(static_cast<double>(edges), 0.9 * static_cast<double>(r.pressure.frames()) * 3050.0 * 6.0 / 0.1 / kFs);
 }
 
 TEST(SimSource, PressureChannelIsTheEngineCycleAtEachFrame) {
