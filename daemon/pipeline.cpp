@@ -2,6 +2,7 @@
 
 #include <spdlog/spdlog.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <deque>
@@ -77,9 +78,14 @@ struct Pipeline::Impl {
   drivers::WorkerThread processing_thread{"processing"};
   drivers::WorkerThread publishing_thread{"lcm"};  // the status name it has always had
 
-  // Edges per second over 40 kHz frames per second at 0.1 deg and 6000 rpm, where the crank-angle stream's blocks
-  // are full (the 40 kHz stream's are half full at worst).
-  static constexpr std::size_t kAngleRingFactor = 5;
+  // Blocks of the crank-angle stream per 40 kHz block (half full at worst: 312 a second) at up to 4000 rpm, whose
+  // blocks are full: 3 for a 0.1 deg encoder, 1 for 0.5 deg; 0 without the stream. (A block is 32 KiB however few
+  // channels it carries: rings sized for 6000 rpm at 0.1 deg were 60 MB more of the daemon's memory.)
+  static std::size_t angle_ring_factor(const drivers::StreamInfo& i) {
+    if (!(i.pressure_angle_step_deg > 0)) return 0;
+    const double edges_per_s = 360.0 / i.pressure_angle_step_deg * 4000.0 / 60.0;
+    return static_cast<std::size_t>(std::clamp(std::ceil(edges_per_s / 256.0 / 312.5), 1.0, 5.0));
+  }
   static std::size_t blocks_for(double seconds) {
     return static_cast<std::size_t>(std::ceil(seconds * drivers::kPipelineRateHz / 128.0));  // room even for half-full blocks
   }
@@ -93,9 +99,9 @@ struct Pipeline::Impl {
         ring_blocks(blocks_for(c.ring_seconds)),
         pressure_ring(ring_blocks),
         mic_ring(ring_blocks),
-        angle_ring(info.pressure_angle_step_deg > 0 ? kAngleRingFactor * ring_blocks : 1),
+        angle_ring(angle_ring_factor(info) > 0 ? angle_ring_factor(info) * ring_blocks : 1),
         op_ring(256),
-        raw_ring(c.lcm.publish_raw ? 2 * ring_blocks + (info.pressure_angle_step_deg > 0 ? kAngleRingFactor * ring_blocks : 0) : 1),
+        raw_ring(c.lcm.publish_raw ? (2 + angle_ring_factor(info)) * ring_blocks : 1),
         processor(make_processor()) {}
 
   std::unique_ptr<CycleProcessor> make_processor();

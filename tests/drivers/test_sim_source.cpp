@@ -78,7 +78,7 @@ struct Rings {
   nd::BlockRing pressure{512};
   nd::BlockRing mics{512};
   nd::OperatingPointRing ops{64};
-  nd::BlockRing angle{4096};
+  nd::BlockRing angle{2048};  // four blocks of edges to a 40 kHz block at most
   nd::Streams streams() { return {&pressure, &mics, &ops, &angle}; }
 };
 
@@ -131,9 +131,9 @@ void capture(nd::Source& src, Rings& rings, SimRun& run, double seconds) {
 SimRun run_source(nd::SimConfig config, double seconds) {
   SimRun run;
   if (noisemon::test::kSanitized) config.paced = false;
+  Rings rings;  // before the source: its epoch is taken at construction, and the rings take a while under a sanitizer
   auto src = nd::make_sim_source(config);
   run.info = src->info();
-  Rings rings;
   capture(*src, rings, run, seconds);
   return run;
 }

@@ -25,6 +25,7 @@
 #include "drivers/lcm/lcm_source.hpp"
 #include "dsp/levels.hpp"
 #include "dsp/third_octave_bank.hpp"
+#include "drivers/formats/lcm_log_reader.hpp"
 #include "dsp/weighting.hpp"
 #include "model/block_model.hpp"
 #include "model/engine/engine_cycle.hpp"
@@ -47,6 +48,17 @@ const auto* const kEnv = ::testing::AddGlobalTestEnvironment(new noisemon::test:
 constexpr double kCyclesPerSecond = 3050.0 / 120.0;                      // the sim's default speed
 constexpr auto kSubscribed = 75ms;                                        // a subscriber's start, up to its subscription
 std::chrono::duration<double> engine_time(int cycles) { return std::chrono::duration<double>(cycles / kCyclesPerSecond); }
+// The time a log's events span, as the recorder stamped them: what lcm-logplayer takes to play it at speed 1.
+std::chrono::duration<double> log_span(const std::string& path) {
+  noisemon::drivers::LcmLogReader reader{std::filesystem::path(path)};
+  noisemon::drivers::LcmLogEvent e;
+  std::int64_t first = -1, last = 0;
+  while (reader.next(e)) {
+    if (first < 0) first = e.timestamp;
+    last = e.timestamp;
+  }
+  return std::chrono::duration<double>(first < 0 ? 0.0 : 1e-6 * static_cast<double>(last - first));
+}
 // watch's --timeout: the longest silence it may wait through (the daemon's start-up) before it calls it an error.
 const std::string kWatchTimeout = std::to_string(allowance_s(kStartUp.count()));
 
@@ -371,8 +383,9 @@ TEST(EndToEnd, LcmLoggerRecordingReplaysToTheLiveReportsOfflineAndThroughLcmLogp
   // pace a ThreadSanitizer daemon lost blocks: cycles 1-6 missing, 20-25 flagged, its 40 cycles never reached).
   const double speed = 0.5 / noisemon::test::kSanitizerSlowdown;
   // The player is no sanitized program: it takes the recording's time over its speed, on a loaded machine longer; the
-  // subscriber waits as long for the first played cycle.
-  const auto recorded = kStartUp + engine_time(kCycles);
+  // subscriber waits as long for the first played cycle. The recording's time is its events' span: an unpaced
+  // sanitized daemon may have taken longer than the engine time to make it.
+  const auto recorded = kStartUp + std::max(engine_time(kCycles), log_span(log));
   const auto playing = std::chrono::duration<double>(recorded) / speed;
   const std::string play_timeout =
       std::to_string(allowance_s(kStartUp.count()) + playing.count() * noisemon::test::kLoadedMachineSlowdown);
