@@ -310,6 +310,17 @@ struct Harness {
       if (a->cfg_.device_path == device && a->cfg_.subdevice == subdevice) return *a;
     throw std::runtime_error("no acquisition " + device);
   }
+  // The card delivers the engine of `s` (its edges, encoder and timestamps) and the microphones for as long, then
+  // run(); returns the edges the card saw.
+  std::size_t run_engine(const EngineSetup& s) {
+    EdgeBytes e = engine_bytes(s);
+    by_device("/dev/test-pressure", 0).feed(std::move(e.pressure));
+    by_device("/dev/test-counter", 11).feed(std::move(e.encoder));
+    if (s.separate_timestamp) by_device("/dev/test-counter", 12).feed(std::move(e.timestamp));
+    by_device("/dev/test-mics", 0).feed(mic_bytes(s.duration_s));
+    run();
+    return e.edges;
+  }
   // Starts, waits until every byte was read, stops; returns the frames by 40 kHz index.
   void run() {
     source->start(nd::Streams{&pressure, &mics, &op, &angle});

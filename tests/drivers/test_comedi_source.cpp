@@ -59,15 +59,10 @@ TEST_P(ComediSourcePipes, CardBytesBecomeTheAnalytic40kHzStreams) {
   const EngineSetup setup = GetParam();
   Harness h(source_config(setup));
   ASSERT_EQ(h.acquisitions.size(), setup.separate_timestamp ? 4u : 3u);
-  EdgeBytes e = engine_bytes(setup);
-  h.by_device("/dev/test-pressure", 0).feed(std::move(e.pressure));
-  h.by_device("/dev/test-counter", 11).feed(std::move(e.encoder));
-  if (setup.separate_timestamp) h.by_device("/dev/test-counter", 12).feed(std::move(e.timestamp));
-  h.by_device("/dev/test-mics", 0).feed(mic_bytes(setup.duration_s));
-  h.run();
+  const std::size_t edges = h.run_engine(setup);
 
   for (const auto& t : h.source->thread_status()) EXPECT_NE(t.state, nd::ThreadState::kFailed) << t.name << ": " << t.error;
-  EXPECT_EQ(h.counter("comedi.encoder.edges"), static_cast<std::int64_t>(e.edges));
+  EXPECT_EQ(h.counter("comedi.encoder.edges"), static_cast<std::int64_t>(edges));
   EXPECT_EQ(h.counter("comedi.encoder.errors"), 0);
   EXPECT_EQ(h.counter("comedi.encoder.phase_corrections"), 0);
   EXPECT_EQ(h.counter("comedi.pressure.overruns"), 0);
@@ -141,11 +136,7 @@ INSTANTIATE_TEST_SUITE_P(
 TEST(ComediSource, PeggingHoldsForTheWholeCycleItWasMeasuredIn) {
   EngineSetup setup{.offset_step_bar = 0.5};
   Harness h(source_config(setup));
-  EdgeBytes e = engine_bytes(setup);
-  h.by_device("/dev/test-pressure", 0).feed(std::move(e.pressure));
-  h.by_device("/dev/test-counter", 11).feed(std::move(e.encoder));
-  h.by_device("/dev/test-mics", 0).feed(mic_bytes(setup.duration_s));
-  h.run();
+  h.run_engine(setup);
   ASSERT_FALSE(h.pressure_frames.empty());
   const double first_t = since_origin(h.pressure_frames.begin()->first, kEdgeOriginUs);
   const PressureCheck c = check_pressure(h, false, kEdgeOriginUs, first_t + 0.002, setup.duration_s - 0.005);
@@ -168,11 +159,7 @@ TEST(ComediSource, CamTellsFiringTdcWhenBothTdcsLookAlike) {
   // The same peak at both TDCs: the pressure cannot tell them apart, the cam sensor can.
   EngineSetup setup{.duration_s = 0.4, .charge_chain = false, .cam = true, .second_peak = true};
   Harness h(source_config(setup));
-  EdgeBytes e = engine_bytes(setup);
-  h.by_device("/dev/test-pressure", 0).feed(std::move(e.pressure));
-  h.by_device("/dev/test-counter", 11).feed(std::move(e.encoder));
-  h.by_device("/dev/test-mics", 0).feed(mic_bytes(setup.duration_s));
-  h.run();
+  h.run_engine(setup);
   ASSERT_FALSE(h.pressure_frames.empty());
   const double first_t = since_origin(h.pressure_frames.begin()->first, kEdgeOriginUs);
   // Locked at the first cam edge (-100 deg, i.e. 190 deg after the start).
@@ -185,13 +172,9 @@ TEST(ComediSource, CamTellsFiringTdcWhenBothTdcsLookAlike) {
   nd::ComediSourceConfig cfg = source_config(setup);
   cfg.phase = nd::PhaseSource::kPressure;
   Harness guess(cfg);
-  EdgeBytes e2 = engine_bytes(setup);
-  guess.by_device("/dev/test-pressure", 0).feed(std::move(e2.pressure));
-  guess.by_device("/dev/test-counter", 11).feed(std::move(e2.encoder));
-  guess.by_device("/dev/test-mics", 0).feed(mic_bytes(setup.duration_s));
-  guess.run();
+  const std::size_t edges = guess.run_engine(setup);
   EXPECT_TRUE(guess.pressure_frames.empty());
-  EXPECT_EQ(guess.counter("comedi.encoder.edges_before_lock"), static_cast<std::int64_t>(e2.edges));
+  EXPECT_EQ(guess.counter("comedi.encoder.edges_before_lock"), static_cast<std::int64_t>(edges));
 }
 
 TEST(ComediSource, MicOverrunRestartsWithBackoffIsCountedAndResumes) {
