@@ -17,7 +17,6 @@ void AngleCycles::add(const drivers::SampleBlock& block) {
     edge(at, e[drivers::kAngleCrankChannel], e[drivers::kAnglePressureChannel]);
   }
   covered_until_ = std::max(covered_until_, block.first_index);
-  started_ = true;
 }
 
 void AngleCycles::edge(double t, double crank_deg, double pressure_pa) {

@@ -33,7 +33,7 @@ class AngleCycles {
   void add(const drivers::SampleBlock& block);
   // The latest block's first_index: every 40 kHz frame before it has an edge after it.
   [[nodiscard]] std::int64_t covered_until() const { return covered_until_; }
-  [[nodiscard]] bool started() const { return started_; }
+  [[nodiscard]] bool started() const { return covered_until_ != INT64_MIN; }  // a block has come
   [[nodiscard]] double step_deg() const { return step_deg_; }
 
   // The first completed cycle whose closing edge's block begins within `tolerance_frames` of the 40 kHz frame `boundary`;
@@ -60,7 +60,6 @@ class AngleCycles {
   double last_deg_ = 0;  // the last known angle (kept across unknown ones, to see the wrap)
   bool has_last_ = false;
   std::int64_t covered_until_ = INT64_MIN;
-  bool started_ = false;
 };
 
 }  // namespace noisemon::daemon
