@@ -152,6 +152,39 @@ void read_faults(TableReader& sr, const std::string& origin, drivers::SimConfig&
   }
 }
 
+// [[sim.effects]]: effects of the virtual engine (model/engine/effects.hpp), each from onset_s on, as a step or a ramp
+// (drivers/sim/sim_effect_schedule.hpp). One on from the start with no ramp is simply part of the engine.
+void read_effects(TableReader& sr, const std::string& origin, drivers::SimConfig& s) {
+  const toml::node* n = sr.node("effects");
+  if (!n) return;
+  const toml::array* list = n->as_array();
+  if (!list || !list->is_array_of_tables()) sr.fail("effects", "expected an array of tables ([[sim.effects]])");
+  for (std::size_t i = 0; i < list->size(); ++i) {
+    TableReader r((*list)[i].as_table(), "sim.effects[" + std::to_string(i) + "]", origin);
+    std::string text;
+    r.string("effect", text);
+    if (text.empty()) r.fail("effect", "missing: the effect as `noisemon sim --effect` spells it, e.g. \"mic_gain=3,mic=4\"");
+    drivers::ScheduledEffect e;
+    r.number("onset_s", e.onset_s, 0, 1e9);
+    r.number("ramp_s", e.ramp_s, 0, 1e9);
+    r.reject_unknown();
+    try {
+      e.setting = model::parse_effect(text);
+      model::Effects all = drivers::cumulative_effects(s.effects, s.scheduled_effects, s.scheduled_effects.size());
+      all.add(e.setting);  // validates magnitude and qualifiers, and an effect given twice
+      if (e.setting.name == "mic_gain" && (all.mic_gain_mic < 1 || all.mic_gain_mic > static_cast<int>(s.mic_count)))
+        throw std::invalid_argument("microphone " + std::to_string(all.mic_gain_mic) + " does not exist (mic_count is " +
+                                    std::to_string(s.mic_count) + ")");
+    } catch (const std::invalid_argument& err) {
+      r.fail("effect", err.what());
+    }
+    if (e.onset_s == 0.0 && e.ramp_s == 0.0)
+      s.effects.add(e.setting);
+    else
+      s.scheduled_effects.push_back(e);
+  }
+}
+
 // [model] or [sim.true_block]: a preset plus optional parameter overrides.
 void read_block(TableReader& r, std::string& preset_name, model::BlockParams& p) {
   if (r.node("preset")) {
@@ -636,6 +669,7 @@ Config parse_table(const toml::table& root, const std::string& origin) {
   sr.number("background_noise_db", s.background_noise_db, -100, 200);
   read_sim_cell(sr, s);
   read_faults(sr, origin, s);
+  read_effects(sr, origin, s);
   std::int64_t seed = static_cast<std::int64_t>(s.seed);
   sr.integer("seed", seed, 0, INT64_MAX);
   s.seed = static_cast<std::uint64_t>(seed);

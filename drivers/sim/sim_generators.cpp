@@ -90,6 +90,7 @@ PressureGenerator::PressureGenerator(const SimConfig& config, double t_first_s)
       cache_(config),
       chain_(config.pressure_chain, config.effects, config.seed),
       faults_(config.faults),
+      seed_(config.seed),
       resolution_deg_(config.encoder_resolution_deg),
       nominal_rpm_(config.speed_rpm),
       counts_per_rev_(std::llround(360.0 / config.encoder_resolution_deg)),
@@ -105,6 +106,8 @@ PressureGenerator::PressureGenerator(const SimConfig& config, double t_first_s)
       staging_(16),
       angle_staging_(64) {
   decoder_->restart(std::llround(origin_s_ * 1e6));
+  for (const auto& e : config.scheduled_effects)
+    if (e.setting.name == "transducer_noise") schedule_.push_back(e);
   // The counter as it stands at the first edge: counted from the last index (the card was started earlier).
   counter_ = static_cast<std::uint32_t>(floor_mod(next_edge_ - 1 - index_edge_, counts_per_rev_));
   batch_ = 256;
@@ -122,6 +125,7 @@ void PressureGenerator::advance(double t_end_s, BlockRing& ring) {
     std::size_t n = 0;
     fill_batch(t_end_s, n);
     if (n == 0) break;
+    add_scheduled_transducer_noise(n);
     chain_.measure(edge_[0], x_.data(), n);
     apply_channel_faults(n);
     for (std::size_t i = 0; i < n; ++i) count_edge(edge_[i], t_[i], x_[i], ring);
@@ -130,6 +134,21 @@ void PressureGenerator::advance(double t_end_s, BlockRing& ring) {
   decoder_->deliver(staging_, false);
   forward(ring);
   forward_angles();
+}
+
+// A scheduled transducer_noise: its weight times its own white noise (counter-based on the edge, a stream of its own
+// so it is independent of the chain's floor), added to the true pressure before the chain, as the effect acts.
+void PressureGenerator::add_scheduled_transducer_noise(std::size_t n) {
+  for (std::size_t k = 0; k < schedule_.size(); ++k) {
+    model::Effects alone;
+    alone.add(schedule_[k].setting);
+    const double sigma = model::transducer_noise_rms_pa(alone);
+    for (std::size_t i = 0; i < n; ++i) {
+      const double w = effect_weight(schedule_[k], t_[i] - t_first_);
+      if (w > 0.0)
+        x_[i] += w * sigma * model::rnd::normal_at(model::rnd::key(seed_, 0x5c4ed, k), 0, static_cast<std::uint64_t>(edge_[i]));
+    }
+  }
 }
 
 void PressureGenerator::set_angle_ring(BlockRing* ring) {
@@ -268,8 +287,7 @@ MicGenerator::MicGenerator(const SimConfig& config, double t_first_s)
       index0_(to_index(t_first_s - kPreRollS, kPipelineRateHz)),
       first_index_(to_index(t_first_s, kPipelineRateHz)),
       mics_(config.mic_count),
-      feed_(config, t_first_s - kPreRollS, 2.0 * config.mic_rate_hz),
-      engine_(virtual_engine_config(config, 2.0 * config.mic_rate_hz)),
+      schedule_(config.scheduled_effects),
       to_pipeline_(config.mic_rate_hz, kPipelineRateHz, config.mic_count),
       t_first_(t_first_s),
       adc_range_pa_(config.mic_chain.adc_bits > 0 ? config.mic_chain.adc_range_pa : std::numeric_limits<double>::infinity()),
@@ -279,15 +297,42 @@ MicGenerator::MicGenerator(const SimConfig& config, double t_first_s)
       writer_(config.mic_count) {
   if (std::abs(t0_ / kGridAlignS - std::round(t0_ / kGridAlignS)) > 1e-6)
     throw std::invalid_argument("MicGenerator: start time must be a multiple of 1/1600 s");
+  for (std::size_t k = 0; k <= schedule_.size(); ++k) {
+    SimConfig step = config;
+    step.effects = cumulative_effects(config.effects, schedule_, k);
+    feeds_.emplace_back(step, t0_, 2.0 * config.mic_rate_hz);
+    engines_.emplace_back(virtual_engine_config(step, 2.0 * config.mic_rate_hz));
+  }
   mic_card_.resize(kCardBatch * mics_);
+  layer_card_.resize(schedule_.empty() ? 0 : 2 * kCardBatch * mics_);
   out_.resize(kOutFrames * mics_);
+}
+
+// n card frames into mic_card_: engine 0, plus each scheduled effect's difference weighted by its schedule.
+void MicGenerator::render(std::size_t n) {
+  engines_.front().render(feeds_.front(), mic_card_.data(), n);
+  if (schedule_.empty()) return;
+  double* previous = layer_card_.data();
+  double* current = layer_card_.data() + kCardBatch * mics_;
+  std::copy(mic_card_.begin(), mic_card_.begin() + static_cast<std::ptrdiff_t>(n * mics_), previous);
+  for (std::size_t k = 1; k < engines_.size(); ++k) {
+    engines_[k].render(feeds_[k], current, n);
+    for (std::size_t j = 0; j < n; ++j) {
+      const double since = t0_ + static_cast<double>(card_next_ + static_cast<std::int64_t>(j)) / card_rate_ - t_first_;
+      const double w = effect_weight(schedule_[k - 1], since);
+      if (w == 0.0) continue;
+      for (std::size_t m = 0; m < mics_; ++m)
+        mic_card_[j * mics_ + m] += w * (current[j * mics_ + m] - previous[j * mics_ + m]);
+    }
+    std::swap(previous, current);
+  }
 }
 
 void MicGenerator::advance(double t_end_s, BlockRing& ring) {
   const std::int64_t m_end = static_cast<std::int64_t>(std::ceil((t_end_s - t0_) * card_rate_));
   while (card_next_ < m_end) {
     const auto n = static_cast<std::size_t>(std::min<std::int64_t>(kCardBatch, m_end - card_next_));
-    engine_.render(feed_, mic_card_.data(), n);
+    render(n);
     apply_channel_faults(n);
     card_next_ += static_cast<std::int64_t>(n);
     std::int64_t k = index0_ + to_pipeline_.next_output_index();

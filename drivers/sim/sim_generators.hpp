@@ -79,6 +79,7 @@ class PressureGenerator {
  private:
   void fill_batch(double t_end_s, std::size_t& n);
   void apply_channel_faults(std::size_t n);
+  void add_scheduled_transducer_noise(std::size_t n);
   void count_edge(std::int64_t edge, double t, double pressure, BlockRing& ring);
   void scan(double t, double pressure, BlockRing& ring);
   void forward(BlockRing& ring);
@@ -88,6 +89,8 @@ class PressureGenerator {
   EngineCycleCache cache_;
   model::PressureChain chain_;
   std::vector<SimFault> faults_;
+  std::vector<ScheduledEffect> schedule_;  // those with transducer_noise: on the measured pressure
+  std::uint64_t seed_;
   double resolution_deg_;
   double nominal_rpm_;
   std::int64_t counts_per_rev_;
@@ -137,11 +140,12 @@ class MicGenerator {
   std::uint64_t blocks_written() const { return writer_.blocks_written(); }
   std::int64_t first_index() const { return first_index_; }
   // Per-microphone gain (linear, energy mean 1) and delay (s), for tests and logs.
-  const std::vector<double>& gains() const { return engine_.spread_gains(); }
-  std::vector<double> delays_s() const { return engine_.delays_s(); }
-  std::uint64_t clipped_samples() const { return engine_.mic_clipped(); }  // card samples the ADC clipped
+  const std::vector<double>& gains() const { return engines_.front().spread_gains(); }
+  std::vector<double> delays_s() const { return engines_.front().delays_s(); }
+  std::uint64_t clipped_samples() const { return engines_.front().mic_clipped(); }  // card samples the ADC clipped
 
  private:
+  void render(std::size_t n);
   void apply_channel_faults(std::size_t n);
 
   double card_rate_;
@@ -149,8 +153,12 @@ class MicGenerator {
   std::int64_t index0_;        // global 40 kHz index of local index 0
   std::int64_t first_index_;
   std::uint32_t mics_;
-  EngineFeed feed_;
-  model::VirtualEngine engine_;
+  // One engine per step of the effect schedule (sim_effect_schedule.hpp), each with its own feed: engine 0 the
+  // configured effects, engine k the first k scheduled ones on top.
+  std::vector<EngineFeed> feeds_;
+  std::vector<model::VirtualEngine> engines_;
+  std::vector<ScheduledEffect> schedule_;
+  std::vector<double> layer_card_;        // engine k's frames while mixing
   dsp::RationalResampler to_pipeline_;
   std::int64_t card_next_ = 0;            // next card frame of the microphones
   double t_first_;

@@ -20,6 +20,7 @@
 #include <string>
 #include <vector>
 
+#include "drivers/sim/sim_effect_schedule.hpp"
 #include "drivers/sim/sim_faults.hpp"
 #include "drivers/source.hpp"
 #include "drivers/worker_thread.hpp"
@@ -52,6 +53,7 @@ struct SimConfig {
   double background_noise_db = 40.0;     // per-microphone pink floor, unweighted Lp up to 20 kHz, dB re 20 uPa
   model::BlockParams true_block = model::preset("linear");  // the engine's "true" structural response
   model::Effects effects;             // effects injected into the true engine (model/engine/effects.hpp); none by default
+  std::vector<ScheduledEffect> scheduled_effects;  // effects that switch on mid-run (sim_effect_schedule.hpp): none
   // The realistic test cell (each part documented and cited in its header; each switchable off):
   model::PressureChainConfig pressure_chain;  // floor 0.02 bar, flicker off, 16-bit ADC over 0..250 bar
   model::MicChainConfig mic_chain;            // self-noise 20 dB(A), directivity +-1 dB, 24-bit ADC +-800 Pa

@@ -435,3 +435,41 @@ duration_s = 30
   EXPECT_NE(key.find("sim.faults[0].when"), std::string::npos) << key;
   EXPECT_NE(error_of("[sim]\nfaults = 3\n").find("sim.faults"), std::string::npos);
 }
+
+// [[sim.effects]]: on from the start without a ramp, an effect is part of the engine; with an onset or a ramp it is
+// scheduled. Bad entries name their table and key.
+TEST(Config, SimEffectsAreStaticOrScheduledAndBadOnesNameTheirEntry) {
+  const Config c = parse_config(R"(
+[[sim.effects]]
+effect = "background_noise=50"
+[[sim.effects]]
+effect = "mic_gain=3,mic=4"
+onset_s = 90
+[[sim.effects]]
+effect = "second_mode=6,hz=3150"
+onset_s = 30
+ramp_s = 600
+)",
+                                "f.toml");
+  ASSERT_EQ(c.sim.effects.settings.size(), 1u);
+  EXPECT_DOUBLE_EQ(*c.sim.effects.background_noise_dba, 50.0);
+  ASSERT_EQ(c.sim.scheduled_effects.size(), 2u);
+  EXPECT_EQ(c.sim.scheduled_effects[0].setting.name, "mic_gain");
+  EXPECT_DOUBLE_EQ(c.sim.scheduled_effects[0].setting.magnitude, 3.0);
+  EXPECT_DOUBLE_EQ(c.sim.scheduled_effects[0].onset_s, 90.0);
+  EXPECT_DOUBLE_EQ(c.sim.scheduled_effects[0].ramp_s, 0.0);
+  EXPECT_DOUBLE_EQ(c.sim.scheduled_effects[1].ramp_s, 600.0);
+  EXPECT_TRUE(Config().sim.scheduled_effects.empty());
+
+  const std::string unknown = error_of("[[sim.effects]]\neffect = \"gremlins=3\"\nonset_s = 1\n");
+  EXPECT_NE(unknown.find("sim.effects[0].effect"), std::string::npos) << unknown;
+  EXPECT_NE(unknown.find("gremlins"), std::string::npos) << unknown;
+  const std::string mic = error_of("[[sim.effects]]\neffect = \"mic_gain=3,mic=11\"\n");
+  EXPECT_NE(mic.find("sim.effects[0].effect"), std::string::npos) << mic;
+  EXPECT_NE(mic.find("11"), std::string::npos) << mic;
+  const std::string twice = error_of("[[sim.effects]]\neffect = \"mic_gain=3\"\n[[sim.effects]]\neffect = \"mic_gain=1\"\nonset_s = 5\n");
+  EXPECT_NE(twice.find("sim.effects[1].effect"), std::string::npos) << twice;
+  const std::string negative = error_of("[[sim.effects]]\neffect = \"mic_gain=3\"\nramp_s = -1\n");
+  EXPECT_NE(negative.find("sim.effects[0].ramp_s"), std::string::npos) << negative;
+  EXPECT_NE(error_of("[[sim.effects]]\nonset_s = 5\n").find("sim.effects[0].effect"), std::string::npos);
+}
