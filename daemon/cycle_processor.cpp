@@ -75,6 +75,7 @@ CycleProcessor::CycleProcessor(const ProcessorConfig& config, const drivers::Str
       sound_power_(config.sound_power, info, bank_.bands()),
       chunk_(bank_channels_ * kChunkFrames),
       mean_square_(bank_channels_ * 64),
+      windows_(1 + info.mic_count, kFs),
       stats_(1 + info.mic_count),
       replaced_until_(1 + info.mic_count, INT64_MIN),
       pressure_overload_pa_(overload_level(info.pressure_full_scale_pa)),
@@ -234,6 +235,7 @@ void CycleProcessor::process() {
     } else {
       // A cycle starts where the crank angle wraps from just below +360 to -360.
       if (have_last_crank_ && crank < last_crank_ - 360.0) close_cycle(crank, p[drivers::kPressureChannel]);
+      window_ = CrankWindows::window_of(crank);
       frame_grid_.add(crank, p[drivers::kPressureChannel]);
       last_crank_ = crank;
       have_last_crank_ = true;
@@ -305,6 +307,7 @@ void CycleProcessor::add_frame(const double* p) {
       out[2 + mics_] = mean;
     }
   }
+  windows_.add(window_, out + 1);
   if (++chunk_frames_ == kChunkFrames) flush_chunk();
 }
 
@@ -404,6 +407,7 @@ void CycleProcessor::count_dropped(double duration_s) {
 
 void CycleProcessor::finish_cycle(std::int64_t end_index) {
   bank_.take_mean_square(mean_square_.data());
+  windows_.close();
   const std::int64_t start = cycle_start_;
   cycle_start_ = end_index;
   const double cpu_s = cpu_spent_s_;  // calls completed since the previous cycle; the current call counts for the next
@@ -448,6 +452,7 @@ void CycleProcessor::finish_cycle(std::int64_t end_index) {
   mic_levels(r);
   select_mics(r);
   band_levels(r, static_cast<double>(start - settle_from_) / kFs, health.pressure_fault);
+  window_levels(r, health.pressure_fault);
   r.processing_ms = static_cast<float>(1e3 * cpu_s);
   r.combustion = combustion;
   sink_(r);
@@ -525,6 +530,22 @@ double CycleProcessor::measured_mean_square(const CycleReport& r, std::size_t b)
     }
   // Without a microphone nothing was measured: NaN, never a number.
   return weight_sum > 0 ? sum / weight_sum : kNaN;
+}
+
+// The A-weighted levels of the measured sound (the microphones of the measured levels, as they are averaged) and of
+// the prediction per crank window; NaN for a window without frames, and as the cycle's measured and predicted are.
+void CycleProcessor::window_levels(CycleReport& r, bool pressure_fault) const {
+  const std::vector<double>& weights = sound_power_.area_weights();
+  for (std::size_t w = 0; w < kCrankWindows; ++w) {
+    double sum = 0, weight_sum = 0;
+    for (std::size_t m = 0; m < mics_; ++m)
+      if (!(r.mic_flags[m] & kMicExcluded)) {
+        sum += weights[m] * windows_.mean_square(w, 1 + m);
+        weight_sum += weights[m];
+      }
+    r.window_lpa_measured_db[w] = static_cast<float>(weight_sum > 0 ? dsp::level_db(sum / weight_sum) : kNaN);
+    r.window_lpa_predicted_db[w] = static_cast<float>(pressure_fault ? kNaN : dsp::level_db(windows_.mean_square(w, 0)));
+  }
 }
 
 // Band levels, attenuation and overall levels; measured from the microphones not excluded (NaN without any),

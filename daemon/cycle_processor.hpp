@@ -24,6 +24,7 @@
 
 #include "daemon/angle_cycles.hpp"
 #include "daemon/crank_grid.hpp"
+#include "daemon/crank_windows.hpp"
 #include "daemon/cycle_report.hpp"
 #include "daemon/frame_fifo.hpp"
 #include "daemon/sound_power_setup.hpp"
@@ -137,6 +138,7 @@ class CycleProcessor {
   };
   PassbandLimits passband_limits(double duration_s) const;
   void band_levels(CycleReport& r, double settled_s, bool pressure_fault) const;
+  void window_levels(CycleReport& r, bool pressure_fault) const;
   std::int8_t band_flags(std::size_t b, double duration_s, double settled_s) const;
   // The measured band's mean square (unweighted): the area-weighted energy mean over the microphones used.
   double measured_mean_square(const CycleReport& r, std::size_t b) const;
@@ -165,6 +167,8 @@ class CycleProcessor {
   std::vector<double> chunk_;  // combined frames waiting for the bank
   std::size_t chunk_frames_ = 0;
   std::vector<double> mean_square_;
+  CrankWindows windows_;         // A-weighted prediction and microphones per crank window (out[1 ...] of a frame)
+  std::size_t window_ = 0;       // the crank window of the frames being added
   std::vector<ChannelStats> stats_;
   // Per channel: one past the last combined frame whose sample was replaced. The bank's filters ring after the
   // replaced stretch: the channel stays faulty into the next cycle while its non-slow bands have not settled.

@@ -4,6 +4,7 @@
 
 #include <cstdint>
 
+#include "daemon/crank_windows.hpp"
 #include "drivers/source.hpp"
 #include "model/combustion_metrics.hpp"
 
@@ -41,8 +42,8 @@ enum CycleFlag : std::int32_t {
   kCycleMicExcluded = 128,     // a microphone was left out of the measured levels (see mic_flags)
   kCyclePressureFault = 256,   // pressure flat, overloaded or non-finite (or ringing from replaced samples):
                                // CPL, predictions, attenuation and combustion metrics are NaN
-  kCycleLwUpperBound = 512,
-  kCycleAngleGap = 1024,       // the crank-angle stream misses edges of this cycle: combustion metrics NaN    // a band of the measured LW(A) is 6 dB or less above the background: an upper bound
+  kCycleLwUpperBound = 512,    // a band of the measured LW(A) is 6 dB or less above the background: an upper bound
+  kCycleAngleGap = 1024,       // the crank-angle stream misses edges of this cycle: combustion metrics NaN
 };
 
 struct CycleReport {
@@ -71,6 +72,10 @@ struct CycleReport {
   std::uint16_t nmics = 0;
   float mic_lpa_db[kMaxMics] = {};   // every microphone's own level, excluded ones included
   std::int8_t mic_flags[kMaxMics] = {};  // MicFlag bits
+  // Per 90-degree crank window (daemon/crank_windows.hpp), the A-weighted level over the overall levels' bands of
+  // the measured sound (as lpa_measured_db) and of the prediction; NaN: no frame in it, or no measurement.
+  float window_lpa_measured_db[kCrankWindows] = {};
+  float window_lpa_predicted_db[kCrankWindows] = {};
   std::int32_t flags = 0;
   float processing_ms = 0;
   std::int64_t input_ns = 0;        // steady clock when the cycle's last block reached the processing thread

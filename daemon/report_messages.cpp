@@ -40,6 +40,9 @@ noisemon::cycle_report_t to_message(const CycleReport& r) {
   m.nmics = static_cast<std::int16_t>(r.nmics);
   m.mic_lpa_db.assign(r.mic_lpa_db, r.mic_lpa_db + r.nmics);
   m.mic_flags.assign(r.mic_flags, r.mic_flags + r.nmics);
+  m.nwindows = static_cast<std::int8_t>(kCrankWindows);
+  m.window_lpa_measured_db.assign(r.window_lpa_measured_db, r.window_lpa_measured_db + kCrankWindows);
+  m.window_lpa_predicted_db.assign(r.window_lpa_predicted_db, r.window_lpa_predicted_db + kCrankWindows);
   m.flags = r.flags;
   m.processing_ms = r.processing_ms;
   const model::CombustionMetrics& c = r.combustion;
