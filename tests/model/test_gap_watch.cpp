@@ -1,0 +1,106 @@
+// The live gap watch on a synthetic test cell (synthetic_gap_cell.hpp): its false alarms against the rate set, a step
+// found with its onset, operating-point changes not taken for changes of the gap.
+#include "model/diagnosis/gap_watch.hpp"
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <vector>
+
+#include "tests/model/synthetic_gap_cell.hpp"
+
+namespace nm = noisemon::model;
+
+namespace {
+
+std::vector<nm::GapEvent> watch_cycles(nm::GapWatch& watch, gapcell::Cell& cell, std::int64_t cycles,
+                                       const gapcell::Effects& effects = {}, std::int64_t effect_from = 0) {
+  std::vector<nm::GapEvent> events;
+  watch.on_event = [&](const nm::GapEvent& e) { events.push_back(e); };
+  for (std::int64_t i = 0; i < cycles; ++i) watch.add(cell.next(i >= effect_from ? effects : gapcell::Effects{}));
+  return events;
+}
+
+}  // namespace
+
+// With the false-alarm time set to 0.1 h and nothing changing, 3 h of cycles give about 30 alarms less the time spent
+// relearning after each (20 s): the union of 62 two-sided CUSUMs at the rate Bonferroni shares out is at most the
+// rate set (conservative when features correlate), and not far below it with these nearly independent features.
+// The smallest shift is set near the features' block spread (k about 1), where Siegmund's approximation holds; for
+// a shift many times the spread (k >> 1) the true rate is far below the one set.
+TEST(GapWatch, FalseAlarmRateIsAtMostTheOneSet) {
+  nm::GapWatchOptions o;
+  o.false_alarm_hours = 0.1;
+  o.min_shift_db = 0.1;
+  o.reference_s = 20.0;
+  gapcell::Cell cell(1);
+  nm::GapWatch watch(o);
+  const auto cycles = static_cast<std::int64_t>(3.0 * 3600.0 * 3050.0 / 120.0);
+  const auto events = watch_cycles(watch, cell, cycles);
+  const double watched_h = 3.0 - static_cast<double>(events.size() + 1) * o.reference_s / 3600.0;
+  const double expected = watched_h / o.false_alarm_hours;
+  EXPECT_LE(static_cast<double>(events.size()), 1.5 * expected) << events.size() << " alarms, " << expected << " expected at most";
+  EXPECT_GE(static_cast<double>(events.size()), 0.25 * expected) << events.size() << " alarms";
+}
+
+// A microphone's sensitivity rising 2 dB at a known cycle: one event, found within a few blocks, its onset on the
+// cycle, named mic_gain of that microphone with its size.
+TEST(GapWatch, StepIsFoundItsOnsetLocatedAndNamed) {
+  gapcell::Cell cell(2);
+  nm::GapWatch watch(nm::GapWatchOptions{});
+  gapcell::Effects e;
+  e.gain_mic = 3;
+  e.gain_db = 2.0;
+  const std::int64_t onset = 6000;  // 236 s: after the 120 s reference
+  const auto events = watch_cycles(watch, cell, 9000, e, onset);
+  ASSERT_EQ(events.size(), 1u);
+  EXPECT_NEAR(static_cast<double>(events[0].onset_cycle), static_cast<double>(onset), 3.0);
+  EXPECT_GE(events[0].detected_cycle, onset);
+  EXPECT_LE(events[0].detected_cycle, onset + 4 * 16);
+  EXPECT_EQ(events[0].effect, "mic_gain");
+  EXPECT_NE(std::find(events[0].features.begin(), events[0].features.end(), "mic 4 +"), events[0].features.end());
+  const auto& p = events[0].params;
+  ASSERT_EQ(p.size(), 2u);
+  EXPECT_EQ(p[0].second, 4.0);
+  EXPECT_NEAR(p[1].second, 2.0, 0.25);
+  EXPECT_GT(events[0].confidence, 0.9);
+}
+
+// Two operating points whose gaps differ by 2 dB, the engine switching between them every 3 minutes for 2 hours:
+// each learns its own reference, and no switch is an event (the false-alarm time 80 h: one in 40 runs would fire).
+TEST(GapWatch, OperatingPointChangesAreNotChanges) {
+  nm::GapWatchOptions o;
+  o.false_alarm_hours = 80.0;
+  gapcell::Cell cell(3);
+  nm::GapWatch watch(o);
+  std::vector<nm::GapEvent> events;
+  watch.on_event = [&](const nm::GapEvent& e) { events.push_back(e); };
+  for (int stint = 0; stint < 40; ++stint) {
+    const bool second = stint % 2 == 1;
+    cell.set_speed(second ? 3450.0 : 3050.0);
+    cell.set_gap_offset(second ? 2.0 : 0.0);
+    const auto cycles = static_cast<std::int64_t>(180.0 * (second ? 3450.0 : 3050.0) / 120.0);
+    for (std::int64_t i = 0; i < cycles; ++i) watch.add(cell.next());
+  }
+  EXPECT_TRUE(events.empty()) << events.size() << " events, the first " << events.front().effect;
+  EXPECT_EQ(watch.reference().points.size(), 2u);
+  EXPECT_FALSE(watch.learning());
+}
+
+// A reference saved from one run and given to the next: watched from its first block, no learning.
+TEST(GapWatch, GivenReferenceIsWatchedFromTheStart) {
+  gapcell::Cell first(4);
+  nm::GapWatch learner(nm::GapWatchOptions{});
+  (void)watch_cycles(learner, first, 4000);
+  ASSERT_FALSE(learner.learning());
+  gapcell::Cell second(5);
+  nm::GapWatch watch(nm::GapWatchOptions{});
+  watch.set_reference(learner.reference());
+  gapcell::Effects e;
+  e.gain_mic = 0;
+  e.gain_db = 3.0;
+  const auto events = watch_cycles(watch, second, 600, e, 200);
+  ASSERT_EQ(events.size(), 1u);
+  EXPECT_EQ(events[0].effect, "mic_gain");
+  EXPECT_NEAR(static_cast<double>(events[0].onset_cycle), 200.0, 3.0);
+}
