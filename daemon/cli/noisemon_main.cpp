@@ -1,5 +1,5 @@
 // noisemon: the command-line tool beside the daemon (watch, replay, import, export, sim, fit, diagnose, summary, dash,
-// tdc).
+// tdc, gapwatch).
 #include <CLI/CLI.hpp>
 
 #include <cstdio>
@@ -13,6 +13,7 @@
 #include "daemon/cli/summary_command.hpp"
 #include "daemon/cli/tdc_command.hpp"
 #include "daemon/cli/fit_command.hpp"
+#include "daemon/cli/gapwatch_command.hpp"
 #include "daemon/cli/sim_command.hpp"
 #include "daemon/cli/watch.hpp"
 
@@ -56,6 +57,7 @@ int main(int argc, char** argv) {
   SummaryCommand summary(app);
   DashCommand dash(app);
   TdcCommand tdc(app);
+  GapwatchCommand gapwatch(app);
 
   try {
     app.parse(argc, argv);
@@ -77,6 +79,7 @@ int main(int argc, char** argv) {
     if (const int status = import_export.run(); status >= 0) return status;
     if (const int status = sim.run(); status >= 0) return status;
     if (const int status = fit.run(); status >= 0) return status;
+    if (const int status = gapwatch.run(); status >= 0) return status;
     if (const int status = diagnose.run(argc, argv); status >= 0) return status;
     if (const int status = summary.run(); status >= 0) return status;
     if (const int status = dash.run(); status >= 0) return status;
