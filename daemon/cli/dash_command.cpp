@@ -1,31 +1,15 @@
 #include "daemon/cli/dash_command.hpp"
 
-#include <poll.h>
-
-#include <csignal>
 #include <cstdio>
-#include <functional>
 #include <lcm/lcm-cpp.hpp>
 
 #include "daemon/cli/dash_reference.hpp"
 #include "daemon/cli/dash_server.hpp"
 #include "daemon/cli/dash_state.hpp"
+#include "daemon/cli/lcm_loop.hpp"
 #include "daemon/config.hpp"
 
 namespace noisemon::daemon {
-namespace {
-
-volatile std::sig_atomic_t g_stop = 0;
-void on_signal(int) { g_stop = 1; }
-
-// Adapts a callable to LCM's member-function subscription.
-template <class Message>
-struct Handler {
-  std::function<void(const Message&)> fn;
-  void on(const lcm::ReceiveBuffer*, const std::string&, const Message* m) { fn(*m); }
-};
-
-}  // namespace
 
 bool parse_listen_address(const std::string& text, std::string& host, int& port) {
   const auto colon = text.rfind(':');
@@ -70,23 +54,18 @@ int DashCommand::run() {
     return 1;
   }
   DashState state(config.lcm.cell, static_cast<std::size_t>(history_), linear_reference_json());
-  Handler<noisemon::cycle_report_t> cycles{[&](const auto& m) { state.on_cycle(m); }};
-  Handler<noisemon::status_t> status{[&](const auto& m) { state.on_status(m); }};
-  Handler<noisemon::operating_point_t> ops{[&](const auto& m) { state.on_operating_point(m); }};
-  lcm.subscribe(config.lcm.report_channel, &Handler<noisemon::cycle_report_t>::on, &cycles);
-  lcm.subscribe(config.lcm.status_channel, &Handler<noisemon::status_t>::on, &status);
-  lcm.subscribe(config.lcm.operating_point_channel, &Handler<noisemon::operating_point_t>::on, &ops);
+  LcmHandler<noisemon::cycle_report_t> cycles{[&](const auto& m) { state.on_cycle(m); }};
+  LcmHandler<noisemon::status_t> status{[&](const auto& m) { state.on_status(m); }};
+  LcmHandler<noisemon::operating_point_t> ops{[&](const auto& m) { state.on_operating_point(m); }};
+  lcm.subscribe(config.lcm.report_channel, &LcmHandler<noisemon::cycle_report_t>::on, &cycles);
+  lcm.subscribe(config.lcm.status_channel, &LcmHandler<noisemon::status_t>::on, &status);
+  lcm.subscribe(config.lcm.operating_point_channel, &LcmHandler<noisemon::operating_point_t>::on, &ops);
 
   DashServer server(state, std::chrono::milliseconds(static_cast<int>(1000.0 / max_rate_)));
   if (!server.start(host, port)) return 1;
   std::fprintf(stderr, "noisemon dash: http://%s:%d/ (channels %s, %s, %s)\n", host.c_str(), server.port(),
                config.lcm.report_channel.c_str(), config.lcm.status_channel.c_str(), config.lcm.operating_point_channel.c_str());
-  std::signal(SIGINT, on_signal);
-  std::signal(SIGTERM, on_signal);
-  while (!g_stop) {
-    pollfd pfd{lcm.getFileno(), POLLIN, 0};
-    if (::poll(&pfd, 1, 100) > 0) lcm.handle();
-  }
+  handle_until_signal(lcm);
   state.stop();
   server.stop();
   std::fprintf(stderr, "noisemon dash: stopped\n");

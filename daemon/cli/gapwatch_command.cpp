@@ -1,8 +1,5 @@
 #include "daemon/cli/gapwatch_command.hpp"
 
-#include <poll.h>
-
-#include <csignal>
 #include <cstring>
 #include <cstdio>
 #include <filesystem>
@@ -12,6 +9,7 @@
 
 #include "daemon/cli/cli_support.hpp"
 #include "daemon/cli/gapwatch_io.hpp"
+#include "daemon/cli/lcm_loop.hpp"
 #include "daemon/config.hpp"
 #include "daemon/replay.hpp"
 #include "drivers/formats/lcm_log_reader.hpp"
@@ -21,15 +19,6 @@ namespace noisemon::daemon {
 namespace {
 
 namespace fs = std::filesystem;
-
-volatile std::sig_atomic_t g_stop = 0;
-void on_signal(int) { g_stop = 1; }
-
-template <class Message>
-struct Handler {
-  std::function<void(const Message&)> fn;
-  void on(const lcm::ReceiveBuffer*, const std::string&, const Message* m) { fn(*m); }
-};
 
 // Feeds a log's cycle reports (and its sessions' encoder, for transducer_noise in bar) in order. A log without
 // reports but with the raw streams is replayed through the daemon's pipeline first (what `noisemon replay` does).
@@ -182,17 +171,12 @@ int GapwatchCommand::run() {
       if (s.pressure_edges_per_rev > 0.0) watch.set_pressure_edges_per_rev(s.pressure_edges_per_rev);
     };
     if (live) {
-      Handler<noisemon::cycle_report_t> reports{on_report};
-      Handler<noisemon::session_t> sessions{on_session};
-      lcm->subscribe(config.lcm.report_channel, &Handler<noisemon::cycle_report_t>::on, &reports);
-      lcm->subscribe(config.lcm.session_channel, &Handler<noisemon::session_t>::on, &sessions);
+      LcmHandler<noisemon::cycle_report_t> reports{on_report};
+      LcmHandler<noisemon::session_t> sessions{on_session};
+      lcm->subscribe(config.lcm.report_channel, &LcmHandler<noisemon::cycle_report_t>::on, &reports);
+      lcm->subscribe(config.lcm.session_channel, &LcmHandler<noisemon::session_t>::on, &sessions);
       std::fprintf(stderr, "noisemon gapwatch: watching %s, events on %s\n", config.lcm.report_channel.c_str(), config.lcm.gap_event_channel.c_str());
-      std::signal(SIGINT, on_signal);
-      std::signal(SIGTERM, on_signal);
-      while (!g_stop) {
-        pollfd pfd{lcm->getFileno(), POLLIN, 0};
-        if (::poll(&pfd, 1, 100) > 0) lcm->handle();
-      }
+      handle_until_signal(*lcm);
     } else {
       const std::int64_t reports = read_log(log_, config, progress_, on_session, on_report);
       if (reports == 0) throw std::runtime_error(log_ + ": no cycle reports (channel " + config.lcm.report_channel + ") and no raw streams");
