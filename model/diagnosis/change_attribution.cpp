@@ -166,7 +166,7 @@ CandidateFit fit_transducer_noise(const GapChange& c, const Observed& o) {
     return d;
   };
   double x = 0.0;
-  const double value = minimize_1d([&](double v) { return chi2(o, predict(v)); }, -14.0, 4.0, &x);
+  const double value = minimize_1d([&](double v) { return chi2(o, predict(v)); }, -14.0, 10.0, &x);
   std::vector<std::pair<std::string, double>> params{{"density_db", db(std::pow(10.0, x) / (p0 * p0))}};
   if (c.pressure_edge_rate_hz > 0.0) params.insert(params.begin(), {"bar", std::sqrt(std::pow(10.0, x) * c.pressure_edge_rate_hz / 2.0) / 1e5});
   return make_fit("transducer_noise", std::move(params), 1, value, o.count);
