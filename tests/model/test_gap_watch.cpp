@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <cstdio>
 #include <vector>
 
 #include "tests/model/synthetic_gap_cell.hpp"
@@ -39,6 +40,7 @@ TEST(GapWatch, FalseAlarmRateIsAtMostTheOneSet) {
   const auto events = watch_cycles(watch, cell, cycles);
   const double watched_h = 3.0 - static_cast<double>(events.size() + 1) * o.reference_s / 3600.0;
   const double expected = watched_h / o.false_alarm_hours;
+  std::printf("%zu false alarms in %.2f h watched, %.1f at the rate set\n", events.size(), watched_h, expected);
   EXPECT_LE(static_cast<double>(events.size()), 1.5 * expected) << events.size() << " alarms, " << expected << " expected at most";
   EXPECT_GE(static_cast<double>(events.size()), 0.25 * expected) << events.size() << " alarms";
 }
