@@ -594,6 +594,7 @@ void read_lcm(TableReader& top, const std::string& origin, LcmConfig& lcm) {
   l.string("session_channel", lcm.session_channel);
   l.string("stats_channel", lcm.stats_channel);
   l.string("gap_event_channel", lcm.gap_event_channel);
+  l.string("gap_status_channel", lcm.gap_status_channel);
   l.boolean("publish_raw", lcm.publish_raw);
   l.boolean("publish_operating_point", lcm.publish_operating_point);
   l.number("session_timeout_s", lcm.session_timeout_s, 0.01, 3600);
@@ -695,7 +696,8 @@ void set_cell(LcmConfig& lcm, const std::string& cell) {
       throw ConfigError("cell id '" + cell + "': only letters, digits and '-' are allowed");
   const std::string old_suffix = lcm.cell.empty() ? "" : "_" + lcm.cell;
   for (std::string* channel : {&lcm.report_channel, &lcm.status_channel, &lcm.raw_channel, &lcm.operating_point_channel,
-                               &lcm.session_channel, &lcm.stats_channel, &lcm.gap_event_channel}) {
+                               &lcm.session_channel, &lcm.stats_channel, &lcm.gap_event_channel,
+                               &lcm.gap_status_channel}) {
     if (!old_suffix.empty() && channel->ends_with(old_suffix)) channel->resize(channel->size() - old_suffix.size());
     if (!cell.empty()) *channel += "_" + cell;
   }

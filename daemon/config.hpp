@@ -25,7 +25,8 @@ struct LcmConfig {
   std::string operating_point_channel = "NOISEMON_OP";
   std::string session_channel = "NOISEMON_SESSION";
   std::string stats_channel = "NOISEMON_STATS";  // the rolling statistics (cycle_stats_t)
-  std::string gap_event_channel = "NOISEMON_GAP_EVENT";  // noisemon gapwatch's events (gap_event_t)
+  std::string gap_event_channel = "NOISEMON_GAP_EVENT";    // noisemon gapwatch's events (gap_event_t)
+  std::string gap_status_channel = "NOISEMON_GAP_STATUS";  // and its state, 1 Hz (gap_status_t)
   bool publish_raw = true;
   bool publish_operating_point = true;
   double session_timeout_s = 30.0;  // source "lcm": how long to wait for the session message

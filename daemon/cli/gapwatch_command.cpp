@@ -163,9 +163,15 @@ int GapwatchCommand::run() {
         lcm->publish(config.lcm.gap_event_channel, &m);
       }
     };
+    std::int64_t status_utime = 0;
     auto on_report = [&](const noisemon::cycle_report_t& r) {
       utime = r.utime;
       watch.add(cycle_gap(r));
+      if (lcm && utime - status_utime >= 1000000) {  // once a second on the reports' clock
+        status_utime = utime;
+        const noisemon::gap_status_t m = gap_status_message(watch, utime, static_cast<std::int32_t>(events));
+        lcm->publish(config.lcm.gap_status_channel, &m);
+      }
     };
     auto on_session = [&](const noisemon::session_t& s) {
       if (s.pressure_edges_per_rev > 0.0) watch.set_pressure_edges_per_rev(s.pressure_edges_per_rev);

@@ -103,6 +103,19 @@ noisemon::gap_event_t gap_event_message(const model::GapEvent& e, std::int64_t u
   return m;
 }
 
+noisemon::gap_status_t gap_status_message(const model::GapWatch& watch, std::int64_t utime, std::int32_t events) {
+  noisemon::gap_status_t m;
+  m.utime = utime;
+  m.cycles = watch.cycles();
+  m.events = events;
+  m.operating_points = static_cast<std::int32_t>(watch.reference().points.size());
+  m.learning = watch.learning();
+  m.reference_s = watch.reference_seconds();
+  m.since_reference_s = watch.since_reference_seconds();
+  m.watched_features = static_cast<std::int32_t>(watch.watched_features());
+  return m;
+}
+
 nlohmann::json gap_event_json(const model::GapEvent& e) {
   nlohmann::json params = nlohmann::json::object();
   for (const auto& [key, value] : e.params) params[key] = number(value);

@@ -10,6 +10,7 @@
 #include "model/diagnosis/gap_watch.hpp"
 #include "noisemon/cycle_report_t.hpp"
 #include "noisemon/gap_event_t.hpp"
+#include "noisemon/gap_status_t.hpp"
 
 namespace noisemon::daemon {
 
@@ -19,6 +20,7 @@ namespace noisemon::daemon {
 [[nodiscard]] model::CycleGap cycle_gap(const noisemon::cycle_report_t& report);
 
 [[nodiscard]] noisemon::gap_event_t gap_event_message(const model::GapEvent& event, std::int64_t utime);
+[[nodiscard]] noisemon::gap_status_t gap_status_message(const model::GapWatch& watch, std::int64_t utime, std::int32_t events);
 // effect, params (the effect's own keys), onset_s, detected_s, onset_cycle, detected_cycle, gap_before_db,
 // gap_after_db, confidence, explained, features, the operating point, explanation and the candidates' weights.
 [[nodiscard]] nlohmann::json gap_event_json(const model::GapEvent& event);

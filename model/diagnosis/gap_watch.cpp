@@ -97,6 +97,11 @@ double GapWatch::reference_seconds() const {
   return static_cast<double>(reference_.points[current_point_].cycles) * 120.0 / reference_.points[current_point_].speed_rpm;
 }
 
+double GapWatch::since_reference_seconds() const {
+  if (learning()) return 0.0;
+  return std::max(0.0, last_s_ - watched_from_s_[current_point_]);
+}
+
 bool GapWatch::learning() const { return current_point_ >= points_.size() || points_[current_point_].learning; }
 
 double GapWatch::current_h() const {
@@ -158,6 +163,7 @@ std::size_t GapWatch::point_of(const CycleGap& c) {
   reference_.points.push_back(r);
   points_.emplace_back();
   watched_from_.push_back(INT64_MIN);
+  watched_from_s_.push_back(0.0);
   return reference_.points.size() - 1;
 }
 
@@ -184,7 +190,10 @@ void GapWatch::add(const CycleGap& c) {
   if (c.band_hz.size() != reference_.band_hz.size() || c.mic_db.size() != reference_.mics ||
       c.window_measured_db.size() != reference_.windows || c.window_predicted_db.size() != reference_.windows)
     return;  // another layout
-  if (cycles_ == 0) first_s_ = c.time_s;
+  if (cycles_ == 0) {
+    first_s_ = c.time_s;
+    for (double& t : watched_from_s_) t = c.time_s;  // a reference given before the first cycle
+  }
   last_s_ = c.time_s;
   last_cycle_ = c.cycle;
   ++cycles_;
@@ -271,6 +280,7 @@ void GapWatch::finish_reference(std::size_t p) {
   s.block_means.clear();
   s.learning = false;
   watched_from_[p] = last_cycle_;
+  watched_from_s_[p] = last_s_;
   arm(p);
 }
 
@@ -446,6 +456,7 @@ void GapWatch::set_reference(const GapReference& reference) {
   layout_ = !reference.band_hz.empty();
   points_.assign(reference_.points.size(), PointState{});
   watched_from_.assign(reference_.points.size(), INT64_MIN);
+  watched_from_s_.assign(reference_.points.size(), 0.0);
   for (std::size_t p = 0; p < points_.size(); ++p) {
     points_[p].learning = false;
     arm(p);

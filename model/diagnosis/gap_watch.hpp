@@ -127,6 +127,7 @@ class GapWatch {
   std::size_t watched_features() const;
   double seconds_since_first() const { return last_s_ - first_s_; }
   double reference_seconds() const;      // of the current operating point's reference (0: learning)
+  double since_reference_seconds() const;  // engine seconds since it was complete (0: learning)
   bool learning() const;                 // the current operating point's reference is not complete
   std::int64_t cycles() const { return cycles_; }
   std::int64_t blocks() const { return blocks_; }
@@ -181,6 +182,7 @@ class GapWatch {
   double first_s_ = 0.0, last_s_ = 0.0;
   std::int64_t last_cycle_ = 0;
   std::vector<std::int64_t> watched_from_;  // per point: the cycle its reference was complete
+  std::vector<double> watched_from_s_;      // and its time
   std::int64_t cycles_ = 0, blocks_ = 0;
   // The open event.
   bool open_ = false;
