@@ -60,6 +60,10 @@ int DashCommand::run() {
   lcm.subscribe(config.lcm.report_channel, &LcmHandler<noisemon::cycle_report_t>::on, &cycles);
   lcm.subscribe(config.lcm.status_channel, &LcmHandler<noisemon::status_t>::on, &status);
   lcm.subscribe(config.lcm.operating_point_channel, &LcmHandler<noisemon::operating_point_t>::on, &ops);
+  LcmHandler<noisemon::gap_event_t> gap_events{[&](const auto& m) { state.on_gap_event(m); }};
+  LcmHandler<noisemon::gap_status_t> gap_status{[&](const auto& m) { state.on_gap_status(m); }};
+  lcm.subscribe(config.lcm.gap_event_channel, &LcmHandler<noisemon::gap_event_t>::on, &gap_events);
+  lcm.subscribe(config.lcm.gap_status_channel, &LcmHandler<noisemon::gap_status_t>::on, &gap_status);
 
   DashServer server(state, std::chrono::milliseconds(static_cast<int>(1000.0 / max_rate_)));
   if (!server.start(host, port)) return 1;

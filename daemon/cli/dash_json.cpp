@@ -1,5 +1,7 @@
 #include "daemon/cli/dash_json.hpp"
 
+#include <cmath>
+
 namespace noisemon::daemon {
 
 nlohmann::json cycle_json(const noisemon::cycle_report_t& r) {
@@ -35,7 +37,12 @@ nlohmann::json cycle_json(const noisemon::cycle_report_t& r) {
 }
 
 nlohmann::json trend_point_json(const noisemon::cycle_report_t& r, std::int64_t dropped, bool restarted) {
-  return {{"t", static_cast<double>(r.utime) * 1e-6}, {"cycle", r.cycle},
+  nlohmann::json gap = nlohmann::json::array();
+  for (int b = 0; b < r.nbands; ++b) {
+    const double g = static_cast<double>(r.spl_a_measured_db[b]) - r.spl_a_predicted_db[b];
+    gap.push_back(std::isfinite(g) ? nlohmann::json(std::round(g * 10.0) / 10.0) : nlohmann::json(nullptr));
+  }
+  return {{"t", static_cast<double>(r.utime) * 1e-6}, {"cycle", r.cycle}, {"gap", std::move(gap)},
           {"lpa_m", r.lpa_measured_db},               {"lpa_p", r.lpa_predicted_db},
           {"lwa_m", r.lwa_measured_db},               {"lwa_p", r.lwa_predicted_db},
           {"speed", r.speed_rpm},                     {"load", r.load_nm},
@@ -72,6 +79,30 @@ nlohmann::json operating_point_json(const noisemon::operating_point_t& op) {
   return {{"utime", op.utime},         {"speed_rpm", op.speed_rpm},
           {"load_nm", op.load_nm},     {"soi_deg_btdc", op.soi_deg_btdc},
           {"rail_pressure_bar", op.rail_pressure_bar}, {"motored", op.motored}};
+}
+
+nlohmann::json gap_event_json(const noisemon::gap_event_t& e) {
+  nlohmann::json params = nlohmann::json::object();
+  for (int i = 0; i < e.nparams; ++i) params[e.param_names[i]] = e.param_values[i];
+  nlohmann::json candidates = nlohmann::json::array();
+  for (int i = 0; i < e.ncandidates; ++i) candidates.push_back({{"effect", e.candidates[i]}, {"weight", e.candidate_weights[i]}});
+  auto floats = [](const std::vector<float>& v) {
+    nlohmann::json a = nlohmann::json::array();
+    for (const float x : v) a.push_back(std::isfinite(x) ? nlohmann::json(x) : nlohmann::json(nullptr));
+    return a;
+  };
+  return {{"utime", e.utime},          {"effect", e.effect},           {"params", params},
+          {"confidence", e.confidence}, {"kind", e.kind},               {"onset_s", e.onset_s},
+          {"detected_s", e.detected_s}, {"onset_cycle", e.onset_cycle}, {"detected_cycle", e.detected_cycle},
+          {"gap_before_db", e.gap_before_db}, {"gap_after_db", e.gap_after_db}, {"features", e.features},
+          {"explanation", e.explanation}, {"band_hz", floats(e.band_hz)}, {"gap_change_db", floats(e.gap_change_db)},
+          {"mic_change_db", floats(e.mic_change_db)}, {"candidates", candidates}};
+}
+
+nlohmann::json gap_status_json(const noisemon::gap_status_t& s) {
+  return {{"utime", s.utime},       {"cycles", s.cycles},           {"events", s.events},
+          {"operating_points", s.operating_points}, {"learning", s.learning}, {"reference_s", s.reference_s},
+          {"since_reference_s", s.since_reference_s}, {"watched_features", s.watched_features}};
 }
 
 }  // namespace noisemon::daemon

@@ -76,6 +76,37 @@ void cycle_metrics(std::ostringstream& out, const std::string& cell, const noise
   Family(out, cell, "noisemon_last_cycle_flags", "gauge", "Last cycle's CYCLE_* flag bits (0: fully valid).").sample(r.flags);
 }
 
+// The gap measured - predicted of the last cycle, energy over the bands of a group (below 500 Hz, 500 Hz ... 2 kHz,
+// above 2 kHz) that both carry; NaN when none does.
+double band_group_gap_db(const noisemon::cycle_report_t& r, double from_hz, double to_hz) {
+  double measured = 0, predicted = 0;
+  for (int b = 0; b < r.nbands; ++b)
+    if (r.band_hz[b] >= from_hz && r.band_hz[b] < to_hz && std::isfinite(r.spl_a_measured_db[b]) && std::isfinite(r.spl_a_predicted_db[b])) {
+      measured += std::pow(10.0, r.spl_a_measured_db[b] / 10.0);
+      predicted += std::pow(10.0, r.spl_a_predicted_db[b] / 10.0);
+    }
+  return predicted > 0 ? 10.0 * std::log10(measured / predicted) : std::nan("");
+}
+
+void gap_metrics(std::ostringstream& out, const MetricsInput& in) {
+  if (!in.gap_events_by_effect.empty()) {
+    Family events(out, in.cell, "noisemon_gap_events_total", "counter", "noisemon gapwatch's events since the dash started, by the effect named.");
+    for (const auto& [effect, count] : in.gap_events_by_effect) events.sample(static_cast<double>(count), "effect", effect);
+  }
+  if (in.cycle && in.cycle->nbands > 0) {
+    Family groups(out, in.cell, "noisemon_gap_band_group_db", "gauge", "Last cycle's gap measured - predicted over a band group, dB.");
+    groups.sample(band_group_gap_db(*in.cycle, 0.0, 500.0), "group", "below_500hz");
+    groups.sample(band_group_gap_db(*in.cycle, 500.0, 2000.0), "group", "500hz_2khz");
+    groups.sample(band_group_gap_db(*in.cycle, 2000.0, 1e9), "group", "above_2khz");
+  }
+  if (in.gap_status) {
+    Family(out, in.cell, "noisemon_gap_seconds_since_reference", "gauge", "Engine seconds since gapwatch's reference of the current operating point was complete (0: learning).")
+        .sample(in.gap_status->since_reference_s);
+    Family(out, in.cell, "noisemon_gap_learning", "gauge", "1 while gapwatch learns the current operating point's reference.")
+        .sample(in.gap_status->learning ? 1.0 : 0.0);
+  }
+}
+
 }  // namespace
 
 std::string prometheus_label_value(const std::string& value) {
@@ -95,6 +126,7 @@ std::string prometheus_text(const MetricsInput& in) {
       .sample(static_cast<double>(in.cycles_received));
   if (in.status) status_metrics(out, in.cell, *in.status, in.status_age_s);
   if (in.cycle) cycle_metrics(out, in.cell, *in.cycle);
+  gap_metrics(out, in);
   return out.str();
 }
 

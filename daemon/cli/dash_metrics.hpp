@@ -2,10 +2,12 @@
 // (version 0.0.4), every sample labelled with the cell.
 #pragma once
 
+#include <map>
 #include <optional>
 #include <string>
 
 #include "noisemon/cycle_report_t.hpp"
+#include "noisemon/gap_status_t.hpp"
 #include "noisemon/status_t.hpp"
 
 namespace noisemon::daemon {
@@ -16,6 +18,8 @@ struct MetricsInput {
   std::optional<noisemon::cycle_report_t> cycle;    // the last cycle report, if any
   double status_age_s = 0;                          // seconds since the status arrived
   long long cycles_received = 0;                    // by the dash since it started
+  std::optional<noisemon::gap_status_t> gap_status; // noisemon gapwatch's last state, if any
+  std::map<std::string, long long> gap_events_by_effect;  // its events since the dash started
 };
 
 std::string prometheus_text(const MetricsInput& in);

@@ -35,6 +35,21 @@ void DashState::on_operating_point(const noisemon::operating_point_t& op) {
   operating_point_ = std::move(json);
 }
 
+void DashState::on_gap_event(const noisemon::gap_event_t& e) {
+  nlohmann::json json = gap_event_json(e);
+  std::lock_guard lock(mutex_);
+  gap_events_.push_back(std::move(json));
+  while (gap_events_.size() > 100) gap_events_.pop_front();
+  ++gap_events_by_effect_[e.effect];
+}
+
+void DashState::on_gap_status(const noisemon::gap_status_t& s) {
+  nlohmann::json json = gap_status_json(s);
+  std::lock_guard lock(mutex_);
+  gap_status_ = std::move(json);
+  last_gap_status_ = s;
+}
+
 std::uint64_t DashState::sequence() const {
   std::lock_guard lock(mutex_);
   return sequence_;
@@ -62,7 +77,8 @@ nlohmann::json DashState::snapshot_locked(std::uint64_t after) const {
   for (const auto& [seq, point] : trend_)
     if (seq > after) trend.push_back(point);
   nlohmann::json snapshot = {{"cell", cell_},    {"seq", sequence_}, {"history", history_cycles_}, {"full", after == 0},
-                             {"cycle", cycle_}, {"status", status_}, {"op", operating_point_},       {"trend", std::move(trend)}};
+                             {"cycle", cycle_}, {"status", status_}, {"op", operating_point_},       {"trend", std::move(trend)},
+                             {"gap_status", gap_status_}, {"gap_events", nlohmann::json(gap_events_)}};
   if (after == 0) snapshot["reference"] = reference_;
   return snapshot;
 }
@@ -85,6 +101,8 @@ std::string DashState::metrics_text() const {
     in.cell = cell_;
     in.status = last_status_;
     in.cycle = last_cycle_;
+    in.gap_status = last_gap_status_;
+    in.gap_events_by_effect = gap_events_by_effect_;
     in.cycles_received = static_cast<long long>(sequence_);
     in.status_age_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - status_received_).count();
   }

@@ -6,6 +6,7 @@
 #include <condition_variable>
 #include <cstdint>
 #include <deque>
+#include <map>
 #include <mutex>
 #include <optional>
 #include <string>
@@ -13,6 +14,8 @@
 #include <nlohmann/json.hpp>
 
 #include "noisemon/cycle_report_t.hpp"
+#include "noisemon/gap_event_t.hpp"
+#include "noisemon/gap_status_t.hpp"
 #include "noisemon/operating_point_t.hpp"
 #include "noisemon/status_t.hpp"
 
@@ -26,6 +29,9 @@ class DashState {
   void on_cycle(const noisemon::cycle_report_t& r);
   void on_status(const noisemon::status_t& s);
   void on_operating_point(const noisemon::operating_point_t& op);
+  // noisemon gapwatch's events (the last 100 kept: the page's timeline) and state.
+  void on_gap_event(const noisemon::gap_event_t& e);
+  void on_gap_status(const noisemon::gap_status_t& s);
 
   // Number of cycle reports received so far (the sequence of the newest one).
   std::uint64_t sequence() const;
@@ -58,6 +64,10 @@ class DashState {
   nlohmann::json cycle_, status_, operating_point_;
   std::optional<noisemon::cycle_report_t> last_cycle_;
   std::optional<noisemon::status_t> last_status_;
+  std::deque<nlohmann::json> gap_events_;
+  std::map<std::string, long long> gap_events_by_effect_;
+  nlohmann::json gap_status_;
+  std::optional<noisemon::gap_status_t> last_gap_status_;
   std::chrono::steady_clock::time_point status_received_;
 };
 

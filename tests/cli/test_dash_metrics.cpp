@@ -139,6 +139,34 @@ TEST(DashMetrics, StatusAndLevelsParseAsPrometheusTextWithTheCellOnEverySample) 
     if (type == "counter") EXPECT_TRUE(name.ends_with("_total")) << name;
 }
 
+// The gap watch's figures: events by effect, the last cycle's gap per band group (measured 3 dB above predicted in
+// the 500 Hz and 1 kHz bands, 1 dB below in 2 and 4 kHz: the groups 500 Hz ... 2 kHz and from 2 kHz on read +3 and
+// -1), the time since the reference.
+TEST(DashMetrics, GapWatchEventsBandGroupsAndReferenceAge) {
+  MetricsInput in;
+  in.cell = "c";
+  noisemon::cycle_report_t r{};
+  r.band_hz = {500.0f, 1000.0f, 2000.0f, 4000.0f};
+  r.spl_a_measured_db = {83.0f, 93.0f, 69.0f, 79.0f};
+  r.spl_a_predicted_db = {80.0f, 90.0f, 70.0f, 80.0f};
+  r.nbands = 4;
+  in.cycle = r;
+  in.gap_events_by_effect = {{"mic_gain", 2}, {"second_mode", 1}};
+  noisemon::gap_status_t g{};
+  g.since_reference_s = 420.5;
+  in.gap_status = g;
+  const Exposition e = parse(prometheus_text(in));
+  for (const std::string& error : e.errors) ADD_FAILURE() << error;
+  EXPECT_EQ(e.types.at("noisemon_gap_events_total"), "counter");
+  EXPECT_EQ(find(e, "noisemon_gap_events_total", "effect", "mic_gain")->value, 2);
+  EXPECT_EQ(find(e, "noisemon_gap_events_total", "effect", "second_mode")->value, 1);
+  EXPECT_NEAR(find(e, "noisemon_gap_band_group_db", "group", "500hz_2khz")->value, 3.0, 1e-5);
+  EXPECT_NEAR(find(e, "noisemon_gap_band_group_db", "group", "above_2khz")->value, -1.0, 1e-5);
+  EXPECT_TRUE(std::isnan(find(e, "noisemon_gap_band_group_db", "group", "below_500hz")->value));
+  EXPECT_EQ(find(e, "noisemon_gap_seconds_since_reference")->value, 420.5);
+  EXPECT_EQ(find(e, "noisemon_gap_learning")->value, 0);
+}
+
 TEST(DashMetrics, LabelValuesAreEscaped) {
   EXPECT_EQ(noisemon::daemon::prometheus_label_value("a\"b\\c\nd"), "a\\\"b\\\\c\\nd");
   MetricsInput in;

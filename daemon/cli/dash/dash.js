@@ -188,6 +188,71 @@ function showStatus(s) {
   $('counters').innerHTML = s.counters.map((c) => `<tr><th>${escapeHtml(c.name)}</th><td>${c.value}</td></tr>`).join('');
 }
 
+// ---------------------------------------------------------------------------------------------- the gap watch
+
+const gap = { rows: [], t: [], bands: [], events: [] };
+
+function addGapRows(points, full, bands) {
+  if (full) { gap.rows = []; gap.t = []; }
+  if (bands) gap.bands = bands;
+  for (const p of points) if (p.gap) { gap.rows.push(p.gap); gap.t.push(p.t); }
+  const extra = gap.rows.length - trend.max;
+  if (extra > 0) { gap.rows.splice(0, extra); gap.t.splice(0, extra); }
+}
+
+// Heat map: one column per cycle, one row per band (low bands at the bottom), +-3 dB full scale; event onsets as lines.
+function drawGapHeatmap() {
+  const canvas = $('gap-heatmap');
+  const cols = gap.rows.length, rows = cols ? gap.rows[0].length : 0;
+  canvas.width = Math.max(1, cols); canvas.height = Math.max(1, rows);
+  const ctx = canvas.getContext('2d');
+  const img = ctx.createImageData(canvas.width, canvas.height);
+  for (let x = 0; x < cols; ++x) {
+    for (let b = 0; b < rows; ++b) {
+      const v = gap.rows[x][b], i = 4 * ((rows - 1 - b) * cols + x);
+      const s = v === null ? 0 : Math.max(-1, Math.min(1, v / 3));
+      img.data[i] = v === null ? 230 : 255 - Math.round(255 * Math.max(0, -s));
+      img.data[i + 1] = v === null ? 230 : 255 - Math.round(255 * Math.abs(s));
+      img.data[i + 2] = v === null ? 230 : 255 - Math.round(255 * Math.max(0, s));
+      img.data[i + 3] = 255;
+    }
+  }
+  ctx.putImageData(img, 0, 0);
+  ctx.fillStyle = '#000';
+  for (const e of gap.events) {
+    const onset = e.utime * 1e-6 - (e.detected_s - e.onset_s);
+    const x = gap.t.findIndex((t) => t >= onset);
+    if (x >= 0) ctx.fillRect(x, 0, 1, rows);
+  }
+}
+
+function paramText(params) { return Object.entries(params).map(([k, v]) => `${k}=${Number(v).toPrecision(4)}`).join(' '); }
+
+function showGapEvents(events, status) {
+  gap.events = events || [];
+  if (status && status.utime !== undefined) {
+    setText('gap-status', status.learning ? '(learning the reference)'
+      : `(${status.events} events · reference ${fmt(status.reference_s, 0)} s, complete ${fmt(status.since_reference_s, 0)} s ago · ${status.watched_features} features watched at ${status.operating_points} operating points)`);
+  }
+  $('gap-events').innerHTML = '<tr><th>detected</th><th>effect</th><th>parameters</th><th>kind</th><th>onset</th><th>confidence</th><th>gap before → after</th></tr>'
+    + gap.events.slice().reverse().map((e, i) => `<tr data-i="${gap.events.length - 1 - i}"><td>${new Date(e.utime / 1000).toLocaleTimeString()}</td>`
+      + `<td><b>${escapeHtml(e.effect)}</b></td><td>${escapeHtml(paramText(e.params))}</td><td>${escapeHtml(e.kind)}</td>`
+      + `<td>${fmt(e.onset_s, 1)} s (cycle ${e.onset_cycle})</td><td>${fmt(e.confidence, 2)}</td>`
+      + `<td>${fmt(e.gap_before_db, 2)} → ${fmt(e.gap_after_db, 2)} dB</td></tr>`).join('');
+  for (const row of $('gap-events').querySelectorAll('tr[data-i]')) row.onclick = () => showEvidence(gap.events[Number(row.dataset.i)]);
+}
+
+// An event's evidence: what fired, the change per band and microphone, every candidate's weight.
+function showEvidence(e) {
+  const bands = e.band_hz.map((hz, b) => e.gap_change_db[b] === null ? null : `${hz} Hz ${e.gap_change_db[b] >= 0 ? '+' : ''}${e.gap_change_db[b].toFixed(2)}`)
+    .filter((x) => x !== null).join(', ');
+  const mics = e.mic_change_db.map((d, m) => `mic${m + 1} ${d === null ? '–' : d.toFixed(2)}`).join(', ');
+  const candidates = e.candidates.map((c) => `${c.effect} ${c.weight.toFixed(3)}`).join(', ');
+  $('gap-evidence').innerHTML = `<p><b>${escapeHtml(e.effect)}</b> ${escapeHtml(paramText(e.params))}: ${escapeHtml(e.explanation)}</p>`
+    + `<p>fired: ${escapeHtml(e.features.join(', '))}</p><p>band gap change, dB: ${escapeHtml(bands)}</p>`
+    + `<p>microphone level change, dB: ${escapeHtml(mics)}</p><p>candidates' weights: ${escapeHtml(candidates)}</p>`;
+}
+
 function onEvent(message) {
   const e = JSON.parse(message.data);
   seen.events += 1;
@@ -197,6 +262,9 @@ function onEvent(message) {
   if (e.trend.length > 0) seen.lastArrival = Date.now();
   addTrend(e.trend, e.full);
   drawTrend();
+  addGapRows(e.trend, e.full, e.cycle && e.cycle.band_hz);
+  showGapEvents(e.gap_events, e.gap_status);
+  drawGapHeatmap();
   showCycle(e.cycle);
   showStatus(e.status);
   setText('received', String(seen.received)); setText('events', String(seen.events)); setText('restarts', String(seen.restarts));
