@@ -185,11 +185,15 @@ std::string GapWatch::feature_name(std::size_t f, int side) const {
   return name + (side > 0 ? " +" : " -");
 }
 
-void GapWatch::add(const CycleGap& c) {
-  if (!layout_) start_layout(c);
-  if (c.band_hz.size() != reference_.band_hz.size() || c.mic_db.size() != reference_.mics ||
-      c.window_measured_db.size() != reference_.windows || c.window_predicted_db.size() != reference_.windows)
+// Inside the watch a cycle is numbered by the watch's own count (a daemon's restart starts its reports' numbers
+// again at 0); the reports' numbers are kept beside the history for the events.
+void GapWatch::add(const CycleGap& report) {
+  if (!layout_) start_layout(report);
+  if (report.band_hz.size() != reference_.band_hz.size() || report.mic_db.size() != reference_.mics ||
+      report.window_measured_db.size() != reference_.windows || report.window_predicted_db.size() != reference_.windows)
     return;  // another layout
+  CycleGap c = report;
+  c.cycle = cycles_;
   if (cycles_ == 0) {
     first_s_ = c.time_s;
     for (double& t : watched_from_s_) t = c.time_s;  // a reference given before the first cycle
@@ -198,7 +202,11 @@ void GapWatch::add(const CycleGap& c) {
   last_cycle_ = c.cycle;
   ++cycles_;
   history_.push_back(c);
-  while (history_.size() > options_.history_cycles) history_.pop_front();
+  report_cycles_.push_back(report.cycle);
+  while (history_.size() > options_.history_cycles) {
+    history_.pop_front();
+    report_cycles_.pop_front();
+  }
   if (!c.usable || !(c.speed_rpm > 0.0)) return;
   const std::size_t p = point_of(c);
   current_point_ = p;
@@ -331,7 +339,7 @@ void GapWatch::open_event(std::size_t p, std::int64_t onset_block, std::size_t f
                                                    static_cast<std::int64_t>(block_starts_.size()) - 1);
   event_.onset_cycle = block_starts_[static_cast<std::size_t>(at)].first;
   event_.onset_s = block_starts_[static_cast<std::size_t>(at)].second - first_s_;
-  event_.detected_cycle = history_.back().cycle;
+  event_.detected_cycle = report_cycles_.back();
   event_.detected_s = history_.back().time_s - first_s_;
   event_.features.push_back(feature_name(feature, side));
 }
@@ -442,6 +450,9 @@ void GapWatch::complete_event() {
   event_.motored = r.motored;
   open_ = false;
   points_[p] = PointState{};
+  const std::int64_t back = event_.onset_cycle - history_.front().cycle;  // the watch's count to the report's number
+  if (back >= 0 && back < static_cast<std::int64_t>(report_cycles_.size()))
+    event_.onset_cycle = report_cycles_[static_cast<std::size_t>(back)];
   if (on_event) on_event(event_);
 }
 

@@ -120,7 +120,7 @@ class GapWatch {
   void set_pressure_edges_per_rev(double edges) { options_.pressure_edge_rate_per_rev = edges; }
 
   // One cycle report, in order; events complete as their evidence does.
-  void add(const CycleGap& cycle);
+  void add(const CycleGap& report);
   std::function<void(const GapEvent&)> on_event;
 
   // State for the operators' views.
@@ -172,7 +172,8 @@ class GapWatch {
   GapWatchOptions options_;
   GapReference reference_;
   std::vector<PointState> points_;
-  std::deque<CycleGap> history_;
+  std::deque<CycleGap> history_;             // its cycle: the watch's own count
+  std::deque<std::int64_t> report_cycles_;   // the reports' cycle numbers, beside it
   Block block_;
   std::size_t block_point_ = SIZE_MAX;
   std::deque<std::pair<std::int64_t, double>> block_starts_;  // first cycle and time of the recent blocks

@@ -106,3 +106,23 @@ TEST(GapWatch, GivenReferenceIsWatchedFromTheStart) {
   EXPECT_EQ(events[0].effect, "mic_gain");
   EXPECT_NEAR(static_cast<double>(events[0].onset_cycle), 200.0, 3.0);
 }
+
+// The daemon restarts: its reports' cycle numbers start again at 0. The watch goes on (the same operating point, the
+// same reference), and a step after the restart is found with its onset in the new numbering.
+TEST(GapWatch, DaemonRestartNumberingAgainFromZeroIsNoChange) {
+  gapcell::Cell before(6);
+  nm::GapWatch watch(nm::GapWatchOptions{});
+  std::vector<nm::GapEvent> events;
+  watch.on_event = [&](const nm::GapEvent& e) { events.push_back(e); };
+  for (int i = 0; i < 6000; ++i) watch.add(before.next());
+  gapcell::Cell after(7);  // cycle numbers from 0 again
+  gapcell::Effects e;
+  e.gain_mic = 8;
+  e.gain_db = 2.5;
+  for (int i = 0; i < 3000; ++i) watch.add(after.next(i >= 1500 ? e : gapcell::Effects{}));
+  ASSERT_EQ(events.size(), 1u);
+  EXPECT_EQ(events[0].effect, "mic_gain");
+  EXPECT_NEAR(static_cast<double>(events[0].onset_cycle), 1500.0, 3.0);
+  EXPECT_GE(events[0].detected_cycle, 1500);
+  EXPECT_LT(events[0].detected_cycle, 1600);
+}
