@@ -76,26 +76,28 @@ double chi2(const Observed& o, const Delta& d) {
   return sum;
 }
 
-// The minimum of f over [lo, hi]: a grid, then golden-section search around its best point.
+// The minimum of f over [lo, hi]: a grid, then golden-section search around its best point (one evaluation a step).
 double minimize_1d(const std::function<double(double)>& f, double lo, double hi, double* at) {
-  constexpr int kGrid = 24;
+  constexpr int kGrid = 24, kSteps = 30;
   double best_x = lo, best = f(lo);
   for (int i = 1; i <= kGrid; ++i) {
     const double x = lo + (hi - lo) * i / kGrid;
     if (const double v = f(x); v < best) best = v, best_x = x;
   }
-  const double step = (hi - lo) / kGrid;
+  const double step = (hi - lo) / kGrid, g = (std::sqrt(5.0) - 1.0) / 2.0;
   double a = std::max(lo, best_x - step), b = std::min(hi, best_x + step);
-  const double g = (std::sqrt(5.0) - 1.0) / 2.0;
-  for (int i = 0; i < 30; ++i) {
-    const double x1 = b - g * (b - a), x2 = a + g * (b - a);
-    if (f(x1) < f(x2))
-      b = x2;
-    else
-      a = x1;
+  double x1 = b - g * (b - a), x2 = a + g * (b - a), f1 = f(x1), f2 = f(x2);
+  for (int i = 0; i < kSteps; ++i) {
+    if (f1 < f2) {
+      b = x2, x2 = x1, f2 = f1;
+      x1 = b - g * (b - a), f1 = f(x1);
+    } else {
+      a = x1, x1 = x2, f1 = f2;
+      x2 = a + g * (b - a), f2 = f(x2);
+    }
   }
-  const double x = 0.5 * (a + b);
-  if (const double v = f(x); v < best) best = v, best_x = x;
+  const double x = f1 < f2 ? x1 : x2, v = std::min(f1, f2);
+  if (v < best) best = v, best_x = x;
   *at = best_x;
   return best;
 }
@@ -238,36 +240,60 @@ CandidateFit fit_additive(const GapChange& c, const Observed& o, double floor_db
   return make_fit(background ? "background_noise" : "mechanical_noise", std::move(params), parameters, chi2(o, d), o.count);
 }
 
-// second_mode: a parallel resonance, |1 + a R(f)|^2 averaged over each band, a = 10^(M/20) - 1, R the unit-peak
-// band-pass at f2 with quality Q (R computed once per f2 and Q; M fitted for each).
-CandidateFit fit_second_mode(const GapChange& c, const Observed& o) {
-  CandidateFit best = make_fit("second_mode", {}, 3, std::numeric_limits<double>::infinity(), o.count);
-  std::vector<std::vector<double>> points;
-  for (const double hz : c.band_hz) points.push_back(band_points(hz));
-  std::vector<std::complex<double>> r(c.band_hz.size() * kBandPoints);
-  Delta d = zero_delta(o);
-  for (double f2 = 50.0; f2 < 18000.0; f2 *= std::pow(2.0, 1.0 / 12.0))
-    for (const double q : {2.5, 5.0, 10.0}) {
-      for (std::size_t b = 0; b < c.band_hz.size(); ++b)
-        for (int i = 0; i < kBandPoints; ++i) {
-          const double f = points[b][static_cast<std::size_t>(i)];
-          const std::complex<double> jw(0.0, f * f2 / q);
-          r[b * kBandPoints + static_cast<std::size_t>(i)] = jw / (f2 * f2 - f * f + jw);
-        }
-      auto chi2_at = [&](double m_db) {
-        const double a = std::pow(10.0, m_db / 20.0) - 1.0;
-        for (std::size_t b = 0; b < c.band_hz.size(); ++b) {
-          if (!std::isfinite(o.value.gap[b])) continue;
-          double sum = 0.0;
-          for (int i = 0; i < kBandPoints; ++i) sum += std::norm(1.0 + a * r[b * kBandPoints + static_cast<std::size_t>(i)]);
-          d.gap[b] = db(sum / kBandPoints);
-        }
-        return chi2(o, d);
-      };
-      double m_db = 0.0;
-      const double value = minimize_1d(chi2_at, -20.0, 30.0, &m_db);
-      if (value < best.chi2) best = make_fit("second_mode", {{"hz", f2}, {"db", m_db}, {"q", q}}, 3, value, o.count);
+// The model block's transfer H(f) = (c0 + j w c1) / (k1 - m w^2 + j w b1) (its linear part).
+std::complex<double> block_transfer(const BlockParams& p, double f_hz) {
+  const double w = 2.0 * std::numbers::pi * f_hz;
+  return std::complex<double>(p.c0, w * p.c1) / std::complex<double>(p.k1 - p.m * w * w, w * p.b1);
+}
+
+// second_mode: a further resonance, in either of the two ways a panel radiates: on the block's output (the
+// structure's response rises by |1 + g e^(j phi) R|^2: the virtual engine's form) or driven by the same pressure
+// beside the block (the diagnosis's parallel mode: |H + g |H(f2)| e^(j phi) R|^2 / |H|^2, H the model block's
+// transfer: where the block is weak the mode's own path shows whole). g = 10^(M/20) - 1 (M: the rise at f2 in
+// phase), R the unit-peak band-pass at f2 with quality Q; phi on a 30-degree grid. The better form is reported.
+CandidateFit fit_second_mode(const GapChange& c, const Observed& o, const BlockParams& block) {
+  CandidateFit best = make_fit("second_mode", {}, 4, std::numeric_limits<double>::infinity(), o.count);
+  const std::size_t nb = c.band_hz.size();
+  std::vector<double> f(nb * kBandPoints);
+  for (std::size_t b = 0; b < nb; ++b) {
+    const std::vector<double> points = band_points(c.band_hz[b]);
+    std::copy(points.begin(), points.end(), f.begin() + static_cast<std::ptrdiff_t>(b * kBandPoints));
+  }
+  for (const bool parallel : {false, true}) {
+    std::vector<std::complex<double>> h(f.size(), 1.0), r(f.size());
+    std::vector<double> h2(nb, 0.0);
+    for (std::size_t k = 0; k < f.size(); ++k) {
+      if (parallel) h[k] = block_transfer(block, f[k]);
+      h2[k / kBandPoints] += std::norm(h[k]);
     }
+    Delta d = zero_delta(o);
+    for (double f2 = 50.0; f2 < 18000.0; f2 *= std::pow(2.0, 1.0 / 12.0))
+      for (const double q : {2.5, 5.0, 10.0}) {
+        const double scale = parallel ? std::abs(block_transfer(block, f2)) : 1.0;
+        for (std::size_t k = 0; k < f.size(); ++k) {
+          const std::complex<double> jw(0.0, f[k] * f2 / q);
+          r[k] = scale * jw / (f2 * f2 - f[k] * f[k] + jw);
+        }
+        for (int phase_deg = -150; phase_deg <= 180; phase_deg += 30) {
+          const std::complex<double> turn = std::polar(1.0, phase_deg * std::numbers::pi / 180.0);
+          auto chi2_at = [&](double m_db) {
+            const std::complex<double> g = (std::pow(10.0, m_db / 20.0) - 1.0) * turn;
+            for (std::size_t b = 0; b < nb; ++b) {
+              if (!std::isfinite(o.value.gap[b])) continue;
+              double sum = 0.0;
+              for (std::size_t k = b * kBandPoints; k < (b + 1) * kBandPoints; ++k) sum += std::norm(h[k] + g * r[k]);
+              d.gap[b] = db(sum / h2[b]);
+            }
+            return chi2(o, d);
+          };
+          double m_db = 0.0;
+          const double value = minimize_1d(chi2_at, -20.0, 30.0, &m_db);
+          if (value < best.chi2)
+            best = make_fit("second_mode", {{"hz", f2}, {"db", m_db}, {"q", q}, {"phase_deg", phase_deg}, {"parallel", parallel ? 1.0 : 0.0}},
+                            4, value, o.count);
+        }
+      }
+  }
   return best;
 }
 
@@ -343,7 +369,7 @@ Attribution attribute_change(const GapChange& change, const AttributionOptions& 
   fits.push_back(fit_transducer_noise(change, o));
   double additive_weight = 1.0;
   fits.push_back(fit_additive(change, o, options.model_error_db, &additive_weight));
-  fits.push_back(fit_second_mode(change, o));
+  fits.push_back(fit_second_mode(change, o, options.model_block));
   fits.push_back(fit_uniform_gain(change, o));
   for (auto& f : fit_cubic(change, o, options.model_block)) fits.push_back(std::move(f));
   std::erase_if(fits, [](const CandidateFit& f) { return !std::isfinite(f.criterion); });

@@ -323,7 +323,7 @@ void GapWatch::watch(std::size_t p, std::int64_t index) {
     if (side == 0) continue;
     if (!open_)
       open_event(p, s.cusum[f].onset(), f, side);
-    else
+    else if (std::find(event_.features.begin(), event_.features.end(), feature_name(f, side)) == event_.features.end())
       event_.features.push_back(feature_name(f, side));
   }
 }

@@ -24,7 +24,7 @@ std::vector<nm::GapEvent> watch_cycles(nm::GapWatch& watch, gapcell::Cell& cell,
 
 }  // namespace
 
-// With the false-alarm time set to 0.1 h and nothing changing, 3 h of cycles give about 30 alarms less the time spent
+// With the false-alarm time set to 0.1 h and nothing changing, 2 h of cycles give about 20 alarms less the time spent
 // relearning after each (20 s): the union of 62 two-sided CUSUMs at the rate Bonferroni shares out is at most the
 // rate set (conservative when features correlate), and not far below it with these nearly independent features.
 // The smallest shift is set near the features' block spread (k about 1), where Siegmund's approximation holds; for
@@ -36,9 +36,9 @@ TEST(GapWatch, FalseAlarmRateIsAtMostTheOneSet) {
   o.reference_s = 20.0;
   gapcell::Cell cell(1);
   nm::GapWatch watch(o);
-  const auto cycles = static_cast<std::int64_t>(3.0 * 3600.0 * 3050.0 / 120.0);
+  const auto cycles = static_cast<std::int64_t>(2.0 * 3600.0 * 3050.0 / 120.0);
   const auto events = watch_cycles(watch, cell, cycles);
-  const double watched_h = 3.0 - static_cast<double>(events.size() + 1) * o.reference_s / 3600.0;
+  const double watched_h = 2.0 - static_cast<double>(events.size() + 1) * o.reference_s / 3600.0;
   const double expected = watched_h / o.false_alarm_hours;
   std::printf("%zu false alarms in %.2f h watched, %.1f at the rate set\n", events.size(), watched_h, expected);
   EXPECT_LE(static_cast<double>(events.size()), 1.5 * expected) << events.size() << " alarms, " << expected << " expected at most";
