@@ -250,7 +250,8 @@ std::complex<double> block_transfer(const BlockParams& p, double f_hz) {
 // structure's response rises by |1 + g e^(j phi) R|^2: the virtual engine's form) or driven by the same pressure
 // beside the block (the diagnosis's parallel mode: |H + g |H(f2)| e^(j phi) R|^2 / |H|^2, H the model block's
 // transfer: where the block is weak the mode's own path shows whole). g = 10^(M/20) - 1 (M: the rise at f2 in
-// phase), R the unit-peak band-pass at f2 with quality Q; phi on a 30-degree grid. The better form is reported.
+// phase), R the unit-peak band-pass at f2 with quality Q; phi on a 30-degree grid, a parameter when not 0. The
+// better form is reported.
 CandidateFit fit_second_mode(const GapChange& c, const Observed& o, const BlockParams& block) {
   CandidateFit best = make_fit("second_mode", {}, 4, std::numeric_limits<double>::infinity(), o.count);
   const std::size_t nb = c.band_hz.size();
@@ -288,9 +289,12 @@ CandidateFit fit_second_mode(const GapChange& c, const Observed& o, const BlockP
           };
           double m_db = 0.0;
           const double value = minimize_1d(chi2_at, -20.0, 30.0, &m_db);
-          if (value < best.chi2)
+          // In phase is the catalogue's mode (3 parameters); another phase is a fourth.
+          const int parameters = phase_deg == 0 ? 3 : 4;
+          const double criterion = value + parameters * std::log(static_cast<double>(std::max<std::size_t>(o.count, 2)));
+          if (criterion < best.criterion)
             best = make_fit("second_mode", {{"hz", f2}, {"db", m_db}, {"q", q}, {"phase_deg", phase_deg}, {"parallel", parallel ? 1.0 : 0.0}},
-                            4, value, o.count);
+                            parameters, value, o.count);
         }
       }
   }
