@@ -246,14 +246,14 @@ std::complex<double> block_transfer(const BlockParams& p, double f_hz) {
   return std::complex<double>(p.c0, w * p.c1) / std::complex<double>(p.k1 - p.m * w * w, w * p.b1);
 }
 
-// second_mode: a further resonance, in either of the two ways a panel radiates: on the block's output (the
-// structure's response rises by |1 + g e^(j phi) R|^2: the virtual engine's form) or driven by the same pressure
-// beside the block (the diagnosis's parallel mode: |H + g |H(f2)| e^(j phi) R|^2 / |H|^2, H the model block's
-// transfer: where the block is weak the mode's own path shows whole). g = 10^(M/20) - 1 (M: the rise at f2 in
-// phase), R the unit-peak band-pass at f2 with quality Q; phi on a 30-degree grid, a parameter when not 0. The
-// better form is reported.
+// second_mode: a further resonance in phase with the block at f2, in either of the two ways a panel radiates: on the
+// block's output (the structure's response rises by |1 + g R|^2: the virtual engine's form) or driven by the same
+// pressure beside the block (the diagnosis's parallel mode: |H + g |H(f2)| R|^2 / |H|^2, H the model block's
+// transfer: where the block is weak the mode's own path shows whole; M >= 0, a panel adds its sound, an absorber
+// acts on the output). g = 10^(M/20) - 1, R the unit-peak band-pass at f2 with quality Q. The better form is reported. No phase is fitted: a mode out of phase imitates a shift of the
+// block's own resonance, which is the cubic candidates' (tried, a phase took them over).
 CandidateFit fit_second_mode(const GapChange& c, const Observed& o, const BlockParams& block) {
-  CandidateFit best = make_fit("second_mode", {}, 4, std::numeric_limits<double>::infinity(), o.count);
+  CandidateFit best = make_fit("second_mode", {}, 3, std::numeric_limits<double>::infinity(), o.count);
   const std::size_t nb = c.band_hz.size();
   std::vector<double> f(nb * kBandPoints);
   for (std::size_t b = 0; b < nb; ++b) {
@@ -275,27 +275,21 @@ CandidateFit fit_second_mode(const GapChange& c, const Observed& o, const BlockP
           const std::complex<double> jw(0.0, f[k] * f2 / q);
           r[k] = scale * jw / (f2 * f2 - f[k] * f[k] + jw);
         }
-        for (int phase_deg = -150; phase_deg <= 180; phase_deg += 30) {
-          const std::complex<double> turn = std::polar(1.0, phase_deg * std::numbers::pi / 180.0);
-          auto chi2_at = [&](double m_db) {
-            const std::complex<double> g = (std::pow(10.0, m_db / 20.0) - 1.0) * turn;
-            for (std::size_t b = 0; b < nb; ++b) {
-              if (!std::isfinite(o.value.gap[b])) continue;
-              double sum = 0.0;
-              for (std::size_t k = b * kBandPoints; k < (b + 1) * kBandPoints; ++k) sum += std::norm(h[k] + g * r[k]);
-              d.gap[b] = db(sum / h2[b]);
-            }
-            return chi2(o, d);
-          };
-          double m_db = 0.0;
-          const double value = minimize_1d(chi2_at, -20.0, 30.0, &m_db);
-          // In phase is the catalogue's mode (3 parameters); another phase is a fourth.
-          const int parameters = phase_deg == 0 ? 3 : 4;
-          const double criterion = value + parameters * std::log(static_cast<double>(std::max<std::size_t>(o.count, 2)));
-          if (criterion < best.criterion)
-            best = make_fit("second_mode", {{"hz", f2}, {"db", m_db}, {"q", q}, {"phase_deg", phase_deg}, {"parallel", parallel ? 1.0 : 0.0}},
-                            parameters, value, o.count);
-        }
+        auto chi2_at = [&](double m_db) {
+          const double g = std::pow(10.0, m_db / 20.0) - 1.0;
+          for (std::size_t b = 0; b < nb; ++b) {
+            if (!std::isfinite(o.value.gap[b])) continue;
+            double sum = 0.0;
+            for (std::size_t k = b * kBandPoints; k < (b + 1) * kBandPoints; ++k) sum += std::norm(h[k] + g * r[k]);
+            d.gap[b] = db(sum / h2[b]);
+          }
+          return chi2(o, d);
+        };
+        double m_db = 0.0;
+        // A panel beside the block adds its sound (M >= 0); an absorber acts on the structure's output.
+        const double value = minimize_1d(chi2_at, parallel ? 0.0 : -20.0, 30.0, &m_db);
+        if (value < best.chi2)
+          best = make_fit("second_mode", {{"hz", f2}, {"db", m_db}, {"q", q}, {"parallel", parallel ? 1.0 : 0.0}}, 3, value, o.count);
       }
   }
   return best;

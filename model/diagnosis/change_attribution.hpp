@@ -12,9 +12,9 @@
 //   mechanical_noise  test-cell noise, or crank-angle-locked impacts: told apart by the crank windows' levels (one
 //                     power raising every window, against a power per window where it pays, by the same criterion);
 //                     without windows (older logs), by the spectrum's centre (below 1 kHz: the test cell's)
-//   second_mode       a further resonance (f2, its level M, Q, its phase on a 30-degree grid), on the block's output
-//                     (|1 + g R|^2) or driven by the pressure beside the model's block (|H + g R|^2 / |H|^2),
-//                     the better of the two (`parallel` 0 or 1) (3 parameters, 4 out of phase)
+//   second_mode       a further resonance in phase (f2, its level M, Q), on the block's output (|1 + g R|^2) or
+//                     driven by the pressure beside the model's block (|H + g R|^2 / |H|^2), the better of the two
+//                     (`parallel` 0 or 1) (3 parameters)
 //   speed_dependence  the structural transfer's gain changes by the same dB in every band (1)
 //   cubic_damping     the block's damping or stiffness rises (an amplitude-dependent term's effective linear part
 //   cubic_stiffness   at this amplitude): the model block's |H(f)|^2 with b1 or k1 raised, over its own (1 each)
