@@ -25,7 +25,9 @@ std::vector<dsp::Biquad> window_filter(double fs_hz) {
 CrankWindows::CrankWindows(std::size_t channels, double fs_hz)
     : channels_(channels),
       sections_(window_filter(fs_hz)),
-      state_(channels * sections_.size(), {0.0, 0.0}),
+      z0_(channels * sections_.size(), 0.0),
+      z1_(channels * sections_.size(), 0.0),
+      x_(channels, 0.0),
       sum_(kCrankWindows * channels, 0.0),
       closed_(sum_) {}
 
@@ -35,19 +37,22 @@ std::size_t CrankWindows::window_of(double crank_deg) {
 }
 
 void CrankWindows::add(std::size_t w, const double* frame) {
-  const std::size_t ns = sections_.size();
-  for (std::size_t c = 0; c < channels_; ++c) {
-    double x = frame[c];
-    for (std::size_t s = 0; s < ns; ++s) {
-      const dsp::Biquad& q = sections_[s];
-      std::array<double, 2>& z = state_[c * ns + s];
-      const double y = q.b0 * x + z[0];
-      z[0] = q.b1 * x - q.a1 * y + z[1];
-      z[1] = q.b2 * x - q.a2 * y;
-      x = y;
+  const std::size_t n = channels_;
+  double* __restrict x = x_.data();
+  for (std::size_t c = 0; c < n; ++c) x[c] = frame[c];
+  for (std::size_t s = 0; s < sections_.size(); ++s) {
+    const dsp::Biquad q = sections_[s];
+    double* __restrict z0 = &z0_[s * n];
+    double* __restrict z1 = &z1_[s * n];
+    for (std::size_t c = 0; c < n; ++c) {
+      const double in = x[c], y = q.b0 * in + z0[c];
+      z0[c] = q.b1 * in - q.a1 * y + z1[c];
+      z1[c] = q.b2 * in - q.a2 * y;
+      x[c] = y;
     }
-    sum_[w * channels_ + c] += x * x;
   }
+  double* __restrict sum = &sum_[w * n];
+  for (std::size_t c = 0; c < n; ++c) sum[c] += x[c] * x[c];
   ++frames_[w];
 }
 

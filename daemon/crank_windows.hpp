@@ -32,8 +32,9 @@ class CrankWindows {
  private:
   std::size_t channels_;
   std::vector<dsp::Biquad> sections_;
-  std::vector<std::array<double, 2>> state_;  // [channel * sections + s]: the direct form II transposed state
-  std::vector<double> sum_, closed_;          // [w * channels + c]
+  std::vector<double> z0_, z1_;      // [s * channels + c]: the direct form II transposed state, section-major so that
+  std::vector<double> x_;            // the loop over the channels vectorises; x_: one frame on its way through
+  std::vector<double> sum_, closed_;  // [w * channels + c]
   std::array<std::size_t, kCrankWindows> frames_{}, closed_frames_{};
 };
 
