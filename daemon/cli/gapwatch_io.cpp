@@ -17,8 +17,6 @@ constexpr int kSilentBand = int{Report::BAND_NYQUIST_CUT} | int{Report::BAND_BEL
                             int{Report::BAND_MIC_PASSBAND} | int{Report::BAND_SETTLING};
 constexpr int kBadMic = int{Report::MIC_FLAT} | int{Report::MIC_OVERLOAD} | int{Report::MIC_NAN} | int{Report::MIC_LOW};
 
-double finite_or_null(double x) { return std::isfinite(x) ? x : 0.0; }
-
 nlohmann::json number(double x) { return std::isfinite(x) ? nlohmann::json(x) : nlohmann::json(nullptr); }
 
 std::vector<double> numbers(const nlohmann::json& j) {
@@ -76,8 +74,8 @@ noisemon::gap_event_t gap_event_message(const model::GapEvent& e, std::int64_t u
   m.detected_cycle = e.detected_cycle;
   m.onset_s = e.onset_s;
   m.detected_s = e.detected_s;
-  m.gap_before_db = finite_or_null(e.gap_before_db);
-  m.gap_after_db = finite_or_null(e.gap_after_db);
+  m.gap_before_db = e.gap_before_db;
+  m.gap_after_db = e.gap_after_db;
   m.speed_rpm = e.speed_rpm;
   m.load_nm = e.load_nm;
   m.soi_deg_btdc = e.soi_deg_btdc;

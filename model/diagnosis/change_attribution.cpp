@@ -295,25 +295,19 @@ CandidateFit fit_second_mode(const GapChange& c, const Observed& o, const BlockP
   return best;
 }
 
-// A template fitted by weighted least squares on the band gaps (sign 0: either sign; else held to it).
-double fit_template(const Observed& o, const std::vector<double>& t, double sign, Delta* d) {
+// speed_dependence: the structural transfer's gain, the same dB in every band.
+// Its least-squares value is the bands' weighted mean change.
+CandidateFit fit_uniform_gain(const GapChange& c, const Observed& o) {
   double num = 0.0, den = 0.0;
-  for (std::size_t b = 0; b < t.size(); ++b)
+  for (std::size_t b = 0; b < c.band_hz.size(); ++b)
     if (std::isfinite(o.value.gap[b])) {
       const double w = 1.0 / (o.sigma.gap[b] * o.sigma.gap[b]);
-      num += w * o.value.gap[b] * t[b];
-      den += w * t[b] * t[b];
+      num += w * o.value.gap[b];
+      den += w;
     }
-  double amplitude = den > 0.0 ? num / den : 0.0;
-  if (sign * amplitude < 0.0) amplitude = 0.0;
-  for (std::size_t b = 0; b < t.size(); ++b) d->gap[b] = amplitude * t[b];
-  return amplitude;
-}
-
-// speed_dependence: the structural transfer's gain, the same dB in every band.
-CandidateFit fit_uniform_gain(const GapChange& c, const Observed& o) {
+  const double gain = den > 0.0 ? num / den : 0.0;
   Delta d = zero_delta(o);
-  const double gain = fit_template(o, std::vector<double>(c.band_hz.size(), 1.0), 0.0, &d);
+  std::fill(d.gap.begin(), d.gap.end(), gain);
   return make_fit("speed_dependence", {{"gain_db", gain}}, 1, chi2(o, d), o.count);
 }
 
