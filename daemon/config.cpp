@@ -185,6 +185,38 @@ void read_effects(TableReader& sr, const std::string& origin, drivers::SimConfig
   }
 }
 
+// [[sim.schedule]]: the operating point's changes over the run (drivers/sim/sim_operating_schedule.hpp); a key not
+// given keeps the previous step's value.
+void read_schedule(TableReader& sr, const std::string& origin, drivers::SimConfig& s) {
+  const toml::node* n = sr.node("schedule");
+  if (!n) return;
+  const toml::array* list = n->as_array();
+  if (!list || !list->is_array_of_tables()) sr.fail("schedule", "expected an array of tables ([[sim.schedule]])");
+  model::OperatingCondition previous{
+      .speed_rpm = s.speed_rpm, .load_nm = s.load_nm, .soi_deg_btdc = s.soi_deg_btdc, .motored = s.motored};
+  for (std::size_t i = 0; i < list->size(); ++i) {
+    TableReader r((*list)[i].as_table(), "sim.schedule[" + std::to_string(i) + "]", origin);
+    drivers::OperatingStep step;
+    step.condition = previous;
+    if (!r.node("at_s")) r.fail("at_s", "missing: the step's instant, engine seconds after the start");
+    r.number("at_s", step.at_s, 0, 1e9);
+    r.number("ramp_s", step.ramp_s, 0, 1e6);
+    r.number("speed_rpm", step.condition.speed_rpm, 100, 10000);
+    r.number("load_nm", step.condition.load_nm, 0, 1e4);
+    r.number("soi_deg_btdc", step.condition.soi_deg_btdc, 0, 60);
+    r.boolean("motored", step.condition.motored);
+    r.reject_unknown();
+    if (i > 0 && !(step.at_s > s.operating_schedule.back().at_s + s.operating_schedule.back().ramp_s))
+      r.fail("at_s", "must come after the previous step's at_s + ramp_s");
+    s.operating_schedule.push_back(step);
+    previous = step.condition;
+  }
+  const model::Effects e = drivers::cumulative_effects(s.effects, s.scheduled_effects, s.scheduled_effects.size());
+  if (e.speed_dependence_db_per_krpm != 0.0 || e.foreign_soi_gain_db_per_deg != 0.0 || e.mechanical_noise_dba)
+    sr.fail("schedule", "cannot be combined with effects that depend on the operating point (speed_dependence, "
+                        "mechanical_noise): they would keep the first operating point's size");
+}
+
 // [model] or [sim.true_block]: a preset plus optional parameter overrides.
 void read_block(TableReader& r, std::string& preset_name, model::BlockParams& p) {
   if (r.node("preset")) {
@@ -672,6 +704,7 @@ Config parse_table(const toml::table& root, const std::string& origin) {
   read_sim_cell(sr, s);
   read_faults(sr, origin, s);
   read_effects(sr, origin, s);
+  read_schedule(sr, origin, s);
   std::int64_t seed = static_cast<std::int64_t>(s.seed);
   sr.integer("seed", seed, 0, INT64_MAX);
   s.seed = static_cast<std::uint64_t>(seed);

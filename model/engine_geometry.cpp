@@ -1,8 +1,10 @@
 #include "model/engine_geometry.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <numbers>
 #include <stdexcept>
+#include <utility>
 
 namespace noisemon::model {
 
@@ -45,20 +47,37 @@ double EngineGeometry::mean_piston_speed_m_s(double speed_rpm) const { return 2.
 // ---------------------------------------------------------------------------------------------- kinematics
 
 CrankKinematics::CrankKinematics(double mean_speed_rpm, double speed_fluctuation, double theta0_deg)
-    : rpm_(mean_speed_rpm), eps_(speed_fluctuation), theta0_(theta0_deg) {
-  if (!(mean_speed_rpm > 0.0)) throw std::invalid_argument("CrankKinematics: mean speed must be positive");
+    : CrankKinematics(std::vector<SpeedStep>{{0.0, theta0_deg, mean_speed_rpm}}, speed_fluctuation) {}
+
+CrankKinematics::CrankKinematics(std::vector<SpeedStep> steps, double speed_fluctuation)
+    : steps_(std::move(steps)), eps_(speed_fluctuation) {
+  if (steps_.empty()) throw std::invalid_argument("CrankKinematics: no speed");
+  for (std::size_t i = 0; i < steps_.size(); ++i) {
+    if (!(steps_[i].speed_rpm > 0.0)) throw std::invalid_argument("CrankKinematics: mean speed must be positive");
+    if (i > 0 && !(steps_[i].t_s > steps_[i - 1].t_s)) throw std::invalid_argument("CrankKinematics: steps out of order");
+  }
   if (!(speed_fluctuation >= 0.0 && speed_fluctuation < 0.5))
     throw std::invalid_argument("CrankKinematics: speed fluctuation must be in [0, 0.5)");
 }
 
+// The mean angle at t_s and the step in force then (the first step also before its instant).
+double CrankKinematics::mean_angle_deg(double t_s, const SpeedStep** step) const {
+  auto after = std::upper_bound(steps_.begin() + 1, steps_.end(), t_s, [](double t, const SpeedStep& s) { return t < s.t_s; });
+  const SpeedStep& s = *(after - 1);
+  *step = &s;
+  return s.phi_deg + 6.0 * s.speed_rpm * (t_s - s.t_s);
+}
+
 double CrankKinematics::theta_deg(double t_s) const {
-  const double phi = theta0_ + 6.0 * rpm_ * t_s;
+  const SpeedStep* s = nullptr;
+  const double phi = mean_angle_deg(t_s, &s);
   return phi - eps_ * (360.0 / kPi) * std::sin(kPi / 360.0 * phi);
 }
 
 double CrankKinematics::speed_rpm(double t_s) const {
-  const double phi = theta0_ + 6.0 * rpm_ * t_s;
-  return rpm_ * (1.0 - eps_ * std::cos(kPi / 360.0 * phi));
+  const SpeedStep* s = nullptr;
+  const double phi = mean_angle_deg(t_s, &s);
+  return s->speed_rpm * (1.0 - eps_ * std::cos(kPi / 360.0 * phi));
 }
 
 double CrankKinematics::time_s(double theta_deg) const {
@@ -71,7 +90,9 @@ double CrankKinematics::time_s(double theta_deg) const {
     phi -= step;
     if (std::abs(step) <= 1e-13 * (1.0 + std::abs(phi))) break;
   }
-  return (phi - theta0_) / (6.0 * rpm_);
+  auto after = std::upper_bound(steps_.begin() + 1, steps_.end(), phi, [](double p, const SpeedStep& s) { return p < s.phi_deg; });
+  const SpeedStep& s = *(after - 1);
+  return s.t_s + (phi - s.phi_deg) / (6.0 * s.speed_rpm);
 }
 
 std::int64_t CrankKinematics::cycle_index(double theta_deg) {

@@ -3,6 +3,7 @@
 #pragma once
 
 #include <cstdint>
+#include <vector>
 
 namespace noisemon::model {
 
@@ -33,22 +34,35 @@ struct EngineGeometry {
 //   phi(t) = theta0 + 6 n t                (mean angle, deg; n = mean speed, rpm)
 //   theta  = phi - eps (360 / pi) sin(pi phi / 360),  so  dtheta/dt = 6 n (1 - eps cos(pi phi / 360)).
 // Analytic, so independent threads compute the same theta(t); theta = phi at every cycle boundary.
+//
+// The mean speed may change in steps (an operating-point schedule): from step i on, phi = phi_i + 6 n_i (t - t_i).
+// A step placed at a cycle boundary (phi_i = 720 k - 360) keeps theta continuous there, and the map phi -> theta does
+// not depend on the speed, so time_s stays an exact inverse.
 class CrankKinematics {
  public:
+  struct SpeedStep {
+    double t_s = 0.0;        // from this instant on
+    double phi_deg = 0.0;    // the mean angle at t_s
+    double speed_rpm = 0.0;  // the mean speed
+  };
+
   CrankKinematics(double mean_speed_rpm, double speed_fluctuation, double theta0_deg = -360.0);
+  // Steps in increasing time, each phi_deg where the previous step's speed brings the mean angle at its t_s.
+  CrankKinematics(std::vector<SpeedStep> steps, double speed_fluctuation);
 
   double theta_deg(double t_s) const;       // unwrapped
   double speed_rpm(double t_s) const;       // instantaneous
   double time_s(double theta_deg) const;    // inverse of theta_deg (Newton on the monotone phi -> theta)
-  double mean_speed_rpm() const { return rpm_; }
-  double cycle_period_s() const { return 120.0 / rpm_; }
 
   // Cycle k spans unwrapped angles [720 k - 360, 720 k + 360).
   static std::int64_t cycle_index(double theta_deg);
   static double cycle_angle(double theta_deg);  // wrapped to [-360, 360)
 
  private:
-  double rpm_, eps_, theta0_;
+  double mean_angle_deg(double t_s, const SpeedStep** step) const;
+
+  std::vector<SpeedStep> steps_;
+  double eps_;
 };
 
 }  // namespace noisemon::model

@@ -4,6 +4,7 @@
 #include <cmath>
 #include <limits>
 #include <stdexcept>
+#include <utility>
 
 #include "drivers/mic_positions.hpp"
 #include "model/engine/random.hpp"
@@ -33,19 +34,32 @@ model::OperatingCondition operating_condition(const SimConfig& config) {
           .motored = config.motored};
 }
 
-model::CrankKinematics crank_kinematics(const SimConfig& config) {
-  return model::CrankKinematics(config.speed_rpm, config.speed_fluctuation, -360.0);
+OperatingProfile operating_profile(const SimConfig& config, double t_first_s) {
+  const model::OperatingCondition initial{
+      .speed_rpm = config.speed_rpm, .load_nm = config.load_nm, .soi_deg_btdc = config.soi_deg_btdc, .motored = config.motored};
+  return OperatingProfile(initial, config.operating_schedule, config.speed_fluctuation, t_first_s);
 }
+
+model::CrankKinematics crank_kinematics(const SimConfig& config) { return operating_profile(config, 0.0).kinematics(); }
 
 // ---------------------------------------------------------------------------------------------- cycles
 
 EngineCycleCache::EngineCycleCache(const SimConfig& config)
-    : op_(operating_condition(config)), seed_(config.seed), sigma_(config.cycle_variation), cycle_(engine_params(config)) {}
+    : EngineCycleCache(config, std::make_shared<const OperatingProfile>(operating_profile(config, 0.0))) {}
+
+EngineCycleCache::EngineCycleCache(const SimConfig& config, std::shared_ptr<const OperatingProfile> profile)
+    : profile_(std::move(profile)),
+      full_load_nm_(config.full_load_nm),
+      seed_(config.seed),
+      sigma_(config.cycle_variation),
+      cycle_(engine_params(config)) {}
 
 double EngineCycleCache::pressure_pa(double theta_deg) {
   const std::int64_t k = model::CrankKinematics::cycle_index(theta_deg);
   if (!valid_ || k != index_) {
-    cycle_.compute(op_, model::draw_cycle_variation(seed_, k, sigma_));
+    model::OperatingCondition op = profile_->condition(k);
+    op.load_nm = std::min(op.load_nm, full_load_nm_);  // the fuelling saturates at full load
+    cycle_.compute(op, model::draw_cycle_variation(seed_, k, sigma_));
     index_ = k;
     valid_ = true;
   }
@@ -86,13 +100,14 @@ bool picked(std::int64_t edge_in_rev, std::int64_t counts_per_rev, double per_re
 }  // namespace
 
 PressureGenerator::PressureGenerator(const SimConfig& config, double t_first_s)
-    : kin_(crank_kinematics(config)),
-      cache_(config),
+    : profile_(std::make_shared<const OperatingProfile>(operating_profile(config, t_first_s))),
+      kin_(profile_->kinematics()),
+      cache_(config, profile_),
       chain_(config.pressure_chain, config.effects, config.seed),
       faults_(config.faults),
       seed_(config.seed),
       resolution_deg_(config.encoder_resolution_deg),
-      nominal_rpm_(config.speed_rpm),
+      min_rpm_(profile_->min_speed_rpm()),
       counts_per_rev_(std::llround(360.0 / config.encoder_resolution_deg)),
       index_edge_(std::llround(kIndexAngleDeg / config.encoder_resolution_deg)),
       next_edge_(static_cast<std::int64_t>(std::ceil(kin_.theta_deg(t_first_s - kPreRollS) / config.encoder_resolution_deg))),
@@ -101,7 +116,7 @@ PressureGenerator::PressureGenerator(const SimConfig& config, double t_first_s)
       origin_s_(1e-6 * static_cast<double>(std::llround((t_first_s - kPreRollS) * 1e6))),
       decoder_(std::make_unique<EdgeStreamAssembler>(
           encoder_decoder_config(counts_per_rev_, static_cast<double>(index_edge_) * config.encoder_resolution_deg,
-                                 config.speed_rpm),
+                                 profile_->max_speed_rpm()),
           0)),
       staging_(16),
       angle_staging_(64) {
@@ -160,7 +175,7 @@ void PressureGenerator::set_angle_ring(BlockRing* ring) {
 // kMaxAngleBlockDeg, so one that begins that much before first_index_ may still reach it (the first cycle needs its
 // edges whole).
 void PressureGenerator::forward_angles() {
-  const double lead_s = 1.5 * kMaxAngleBlockDeg / (6.0 * nominal_rpm_);  // 1.5: the speed's fluctuation, and more
+  const double lead_s = 1.5 * kMaxAngleBlockDeg / (6.0 * min_rpm_);  // 1.5: the speed's fluctuation, and more
   const std::int64_t from = first_index_ - static_cast<std::int64_t>(std::ceil(lead_s * kPipelineRateHz)) - 1;
   for (const SampleBlock* b = angle_staging_.front(); b; angle_staging_.consume(1), b = angle_staging_.front())
     if (angle_out_ && b->first_index >= from) angle_out_->push(*b);
@@ -270,8 +285,8 @@ model::VirtualEngineConfig virtual_engine_config(const SimConfig& config, double
   return v;
 }
 
-EngineFeed::EngineFeed(const SimConfig& config, double t0_s, double rate_hz)
-    : kin_(crank_kinematics(config)), cache_(config), t0_(t0_s), rate_(rate_hz) {}
+EngineFeed::EngineFeed(const SimConfig& config, std::shared_ptr<const OperatingProfile> profile, double t0_s, double rate_hz)
+    : kin_(profile->kinematics()), cache_(config, profile), t0_(t0_s), rate_(rate_hz) {}
 
 void EngineFeed::fill(std::int64_t first, double* pressure_pa, double* crank_deg, std::size_t n) {
   for (std::size_t i = 0; i < n; ++i) {
@@ -297,10 +312,11 @@ MicGenerator::MicGenerator(const SimConfig& config, double t_first_s)
       writer_(config.mic_count) {
   if (std::abs(t0_ / kGridAlignS - std::round(t0_ / kGridAlignS)) > 1e-6)
     throw std::invalid_argument("MicGenerator: start time must be a multiple of 1/1600 s");
+  const auto profile = std::make_shared<const OperatingProfile>(operating_profile(config, t_first_s));
   for (std::size_t k = 0; k <= schedule_.size(); ++k) {
     SimConfig step = config;
     step.effects = cumulative_effects(config.effects, schedule_, k);
-    feeds_.emplace_back(step, t0_, 2.0 * config.mic_rate_hz);
+    feeds_.emplace_back(step, profile, t0_, 2.0 * config.mic_rate_hz);
     engines_.emplace_back(virtual_engine_config(step, 2.0 * config.mic_rate_hz));
   }
   mic_card_.resize(kCardBatch * mics_);

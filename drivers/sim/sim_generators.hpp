@@ -32,18 +32,22 @@ inline constexpr double kGridAlignS = 1.0 / 1600.0;
 // Engine parameters and operating condition of the virtual engine for a configuration.
 model::EngineCycleParams engine_params(const SimConfig& config);
 model::OperatingCondition operating_condition(const SimConfig& config);
-model::CrankKinematics crank_kinematics(const SimConfig& config);
+// The operating point over the run (config.operating_schedule) for a source whose first frame is at t_first_s.
+OperatingProfile operating_profile(const SimConfig& config, double t_first_s);
+model::CrankKinematics crank_kinematics(const SimConfig& config);  // the run started at source time 0
 
 // Cylinder pressure at an unwrapped crank angle: the engine cycle of that angle's cycle index (with its
-// seeded cycle-to-cycle variation), recomputed when the index changes. Deterministic, so the encoder and
-// microphone threads, each with its own cache, see the same pressure.
+// seeded cycle-to-cycle variation, at that cycle's operating point), recomputed when the index changes.
+// Deterministic, so the encoder and microphone threads, each with its own cache, see the same pressure.
 class EngineCycleCache {
  public:
-  explicit EngineCycleCache(const SimConfig& config);
+  explicit EngineCycleCache(const SimConfig& config);  // the run started at source time 0
+  EngineCycleCache(const SimConfig& config, std::shared_ptr<const OperatingProfile> profile);
   double pressure_pa(double theta_deg);
 
  private:
-  model::OperatingCondition op_;
+  std::shared_ptr<const OperatingProfile> profile_;
+  double full_load_nm_;
   std::uint64_t seed_;
   double sigma_;
   model::EngineCycle cycle_;
@@ -85,6 +89,7 @@ class PressureGenerator {
   void forward(BlockRing& ring);
   void forward_angles();
 
+  std::shared_ptr<const OperatingProfile> profile_;
   model::CrankKinematics kin_;
   EngineCycleCache cache_;
   model::PressureChain chain_;
@@ -92,7 +97,7 @@ class PressureGenerator {
   std::vector<ScheduledEffect> schedule_;  // those with transducer_noise: on the measured pressure
   std::uint64_t seed_;
   double resolution_deg_;
-  double nominal_rpm_;
+  double min_rpm_;                   // the slowest operating point of the run
   std::int64_t counts_per_rev_;
   std::int64_t index_edge_;          // an edge at the index (edges index_edge_ + k * counts_per_rev_)
   std::int64_t next_edge_;           // edge m at m * resolution
@@ -121,7 +126,7 @@ model::VirtualEngineConfig virtual_engine_config(const SimConfig& config, double
 // The true engine as a model::PressureFeed: cylinder pressure and unwrapped crank angle at t0 + i / rate.
 class EngineFeed final : public model::PressureFeed {
  public:
-  EngineFeed(const SimConfig& config, double t0_s, double rate_hz);
+  EngineFeed(const SimConfig& config, std::shared_ptr<const OperatingProfile> profile, double t0_s, double rate_hz);
   void fill(std::int64_t first, double* pressure_pa, double* crank_deg, std::size_t n) override;
 
  private:

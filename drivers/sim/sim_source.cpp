@@ -53,7 +53,13 @@ void validate(const SimConfig& c) {
   if (!(c.mic_gain_spread_db >= 0.0 && c.mic_gain_spread_db <= 6.0)) fail("mic_gain_spread_db must be in [0, 6]");
   if (!(c.gas_ringing.gain_s >= 0.0 && c.gas_ringing.gain_s <= 1e-3) || !(c.gas_ringing.decay_s > 0.0 && c.gas_ringing.decay_s <= 0.1))
     fail("gas ringing: gain must be in [0, 1 ms] and decay in (0, 100 ms]");
+  const model::Effects e = cumulative_effects(c.effects, c.scheduled_effects, c.scheduled_effects.size());
+  if (!c.operating_schedule.empty() &&
+      (e.speed_dependence_db_per_krpm != 0.0 || e.foreign_soi_gain_db_per_deg != 0.0 || e.mechanical_noise_dba))
+    fail("sim.schedule cannot be combined with effects that depend on the operating point (speed_dependence, "
+         "mechanical_noise, the foreign SOI gain): they would keep the first operating point's size");
   try {
+    validate_operating_schedule(c.operating_schedule);
     c.pressure_chain.validate();
     c.mic_chain.validate();
     validate_faults(c.faults, c.mic_count);
@@ -224,7 +230,8 @@ class SimSource final : public Source {
   }
 
   void run_operating_point(WorkerThread& w, OperatingPointRing& ring, double t_first, const std::atomic<bool>& stop) {
-    const model::CrankKinematics kin = sim::crank_kinematics(config_);
+    const OperatingProfile profile = sim::operating_profile(config_, t_first);
+    const model::CrankKinematics& kin = profile.kinematics();
     const double window = kOperatingPointPeriodS;
     for (double t = t_first; !stop.load(std::memory_order_relaxed); t += kOperatingPointPeriodS) {
       if (!wait_turn(2, t, nullptr, stop)) break;
@@ -232,10 +239,12 @@ class SimSource final : public Source {
       op.utime = epoch_utime_ + std::llround(t * 1e6);
       // Speed as a tachometer measures it: mean over the last window from the crank angle.
       op.speed_rpm = (kin.theta_deg(t) - kin.theta_deg(t - window)) / (6.0 * window);
-      op.load_nm = config_.load_nm;
-      op.soi_deg_btdc = config_.soi_deg_btdc;
+      // Load and injection timing as the test bed's controller reports them: the cycle's setting.
+      const model::OperatingCondition& now = profile.condition(model::CrankKinematics::cycle_index(kin.theta_deg(t)));
+      op.load_nm = now.load_nm;
+      op.soi_deg_btdc = now.soi_deg_btdc;
       op.rail_pressure_bar = std::numeric_limits<double>::quiet_NaN();
-      op.motored = config_.motored;
+      op.motored = now.motored;
       if (ring.push(op)) w.add_blocks_written();
     }
   }

@@ -22,6 +22,7 @@
 
 #include "drivers/sim/sim_effect_schedule.hpp"
 #include "drivers/sim/sim_faults.hpp"
+#include "drivers/sim/sim_operating_schedule.hpp"
 #include "drivers/source.hpp"
 #include "drivers/worker_thread.hpp"
 #include "model/block_params.hpp"
@@ -41,6 +42,8 @@ struct SimConfig {
   bool motored = false;
   double speed_fluctuation = 0.01;     // peak relative speed ripple within a cycle
   double cycle_variation = 0.03;       // relative cycle-to-cycle variation of the heat release
+  // Changes of the operating point mid-run (sim_operating_schedule.hpp): none, the one above throughout.
+  std::vector<OperatingStep> operating_schedule;
   // Encoder.
   double encoder_resolution_deg = 0.1;
   // Acoustics.

@@ -473,3 +473,43 @@ ramp_s = 600
   EXPECT_NE(negative.find("sim.effects[0].ramp_s"), std::string::npos) << negative;
   EXPECT_NE(error_of("[[sim.effects]]\nonset_s = 5\n").find("sim.effects[0].effect"), std::string::npos);
 }
+
+// [[sim.schedule]]: each step keeps what it does not give from the step before (the first from [sim]); bad steps,
+// steps out of order and operating-point-dependent effects are refused, naming the entry and key.
+TEST(Config, SimScheduleStepsInheritUnsetKeysAndBadOnesNameTheirEntry) {
+  const Config c = parse_config(R"(
+[sim]
+speed_rpm = 3050
+soi_deg_btdc = 18
+[[sim.schedule]]
+at_s = 600
+ramp_s = 10
+speed_rpm = 3450
+load_nm = 20
+[[sim.schedule]]
+at_s = 1200
+soi_deg_btdc = 14
+)",
+                                "f.toml");
+  ASSERT_EQ(c.sim.operating_schedule.size(), 2u);
+  const auto& first = c.sim.operating_schedule[0];
+  EXPECT_EQ(first.at_s, 600.0);
+  EXPECT_EQ(first.ramp_s, 10.0);
+  EXPECT_EQ(first.condition.speed_rpm, 3450.0);
+  EXPECT_EQ(first.condition.load_nm, 20.0);
+  EXPECT_EQ(first.condition.soi_deg_btdc, 18.0);
+  const auto& second = c.sim.operating_schedule[1];
+  EXPECT_EQ(second.condition.speed_rpm, 3450.0);
+  EXPECT_EQ(second.condition.load_nm, 20.0);
+  EXPECT_EQ(second.condition.soi_deg_btdc, 14.0);
+  EXPECT_TRUE(Config().sim.operating_schedule.empty());
+
+  const std::string order = error_of("[[sim.schedule]]\nat_s = 60\nramp_s = 30\n[[sim.schedule]]\nat_s = 80\n");
+  EXPECT_NE(order.find("sim.schedule[1].at_s"), std::string::npos) << order;
+  EXPECT_NE(error_of("[[sim.schedule]]\nspeed_rpm = 2000\n").find("sim.schedule[0].at_s"), std::string::npos);
+  EXPECT_NE(error_of("[[sim.schedule]]\nat_s = 5\nspeed_rpm = 20000\n").find("sim.schedule[0].speed_rpm"), std::string::npos);
+  EXPECT_NE(error_of("[[sim.schedule]]\nat_s = 5\ngear = 3\n").find("gear"), std::string::npos);
+  const std::string dependent =
+      error_of("[[sim.effects]]\neffect = \"speed_dependence=2\"\n[[sim.schedule]]\nat_s = 5\nspeed_rpm = 2000\n");
+  EXPECT_NE(dependent.find("sim.schedule"), std::string::npos) << dependent;
+}

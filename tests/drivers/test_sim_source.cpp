@@ -437,6 +437,40 @@ TEST(SimSource, CrankChannelFollowsTheKinematicsAndWrapsOncePerCycle) {
   }
 }
 
+// [[sim.schedule]]: the operating points at 10 Hz report the change of speed (measured from the crank angle), load
+// and injection timing from the cycle it lands on; the crank channel's cycles lengthen to the new speed's 120 / n.
+TEST(SimSource, AnOperatingPointScheduleChangesWhatTheStreamsAndTheOperatingPointsCarry) {
+  nd::SimConfig cfg = idle_config();
+  cfg.operating_schedule.push_back(
+      {.at_s = 0.5, .ramp_s = 0.0, .condition = {.speed_rpm = 3450.0, .load_nm = 20.0, .soi_deg_btdc = 14.0}});
+  const SimRun r = run_source(cfg, 1.2);
+  ASSERT_GE(r.ops.size(), 10u);
+  std::size_t before = 0, after = 0;
+  for (const auto& op : r.ops) {
+    const double since_s = 1e-6 * static_cast<double>(op.utime - r.ops.front().utime);
+    if (since_s < 0.45) {
+      EXPECT_NEAR(op.speed_rpm, 3050.0, 0.01 * 3050.0) << since_s;
+      EXPECT_EQ(op.load_nm, 0.0);
+      EXPECT_EQ(op.soi_deg_btdc, 18.0);
+      ++before;
+    } else if (since_s > 0.7) {
+      EXPECT_NEAR(op.speed_rpm, 3450.0, 0.01 * 3450.0) << since_s;
+      EXPECT_EQ(op.load_nm, 20.0);
+      EXPECT_EQ(op.soi_deg_btdc, 14.0);
+      ++after;
+    }
+  }
+  EXPECT_GE(before, 3u);
+  EXPECT_GE(after, 3u);
+  std::vector<double> wraps_s;
+  for (std::size_t f = 1; f < r.pressure.frames(); ++f)
+    if (r.pressure.at(f, nd::kCrankChannel) < r.pressure.at(f - 1, nd::kCrankChannel) - 360.0)
+      wraps_s.push_back(static_cast<double>(f) / kFs);
+  ASSERT_GE(wraps_s.size(), 20u);
+  EXPECT_NEAR(wraps_s[2] - wraps_s[1], 120.0 / 3050.0, 2.0 / kFs);
+  EXPECT_NEAR(wraps_s.back() - wraps_s[wraps_s.size() - 2], 120.0 / 3450.0, 2.0 / kFs);
+}
+
 TEST(SimSource, MicrophonesCarryTheBlockResponseDelayedByRadiusOverC) {
   // Offline: the (linear) block model driven by the published pressure, as the daemon predicts it.
   const SimRun& r = fired_run();

@@ -2,7 +2,7 @@
 // namespace, Debian's headless Chromium on the page. The numbers on the page must equal those of the LCM cycle
 // reports of the same cycles (this test subscribes too), the page must keep updating when the daemon and when
 // the dash restart, and /metrics must parse and equal the status messages. A second test runs two cells on one
-// multicast group.
+// multicast group; a third has the live gap watch find an effect switched on mid-run and checks its panel.
 #include <gtest/gtest.h>
 #include <httplib.h>
 
@@ -294,5 +294,69 @@ TEST(Dash, TwoCellsOnOneGroupAreToldApart) {
   while (std::getline(in, line)) ++rows;
   EXPECT_EQ(rows, 5);
   for (const auto& [utime, r] : cycles_b) EXPECT_NEAR(r.speed_rpm, 2000.0, 100.0);
+  EXPECT_EQ(dash.stop(), 0);
+}
+
+// The gap watch's panel: noisemond on the paced virtual engine with microphone 7's gain up 4 dB from 25 s on,
+// `noisemon gapwatch` live beside it (a 15 s reference) writing its events as JSON lines too. The page's event
+// table must show the event the JSON file holds (effect, microphone, onset), a click must open its evidence, the heat
+// map must be drawn, and /metrics must count the event by effect.
+TEST(Dash, GapPanelShowsTheLiveGapWatchsEventAndItsEvidence) {
+  NOISEMON_REQUIRE_NAMESPACE();
+  REQUIRE_CHROMIUM();
+  constexpr int port = 18082;
+  const std::string config = temp("turning-bad.toml"), events = temp("events.jsonl");
+  std::ofstream(config) << "[lcm]\npublish_raw = false\n[[sim.effects]]\neffect = \"mic_gain=4,mic=7\"\nonset_s = 25\n";
+  Process dash = start_dash(port, {}, "dash");
+  Process watch(spawn({NOISEMON_PATH, "gapwatch", "--lcm", kLcmUrl, "--reference-s", "15", "--json", events, "--no-progress"},
+                      temp("gapwatch.out"), temp("gapwatch.err")));
+  Process daemon = start_daemon({"--config", config}, "daemon");
+  noisemon::test::Chromium browser("http://127.0.0.1:" + std::to_string(port) + "/", temp("chromium-profile"),
+                                   temp("chromium.log"));
+  const char* const read_events = R"JS((() => {
+    const rows = [...document.querySelectorAll('#gap-events tr[data-i]')].map((r) => r.textContent);
+    const c = document.getElementById('gap-heatmap'), d = c.getContext('2d').getImageData(0, 0, c.width, c.height).data;
+    let coloured = 0;
+    for (let i = 0; i < d.length; i += 4) coloured += (d[i] !== 255 || d[i + 1] !== 255 || d[i + 2] !== 255) ? 1 : 0;
+    return { rows, status: document.getElementById('gap-status').textContent, columns: c.width, coloured };
+  })())JS";
+  json page;
+  // The event comes once the 15 s reference, the 10 s before the onset and the detection and attribution have passed
+  // on the engine's clock (about 35 s), on a loaded machine later.
+  ASSERT_TRUE(eventually(noisemon::test::allowance_s(70.0), [&] {
+    return !(page = browser.evaluate(read_events))["rows"].empty();
+  })) << page.dump();
+  std::ifstream in(events);
+  std::string line;
+  ASSERT_TRUE(std::getline(in, line)) << "gapwatch wrote no event to " << events;
+  const json first = json::parse(line);
+  EXPECT_EQ(first["effect"], "mic_gain");
+  EXPECT_EQ(first["params"]["mic"], 7);
+  const std::string row = page["rows"].back();  // the oldest event is the last row
+  EXPECT_NE(row.find("mic_gain"), std::string::npos) << row;
+  EXPECT_NE(row.find("mic=7"), std::string::npos) << row;
+  char onset[32];
+  std::snprintf(onset, sizeof onset, "%.1f s", first["onset_s"].get<double>());
+  EXPECT_NE(row.find(onset), std::string::npos) << row << " against " << line;
+  EXPECT_GT(page["columns"], 100);
+  EXPECT_GT(page["coloured"], 0);
+  EXPECT_EQ(page["status"].get<std::string>().find("no state"), std::string::npos) << page["status"];
+
+  const json evidence = browser.evaluate(R"JS((() => {
+    const rows = document.querySelectorAll('#gap-events tr[data-i]');
+    rows[rows.length - 1].click();
+    return document.getElementById('gap-evidence').textContent;
+  })())JS");
+  EXPECT_NE(evidence.get<std::string>().find("mic_gain"), std::string::npos) << evidence;
+  EXPECT_NE(evidence.get<std::string>().find("mic7"), std::string::npos) << evidence;
+  browser.screenshot(DASH_GAP_SCREENSHOT);
+  std::printf("screenshot: %s\n", DASH_GAP_SCREENSHOT);
+
+  const auto metrics = parse_metrics(http_get(port, "/metrics"));
+  const std::string counted = "noisemon_gap_events_total{cell=\"\",effect=\"mic_gain\"}";
+  ASSERT_TRUE(metrics.count(counted)) << http_get(port, "/metrics");
+  EXPECT_GE(metrics.at(counted), 1.0);
+  EXPECT_EQ(daemon.stop(), 0);
+  EXPECT_EQ(watch.stop(), 0);
   EXPECT_EQ(dash.stop(), 0);
 }
