@@ -17,12 +17,15 @@ double energy_mean_db(const std::vector<double>& levels) {
 }
 
 // RMS over the bands where both are finite of measured - predicted.
-double band_gap_rms(const std::vector<double>& measured, const std::vector<double>& predicted) {
-  double sum = 0.0;
-  std::size_t n = 0;
+// The A-weighted level gap over the bands used: 10 lg of the measured band energies' sum over the predicted ones'.
+double overall_gap_db(const std::vector<double>& measured, const std::vector<double>& predicted, const std::vector<char>& used) {
+  double m = 0.0, p = 0.0;
   for (std::size_t b = 0; b < measured.size(); ++b)
-    if (std::isfinite(measured[b]) && std::isfinite(predicted[b])) sum += std::pow(measured[b] - predicted[b], 2), ++n;
-  return n ? std::sqrt(sum / static_cast<double>(n)) : kNoValue;
+    if (used[b] && std::isfinite(measured[b]) && std::isfinite(predicted[b])) {
+      m += std::pow(10.0, 0.1 * measured[b]);
+      p += std::pow(10.0, 0.1 * predicted[b]);
+    }
+  return p > 0.0 ? 10.0 * std::log10(m / p) : kNoValue;
 }
 
 // The h whose run length with the mean `bias` standard deviations off is `arl0`.
@@ -442,8 +445,8 @@ void GapWatch::complete_event() {
   event_.effect = event_.attribution.effect;
   event_.params = event_.attribution.params;
   event_.confidence = event_.attribution.confidence;
-  event_.gap_before_db = band_gap_rms(g.measured_before, g.predicted_before);
-  event_.gap_after_db = band_gap_rms(g.measured_after, g.predicted_after);
+  event_.gap_before_db = overall_gap_db(g.measured_before, g.predicted_before, g.band_used);
+  event_.gap_after_db = overall_gap_db(g.measured_after, g.predicted_after, g.band_used);
   event_.speed_rpm = r.speed_rpm;
   event_.load_nm = r.load_nm;
   event_.soi_deg_btdc = r.soi_deg_btdc;

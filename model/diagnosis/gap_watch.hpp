@@ -97,7 +97,9 @@ struct GapEvent {
   double drift_db_per_min = kNoValue;    // a drift's rate on the first feature that fired
   std::int64_t onset_cycle = 0, detected_cycle = 0;
   double onset_s = 0.0, detected_s = 0.0;  // since the first cycle report, on the reports' clock
-  double gap_before_db = 0.0, gap_after_db = 0.0;  // RMS over the watched bands of the mean band gap
+  // The overall A-weighted gap measured - predicted over the watched bands (their energies summed), dB: the reference's
+  // and the cycles' from the onset on.
+  double gap_before_db = 0.0, gap_after_db = 0.0;
   std::vector<std::string> features;     // those that fired, e.g. "band 2000 Hz +", "mic 4 +", "overall -"
   double speed_rpm = 0.0, load_nm = 0.0, soi_deg_btdc = 0.0;
   bool motored = false;
