@@ -27,4 +27,12 @@ std::string cycle_line(const noisemon::cycle_report_t& r);
 // Short names of the set CYCLE_* flags, e.g. "settling,gap"; "ok" when none.
 std::string cycle_flags_text(std::int32_t flags);
 
+// A band whose levels say nothing of the engine: beyond a passband or the Nyquist cut, below the firing frequency,
+// or still settling (its gap measured - predicted is no gap of the model's).
+[[nodiscard]] constexpr bool band_says_nothing(std::int32_t band_flags) {
+  using R = noisemon::cycle_report_t;
+  return (band_flags & (R::BAND_NYQUIST_CUT | R::BAND_BELOW_FIRING | R::BAND_PRESSURE_PASSBAND | R::BAND_MIC_PASSBAND |
+                        R::BAND_SETTLING)) != 0;
+}
+
 }  // namespace noisemon::daemon

@@ -1,6 +1,9 @@
 #include "daemon/cli/dash_json.hpp"
 
 #include <cmath>
+#include <limits>
+
+#include "daemon/report_messages.hpp"
 
 namespace noisemon::daemon {
 
@@ -39,7 +42,7 @@ nlohmann::json cycle_json(const noisemon::cycle_report_t& r) {
 nlohmann::json trend_point_json(const noisemon::cycle_report_t& r, std::int64_t dropped, bool restarted) {
   nlohmann::json gap = nlohmann::json::array();
   for (int b = 0; b < r.nbands; ++b) {
-    const double g = static_cast<double>(r.spl_a_measured_db[b]) - r.spl_a_predicted_db[b];
+    const double g = band_says_nothing(r.band_flags[b]) ? std::numeric_limits<double>::quiet_NaN() : static_cast<double>(r.spl_a_measured_db[b]) - r.spl_a_predicted_db[b];
     gap.push_back(std::isfinite(g) ? nlohmann::json(std::round(g * 10.0) / 10.0) : nlohmann::json(nullptr));
   }
   return {{"t", static_cast<double>(r.utime) * 1e-6}, {"cycle", r.cycle}, {"gap", std::move(gap)},

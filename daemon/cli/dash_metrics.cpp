@@ -4,6 +4,8 @@
 #include <cstdio>
 #include <sstream>
 
+#include "daemon/report_messages.hpp"
+
 namespace noisemon::daemon {
 namespace {
 
@@ -77,11 +79,12 @@ void cycle_metrics(std::ostringstream& out, const std::string& cell, const noise
 }
 
 // The gap measured - predicted of the last cycle, energy over the bands of a group (below 500 Hz, 500 Hz ... 2 kHz,
-// above 2 kHz) that both carry; NaN when none does.
+// above 2 kHz) that both carry and whose flags leave them a gap (report_messages.hpp); NaN when none does.
 double band_group_gap_db(const noisemon::cycle_report_t& r, double from_hz, double to_hz) {
   double measured = 0, predicted = 0;
   for (int b = 0; b < r.nbands; ++b)
-    if (r.band_hz[b] >= from_hz && r.band_hz[b] < to_hz && std::isfinite(r.spl_a_measured_db[b]) && std::isfinite(r.spl_a_predicted_db[b])) {
+    if (r.band_hz[b] >= from_hz && r.band_hz[b] < to_hz && !band_says_nothing(r.band_flags[b]) &&
+        std::isfinite(r.spl_a_measured_db[b]) && std::isfinite(r.spl_a_predicted_db[b])) {
       measured += std::pow(10.0, r.spl_a_measured_db[b] / 10.0);
       predicted += std::pow(10.0, r.spl_a_predicted_db[b] / 10.0);
     }

@@ -4,6 +4,8 @@
 #include <fstream>
 #include <stdexcept>
 
+#include "daemon/report_messages.hpp"
+
 namespace noisemon::daemon {
 
 namespace {
@@ -13,8 +15,6 @@ using Report = noisemon::cycle_report_t;
 constexpr int kFaultFlags = int{Report::CYCLE_SETTLING} | int{Report::CYCLE_GAP} | int{Report::CYCLE_LENGTH_ODD} |
                             int{Report::CYCLE_NO_MICS} | int{Report::CYCLE_ENCODER} | int{Report::CYCLE_OVERLOAD} |
                             int{Report::CYCLE_PRESSURE_FAULT} | int{Report::CYCLE_ANGLE_GAP};
-constexpr int kSilentBand = int{Report::BAND_NYQUIST_CUT} | int{Report::BAND_BELOW_FIRING} | int{Report::BAND_PRESSURE_PASSBAND} |
-                            int{Report::BAND_MIC_PASSBAND} | int{Report::BAND_SETTLING};
 constexpr int kBadMic = int{Report::MIC_FLAT} | int{Report::MIC_OVERLOAD} | int{Report::MIC_NAN} | int{Report::MIC_LOW};
 
 nlohmann::json number(double x) { return std::isfinite(x) ? nlohmann::json(x) : nlohmann::json(nullptr); }
@@ -43,7 +43,7 @@ model::CycleGap cycle_gap(const Report& r) {
   c.motored = r.motored;
   c.usable = (r.flags & kFaultFlags) == 0;
   for (int b = 0; b < r.nbands; ++b) {
-    const bool silent = (r.band_flags[b] & kSilentBand) != 0;
+    const bool silent = band_says_nothing(r.band_flags[b]);
     c.band_hz.push_back(r.band_hz[b]);
     c.measured_db.push_back(silent ? model::kNoValue : r.spl_a_measured_db[b]);
     c.predicted_db.push_back(silent ? model::kNoValue : r.spl_a_predicted_db[b]);

@@ -10,6 +10,7 @@
 #include <sstream>
 #include <string>
 
+#include "daemon/cli/dash_json.hpp"
 #include "daemon/cli/dash_metrics.hpp"
 #include "daemon/cli/dash_state.hpp"
 
@@ -146,10 +147,11 @@ TEST(DashMetrics, GapWatchEventsBandGroupsAndReferenceAge) {
   MetricsInput in;
   in.cell = "c";
   noisemon::cycle_report_t r{};
-  r.band_hz = {500.0f, 1000.0f, 2000.0f, 4000.0f};
-  r.spl_a_measured_db = {83.0f, 93.0f, 69.0f, 79.0f};
-  r.spl_a_predicted_db = {80.0f, 90.0f, 70.0f, 80.0f};
-  r.nbands = 4;
+  r.band_hz = {500.0f, 1000.0f, 2000.0f, 4000.0f, 20000.0f};
+  r.spl_a_measured_db = {83.0f, 93.0f, 69.0f, 79.0f, 10.0f};
+  r.spl_a_predicted_db = {80.0f, 90.0f, 70.0f, 80.0f, 50.0f};
+  r.band_flags = {0, 0, 0, 0, noisemon::cycle_report_t::BAND_NYQUIST_CUT};  // says nothing: left out
+  r.nbands = 5;
   in.cycle = r;
   in.gap_events_by_effect = {{"mic_gain", 2}, {"second_mode", 1}};
   noisemon::gap_status_t g{};
@@ -165,6 +167,9 @@ TEST(DashMetrics, GapWatchEventsBandGroupsAndReferenceAge) {
   EXPECT_TRUE(std::isnan(find(e, "noisemon_gap_band_group_db", "group", "below_500hz")->value));
   EXPECT_EQ(find(e, "noisemon_gap_seconds_since_reference")->value, 420.5);
   EXPECT_EQ(find(e, "noisemon_gap_learning")->value, 0);
+  // The heat map's column of this cycle: the gaps, null where the band says nothing.
+  const nlohmann::json point = noisemon::daemon::trend_point_json(r, 0, false);
+  EXPECT_EQ(point["gap"], nlohmann::json::parse("[3.0, 3.0, -1.0, -1.0, null]"));
 }
 
 TEST(DashMetrics, LabelValuesAreEscaped) {
