@@ -187,8 +187,10 @@ int GapwatchCommand::run() {
       const std::int64_t reports = read_log(log_, config, progress_, on_session, on_report);
       if (reports == 0) throw std::runtime_error(log_ + ": no cycle reports (channel " + config.lcm.report_channel + ") and no raw streams");
     }
+    watch.flush();  // the last cycles, waiting to know whether their operating point held
     if (!save_reference_.empty()) write_json_file(save_reference_, reference_json(watch.reference()));
-    std::fprintf(stderr, "noisemon gapwatch: %lld cycles, %lld events, %zu operating points\n", static_cast<long long>(watch.cycles()),
+    std::fprintf(stderr, "noisemon gapwatch: %lld cycles (%lld in changes of operating point, not watched), %lld events, %zu operating points\n",
+                 static_cast<long long>(watch.cycles()), static_cast<long long>(watch.transient_cycles()),
                  static_cast<long long>(events), watch.reference().points.size());
   });
 }

@@ -8,6 +8,10 @@ namespace noisemon::model {
 
 namespace {
 
+OperatingSample operating_sample(const CycleGap& c) {
+  return {.time_s = c.time_s, .speed_rpm = c.speed_rpm, .load_nm = c.load_nm, .soi_deg_btdc = c.soi_deg_btdc, .motored = c.motored};
+}
+
 double energy_mean_db(const std::vector<double>& levels) {
   double sum = 0.0;
   std::size_t n = 0;
@@ -16,7 +20,6 @@ double energy_mean_db(const std::vector<double>& levels) {
   return n ? 10.0 * std::log10(sum / static_cast<double>(n)) : kNoValue;
 }
 
-// RMS over the bands where both are finite of measured - predicted.
 // The A-weighted level gap over the bands used: 10 lg of the measured band energies' sum over the predicted ones'.
 double overall_gap_db(const std::vector<double>& measured, const std::vector<double>& predicted, const std::vector<char>& used) {
   double m = 0.0, p = 0.0;
@@ -83,7 +86,7 @@ double GapWatch::Block::mean(std::size_t i, std::size_t min_count) const {
   return count[i] >= std::max<std::size_t>(min_count, 1) ? sum[i] / static_cast<double>(count[i]) : kNoValue;
 }
 
-GapWatch::GapWatch(const GapWatchOptions& options) : options_(options) {
+GapWatch::GapWatch(const GapWatchOptions& options) : options_(options), steady_(options.steady) {
   if (options.block_cycles < 2) throw std::invalid_argument("gap watch: block_cycles must be at least 2");
   if (!(options.min_shift_db > 0.0) || !(options.false_alarm_hours > 0.0) || !(options.reference_s > 0.0))
     throw std::invalid_argument("gap watch: min_shift_db, false_alarm_hours and reference_s must be positive");
@@ -195,7 +198,26 @@ void GapWatch::add(const CycleGap& report) {
   if (report.band_hz.size() != reference_.band_hz.size() || report.mic_db.size() != reference_.mics ||
       report.window_measured_db.size() != reference_.windows || report.window_predicted_db.size() != reference_.windows)
     return;  // another layout
-  CycleGap c = report;
+  if (!pending_.empty() && report.time_s < pending_.back().time_s) flush();  // another run's clock: this one has ended
+  if (report.speed_rpm > 0.0) steady_.add(operating_sample(report));
+  pending_.push_back(report);
+  while (!pending_.empty() && steady_.decided(pending_.front().time_s)) {
+    take(std::move(pending_.front()));
+    pending_.pop_front();
+  }
+}
+
+void GapWatch::flush() {
+  steady_.flush();
+  for (; !pending_.empty(); pending_.pop_front()) take(std::move(pending_.front()));
+}
+
+void GapWatch::take(CycleGap c) {
+  if (c.usable && c.speed_rpm > 0.0 && !steady_.steady(operating_sample(c))) {
+    c.usable = false;
+    ++transient_cycles_;
+  }
+  const std::int64_t report_cycle = c.cycle;
   c.cycle = cycles_;
   if (cycles_ == 0) {
     first_s_ = c.time_s;
@@ -205,7 +227,7 @@ void GapWatch::add(const CycleGap& report) {
   last_cycle_ = c.cycle;
   ++cycles_;
   history_.push_back(c);
-  report_cycles_.push_back(report.cycle);
+  report_cycles_.push_back(report_cycle);
   while (history_.size() > options_.history_cycles) {
     history_.pop_front();
     report_cycles_.pop_front();
@@ -460,6 +482,7 @@ void GapWatch::complete_event() {
 }
 
 void GapWatch::finish_learning() {
+  flush();
   for (std::size_t p = 0; p < points_.size(); ++p)
     if (points_[p].learning && points_[p].block_means.size() > 0 && points_[p].block_means.front().size() >= 4)
       finish_reference(p);

@@ -32,6 +32,7 @@
 
 #include "dsp/cusum.hpp"
 #include "model/diagnosis/change_attribution.hpp"
+#include "model/diagnosis/steady_state.hpp"
 
 namespace noisemon::model {
 
@@ -62,6 +63,7 @@ struct GapWatchOptions {
   double speed_tolerance_rpm = 60.0;     // one operating point: within these of its centre
   double load_tolerance_nm = 2.0;
   double soi_tolerance_deg = 1.0;
+  SteadyStateOptions steady;             // cycles in and near a change of operating point are not watched
   double pressure_edge_rate_per_rev = 3600.0;  // encoder edges per revolution (transducer_noise in bar)
   AttributionOptions attribution;
 };
@@ -121,8 +123,11 @@ class GapWatch {
   // Encoder edges per revolution of the pressure (a session message says it): transducer_noise in bar.
   void set_pressure_edges_per_rev(double edges) { options_.pressure_edge_rate_per_rev = edges; }
 
-  // One cycle report, in order; events complete as their evidence does.
+  // One cycle report, in order; events complete as their evidence does. A cycle is taken once steady.after_s of
+  // later reports tell whether its operating point held (steady_state.hpp).
   void add(const CycleGap& report);
+  // The reports have ended: the cycles waiting for their steadiness to be known are taken on what came.
+  void flush();
   std::function<void(const GapEvent&)> on_event;
 
   // State for the operators' views.
@@ -133,6 +138,7 @@ class GapWatch {
   bool learning() const;                 // the current operating point's reference is not complete
   std::int64_t cycles() const { return cycles_; }
   std::int64_t blocks() const { return blocks_; }
+  std::int64_t transient_cycles() const { return transient_cycles_; }  // left out: the operating point moved
   // CUSUM parameters at the current operating point (k, h of a band feature; NaN while learning).
   double current_h() const;
 
@@ -156,6 +162,7 @@ class GapWatch {
     std::vector<dsp::Cusum> cusum;                 // per feature
     std::vector<char> watched;
   };
+  void take(CycleGap cycle);
   void start_layout(const CycleGap& cycle);
   std::size_t find_point(const CycleGap& cycle) const;  // SIZE_MAX: none
   std::size_t point_of(const CycleGap& cycle);
@@ -174,6 +181,9 @@ class GapWatch {
   GapWatchOptions options_;
   GapReference reference_;
   std::vector<PointState> points_;
+  SteadyStateGate steady_;
+  std::deque<CycleGap> pending_;             // waiting for the gate's decision
+  std::int64_t transient_cycles_ = 0;
   std::deque<CycleGap> history_;             // its cycle: the watch's own count
   std::deque<std::int64_t> report_cycles_;   // the reports' cycle numbers, beside it
   Block block_;

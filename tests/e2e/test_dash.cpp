@@ -315,7 +315,9 @@ TEST(Dash, GapPanelShowsTheLiveGapWatchsEventAndItsEvidence) {
                                    temp("chromium.log"));
   const char* const read_events = R"JS((() => {
     const rows = [...document.querySelectorAll('#gap-events tr[data-i]')].map((r) => r.textContent);
-    const c = document.getElementById('gap-heatmap'), d = c.getContext('2d').getImageData(0, 0, c.width, c.height).data;
+    const c = document.getElementById('gap-heatmap');
+    if (!c) return { rows: [] };  // still loading
+    const d = c.getContext('2d').getImageData(0, 0, c.width, c.height).data;
     let coloured = 0;
     for (let i = 0; i < d.length; i += 4) coloured += (d[i] !== 255 || d[i + 1] !== 255 || d[i + 2] !== 255) ? 1 : 0;
     return { rows, status: document.getElementById('gap-status').textContent, columns: c.width, coloured };

@@ -72,6 +72,61 @@ TEST(GapWatch, StepIsFoundItsOnsetLocatedAndNamed) {
   EXPECT_NEAR(events[0].gap_after_db - events[0].gap_before_db, 10.0 * std::log10(1.0 + (std::pow(10.0, 0.2) - 1.0) / 10.0), 0.08);
 }
 
+// The engine ramps between two operating points (3050 rpm / 0 N m and 3450 rpm / 20 N m) over 5 s, twelve times,
+// in a cell whose gap follows the load steeply (1 dB per N m, as a band dominated by the transducer's floor does):
+// the first and last cycles of every ramp sit within a point's tolerances (2 N m, 60 rpm) while the gap moves by up
+// to 2 dB. Watched, they fire; left out as unsteady (the default), nothing does.
+std::size_t events_over_ramps(const nm::GapWatchOptions& o) {
+  gapcell::Cell cell(8);
+  nm::GapWatch watch(o);
+  std::size_t events = 0;
+  watch.on_event = [&](const nm::GapEvent&) { ++events; };
+  auto run = [&](double load, std::int64_t cycles) {
+    cell.set_speed(3050.0 + 20.0 * load);
+    cell.set_gap_offset(load);
+    for (std::int64_t i = 0; i < cycles; ++i) {
+      nm::CycleGap c = cell.next();
+      c.load_nm = load;
+      watch.add(c);
+    }
+  };
+  for (int stint = 0; stint < 12; ++stint) {
+    const bool up = stint % 2 == 0;
+    run(up ? 0.0 : 20.0, 5000);
+    for (int k = 1; k <= 135; ++k) run(20.0 * (up ? k : 135 - k) / 135.0, 1);  // 5 s, a cycle at a time
+  }
+  watch.flush();
+  return events;
+}
+
+TEST(GapWatch, CyclesOfAChangeOfOperatingPointAreNotWatched) {
+  nm::GapWatchOptions unguarded;
+  unguarded.steady.before_s = unguarded.steady.after_s = 0.0;  // a cycle judged on its own operating point alone
+  EXPECT_GE(events_over_ramps(unguarded), 1u);
+  EXPECT_EQ(events_over_ramps(nm::GapWatchOptions{}), 0u);
+}
+
+// The gate's decision: the operating points from before_s before a cycle to after_s after it within the band.
+TEST(SteadyStateGate, ACycleIsSteadyWhenThePointHeldAroundIt) {
+  nm::SteadyStateGate gate(nm::SteadyStateOptions{});  // 5 s before, 2 s after; 30 rpm, 1 N m, 0.5 deg
+  const auto at = [](double t, double rpm, double load) { return nm::OperatingSample{.time_s = t, .speed_rpm = rpm, .load_nm = load}; };
+  for (int i = 0; i <= 200; ++i) {  // 10 s steady, then the load steps up by 1.5 N m at 10 s
+    const double t = 0.05 * i;
+    gate.add(at(t, 3050.0 + (i % 2 ? 10.0 : -10.0), t < 10.0 ? 0.0 : 1.5));
+  }
+  EXPECT_FALSE(gate.decided(8.5));
+  EXPECT_TRUE(gate.decided(7.9));
+  EXPECT_TRUE(gate.steady(at(7.9, 3050.0, 0.0)));   // the step is 2.1 s later
+  EXPECT_FALSE(gate.steady(at(8.1, 3050.0, 0.0)));  // the step is within 2 s
+  EXPECT_FALSE(gate.steady(at(7.9, 3100.0, 0.0)));  // its own speed outside the band of its neighbours'
+  gate.flush();
+  EXPECT_TRUE(gate.decided(9.9));
+  EXPECT_FALSE(gate.steady(at(9.9, 3050.0, 1.5)));  // the point before it differs
+  gate.add(at(1.0, 2000.0, 0.0));                    // a clock that runs back: another run
+  EXPECT_TRUE(gate.steady(at(1.0, 2000.0, 0.0)));
+  EXPECT_FALSE(gate.decided(1.0));
+}
+
 // Two operating points whose gaps differ by 2 dB, the engine switching between them every 3 minutes for 2 hours:
 // each learns its own reference, and no switch is an event (the false-alarm time 80 h: one in 40 runs would fire).
 TEST(GapWatch, OperatingPointChangesAreNotChanges) {
