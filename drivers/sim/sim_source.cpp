@@ -114,9 +114,10 @@ class SimSource final : public Source {
     workers_[1].start("nm-mics", policy.mics, [this, mics, ring = streams.mics, t_first](const std::atomic<bool>& stop) {
       run_stream(workers_[1], 1, *mics, *ring, t_first, stop, [] {});
     });
+    auto profile = std::make_shared<const OperatingProfile>(sim::operating_profile(config_, t_first));
     workers_[2].start("nm-op", policy.operating_point,
-                      [this, ring = streams.operating_point, t_first](const std::atomic<bool>& stop) {
-                        run_operating_point(workers_[2], *ring, t_first, stop);
+                      [this, profile, ring = streams.operating_point, t_first](const std::atomic<bool>& stop) {
+                        run_operating_point(workers_[2], *profile, *ring, t_first, stop);
                       });
   }
 
@@ -229,8 +230,8 @@ class SimSource final : public Source {
     for (std::size_t i = 0; i < std::size(values); ++i) encoder_[i].store(values[i], std::memory_order_relaxed);
   }
 
-  void run_operating_point(WorkerThread& w, OperatingPointRing& ring, double t_first, const std::atomic<bool>& stop) {
-    const OperatingProfile profile = sim::operating_profile(config_, t_first);
+  void run_operating_point(WorkerThread& w, const OperatingProfile& profile, OperatingPointRing& ring, double t_first,
+                           const std::atomic<bool>& stop) {
     const model::CrankKinematics& kin = profile.kinematics();
     const double window = kOperatingPointPeriodS;
     for (double t = t_first; !stop.load(std::memory_order_relaxed); t += kOperatingPointPeriodS) {
