@@ -3,10 +3,10 @@
 //   band mode      DATA = run directories or raw LCM logs (daemon/cli/band_data): model/diagnosis on 1/3-octave
 //                  spectra; --train / --holdout take condition patterns (model::condition_matches); without
 //                  --holdout every fired condition is held out in turn (leave-one-condition-out).
-//   waveform mode  DATA = CSV files of `u,y` at --fs (as `noisemon fit`): model/waveform_diagnosis on the free-run
+//   waveform mode  DATA = CSV files of `u,y` at --fs (as `noisemon fit`): model/diagnosis/waveform_diagnosis on the free-run
 //                  error; --train / --holdout take sample ranges or DATA names; --test NAME=A:B scores the
 //                  baseline and the best model on further ranges (e.g. a benchmark's test sets).
-// Writes DIR/report.json (daemon/diagnosis_report) and DIR/report.html (daemon/report_html), prints a summary.
+// Writes DIR/report.json (daemon/report/diagnosis_report) and DIR/report.html (daemon/report/report_html), prints a summary.
 #pragma once
 
 #include <cstddef>

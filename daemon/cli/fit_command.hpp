@@ -2,9 +2,9 @@
 // (daemon/params_file.hpp).
 //   band mode      DATA = run directories or raw LCM logs (daemon/cli/band_data); the thesis metric: RMS over the
 //                  scored 1/3-octave bands of the cycle-averaged attenuation-curve gap, averaged over
-//                  conditions (model/band_fit). --holdout takes condition patterns (model::condition_matches).
-//   waveform mode  DATA = CSV files of `u,y` sampled at --fs (drivers/waveform_csv); free-run simulation error
-//                  (model/waveform_fit). --train / --holdout take sample ranges `A:B` (0-based, half-open, over
+//                  conditions (model/fit/band_fit). --holdout takes condition patterns (model::condition_matches).
+//   waveform mode  DATA = CSV files of `u,y` sampled at --fs (drivers/formats/waveform_csv); free-run simulation error
+//                  (model/fit/waveform_fit). --train / --holdout take sample ranges `A:B` (0-based, half-open, over
 //                  the DATA files concatenated) or DATA file names; without them the last DATA file is held out,
 //                  or the last 20 % of a single file.
 // The mode is chosen from DATA (`.csv` files: waveform) unless --mode says otherwise.

@@ -1,5 +1,5 @@
 // `noisemon diagnose` results as DESIGN.md's report schema (report.json). The JSON document is the one source of
-// both reports: report.html (daemon/report_html) renders nothing that is not in it.
+// both reports: report.html (daemon/report/report_html) renders nothing that is not in it.
 //
 // Band mode (run directories, LCM logs): figures in dB. baseline.heldout_rms_db, candidates[].heldout_rms_db and
 // verdict.heldout_rms_*_db are the gap the candidates are ranked by (model/diagnosis/diagnosis.hpp: the thesis gap plus

@@ -42,7 +42,7 @@ struct ConditionInfo {
   // and the encoder's mean sample rate in Hz (NaN: unknown, e.g. a log already on the 40 kHz grid).
   double pressure_floor_pa = std::numeric_limits<double>::quiet_NaN();
   double encoder_rate_hz = std::numeric_limits<double>::quiet_NaN();
-  // The floor the predictions allow for (model/pressure_floor: judge_pressure_floors): per band, the one-sided
+  // The floor the predictions allow for (model/fit/pressure_floor: judge_pressure_floors): per band, the one-sided
   // density of the pressure chain's noise in the measured pressure, Pa^2/Hz; empty: none.
   std::vector<double> floor_density;
   // Set with floor_density: per band, and per band * W ([b * W + w]), the pressure within kFloorMarginDb of that

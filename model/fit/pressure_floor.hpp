@@ -2,7 +2,7 @@
 //
 // Pressure chain. Every real pressure chain (transducer, charge amplifier, ADC) adds a broadband floor to the
 // MEASURED pressure that the engine never hears: a model driven by the measured pressure predicts sound there
-// that no microphone hears. Every prediction therefore subtracts what the judged floor drives (model/band_fit), and
+// that no microphone hears. Every prediction therefore subtracts what the judged floor drives (model/fit/band_fit), and
 // the cells where the pressure is within kFloorMarginDb of the floor are floor-limited (model/diagnosis).
 //  - Stated: the run's commissioned floor (run.json "pressure.noise_floor_bar", rms per encoder sample) is taken as
 //    white over the encoder's bandwidth: one-sided density 2 sigma^2 / f_encoder up to min(f_encoder / 2, 20 kHz).

@@ -12,7 +12,7 @@
 // code with the virtual engine.
 //
 // Each dataset: the 12 thesis conditions (10 fired, 2 motored), 16 cycles each, generated in memory exactly as
-// `noisemon sim` + `noisemon diagnose` would (daemon/sim_dataset); the end-to-end test at the bottom goes through
+// `noisemon sim` + `noisemon diagnose` would (daemon/cli/sim_dataset); the end-to-end test at the bottom goes through
 // the files and the command line.
 #include <gtest/gtest.h>
 

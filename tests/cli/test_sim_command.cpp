@@ -1,4 +1,4 @@
-// `noisemon sim` end to end: the real binary writes run directories that drivers/run_dir reads back, with the
+// `noisemon sim` end to end: the real binary writes run directories that drivers/formats/run_dir reads back, with the
 // injected effect visible against an independent expectation (its documented definition, computed here), and
 // bad options fail with errors that name what is wrong. With the real Yanmar cycles (shared data): the
 // imported fired and motored pressures drive the virtual engine; mechanical_noise is the same in both and follows

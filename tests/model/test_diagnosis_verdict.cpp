@@ -1,6 +1,6 @@
 // The verdict stage on hand-made scores: `none` within the tolerance or the baseline's bootstrap noise, the best
 // significant candidate when it closes at least half the gap or leaves no more than the tolerance, `unexplained`
-// otherwise, never a forced name. (Pairs need refits; they are proven end to end in tests/daemon/test_diagnose.)
+// otherwise, never a forced name. (Pairs need refits; they are proven end to end in tests/cli/test_diagnose.)
 #include <gtest/gtest.h>
 
 #include <cmath>

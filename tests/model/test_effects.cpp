@@ -10,7 +10,7 @@
 //  - transducer_noise: sample rms on top of the configured floor (in quadrature), whiteness; mic_gain,
 //    speed_dependence, foreign gain: exact ratios;
 //  - magnitude 0 changes nothing (bit for bit); seeds and chunking;
-//  - the realistic test cell (model/pressure_chain, model/mic_chain): the pressure floor's rms and flat spectrum, the
+//  - the realistic test cell (model/engine/pressure_chain, model/engine/mic_chain): the pressure floor's rms and flat spectrum, the
 //    1/f part's slope, the ADCs' step and counted clipping, the microphones' self-noise A-weighted (IEC 61672-1
 //    written out here) and white, the directivity's spread per band and its unbiased array energy mean, measured
 //    from rendered samples; counter-based noise independent of chunking.

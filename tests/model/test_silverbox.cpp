@@ -31,7 +31,7 @@ struct Silverbox {
   std::vector<double> u, y;
 };
 
-// Two comma-separated columns, no header (read here, independently of drivers/waveform_csv).
+// Two comma-separated columns, no header (read here, independently of drivers/formats/waveform_csv).
 bool load(Silverbox& s) {
   const std::string path = std::string(NOISEMON_SHARED_DIR) + "/data/real/silverbox_SNLS80mV.csv";
   std::ifstream in(path);
