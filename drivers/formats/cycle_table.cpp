@@ -7,6 +7,8 @@
 #include <fstream>
 #include <sstream>
 
+#include "drivers/formats/text_lines.hpp"
+
 namespace noisemon::drivers {
 namespace {
 
@@ -86,16 +88,12 @@ CycleTable parse_cycle_table(std::string_view text, const std::string& file) {
   CycleTable t;
   std::vector<std::string_view> fields;
   std::size_t columns = 0;  // including the crank column
-  std::size_t pos = 0, line_no = 0, blank_line = 0;
+  std::size_t line_no = 0, blank_line = 0;
   std::size_t header_lines = 0;
   const auto at = [&](std::size_t line) { return file + ": line " + std::to_string(line) + ": "; };
-  while (pos < text.size()) {
-    std::size_t eol = text.find('\n', pos);
-    if (eol == std::string_view::npos) eol = text.size();
-    std::string_view line = text.substr(pos, eol - pos);
-    pos = eol + 1;
-    ++line_no;
-    if (!line.empty() && line.back() == '\r') line.remove_suffix(1);
+  TextLines lines(text);
+  for (std::string_view line; lines.next(line);) {
+    line_no = lines.number();
     bool decimal_comma = false;
     split(line, fields, &decimal_comma);
     if (fields.empty() || (fields.size() == 1 && fields[0].empty())) {

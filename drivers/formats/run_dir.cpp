@@ -17,6 +17,7 @@
 #include <sstream>
 
 #include "drivers/formats/run_both.hpp"
+#include "drivers/formats/text_lines.hpp"
 #include "drivers/source.hpp"
 #include "dsp/resample.hpp"
 
@@ -497,16 +498,11 @@ void parse_rows_sequential(std::string_view text, const std::string& file, doubl
   run.time_s.clear();
   run.crank_deg.clear();
   run.pressure_pa.clear();
-  std::size_t pos = 0;
   std::uint32_t line_no = 0;
   std::uint32_t blank_line = 0;  // first blank line seen (only trailing blank lines are allowed)
-  while (pos < text.size()) {
-    std::size_t eol = text.find('\n', pos);
-    if (eol == std::string_view::npos) eol = text.size();
-    std::string_view line = text.substr(pos, eol - pos);
-    pos = eol + 1;
-    ++line_no;
-    if (!line.empty() && line.back() == '\r') line.remove_suffix(1);
+  TextLines lines(text);
+  for (std::string_view line; lines.next(line);) {
+    line_no = static_cast<std::uint32_t>(lines.number());
     if (line_no == 1) {
       if (line != kCsvHeader)
         throw RunDirError(at_line(file, 1) + "header " + quoted(line) + ", expected \"" + kCsvHeader + "\"");
@@ -551,15 +547,9 @@ struct CsvPart {
 
 // Every line of text blank as the sequential reading sees it (one trailing '\r' dropped, then only ' ' and '\t').
 bool only_blank_lines(std::string_view text) {
-  std::size_t pos = 0;
-  while (pos < text.size()) {
-    std::size_t eol = text.find('\n', pos);
-    if (eol == std::string_view::npos) eol = text.size();
-    std::string_view line = text.substr(pos, eol - pos);
-    if (!line.empty() && line.back() == '\r') line.remove_suffix(1);
+  TextLines lines(text);
+  for (std::string_view line; lines.next(line);)
     if (line.find_first_not_of(" \t") != std::string_view::npos) return false;
-    pos = eol + 1;
-  }
   return true;
 }
 

@@ -5,6 +5,8 @@
 #include <fstream>
 #include <sstream>
 
+#include "drivers/formats/text_lines.hpp"
+
 namespace noisemon::drivers {
 namespace {
 
@@ -68,13 +70,9 @@ Waveform parse_waveform_csv(std::string_view text, const std::string& file) {
   Waveform w;
   Separator sep = Separator::unknown;
   bool first_content = true;
-  std::size_t line_no = 0;
-  std::size_t pos = 0;
-  while (pos <= text.size()) {
-    const std::size_t nl = text.find('\n', pos);
-    const std::string_view raw = text.substr(pos, nl == std::string_view::npos ? std::string_view::npos : nl - pos);
-    pos = nl == std::string_view::npos ? text.size() + 1 : nl + 1;
-    ++line_no;
+  TextLines lines(text);
+  for (std::string_view raw; lines.next(raw);) {
+    const std::size_t line_no = lines.number();
     const std::string_view line = trim(raw);
     if (line.empty() || line.front() == '#') continue;
     const std::string where = file + ":" + std::to_string(line_no) + ": ";
