@@ -10,6 +10,7 @@
 #include <sstream>
 #include <stdexcept>
 #include <string>
+#include "tests/support/required.hpp"
 
 namespace noisemon::test {
 
@@ -53,11 +54,11 @@ inline bool have_h5py() {
 
 }  // namespace noisemon::test
 
-// Skips without h5py; fails instead on CI (CI set), where scripts/install-deps.sh has installed it.
+// Skips without h5py; fails instead under CI (tests/support/required.hpp), where scripts/install-deps.sh has installed it.
 #define NOISEMON_REQUIRE_H5PY()                                                                      \
   do {                                                                                               \
     if (!::noisemon::test::have_h5py()) {                                                            \
-      if (std::getenv("CI")) FAIL() << "python3-h5py is missing (scripts/install-deps.sh installs it)"; \
+      if (::noisemon::test::under_ci()) FAIL() << "python3-h5py is missing (scripts/install-deps.sh installs it)"; \
       GTEST_SKIP() << "python3-h5py is not installed";                                               \
     }                                                                                                \
   } while (0)

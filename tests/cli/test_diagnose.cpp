@@ -36,7 +36,8 @@
 #include "daemon/cli/sim_dataset.hpp"
 #include "model/diagnosis/diagnosis.hpp"
 #include "model/engine/pressure_chain.hpp"
-#include "tests/drivers/unique_temp.hpp"
+#include "tests/support/unique_temp.hpp"
+#include "tests/support/required.hpp"
 
 namespace noisemon::daemon {
 namespace {
@@ -379,10 +380,7 @@ TEST(Diagnose, RealYanmarPressureDrivesTheDiagnosisWithTheMotoredRunAsReference)
   // one as the reference run that carries the combustion-independent noise.
   const std::string shared = std::string(NOISEMON_SHARED_DIR) + "/data/real/";
   std::ifstream fired_in(shared + "yanmar_l100v_fired_18Nm.txt");
-  if (!fired_in || !std::ifstream(shared + "yanmar_l100v_motored.txt")) {
-    if (std::getenv("CI")) FAIL() << "Yanmar tables missing under " << shared;
-    GTEST_SKIP() << "Yanmar tables not found under " << shared;
-  }
+  NOISEMON_REQUIRE(fired_in && std::ifstream(shared + "yanmar_l100v_motored.txt"), "the Yanmar tables under " + shared);
   const std::string fired_text((std::istreambuf_iterator<char>(fired_in)), std::istreambuf_iterator<char>());
   const std::string dir = test::unique_temp_dir();
   std::ofstream(dir + "/fired_a.txt") << table_columns(fired_text, 1, 30);
@@ -457,10 +455,7 @@ TEST(Diagnose, SilverboxFitThenWaveformDiagnosisNamesTheCubicSpringAndBeatsThePu
   // (data README): LSTM 2.68 mV on the arrow, the best of the published baselines. For time, both fit on
   // 4000-sample chunks of the training record and hold out other chunks of it (never a test set).
   const std::string csv = std::string(NOISEMON_SHARED_DIR) + "/data/real/silverbox_SNLS80mV.csv";
-  if (!std::ifstream(csv)) {
-    if (std::getenv("CI")) FAIL() << "Silverbox data missing: " << csv;
-    GTEST_SKIP() << "Silverbox data not found: " << csv;
-  }
+  NOISEMON_REQUIRE(std::ifstream(csv), csv);
   const std::string dir = test::unique_temp_dir();
   std::vector<std::string> train, held;
   for (std::size_t b = 40650; b + 4000 <= 105712; b += 16000) train.push_back(std::to_string(b) + ":" + std::to_string(b + 4000));

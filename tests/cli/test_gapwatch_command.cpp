@@ -12,7 +12,7 @@
 #include <nlohmann/json.hpp>
 
 #include "tests/cli/run_command.hpp"
-#include "tests/drivers/unique_temp.hpp"
+#include "tests/support/unique_temp.hpp"
 
 namespace fs = std::filesystem;
 

@@ -13,7 +13,7 @@
 #include <string>
 
 #include "tests/cli/h5py_reader.hpp"
-#include "tests/drivers/unique_temp.hpp"
+#include "tests/support/unique_temp.hpp"
 
 namespace {
 

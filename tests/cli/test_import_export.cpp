@@ -31,7 +31,8 @@
 #include "drivers/formats/cycle_table.hpp"
 #include "noisemon/cycle_report_t.hpp"
 #include "tests/daemon/csv_column.hpp"
-#include "tests/drivers/unique_temp.hpp"
+#include "tests/support/unique_temp.hpp"
+#include "tests/support/required.hpp"
 
 using namespace noisemon;
 namespace fs = std::filesystem;
@@ -44,14 +45,7 @@ constexpr double kPi = std::numbers::pi;
 
 fs::path temp(const std::string& name) { return fs::path(noisemon::test::unique_temp_dir()) / ("import_export_" + name); }
 
-std::string shared_file(const std::string& name) {
-  const std::string path = std::string(NOISEMON_SHARED_DIR) + "/data/real/" + name;
-  if (!fs::exists(path)) {
-    if (std::getenv("CI")) ADD_FAILURE() << path << " missing (CI is set: the reference data must be present)";
-    return "";
-  }
-  return path;
-}
+std::string shared_file(const std::string& name) { return noisemon::test::reference_file(name); }
 
 std::vector<noisemon::cycle_report_t> read_reports(const fs::path& log) {
   std::vector<noisemon::cycle_report_t> out;

@@ -26,7 +26,7 @@
 #include "tests/cli/h5py_reader.hpp"
 #include "tests/cli/run_command.hpp"
 #include "tests/daemon/csv_column.hpp"
-#include "tests/drivers/unique_temp.hpp"
+#include "tests/support/unique_temp.hpp"
 #include "tests/sanitizer.hpp"
 
 using namespace noisemon;

@@ -28,7 +28,8 @@
 
 #include "daemon/cli/band_data.hpp"
 #include "drivers/formats/run_dir.hpp"
-#include "tests/drivers/unique_temp.hpp"
+#include "tests/support/unique_temp.hpp"
+#include "tests/support/required.hpp"
 
 namespace fs = std::filesystem;
 using noisemon::drivers::read_run_dir;
@@ -319,13 +320,7 @@ TEST(SimCommand, BadOptionsFailWithClearErrorsAndWriteNothing) {
 
 namespace {
 
-std::string shared_table(const std::string& name) {
-  const std::string path = std::string(NOISEMON_SHARED_DIR) + "/data/real/" + name;
-  if (fs::exists(path)) return path;
-  if (const char* ci = std::getenv("CI"); ci && std::string(ci) == "true")
-    ADD_FAILURE() << path << " missing (CI=true: the reference data must be present)";
-  return "";
-}
+std::string shared_table(const std::string& name) { return noisemon::test::reference_file(name); }
 
 // The table imported (noisemon import) and exported (noisemon export) as a pressure-only run directory.
 fs::path import_table(const std::string& table, const std::string& name, bool motored, const fs::path& base) {

@@ -13,7 +13,8 @@
 
 #include "tests/cli/run_command.hpp"
 #include "tests/daemon/csv_column.hpp"
-#include "tests/drivers/unique_temp.hpp"
+#include "tests/support/unique_temp.hpp"
+#include "tests/support/required.hpp"
 
 namespace fs = std::filesystem;
 
@@ -52,10 +53,7 @@ std::vector<double> column(const std::string& csv_path, const std::string& name)
 }  // namespace
 
 TEST(SummaryCommand, StatisticsOfTheRealCyclesAgreeWithTheReplayCsv) {
-  if (!fs::exists(kTable)) {
-    if (std::getenv("CI")) FAIL() << "missing " << kTable;
-    GTEST_SKIP() << "missing " << kTable;
-  }
+  NOISEMON_REQUIRE(fs::exists(kTable), kTable);
   const fs::path dir = noisemon::test::unique_temp("summary_command");
   fs::remove_all(dir);
   fs::create_directories(dir);

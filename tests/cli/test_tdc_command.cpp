@@ -14,7 +14,8 @@
 #include "daemon/cli/tdc_command.hpp"
 #include "daemon/config.hpp"
 #include "tests/cli/run_command.hpp"
-#include "tests/drivers/unique_temp.hpp"
+#include "tests/support/unique_temp.hpp"
+#include "tests/support/required.hpp"
 
 namespace fs = std::filesystem;
 
@@ -44,10 +45,7 @@ std::string slurp(const fs::path& p) {
 }  // namespace
 
 TEST(TdcCommand, TheTableAndARunDirectoryOfItAgree) {
-  if (!fs::exists(kMotored)) {
-    if (std::getenv("CI")) FAIL() << "missing " << kMotored;
-    GTEST_SKIP() << "missing " << kMotored;
-  }
+  NOISEMON_REQUIRE(fs::exists(kMotored), kMotored);
   const fs::path dir = noisemon::test::unique_temp("tdc");
   fs::create_directories(dir);
   const auto table = run("tdc --cycles-table " + kMotored);  // a table's TDC needs no speed
@@ -97,10 +95,7 @@ TEST(TdcCommand, WriteConfigSetsTdcDegAndKeepsTheRest) {
 // record's scale puts it below the BMEP. --loss-angle-deg alone is refused.
 TEST(TdcCommand, ImportWithAMotoredRunPutsTheRunsOnThePistonsAngles) {
   const std::string fired_table = std::string(NOISEMON_SHARED_DIR) + "/data/real/yanmar_l100v_fired_18Nm.txt";
-  if (!fs::exists(kMotored) || !fs::exists(fired_table)) {
-    if (std::getenv("CI")) FAIL() << "missing the Yanmar records";
-    GTEST_SKIP() << "missing the Yanmar records";
-  }
+  NOISEMON_REQUIRE(fs::exists(kMotored) && fs::exists(fired_table), "the Yanmar records");
   const fs::path dir = noisemon::test::unique_temp("motored_run");
   fs::create_directories(dir);
   const auto as_run = [&](const std::string& table, const std::string& name, const std::string& extra) {

@@ -10,7 +10,7 @@
 #include <sstream>
 
 #include "daemon/report_messages.hpp"
-#include "tests/drivers/unique_temp.hpp"
+#include "tests/support/unique_temp.hpp"
 
 using namespace noisemon;
 

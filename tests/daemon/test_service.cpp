@@ -16,7 +16,7 @@
 #include <string>
 #include <vector>
 
-#include "tests/drivers/unique_temp.hpp"
+#include "tests/support/unique_temp.hpp"
 #include "tests/sanitizer.hpp"
 
 namespace {

@@ -18,7 +18,7 @@
 #include "drivers/formats/run_dir.hpp"
 #include "drivers/mic_positions.hpp"
 #include "dsp/sound_power.hpp"
-#include "tests/drivers/unique_temp.hpp"
+#include "tests/support/unique_temp.hpp"
 
 using namespace noisemon;
 

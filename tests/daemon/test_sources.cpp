@@ -24,9 +24,10 @@
 
 #include "drivers/lcm/lcm_source.hpp"
 #include "drivers/formats/stream_messages.hpp"
-#include "tests/drivers/unique_temp.hpp"
+#include "tests/support/unique_temp.hpp"
 #include "tests/e2e/private_network.hpp"
 #include "tests/sanitizer.hpp"
+#include "tests/support/required.hpp"
 
 using noisemon::daemon::Config;
 using noisemon::daemon::make_source;
@@ -165,10 +166,7 @@ TEST(Noisemond, LcmSourceWithoutSessionExitsNonZeroAfterTheTimeout) {
 }
 
 TEST(Noisemond, DriverCountersAppearInWatchStatusAndTheRollingStatisticsInWatchStats) {
-  if (geteuid() != 0) {
-    if (const char* ci = std::getenv("CI"); ci && std::string(ci) == "true") FAIL() << "needs root for unshare -n";
-    GTEST_SKIP() << "needs root for a private network namespace (unshare -n)";
-  }
+  NOISEMON_REQUIRE(geteuid() == 0, "root, for a private network namespace (unshare -n)");
   // The daemon and the subscriber in a private network namespace of their own: nothing leaves the machine.
   const std::string dir = noisemon::test::unique_temp_dir();  // made here: the child writes where we read
   const pid_t pid = fork();
@@ -225,10 +223,7 @@ TEST(LcmSource, BlocksOfAnotherSessionAreCountedNotMixedIn) {
   // A multi-run log played with lcm-logplayer carries a second session (another epoch) after the first: its
   // frame indices restart on another time base, so the daemon's lcm source must not feed them into the rings
   // of the first. Real LCM (udpm) in a private network namespace; the publisher is a second LCM instance.
-  if (geteuid() != 0) {
-    if (const char* ci = std::getenv("CI"); ci && std::string(ci) == "true") FAIL() << "needs root for unshare -n";
-    GTEST_SKIP() << "needs root for a private network namespace (unshare -n)";
-  }
+  NOISEMON_REQUIRE(geteuid() == 0, "root, for a private network namespace (unshare -n)");
   const pid_t pid = fork();
   if (pid == 0) {
     if (unshare(CLONE_NEWNET) != 0 || std::system("ip link set lo up && ip route add 224.0.0.0/4 dev lo") != 0) _exit(125);

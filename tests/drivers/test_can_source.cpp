@@ -18,7 +18,7 @@
 #include <toml++/toml.h>
 
 #include "drivers/combined_source.hpp"
-#include "tests/drivers/unique_temp.hpp"
+#include "tests/support/unique_temp.hpp"
 #include "tests/sanitizer.hpp"
 
 namespace nd = noisemon::drivers;

@@ -10,6 +10,7 @@
 #include <string>
 
 #include "drivers/formats/cycle_table.hpp"
+#include "tests/support/required.hpp"
 
 using namespace noisemon::drivers;
 
@@ -47,14 +48,7 @@ std::string table_error(const std::string& text) {
 
 #define EXPECT_HAS(haystack, needle) EXPECT_NE((haystack).find(needle), std::string::npos) << (haystack)
 
-std::string shared_file(const std::string& name) {
-  const std::string path = std::string(NOISEMON_SHARED_DIR) + "/data/real/" + name;
-  if (!std::filesystem::exists(path)) {
-    if (std::getenv("CI")) ADD_FAILURE() << path << " missing (CI is set: the reference data must be present)";
-    return "";
-  }
-  return path;
-}
+std::string shared_file(const std::string& name) { return noisemon::test::reference_file(name); }
 
 }  // namespace
 

@@ -12,7 +12,7 @@
 #include <vector>
 
 #include "drivers/formats/stream_messages.hpp"
-#include "tests/drivers/unique_temp.hpp"
+#include "tests/support/unique_temp.hpp"
 #include "tests/sanitizer.hpp"
 
 namespace nd = noisemon::drivers;

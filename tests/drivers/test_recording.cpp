@@ -26,7 +26,7 @@
 #include "drivers/formats/lcm_log_reader.hpp"
 #include "drivers/formats/recording.hpp"
 #include "drivers/formats/stream_messages.hpp"
-#include "tests/drivers/unique_temp.hpp"
+#include "tests/support/unique_temp.hpp"
 
 using namespace noisemon::drivers;
 namespace fs = std::filesystem;

@@ -11,7 +11,7 @@
 #include <string>
 
 #include "drivers/formats/run_dir.hpp"
-#include "tests/drivers/unique_temp.hpp"
+#include "tests/support/unique_temp.hpp"
 
 using namespace noisemon::drivers;
 namespace fs = std::filesystem;

@@ -17,7 +17,7 @@
 #include <vector>
 
 #include "drivers/formats/run_dir.hpp"
-#include "tests/drivers/unique_temp.hpp"
+#include "tests/support/unique_temp.hpp"
 
 using namespace noisemon::drivers;
 namespace fs = std::filesystem;

@@ -17,6 +17,7 @@
 #include <vector>
 
 #include "tests/sanitizer.hpp"
+#include "tests/support/required.hpp"
 
 namespace noisemon::test {
 
@@ -48,12 +49,11 @@ class PrivateNetwork : public ::testing::Environment {
   static inline std::string reason;
 };
 
-// Skips without the namespace; fails instead on CI (CI=true), where it must be available.
+// Skips without the namespace; fails instead under CI (tests/support/required.hpp), where it must be available.
 #define NOISEMON_REQUIRE_NAMESPACE()                                                                 \
   do {                                                                                               \
     if (!::noisemon::test::PrivateNetwork::ok) {                                                     \
-      if (const char* ci = std::getenv("CI"); ci && std::string(ci) == "true")                       \
-        FAIL() << ::noisemon::test::PrivateNetwork::reason;                                          \
+      if (::noisemon::test::under_ci()) FAIL() << ::noisemon::test::PrivateNetwork::reason;          \
       GTEST_SKIP() << ::noisemon::test::PrivateNetwork::reason;                                      \
     }                                                                                                \
   } while (0)

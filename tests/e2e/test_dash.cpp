@@ -14,7 +14,7 @@
 #include <sstream>
 #include <thread>
 
-#include "tests/drivers/unique_temp.hpp"
+#include "tests/support/unique_temp.hpp"
 #include "tests/e2e/chromium_cdp.hpp"
 #include "tests/e2e/dash_bus.hpp"
 #include "tests/e2e/private_network.hpp"
@@ -28,12 +28,12 @@ using noisemon::test::wait_for;
 using nlohmann::json;
 const auto* const kEnv = ::testing::AddGlobalTestEnvironment(new noisemon::test::PrivateNetwork);
 
-// Skips without Chromium; fails instead on CI (CI=true), where scripts/install-deps.sh installs it.
+// Skips without Chromium; fails instead under CI (tests/support/required.hpp), where scripts/install-deps.sh installs it.
 #define REQUIRE_CHROMIUM()                                                                               \
   do {                                                                                                   \
     if (access(noisemon::test::kChromium, X_OK) != 0) {                                                  \
       const std::string why = std::string(noisemon::test::kChromium) + " missing (apt-get install chromium)"; \
-      if (const char* ci = std::getenv("CI"); ci && std::string(ci) == "true") FAIL() << why;            \
+      if (::noisemon::test::under_ci()) FAIL() << why;                                                 \
       GTEST_SKIP() << why;                                                                               \
     }                                                                                                    \
   } while (0)

@@ -29,7 +29,7 @@
 #include "dsp/weighting.hpp"
 #include "model/block_model.hpp"
 #include "model/engine/engine_cycle.hpp"
-#include "tests/drivers/unique_temp.hpp"
+#include "tests/support/unique_temp.hpp"
 #include "tests/e2e/private_network.hpp"
 
 namespace {

@@ -24,7 +24,7 @@
 #include "noisemon/raw_block_t.hpp"
 #include "noisemon/session_t.hpp"
 #include "noisemon/status_t.hpp"
-#include "tests/drivers/unique_temp.hpp"
+#include "tests/support/unique_temp.hpp"
 #include "tests/e2e/private_network.hpp"
 
 namespace {

@@ -29,6 +29,7 @@
 #include "cell_block.hpp"
 #include "cell_synth.hpp"
 #include "withheld.hpp"
+#include "required.hpp"
 
 namespace {
 
@@ -65,10 +66,7 @@ const indep::Sources* sources() {
 
 #define REQUIRE_SOURCES()                                                                        \
   const indep::Sources* src = sources();                                                         \
-  if (!src) {                                                                                    \
-    if (std::getenv("CI")) FAIL() << "real Yanmar records missing under " NOISEMON_SHARED_DIR;   \
-    GTEST_SKIP() << "real Yanmar records not found under " NOISEMON_SHARED_DIR "/data/real";     \
-  }
+  NOISEMON_REQUIRE(src, "the real Yanmar records under " NOISEMON_SHARED_DIR "/data/real")
 
 // Amplitude and phase of the DFT bin k of a record (an exact bin: no leakage).
 std::complex<double> bin(const std::vector<double>& y, std::size_t k) {

@@ -17,6 +17,7 @@
 #include <nlohmann/json.hpp>
 
 #include "cell_synth.hpp"
+#include "required.hpp"
 
 namespace {
 
@@ -65,11 +66,7 @@ std::vector<nlohmann::json> watch_campaign(const indep::Effects& fx, const std::
   return out;
 }
 
-#define REQUIRE_RECORDS()                                                     \
-  if (!sources()) {                                                           \
-    if (std::getenv("CI")) FAIL() << "missing the Yanmar records";            \
-    GTEST_SKIP() << "missing the Yanmar records in " NOISEMON_SHARED_DIR;     \
-  }
+#define REQUIRE_RECORDS() NOISEMON_REQUIRE(sources(), "the Yanmar records in " NOISEMON_SHARED_DIR)
 
 }  // namespace
 

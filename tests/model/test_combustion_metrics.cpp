@@ -15,6 +15,7 @@
 #include <vector>
 
 #include "model/combustion_metrics.hpp"
+#include "tests/support/required.hpp"
 
 namespace nm = noisemon::model;
 
@@ -356,10 +357,7 @@ std::vector<std::vector<double>> real_cycles(const std::string& file) {
 
 TEST(CombustionMetrics, RealYanmarCycles) {
   const auto fired = real_cycles("yanmar_l100v_fired_18Nm.txt"), motored = real_cycles("yanmar_l100v_motored.txt");
-  if (fired.empty() || motored.empty()) {
-    if (std::getenv("CI")) FAIL() << "the real Yanmar records are missing under " NOISEMON_SHARED_DIR;
-    GTEST_SKIP() << "the real Yanmar records are not under " NOISEMON_SHARED_DIR;
-  }
+  NOISEMON_REQUIRE(!fired.empty() && !motored.empty(), "the real Yanmar records under " NOISEMON_SHARED_DIR);
   const nm::EngineGeometry e;
   nm::MetricsOptions fired_options;
   fired_options.soi_deg_btdc = 9.6;  // the data README's injection

@@ -6,6 +6,7 @@
 // amplitude against the documented law, none in motored cycles, and its first mode against the ringing of the
 // real fired Yanmar record (the same spectral estimator on both).
 #include "model/engine/engine_cycle.hpp"
+#include "tests/support/required.hpp"
 
 #include <gtest/gtest.h>
 
@@ -366,11 +367,7 @@ TEST(CycleVariation, ScalesPeakPressureFromCycleToCycle) {
 TEST(EngineCycle, MotoredCurveAgreesWithRealYanmarRecord) {
   const std::string path = std::string(NOISEMON_SHARED_DIR) + "/data/real/yanmar_l100v_motored.txt";
   std::ifstream in(path);
-  if (!in) {
-    const char* ci = std::getenv("CI");
-    if (ci && std::string(ci) == "true") FAIL() << "missing " << path;
-    GTEST_SKIP() << "reference data not found: " << path;
-  }
+  NOISEMON_REQUIRE(in, path);
   // Column 1 crank angle (deg), then one column per cycle (bar abs); the first row is a pegging value.
   std::vector<double> angle, mean_bar;
   std::string line;
@@ -582,11 +579,7 @@ std::vector<double> window_spectrum(const std::vector<std::vector<double>>& cycl
 TEST(GasRinging, FirstModeAgreesWithTheRingingOfTheRealFiredYanmarRecord) {
   const std::string path = std::string(NOISEMON_SHARED_DIR) + "/data/real/yanmar_l100v_fired_18Nm.txt";
   std::ifstream in(path);
-  if (!in) {
-    const char* ci = std::getenv("CI");
-    if (ci && std::string(ci) == "true") FAIL() << "missing " << path;
-    GTEST_SKIP() << "reference data not found: " << path;
-  }
+  NOISEMON_REQUIRE(in, path);
   std::vector<std::vector<double>> real;  // one per cycle, from -180 deg in 0.2 deg steps
   std::string line;
   while (std::getline(in, line)) {

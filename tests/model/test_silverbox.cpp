@@ -12,6 +12,7 @@
 // extrapolating arrow.
 #include "model/diagnosis/waveform_diagnosis.hpp"
 #include "model/fit/waveform_fit.hpp"
+#include "tests/support/required.hpp"
 
 #include <gtest/gtest.h>
 
@@ -77,10 +78,7 @@ TestErrors test_errors(const WaveformModel& m, const WaveformSimOptions& sim, co
 
 TEST(Silverbox, DiagnosisNamesCubicStiffnessAndTheCubicModelBeatsThePublishedBaselines) {
   Silverbox s;
-  if (!load(s)) {
-    if (std::getenv("CI")) FAIL() << "Silverbox data missing under " << NOISEMON_SHARED_DIR << "/data/real";
-    GTEST_SKIP() << "Silverbox data not found under " << NOISEMON_SHARED_DIR << "/data/real";
-  }
+  NOISEMON_REQUIRE(load(s), "the Silverbox data under " NOISEMON_SHARED_DIR "/data/real");
   WaveformDiagnosisOptions o;
   o.fs_hz = kFs;
   // Train on a subsample of the training multisines, hold out other parts of them (never the test sets).
