@@ -211,8 +211,7 @@ void read_schedule(TableReader& sr, const std::string& origin, drivers::SimConfi
     s.operating_schedule.push_back(step);
     previous = step.condition;
   }
-  const model::Effects e = drivers::cumulative_effects(s.effects, s.scheduled_effects, s.scheduled_effects.size());
-  if (e.speed_dependence_db_per_krpm != 0.0 || e.foreign_soi_gain_db_per_deg != 0.0 || e.mechanical_noise_dba)
+  if (drivers::sized_by_operating_point(drivers::cumulative_effects(s.effects, s.scheduled_effects, s.scheduled_effects.size())))
     sr.fail("schedule", "cannot be combined with effects that depend on the operating point (speed_dependence, "
                         "mechanical_noise): they would keep the first operating point's size");
 }

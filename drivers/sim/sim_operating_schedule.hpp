@@ -11,6 +11,7 @@
 #include <cstdint>
 #include <vector>
 
+#include "model/engine/effects.hpp"
 #include "model/engine/engine_cycle.hpp"
 #include "model/engine_geometry.hpp"
 
@@ -25,6 +26,12 @@ struct OperatingStep {
 // Throws std::invalid_argument naming the step and field: instants increasing, a ramp over before the next step,
 // speed in (0, 10000] rpm, load >= 0, SOI in [0, 60] deg BTDC.
 void validate_operating_schedule(const std::vector<OperatingStep>& schedule);
+
+// Effects whose size follows the operating point (speed_dependence, mechanical_noise, the foreign SOI gain): a
+// schedule cannot carry them (the virtual engine sizes them once, at the first point).
+[[nodiscard]] inline bool sized_by_operating_point(const model::Effects& e) {
+  return e.speed_dependence_db_per_krpm != 0.0 || e.foreign_soi_gain_db_per_deg != 0.0 || e.mechanical_noise_dba.has_value();
+}
 
 class OperatingProfile {
  public:

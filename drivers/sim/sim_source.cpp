@@ -53,9 +53,8 @@ void validate(const SimConfig& c) {
   if (!(c.mic_gain_spread_db >= 0.0 && c.mic_gain_spread_db <= 6.0)) fail("mic_gain_spread_db must be in [0, 6]");
   if (!(c.gas_ringing.gain_s >= 0.0 && c.gas_ringing.gain_s <= 1e-3) || !(c.gas_ringing.decay_s > 0.0 && c.gas_ringing.decay_s <= 0.1))
     fail("gas ringing: gain must be in [0, 1 ms] and decay in (0, 100 ms]");
-  const model::Effects e = cumulative_effects(c.effects, c.scheduled_effects, c.scheduled_effects.size());
   if (!c.operating_schedule.empty() &&
-      (e.speed_dependence_db_per_krpm != 0.0 || e.foreign_soi_gain_db_per_deg != 0.0 || e.mechanical_noise_dba))
+      sized_by_operating_point(cumulative_effects(c.effects, c.scheduled_effects, c.scheduled_effects.size())))
     fail("sim.schedule cannot be combined with effects that depend on the operating point (speed_dependence, "
          "mechanical_noise, the foreign SOI gain): they would keep the first operating point's size");
   try {
