@@ -1,13 +1,12 @@
 #include "daemon/angle_cycles.hpp"
 
+#include <algorithm>
 #include <cmath>
 
 namespace noisemon::daemon {
 
-AngleCycles::AngleCycles(double step_deg) : step_deg_(step_deg), open_(step_deg) {
-  completed_.reserve(kKeptCycles + 1);
-  spare_.reserve(kKeptCycles + 2);
-}
+AngleCycles::AngleCycles(double step_deg, double horizon_frames)
+    : step_deg_(step_deg), horizon_frames_(horizon_frames), open_(step_deg) {}
 
 void AngleCycles::add(const drivers::SampleBlock& block) {
   if (block.frames == 0) return;
@@ -44,10 +43,10 @@ void AngleCycles::wrap(double t, double crank_deg, double pressure_pa) {
     c.grid = open_;  // a copy into the reused grid's storage
     c.closed_at = t;
     completed_.push_back(std::move(c));
-    if (completed_.size() > kKeptCycles) {
-      recycle(std::move(completed_.front()));
-      completed_.erase(completed_.begin());
-    }
+    const auto expired = std::find_if(completed_.begin(), completed_.end(),
+                                      [&](const Completed& k) { return k.closed_at >= t - horizon_frames_; });
+    for (auto it = completed_.begin(); it != expired; ++it) recycle(std::move(*it));
+    completed_.erase(completed_.begin(), expired);
   }
   open_valid_ = true;
   const double from_start = crank_deg + 360.0;

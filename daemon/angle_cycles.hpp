@@ -25,9 +25,12 @@ namespace noisemon::daemon {
 class AngleCycles {
  public:
   static constexpr double kMaxStepsBridged = 2.5;  // one missing edge is interpolated over, more are a gap
-  static constexpr std::size_t kKeptCycles = 4;    // completed cycles waiting for the processor's boundary
 
-  explicit AngleCycles(double step_deg);
+  // Completed cycles wait for the processor's boundary while they closed less than `horizon_frames` before the
+  // newest edge: the span one stream may run ahead of another (the processor's fifo_seconds). A processing thread
+  // that fell behind its drivers finds the edges far ahead of the frames it is cutting; a count of cycles kept
+  // (it was 4, 160 ms at idle) voided every cycle's figures while the lag lasted, and nothing said why.
+  AngleCycles(double step_deg, double horizon_frames);
 
   // A block of the crank-angle stream (drivers::kAngleStreamChannels channels), edges in time order.
   void add(const drivers::SampleBlock& block);
@@ -50,11 +53,12 @@ class AngleCycles {
   void wrap(double t, double crank_deg, double pressure_pa);
 
   double step_deg_;
+  double horizon_frames_;
   CrankGrid open_;
   bool open_valid_ = false;  // the open grid started at a wrap (a cycle before the first wrap is not whole)
   void recycle(Completed&& c) { spare_.push_back(std::move(c)); }
 
-  std::vector<Completed> completed_;  // oldest first, at most kKeptCycles
+  std::vector<Completed> completed_;  // oldest first, closed within horizon_frames_ of the newest edge
   std::optional<Completed> taken_;    // what take() returned last
   std::vector<Completed> spare_;      // grids of forgotten cycles, reused: no allocation per cycle once warm
   double last_deg_ = 0;  // the last known angle (kept across unknown ones, to see the wrap)

@@ -81,7 +81,7 @@ CycleProcessor::CycleProcessor(const ProcessorConfig& config, const drivers::Str
       pressure_overload_pa_(overload_level(info.pressure_full_scale_pa)),
       mic_overload_pa_(overload_level(info.mic_full_scale_pa)),
       frame_grid_(kGridStepDeg),
-      angle_(info.pressure_angle_step_deg > 0 ? std::make_unique<AngleCycles>(info.pressure_angle_step_deg) : nullptr) {
+      angle_(info.pressure_angle_step_deg > 0 ? std::make_unique<AngleCycles>(info.pressure_angle_step_deg, config.fifo_seconds * kFs) : nullptr) {
   // 0 microphones: a pressure-only recording (an imported cycle table); measured levels are then NaN.
   if (info.mic_count > kMaxMics)
     throw std::invalid_argument("CycleProcessor: microphone count must be 0.." + std::to_string(kMaxMics));
