@@ -9,7 +9,7 @@
 #include <cstdlib>
 #include <string>
 
-#include "daemon/cli/sim_dataset.hpp"
+#include "cli/sim_dataset.hpp"
 #include "model/diagnosis/diagnosis.hpp"
 
 namespace {
@@ -17,14 +17,14 @@ namespace {
 const noisemon::model::BandDataset& campaign() {
   static const noisemon::model::BandDataset data = [] {
     const auto t0 = std::chrono::steady_clock::now();
-    noisemon::daemon::SimCampaign c;
+    noisemon::cli::SimCampaign c;
     c.conditions = noisemon::drivers::thesis_conditions();
     c.cycles = 40;
     // NOISEMON_BENCH_EFFECT=NAME[=MAGNITUDE] (or "none") swaps the withheld effect, for a quick look at a verdict.
     const char* env = std::getenv("NOISEMON_BENCH_EFFECT");
     const std::string effect = env ? env : "second_mode";
     if (effect != "none") c.effects = noisemon::model::parse_effects({effect});
-    auto d = noisemon::daemon::simulate_band_dataset(c);
+    auto d = noisemon::cli::simulate_band_dataset(c);
     std::printf("generating 12 conditions x 40 cycles (sim + 40 kHz conversion + bank): %.1f s\n",
                 std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
     return d;

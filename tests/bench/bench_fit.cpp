@@ -13,9 +13,9 @@
 #include <vector>
 #include <unistd.h>
 
-#include "daemon/cli/fit_command.hpp"
+#include "cli/fit_command.hpp"
 #include "daemon/params_file.hpp"
-#include "daemon/cli/sim_command.hpp"
+#include "cli/sim_command.hpp"
 #include "model/fit/waveform_fit.hpp"
 
 namespace {
@@ -99,7 +99,7 @@ BENCHMARK(BM_WaveformFitDuffing60s)->Unit(benchmark::kSecond)->Iterations(1);
 void BM_BandFitFourConditions(benchmark::State& state) {
   const auto dir = std::filesystem::temp_directory_path() / ("noisemon_bench_fit_" + std::to_string(getpid()));
   std::filesystem::create_directories(dir);
-  daemon::SimOptions so;
+  cli::SimOptions so;
   so.conditions = {"idle_mi12", "idle_mi18", "full_mi12", "full_mi18"};
   so.cycles = 8;
   so.out_dir = (dir / "runs").string();
@@ -108,13 +108,13 @@ void BM_BandFitFourConditions(benchmark::State& state) {
   truth.k1 *= 1.5;
   daemon::write_params_file((dir / "truth.toml").string(), truth, "linear");
   so.true_model = (dir / "truth.toml").string();
-  const daemon::SimSummary runs = daemon::run_sim(so);
-  daemon::FitCommandOptions o;
+  const cli::SimSummary runs = cli::run_sim(so);
+  cli::FitCommandOptions o;
   o.data = runs.run_dirs;
   o.holdout = {"full"};
   o.progress = false;
   std::FILE* sink = std::tmpfile();
-  for (auto _ : state) benchmark::DoNotOptimize(daemon::run_fit(o, sink).heldout_rms);
+  for (auto _ : state) benchmark::DoNotOptimize(cli::run_fit(o, sink).heldout_rms);
   std::fclose(sink);
   std::filesystem::remove_all(dir);
 }

@@ -10,14 +10,14 @@
 #include <sstream>
 #include <string>
 
-#include "daemon/cli/dash_json.hpp"
-#include "daemon/cli/dash_metrics.hpp"
-#include "daemon/cli/dash_state.hpp"
+#include "cli/dash_json.hpp"
+#include "cli/dash_metrics.hpp"
+#include "cli/dash_state.hpp"
 
 namespace {
 
-using noisemon::daemon::MetricsInput;
-using noisemon::daemon::prometheus_text;
+using noisemon::cli::MetricsInput;
+using noisemon::cli::prometheus_text;
 
 struct Sample {
   std::string name;
@@ -110,7 +110,7 @@ const Sample* find(const Exposition& e, const std::string& name, const std::stri
 }  // namespace
 
 TEST(DashMetrics, StatusAndLevelsParseAsPrometheusTextWithTheCellOnEverySample) {
-  MetricsInput in;
+  noisemon::cli::MetricsInput in;
   in.cell = "bay-2";
   in.status = make_status();
   noisemon::cycle_report_t r{};
@@ -118,7 +118,7 @@ TEST(DashMetrics, StatusAndLevelsParseAsPrometheusTextWithTheCellOnEverySample) 
   r.lpa_measured_db = 111.25;
   r.lpa_predicted_db = NAN;
   in.cycle = r;
-  const Exposition e = parse(prometheus_text(in));
+  const Exposition e = parse(noisemon::cli::prometheus_text(in));
   for (const std::string& error : e.errors) ADD_FAILURE() << error;
   ASSERT_FALSE(e.samples.empty());
   for (const Sample& s : e.samples) EXPECT_EQ(s.labels.count("cell") ? s.labels.at("cell") : "", "bay-2") << s.name;
@@ -144,7 +144,7 @@ TEST(DashMetrics, StatusAndLevelsParseAsPrometheusTextWithTheCellOnEverySample) 
 // the 500 Hz and 1 kHz bands, 1 dB below in 2 and 4 kHz: the groups 500 Hz ... 2 kHz and from 2 kHz on read +3 and
 // -1), the time since the reference.
 TEST(DashMetrics, GapWatchEventsBandGroupsAndReferenceAge) {
-  MetricsInput in;
+  noisemon::cli::MetricsInput in;
   in.cell = "c";
   noisemon::cycle_report_t r{};
   r.band_hz = {500.0f, 1000.0f, 2000.0f, 4000.0f, 20000.0f};
@@ -157,7 +157,7 @@ TEST(DashMetrics, GapWatchEventsBandGroupsAndReferenceAge) {
   noisemon::gap_status_t g{};
   g.since_reference_s = 420.5;
   in.gap_status = g;
-  const Exposition e = parse(prometheus_text(in));
+  const Exposition e = parse(noisemon::cli::prometheus_text(in));
   for (const std::string& error : e.errors) ADD_FAILURE() << error;
   EXPECT_EQ(e.types.at("noisemon_gap_events_total"), "counter");
   EXPECT_EQ(find(e, "noisemon_gap_events_total", "effect", "mic_gain")->value, 2);
@@ -168,29 +168,29 @@ TEST(DashMetrics, GapWatchEventsBandGroupsAndReferenceAge) {
   EXPECT_EQ(find(e, "noisemon_gap_seconds_since_reference")->value, 420.5);
   EXPECT_EQ(find(e, "noisemon_gap_learning")->value, 0);
   // The heat map's column of this cycle: the gaps, null where the band says nothing.
-  const nlohmann::json point = noisemon::daemon::trend_point_json(r, 0, false);
+  const nlohmann::json point = noisemon::cli::trend_point_json(r, 0, false);
   EXPECT_EQ(point["gap"], nlohmann::json::parse("[3.0, 3.0, -1.0, -1.0, null]"));
 }
 
 TEST(DashMetrics, LabelValuesAreEscaped) {
-  EXPECT_EQ(noisemon::daemon::prometheus_label_value("a\"b\\c\nd"), "a\\\"b\\\\c\\nd");
-  MetricsInput in;
+  EXPECT_EQ(noisemon::cli::prometheus_label_value("a\"b\\c\nd"), "a\\\"b\\\\c\\nd");
+  noisemon::cli::MetricsInput in;
   in.status = make_status();
   in.status->ring_name = {"odd \"ring\"\n"};
-  const Exposition e = parse(prometheus_text(in));
+  const Exposition e = parse(noisemon::cli::prometheus_text(in));
   for (const std::string& error : e.errors) ADD_FAILURE() << error;
   EXPECT_NE(find(e, "noisemon_ring_fill_ratio", "ring", "odd \\\"ring\\\"\\n"), nullptr);
 }
 
 TEST(DashMetrics, BeforeAnyMessageOnlyTheDashsOwnCounterIsExposed) {
-  const Exposition e = parse(prometheus_text(MetricsInput{}));
+  const Exposition e = parse(noisemon::cli::prometheus_text(noisemon::cli::MetricsInput{}));
   for (const std::string& error : e.errors) ADD_FAILURE() << error;
   ASSERT_EQ(e.samples.size(), 1u);
   EXPECT_EQ(e.samples[0].name, "noisemon_dash_cycles_received_total");
 }
 
 TEST(DashState, EventsCarryTheTrendPointsAClientHasNotHadAndMarkRestartsAndDrops) {
-  noisemon::daemon::DashState state("", 3);
+  noisemon::cli::DashState state("", 3);
   noisemon::cycle_report_t r{};
   for (const std::int64_t cycle : {0, 1, 3, 4, 0}) {  // 2 dropped, then the daemon restarts
     r.cycle = cycle;

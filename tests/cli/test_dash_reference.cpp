@@ -1,6 +1,6 @@
 // The dash's reference curve against the thesis's eq. 4.1 written out here (ka = 11.885, wb = 2 pi 100 rad/s,
 // zeta = 0.35, wn = 2 pi 5000 rad/s: the curve of its Figure 4.2) and the A-weighting of IEC 61672-1:2013 Table 3.
-#include "daemon/cli/dash_reference.hpp"
+#include "cli/dash_reference.hpp"
 
 #include <gtest/gtest.h>
 
@@ -8,7 +8,7 @@
 #include <complex>
 #include <numbers>
 
-#include "daemon/cli/dash_state.hpp"
+#include "cli/dash_state.hpp"
 
 namespace {
 
@@ -28,7 +28,7 @@ constexpr Row kTable3[] = {{100, -19.1}, {250, -8.6}, {500, -3.2}, {1000, 0.0}, 
 }  // namespace
 
 TEST(DashReference, IsTheThesisLinearCurveAWeightedPerBand) {
-  const nlohmann::json ref = noisemon::daemon::linear_reference_json(40000.0);
+  const nlohmann::json ref = noisemon::cli::linear_reference_json(40000.0);
   ASSERT_EQ(ref["band_hz"].size(), ref["att_db"].size());
   ASSERT_EQ(ref["band_hz"].size(), 31u);  // 20 Hz ... 20 kHz
   EXPECT_EQ(ref["preset"], "linear");
@@ -46,7 +46,7 @@ TEST(DashReference, IsTheThesisLinearCurveAWeightedPerBand) {
 }
 
 TEST(DashReference, TravelsWithEachClientsFirstEventOnly) {
-  noisemon::daemon::DashState state("", 10, noisemon::daemon::linear_reference_json(40000.0));
+  noisemon::cli::DashState state("", 10, noisemon::cli::linear_reference_json(40000.0));
   noisemon::cycle_report_t r{};
   r.cycle = 1;
   state.on_cycle(r);

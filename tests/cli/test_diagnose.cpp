@@ -12,7 +12,7 @@
 // code with the virtual engine.
 //
 // Each dataset: the 12 thesis conditions (10 fired, 2 motored), 16 cycles each, generated in memory exactly as
-// `noisemon sim` + `noisemon diagnose` would (daemon/cli/sim_dataset); the end-to-end test at the bottom goes through
+// `noisemon sim` + `noisemon diagnose` would (cli/sim_dataset); the end-to-end test at the bottom goes through
 // the files and the command line.
 #include <gtest/gtest.h>
 
@@ -29,17 +29,17 @@
 
 #include <nlohmann/json.hpp>
 
-#include "daemon/cli/diagnose_command.hpp"
-#include "daemon/cli/fit_command.hpp"
-#include "daemon/cli/import_export.hpp"
-#include "daemon/cli/sim_command.hpp"
-#include "daemon/cli/sim_dataset.hpp"
+#include "cli/diagnose_command.hpp"
+#include "cli/fit_command.hpp"
+#include "cli/import_export.hpp"
+#include "cli/sim_command.hpp"
+#include "cli/sim_dataset.hpp"
 #include "model/diagnosis/diagnosis.hpp"
 #include "model/engine/pressure_chain.hpp"
 #include "tests/support/unique_temp.hpp"
 #include "tests/support/required.hpp"
 
-namespace noisemon::daemon {
+namespace noisemon::cli {
 namespace {
 
 constexpr int kCycles = 16;
@@ -53,7 +53,7 @@ struct Cell {
 };
 
 model::BandDataset campaign(const std::vector<std::string>& effects, const Cell& cell = {}) {
-  SimCampaign c;
+  cli::SimCampaign c;
   for (const drivers::SimCondition& k : drivers::thesis_conditions())
     if (cell.motored || !k.motored) c.conditions.push_back(k);
   c.cycles = kCycles;
@@ -63,7 +63,7 @@ model::BandDataset campaign(const std::vector<std::string>& effects, const Cell&
   else
     c.engine.pressure_chain = model::PressureChainConfig::ideal();
   c.background_run = cell.background_run;
-  return simulate_band_dataset(c);
+  return cli::simulate_band_dataset(c);
 }
 
 model::DiagnosisResult run(const model::BandDataset& data, const model::DiagnosisOptions& opt = {}) {
@@ -277,12 +277,12 @@ TEST(Diagnose, ThesisProtocolOnTheThesisNonlinearSpringDamperNamesBothCubicTerms
   // the damper): only the pair started from the close runner-up explains the extrapolation. On an ideal test cell:
   // with the realistic one (floors, gas ringing) the pair closes too little under this protocol
   // (docs/diagnosis.md, known limits).
-  SimCampaign c;
+  cli::SimCampaign c;
   c.conditions = drivers::thesis_conditions();
   c.cycles = kCycles;
   c.engine = drivers::with_ideal_cell(c.engine);
   c.true_block = model::preset("nl_spring_damper");
-  const model::BandDataset data = simulate_band_dataset(c);
+  const model::BandDataset data = cli::simulate_band_dataset(c);
   model::DiagnosisOptions opt;
   opt.train = {"idle"};
   opt.holdout = {"full"};
@@ -298,15 +298,15 @@ TEST(Diagnose, ThesisProtocolOnTheThesisNonlinearSpringDamperNamesBothCubicTerms
 
 TEST(Diagnose, CommandLineWritesTheReportSchemaFromRunDirectories) {
   const std::string dir = test::unique_temp_dir();
-  SimOptions so;
+  cli::SimOptions so;
   so.conditions = {"all"};
   so.effects = {"background_noise=110"};
   so.cycles = 12;
   so.out_dir = dir + "/runs";
   so.progress = false;
-  run_sim(so);
+  cli::run_sim(so);
 
-  DiagnoseOptions o;
+  cli::DiagnoseOptions o;
   o.data = {dir + "/runs"};  // the directory of run directories (its truth.json is not read)
   o.out_dir = dir + "/diag";
   o.progress = false;
@@ -346,7 +346,7 @@ TEST(Diagnose, CommandLineWritesTheReportSchemaFromRunDirectories) {
   EXPECT_THROW(
       {
         try {
-          run_diagnose(o, nullptr);
+          cli::run_diagnose(o, nullptr);
         } catch (const std::runtime_error& e) {
           EXPECT_NE(std::string(e.what()).find("already exists; use --force"), std::string::npos) << e.what();
           throw;
@@ -388,7 +388,7 @@ TEST(Diagnose, RealYanmarPressureDrivesTheDiagnosisWithTheMotoredRunAsReference)
 
   std::vector<std::string> pressure_dirs;
   auto import = [&](const std::string& table, const std::string& name, bool motored) {
-    CycleTableImportOptions io;
+    cli::CycleTableImportOptions io;
     io.table = table;
     io.table_options.speed_rpm = 1799.9;
     io.table_options.condition.name = name;
@@ -398,12 +398,12 @@ TEST(Diagnose, RealYanmarPressureDrivesTheDiagnosisWithTheMotoredRunAsReference)
     io.out_log = dir + "/" + name + ".lcmlog";
     io.epoch_utime = 1'700'000'000'000'000;
     io.progress = false;
-    run_import_cycle_table(io);
-    ExportOptions eo;
+    cli::run_import_cycle_table(io);
+    cli::ExportOptions eo;
     eo.log = io.out_log;
     eo.out_dir = dir + "/pressure/" + name;
     eo.progress = false;
-    run_export(eo);
+    cli::run_export(eo);
     pressure_dirs.push_back(eo.out_dir);
   };
   import(dir + "/fired_a.txt", "yanmar_fired_a", false);
@@ -411,19 +411,19 @@ TEST(Diagnose, RealYanmarPressureDrivesTheDiagnosisWithTheMotoredRunAsReference)
   import(shared + "yanmar_l100v_motored.txt", "yanmar_motored", true);
 
   auto diagnose_with = [&](const std::string& set, const std::vector<std::string>& effects) {
-    SimOptions so;
+    cli::SimOptions so;
     so.pressure_dirs = pressure_dirs;
     so.out_dir = dir + "/" + set;
     so.seed = 5;
     so.progress = false;
     so.effects = effects;
-    run_sim(so);
-    DiagnoseOptions o;
+    cli::run_sim(so);
+    cli::DiagnoseOptions o;
     o.data = {so.out_dir};
     o.out_dir = dir + "/diag_" + set;
     o.progress = false;
     std::FILE* sink = std::fopen("/dev/null", "w");
-    nlohmann::json report = run_diagnose(o, sink).report;
+    nlohmann::json report = cli::run_diagnose(o, sink).report;
     std::fclose(sink);
     const nlohmann::json& v = report["verdict"];
     std::printf("Yanmar %s: verdict %s, held-out gap %.2f -> %.2f dB; best candidate %s\n", set.c_str(),
@@ -461,7 +461,7 @@ TEST(Diagnose, SilverboxFitThenWaveformDiagnosisNamesTheCubicSpringAndBeatsThePu
   for (std::size_t b = 40650; b + 4000 <= 105712; b += 16000) train.push_back(std::to_string(b) + ":" + std::to_string(b + 4000));
   for (std::size_t b = 40650 + 8000; b + 4000 <= 105712; b += 16000)
     held.push_back(std::to_string(b) + ":" + std::to_string(b + 4000));
-  FitCommandOptions fo;
+  cli::FitCommandOptions fo;
   fo.data = {csv};
   fo.fs_hz = 1e7 / 16384.0;
   fo.train = train;
@@ -473,7 +473,7 @@ TEST(Diagnose, SilverboxFitThenWaveformDiagnosisNamesTheCubicSpringAndBeatsThePu
   std::fclose(sink);
   EXPECT_EQ(fit.mode, "waveform");
 
-  DiagnoseOptions o;
+  cli::DiagnoseOptions o;
   o.data = {csv};
   o.fs_hz = fo.fs_hz;
   o.model = fo.out;
@@ -483,7 +483,7 @@ TEST(Diagnose, SilverboxFitThenWaveformDiagnosisNamesTheCubicSpringAndBeatsThePu
   o.max_iterations = 15;
   o.out_dir = dir + "/diag";
   o.progress = false;
-  const nlohmann::json r = run_diagnose(o, nullptr).report;
+  const nlohmann::json r = cli::run_diagnose(o, nullptr).report;
   EXPECT_EQ(r["mode"], "waveform");
   EXPECT_EQ(r["verdict"]["effect"], "cubic_stiffness");
   ASSERT_EQ(r["test_sets"].size(), 1u);
@@ -499,13 +499,13 @@ TEST(Diagnose, BadArgumentsAreErrorsNamingTheOptionOrPath) {
     o.progress = false;
     if (o.out_dir.empty()) o.out_dir = dir + "/d";
     try {
-      run_diagnose(o, nullptr);
+      cli::run_diagnose(o, nullptr);
     } catch (const std::exception& e) {
       return std::string(e.what());
     }
     return std::string("(no error)");
   };
-  DiagnoseOptions o;
+  cli::DiagnoseOptions o;
   o.data = {dir + "/nothing_here"};
   EXPECT_NE(error_of(o).find(dir + "/nothing_here: no such file or directory"), std::string::npos);
   std::filesystem::create_directories(dir + "/empty");
@@ -522,4 +522,4 @@ TEST(Diagnose, BadArgumentsAreErrorsNamingTheOptionOrPath) {
 }
 
 }  // namespace
-}  // namespace noisemon::daemon
+}  // namespace noisemon::cli

@@ -23,12 +23,12 @@
 #include <vector>
 
 #include "daemon/config.hpp"
-#include "daemon/cli/fit_command.hpp"
-#include "daemon/cli/import_export.hpp"
+#include "cli/fit_command.hpp"
+#include "cli/import_export.hpp"
 #include "daemon/params_file.hpp"
-#include "daemon/cli/sim_command.hpp"
+#include "cli/sim_command.hpp"
 
-namespace noisemon::daemon {
+namespace noisemon::cli {
 namespace {
 
 namespace fs = std::filesystem;
@@ -100,7 +100,7 @@ void write_duffing_csv(const std::string& path, const Truth& p, double fs, std::
 }
 
 void expect_loads_exactly(const std::string& path, const model::BlockParams& p) {
-  const model::BlockParams q = load_config(path).model;  // the daemon's strict parser
+  const model::BlockParams q = daemon::load_config(path).model;  // the daemon's strict parser
   EXPECT_EQ(q.m, p.m);
   EXPECT_EQ(q.k1, p.k1);
   EXPECT_EQ(q.k3, p.k3);
@@ -108,7 +108,7 @@ void expect_loads_exactly(const std::string& path, const model::BlockParams& p) 
   EXPECT_EQ(q.b3, p.b3);
   EXPECT_EQ(q.c0, p.c0);
   EXPECT_EQ(q.c1, p.c1);
-  EXPECT_EQ(resolve_model(path).k1, p.k1);  // and as --model FILE
+  EXPECT_EQ(daemon::resolve_model(path).k1, p.k1);  // and as --model FILE
 }
 
 double truth_value(const Truth& t, const std::string& name) {
@@ -136,7 +136,7 @@ TEST(FitCommand, WaveformModeRecoversAnRk4DuffingOscillatorAndItsFileLoadsBack) 
     f << "[model]\npreset = \"linear\"\nk1 = " << 0.8 * truth.k1 << "\nb1 = " << 1.4 * truth.b1
       << "\nk3 = 0\nb3 = 0\nc0 = " << 1.2 * truth.c0 << "\nc1 = 0\n";
   }
-  FitCommandOptions o;
+  cli::FitCommandOptions o;
   o.data = {dir / "duffing.csv"};
   o.out = dir / "fitted.toml";
   o.fs_hz = fs;
@@ -170,9 +170,9 @@ TEST(FitCommand, BandModeFindsTheVirtualEnginesTrueBlockAndClosesTheGap) {
   truth.b1 = 1.5e4;
   truth.c0 = 9000.0;
   truth.c1 = 10.0;
-  write_params_file(dir / "truth.toml", truth, "linear");
+  daemon::write_params_file(dir / "truth.toml", truth, "linear");
 
-  SimOptions so;
+  cli::SimOptions so;
   so.conditions = {"idle_mi12", "idle_mi18", "full_mi12", "full_mi18"};
   so.cycles = 8;
   so.true_model = dir / "truth.toml";
@@ -180,14 +180,14 @@ TEST(FitCommand, BandModeFindsTheVirtualEnginesTrueBlockAndClosesTheGap) {
   so.progress = false;
   const SimSummary runs = run_sim(so);
 
-  FitCommandOptions o;
+  cli::FitCommandOptions o;
   o.data = runs.run_dirs;
   o.out = dir / "fitted.toml";
   o.model = "linear";
   o.holdout = {"full"};  // the thesis protocol: tune at idle, validate at full load
   o.progress = false;
   std::FILE* sink = std::tmpfile();
-  FitCommandResult r = run_fit(o, sink);
+  cli::FitCommandResult r = run_fit(o, sink);
   std::fclose(sink);
 
   EXPECT_EQ(r.mode, "band");
@@ -212,11 +212,11 @@ TEST(FitCommand, BandModeFindsTheVirtualEnginesTrueBlockAndClosesTheGap) {
   // The same runs as one raw LCM log (`noisemon import`, lossless at 40 kHz): the same fit, within what the floor's
   // estimate changes (a raw log does not carry run.json's stated pressure floor: the fit estimates it from the quiet
   // crank windows, to about 1 dB, and the predictions subtract a slightly different floor-driven part).
-  ImportOptions io;
+  cli::ImportOptions io;
   io.run_dirs = runs.run_dirs;
   io.out_log = dir / "runs.lcmlog";
   io.progress = false;
-  run_import(io);
+  cli::run_import(io);
   FitCommandOptions ol = o;
   ol.data = {io.out_log};
   ol.out = dir / "fitted_lcm.toml";
@@ -232,7 +232,7 @@ TEST(FitCommand, BandModeFindsTheVirtualEnginesTrueBlockAndClosesTheGap) {
 std::string error_of(const FitCommandOptions& o) {
   std::FILE* sink = std::tmpfile();
   try {
-    run_fit(o, sink);
+    cli::run_fit(o, sink);
   } catch (const std::exception& e) {
     std::fclose(sink);
     return e.what();
@@ -252,7 +252,7 @@ TEST(FitCommand, ErrorsNameTheFileLineOrParameterAndWriteNothing) {
     f << "u,y\n";
     for (int i = 0; i < 500; ++i) f << std::sin(0.1 * i) << ',' << std::cos(0.1 * i) << '\n';
   }
-  FitCommandOptions o;
+  cli::FitCommandOptions o;
   o.out = dir / "out.toml";
   o.fs_hz = 100.0;
   o.progress = false;
@@ -329,7 +329,7 @@ TEST(FitCommand, WaveformSplitsByFileNameRangeOrDefault) {
 
 TEST(FitCommand, SubcommandParsesItsOptions) {
   CLI::App app;
-  FitCommand fit(app);
+  cli::FitCommand fit(app);
   TempDir dir;
   const std::string out = dir / "x.toml";
   app.parse("fit --no-progress --free k1,c0 --fs 610.35 -o " + out + " --mode waveform " + (dir / "nothing.csv"),
@@ -339,4 +339,4 @@ TEST(FitCommand, SubcommandParsesItsOptions) {
 }
 
 }  // namespace
-}  // namespace noisemon::daemon
+}  // namespace noisemon::cli

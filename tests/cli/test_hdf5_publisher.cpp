@@ -1,6 +1,6 @@
 // The HDF5 export read back by h5py (Debian's python3-h5py, code that shares nothing with ours): every value,
 // shape and unit attribute as written, NaN kept, a short report padded, two runs indexed.
-#include "daemon/cli/hdf5_publisher.hpp"
+#include "cli/hdf5_publisher.hpp"
 
 #include <gtest/gtest.h>
 
@@ -56,7 +56,7 @@ TEST(Hdf5Publisher, H5pyReadsEveryValueShapeAndUnitAsWritten) {
   const std::string dir = noisemon::test::unique_temp_dir();
   const std::string h5 = dir + "/cycles.h5";
   {
-    noisemon::daemon::Hdf5Publisher publisher(h5);
+    noisemon::cli::Hdf5Publisher publisher(h5);
     publisher.begin_run("idle");
     for (int c = 0; c < 3; ++c) publisher.publish("NOISEMON_CYCLE", report(c, 4, 3), 0);
     publisher.begin_run("full");
@@ -90,7 +90,7 @@ TEST(Hdf5Publisher, ManyCyclesSpanSeveralWritesInOrder) {
   const std::string h5 = dir + "/many.h5";
   constexpr int kCycles = 2500;  // more than two buffered writes
   {
-    noisemon::daemon::Hdf5Publisher publisher(h5);
+    noisemon::cli::Hdf5Publisher publisher(h5);
     for (int c = 0; c < kCycles; ++c) publisher.publish("NOISEMON_CYCLE", report(c, 2, 1), 0);
   }  // the destructor writes the rest
   const json r = read_with_h5py(h5, dir);
@@ -102,7 +102,7 @@ TEST(Hdf5Publisher, ManyCyclesSpanSeveralWritesInOrder) {
 
 TEST(Hdf5Publisher, AReportWiderThanTheFirstIsRefusedNamingTheFileAndCycle) {
   const std::string dir = noisemon::test::unique_temp_dir();
-  noisemon::daemon::Hdf5Publisher publisher(dir + "/wide.h5");
+  noisemon::cli::Hdf5Publisher publisher(dir + "/wide.h5");
   publisher.publish("NOISEMON_CYCLE", report(0, 4, 2), 0);
   try {
     publisher.publish("NOISEMON_CYCLE", report(7, 4, 3), 0);
@@ -115,7 +115,7 @@ TEST(Hdf5Publisher, AReportWiderThanTheFirstIsRefusedNamingTheFileAndCycle) {
 
 TEST(Hdf5Publisher, AnUnwritablePathIsAClearError) {
   try {
-    noisemon::daemon::Hdf5Publisher publisher("/nonexistent-dir/x.h5");
+    noisemon::cli::Hdf5Publisher publisher("/nonexistent-dir/x.h5");
     FAIL() << "created a file in a missing directory";
   } catch (const std::runtime_error& e) {
     EXPECT_NE(std::string(e.what()).find("/nonexistent-dir/x.h5"), std::string::npos) << e.what();

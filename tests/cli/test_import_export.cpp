@@ -24,8 +24,8 @@
 #include <random>
 #include <sstream>
 
-#include "daemon/cli/band_data.hpp"
-#include "daemon/cli/import_export.hpp"
+#include "cli/band_data.hpp"
+#include "cli/import_export.hpp"
 #include "daemon/replay.hpp"
 #include "dsp/resample.hpp"
 #include "drivers/formats/cycle_table.hpp"
@@ -68,7 +68,7 @@ std::vector<noisemon::cycle_report_t> replay(const fs::path& log, const std::str
 }
 
 fs::path import_table(const std::string& table, const std::string& name, bool motored) {
-  daemon::CycleTableImportOptions o;
+  cli::CycleTableImportOptions o;
   o.table = table;
   o.out_log = temp(name + ".lcmlog").string();
   o.epoch_utime = kEpoch;
@@ -78,7 +78,7 @@ fs::path import_table(const std::string& table, const std::string& name, bool mo
   o.table_options.condition.load_nm = motored ? 0 : 18;
   o.table_options.condition.soi_deg_btdc = motored ? 0 : 9.6;
   o.table_options.condition.motored = motored;
-  daemon::run_import_cycle_table(o);
+  cli::run_import_cycle_table(o);
   return o.out_log;
 }
 
@@ -358,7 +358,7 @@ TEST_F(YanmarTables, EachCyclesFiguresAreThoseOfItsOwnColumn) {
 // scattering like gross), and the TDC is checked against an estimate made here: the motored table's mean cycle's
 // largest sample, which a 0.2 deg grid places within a step or two of the parabola's vertex.
 TEST_F(YanmarTables, MotoredTableSetsFiringTdcAndTheFiguresObeyThePhysics) {
-  daemon::CycleTableImportOptions o;
+  cli::CycleTableImportOptions o;
   o.table = shared_file("yanmar_l100v_fired_18Nm.txt");
   o.motored_table = shared_file("yanmar_l100v_motored.txt");
   o.out_log = temp("fired_tdc.lcmlog").string();
@@ -368,7 +368,7 @@ TEST_F(YanmarTables, MotoredTableSetsFiringTdcAndTheFiguresObeyThePhysics) {
   o.table_options.condition.name = "fired_tdc";
   o.table_options.condition.load_nm = 18;
   o.table_options.condition.soi_deg_btdc = 9.6;
-  const daemon::ImportSummary sum = daemon::run_import_cycle_table(o);
+  const cli::ImportSummary sum = cli::run_import_cycle_table(o);
   ASSERT_TRUE(sum.tdc.has_value());
   double top = -1e300, top_deg = 0;
   for (std::size_t r = 1; r < motored_->table.crank_deg.size(); ++r) {
@@ -401,14 +401,14 @@ TEST_F(YanmarTables, MotoredTableSetsFiringTdcAndTheFiguresObeyThePhysics) {
 }
 
 TEST_F(YanmarTables, BadMotoredTablesAreRefusedNamingTheFile) {
-  daemon::CycleTableImportOptions o;
+  cli::CycleTableImportOptions o;
   o.table = shared_file("yanmar_l100v_fired_18Nm.txt");
   o.out_log = temp("fired_bad_tdc.lcmlog").string();
   o.progress = false;
   o.table_options.speed_rpm = kRpm;
   const auto error = [&] {
     try {
-      daemon::run_import_cycle_table(o);
+      cli::run_import_cycle_table(o);
     } catch (const std::exception& e) {
       return std::string(e.what());
     }
@@ -440,21 +440,21 @@ TEST_F(YanmarTables, BadMotoredTablesAreRefusedNamingTheFile) {
 TEST_F(YanmarTables, ExportThenImportGivesTheSameReports) {
   const fs::path dir = temp("fired_exported");
   fs::remove_all(dir);
-  daemon::ExportOptions e;
+  cli::ExportOptions e;
   e.log = fired_->log.string();
   e.out_dir = dir.string();
   e.progress = false;
-  const daemon::ExportSummary es = daemon::run_export(e);
+  const cli::ExportSummary es = cli::run_export(e);
   ASSERT_EQ(es.run_dirs, std::vector<std::string>{dir.string()});
   // The directory is there: a second export refuses to overwrite it.
-  EXPECT_THROW(daemon::run_export(e), std::runtime_error);
+  EXPECT_THROW(cli::run_export(e), std::runtime_error);
 
-  daemon::ImportOptions i;
+  cli::ImportOptions i;
   i.run_dirs = {dir.string()};
   i.out_log = temp("fired_reimported.lcmlog").string();
   i.epoch_utime = kEpoch;
   i.progress = false;
-  daemon::run_import(i);
+  cli::run_import(i);
   const auto again = replay(i.out_log);
   ASSERT_EQ(again.size(), fired_->reports.size());
   for (std::size_t c = 0; c < again.size(); ++c) {
@@ -473,19 +473,19 @@ TEST_F(YanmarTables, SeveralRunsInOneLogReplayAsSeparateSessions) {
   // Both tables, exported to run directories, imported into one log: two sessions.
   std::vector<std::string> dirs;
   for (const TableRun* t : {fired_, motored_}) {
-    daemon::ExportOptions e;
+    cli::ExportOptions e;
     e.log = t->log.string();
     e.out_dir = temp("two_" + t->log.stem().string()).string();
     e.progress = false;
     e.force = true;
-    dirs.push_back(daemon::run_export(e).run_dirs.at(0));
+    dirs.push_back(cli::run_export(e).run_dirs.at(0));
   }
-  daemon::ImportOptions i;
+  cli::ImportOptions i;
   i.run_dirs = dirs;
   i.out_log = temp("two_runs.lcmlog").string();
   i.epoch_utime = kEpoch;
   i.progress = false;
-  const daemon::ImportSummary is = daemon::run_import(i);
+  const cli::ImportSummary is = cli::run_import(i);
   ASSERT_EQ(is.runs.size(), 2u);
   EXPECT_GT(is.runs[1].epoch_utime, is.runs[0].epoch_utime);
   const std::string csv = temp("two_runs.csv").string();
@@ -542,17 +542,17 @@ TEST(ImportExport, RecordingWithMicrophonesExportsAndImportsToTheSameReports) {
 
   const fs::path dir = temp("synthetic_dir");
   fs::remove_all(dir);
-  daemon::ExportOptions e;
+  cli::ExportOptions e;
   e.log = log.string();
   e.out_dir = dir.string();
   e.progress = false;
-  daemon::run_export(e);
-  daemon::ImportOptions i;
+  cli::run_export(e);
+  cli::ImportOptions i;
   i.run_dirs = {dir.string()};
   i.out_log = temp("synthetic_again.lcmlog").string();
   i.epoch_utime = kEpoch + 7;
   i.progress = false;
-  daemon::run_import(i);
+  cli::run_import(i);
   const auto after = replay(i.out_log);
   ASSERT_EQ(after.size(), before.size());
   for (std::size_t c = 0; c < after.size(); ++c) {
@@ -574,12 +574,12 @@ TEST(ImportExport, BadRunDirectoryFailsNamingTheFileAndLeavesNoLog) {
   std::ofstream(dir / "run.json") << R"({"condition": {"name": "x", "speed_rpm": 1800, "load_nm": 0, "soi_deg_btdc": 0,
     "motored": false}, "pressure": {"file": "pressure.csv", "units": "bar"}})";
   std::ofstream(dir / "pressure.csv") << "time_s,crank_deg,pressure\n0,0,1\n0.001,0.5,oops\n";
-  daemon::ImportOptions i;
+  cli::ImportOptions i;
   i.run_dirs = {dir.string()};
   i.out_log = temp("bad.lcmlog").string();
   i.progress = false;
   try {
-    daemon::run_import(i);
+    cli::run_import(i);
     ADD_FAILURE() << "no error";
   } catch (const drivers::RunDirError& e) {
     EXPECT_NE(std::string(e.what()).find((dir / "pressure.csv").string() + ": line 3: field pressure is \"oops\""), std::string::npos)
@@ -589,17 +589,17 @@ TEST(ImportExport, BadRunDirectoryFailsNamingTheFileAndLeavesNoLog) {
 }
 
 TEST(ImportExport, MicsSimGivesTheRealCyclesTheVirtualEnginesAcousticSide) {
-  EXPECT_THROW(daemon::mic_synthesizer("bogus"), std::invalid_argument);
+  EXPECT_THROW(cli::mic_synthesizer("bogus"), std::invalid_argument);
   const std::string fired = shared_file("yanmar_l100v_fired_18Nm.txt");
   if (fired.empty()) GTEST_SKIP() << "Yanmar table not found";
-  daemon::CycleTableImportOptions o;
+  cli::CycleTableImportOptions o;
   o.table = fired;
   o.out_log = temp("fired_with_sim_mics.lcmlog").string();
   o.epoch_utime = kEpoch;
   o.progress = false;
   o.table_options.speed_rpm = kRpm;
-  o.synthesize_mics = daemon::mic_synthesizer("sim");
-  daemon::run_import_cycle_table(o);
+  o.synthesize_mics = cli::mic_synthesizer("sim");
+  cli::run_import_cycle_table(o);
   const auto reports = replay(o.out_log);
   ASSERT_EQ(reports.size(), 58u);  // the same cycles as the pressure-only import
   int compared = 0;
@@ -620,7 +620,7 @@ TEST(ImportExport, MicsSynthesizerHookFillsAPressureOnlyImport) {
   // The hook: a synthesizer fills the microphones of a pressure-only import.
   const std::string fired = shared_file("yanmar_l100v_fired_18Nm.txt");
   if (fired.empty()) GTEST_SKIP() << "Yanmar table not found";
-  daemon::CycleTableImportOptions o;
+  cli::CycleTableImportOptions o;
   o.table = fired;
   o.out_log = temp("hooked.lcmlog").string();
   o.epoch_utime = kEpoch;
@@ -631,7 +631,7 @@ TEST(ImportExport, MicsSynthesizerHookFillsAPressureOnlyImport) {
     r.info.mic_positions_m = {{0, 0, 1.75}};
     r.mics_pa.assign(r.frames(), 0.01);
   };
-  daemon::run_import_cycle_table(o);
+  cli::run_import_cycle_table(o);
   const auto recs = drivers::read_recordings_log(o.out_log);
   ASSERT_EQ(recs.size(), 1u);
   EXPECT_EQ(recs[0].info.mic_count, 1u);
@@ -666,16 +666,16 @@ fs::path foreign_run(const std::string& name, const std::string& condition, cons
   return dir;
 }
 
-daemon::ImportSummary import_dir(const fs::path& dir, const fs::path& log) {
-  daemon::ImportOptions i;
+cli::ImportSummary import_dir(const fs::path& dir, const fs::path& log) {
+  cli::ImportOptions i;
   i.run_dirs = {dir.string()};
   i.out_log = log.string();
   i.epoch_utime = kEpoch;
   i.progress = false;
-  return daemon::run_import(i);
+  return cli::run_import(i);
 }
 
-std::string all_notes(const daemon::ImportSummary& s) {
+std::string all_notes(const cli::ImportSummary& s) {
   std::string out;
   for (const std::string& n : s.notes) out += n + "\n";
   return out;
@@ -698,7 +698,7 @@ TEST(ImportNulls, MotoredRunWithNullSoiImportsAndReplaysWithTheSoiUnknown) {
   const fs::path dir = foreign_run("motored_soi_null", R"("speed_rpm": 1800, "load_nm": 0, "soi_deg_btdc": null,
                                                            "rail_pressure_bar": null, "motored": true)");
   const fs::path log = temp("motored_soi_null.lcmlog"), csv = temp("motored_soi_null.csv");
-  const daemon::ImportSummary sum = import_dir(dir, log);
+  const cli::ImportSummary sum = import_dir(dir, log);
   EXPECT_NE(all_notes(sum).find("SOI n/a"), std::string::npos) << all_notes(sum);
   const auto reports = replay(log, csv.string());
   ASSERT_GE(reports.size(), 15u);
@@ -716,7 +716,7 @@ TEST(ImportNulls, NullLoadAndRailTravelAsUnknownTheRestAsGiven) {
   const fs::path dir = foreign_run("load_null", R"("speed_rpm": 1800, "load_nm": null, "soi_deg_btdc": 12.5,
                                                     "rail_pressure_bar": null, "motored": false)");
   const fs::path log = temp("load_null.lcmlog"), csv = temp("load_null.csv");
-  const daemon::ImportSummary sum = import_dir(dir, log);
+  const cli::ImportSummary sum = import_dir(dir, log);
   EXPECT_NE(all_notes(sum).find("load n/a"), std::string::npos) << all_notes(sum);
   EXPECT_NE(all_notes(sum).find("rail pressure n/a"), std::string::npos) << all_notes(sum);
   const auto reports = replay(log, csv.string());
@@ -734,7 +734,7 @@ TEST(ImportNulls, NullLoadAndRailTravelAsUnknownTheRestAsGiven) {
 TEST(ImportNulls, NullSpeedIsMeasuredFromTheEncoderAndSaidSo) {
   const fs::path dir = foreign_run("speed_null", R"("speed_rpm": null, "load_nm": 5, "soi_deg_btdc": 10, "motored": false)");
   const fs::path log = temp("speed_null.lcmlog");
-  const daemon::ImportSummary sum = import_dir(dir, log);
+  const cli::ImportSummary sum = import_dir(dir, log);
   EXPECT_NE(all_notes(sum).find("measured from the encoder"), std::string::npos) << all_notes(sum);
   const auto recs = drivers::read_recordings_log(log);
   ASSERT_EQ(recs.size(), 1u);
@@ -749,14 +749,14 @@ TEST(ImportNulls, NullSpeedIsMeasuredFromTheEncoderAndSaidSo) {
 TEST(ImportNulls, NullMotoredImportsButTheDiagnosisLoaderRefusesTheRun) {
   const fs::path dir = foreign_run("motored_null", R"("speed_rpm": 1800, "load_nm": 0, "soi_deg_btdc": 12, "motored": null)");
   const fs::path log = temp("motored_null.lcmlog");
-  const daemon::ImportSummary sum = import_dir(dir, log);
+  const cli::ImportSummary sum = import_dir(dir, log);
   EXPECT_NE(all_notes(sum).find("motored n/a"), std::string::npos) << all_notes(sum);
   EXPECT_NE(all_notes(sum).find("condition.motored is null: published as false"), std::string::npos) << all_notes(sum);
   const auto reports = replay(log);
   ASSERT_GE(reports.size(), 15u);
   EXPECT_FALSE(reports[0].motored);
   try {
-    daemon::load_recordings({dir.string()});
+    cli::load_recordings({dir.string()});
     ADD_FAILURE() << "the diagnosis loader took a run whose motored is unknown";
   } catch (const std::runtime_error& e) {
     const std::string what = e.what();
@@ -778,9 +778,9 @@ TEST(ImportNulls, NullMotoredImportsButTheDiagnosisLoaderRefusesTheRun) {
 TEST(ImportNulls, TheDiagnosisLoaderPassesUnknownSoiAndLoadAndTheNoiseFloor) {
   const fs::path dir = foreign_run("loader_nulls", R"("speed_rpm": null, "load_nm": null, "soi_deg_btdc": null, "motored": true)",
                                    R"(, "noise_floor_bar": 0.0025)");
-  const std::vector<daemon::LoadedRecording> recs = daemon::load_recordings({dir.string()});
+  const std::vector<cli::LoadedRecording> recs = cli::load_recordings({dir.string()});
   ASSERT_EQ(recs.size(), 1u);
-  const model::ConditionInfo info = daemon::condition_info(recs[0]);
+  const model::ConditionInfo info = cli::condition_info(recs[0]);
   EXPECT_EQ(info.name, "loader_nulls");
   EXPECT_TRUE(std::isnan(info.soi_deg_btdc));
   EXPECT_TRUE(std::isnan(info.load_nm));
@@ -791,9 +791,9 @@ TEST(ImportNulls, TheDiagnosisLoaderPassesUnknownSoiAndLoadAndTheNoiseFloor) {
   // A raw LCM log knows no floor and no encoder.
   const fs::path log = temp("loader_nulls.lcmlog");
   import_dir(dir, log);
-  const std::vector<daemon::LoadedRecording> from_log = daemon::load_recordings({log.string()});
+  const std::vector<cli::LoadedRecording> from_log = cli::load_recordings({log.string()});
   ASSERT_EQ(from_log.size(), 1u);
-  const model::ConditionInfo log_info = daemon::condition_info(from_log[0]);
+  const model::ConditionInfo log_info = cli::condition_info(from_log[0]);
   EXPECT_TRUE(std::isnan(log_info.pressure_floor_pa));
   EXPECT_TRUE(std::isnan(log_info.encoder_rate_hz));
   EXPECT_TRUE(std::isnan(log_info.soi_deg_btdc));
@@ -805,11 +805,11 @@ TEST(ImportNulls, ImportThenExportKeepsNullsAsNull) {
   const fs::path log = temp("export_nulls.lcmlog"), out = temp("export_nulls_out");
   import_dir(dir, log);
   fs::remove_all(out);
-  daemon::ExportOptions e;
+  cli::ExportOptions e;
   e.log = log.string();
   e.out_dir = out.string();
   e.progress = false;
-  daemon::run_export(e);
+  cli::run_export(e);
   const std::string text = read_text(out / "run.json");
   for (const char* key : {"load_nm", "soi_deg_btdc", "rail_pressure_bar"})
     EXPECT_NE(text.find("\"" + std::string(key) + "\": null"), std::string::npos) << key << " in " << text;
@@ -823,13 +823,13 @@ TEST(ImportNulls, ImportThenExportKeepsNullsAsNull) {
 
 TEST(ImportNulls, MicsSimNamesTheRunAndTheKeyItLacks) {
   const fs::path dir = foreign_run("mics_sim_soi_null", R"("speed_rpm": 1800, "load_nm": 0, "soi_deg_btdc": null, "motored": true)");
-  daemon::ImportOptions i;
+  cli::ImportOptions i;
   i.run_dirs = {dir.string()};
   i.out_log = temp("mics_sim_soi_null.lcmlog").string();
   i.progress = false;
-  i.synthesize_mics = daemon::mic_synthesizer("sim");
+  i.synthesize_mics = cli::mic_synthesizer("sim");
   try {
-    daemon::run_import(i);
+    cli::run_import(i);
     ADD_FAILURE() << "no error";
   } catch (const std::runtime_error& e) {
     const std::string what = e.what();

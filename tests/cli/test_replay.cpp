@@ -16,12 +16,12 @@
 #include <sstream>
 #include <vector>
 
-#include "daemon/cli/hdf5_publisher.hpp"
-#include "daemon/cli/replay_command.hpp"
+#include "cli/hdf5_publisher.hpp"
+#include "cli/replay_command.hpp"
 #include "daemon/cycle_processor.hpp"
 #include "daemon/replay.hpp"
 #include "daemon/report_messages.hpp"
-#include "daemon/cli/watch.hpp"
+#include "cli/watch.hpp"
 #include "noisemon/cycle_report_t.hpp"
 #include "tests/cli/h5py_reader.hpp"
 #include "tests/cli/run_command.hpp"
@@ -244,14 +244,14 @@ TEST(Replay, UnknownLoadAndSoiAreNaNInTheReportsNanInTheCsvAndNaOnTheWatchLines)
   }
 
   // noisemon watch reading the reports (LCM's file provider plays the replay's output log as the network).
-  daemon::WatchOptions w;
+  cli::WatchOptions w;
   w.lcm_url = "file://" + o.out_log + "?speed=0";
   w.channel = o.config.lcm.report_channel;
   w.count = 38;
   w.timeout_s = noisemon::test::allowance_s(2.5);  // the longest silence: opening the log
   w.csv_path = dir + "/watch.csv";
   testing::internal::CaptureStdout();
-  const int status = daemon::run_watch(w);
+  const int status = cli::run_watch(w);
   const std::string printed = testing::internal::GetCapturedStdout();
   ASSERT_EQ(status, 0) << printed;
   std::istringstream lines(printed);
@@ -395,7 +395,7 @@ TEST(Replay, Hdf5OutputHoldsEveryCycleWithItsRunAsTheCsvDoes) {
   o.log_path = path;
   o.progress = false;
   o.csv_path = dir + "/two_runs.csv";
-  o.publishers.push_back(std::make_shared<daemon::Hdf5Publisher>(dir + "/two_runs.h5"));
+  o.publishers.push_back(std::make_shared<cli::Hdf5Publisher>(dir + "/two_runs.h5"));
   const daemon::ReplaySummary s = daemon::run_replay(o);
   o.publishers.clear();  // closes the file
   const nlohmann::json h5 = noisemon::test::read_with_h5py(dir + "/two_runs.h5", dir);
@@ -436,12 +436,12 @@ TEST(Replay, SeveralLogsWithTwoJobsGiveTheCsvOfEachReplayedAlone) {
     alone.push_back(read_bytes(o.csv_path));
   }
   std::filesystem::create_directory(dir + "/csv");
-  daemon::MultiReplayOptions m;
+  cli::MultiReplayOptions m;
   m.logs = logs;
   m.csv_dir = dir + "/csv";
   m.jobs = 2;
   std::vector<std::size_t> done;
-  const auto results = daemon::run_replays(m, [&](const daemon::LogReplayResult& r, std::size_t n, std::size_t total) {
+  const auto results = cli::run_replays(m, [&](const cli::LogReplayResult& r, std::size_t n, std::size_t total) {
     EXPECT_EQ(total, 2u);
     EXPECT_TRUE(r.error.empty()) << r.log << ": " << r.error;
     done.push_back(n);
@@ -460,10 +460,10 @@ TEST(Replay, SeveralLogsOneFailingDoesNotStopTheOthers) {
   const std::vector<std::string> logs{dir + "/bad.lcmlog", dir + "/good.lcmlog"};
   std::ofstream(logs[0]) << "not an LCM log";
   write_mixed_log(logs[1]);
-  daemon::MultiReplayOptions m;
+  cli::MultiReplayOptions m;
   m.logs = logs;
   m.jobs = 2;
-  const auto results = daemon::run_replays(m);
+  const auto results = cli::run_replays(m);
   ASSERT_EQ(results.size(), 2u);
   EXPECT_NE(results[0].error.find(logs[0]), std::string::npos) << results[0].error;
   EXPECT_TRUE(results[1].error.empty()) << results[1].error;
@@ -472,9 +472,9 @@ TEST(Replay, SeveralLogsOneFailingDoesNotStopTheOthers) {
 
 namespace {
 
-std::string multi_replay_error(const daemon::MultiReplayOptions& m) {
+std::string multi_replay_error(const cli::MultiReplayOptions& m) {
   try {
-    daemon::check_multi_replay(m);
+    cli::check_multi_replay(m);
   } catch (const std::invalid_argument& e) {
     return e.what();
   }
@@ -488,10 +488,10 @@ TEST(Replay, SeveralLogsRefuseAmbiguousOutputs) {
   std::filesystem::create_directory(dir + "/other");
   const std::string a = dir + "/a.lcmlog", c = dir + "/c.lcmlog", other_a = dir + "/other/a.lcmlog";
   for (const std::string& log : {a, c, other_a}) write_mixed_log(log);
-  EXPECT_EQ(daemon::replay_output_name(a), "a");
-  EXPECT_EQ(daemon::replay_output_name(dir + "/lcmlog-2026-11-25.00"), "lcmlog-2026-11-25.00");
+  EXPECT_EQ(cli::replay_output_name(a), "a");
+  EXPECT_EQ(cli::replay_output_name(dir + "/lcmlog-2026-11-25.00"), "lcmlog-2026-11-25.00");
 
-  daemon::MultiReplayOptions m;
+  cli::MultiReplayOptions m;
   m.logs = {a, c};
   m.csv_dir = dir + "/cycles.csv";  // a file name, not a directory
   std::string err = multi_replay_error(m);

@@ -9,10 +9,10 @@
 #include <tuple>
 #include <vector>
 
-#include "daemon/report/report_html.hpp"
+#include "cli/report/report_html.hpp"
 
 using nlohmann::json;
-using noisemon::daemon::report_html;
+using noisemon::cli::report::report_html;
 
 namespace {
 
@@ -208,7 +208,7 @@ const double kEdge = std::pow(2.0, 1.0 / 6.0);  // 1/3-octave band centre to edg
 }  // namespace
 
 TEST(ReportHtml, BandPageIsSelfContainedWellFormedAndEscaped) {
-  const std::string html = report_html(band_report());
+  const std::string html = noisemon::cli::report::report_html(band_report());
   EXPECT_EQ(html.rfind("<!DOCTYPE html>", 0), 0u);
   EXPECT_NE(html.find("</html>"), std::string::npos);
   EXPECT_EQ(count(html, "<svg"), count(html, "</svg>"));
@@ -223,7 +223,7 @@ TEST(ReportHtml, BandPageIsSelfContainedWellFormedAndEscaped) {
 }
 
 TEST(ReportHtml, BandPageHasEverySectionAndPlot) {
-  const std::string html = report_html(band_report());
+  const std::string html = noisemon::cli::report::report_html(band_report());
   for (const char* id : {"gap-map", "att-0", "att-1", "band-gap", "mic-offsets", "mic-residuals", "gap-vs-level",
                          "crank-windows", "coherence", "noise-floor"})
     EXPECT_FALSE(svg_by_id(html, id).empty()) << id;
@@ -245,7 +245,7 @@ TEST(ReportHtml, BandPageHasEverySectionAndPlot) {
 }
 
 TEST(ReportHtml, BandPageShowsTheFloorsAndWhatEachCandidateCloses) {
-  const std::string html = report_html(band_report());
+  const std::string html = noisemon::cli::report::report_html(band_report());
   ASSERT_NE(html.find("id=\"floors\""), std::string::npos);
   EXPECT_NE(html.find("<li>cond (2 runs): 2-7 of 10 bands floor-limited from 4000 Hz up</li>"), std::string::npos);
   // Per condition: which floor judged it, stated and estimated floors, the cells at a floor.
@@ -261,7 +261,7 @@ TEST(ReportHtml, BandPageShowsTheFloorsAndWhatEachCandidateCloses) {
 }
 
 TEST(ReportHtml, BandValuesSitWhereTheAxisMappingPutsThem) {
-  const std::string html = report_html(band_report());
+  const std::string html = noisemon::cli::report::report_html(band_report());
   const double lo = 31.5 / kEdge, hi = 16000 * kEdge;  // the band axis: the band edges
 
   // Attenuation (condition 0): measured 80 dB at 1 kHz; the y axis spans [60, 100].
@@ -303,7 +303,7 @@ TEST(ReportHtml, BandValuesSitWhereTheAxisMappingPutsThem) {
 }
 
 TEST(ReportHtml, WaveformPageHasItsFiguresAndPlacesValues) {
-  const std::string html = report_html(waveform_report());
+  const std::string html = noisemon::cli::report::report_html(waveform_report());
   EXPECT_EQ(count(html, "<svg"), count(html, "</svg>"));
   EXPECT_EQ(html.find("http"), std::string::npos);
   for (const char* id : {"band-error", "amplitude-error"}) EXPECT_FALSE(svg_by_id(html, id).empty()) << id;
@@ -331,13 +331,13 @@ TEST(ReportHtml, EmptyOrOddReportsStillRenderAPageSayingWhatIsMissing) {
                         json{{"verdict", {{"effect", nullptr}}}}, json{{"mode", "band"}, {"where", nullptr}},
                         json{{"mode", "waveform"}, {"where", json::array()}, {"test_sets", "x"}}}) {
     std::string html;
-    ASSERT_NO_THROW(html = report_html(j)) << j.dump();
+    ASSERT_NO_THROW(html = noisemon::cli::report::report_html(j)) << j.dump();
     EXPECT_NE(html.find("</html>"), std::string::npos);
     EXPECT_NE(html.find("Missing from this report"), std::string::npos) << j.dump();
     EXPECT_EQ(count(html, "<svg"), count(html, "</svg>"));
   }
-  EXPECT_NE(report_html(json::object()).find("the report is an empty object"), std::string::npos);
-  EXPECT_NE(report_html(json{{"mode", "band"}, {"verdict", {{"effect", "none"}}}}).find("Not in this report: where"),
+  EXPECT_NE(noisemon::cli::report::report_html(json::object()).find("the report is an empty object"), std::string::npos);
+  EXPECT_NE(noisemon::cli::report::report_html(json{{"mode", "band"}, {"verdict", {{"effect", "none"}}}}).find("Not in this report: where"),
             std::string::npos);
 }
 
@@ -365,7 +365,7 @@ TEST(ReportHtml, AnyKeyMissingNullOrOfTheWrongTypeRenders) {
             parent.erase(static_cast<std::size_t>(std::stoul(p.back())));
         }
         std::string html;
-        ASSERT_NO_THROW(html = report_html(j)) << p.to_string() << " variant " << variant;
+        ASSERT_NO_THROW(html = noisemon::cli::report::report_html(j)) << p.to_string() << " variant " << variant;
         ASSERT_EQ(count(html, "<svg"), count(html, "</svg>")) << p.to_string();
         ASSERT_EQ(html.find("<b>x</b>"), std::string::npos) << p.to_string();
       }

@@ -26,7 +26,7 @@
 #include <thread>
 #include <vector>
 
-#include "daemon/cli/band_data.hpp"
+#include "cli/band_data.hpp"
 #include "drivers/formats/run_dir.hpp"
 #include "tests/support/unique_temp.hpp"
 #include "tests/support/required.hpp"
@@ -499,8 +499,8 @@ TEST(SimCommand, BackgroundRunIsTheTestCellAloneAndLoadsAsTheDiagnosisFloor) {
   ASSERT_TRUE(bg.pressure_noise_floor_bar.has_value());
   EXPECT_NEAR(*bg.pressure_noise_floor_bar, floor_bar, 1e-12);
   // The diagnosis loader: a background condition beside the motored reference.
-  const auto data = noisemon::daemon::make_band_dataset(
-      noisemon::daemon::load_recordings({(base / "runs" / "background").string(), (base / "runs" / "motored_idle").string()}));
+  const auto data = noisemon::cli::make_band_dataset(
+      noisemon::cli::load_recordings({(base / "runs" / "background").string(), (base / "runs" / "motored_idle").string()}));
   ASSERT_EQ(data.conditions.size(), 2u);
   for (const auto& c : data.conditions) {
     EXPECT_EQ(c.info.background, c.info.name == "background") << c.info.name;

@@ -11,7 +11,7 @@
 #include <sstream>
 #include <string>
 
-#include "daemon/cli/tdc_command.hpp"
+#include "cli/tdc_command.hpp"
 #include "daemon/config.hpp"
 #include "tests/cli/run_command.hpp"
 #include "tests/support/unique_temp.hpp"
@@ -78,7 +78,7 @@ TEST(TdcCommand, WriteConfigSetsTdcDegAndKeepsTheRest) {
   std::ofstream(with_table) << "[combustion]\npegging = \"intake\"\n\n[engine]\nbore_mm = 86.0\n";
   std::ofstream(without) << "[engine]\nbore_mm = 86.0\n";
   for (const fs::path& p : {with_key, with_table, without}) {
-    noisemon::daemon::write_tdc_deg(p.string(), -1.84);
+    noisemon::cli::write_tdc_deg(p.string(), -1.84);
     const noisemon::daemon::Config c = noisemon::daemon::load_config(p.string());
     EXPECT_NEAR(c.combustion.tdc_deg, -1.84, 1e-9) << p;
     EXPECT_NEAR(c.engine.bore_m, 0.086, 1e-12) << p;

@@ -3,7 +3,7 @@
 
   check_function_length.py [--limit N] [SOURCE_DIR]
 
-SOURCE_DIR (default: the tree this script is in): every .cpp, .hpp and .h file of dsp, model, drivers, daemon and
+SOURCE_DIR (default: the tree this script is in): every .cpp, .hpp and .h file of dsp, model, drivers, daemon, cli and
 their subfolders (tests are not checked). A function's length is the lines of its body, from the line of its
 opening brace to the line of its closing brace; a lambda or a local class inside a function counts toward the
 enclosing function, while the bodies of namespaces, classes, structs, unions and enums are scopes, not functions
@@ -15,7 +15,7 @@ import os
 import re
 import sys
 
-FOLDERS = ["dsp", "model", "drivers", "daemon"]
+FOLDERS = ["dsp", "model", "drivers", "daemon", "cli"]
 EXTENSIONS = (".cpp", ".hpp", ".h")
 DEFAULT_LIMIT = 80
 

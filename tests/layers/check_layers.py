@@ -4,7 +4,7 @@ is declared to depend on, below it; noisemond links neither Ceres nor fitting, d
 
   check_layers.py SOURCE_DIR [BUILD_DIR]
 
-SOURCE_DIR: every #include "<folder>/<file>" of the project's own code (dsp, model, drivers, daemon and their
+SOURCE_DIR: every #include "<folder>/<file>" of the project's own code (dsp, model, drivers, daemon, cli and their
 subfolders; tests are not a layer) must name a folder in ALLOWED[its own folder]. Generated message headers
 ("noisemon/<type>.hpp") belong to msgs. BUILD_DIR (a Ninja tree): noisemond's link command must not name the
 libraries in FORBIDDEN_IN_NOISEMOND. Exit 0 when clean, 1 with one line per violation.
@@ -30,8 +30,8 @@ BASE["drivers/sim"] = ["drivers/comedi", "drivers/formats", "drivers", "model/en
 BASE["daemon"] = ["drivers/sim", "drivers/comedi", "drivers/can", "drivers/lcm", "drivers/log", "drivers/formats",
                   "drivers",
                   "model/engine", "model", "dsp", "msgs"]
-BASE["daemon/report"] = ["model/diagnosis", "model/fit", "model/engine", "model", "dsp"]
-BASE["daemon/cli"] = ["daemon/report", "daemon"] + BASE["daemon"] + ["model/diagnosis", "model/fit"]
+BASE["cli/report"] = ["model/diagnosis", "model/fit", "model/engine", "model", "dsp"]
+BASE["cli"] = ["cli/report", "daemon"] + BASE["daemon"] + ["model/diagnosis", "model/fit"]
 ALLOWED = {folder: set(deps) | {folder} for folder, deps in BASE.items()}
 
 FORBIDDEN_IN_NOISEMOND = ["libceres", "libnoisemon_fit.", "libnoisemon_diagnosis.", "libnoisemon_report.",
@@ -65,7 +65,7 @@ def include_violations(src):
                 if target and target not in ALLOWED[layer]:
                     out.append(f"{layer}/{name}: includes \"{include}\" from {target}, which {layer} may not use")
     # A new folder of code must be given its place before it can hold code.
-    for root in ("dsp", "model", "drivers", "daemon"):
+    for root in ("dsp", "model", "drivers", "daemon", "cli"):
         for dirpath, _, files in os.walk(os.path.join(src, root)):
             rel = os.path.relpath(dirpath, src)
             if any(f.endswith((".cpp", ".hpp")) for f in files) and rel not in ALLOWED:

@@ -7,7 +7,7 @@ src="$(cd "$(dirname "${BASH_SOURCE[0]}")/../.." && pwd)"
 check="$src/tests/layers/check_function_length.py"
 tmp="$(mktemp -d)"
 trap 'rm -rf "$tmp"' EXIT
-mkdir -p "$tmp/dsp" "$tmp/model/engine" "$tmp/drivers" "$tmp/daemon/cli" "$tmp/tests/model"
+mkdir -p "$tmp/dsp" "$tmp/model/engine" "$tmp/drivers" "$tmp/cli" "$tmp/tests/model"
 
 statements() {  # $1 lines of statements
   for ((i = 0; i < $1; ++i)); do echo "  x += $i;"; done
@@ -119,6 +119,6 @@ rm "$tmp/drivers/members.hpp"
 # Subfolders are checked; tests are not.
 function_of 'int run_cli(int argc, char** argv)' 100 >"$tmp/tests/model/test_long.cpp"
 expect_pass
-function_of 'int run_cli(int argc, char** argv)' 100 >"$tmp/daemon/cli/cli.cpp"
-expect_fail 'daemon/cli/cli.cpp:1: run_cli: 100 lines (limit 80)'
+function_of 'int run_cli(int argc, char** argv)' 100 >"$tmp/cli/cli.cpp"
+expect_fail 'cli/cli.cpp:1: run_cli: 100 lines (limit 80)'
 echo "function-length check: passes short functions and long non-functions, fails each long function"
