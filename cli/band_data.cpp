@@ -11,7 +11,7 @@
 namespace noisemon::cli {
 
 LoadedRecording loaded_run(const drivers::RunDir& run, std::int64_t epoch_utime, std::string origin) {
-  LoadedRecording r{drivers::to_recording(run, epoch_utime), std::move(origin)};
+  LoadedRecording r{formats::to_recording(run, epoch_utime), std::move(origin)};
   if (run.pressure_noise_floor_bar) r.pressure_floor_pa = *run.pressure_noise_floor_bar * 1e5;
   const std::size_t n = run.time_s.size();
   if (n >= 2) r.encoder_rate_hz = static_cast<double>(n - 1) / (run.time_s.back() - run.time_s.front());
@@ -68,10 +68,10 @@ std::vector<LoadedRecording> load_recordings(const std::vector<std::string>& pat
       out.push_back(std::move(r));
     } else if (fs::is_regular_file(p, ec)) {
       std::int64_t skipped = 0;
-      std::vector<drivers::Recording> recs = drivers::read_recordings_log(p, {}, &skipped);
+      std::vector<formats::Recording> recs = formats::read_recordings_log(p, {}, &skipped);
       if (note) note(p + ": " + std::to_string(recs.size()) + " recording(s)" +
                      (skipped > 0 ? ", " + std::to_string(skipped) + " damaged event(s) skipped" : ""));
-      for (drivers::Recording& rec : recs) {
+      for (formats::Recording& rec : recs) {
         if (rec.condition.empty()) rec.condition = fs::path(p).stem().string();
         out.push_back({std::move(rec), p});
       }
@@ -83,7 +83,7 @@ std::vector<LoadedRecording> load_recordings(const std::vector<std::string>& pat
   return out;
 }
 
-model::ConditionInfo condition_info(const drivers::Recording& rec, const std::string& fallback_name) {
+model::ConditionInfo condition_info(const formats::Recording& rec, const std::string& fallback_name) {
   model::ConditionInfo info;
   info.name = rec.condition.empty() ? fallback_name : rec.condition;
   if (!rec.operating_points.empty()) {
@@ -118,7 +118,7 @@ model::BandDataset make_band_dataset(const std::vector<LoadedRecording>& recordi
     const auto& group = groups[name];
     std::vector<model::ConditionRecording> parts;
     for (const LoadedRecording* r : group) {
-      const drivers::Recording& rec = r->recording;
+      const formats::Recording& rec = r->recording;
       if (rec.info.mic_count == 0) throw std::runtime_error(r->origin + ": condition " + name + " has no microphones");
       model::ConditionRecording cr;
       cr.pressure_pa = rec.pressure_pa;

@@ -16,13 +16,13 @@
 #include <vector>
 
 #include "cli/cli_support.hpp"
-#include "drivers/formats/recording.hpp"
+#include "cli/formats/recording.hpp"
 #include "model/fit/band_dataset.hpp"
 
 namespace noisemon::cli {
 
 struct LoadedRecording {
-  drivers::Recording recording;
+  formats::Recording recording;
   std::string origin;  // the path it came from (for messages)
   // What only a run directory tells (NaN: unknown, as for a raw LCM log): the pressure chain's commissioned
   // noise floor, Pa rms per encoder sample (run.json's pressure.noise_floor_bar), and the encoder's mean
@@ -52,7 +52,7 @@ model::BandDataset load_band_dataset(const std::vector<std::string>& paths, std:
 std::string condition_names(const model::BandDataset& data);
 
 // The condition of a recording as the dataset sees it (unknown load and SOI: NaN).
-model::ConditionInfo condition_info(const drivers::Recording& rec, const std::string& fallback_name);
+model::ConditionInfo condition_info(const formats::Recording& rec, const std::string& fallback_name);
 // The same with what the run directory told (pressure floor, encoder rate); the origin is the fallback name.
 model::ConditionInfo condition_info(const LoadedRecording& r);
 

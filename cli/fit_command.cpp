@@ -13,7 +13,7 @@
 #include "cli/band_data.hpp"
 #include "cli/cli_support.hpp"
 #include "daemon/params_file.hpp"
-#include "drivers/formats/waveform_csv.hpp"
+#include "cli/formats/waveform_csv.hpp"
 #include "model/fit/band_fit.hpp"
 #include "model/fit/pressure_floor.hpp"
 #include "model/diagnosis/diagnosis.hpp"
@@ -119,7 +119,7 @@ WaveformData load_waveform_data(const std::vector<std::string>& paths, const std
                                 const std::vector<std::string>& holdout, std::size_t settle, std::FILE* note) {
   WaveformData data;
   for (const std::string& path : paths) {
-    drivers::Waveform w = drivers::read_waveform_csv(path);
+    formats::Waveform w = formats::read_waveform_csv(path);
     const std::size_t begin = data.u.size();
     data.u.insert(data.u.end(), w.u.begin(), w.u.end());
     data.y.insert(data.y.end(), w.y.begin(), w.y.end());

@@ -12,7 +12,7 @@
 #include <set>
 #include <stdexcept>
 
-#include "drivers/sim/sim_run.hpp"
+#include "cli/sim_run.hpp"
 #include "drivers/source.hpp"
 
 namespace noisemon::cli {
@@ -38,7 +38,7 @@ class Progress {
     std::fprintf(stderr, "\r\033[K%s %3.0f%%", label_.c_str(), 100.0 * std::clamp(fraction, 0.0, 1.0));
     drawn_ = true;
   }
-  drivers::ProgressFn fn() {
+  formats::ProgressFn fn() {
     if (!enabled_) return {};
     return [this](double f) { show(f); };
   }
@@ -74,12 +74,12 @@ class OutputGuard {
 std::int64_t first_epoch(std::int64_t requested) { return requested != 0 ? requested : drivers::wall_utime(); }
 
 // The next run starts a second after this one ends, so the log's time stamps keep increasing.
-std::int64_t next_epoch(const drivers::Recording& rec) {
+std::int64_t next_epoch(const formats::Recording& rec) {
   const double end_s = static_cast<double>(rec.first_index + static_cast<std::int64_t>(rec.frames())) / drivers::kPipelineRateHz;
   return rec.info.epoch_utime + std::llround(end_s * 1e6) + 1'000'000;
 }
 
-void synthesize(const MicSynthesizer& synth, drivers::Recording& rec) {
+void synthesize(const MicSynthesizer& synth, formats::Recording& rec) {
   if (!synth) return;
   const std::size_t frames = rec.frames();
   synth(rec);
@@ -90,14 +90,14 @@ void synthesize(const MicSynthesizer& synth, drivers::Recording& rec) {
 
 // Cycle reports `noisemon replay` will give: one per pair of consecutive crank wraps (the stretch before the
 // first wrap only warms the filters up; the one after the last never closes).
-std::size_t expected_reports(const drivers::Recording& rec) {
+std::size_t expected_reports(const formats::Recording& rec) {
   std::size_t wraps = 0;
   for (std::size_t i = 1; i < rec.crank_deg.size(); ++i)
     if (rec.crank_deg[i] < rec.crank_deg[i - 1] - 360.0) ++wraps;
   return wraps > 0 ? wraps - 1 : 0;
 }
 
-ImportedRun describe(const std::string& source, const drivers::Recording& rec) {
+ImportedRun describe(const std::string& source, const formats::Recording& rec) {
   return {source, rec.condition, rec.info.epoch_utime, rec.frames(), rec.info.mic_count};
 }
 
@@ -135,9 +135,9 @@ std::string dir_name_for(const std::string& condition, std::size_t index) {
 
 // The motored table's thermodynamic TDC on the tables' scale (about the nominal tdc_deg), for the fired table:
 // the same resolution and (within 2 %) speed, or a clear error naming the file.
-model::MotoredTdc table_tdc(const CycleTableImportOptions& o, const drivers::CycleTable& fired) {
-  const drivers::CycleTable m = drivers::read_cycle_table(o.motored_table);
-  const auto step = [](const drivers::CycleTable& t) {
+model::MotoredTdc table_tdc(const CycleTableImportOptions& o, const formats::CycleTable& fired) {
+  const formats::CycleTable m = formats::read_cycle_table(o.motored_table);
+  const auto step = [](const formats::CycleTable& t) {
     return (t.crank_deg.back() - t.crank_deg.front()) / static_cast<double>(t.crank_deg.size() - 1);
   };
   if (std::abs(step(m) - step(fired)) > 1e-6 * step(fired))
@@ -166,7 +166,7 @@ void note_tdc(const model::MotoredTdc& t, std::vector<std::string>& notes) {
 
 MicSynthesizer mic_synthesizer(const std::string& name) {
   if (name == "sim")
-    return [](drivers::Recording& rec) {
+    return [](formats::Recording& rec) {
       // The virtual engine's acoustic side driven by the imported pressure, with its default installation
       // (thesis microphone layout, linear true block, no effects). The virtual engine is set up with the run's
       // load and SOI: an unknown one is named rather than replaced by a made-up number.
@@ -175,15 +175,15 @@ MicSynthesizer mic_synthesizer(const std::string& name) {
         if (std::isnan(value))
           throw std::invalid_argument(std::string("--mics sim: the virtual engine needs condition.") + key +
                                       ", which is null (unknown)");
-      const drivers::SimRunSpec installation;  // the defaults
-      drivers::synthesize_recording_mics(rec, installation);
+      const cli::SimRunSpec installation;  // the defaults
+      cli::synthesize_recording_mics(rec, installation);
     };
   throw std::invalid_argument("--mics " + name + ": unknown, expected \"sim\"");
 }
 
-model::MotoredTdc motored_table_tdc(const drivers::CycleTable& table, const std::string& file, double nominal_tdc_deg,
+model::MotoredTdc motored_table_tdc(const formats::CycleTable& table, const std::string& file, double nominal_tdc_deg,
                                     double loss_angle_deg) {
-  const bool drop = drivers::drops_pegging_row(table, drivers::PeggingRow::kAuto);
+  const bool drop = formats::drops_pegging_row(table, formats::PeggingRow::kAuto);
   std::vector<std::vector<double>> cycles;
   for (const std::vector<double>& c : table.cycles_bar) cycles.emplace_back(c.begin() + (drop ? 1 : 0), c.end());
   const double step = (table.crank_deg.back() - table.crank_deg.front()) / static_cast<double>(table.crank_deg.size() - 1);
@@ -199,7 +199,7 @@ ImportSummary run_import(const ImportOptions& o) {
   if (o.run_dirs.empty()) throw std::invalid_argument("import: no run directory given");
   ImportSummary sum;
   OutputGuard guard(o.out_log);
-  drivers::RecordingLogWriter writer(o.out_log, o.channels);
+  formats::RecordingLogWriter writer(o.out_log, o.channels);
   Progress progress(o.progress);
   std::int64_t epoch = first_epoch(o.epoch_utime);
   if (!o.motored_run.empty()) {
@@ -211,14 +211,14 @@ ImportSummary run_import(const ImportOptions& o) {
     const std::string& dir = o.run_dirs[i];
     const std::string prefix = "import " + std::to_string(i + 1) + "/" + std::to_string(o.run_dirs.size()) + " " + dir + ":";
     progress.stage(prefix + " reading");
-    drivers::Recording rec;
+    formats::Recording rec;
     {
       drivers::RunDir run = drivers::read_run_dir(dir);
       if (sum.tdc)  // firing TDC at the encoder's tdc: the piston's angle is the encoder's less it
         for (double& a : run.crank_deg) a -= sum.tdc->tdc_by_loss_angle_deg;
       const drivers::RunCondition condition = run.condition;
       progress.stage(prefix + " resampling to 40 kHz");
-      rec = drivers::to_recording(std::move(run), epoch);  // frees the run's samples as they are resampled
+      rec = formats::to_recording(std::move(run), epoch);  // frees the run's samples as they are resampled
       note_unknowns(dir, condition, rec.operating_points.front(), sum.notes);
     }
     try {
@@ -242,8 +242,8 @@ ImportSummary run_import_cycle_table(const CycleTableImportOptions& o) {
   ImportSummary sum;
   Progress progress(o.progress);
   progress.stage("import " + o.table + ": reading");
-  const drivers::CycleTable table = drivers::read_cycle_table(o.table);
-  drivers::CycleTableOptions to = o.table_options;
+  const formats::CycleTable table = formats::read_cycle_table(o.table);
+  formats::CycleTableOptions to = o.table_options;
   if (!o.motored_table.empty()) {
     progress.stage("import " + o.table + ": thermodynamic TDC from " + o.motored_table);
     const model::MotoredTdc tdc = table_tdc(o, table);
@@ -252,12 +252,12 @@ ImportSummary run_import_cycle_table(const CycleTableImportOptions& o) {
     note_tdc(tdc, sum.notes);
   }
   if (to.condition.name.empty()) to.condition.name = fs::path(o.table).stem().string();
-  const drivers::CycleTableConversion conv = drivers::cycle_table_to_run(table, to, o.table);
+  const formats::CycleTableConversion conv = formats::cycle_table_to_run(table, to, o.table);
   progress.stage("import " + o.table + ": resampling to 40 kHz");
-  drivers::Recording rec = drivers::to_recording(conv.run, first_epoch(o.epoch_utime));
+  formats::Recording rec = formats::to_recording(conv.run, first_epoch(o.epoch_utime));
   synthesize(o.synthesize_mics, rec);
   OutputGuard guard(o.out_log);
-  drivers::RecordingLogWriter writer(o.out_log, o.channels);
+  formats::RecordingLogWriter writer(o.out_log, o.channels);
   progress.stage("import " + o.table + ": writing");
   writer.write(rec, progress.fn());
   progress.done();
@@ -284,7 +284,7 @@ ExportSummary run_export(const ExportOptions& o) {
   ExportSummary sum;
   Progress progress(o.progress);
   progress.stage("export " + o.log + ": reading");
-  std::vector<drivers::Recording> recs = drivers::read_recordings_log(o.log, o.channels, nullptr, &sum.stats, progress.fn());
+  std::vector<formats::Recording> recs = formats::read_recordings_log(o.log, o.channels, nullptr, &sum.stats, progress.fn());
   // Name every directory and check them all before writing anything.
   std::vector<fs::path> dirs;
   std::set<std::string> used;
@@ -304,8 +304,8 @@ ExportSummary run_export(const ExportOptions& o) {
       throw std::runtime_error((d / "run.json").string() + ": exists; not overwritten (use --force)");
   for (std::size_t i = 0; i < recs.size(); ++i) {
     progress.stage("export " + dirs[i].string() + ": writing");
-    drivers::write_run_dir(dirs[i], drivers::to_run_dir(recs[i]), o.pressure_units);
-    recs[i] = drivers::Recording{};
+    drivers::write_run_dir(dirs[i], formats::to_run_dir(recs[i]), o.pressure_units);
+    recs[i] = formats::Recording{};
     sum.run_dirs.push_back(dirs[i].string());
   }
   progress.done();

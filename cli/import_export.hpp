@@ -15,8 +15,8 @@
 #include <string>
 #include <vector>
 
-#include "drivers/formats/cycle_table.hpp"
-#include "drivers/formats/recording.hpp"
+#include "cli/formats/cycle_table.hpp"
+#include "cli/formats/recording.hpp"
 #include "model/motored_tdc.hpp"
 
 namespace noisemon::cli {
@@ -24,9 +24,9 @@ namespace noisemon::cli {
 // Fills Recording::mics_pa and the microphone layout of Recording::info from the recording's pressure (and
 // operating point): the hook of `--mics sim`, which synthesizes the acoustic side with the virtual engine.
 // The recording arrives with its pressure on the 40 kHz grid; the step must leave frames() unchanged.
-using MicSynthesizer = std::function<void(drivers::Recording&)>;
+using MicSynthesizer = std::function<void(formats::Recording&)>;
 
-// The synthesizer named on the command line: "sim" (drivers::synthesize_recording_mics with the default
+// The synthesizer named on the command line: "sim" (cli::synthesize_recording_mics with the default
 // SimRunSpec). Throws std::invalid_argument for an unknown name.
 MicSynthesizer mic_synthesizer(const std::string& name);
 
@@ -35,7 +35,7 @@ struct ImportCommon {
   std::int64_t epoch_utime = 0;      // epoch of the first run; 0: the wall clock now. Later runs follow it.
   MicSynthesizer synthesize_mics;    // empty: the runs' own microphones (or none)
   bool progress = true;              // on stderr, when it is a terminal
-  drivers::LogChannels channels;
+  formats::LogChannels channels;
 };
 
 struct ImportOptions : ImportCommon {
@@ -49,7 +49,7 @@ struct ImportOptions : ImportCommon {
 
 struct CycleTableImportOptions : ImportCommon {
   std::string table;
-  drivers::CycleTableOptions table_options;  // speed_rpm required; condition name defaults to the file's stem
+  formats::CycleTableOptions table_options;  // speed_rpm required; condition name defaults to the file's stem
   // Thermodynamic TDC (model/motored_tdc.hpp): a motored table of the same engine, speed and resolution; its peak
   // plus the loss angle moves table_options.tdc_deg. Empty: the table's scale is taken as it is.
   std::string motored_table;
@@ -59,7 +59,7 @@ struct CycleTableImportOptions : ImportCommon {
 
 // A motored cycle table's thermodynamic TDC on its own scale (nominal TDC at nominal_tdc_deg; the pegging row, when
 // there is one, left out); errors name the file.
-model::MotoredTdc motored_table_tdc(const drivers::CycleTable& table, const std::string& file, double nominal_tdc_deg,
+model::MotoredTdc motored_table_tdc(const formats::CycleTable& table, const std::string& file, double nominal_tdc_deg,
                                     double loss_angle_deg);
 
 struct ImportedRun {
@@ -87,12 +87,12 @@ struct ExportOptions {
   std::string pressure_units = "bar";
   bool force = false;     // overwrite run directories that already exist
   bool progress = true;
-  drivers::LogChannels channels;
+  formats::LogChannels channels;
 };
 
 struct ExportSummary {
   std::vector<std::string> run_dirs;
-  drivers::LogReadStats stats;
+  formats::LogReadStats stats;
 };
 
 // One run directory per recording of the log: out_dir itself when there is one; otherwise out_dir/<name>/,

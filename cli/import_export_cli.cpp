@@ -113,9 +113,9 @@ int ImportExportCommands::import_command() {
     table_.synthesize_mics = synth;
     table_.table_options.condition.speed_rpm = table_.table_options.speed_rpm;
     if (rail_bar_ >= 0) table_.table_options.condition.rail_pressure_bar = rail_bar_;
-    table_.table_options.pegging = pegging_ == "first-row" ? drivers::PeggingRow::kFirstRow
-                                   : pegging_ == "none"    ? drivers::PeggingRow::kNone
-                                                           : drivers::PeggingRow::kAuto;
+    table_.table_options.pegging = pegging_ == "first-row" ? formats::PeggingRow::kFirstRow
+                                   : pegging_ == "none"    ? formats::PeggingRow::kNone
+                                                           : formats::PeggingRow::kAuto;
     sum = run_import_cycle_table(table_);
   } else {
     dirs_.synthesize_mics = synth;

@@ -16,7 +16,7 @@
 #include "cli/cli_support.hpp"
 #include "daemon/params_file.hpp"
 #include "drivers/formats/run_dir.hpp"
-#include "drivers/sim/sim_run.hpp"
+#include "cli/sim_run.hpp"
 #include "model/engine/effects.hpp"
 
 namespace noisemon::cli {
@@ -80,7 +80,7 @@ namespace {
 
 struct Job {
   std::string name, dir;
-  drivers::SimCondition condition;
+  cli::SimCondition condition;
   std::string pressure_dir;
   bool background = false;
 };
@@ -99,7 +99,7 @@ model::BlockParams true_model(const SimOptions& o, std::string& model_name) {
 
 // The test cell of the campaign: realistic by default, the pressure floor as given.
 drivers::SimConfig campaign_engine(const SimOptions& o) {
-  drivers::SimConfig e = drivers::SimRunSpec::default_engine();
+  drivers::SimConfig e = cli::SimRunSpec::default_engine();
   e.encoder_resolution_deg = o.encoder_deg;
   if (!(o.pressure_floor_bar >= 0.0 && o.pressure_floor_bar <= 10.0))
     throw std::invalid_argument("--pressure-floor must be in [0, 10] bar");
@@ -113,7 +113,7 @@ drivers::SimConfig campaign_engine(const SimOptions& o) {
 
 std::vector<Job> make_jobs(const SimOptions& o) {
   std::vector<Job> jobs;
-  for (const auto& c : drivers::resolve_conditions(o.conditions)) jobs.push_back({c.name, c.name, c, "", false});
+  for (const auto& c : cli::resolve_conditions(o.conditions)) jobs.push_back({c.name, c.name, c, "", false});
   for (std::size_t i = 0; i < o.pressure_dirs.size(); ++i) {
     const fs::path p(o.pressure_dirs[i]);
     if (!fs::is_regular_file(p / "run.json")) throw std::invalid_argument("--pressure " + p.string() + ": no run.json there");
@@ -126,8 +126,8 @@ std::vector<Job> make_jobs(const SimOptions& o) {
     jobs.push_back(std::move(job));
   }
   if (o.background_run) {
-    const std::string name(drivers::kBackgroundRunName);
-    jobs.push_back({name, name, drivers::resolve_conditions({"motored_idle"}).front(), "", true});
+    const std::string name(cli::kBackgroundRunName);
+    jobs.push_back({name, name, cli::resolve_conditions({"motored_idle"}).front(), "", true});
   }
   for (std::size_t i = 0; i < jobs.size(); ++i)
     for (std::size_t j = 0; j < i; ++j)
@@ -163,19 +163,19 @@ json test_cell_json(const drivers::SimConfig& e, bool ideal) {
 }
 
 // One run: generated (or driven by a given pressure) and its clipping noted.
-drivers::RunDir generate(const Job& job, drivers::SimRunSpec& spec, SimSummary& sum) {
-  drivers::SimRunStats stats;
+drivers::RunDir generate(const Job& job, cli::SimRunSpec& spec, SimSummary& sum) {
+  cli::SimRunStats stats;
   drivers::RunDir run;
   if (job.background) {
     spec.condition = job.condition;
-    run = drivers::simulate_background_run(spec, &stats);
+    run = cli::simulate_background_run(spec, &stats);
   } else if (job.pressure_dir.empty()) {
     spec.condition = job.condition;
-    run = drivers::simulate_run(spec, &stats);
+    run = cli::simulate_run(spec, &stats);
   } else {
     const drivers::RunDir given = drivers::read_run_dir(job.pressure_dir);
     try {
-      run = drivers::simulate_acoustics(given, spec);
+      run = cli::simulate_acoustics(given, spec);
     } catch (const std::exception& e) {
       throw std::runtime_error("--pressure " + job.pressure_dir + ": " + e.what());
     }
@@ -200,10 +200,10 @@ SimSummary run_sim(const SimOptions& o) {
   std::string model_name;
   const model::BlockParams true_block = true_model(o, model_name);
   if (effects.mic_gain_db != 0.0 && o.pressure_dirs.empty() &&
-      static_cast<std::uint32_t>(effects.mic_gain_mic) > drivers::SimRunSpec::default_engine().mic_count)
+      static_cast<std::uint32_t>(effects.mic_gain_mic) > cli::SimRunSpec::default_engine().mic_count)
     throw std::invalid_argument("effect mic_gain: microphone " + std::to_string(effects.mic_gain_mic) + " does not exist (the layout has " +
-                                std::to_string(drivers::SimRunSpec::default_engine().mic_count) + ")");
-  drivers::SimRunSpec base;
+                                std::to_string(cli::SimRunSpec::default_engine().mic_count) + ")");
+  cli::SimRunSpec base;
   base.cycles = o.cycles;
   base.effects = effects;
   base.true_block = true_block;
@@ -218,8 +218,8 @@ SimSummary run_sim(const SimOptions& o) {
   json runs = json::array();
   for (std::size_t k = 0; k < jobs.size(); ++k) {
     const Job& job = jobs[k];
-    drivers::SimRunSpec spec = base;
-    spec.seed = drivers::condition_seed(o.seed, job.name);
+    cli::SimRunSpec spec = base;
+    spec.seed = cli::condition_seed(o.seed, job.name);
     progress.show(k, jobs.size(), job.name, "generating");
     double t0 = cpu_s();
     const drivers::RunDir run = generate(job, spec, sum);

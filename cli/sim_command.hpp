@@ -16,7 +16,7 @@ class App;
 namespace noisemon::cli {
 
 struct SimOptions {
-  std::vector<std::string> conditions;      // names or "all" (drivers::thesis_conditions)
+  std::vector<std::string> conditions;      // names or "all" (cli::thesis_conditions)
   std::vector<std::string> effects;         // NAME[=MAGNITUDE][,key=value...] (model/engine/effects.hpp)
   std::vector<std::string> pressure_dirs;   // instead of conditions: run directories whose pressure drives the sim
   int cycles = 40;

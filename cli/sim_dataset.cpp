@@ -1,27 +1,27 @@
 #include "cli/sim_dataset.hpp"
 
 #include "cli/band_data.hpp"
-#include "drivers/formats/recording.hpp"
+#include "cli/formats/recording.hpp"
 
 namespace noisemon::cli {
 
 model::BandDataset simulate_band_dataset(const SimCampaign& campaign) {
   std::vector<LoadedRecording> recordings;
   std::int64_t epoch = 0;
-  std::vector<drivers::SimCondition> conditions = campaign.conditions;
-  if (campaign.background_run) conditions.push_back(drivers::resolve_conditions({"motored_idle"}).front());
+  std::vector<cli::SimCondition> conditions = campaign.conditions;
+  if (campaign.background_run) conditions.push_back(cli::resolve_conditions({"motored_idle"}).front());
   for (std::size_t k = 0; k < conditions.size(); ++k) {
     const bool background = campaign.background_run && k + 1 == conditions.size();
-    const drivers::SimCondition& c = conditions[k];
-    drivers::SimRunSpec spec;
+    const cli::SimCondition& c = conditions[k];
+    cli::SimRunSpec spec;
     spec.condition = c;
     spec.cycles = campaign.cycles;
     spec.effects = campaign.effects;
     spec.true_block = campaign.true_block;
-    spec.seed = drivers::condition_seed(campaign.seed, background ? drivers::kBackgroundRunName : c.name);
+    spec.seed = cli::condition_seed(campaign.seed, background ? cli::kBackgroundRunName : c.name);
     spec.setup_seed = campaign.setup_seed;
     spec.engine = campaign.engine;
-    drivers::RunDir run = background ? drivers::simulate_background_run(spec) : drivers::simulate_run(spec);
+    drivers::RunDir run = background ? cli::simulate_background_run(spec) : cli::simulate_run(spec);
     if (campaign.modify) campaign.modify(run);
     // As load_recordings reads a run directory: the configured pressure floor travels with the recording.
     LoadedRecording r = loaded_run(run, epoch, "sim:" + run.condition.name);

@@ -10,8 +10,8 @@
 #include <stdexcept>
 
 #include "cli/import_export.hpp"
-#include "drivers/formats/cycle_table.hpp"
-#include "drivers/formats/recording.hpp"
+#include "cli/formats/cycle_table.hpp"
+#include "cli/formats/recording.hpp"
 #include "drivers/formats/run_dir.hpp"
 #include "drivers/formats/run_dir.hpp"
 
@@ -54,10 +54,10 @@ model::MotoredTdc motored_run_tdc(const std::string& path, double loss_angle_deg
   if (std::filesystem::is_directory(path)) {
     run = drivers::read_run_dir(path);
   } else {  // a raw log the daemon recorded while motoring: its first run, unwrapped as export writes it
-    const std::vector<drivers::Recording> recs = drivers::read_recordings_log(path);
+    const std::vector<formats::Recording> recs = formats::read_recordings_log(path);
     if (recs.front().operating_points.front().motored == false && recs.front().operating_points.front().soi_deg_btdc > 0)
       throw std::runtime_error(path + ": the log's first run was fired (its operating point); record a motored run");
-    run = drivers::to_run_dir(recs.front());
+    run = formats::to_run_dir(recs.front());
   }
   if (run.condition.motored_known && !run.condition.motored)
     throw std::runtime_error(path + ": run.json says the engine was fired; give a motored run");
@@ -123,7 +123,7 @@ int TdcCommand::run() {
       return 2;
     }
     if (!table_.empty()) {
-      print(table_, motored_table_tdc(drivers::read_cycle_table(table_), table_, table_tdc_deg_, loss_angle_deg_),
+      print(table_, motored_table_tdc(formats::read_cycle_table(table_), table_, table_tdc_deg_, loss_angle_deg_),
             "the table's scale");
       return 0;
     }

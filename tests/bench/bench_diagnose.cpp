@@ -18,7 +18,7 @@ const noisemon::model::BandDataset& campaign() {
   static const noisemon::model::BandDataset data = [] {
     const auto t0 = std::chrono::steady_clock::now();
     noisemon::cli::SimCampaign c;
-    c.conditions = noisemon::drivers::thesis_conditions();
+    c.conditions = noisemon::cli::thesis_conditions();
     c.cycles = 40;
     // NOISEMON_BENCH_EFFECT=NAME[=MAGNITUDE] (or "none") swaps the withheld effect, for a quick look at a verdict.
     const char* env = std::getenv("NOISEMON_BENCH_EFFECT");

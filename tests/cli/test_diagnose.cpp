@@ -54,7 +54,7 @@ struct Cell {
 
 model::BandDataset campaign(const std::vector<std::string>& effects, const Cell& cell = {}) {
   cli::SimCampaign c;
-  for (const drivers::SimCondition& k : drivers::thesis_conditions())
+  for (const cli::SimCondition& k : cli::thesis_conditions())
     if (cell.motored || !k.motored) c.conditions.push_back(k);
   c.cycles = kCycles;
   c.effects = model::parse_effects(effects);
@@ -278,7 +278,7 @@ TEST(Diagnose, ThesisProtocolOnTheThesisNonlinearSpringDamperNamesBothCubicTerms
   // with the realistic one (floors, gas ringing) the pair closes too little under this protocol
   // (docs/diagnosis.md, known limits).
   cli::SimCampaign c;
-  c.conditions = drivers::thesis_conditions();
+  c.conditions = cli::thesis_conditions();
   c.cycles = kCycles;
   c.engine = drivers::with_ideal_cell(c.engine);
   c.true_block = model::preset("nl_spring_damper");

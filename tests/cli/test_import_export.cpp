@@ -28,7 +28,7 @@
 #include "cli/import_export.hpp"
 #include "daemon/replay.hpp"
 #include "dsp/resample.hpp"
-#include "drivers/formats/cycle_table.hpp"
+#include "cli/formats/cycle_table.hpp"
 #include "noisemon/cycle_report_t.hpp"
 #include "tests/daemon/csv_column.hpp"
 #include "tests/support/unique_temp.hpp"
@@ -110,7 +110,7 @@ double band_mean_square(const std::vector<double>& x, double fs, double f_lo, do
 // The table's samples of the pipeline cycle k, [720 k - 360, 720 k + 360): column k whole, its rows past +360 deg
 // (its next intake) first, then the rest from -180 deg; the pegging row, not a sample, replaced by the mean of its
 // neighbours (the column's own last row and its second) as the importer documents.
-std::vector<double> table_cycle_pa(const drivers::CycleTable& t, long k) {
+std::vector<double> table_cycle_pa(const cli::formats::CycleTable& t, long k) {
   const std::vector<double>& col = t.cycles_bar[static_cast<std::size_t>(k)];
   const std::size_t rows = t.crank_deg.size();
   std::vector<double> x;
@@ -130,14 +130,14 @@ long cycle_of(const noisemon::cycle_report_t& r) {
 }
 
 struct TableRun {
-  drivers::CycleTable table;
+  cli::formats::CycleTable table;
   std::vector<noisemon::cycle_report_t> reports;
   fs::path log;
 };
 
 TableRun import_and_replay(const std::string& file, const std::string& name, bool motored) {
   TableRun r;
-  r.table = drivers::read_cycle_table(file);
+  r.table = cli::formats::read_cycle_table(file);
   r.log = import_table(file, name, motored);
   r.reports = replay(r.log);
   return r;
@@ -287,9 +287,9 @@ TEST_F(YanmarTables, FiredIsLouderThanMotoredInTheCombustionBands) {
 
 TEST_F(YanmarTables, ImportedPeakPressureMatchesTheTable) {
   for (const TableRun* t : {fired_, motored_}) {
-    const auto recs = drivers::read_recordings_log(t->log);
+    const auto recs = cli::formats::read_recordings_log(t->log);
     ASSERT_EQ(recs.size(), 1u);
-    const drivers::Recording& rec = recs[0];
+    const cli::formats::Recording& rec = recs[0];
     // Each stretch between crank wraps is pipeline cycle k (unwrapped -360 + 720 k ...): its firing TDC is
     // table column k's, where the peak pressure is.
     long k = 0;
@@ -512,7 +512,7 @@ TEST_F(YanmarTables, SeveralRunsInOneLogReplayAsSeparateSessions) {
 
 TEST(ImportExport, RecordingWithMicrophonesExportsAndImportsToTheSameReports) {
   // 1.5 s at 2400 rpm: a pressure peak per cycle and three noisy microphones (at 40 kHz: the export's rate).
-  drivers::Recording rec;
+  cli::formats::Recording rec;
   rec.condition = "synthetic";
   rec.info.epoch_utime = kEpoch;
   rec.info.mic_count = 3;
@@ -536,7 +536,7 @@ TEST(ImportExport, RecordingWithMicrophonesExportsAndImportsToTheSameReports) {
   op.rail_pressure_bar = 600;
   rec.operating_points = {op};
   const fs::path log = temp("synthetic.lcmlog");
-  drivers::write_recordings_log(log, {rec});
+  cli::formats::write_recordings_log(log, {rec});
   const auto before = replay(log);
   ASSERT_GT(before.size(), 25u);
 
@@ -626,13 +626,13 @@ TEST(ImportExport, MicsSynthesizerHookFillsAPressureOnlyImport) {
   o.epoch_utime = kEpoch;
   o.progress = false;
   o.table_options.speed_rpm = kRpm;
-  o.synthesize_mics = [](drivers::Recording& r) {
+  o.synthesize_mics = [](cli::formats::Recording& r) {
     r.info.mic_count = 1;
     r.info.mic_positions_m = {{0, 0, 1.75}};
     r.mics_pa.assign(r.frames(), 0.01);
   };
   cli::run_import_cycle_table(o);
-  const auto recs = drivers::read_recordings_log(o.out_log);
+  const auto recs = cli::formats::read_recordings_log(o.out_log);
   ASSERT_EQ(recs.size(), 1u);
   EXPECT_EQ(recs[0].info.mic_count, 1u);
   EXPECT_EQ(recs[0].mics_pa.size(), recs[0].frames());
@@ -736,7 +736,7 @@ TEST(ImportNulls, NullSpeedIsMeasuredFromTheEncoderAndSaidSo) {
   const fs::path log = temp("speed_null.lcmlog");
   const cli::ImportSummary sum = import_dir(dir, log);
   EXPECT_NE(all_notes(sum).find("measured from the encoder"), std::string::npos) << all_notes(sum);
-  const auto recs = drivers::read_recordings_log(log);
+  const auto recs = cli::formats::read_recordings_log(log);
   ASSERT_EQ(recs.size(), 1u);
   ASSERT_EQ(recs[0].operating_points.size(), 1u);
   const double rpm = recs[0].operating_points[0].speed_rpm;

@@ -1,9 +1,9 @@
-// libFuzzer target: reading a raw LCM log back into recordings (drivers::read_recordings_log, what
+// libFuzzer target: reading a raw LCM log back into recordings (cli::formats::read_recordings_log, what
 // `noisemon export` and `noisemon diagnose` read). Damaged events are skipped and counted; a log it cannot use
 // is refused with an error naming the file.
 #include <exception>
 
-#include "drivers/formats/recording.hpp"
+#include "cli/formats/recording.hpp"
 #include "fuzz_util.hpp"
 
 using noisemon::fuzz::fail;
@@ -13,7 +13,7 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   noisemon::fuzz::write_file(path, data, size);
   try {
     std::int64_t skipped = -1;
-    const auto recordings = noisemon::drivers::read_recordings_log(path, {}, &skipped);
+    const auto recordings = noisemon::cli::formats::read_recordings_log(path, {}, &skipped);
     if (skipped < 0) fail("skipped count not reported");
     if (recordings.empty()) fail("no recording and no error");
     for (const auto& r : recordings) {

@@ -4,7 +4,7 @@
 #include <cmath>
 #include <exception>
 
-#include "drivers/formats/recording.hpp"
+#include "cli/formats/recording.hpp"
 #include "drivers/formats/run_dir.hpp"
 #include "fuzz_util.hpp"
 #include "valid_inputs.hpp"
@@ -60,7 +60,7 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   }
   check_accepted(run);
   try {
-    const noisemon::drivers::Recording rec = noisemon::drivers::to_recording(run, 1'700'000'000'000'000);
+    const noisemon::cli::formats::Recording rec = noisemon::cli::formats::to_recording(run, 1'700'000'000'000'000);
     if (rec.crank_deg.size() != rec.frames() || rec.mics_pa.size() != rec.frames() * rec.info.mic_count)
       fail("recording streams of different lengths");
     if (!all_finite(rec.pressure_pa) || !all_finite(rec.crank_deg) || !all_finite(rec.mics_pa))

@@ -31,7 +31,8 @@ BASE["daemon"] = ["drivers/sim", "drivers/comedi", "drivers/can", "drivers/lcm",
                   "drivers",
                   "model/engine", "model", "dsp", "msgs"]
 BASE["cli/report"] = ["model/diagnosis", "model/fit", "model/engine", "model", "dsp"]
-BASE["cli"] = ["cli/report", "daemon"] + BASE["daemon"] + ["model/diagnosis", "model/fit"]
+BASE["cli/formats"] = ["drivers/formats", "drivers", "dsp", "msgs"]
+BASE["cli"] = ["cli/report", "cli/formats", "daemon"] + BASE["daemon"] + ["model/diagnosis", "model/fit"]
 ALLOWED = {folder: set(deps) | {folder} for folder, deps in BASE.items()}
 
 FORBIDDEN_IN_NOISEMOND = ["libceres", "libnoisemon_fit.", "libnoisemon_diagnosis.", "libnoisemon_report.",

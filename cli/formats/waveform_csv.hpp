@@ -12,7 +12,7 @@
 #include <string_view>
 #include <vector>
 
-namespace noisemon::drivers {
+namespace noisemon::cli::formats {
 
 struct Waveform {
   std::vector<double> u;  // input, one per sample
@@ -29,4 +29,4 @@ Waveform parse_waveform_csv(std::string_view text, const std::string& file);
 // Throws WaveformCsvError naming the file when it cannot be read or holds no data row.
 Waveform read_waveform_csv(const std::string& path);
 
-}  // namespace noisemon::drivers
+}  // namespace noisemon::cli::formats

@@ -9,10 +9,11 @@
 #include <filesystem>
 #include <string>
 
-#include "drivers/formats/cycle_table.hpp"
+#include "cli/formats/cycle_table.hpp"
 #include "tests/support/required.hpp"
 
 using namespace noisemon::drivers;
+using namespace noisemon::cli::formats;
 
 namespace {
 

@@ -12,7 +12,7 @@
 #include "drivers/source.hpp"
 #include "noisemon/raw_block_t.hpp"
 
-namespace noisemon::drivers {
+namespace noisemon::cli::formats {
 
 inline constexpr std::size_t kEdgeValues = 3;
 inline constexpr std::size_t kEdgeInstant = 0, kEdgeCrank = 1, kEdgePressure = 2;
@@ -33,4 +33,4 @@ struct EdgeBlock {
 // Appends the edges of the blocks (sorted by first_index) that begin in [from, to) to out.
 void gather_edges(std::span<const EdgeBlock> blocks, std::int64_t from, std::int64_t to, std::vector<double>& out);
 
-}  // namespace noisemon::drivers
+}  // namespace noisemon::cli::formats

@@ -15,12 +15,12 @@
 #include "drivers/formats/run_dir.hpp"
 #include "drivers/source.hpp"
 
-namespace noisemon::drivers {
+namespace noisemon::cli::formats {
 
 struct Recording {
   std::string condition;             // the run's condition name ("" when unknown)
   std::string source = "import";     // session_t source
-  StreamInfo info;                   // epoch, microphones, radius, acoustic delay
+  drivers::StreamInfo info;                   // epoch, microphones, radius, acoustic delay
   std::int64_t first_index = 0;      // 40 kHz grid index of frame 0 of both streams
   std::vector<double> pressure_pa;   // one per frame
   std::vector<double> crank_deg;     // one per frame, wrapped to [-360, 360) as on the pressure stream
@@ -28,7 +28,7 @@ struct Recording {
   // The crank-angle stream (info.pressure_angle_step_deg > 0): the encoder edges within the frames, frame-major,
   // kEdgeValues values each (angle_edges.hpp); empty without one.
   std::vector<double> angle_edges;
-  std::vector<OperatingPoint> operating_points;  // at least one; utime on the recording's time base
+  std::vector<drivers::OperatingPoint> operating_points;  // at least one; utime on the recording's time base
 
   std::size_t frames() const { return pressure_pa.size(); }
 };
@@ -45,21 +45,21 @@ struct Recording {
 // - Both streams are cut to the stretch where both exist and the resamplers have full support (the first and
 //   last few hundred microseconds of the pressure are lost); operating_points holds one point from the
 //   run's condition (operating_point_of). Throws RunDirError when nothing is left or the run is inconsistent.
-Recording to_recording(const RunDir& run, std::int64_t epoch_utime);
+Recording to_recording(const drivers::RunDir& run, std::int64_t epoch_utime);
 // The same, freeing the run's sample columns (time_s, crank_deg, pressure_pa, mic_pa) as soon as they are
 // resampled: the run keeps its condition and microphone layout, its columns are left empty.
-Recording to_recording(RunDir&& run, std::int64_t epoch_utime);
+Recording to_recording(drivers::RunDir&& run, std::int64_t epoch_utime);
 // The operating point of a run's condition: unknown load, SOI and rail pressure stay NaN; an unknown speed
 // (NaN) is measured from the encoder (encoder_speed_rpm: the mean over the run); an unknown `motored` is
 // published as false (the message's field is a boolean; RunCondition::motored_known keeps the difference).
-OperatingPoint operating_point_of(const RunDir& run, std::int64_t utime);
+drivers::OperatingPoint operating_point_of(const drivers::RunDir& run, std::int64_t utime);
 // 40 kHz -> run directory: one pressure row per frame, time_s = 0 at the recording's first frame (mics.wav's
 // t = 0), crank unwrapped from the first frame's cycle (cycle 0); mics.wav at 40 kHz. The condition's numbers
 // come from the first operating point (a run directory has one condition); unknown ones (NaN) stay unknown
 // and are written as null.
-RunDir to_run_dir(const Recording& rec);
+drivers::RunDir to_run_dir(const Recording& rec);
 
-using LogChannels = StreamChannels;
+using LogChannels = drivers::StreamChannels;
 
 // Progress of long conversions: fraction done, 0..1.
 using ProgressFn = std::function<void(double fraction)>;
@@ -112,4 +112,4 @@ std::vector<Recording> read_recordings_log(const std::uint8_t* data, std::size_t
                                            const LogChannels& channels = {}, std::int64_t* skipped = nullptr,
                                            LogReadStats* stats = nullptr);
 
-}  // namespace noisemon::drivers
+}  // namespace noisemon::cli::formats

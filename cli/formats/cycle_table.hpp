@@ -35,7 +35,7 @@
 
 #include "drivers/formats/run_dir.hpp"
 
-namespace noisemon::drivers {
+namespace noisemon::cli::formats {
 
 struct CycleTable {
   std::vector<double> crank_deg;              // one per row, strictly increasing, uniform step
@@ -60,11 +60,11 @@ struct CycleTableOptions {
   double speed_rpm = 0.0;        // required: the speed the cycles were recorded at
   double tdc_deg = 0.0;          // table crank angle of firing TDC (0 for the Yanmar tables, 360 for 0..720 tables)
   PeggingRow pegging = PeggingRow::kAuto;
-  RunCondition condition;        // name, load, SOI, rail pressure, motored (speed_rpm is taken from above)
+  drivers::RunCondition condition;        // name, load, SOI, rail pressure, motored (speed_rpm is taken from above)
 };
 
 struct CycleTableConversion {
-  RunDir run;
+  drivers::RunDir run;
   bool pegging_row_dropped = false;
   std::size_t cycles = 0;
 };
@@ -73,4 +73,4 @@ struct CycleTableConversion {
 CycleTableConversion cycle_table_to_run(const CycleTable& table, const CycleTableOptions& options,
                                         const std::string& file);
 
-}  // namespace noisemon::drivers
+}  // namespace noisemon::cli::formats

@@ -1,4 +1,4 @@
-#include "drivers/sim/sim_run.hpp"
+#include "cli/sim_run.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -7,18 +7,18 @@
 #include <stdexcept>
 #include <tuple>
 
-#include "drivers/formats/recording.hpp"
+#include "cli/formats/recording.hpp"
 #include "drivers/sim/sim_generators.hpp"
 #include "dsp/resample.hpp"
 #include "model/engine/pressure_chain.hpp"
 #include "model/engine/random.hpp"
 #include "model/engine/virtual_engine.hpp"
 
-namespace noisemon::drivers {
+namespace noisemon::cli {
 
 namespace {
 
-constexpr double kPreRollS = sim::kPreRollS;  // virtual engine run before t = 0 (grid aligned)
+constexpr double kPreRollS = drivers::sim::kPreRollS;  // virtual engine run before t = 0 (grid aligned)
 constexpr std::size_t kRenderBatch = 4096;    // microphone frames per render call
 
 std::string fmt(double v) {
@@ -28,8 +28,8 @@ std::string fmt(double v) {
 }
 
 // The sim configuration of a spec: its `engine` with the spec's operating point, true block, effects and seed.
-SimConfig run_config(const SimRunSpec& spec) {
-  SimConfig c = spec.engine;
+drivers::SimConfig run_config(const SimRunSpec& spec) {
+  drivers::SimConfig c = spec.engine;
   c.speed_rpm = spec.condition.speed_rpm;
   c.load_nm = spec.condition.load_nm;
   c.soi_deg_btdc = spec.condition.soi_deg_btdc;
@@ -41,7 +41,7 @@ SimConfig run_config(const SimRunSpec& spec) {
 }
 
 // Renders `frames` microphone frames after skipping `skip` (the pre-roll) into run.mic_pa.
-void render_mics(model::VirtualEngine& engine, model::PressureFeed& feed, std::int64_t skip, std::int64_t frames, RunDir& run) {
+void render_mics(model::VirtualEngine& engine, model::PressureFeed& feed, std::int64_t skip, std::int64_t frames, drivers::RunDir& run) {
   const std::size_t m = engine.mic_count();
   std::vector<double> buf(kRenderBatch * m);
   while (skip > 0) {
@@ -63,8 +63,8 @@ void render_mics(model::VirtualEngine& engine, model::PressureFeed& feed, std::i
 // way: both walk forward in crank angle, so one engine-cycle cache serves both (each cycle is computed once).
 class RunFeed final : public model::PressureFeed {
  public:
-  RunFeed(const SimConfig& config, double t0_s, double rate_hz, int cycles, RunDir& run)
-      : kin_(sim::crank_kinematics(config)), cache_(config), t0_(t0_s), rate_(rate_hz), run_(run) {
+  RunFeed(const drivers::SimConfig& config, double t0_s, double rate_hz, int cycles, drivers::RunDir& run)
+      : kin_(drivers::sim::crank_kinematics(config)), cache_(config), t0_(t0_s), rate_(rate_hz), run_(run) {
     // Encoder sample m at -360 + m * resolution; for resolutions 1/k deg, m / k keeps the CSV short.
     const double res = config.encoder_resolution_deg;
     const double per_deg = 1.0 / res;
@@ -99,9 +99,9 @@ class RunFeed final : public model::PressureFeed {
 
  private:
   model::CrankKinematics kin_;
-  sim::EngineCycleCache cache_;
+  drivers::sim::EngineCycleCache cache_;
   double t0_, rate_;
-  RunDir& run_;
+  drivers::RunDir& run_;
   bool divide_ = false;
   double per_deg_ = 1.0, res_ = 0.1;
   std::int64_t next_ = 0, end_ = 0;
@@ -126,7 +126,7 @@ class ArrayFeed final : public model::PressureFeed {
 };
 
 void check_config(const SimRunSpec& spec) {
-  const SimConfig& c = spec.engine;
+  const drivers::SimConfig& c = spec.engine;
   if (!(spec.condition.speed_rpm > 0.0 && spec.condition.speed_rpm <= 10000.0))
     throw std::invalid_argument("sim run " + spec.condition.name + ": speed " + fmt(spec.condition.speed_rpm) + " rpm outside (0, 10000]");
   if (!(spec.condition.soi_deg_btdc >= 0.0 && spec.condition.soi_deg_btdc <= 60.0))
@@ -142,14 +142,14 @@ void check_config(const SimRunSpec& spec) {
 
 }  // namespace
 
-SimConfig SimRunSpec::default_engine() {
-  SimConfig c;
+drivers::SimConfig SimRunSpec::default_engine() {
+  drivers::SimConfig c;
   c.encoder_resolution_deg = 0.2;
   return c;
 }
 
 std::vector<SimCondition> thesis_conditions() {
-  const double full_load = SimConfig{}.full_load_nm;
+  const double full_load = drivers::SimConfig{}.full_load_nm;
   std::vector<SimCondition> out;
   for (const auto& [prefix, rpm, load] : {std::tuple{"idle", 3050.0, 0.0}, std::tuple{"full", 3450.0, full_load}})
     for (int soi : {12, 15, 18, 21, 24})
@@ -194,8 +194,8 @@ namespace {
 // The microphone layout and the measured pressure of a generated run: the pressure chain on every encoder sample
 // (counter-based on the sample index), the configured floor recorded (without the transducer_noise effect: the
 // unknown a diagnosis must find).
-void finish_run(const SimRunSpec& spec, const SimConfig& config, const model::VirtualEngineConfig& vcfg,
-                const model::VirtualEngine& engine, RunDir& run, SimRunStats* stats) {
+void finish_run(const SimRunSpec& spec, const drivers::SimConfig& config, const model::VirtualEngineConfig& vcfg,
+                const model::VirtualEngine& engine, drivers::RunDir& run, SimRunStats* stats) {
   model::PressureChain chain(config.pressure_chain, spec.effects, spec.seed);
   chain.measure(0, run.pressure_pa.data(), run.pressure_pa.size());
   run.pressure_noise_floor_bar = config.pressure_chain.floor_bar();
@@ -210,8 +210,8 @@ void finish_run(const SimRunSpec& spec, const SimConfig& config, const model::Vi
 // The engine off as the virtual engine's feed: no pressure reaches the structure; the crank angle only clocks.
 class SilentFeed final : public model::PressureFeed {
  public:
-  SilentFeed(const SimConfig& config, double t0_s, double rate_hz)
-      : kin_(sim::crank_kinematics(config)), t0_(t0_s), rate_(rate_hz) {}
+  SilentFeed(const drivers::SimConfig& config, double t0_s, double rate_hz)
+      : kin_(drivers::sim::crank_kinematics(config)), t0_(t0_s), rate_(rate_hz) {}
   void fill(std::int64_t first, double* pressure_pa, double* crank_deg, std::size_t n) override {
     for (std::size_t i = 0; i < n; ++i) {
       pressure_pa[i] = 0.0;
@@ -226,14 +226,14 @@ class SilentFeed final : public model::PressureFeed {
 
 }  // namespace
 
-RunDir simulate_run(const SimRunSpec& spec, SimRunStats* stats) {
+drivers::RunDir simulate_run(const SimRunSpec& spec, SimRunStats* stats) {
   check_config(spec);
-  const SimConfig config = run_config(spec);
+  const drivers::SimConfig config = run_config(spec);
   const double fine_rate = 2.0 * config.mic_rate_hz;
-  RunDir run;
+  drivers::RunDir run;
   run.condition = {spec.condition.name, spec.condition.speed_rpm, spec.condition.load_nm, spec.condition.soi_deg_btdc,
                    std::nullopt, spec.condition.motored};
-  model::VirtualEngineConfig vcfg = sim::virtual_engine_config(config, fine_rate);
+  model::VirtualEngineConfig vcfg = drivers::sim::virtual_engine_config(config, fine_rate);
   vcfg.setup_seed = spec.setup_seed;
   model::VirtualEngine engine(vcfg);
   RunFeed feed(config, -kPreRollS, fine_rate, spec.cycles, run);
@@ -246,20 +246,20 @@ RunDir simulate_run(const SimRunSpec& spec, SimRunStats* stats) {
   return run;
 }
 
-RunDir simulate_background_run(const SimRunSpec& given, SimRunStats* stats) {
+drivers::RunDir simulate_background_run(const SimRunSpec& given, SimRunStats* stats) {
   SimRunSpec spec = given;
   spec.condition.name = std::string(kBackgroundRunName);
   spec.condition.load_nm = 0.0;
   spec.condition.motored = true;
   spec.effects.mechanical_noise_dba.reset();  // impacts need a turning engine
   check_config(spec);
-  const SimConfig config = run_config(spec);
+  const drivers::SimConfig config = run_config(spec);
   const double fine_rate = 2.0 * config.mic_rate_hz;
-  RunDir run;
+  drivers::RunDir run;
   run.condition = {spec.condition.name, spec.condition.speed_rpm, 0.0, spec.condition.soi_deg_btdc, std::nullopt, true};
   // The clock: encoder samples of spec.cycles cycles; the transducer reads the ambient (intake) pressure.
-  const model::CrankKinematics kin = sim::crank_kinematics(config);
-  const double res = config.encoder_resolution_deg, ambient = sim::engine_params(config).intake_pressure_pa;
+  const model::CrankKinematics kin = drivers::sim::crank_kinematics(config);
+  const double res = config.encoder_resolution_deg, ambient = drivers::sim::engine_params(config).intake_pressure_pa;
   const auto samples = static_cast<std::int64_t>(std::llround(720.0 * spec.cycles / res));
   for (std::int64_t m = 0; m < samples; ++m) {
     const double a = -360.0 + static_cast<double>(m) * res;
@@ -267,7 +267,7 @@ RunDir simulate_background_run(const SimRunSpec& given, SimRunStats* stats) {
     run.crank_deg.push_back(a);
     run.pressure_pa.push_back(ambient);
   }
-  model::VirtualEngineConfig vcfg = sim::virtual_engine_config(config, fine_rate);
+  model::VirtualEngineConfig vcfg = drivers::sim::virtual_engine_config(config, fine_rate);
   vcfg.setup_seed = spec.setup_seed;
   vcfg.mean_pressure_pa = 0.0;
   model::VirtualEngine engine(vcfg);
@@ -296,9 +296,9 @@ void fill_encoder_gaps(std::vector<double>& t, std::vector<double>& th, std::vec
   for (std::size_t i = 0; i < t.size(); ++i) {
     if (i > 0) {
       const double gap = (th[i] - th[i - 1]) / step;
-      if (gap > kMaxCrankGapSteps + 1e-6)
+      if (gap > drivers::kMaxCrankGapSteps + 1e-6)
         throw std::invalid_argument(what + ": crank angle jumps by " + fmt(th[i] - th[i - 1]) + " deg at pressure sample " +
-                                    std::to_string(i) + " (more than " + fmt(kMaxCrankGapSteps) + " encoder steps)");
+                                    std::to_string(i) + " (more than " + fmt(drivers::kMaxCrankGapSteps) + " encoder steps)");
       const auto missing = static_cast<int>(std::lround(gap)) - 1;
       for (int k = 1; k <= missing && gap >= 1.5; ++k) {
         const double f = static_cast<double>(k) / (missing + 1);
@@ -323,7 +323,7 @@ struct EncoderTrace {
 
 // The given run's pressure, checked (enough samples, time and crank angle increasing, a whole cycle) and with its
 // missing encoder samples filled.
-EncoderTrace checked_pressure(const RunDir& run, const std::string& what) {
+EncoderTrace checked_pressure(const drivers::RunDir& run, const std::string& what) {
   const std::size_t n = run.time_s.size();
   if (n < 16 || run.crank_deg.size() != n || run.pressure_pa.size() != n)
     throw std::invalid_argument(what + ": too few or inconsistent pressure samples");
@@ -387,7 +387,7 @@ ExtendedTrace extend_periodically(const EncoderTrace& tr) {
 
 // The spec of the virtual engine that hears a given run: the run's operating point (its speed from the data when it
 // states none) and its microphones, if it has them.
-SimRunSpec acoustics_spec(const RunDir& pressure_run, const SimRunSpec& spec, const EncoderTrace& tr) {
+SimRunSpec acoustics_spec(const drivers::RunDir& pressure_run, const SimRunSpec& spec, const EncoderTrace& tr) {
   SimRunSpec s = spec;
   s.condition = {pressure_run.condition.name, pressure_run.condition.speed_rpm, pressure_run.condition.load_nm,
                  pressure_run.condition.soi_deg_btdc, pressure_run.condition.motored};
@@ -452,11 +452,11 @@ FinePressure resample_fine(const EncoderTrace& e, double fine_rate, const std::s
 }
 
 // simulate_acoustics with microphone frames up to t_end_s (at most one cycle past the pressure's end).
-RunDir acoustics(const RunDir& pressure_run, const SimRunSpec& spec, double t_end_s) {
+drivers::RunDir acoustics(const drivers::RunDir& pressure_run, const SimRunSpec& spec, double t_end_s) {
   const std::string what = "sim acoustics for run \"" + pressure_run.condition.name + "\"";
   const EncoderTrace tr = checked_pressure(pressure_run, what);
   const ExtendedTrace ext = extend_periodically(tr);
-  const SimConfig config = run_config(acoustics_spec(pressure_run, spec, tr));
+  const drivers::SimConfig config = run_config(acoustics_spec(pressure_run, spec, tr));
   const double fine_rate = 2.0 * config.mic_rate_hz;
   FinePressure fine = resample_fine(ext.x, fine_rate, what);
   // Expected mean input (AC coupling start): the first cycle's mean.
@@ -464,13 +464,13 @@ RunDir acoustics(const RunDir& pressure_run, const SimRunSpec& spec, double t_en
   for (std::size_t i = 0; i < ext.first_end; ++i) mean += tr.p[i];
   mean /= static_cast<double>(std::max<std::size_t>(ext.first_end, 1));
 
-  model::VirtualEngineConfig vcfg = sim::virtual_engine_config(config, fine_rate);
+  model::VirtualEngineConfig vcfg = drivers::sim::virtual_engine_config(config, fine_rate);
   vcfg.setup_seed = spec.setup_seed;
   vcfg.mean_pressure_pa = mean;
   model::VirtualEngine engine(vcfg);
   ArrayFeed feed(std::move(fine.p), std::move(fine.th));
 
-  RunDir run = pressure_run;
+  drivers::RunDir run = pressure_run;
   const auto skip = static_cast<std::int64_t>(std::llround(-fine.t0 * config.mic_rate_hz));
   if (t_end_s > tr.t.back() + 0.9 * ext.last_period)
     throw std::invalid_argument(what + ": internal: microphones past the data");
@@ -489,24 +489,24 @@ RunDir acoustics(const RunDir& pressure_run, const SimRunSpec& spec, double t_en
 
 }  // namespace
 
-RunDir simulate_acoustics(const RunDir& pressure_run, const SimRunSpec& spec) {
-  RunDir run = acoustics(pressure_run, spec, pressure_run.time_s.empty() ? 0.0 : pressure_run.time_s.back());
+drivers::RunDir simulate_acoustics(const drivers::RunDir& pressure_run, const SimRunSpec& spec) {
+  drivers::RunDir run = acoustics(pressure_run, spec, pressure_run.time_s.empty() ? 0.0 : pressure_run.time_s.back());
   // The virtual engine hears the given pressure as it is (its own noise included): between that engine and this
   // file no chain adds a floor, so the stated floor is 0 (only a transducer_noise effect comes on top, unstated).
   run.pressure_noise_floor_bar = 0.0;
   return run;
 }
 
-void synthesize_recording_mics(Recording& rec, const SimRunSpec& spec) {
+void synthesize_recording_mics(formats::Recording& rec, const SimRunSpec& spec) {
   if (rec.frames() < 2) throw std::invalid_argument("sim microphones: the recording has no pressure");
-  RunDir pressure = to_run_dir(rec);
+  drivers::RunDir pressure = formats::to_run_dir(rec);
   pressure.mic_count = 0;
   pressure.mic_pa.clear();
   pressure.mic_positions_m.clear();
   // Microphones at the card rate a little past the last frame, so the resampler to 40 kHz has its look-ahead.
-  const RunDir sim = acoustics(pressure, spec, pressure.time_s.back() + 0.005);
+  const drivers::RunDir sim = acoustics(pressure, spec, pressure.time_s.back() + 0.005);
   const std::size_t m = sim.mic_count;
-  dsp::RationalResampler to_grid(sim.mic_rate_hz, kPipelineRateHz, m);
+  dsp::RationalResampler to_grid(sim.mic_rate_hz, drivers::kPipelineRateHz, m);
   std::vector<double> in(sim.mic_pa.begin(), sim.mic_pa.end());
   std::vector<double> out(to_grid.max_output_frames(in.size() / m) * m + m);
   const std::size_t made = to_grid.process(in.data(), in.size() / m, out.data(), out.size() / m);
@@ -518,4 +518,4 @@ void synthesize_recording_mics(Recording& rec, const SimRunSpec& spec) {
   rec.info.acoustic_delay_s = sim.acoustic_delay_s;
 }
 
-}  // namespace noisemon::drivers
+}  // namespace noisemon::cli

@@ -1,11 +1,11 @@
-#include "drivers/formats/angle_edges.hpp"
+#include "cli/formats/angle_edges.hpp"
 
 #include <algorithm>
 #include <cmath>
 
 #include "drivers/formats/stream_messages.hpp"
 
-namespace noisemon::drivers {
+namespace noisemon::cli::formats {
 namespace {
 double instant(std::span<const double> edges, std::size_t i) { return edges[i * kEdgeValues + kEdgeInstant]; }
 }  // namespace
@@ -23,16 +23,16 @@ std::vector<double> edges_within(std::span<const double> edges, std::int64_t fro
 
 bool next_edge_block(std::span<const double> edges, std::size_t& next, double until, double step_deg,
                      std::int64_t epoch_utime, noisemon::raw_block_t& block) {
-  const std::size_t n = edges.size() / kEdgeValues, most = max_edges_per_angle_block(step_deg);
+  const std::size_t n = edges.size() / kEdgeValues, most = drivers::max_edges_per_angle_block(step_deg);
   std::size_t end = next;
   while (end < n && end - next < most && instant(edges, end) < until) ++end;
   if (end == next) return false;
   const auto first = static_cast<std::int64_t>(std::floor(instant(edges, next)));
-  set_raw_block(block, first, end - next, kAngleStreamChannels, noisemon::raw_block_t::STREAM_PRESSURE_ANGLE, epoch_utime);
+  drivers::set_raw_block(block, first, end - next, drivers::kAngleStreamChannels, noisemon::raw_block_t::STREAM_PRESSURE_ANGLE, epoch_utime);
   for (std::size_t i = next; i < end; ++i) {
-    double* e = &block.data[(i - next) * kAngleStreamChannels];
-    e[kAngleCrankChannel] = edges[i * kEdgeValues + kEdgeCrank];
-    e[kAnglePressureChannel] = edges[i * kEdgeValues + kEdgePressure];
+    double* e = &block.data[(i - next) * drivers::kAngleStreamChannels];
+    e[drivers::kAngleCrankChannel] = edges[i * kEdgeValues + kEdgeCrank];
+    e[drivers::kAnglePressureChannel] = edges[i * kEdgeValues + kEdgePressure];
   }
   next = end;
   return true;
@@ -42,10 +42,10 @@ void gather_edges(std::span<const EdgeBlock> blocks, std::int64_t from, std::int
   for (const EdgeBlock& b : blocks) {
     if (b.first >= to) break;
     if (b.first < from) continue;
-    for (std::size_t i = 0; i < b.values.size() / kAngleStreamChannels; ++i)
-      out.insert(out.end(), {static_cast<double>(b.first), b.values[i * kAngleStreamChannels + kAngleCrankChannel],
-                             b.values[i * kAngleStreamChannels + kAnglePressureChannel]});
+    for (std::size_t i = 0; i < b.values.size() / drivers::kAngleStreamChannels; ++i)
+      out.insert(out.end(), {static_cast<double>(b.first), b.values[i * drivers::kAngleStreamChannels + drivers::kAngleCrankChannel],
+                             b.values[i * drivers::kAngleStreamChannels + drivers::kAnglePressureChannel]});
   }
 }
 
-}  // namespace noisemon::drivers
+}  // namespace noisemon::cli::formats

@@ -1,4 +1,4 @@
-#include "drivers/formats/recording.hpp"
+#include "cli/formats/recording.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -8,21 +8,21 @@
 #include <span>
 #include <stdexcept>
 
-#include "drivers/formats/angle_edges.hpp"
+#include "cli/formats/angle_edges.hpp"
 #include "drivers/formats/lcm_log_reader.hpp"
 #include "drivers/formats/run_both.hpp"
 #include "drivers/formats/stream_messages.hpp"
 #include "dsp/resample.hpp"
 
-namespace noisemon::drivers {
+namespace noisemon::cli::formats {
 namespace {
 
-constexpr double kFs = kPipelineRateHz;
+constexpr double kFs = drivers::kPipelineRateHz;
 constexpr double kSpeedOfSoundMS = 343.0;  // air at 20 degC: the default acoustic delay radius / c
 // Frames dropped at the start of a resampled stream: the resamplers' start-up (held first pressure sample,
 // zeros before the first microphone frame) reaches about 1.5 ms into their output.
 constexpr std::int64_t kResamplerEdgeFrames = 128;
-constexpr std::size_t kBlockFrames = SampleBlock::kMaxFrames;
+constexpr std::size_t kBlockFrames = drivers::SampleBlock::kMaxFrames;
 constexpr std::int64_t kRepeatFrames = 40000;  // session and operating point again every second
 constexpr std::size_t kMaxDamageNotes = 10;
 constexpr double kMaxRecordingSeconds = 24 * 3600;  // one import: a day of 40 kHz frames is already 3.5e9
@@ -59,7 +59,7 @@ struct EncoderSamples {
   std::int64_t shift = 0;  // grid index of the resampler's t = 0
 };
 
-void fill_missing_samples(const RunDir& run, double step, EncoderSamples& s) {
+void fill_missing_samples(const drivers::RunDir& run, double step, EncoderSamples& s) {
   const std::size_t n = run.time_s.size();
   s.t_own.reserve(n);
   s.th_own.reserve(n);
@@ -84,7 +84,7 @@ void fill_missing_samples(const RunDir& run, double step, EncoderSamples& s) {
   s.p = s.p_own;
 }
 
-void encoder_samples(const RunDir& run, double step, EncoderSamples& s) {
+void encoder_samples(const drivers::RunDir& run, double step, EncoderSamples& s) {
   s.t = run.time_s;
   s.th = run.crank_deg;
   s.p = run.pressure_pa;
@@ -152,11 +152,11 @@ std::vector<double> angle_edges_of(const EncoderSamples& s) {
 
 // Encoder samples -> 40 kHz pressure and crank (the unwrapped angle interpolated linearly in time, then wrapped);
 // the samples themselves into `edges` when their step is an encoder's. Returns the encoder step, degrees.
-double resample_pressure(const RunDir& run, Stream& pressure, Stream& crank, std::vector<double>& edges) {
-  const double step = crank_step_deg(run.crank_deg);
+double resample_pressure(const drivers::RunDir& run, Stream& pressure, Stream& crank, std::vector<double>& edges) {
+  const double step = drivers::crank_step_deg(run.crank_deg);
   EncoderSamples s;
   encoder_samples(run, step, s);
-  if (angle_step_deg(360.0 / step) > 0) edges = angle_edges_of(s);
+  if (drivers::angle_step_deg(360.0 / step) > 0) edges = angle_edges_of(s);
   resample_pressure_values(s, pressure);
   const auto& t = s.t;
   crank.first = pressure.first;
@@ -173,7 +173,7 @@ double resample_pressure(const RunDir& run, Stream& pressure, Stream& crank, std
   return step;
 }
 
-void resample_mics(const RunDir& run, Stream& mics) {
+void resample_mics(const drivers::RunDir& run, Stream& mics) {
   const std::size_t ch = run.mic_count;
   const std::size_t frames = run.mic_pa.size() / ch;
   mics.channels = ch;
@@ -230,11 +230,11 @@ struct RawBlock {
 };
 
 struct SessionData {
-  StreamInfo info;
+  drivers::StreamInfo info;
   std::string condition;
   std::string source;
   std::vector<RawBlock> pressure, mics, angle;
-  std::vector<OperatingPoint> ops;
+  std::vector<drivers::OperatingPoint> ops;
 };
 
 struct Interval {
@@ -304,11 +304,11 @@ double speed_from_crank(const std::vector<double>& crank) {
 bool same_value(double a, double b) { return a == b || (std::isnan(a) && std::isnan(b)); }
 
 // Repeats of the same point (noisemond sends it at 10 Hz) carry nothing new.
-std::vector<OperatingPoint> distinct_points(const std::vector<OperatingPoint>& points) {
-  std::vector<OperatingPoint> distinct;
-  for (const OperatingPoint& op : points) {
+std::vector<drivers::OperatingPoint> distinct_points(const std::vector<drivers::OperatingPoint>& points) {
+  std::vector<drivers::OperatingPoint> distinct;
+  for (const drivers::OperatingPoint& op : points) {
     if (!distinct.empty()) {
-      const OperatingPoint& l = distinct.back();
+      const drivers::OperatingPoint& l = distinct.back();
       if (same_value(l.speed_rpm, op.speed_rpm) && same_value(l.load_nm, op.load_nm) &&
           same_value(l.soi_deg_btdc, op.soi_deg_btdc) && same_value(l.rail_pressure_bar, op.rail_pressure_bar) &&
           l.motored == op.motored)
@@ -323,39 +323,39 @@ class LogAssembler {
  public:
   LogAssembler(std::string name, const LogChannels& channels, LogReadStats& stats)
       : name_(std::move(name)), ch_(channels), stats_(stats),
-        decoder_({channels, SessionChanges::kFollow, BlockCheck::kFinite}) {}
+        decoder_({channels, drivers::SessionChanges::kFollow, drivers::BlockCheck::kFinite}) {}
 
-  void event(const LcmLogEvent& e) {
+  void event(const drivers::LcmLogEvent& e) {
     ++stats_.events;
-    const RawEvent& ev = decoder_.decode(e.channel, e.data, static_cast<std::size_t>(e.datalen));
+    const drivers::RawEvent& ev = decoder_.decode(e.channel, e.data, static_cast<std::size_t>(e.datalen));
     switch (ev.kind) {
-      case RawEventKind::kSession:
+      case drivers::RawEventKind::kSession:
         if (!ev.session_started) return;  // the same session, repeated
         sessions_.push_back({decoder_.info(), decoder_.condition(), decoder_.source(), {}, {}, {}, {}});
         ++stats_.sessions;
         return;
-      case RawEventKind::kBlock:
+      case drivers::RawEventKind::kBlock:
         if (ev.block.frames > 0) add_block(ev);
         return;
-      case RawEventKind::kOperatingPoint:
+      case drivers::RawEventKind::kOperatingPoint:
         sessions_.back().ops.push_back(ev.operating_point);
         return;
-      case RawEventKind::kDamaged:
+      case drivers::RawEventKind::kDamaged:
         return damage(e, ev.reason);
-      case RawEventKind::kBadBlock:
-      case RawEventKind::kOtherSessionBlock:
+      case drivers::RawEventKind::kBadBlock:
+      case drivers::RawEventKind::kOtherSessionBlock:
         return damage(e, "raw " + ev.reason);
-      case RawEventKind::kBeforeSession:
+      case drivers::RawEventKind::kBeforeSession:
         // An operating point before any session has nothing to attach it to; a raw block there is damage.
-        if (ev.channel == RawChannel::kRaw) damage(e, "raw block before any " + ch_.session + " message");
+        if (ev.channel == drivers::RawChannel::kRaw) damage(e, "raw block before any " + ch_.session + " message");
         return;
-      case RawEventKind::kOtherChannel:
+      case drivers::RawEventKind::kOtherChannel:
         ++stats_.other_channels;
         return;
     }
   }
 
-  void framing(const LcmLogReader& r) {
+  void framing(const drivers::LcmLogReader& r) {
     if (r.damaged() == 0) return;
     stats_.damaged += r.damaged();
     note(std::to_string(r.damaged()) + " damaged stretch(es) of the file (" + std::to_string(r.damaged_bytes()) +
@@ -377,21 +377,21 @@ class LogAssembler {
         rec.info = s.info;
         rec.first_index = span.from;
         std::vector<double> p;
-        gather(s.pressure, kPressureStreamChannels, span.from, span.to, p);
+        gather(s.pressure, drivers::kPressureStreamChannels, span.from, span.to, p);
         const std::size_t frames = static_cast<std::size_t>(span.to - span.from);
         rec.pressure_pa.resize(frames);
         rec.crank_deg.resize(frames);
         for (std::size_t f = 0; f < frames; ++f) {
-          rec.pressure_pa[f] = p[f * kPressureStreamChannels + kPressureChannel];
-          rec.crank_deg[f] = p[f * kPressureStreamChannels + kCrankChannel];
+          rec.pressure_pa[f] = p[f * drivers::kPressureStreamChannels + drivers::kPressureChannel];
+          rec.crank_deg[f] = p[f * drivers::kPressureStreamChannels + drivers::kCrankChannel];
         }
         if (s.info.mic_count > 0) gather(s.mics, s.info.mic_count, span.from, span.to, rec.mics_pa);
         gather_edges(edge_blocks(s.angle), span.from, span.to, rec.angle_edges);
         // The operating point in force at the start, and every change during the stretch.
         const std::int64_t u0 = utime_of_index(s.info.epoch_utime, span.from);
         const std::int64_t u1 = utime_of_index(s.info.epoch_utime, span.to);
-        const OperatingPoint* before = nullptr;
-        for (const OperatingPoint& op : s.ops) {
+        const drivers::OperatingPoint* before = nullptr;
+        for (const drivers::OperatingPoint& op : s.ops) {
           if (op.utime <= u0) before = &op;
           else if (op.utime < u1) rec.operating_points.push_back(op);
         }
@@ -400,7 +400,7 @@ class LogAssembler {
         if (rec.operating_points.empty()) {
           // No operating point in the log: the speed is measured, the rest is unknown (never made up).
           constexpr double kUnknown = std::numeric_limits<double>::quiet_NaN();
-          OperatingPoint op;
+          drivers::OperatingPoint op;
           op.utime = u0;
           op.speed_rpm = speed_from_crank(rec.crank_deg);
           op.load_nm = op.soi_deg_btdc = op.rail_pressure_bar = kUnknown;
@@ -416,8 +416,8 @@ class LogAssembler {
   }
 
  private:
-  void add_block(const RawEvent& ev) {
-    const SampleBlock& b = ev.block;
+  void add_block(const drivers::RawEvent& ev) {
+    const drivers::SampleBlock& b = ev.block;
     RawBlock rb{b.first_index, b.frames, std::vector<double>(b.data, b.data + std::size_t{b.frames} * b.channels)};
     SessionData& s = sessions_.back();
     if (ev.stream == noisemon::raw_block_t::STREAM_PRESSURE_ANGLE)
@@ -425,7 +425,7 @@ class LogAssembler {
     else
       (ev.stream == noisemon::raw_block_t::STREAM_PRESSURE ? s.pressure : s.mics).push_back(std::move(rb));
   }
-  void damage(const LcmLogEvent& e, const std::string& what) {
+  void damage(const drivers::LcmLogEvent& e, const std::string& what) {
     ++stats_.damaged;
     note("event " + std::to_string(e.eventnum) + " at byte " + std::to_string(e.offset) + " on " + std::string(e.channel) +
          ": " + what);
@@ -437,17 +437,17 @@ class LogAssembler {
   std::string name_;
   const LogChannels& ch_;
   LogReadStats& stats_;
-  RawStreamDecoder decoder_;
+  drivers::RawStreamDecoder decoder_;
   std::vector<SessionData> sessions_;
 };
 
-std::vector<Recording> read_log(LcmLogReader& reader, const std::string& name, const LogChannels& channels,
+std::vector<Recording> read_log(drivers::LcmLogReader& reader, const std::string& name, const LogChannels& channels,
                                 std::int64_t* skipped, LogReadStats* stats, const ProgressFn& progress) {
   LogReadStats local;
   LogReadStats& st = stats ? *stats : local;
   st = LogReadStats{};
   LogAssembler assembler(name, channels, st);
-  LcmLogEvent e;
+  drivers::LcmLogEvent e;
   std::int64_t n = 0;
   while (reader.next(e)) {
     assembler.event(e);
@@ -465,17 +465,17 @@ std::vector<Recording> read_log(LcmLogReader& reader, const std::string& name, c
 
 namespace {
 
-void check_run(const RunDir& run) {
+void check_run(const drivers::RunDir& run) {
   const std::size_t n = run.time_s.size();
   if (n < 2 || run.crank_deg.size() != n || run.pressure_pa.size() != n)
-    throw RunDirError("run '" + run.condition.name + "': time, crank and pressure columns must have the same length >= 2");
-  if (run.mic_count > SampleBlock::kMaxChannels || (run.mic_count > 0 && (run.mic_positions_m.size() != run.mic_count ||
+    throw drivers::RunDirError("run '" + run.condition.name + "': time, crank and pressure columns must have the same length >= 2");
+  if (run.mic_count > drivers::SampleBlock::kMaxChannels || (run.mic_count > 0 && (run.mic_positions_m.size() != run.mic_count ||
                                                                           run.mic_pa.size() % run.mic_count != 0)))
-    throw RunDirError("run '" + run.condition.name + "': microphone data does not match its positions");
+    throw drivers::RunDirError("run '" + run.condition.name + "': microphone data does not match its positions");
   // Before any frame count is computed from times: absurd times would overflow it (and memory).
   const double span_s = run.time_s.back() - run.time_s.front();
   if (!(std::abs(run.time_s.front()) <= kMaxRecordingSeconds && span_s <= kMaxRecordingSeconds))
-    throw RunDirError("run '" + run.condition.name + "': time_s " + std::to_string(run.time_s.front()) + " .. " +
+    throw drivers::RunDirError("run '" + run.condition.name + "': time_s " + std::to_string(run.time_s.front()) + " .. " +
                       std::to_string(run.time_s.back()) + " s, expected a run within " +
                       std::to_string(static_cast<int>(kMaxRecordingSeconds)) + " s of time 0");
 }
@@ -486,7 +486,7 @@ void free_vector(std::vector<T>& v) {
 }
 
 // The pressure and crank streams; frees the run's columns when `release` is the run.
-void pressure_streams(const RunDir& run, RunDir* release, Recording& rec, Stream& pressure, Stream& crank) {
+void pressure_streams(const drivers::RunDir& run, drivers::RunDir* release, Recording& rec, Stream& pressure, Stream& crank) {
   std::int64_t first = 0;
   if (on_pipeline_grid(run.time_s, first)) {
     rec.info.pressure_edges_per_rev = run.pressure_edges_per_rev.value_or(0.0);
@@ -498,7 +498,7 @@ void pressure_streams(const RunDir& run, RunDir* release, Recording& rec, Stream
     // What the encoder's edges carry (run.json says it only for samples already on the 40 kHz grid).
     const double step = resample_pressure(run, pressure, crank, rec.angle_edges);
     rec.info.pressure_edges_per_rev = 360.0 / step;
-    if (!rec.angle_edges.empty()) rec.info.pressure_angle_step_deg = angle_step_deg(rec.info.pressure_edges_per_rev);
+    if (!rec.angle_edges.empty()) rec.info.pressure_angle_step_deg = drivers::angle_step_deg(rec.info.pressure_edges_per_rev);
   }
   if (release) {
     free_vector(release->time_s);
@@ -508,7 +508,7 @@ void pressure_streams(const RunDir& run, RunDir* release, Recording& rec, Stream
 }
 
 // Run directory -> recording; `release`: the run itself when its sample columns may be freed once resampled.
-Recording convert(const RunDir& run, RunDir* release, std::int64_t epoch_utime) {
+Recording convert(const drivers::RunDir& run, drivers::RunDir* release, std::int64_t epoch_utime) {
   check_run(run);
   Recording rec;
   rec.condition = run.condition.name;
@@ -519,11 +519,11 @@ Recording convert(const RunDir& run, RunDir* release, std::int64_t epoch_utime) 
   rec.info.acoustic_delay_s = run.acoustic_delay_s >= 0 ? run.acoustic_delay_s
                               : run.mic_count > 0       ? run.radius_m / kSpeedOfSoundMS
                                                         : 0.0;
-  OperatingPoint op = operating_point_of(run, 0);  // before the columns it may measure the speed from are freed
+  drivers::OperatingPoint op = operating_point_of(run, 0);  // before the columns it may measure the speed from are freed
 
   // The two resamplers on two threads; errors as when the pressure is resampled first.
   Stream pressure, crank, mics;
-  run_both([&] { pressure_streams(run, release, rec, pressure, crank); },
+  drivers::run_both([&] { pressure_streams(run, release, rec, pressure, crank); },
            [&] {
              if (run.mic_count == 0) return;
              resample_mics(run, mics);
@@ -536,7 +536,7 @@ Recording convert(const RunDir& run, RunDir* release, std::int64_t epoch_utime) 
     to = std::min(to, mics.end());
   }
   if (to <= from)
-    throw RunDirError("run '" + run.condition.name + "': " +
+    throw drivers::RunDirError("run '" + run.condition.name + "': " +
                       (run.mic_count > 0 ? std::string("the pressure and the microphones do not overlap in time")
                                          : std::string("too short to resample")));
   const auto frames = static_cast<std::size_t>(to - from);
@@ -552,15 +552,15 @@ Recording convert(const RunDir& run, RunDir* release, std::int64_t epoch_utime) 
 
 }  // namespace
 
-Recording to_recording(const RunDir& run, std::int64_t epoch_utime) { return convert(run, nullptr, epoch_utime); }
+Recording to_recording(const drivers::RunDir& run, std::int64_t epoch_utime) { return convert(run, nullptr, epoch_utime); }
 
-Recording to_recording(RunDir&& run, std::int64_t epoch_utime) { return convert(run, &run, epoch_utime); }
+Recording to_recording(drivers::RunDir&& run, std::int64_t epoch_utime) { return convert(run, &run, epoch_utime); }
 
-OperatingPoint operating_point_of(const RunDir& run, std::int64_t utime) {
-  const RunCondition& c = run.condition;
-  OperatingPoint op;
+drivers::OperatingPoint operating_point_of(const drivers::RunDir& run, std::int64_t utime) {
+  const drivers::RunCondition& c = run.condition;
+  drivers::OperatingPoint op;
   op.utime = utime;
-  op.speed_rpm = std::isnan(c.speed_rpm) ? encoder_speed_rpm(run) : c.speed_rpm;
+  op.speed_rpm = std::isnan(c.speed_rpm) ? drivers::encoder_speed_rpm(run) : c.speed_rpm;
   op.load_nm = c.load_nm;            // NaN when unknown: travels as NaN
   op.soi_deg_btdc = c.soi_deg_btdc;
   op.rail_pressure_bar = c.rail_pressure_bar.value_or(std::numeric_limits<double>::quiet_NaN());
@@ -568,14 +568,14 @@ OperatingPoint operating_point_of(const RunDir& run, std::int64_t utime) {
   return op;
 }
 
-RunDir to_run_dir(const Recording& rec) {
+drivers::RunDir to_run_dir(const Recording& rec) {
   const std::size_t n = rec.frames();
   if (rec.crank_deg.size() != n || rec.mics_pa.size() != n * rec.info.mic_count)
     throw std::invalid_argument("to_run_dir: recording '" + rec.condition + "' has streams of different lengths");
-  RunDir run;
+  drivers::RunDir run;
   run.condition.name = rec.condition;
   if (!rec.operating_points.empty()) {
-    const OperatingPoint& op = rec.operating_points.front();
+    const drivers::OperatingPoint& op = rec.operating_points.front();
     run.condition.speed_rpm = op.speed_rpm;
     run.condition.load_nm = op.load_nm;
     run.condition.soi_deg_btdc = op.soi_deg_btdc;
@@ -630,7 +630,7 @@ RecordingLogWriter::~RecordingLogWriter() = default;
 void RecordingLogWriter::write(const Recording& rec, const ProgressFn& progress) {
   Impl& w = *impl_;
   if (rec.crank_deg.size() != rec.frames() || rec.mics_pa.size() != rec.frames() * rec.info.mic_count ||
-      rec.info.mic_count > SampleBlock::kMaxChannels || rec.info.mic_positions_m.size() < rec.info.mic_count)
+      rec.info.mic_count > drivers::SampleBlock::kMaxChannels || rec.info.mic_positions_m.size() < rec.info.mic_count)
     throw std::invalid_argument(w.path.string() + ": recording '" + rec.condition + "' has streams of different lengths");
   if (rec.angle_edges.size() % kEdgeValues != 0 || (!rec.angle_edges.empty() && !(rec.info.pressure_angle_step_deg > 0)))
     throw std::invalid_argument(w.path.string() + ": recording '" + rec.condition +
@@ -642,33 +642,33 @@ void RecordingLogWriter::write(const Recording& rec, const ProgressFn& progress)
   const std::int64_t epoch = rec.info.epoch_utime;
   const std::uint32_t mics = rec.info.mic_count;
   std::size_t next_op = 0, next_edge = 0;
-  const OperatingPoint* current = nullptr;
+  const drivers::OperatingPoint* current = nullptr;
   for (std::size_t f = 0; f < rec.frames(); f += kBlockFrames) {
     const std::int64_t k = rec.first_index + static_cast<std::int64_t>(f);
     const std::int64_t utime = utime_of_index(epoch, k);
     const bool repeat = f % kRepeatFrames < kBlockFrames;  // first block of each second
     if (repeat)
-      write_event(w.log, w.path, w.channels.session, to_message(rec.info, rec.source, utime, rec.condition), utime, w.buf);
+      write_event(w.log, w.path, w.channels.session, drivers::to_message(rec.info, rec.source, utime, rec.condition), utime, w.buf);
     // Each operating point when its time comes; the first one at the start in any case.
     bool op_written = false;
     while (next_op < rec.operating_points.size() &&
            (rec.operating_points[next_op].utime <= utime || (f == 0 && next_op == 0))) {
       current = &rec.operating_points[next_op++];
-      write_event(w.log, w.path, w.channels.operating_point, to_message(*current), utime, w.buf);
+      write_event(w.log, w.path, w.channels.operating_point, drivers::to_message(*current), utime, w.buf);
       op_written = true;
     }
     if (repeat && !op_written && current)
-      write_event(w.log, w.path, w.channels.operating_point, to_message(*current), utime, w.buf);
+      write_event(w.log, w.path, w.channels.operating_point, drivers::to_message(*current), utime, w.buf);
     const std::size_t frames = std::min(kBlockFrames, rec.frames() - f);
     noisemon::raw_block_t& p = w.pressure_block;
-    set_raw_block(p, k, frames, kPressureStreamChannels, noisemon::raw_block_t::STREAM_PRESSURE, epoch);
+    drivers::set_raw_block(p, k, frames, drivers::kPressureStreamChannels, noisemon::raw_block_t::STREAM_PRESSURE, epoch);
     for (std::size_t i = 0; i < frames; ++i) {
-      p.data[i * kPressureStreamChannels + kPressureChannel] = rec.pressure_pa[f + i];
-      p.data[i * kPressureStreamChannels + kCrankChannel] = rec.crank_deg[f + i];
+      p.data[i * drivers::kPressureStreamChannels + drivers::kPressureChannel] = rec.pressure_pa[f + i];
+      p.data[i * drivers::kPressureStreamChannels + drivers::kCrankChannel] = rec.crank_deg[f + i];
     }
     write_event(w.log, w.path, w.channels.raw, p, utime, w.buf);
     if (mics > 0) {
-      set_raw_block(w.mic_block, k, frames, mics, noisemon::raw_block_t::STREAM_MICS, epoch);
+      drivers::set_raw_block(w.mic_block, k, frames, mics, noisemon::raw_block_t::STREAM_MICS, epoch);
       std::copy_n(&rec.mics_pa[f * mics], frames * mics, w.mic_block.data.begin());
       write_event(w.log, w.path, w.channels.raw, w.mic_block, utime, w.buf);
     }
@@ -701,14 +701,14 @@ void write_recordings_log(const std::filesystem::path& path, const std::vector<R
 
 std::vector<Recording> read_recordings_log(const std::filesystem::path& log, const LogChannels& channels,
                                            std::int64_t* skipped, LogReadStats* stats, const ProgressFn& progress) {
-  LcmLogReader reader(log);
+  drivers::LcmLogReader reader(log);
   return read_log(reader, log.string(), channels, skipped, stats, progress);
 }
 
 std::vector<Recording> read_recordings_log(const std::uint8_t* data, std::size_t size, const std::string& name,
                                            const LogChannels& channels, std::int64_t* skipped, LogReadStats* stats) {
-  LcmLogReader reader(data, size);
+  drivers::LcmLogReader reader(data, size);
   return read_log(reader, name, channels, skipped, stats, {});
 }
 
-}  // namespace noisemon::drivers
+}  // namespace noisemon::cli::formats

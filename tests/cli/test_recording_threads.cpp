@@ -10,10 +10,11 @@
 #include <string>
 #include <vector>
 
-#include "drivers/formats/recording.hpp"
+#include "cli/formats/recording.hpp"
 #include "tests/support/unique_temp.hpp"
 
 using namespace noisemon::drivers;
+using namespace noisemon::cli::formats;
 namespace fs = std::filesystem;
 
 namespace {

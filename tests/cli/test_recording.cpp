@@ -22,13 +22,14 @@
 #include <limits>
 #include <numbers>
 
-#include "drivers/formats/angle_edges.hpp"
+#include "cli/formats/angle_edges.hpp"
 #include "drivers/formats/lcm_log_reader.hpp"
-#include "drivers/formats/recording.hpp"
+#include "cli/formats/recording.hpp"
 #include "drivers/formats/stream_messages.hpp"
 #include "tests/support/unique_temp.hpp"
 
 using namespace noisemon::drivers;
+using namespace noisemon::cli::formats;
 namespace fs = std::filesystem;
 
 namespace {

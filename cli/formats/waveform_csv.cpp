@@ -1,4 +1,4 @@
-#include "drivers/formats/waveform_csv.hpp"
+#include "cli/formats/waveform_csv.hpp"
 
 #include <charconv>
 #include <cmath>
@@ -7,7 +7,7 @@
 
 #include "drivers/formats/text_lines.hpp"
 
-namespace noisemon::drivers {
+namespace noisemon::cli::formats {
 namespace {
 
 enum class Separator { unknown, comma, tab, spaces };
@@ -70,7 +70,7 @@ Waveform parse_waveform_csv(std::string_view text, const std::string& file) {
   Waveform w;
   Separator sep = Separator::unknown;
   bool first_content = true;
-  TextLines lines(text);
+  drivers::TextLines lines(text);
   for (std::string_view raw; lines.next(raw);) {
     const std::size_t line_no = lines.number();
     const std::string_view line = trim(raw);
@@ -118,4 +118,4 @@ Waveform read_waveform_csv(const std::string& path) {
   return parse_waveform_csv(ss.str(), path);
 }
 
-}  // namespace noisemon::drivers
+}  // namespace noisemon::cli::formats
