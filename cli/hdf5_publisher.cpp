@@ -308,7 +308,10 @@ void Hdf5Publisher::begin_run(const std::string& condition) {
   ++f.run;
 }
 
-void Hdf5Publisher::publish(const std::string&, const noisemon::cycle_report_t& m, std::int64_t) {
+void Hdf5Publisher::publish_bytes(const std::string&, const std::uint8_t* data, std::size_t size, std::int64_t) {
+  const auto report = daemon::decode_as<noisemon::cycle_report_t>(data, size);
+  if (!report) return;  // the cycle reports alone are kept
+  const noisemon::cycle_report_t& m = *report;
   File& f = *file_;
   if (f.run < 0) begin_run("");
   if (f.band_count < 0) f.open_per_band_sets(m);

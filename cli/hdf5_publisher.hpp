@@ -26,7 +26,8 @@ class Hdf5Publisher final : public daemon::Publisher {
 
   // Throws std::runtime_error naming the file and the cycle when a report does not fit the file's layout (more
   // bands or microphones than its first report; fewer are padded with NaN).
-  void publish(const std::string& channel, const noisemon::cycle_report_t& m, std::int64_t utime) override;
+  void publish_bytes(const std::string& channel, const std::uint8_t* data, std::size_t size,
+                     std::int64_t utime) override;
   void flush() override;
 
  private:

@@ -11,8 +11,8 @@ CsvPublisher::CsvPublisher(const std::string& path) : path_(path), csv_(path) {
   csv_ << cycle_csv_header();
 }
 
-void CsvPublisher::publish(const std::string&, const noisemon::cycle_report_t& m, std::int64_t) {
-  csv_ << cycle_csv_row(m, condition_);
+void CsvPublisher::publish_bytes(const std::string&, const std::uint8_t* data, std::size_t size, std::int64_t) {
+  if (const auto report = decode_as<noisemon::cycle_report_t>(data, size)) csv_ << cycle_csv_row(*report, condition_);
 }
 
 void CsvPublisher::flush() {

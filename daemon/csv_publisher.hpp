@@ -17,7 +17,8 @@ class CsvPublisher final : public Publisher {
   // The following rows name this run. Not while a pipeline publishes.
   void begin_run(const std::string& condition) override { condition_ = condition; }
 
-  void publish(const std::string& channel, const noisemon::cycle_report_t& m, std::int64_t utime) override;
+  void publish_bytes(const std::string& channel, const std::uint8_t* data, std::size_t size,
+                     std::int64_t utime) override;
   void flush() override;
 
  private:

@@ -14,23 +14,8 @@ LcmPublisher::LcmPublisher(const std::string& url) : lcm_(std::make_unique<lcm::
 LcmPublisher::~LcmPublisher() = default;
 
 // The bus stamps its own time: utime is for logs.
-void LcmPublisher::publish(const std::string& channel, const noisemon::cycle_report_t& m, std::int64_t) {
-  lcm_->publish(channel, &m);
-}
-void LcmPublisher::publish(const std::string& channel, const noisemon::status_t& m, std::int64_t) {
-  lcm_->publish(channel, &m);
-}
-void LcmPublisher::publish(const std::string& channel, const noisemon::session_t& m, std::int64_t) {
-  lcm_->publish(channel, &m);
-}
-void LcmPublisher::publish(const std::string& channel, const noisemon::raw_block_t& m, std::int64_t) {
-  lcm_->publish(channel, &m);
-}
-void LcmPublisher::publish(const std::string& channel, const noisemon::operating_point_t& m, std::int64_t) {
-  lcm_->publish(channel, &m);
-}
-void LcmPublisher::publish(const std::string& channel, const noisemon::cycle_stats_t& m, std::int64_t) {
-  lcm_->publish(channel, &m);
+void LcmPublisher::publish_bytes(const std::string& channel, const std::uint8_t* data, std::size_t size, std::int64_t) {
+  lcm_->publish(channel, data, static_cast<unsigned int>(size));
 }
 
 }  // namespace noisemon::daemon

@@ -18,12 +18,9 @@ class LcmPublisher final : public Publisher {
   explicit LcmPublisher(const std::string& url);
   ~LcmPublisher() override;
 
-  void publish(const std::string& channel, const noisemon::cycle_report_t& m, std::int64_t utime) override;
-  void publish(const std::string& channel, const noisemon::status_t& m, std::int64_t utime) override;
-  void publish(const std::string& channel, const noisemon::session_t& m, std::int64_t utime) override;
-  void publish(const std::string& channel, const noisemon::raw_block_t& m, std::int64_t utime) override;
-  void publish(const std::string& channel, const noisemon::operating_point_t& m, std::int64_t utime) override;
-  void publish(const std::string& channel, const noisemon::cycle_stats_t& m, std::int64_t utime) override;
+  void publish_bytes(const std::string& channel, const std::uint8_t* data, std::size_t size,
+                     std::int64_t utime) override;
+
 
  private:
   std::unique_ptr<lcm::LCM> lcm_;

@@ -22,22 +22,14 @@ class LogPublisher final : public Publisher {
   explicit LogPublisher(const std::string& path, std::vector<std::string> channels = {});
   ~LogPublisher() override;
 
-  void publish(const std::string& channel, const noisemon::cycle_report_t& m, std::int64_t utime) override;
-  void publish(const std::string& channel, const noisemon::status_t& m, std::int64_t utime) override;
-  void publish(const std::string& channel, const noisemon::session_t& m, std::int64_t utime) override;
-  void publish(const std::string& channel, const noisemon::raw_block_t& m, std::int64_t utime) override;
-  void publish(const std::string& channel, const noisemon::operating_point_t& m, std::int64_t utime) override;
-  void publish(const std::string& channel, const noisemon::cycle_stats_t& m, std::int64_t utime) override;
+  void publish_bytes(const std::string& channel, const std::uint8_t* data, std::size_t size,
+                     std::int64_t utime) override;
   void flush() override;
 
  private:
-  template <class Message>
-  void write(const std::string& channel, const Message& m, std::int64_t utime);
-
   std::string path_;
   std::vector<std::string> channels_;
   std::unique_ptr<lcm::LogFile> log_;
-  std::vector<char> encoded_;  // reused for every event
 };
 
 }  // namespace noisemon::daemon

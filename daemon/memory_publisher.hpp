@@ -2,6 +2,7 @@
 // in-memory implementation of Drake's lcm/ pattern). Safe to read from another thread while a pipeline publishes.
 #pragma once
 
+#include <cstdint>
 #include <mutex>
 #include <string>
 #include <vector>
@@ -19,52 +20,36 @@ struct Published {
 
 class MemoryPublisher final : public Publisher {
  public:
-  void publish(const std::string& channel, const noisemon::cycle_report_t& m, std::int64_t utime) override {
-    keep(reports_, channel, m, utime);
-  }
-  void publish(const std::string& channel, const noisemon::status_t& m, std::int64_t utime) override {
-    keep(statuses_, channel, m, utime);
-  }
-  void publish(const std::string& channel, const noisemon::session_t& m, std::int64_t utime) override {
-    keep(sessions_, channel, m, utime);
-  }
-  void publish(const std::string& channel, const noisemon::raw_block_t& m, std::int64_t utime) override {
-    keep(raw_blocks_, channel, m, utime);
-  }
-  void publish(const std::string& channel, const noisemon::operating_point_t& m, std::int64_t utime) override {
-    keep(operating_points_, channel, m, utime);
-  }
-  void publish(const std::string& channel, const noisemon::cycle_stats_t& m, std::int64_t utime) override {
-    keep(statistics_, channel, m, utime);
+  void publish_bytes(const std::string& channel, const std::uint8_t* data, std::size_t size,
+                     std::int64_t utime) override {
+    std::lock_guard lock(mutex_);
+    kept_.push_back({channel, std::vector<std::uint8_t>(data, data + size), utime});
   }
 
-  // Copies of what was published so far, in order.
-  std::vector<Published<noisemon::cycle_report_t>> reports() const { return copy(reports_); }
-  std::vector<Published<noisemon::status_t>> statuses() const { return copy(statuses_); }
-  std::vector<Published<noisemon::session_t>> sessions() const { return copy(sessions_); }
-  std::vector<Published<noisemon::raw_block_t>> raw_blocks() const { return copy(raw_blocks_); }
-  std::vector<Published<noisemon::operating_point_t>> operating_points() const { return copy(operating_points_); }
-  std::vector<Published<noisemon::cycle_stats_t>> statistics() const { return copy(statistics_); }
+  // What was published so far of one message type, in order (each message decoded as it is asked for).
+  template <class Message>
+  [[nodiscard]] std::vector<Published<Message>> messages() const {
+    std::lock_guard lock(mutex_);
+    std::vector<Published<Message>> out;
+    for (const Encoded& e : kept_)
+      if (auto m = decode_as<Message>(e.bytes.data(), e.bytes.size())) out.push_back({e.channel, std::move(*m), e.utime});
+    return out;
+  }
+  [[nodiscard]] auto reports() const { return messages<noisemon::cycle_report_t>(); }
+  [[nodiscard]] auto statuses() const { return messages<noisemon::status_t>(); }
+  [[nodiscard]] auto sessions() const { return messages<noisemon::session_t>(); }
+  [[nodiscard]] auto raw_blocks() const { return messages<noisemon::raw_block_t>(); }
+  [[nodiscard]] auto operating_points() const { return messages<noisemon::operating_point_t>(); }
+  [[nodiscard]] auto statistics() const { return messages<noisemon::cycle_stats_t>(); }
 
  private:
-  template <class Message>
-  void keep(std::vector<Published<Message>>& to, const std::string& channel, const Message& m, std::int64_t utime) {
-    std::lock_guard lock(mutex_);
-    to.push_back({channel, m, utime});
-  }
-  template <class Message>
-  std::vector<Published<Message>> copy(const std::vector<Published<Message>>& from) const {
-    std::lock_guard lock(mutex_);
-    return from;
-  }
-
+  struct Encoded {
+    std::string channel;
+    std::vector<std::uint8_t> bytes;
+    std::int64_t utime = 0;
+  };
   mutable std::mutex mutex_;
-  std::vector<Published<noisemon::cycle_report_t>> reports_;
-  std::vector<Published<noisemon::status_t>> statuses_;
-  std::vector<Published<noisemon::session_t>> sessions_;
-  std::vector<Published<noisemon::raw_block_t>> raw_blocks_;
-  std::vector<Published<noisemon::operating_point_t>> operating_points_;
-  std::vector<Published<noisemon::cycle_stats_t>> statistics_;
+  std::vector<Encoded> kept_;
 };
 
 }  // namespace noisemon::daemon

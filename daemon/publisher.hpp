@@ -4,8 +4,11 @@
 // (csv_publisher.hpp) or memory (memory_publisher.hpp).
 #pragma once
 
+#include <cstddef>
 #include <cstdint>
 #include <memory>
+#include <optional>
+#include <stdexcept>
 #include <string>
 #include <vector>
 
@@ -20,47 +23,52 @@ namespace noisemon::daemon {
 
 // Called from one thread at a time (the pipeline's publishing thread). `utime` is the instant the message stands
 // for (the end of a cycle's window, a block's first frame, the wall clock for the status): what a log file stamps
-// the event with. Every publisher takes the cycle reports; the other messages are ignored unless it keeps them.
-// A failure throws (it fails the publishing thread, and the pipeline says why).
+// the event with. A failure throws (it fails the publishing thread, and the pipeline says why).
+//
+// One byte-level publish, as Drake's DrakeLcmInterface::Publish: a message arrives encoded (its LCM type's
+// fingerprint first), so a new message type needs no change here or in any publisher; the typed publish on top
+// encodes once. Publishers that keep only some types (CSV, HDF5) pick them out with decode_as.
 class Publisher {
  public:
   virtual ~Publisher() = default;
-  virtual void publish(const std::string& channel, const noisemon::cycle_report_t& m, std::int64_t utime) = 0;
-  virtual void publish(const std::string&, const noisemon::status_t&, std::int64_t) {}
-  virtual void publish(const std::string&, const noisemon::session_t&, std::int64_t) {}
-  virtual void publish(const std::string&, const noisemon::raw_block_t&, std::int64_t) {}
-  virtual void publish(const std::string&, const noisemon::operating_point_t&, std::int64_t) {}
-  virtual void publish(const std::string&, const noisemon::cycle_stats_t&, std::int64_t) {}
+  virtual void publish_bytes(const std::string& channel, const std::uint8_t* data, std::size_t size,
+                             std::int64_t utime) = 0;
   // The run the following cycle reports belong to (session_t::condition; "" when unknown): replay starts one per
   // session of a log, before its pipeline publishes. Files that keep runs apart (CSV, HDF5) mark them.
   virtual void begin_run(const std::string& /*condition*/) {}
   // Makes what was published so far durable (files written out); the pipeline calls it when it stops.
   virtual void flush() {}
+
+  // Any LCM message type of msgs/ (noisemon::cycle_report_t, status_t, ...).
+  template <class Message>
+  void publish(const std::string& channel, const Message& m, std::int64_t utime) {
+    encoded_.resize(static_cast<std::size_t>(m.getEncodedSize()));
+    if (m.encode(encoded_.data(), 0, static_cast<int>(encoded_.size())) != static_cast<int>(encoded_.size()))
+      throw std::runtime_error("cannot encode a message for channel " + channel);
+    publish_bytes(channel, encoded_.data(), encoded_.size(), utime);
+  }
+
+ private:
+  std::vector<std::uint8_t> encoded_;  // reused: no allocation per message once warm
 };
+
+// The message an encoded one holds if it is of type Message (its fingerprint says), else nothing.
+template <class Message>
+[[nodiscard]] std::optional<Message> decode_as(const std::uint8_t* data, std::size_t size) {
+  Message m;
+  if (m.decode(data, 0, static_cast<int>(size)) < 0) return std::nullopt;
+  return m;
+}
 
 // Every message to each of several publishers, in the order they were added.
 class FanoutPublisher final : public Publisher {
  public:
   void add(std::shared_ptr<Publisher> publisher) { publishers_.push_back(std::move(publisher)); }
-  bool empty() const { return publishers_.empty(); }
+  [[nodiscard]] bool empty() const { return publishers_.empty(); }
 
-  void publish(const std::string& channel, const noisemon::cycle_report_t& m, std::int64_t utime) override {
-    for (const auto& p : publishers_) p->publish(channel, m, utime);
-  }
-  void publish(const std::string& channel, const noisemon::status_t& m, std::int64_t utime) override {
-    for (const auto& p : publishers_) p->publish(channel, m, utime);
-  }
-  void publish(const std::string& channel, const noisemon::session_t& m, std::int64_t utime) override {
-    for (const auto& p : publishers_) p->publish(channel, m, utime);
-  }
-  void publish(const std::string& channel, const noisemon::raw_block_t& m, std::int64_t utime) override {
-    for (const auto& p : publishers_) p->publish(channel, m, utime);
-  }
-  void publish(const std::string& channel, const noisemon::operating_point_t& m, std::int64_t utime) override {
-    for (const auto& p : publishers_) p->publish(channel, m, utime);
-  }
-  void publish(const std::string& channel, const noisemon::cycle_stats_t& m, std::int64_t utime) override {
-    for (const auto& p : publishers_) p->publish(channel, m, utime);
+  void publish_bytes(const std::string& channel, const std::uint8_t* data, std::size_t size,
+                     std::int64_t utime) override {
+    for (const auto& p : publishers_) p->publish_bytes(channel, data, size, utime);
   }
   void begin_run(const std::string& condition) override {
     for (const auto& p : publishers_) p->begin_run(condition);

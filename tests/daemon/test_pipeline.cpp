@@ -312,9 +312,10 @@ TEST(Pipeline, ASlowPublisherLosesNothingWhenLossless) {
   // More cycles than the report queue holds (256), published far slower than they are processed.
   class SlowPublisher final : public Publisher {
    public:
-    void publish(const std::string& channel, const noisemon::cycle_report_t& m, std::int64_t utime) override {
-      std::this_thread::sleep_for(std::chrono::milliseconds(2));
-      kept.publish(channel, m, utime);
+    void publish_bytes(const std::string& channel, const std::uint8_t* data, std::size_t size,
+                       std::int64_t utime) override {
+      if (decode_as<noisemon::cycle_report_t>(data, size)) std::this_thread::sleep_for(std::chrono::milliseconds(2));
+      kept.publish_bytes(channel, data, size, utime);
     }
     MemoryPublisher kept;
   };
