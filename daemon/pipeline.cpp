@@ -150,7 +150,7 @@ void Pipeline::Impl::run_processing(const std::atomic<bool>& drain) {
     drivers::OperatingPoint op;
     while (op_ring.read(&op, 1) == 1) {
       processor.set_operating_point(op);
-      if (config.lcm.publish_operating_point) op_publish_ring.push(op);
+      if (config.lcm.publish_operating_point) (void)op_publish_ring.push(op);  // full: the publisher is behind, counted
     }
     // One CPU-time measurement for the batch (the idle polls are not counted).
     std::optional<CycleProcessor::CpuBatch> cpu_batch;
@@ -161,14 +161,14 @@ void Pipeline::Impl::run_processing(const std::atomic<bool>& drain) {
       if (const drivers::SampleBlock* b = pressure_ring.front()) {
         last_input_ns = now_ns();
         processor.add_pressure(*b);
-        if (config.lcm.publish_raw) raw_ring.push(RawItem{0, *b});
+        if (config.lcm.publish_raw) (void)raw_ring.push(RawItem{0, *b});
         pressure_ring.consume(1);
         got = true;
       }
       if (const drivers::SampleBlock* b = mic_ring.front()) {
         last_input_ns = now_ns();
         processor.add_mics(*b);
-        if (config.lcm.publish_raw) raw_ring.push(RawItem{1, *b});
+        if (config.lcm.publish_raw) (void)raw_ring.push(RawItem{1, *b});
         mic_ring.consume(1);
         got = true;
       }
@@ -177,7 +177,7 @@ void Pipeline::Impl::run_processing(const std::atomic<bool>& drain) {
         const drivers::SampleBlock* b = angle_ring.front();
         if (!b) break;
         processor.add_pressure_angle(*b);
-        if (config.lcm.publish_raw) raw_ring.push(RawItem{noisemon::raw_block_t::STREAM_PRESSURE_ANGLE, *b});
+        if (config.lcm.publish_raw) (void)raw_ring.push(RawItem{noisemon::raw_block_t::STREAM_PRESSURE_ANGLE, *b});
         angle_ring.consume(1);
         got = true;
       }

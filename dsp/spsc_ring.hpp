@@ -36,11 +36,11 @@ class SpscRing {
   SpscRing(const SpscRing&) = delete;
   SpscRing& operator=(const SpscRing&) = delete;
 
-  std::size_t capacity() const noexcept { return capacity_; }
+  [[nodiscard]] std::size_t capacity() const noexcept { return capacity_; }
 
   // Producer: writes all n items or none. Returns false (and counts an overrun of n items) when the
-  // ring lacks room for the whole block.
-  bool write(const T* items, std::size_t n) noexcept {
+  // ring lacks room for the whole block: a caller that drops data says so with (void).
+  [[nodiscard]] bool write(const T* items, std::size_t n) noexcept {
     const std::size_t head = head_.load(std::memory_order_relaxed);
     if (capacity_ - (head - tail_cache_) < n) {
       tail_cache_ = tail_.load(std::memory_order_acquire);
@@ -57,16 +57,16 @@ class SpscRing {
     head_.store(head + n, std::memory_order_release);
     return true;
   }
-  bool push(const T& item) noexcept { return write(&item, 1); }
+  [[nodiscard]] bool push(const T& item) noexcept { return write(&item, 1); }
 
   // Consumer: copies up to max items out, returns how many.
-  std::size_t read(T* out, std::size_t max) noexcept {
+  [[nodiscard]] std::size_t read(T* out, std::size_t max) noexcept {
     const std::size_t n = peek(out, max);
     consume(n);
     return n;
   }
   // Consumer: copies up to max items without removing them.
-  std::size_t peek(T* out, std::size_t max) noexcept {
+  [[nodiscard]] std::size_t peek(T* out, std::size_t max) noexcept {
     const std::size_t tail = tail_.load(std::memory_order_relaxed);
     std::size_t avail = head_cache_ - tail;
     if (avail < max) {
@@ -81,7 +81,7 @@ class SpscRing {
     return n;
   }
   // Consumer: pointer to the next item without copying (nullptr when empty). Valid until consume().
-  const T* front() noexcept {
+  [[nodiscard]] const T* front() noexcept {
     const std::size_t tail = tail_.load(std::memory_order_relaxed);
     if (head_cache_ == tail) {
       head_cache_ = head_.load(std::memory_order_acquire);

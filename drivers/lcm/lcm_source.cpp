@@ -59,11 +59,11 @@ class LcmSource final : public Source {
     switch (e.kind) {
       case RawEventKind::kBlock:
         if (!streams_.pressure) return;  // before start(): nothing to feed yet
-        if (BlockRing* ring = ring_of(streams_, e.stream)) ring->write(&e.block, 1);
+        if (BlockRing* ring = ring_of(streams_, e.stream)) (void)ring->write(&e.block, 1);  // full: counted there
         worker_.add_blocks_written();  // a full ring counts the overrun itself
         return;
       case RawEventKind::kOperatingPoint:
-        if (streams_.operating_point) streams_.operating_point->push(e.operating_point);
+        if (streams_.operating_point) (void)streams_.operating_point->push(e.operating_point);
         return;
       case RawEventKind::kOtherSessionBlock:
         // Another session (the next run of a multi-run log): its frame indices restart on another time base, which

@@ -178,7 +178,7 @@ void PressureGenerator::forward_angles() {
   const double lead_s = 1.5 * kMaxAngleBlockDeg / (6.0 * min_rpm_);  // 1.5: the speed's fluctuation, and more
   const std::int64_t from = first_index_ - static_cast<std::int64_t>(std::ceil(lead_s * kPipelineRateHz)) - 1;
   for (const SampleBlock* b = angle_staging_.front(); b; angle_staging_.consume(1), b = angle_staging_.front())
-    if (angle_out_ && b->first_index >= from) angle_out_->push(*b);
+    if (angle_out_ && b->first_index >= from) (void)angle_out_->push(*b);  // full: counted there
 }
 
 // The true pressure at the next edges before t_end_s (an overload fault scales it before the converter).

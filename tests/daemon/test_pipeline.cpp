@@ -111,7 +111,7 @@ class MemorySource final : public nd::Source {
 
  private:
   void run(const nd::Streams& s, const std::atomic<bool>& stop) {
-    s.operating_point->push(operating_point());
+    (void)s.operating_point->push(operating_point());
     while (!s.operating_point->empty() && !stop) std::this_thread::sleep_for(std::chrono::microseconds(100));
     for (std::size_t i = 0; i < script_.blocks.size(); ++i) {
       if (i == script_.fail_at) throw std::runtime_error("device unplugged");
@@ -121,7 +121,7 @@ class MemorySource final : public nd::Source {
         if (stop) return;
         std::this_thread::sleep_for(std::chrono::microseconds(100));
       }
-      ring.push(b.block);
+      (void)ring.push(b.block);
       worker_.add_blocks_written();
     }
     delivered_ = true;

@@ -294,7 +294,7 @@ class StubStreams final : public nd::Source {
     pressure = s.pressure;
     nd::OperatingPoint op;
     op.speed_rpm = -1;
-    s.operating_point->push(op);
+    (void)s.operating_point->push(op);
   }
   void stop() override {}
   bool running() const override { return true; }
