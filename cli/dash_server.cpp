@@ -70,7 +70,7 @@ void DashServer::routes() {
 }
 
 bool DashServer::start(const std::string& host, int port) {
-  port_ = port == 0 ? server_->bind_to_any_port(host.c_str()) : (server_->bind_to_port(host.c_str(), port) ? port : -1);
+  port_ = port == 0 ? server_->bind_to_any_port(host) : (server_->bind_to_port(host, port) ? port : -1);
   if (port_ <= 0) {
     std::fprintf(stderr, "noisemon dash: cannot listen on %s:%d\n", host.c_str(), port);
     return false;

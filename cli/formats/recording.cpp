@@ -493,7 +493,12 @@ void pressure_streams(const drivers::RunDir& run, drivers::RunDir* release, Reco
     pressure.first = crank.first = first;
     crank.values.resize(run.time_s.size());
     for (std::size_t i = 0; i < crank.values.size(); ++i) crank.values[i] = wrap_crank(run.crank_deg[i]);
-    pressure.values = release ? std::move(release->pressure_pa) : run.pressure_pa;
+    // Not `release ? std::move(a) : b`: a conditional of an rvalue and a const lvalue is a const copy (no move).
+    if (release) {
+      pressure.values = std::move(release->pressure_pa);
+    } else {
+      pressure.values = run.pressure_pa;
+    }
   } else {
     // What the encoder's edges carry (run.json says it only for samples already on the 40 kHz grid).
     const double step = resample_pressure(run, pressure, crank, rec.angle_edges);
