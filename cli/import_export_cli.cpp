@@ -5,6 +5,11 @@
 namespace noisemon::cli {
 
 ImportExportCommands::ImportExportCommands(CLI::App& app) {
+  add_import(app);
+  add_export(app);
+}
+
+void ImportExportCommands::add_import(CLI::App& app) {
   import_ = app.add_subcommand(
       "import",
       "convert recordings from other systems into a raw LCM log for `noisemon replay`: run directories "
@@ -16,25 +21,7 @@ ImportExportCommands::ImportExportCommands(CLI::App& app) {
                                            "a cycle table instead of run directories: first column crank angle "
                                            "(deg), then one column of pressure (bar) per consecutive cycle")
                            ->check(CLI::ExistingFile);
-  import_->add_option("--rpm", table_.table_options.speed_rpm, "engine speed of the cycle table (required with --cycles-table)")
-      ->check(CLI::PositiveNumber)
-      ->needs(table);
-  import_->add_option("--condition", table_.table_options.condition.name, "condition name (default: the table file's name)")
-      ->needs(table);
-  import_->add_option("--load", table_.table_options.condition.load_nm, "load, N m")->needs(table);
-  import_->add_option("--soi", table_.table_options.condition.soi_deg_btdc, "start of injection, deg before firing TDC")
-      ->needs(table);
-  import_->add_option("--rail", rail_bar_, "rail pressure, bar (default: unknown)")->check(CLI::NonNegativeNumber)->needs(table);
-  import_->add_flag("--motored", table_.table_options.condition.motored, "the engine was motored (no combustion)")->needs(table);
-  import_->add_option("--tdc-deg", table_.table_options.tdc_deg,
-                      "the table's crank angle of firing TDC (0 when the table runs -180..540; 360 for 0..720)")
-      ->capture_default_str()
-      ->needs(table);
-  import_->add_option("--motored-table", table_.motored_table,
-                      "a motored cycle table of the same engine, speed and resolution: firing TDC is set to its "
-                      "pressure peak plus the loss angle (thermodynamic TDC), and the fired table's angles move by it")
-      ->check(CLI::ExistingFile)
-      ->needs(table);
+  add_table_options(table);
   import_->add_option("--motored-run", dirs_.motored_run,
                       "a motored run directory of the same engine and encoder: firing TDC is its pressure peak plus "
                       "the loss angle (as `noisemon tdc` finds it), and every run's angles move by it")
@@ -67,7 +54,32 @@ ImportExportCommands::ImportExportCommands(CLI::App& app) {
       "  noisemon import --cycles-table yanmar_l100v_fired_18Nm.txt --motored-table yanmar_l100v_motored.txt \\\n"
       "      --rpm 1799.9 --load 18 --soi 9.6 -o fired.lcmlog\n"
       "  noisemon replay fired.lcmlog --csv fired.csv");
+}
 
+// The cycle table's own options (each needs --cycles-table).
+void ImportExportCommands::add_table_options(CLI::Option* table) {
+  import_->add_option("--rpm", table_.table_options.speed_rpm, "engine speed of the cycle table (required with --cycles-table)")
+      ->check(CLI::PositiveNumber)
+      ->needs(table);
+  import_->add_option("--condition", table_.table_options.condition.name, "condition name (default: the table file's name)")
+      ->needs(table);
+  import_->add_option("--load", table_.table_options.condition.load_nm, "load, N m")->needs(table);
+  import_->add_option("--soi", table_.table_options.condition.soi_deg_btdc, "start of injection, deg before firing TDC")
+      ->needs(table);
+  import_->add_option("--rail", rail_bar_, "rail pressure, bar (default: unknown)")->check(CLI::NonNegativeNumber)->needs(table);
+  import_->add_flag("--motored", table_.table_options.condition.motored, "the engine was motored (no combustion)")->needs(table);
+  import_->add_option("--tdc-deg", table_.table_options.tdc_deg,
+                      "the table's crank angle of firing TDC (0 when the table runs -180..540; 360 for 0..720)")
+      ->capture_default_str()
+      ->needs(table);
+  import_->add_option("--motored-table", table_.motored_table,
+                      "a motored cycle table of the same engine, speed and resolution: firing TDC is set to its "
+                      "pressure peak plus the loss angle (thermodynamic TDC), and the fired table's angles move by it")
+      ->check(CLI::ExistingFile)
+      ->needs(table);
+}
+
+void ImportExportCommands::add_export(CLI::App& app) {
   export_ = app.add_subcommand("export", "write the sessions of a raw LCM log as run directories (run.json, pressure.csv, mics.wav)");
   export_->add_option("LOG", export_options_.log, "raw LCM log (noisemond's recording or an import)")->required()->check(CLI::ExistingFile);
   export_->add_option("-o,--out", export_options_.out_dir,

@@ -19,6 +19,9 @@ class ImportExportCommands {
   int run();
 
  private:
+  void add_import(CLI::App& app);
+  void add_table_options(CLI::Option* table);
+  void add_export(CLI::App& app);
   int import_command();
   int export_command();
 

@@ -639,6 +639,42 @@ void read_lcm(TableReader& top, const std::string& origin, LcmConfig& lcm) {
   l.reject_unknown();
 }
 
+// [sim]: the virtual engine, its cell, faults, effects and operating-point schedule.
+void read_sim(TableReader& top, const std::string& origin, drivers::SimConfig& s) {
+  TableReader sr(top.table("sim"), "sim", origin);
+  sr.boolean("paced", s.paced);
+  sr.number("speed_rpm", s.speed_rpm, 100, 10000);
+  sr.number("load_nm", s.load_nm, 0, 1e4);
+  sr.number("full_load_nm", s.full_load_nm, 1e-3, 1e4);
+  sr.number("soi_deg_btdc", s.soi_deg_btdc, -30, 60);
+  sr.boolean("motored", s.motored);
+  sr.number("speed_fluctuation", s.speed_fluctuation, 0, 0.2);
+  sr.number("cycle_variation", s.cycle_variation, 0, 0.5);
+  sr.number("encoder_resolution_deg", s.encoder_resolution_deg, 0.01, 6);
+  std::int64_t mic_count = s.mic_count;
+  sr.integer("mic_count", mic_count, 1, static_cast<std::int64_t>(drivers::SampleBlock::kMaxChannels));
+  s.mic_count = static_cast<std::uint32_t>(mic_count);
+  sr.number("radius_m", s.radius_m, 0.1, 100);
+  read_positions(sr, "mic_positions_m", s.radius_m, s.mic_positions_m);
+  if (!s.mic_positions_m.empty() && s.mic_positions_m.size() != s.mic_count)
+    sr.fail("mic_positions_m", "has " + std::to_string(s.mic_positions_m.size()) + " positions but mic_count is " + std::to_string(s.mic_count));
+  sr.number("speed_of_sound_m_s", s.speed_of_sound_m_s, 100, 1000);
+  sr.number("mic_rate_hz", s.mic_rate_hz, 40000, 1e6);
+  sr.number("mic_gain_spread_db", s.mic_gain_spread_db, 0, 20);
+  sr.number("background_noise_db", s.background_noise_db, -100, 200);
+  read_sim_cell(sr, s);
+  read_faults(sr, origin, s);
+  read_effects(sr, origin, s);
+  read_schedule(sr, origin, s);
+  std::int64_t seed = static_cast<std::int64_t>(s.seed);
+  sr.integer("seed", seed, 0, INT64_MAX);
+  s.seed = static_cast<std::uint64_t>(seed);
+  std::string true_name = "linear";
+  TableReader tb(sr.table("true_block"), "sim.true_block", origin);
+  read_block(tb, true_name, s.true_block);
+  sr.reject_unknown();
+}
+
 Config parse_table(const toml::table& root, const std::string& origin) {
   Config c;
   TableReader top(&root, "", origin);
@@ -678,39 +714,7 @@ Config parse_table(const toml::table& root, const std::string& origin) {
   c.mic_average_time = mic_average == "time";
   p.reject_unknown();
 
-  drivers::SimConfig& s = c.sim;
-  TableReader sr(top.table("sim"), "sim", origin);
-  sr.boolean("paced", s.paced);
-  sr.number("speed_rpm", s.speed_rpm, 100, 10000);
-  sr.number("load_nm", s.load_nm, 0, 1e4);
-  sr.number("full_load_nm", s.full_load_nm, 1e-3, 1e4);
-  sr.number("soi_deg_btdc", s.soi_deg_btdc, -30, 60);
-  sr.boolean("motored", s.motored);
-  sr.number("speed_fluctuation", s.speed_fluctuation, 0, 0.2);
-  sr.number("cycle_variation", s.cycle_variation, 0, 0.5);
-  sr.number("encoder_resolution_deg", s.encoder_resolution_deg, 0.01, 6);
-  std::int64_t mic_count = s.mic_count;
-  sr.integer("mic_count", mic_count, 1, static_cast<std::int64_t>(drivers::SampleBlock::kMaxChannels));
-  s.mic_count = static_cast<std::uint32_t>(mic_count);
-  sr.number("radius_m", s.radius_m, 0.1, 100);
-  read_positions(sr, "mic_positions_m", s.radius_m, s.mic_positions_m);
-  if (!s.mic_positions_m.empty() && s.mic_positions_m.size() != s.mic_count)
-    sr.fail("mic_positions_m", "has " + std::to_string(s.mic_positions_m.size()) + " positions but mic_count is " + std::to_string(s.mic_count));
-  sr.number("speed_of_sound_m_s", s.speed_of_sound_m_s, 100, 1000);
-  sr.number("mic_rate_hz", s.mic_rate_hz, 40000, 1e6);
-  sr.number("mic_gain_spread_db", s.mic_gain_spread_db, 0, 20);
-  sr.number("background_noise_db", s.background_noise_db, -100, 200);
-  read_sim_cell(sr, s);
-  read_faults(sr, origin, s);
-  read_effects(sr, origin, s);
-  read_schedule(sr, origin, s);
-  std::int64_t seed = static_cast<std::int64_t>(s.seed);
-  sr.integer("seed", seed, 0, INT64_MAX);
-  s.seed = static_cast<std::uint64_t>(seed);
-  std::string true_name = "linear";
-  TableReader tb(sr.table("true_block"), "sim.true_block", origin);
-  read_block(tb, true_name, s.true_block);
-  sr.reject_unknown();
+  read_sim(top, origin, c.sim);
 
   read_comedi(top, origin, c.comedi);
   read_can(top, root, origin, c.can);

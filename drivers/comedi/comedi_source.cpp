@@ -373,10 +373,12 @@ std::string buffer_note(const Acquisition& a, const ComediAcquisitionConfig& con
   return s.str();
 }
 
-std::vector<ComediAcquisitionConfig> comedi_acquisitions(const ComediSourceConfig& c) {
-  auto fail = [](const std::string& what) { throw std::invalid_argument(what); };
-  std::vector<ComediAcquisitionConfig> out;
+namespace {
 
+[[noreturn]] void fail_config(const std::string& what) { throw std::invalid_argument(what); }
+
+// The pressure card: the transducer (and the cam channel) clocked by the encoder's edges.
+ComediAcquisitionConfig pressure_acquisition(const ComediSourceConfig& c) {
   ComediAcquisitionConfig p;
   p.device_path = c.pressure.device;
   p.subdevice = c.pressure.subdevice;
@@ -393,10 +395,13 @@ std::vector<ComediAcquisitionConfig> comedi_acquisitions(const ComediSourceConfi
     p.channels.push_back({.channel = static_cast<unsigned>(c.pressure.cam_channel), .range = c.pressure.cam_range,
                           .aref = c.pressure.cam_aref, .si_per_volt = 1.0});
   else if (c.phase == PhaseSource::kCam)
-    fail("comedi.phase = \"cam\" needs comedi.pressure.cam_channel");
-  out.push_back(p);
+    fail_config("comedi.phase = \"cam\" needs comedi.pressure.cam_channel");
+  return p;
+}
 
-  if (c.encoder.subdevice < 0) fail("comedi.encoder.subdevice: set the counter subdevice that streams the encoder");
+// The encoder's counter: position (and timestamp, on its own subdevice when configured so) per edge.
+void add_encoder_acquisitions(const ComediSourceConfig& c, std::vector<ComediAcquisitionConfig>& out) {
+  if (c.encoder.subdevice < 0) fail_config("comedi.encoder.subdevice: set the counter subdevice that streams the encoder");
   ComediAcquisitionConfig e;
   e.device_path = c.encoder.device;
   e.subdevice = c.encoder.subdevice;
@@ -420,18 +425,21 @@ std::vector<ComediAcquisitionConfig> comedi_acquisitions(const ComediSourceConfi
     ts.channels = {timestamp};
     out.push_back(ts);
   }
+}
 
+// The microphone card, on its own timed clock.
+ComediAcquisitionConfig mic_acquisition(const ComediSourceConfig& c) {
   const auto& m = c.mics;
   if (m.channels.empty() || m.channels.size() > SampleBlock::kMaxChannels)
-    fail("comedi.mics.channels: 1.." + std::to_string(SampleBlock::kMaxChannels) + " microphone channels");
+    fail_config("comedi.mics.channels: 1.." + std::to_string(SampleBlock::kMaxChannels) + " microphone channels");
   if (m.sensitivity_mv_per_pa.size() != m.channels.size())
-    fail("comedi.mics.sensitivity_mv_per_pa: one sensitivity per channel (" + std::to_string(m.channels.size()) +
+    fail_config("comedi.mics.sensitivity_mv_per_pa: one sensitivity per channel (" + std::to_string(m.channels.size()) +
          "), got " + std::to_string(m.sensitivity_mv_per_pa.size()));
   if (m.positions_m.empty() && m.channels.size() > thesis_mic_positions().size())
-    fail("comedi.mics.positions_m: required for more than " + std::to_string(thesis_mic_positions().size()) + " microphones");
+    fail_config("comedi.mics.positions_m: required for more than " + std::to_string(thesis_mic_positions().size()) + " microphones");
   if (!m.positions_m.empty() && m.positions_m.size() != m.channels.size())
-    fail("comedi.mics.positions_m: one position per channel");
-  if (!(m.radius_m > 0.0) || !(m.speed_of_sound_m_s > 0.0)) fail("comedi.mics: radius_m and speed_of_sound_m_s must be positive");
+    fail_config("comedi.mics.positions_m: one position per channel");
+  if (!(m.radius_m > 0.0) || !(m.speed_of_sound_m_s > 0.0)) fail_config("comedi.mics: radius_m and speed_of_sound_m_s must be positive");
   ComediAcquisitionConfig mic;
   mic.device_path = m.device;
   mic.subdevice = m.subdevice;
@@ -444,13 +452,22 @@ std::vector<ComediAcquisitionConfig> comedi_acquisitions(const ComediSourceConfi
     try {
       ch.si_per_volt = microphone_pa_per_volt(m.sensitivity_mv_per_pa[i]);
     } catch (const std::invalid_argument& err) {
-      fail("comedi.mics.sensitivity_mv_per_pa[" + std::to_string(i) + "]: " + err.what());
+      fail_config("comedi.mics.sensitivity_mv_per_pa[" + std::to_string(i) + "]: " + err.what());
     }
     mic.channels.push_back(ch);
   }
-  out.push_back(mic);
+  return mic;
+}
+
+}  // namespace
+
+std::vector<ComediAcquisitionConfig> comedi_acquisitions(const ComediSourceConfig& c) {
+  std::vector<ComediAcquisitionConfig> out;
+  out.push_back(pressure_acquisition(c));
+  add_encoder_acquisitions(c, out);
+  out.push_back(mic_acquisition(c));
   for (const auto& a : out)
-    if (a.device_path.empty()) fail("comedi: empty device path for " + where(a.device_path, a.subdevice));
+    if (a.device_path.empty()) fail_config("comedi: empty device path for " + where(a.device_path, a.subdevice));
   return out;
 }
 
