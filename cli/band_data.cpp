@@ -25,7 +25,8 @@ namespace {
 LoadedRecording load_run_dir(const std::string& dir, std::int64_t epoch_utime) {
   const drivers::RunDir run = drivers::read_run_dir(dir);
   if (!run.condition.motored_known)
-    throw std::runtime_error(dir + ": key \"condition.motored\" is null (unknown) in run.json: the diagnosis must know "
+    throw std::runtime_error(dir +
+                             ": key \"condition.motored\" is null (unknown) in run.json: the diagnosis must know "
                              "whether the run is motored (a motored reference) or fired; set it to true or false");
   LoadedRecording r = loaded_run(run, epoch_utime, dir);
   if (r.recording.condition.empty()) r.recording.condition = std::filesystem::path(dir).filename().string();
@@ -64,13 +65,15 @@ std::vector<LoadedRecording> load_recordings(const std::vector<std::string>& pat
     if (fs::is_directory(p, ec)) {
       LoadedRecording r = load_run_dir(p, epoch);
       epoch += 1'000'000'000;  // distinct epochs: recordings never share a time base
-      if (note) note(p + ": condition " + r.recording.condition + ", " + std::to_string(r.recording.frames()) + " frames");
+      if (note)
+        note(p + ": condition " + r.recording.condition + ", " + std::to_string(r.recording.frames()) + " frames");
       out.push_back(std::move(r));
     } else if (fs::is_regular_file(p, ec)) {
       std::int64_t skipped = 0;
       std::vector<formats::Recording> recs = formats::read_recordings_log(p, {}, &skipped);
-      if (note) note(p + ": " + std::to_string(recs.size()) + " recording(s)" +
-                     (skipped > 0 ? ", " + std::to_string(skipped) + " damaged event(s) skipped" : ""));
+      if (note)
+        note(p + ": " + std::to_string(recs.size()) + " recording(s)" +
+             (skipped > 0 ? ", " + std::to_string(skipped) + " damaged event(s) skipped" : ""));
       for (formats::Recording& rec : recs) {
         if (rec.condition.empty()) rec.condition = fs::path(p).stem().string();
         out.push_back({std::move(rec), p});
@@ -93,8 +96,8 @@ model::ConditionInfo condition_info(const formats::Recording& rec, const std::st
     info.soi_deg_btdc = op.soi_deg_btdc;
     info.motored = op.motored;
   }
-  info.background = info.name.rfind("background", 0) == 0 || (!rec.operating_points.empty() && info.speed_rpm == 0.0 &&
-                                                               rec.operating_points.front().motored);
+  info.background = info.name.rfind("background", 0) == 0 ||
+                    (!rec.operating_points.empty() && info.speed_rpm == 0.0 && rec.operating_points.front().motored);
   return info;
 }
 
@@ -105,7 +108,8 @@ model::ConditionInfo condition_info(const LoadedRecording& r) {
   return info;
 }
 
-model::BandDataset make_band_dataset(const std::vector<LoadedRecording>& recordings, const model::DatasetOptions& options) {
+model::BandDataset make_band_dataset(const std::vector<LoadedRecording>& recordings,
+                                     const model::DatasetOptions& options) {
   std::vector<std::string> order;
   std::map<std::string, std::vector<const LoadedRecording*>> groups;
   for (const LoadedRecording& r : recordings) {

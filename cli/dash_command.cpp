@@ -26,13 +26,22 @@ bool parse_listen_address(const std::string& text, std::string& host, int& port)
 }
 
 DashCommand::DashCommand(CLI::App& app) {
-  dash_ = app.add_subcommand("dash", "serve a live dashboard of the cycle reports and the daemon's health to browsers, and /metrics for Prometheus");
+  dash_ = app.add_subcommand(
+      "dash",
+      "serve a live dashboard of the cycle reports and the daemon's health to browsers, and /metrics for Prometheus");
   dash_->add_option("--lcm", lcm_url_, "LCM URL (default: the configuration's, else LCM's default udpm URL)");
-  dash_->add_option("--listen", listen_, "HOST:PORT to serve on (0.0.0.0:PORT: every interface)")->capture_default_str();
-  dash_->add_option("--cell", cell_, "test cell id: subscribe to the channels suffixed _ID (default: the configuration's [lcm] cell)");
-  dash_->add_option("--config", config_path_, "noisemond TOML configuration, for the channel names and the cell")->check(CLI::ExistingFile);
-  dash_->add_option("--history", history_, "cycles kept for the trend")->capture_default_str()->check(CLI::Range(10, 100000));
-  dash_->add_option("--max-rate", max_rate_, "events per second to each browser at most")->capture_default_str()->check(CLI::Range(0.1, 100.0));
+  dash_->add_option("--listen", listen_, "HOST:PORT to serve on (0.0.0.0:PORT: every interface)")
+      ->capture_default_str();
+  dash_->add_option("--cell", cell_,
+                    "test cell id: subscribe to the channels suffixed _ID (default: the configuration's [lcm] cell)");
+  dash_->add_option("--config", config_path_, "noisemond TOML configuration, for the channel names and the cell")
+      ->check(CLI::ExistingFile);
+  dash_->add_option("--history", history_, "cycles kept for the trend")
+      ->capture_default_str()
+      ->check(CLI::Range(10, 100000));
+  dash_->add_option("--max-rate", max_rate_, "events per second to each browser at most")
+      ->capture_default_str()
+      ->check(CLI::Range(0.1, 100.0));
   dash_->footer("Pages: / (the dashboard), /events (server-sent events), /api/state (JSON), /metrics (Prometheus).");
 }
 
@@ -49,7 +58,9 @@ int DashCommand::run() {
   }
   lcm::LCM lcm(config.lcm.url);
   if (!lcm.good()) {
-    std::fprintf(stderr, "noisemon dash: cannot open LCM at '%s': the network needs a multicast route (see docs/sources-and-formats.md, 'LCM and multicast')\n",
+    std::fprintf(stderr,
+                 "noisemon dash: cannot open LCM at '%s': the network needs a multicast route (see "
+                 "docs/sources-and-formats.md, 'LCM and multicast')\n",
                  config.lcm.url.empty() ? "default URL" : config.lcm.url.c_str());
     return 1;
   }
@@ -68,7 +79,8 @@ int DashCommand::run() {
   DashServer server(state, std::chrono::milliseconds(static_cast<int>(1000.0 / max_rate_)));
   if (!server.start(host, port)) return 1;
   std::fprintf(stderr, "noisemon dash: http://%s:%d/ (channels %s, %s, %s)\n", host.c_str(), server.port(),
-               config.lcm.report_channel.c_str(), config.lcm.status_channel.c_str(), config.lcm.operating_point_channel.c_str());
+               config.lcm.report_channel.c_str(), config.lcm.status_channel.c_str(),
+               config.lcm.operating_point_channel.c_str());
   handle_until_signal(lcm);
   state.stop();
   server.stop();

@@ -42,25 +42,34 @@ nlohmann::json cycle_json(const noisemon::cycle_report_t& r) {
 nlohmann::json trend_point_json(const noisemon::cycle_report_t& r, std::int64_t dropped, bool restarted) {
   nlohmann::json gap = nlohmann::json::array();
   for (int b = 0; b < r.nbands; ++b) {
-    const double g = daemon::band_says_nothing(r.band_flags[b]) ? std::numeric_limits<double>::quiet_NaN() : static_cast<double>(r.spl_a_measured_db[b]) - r.spl_a_predicted_db[b];
+    const double g = daemon::band_says_nothing(r.band_flags[b])
+                         ? std::numeric_limits<double>::quiet_NaN()
+                         : static_cast<double>(r.spl_a_measured_db[b]) - r.spl_a_predicted_db[b];
     gap.push_back(std::isfinite(g) ? nlohmann::json(std::round(g * 10.0) / 10.0) : nlohmann::json(nullptr));
   }
-  return {{"t", static_cast<double>(r.utime) * 1e-6}, {"cycle", r.cycle}, {"gap", std::move(gap)},
-          {"lpa_m", r.lpa_measured_db},               {"lpa_p", r.lpa_predicted_db},
-          {"lwa_m", r.lwa_measured_db},               {"lwa_p", r.lwa_predicted_db},
-          {"speed", r.speed_rpm},                     {"load", r.load_nm},
-          {"soi", r.soi_deg_btdc},                    {"flags", r.flags},
-          {"dropped", dropped},                       {"restarted", restarted}};
+  return {{"t", static_cast<double>(r.utime) * 1e-6},
+          {"cycle", r.cycle},
+          {"gap", std::move(gap)},
+          {"lpa_m", r.lpa_measured_db},
+          {"lpa_p", r.lpa_predicted_db},
+          {"lwa_m", r.lwa_measured_db},
+          {"lwa_p", r.lwa_predicted_db},
+          {"speed", r.speed_rpm},
+          {"load", r.load_nm},
+          {"soi", r.soi_deg_btdc},
+          {"flags", r.flags},
+          {"dropped", dropped},
+          {"restarted", restarted}};
 }
 
 nlohmann::json status_json(const noisemon::status_t& s) {
-  nlohmann::json threads = nlohmann::json::array(), rings = nlohmann::json::array(),
-                 counters = nlohmann::json::array();
+  nlohmann::json threads = nlohmann::json::array(), rings = nlohmann::json::array(), counters = nlohmann::json::array();
   for (int i = 0; i < s.nthreads; ++i)
     threads.push_back({{"name", s.thread_name[i]}, {"state", s.thread_state[i]}, {"error", s.thread_error[i]}});
   for (int i = 0; i < s.nrings; ++i)
     rings.push_back({{"name", s.ring_name[i]}, {"fill", s.ring_fill[i]}, {"overruns", s.ring_overruns[i]}});
-  for (int i = 0; i < s.ncounters; ++i) counters.push_back({{"name", s.counter_name[i]}, {"value", s.counter_value[i]}});
+  for (int i = 0; i < s.ncounters; ++i)
+    counters.push_back({{"name", s.counter_name[i]}, {"value", s.counter_value[i]}});
   return {{"utime", s.utime},
           {"uptime_s", s.uptime_s},
           {"source", s.source},
@@ -79,33 +88,53 @@ nlohmann::json status_json(const noisemon::status_t& s) {
 }
 
 nlohmann::json operating_point_json(const noisemon::operating_point_t& op) {
-  return {{"utime", op.utime},         {"speed_rpm", op.speed_rpm},
-          {"load_nm", op.load_nm},     {"soi_deg_btdc", op.soi_deg_btdc},
-          {"rail_pressure_bar", op.rail_pressure_bar}, {"motored", op.motored}};
+  return {{"utime", op.utime},
+          {"speed_rpm", op.speed_rpm},
+          {"load_nm", op.load_nm},
+          {"soi_deg_btdc", op.soi_deg_btdc},
+          {"rail_pressure_bar", op.rail_pressure_bar},
+          {"motored", op.motored}};
 }
 
 nlohmann::json gap_event_json(const noisemon::gap_event_t& e) {
   nlohmann::json params = nlohmann::json::object();
   for (int i = 0; i < e.nparams; ++i) params[e.param_names[i]] = e.param_values[i];
   nlohmann::json candidates = nlohmann::json::array();
-  for (int i = 0; i < e.ncandidates; ++i) candidates.push_back({{"effect", e.candidates[i]}, {"weight", e.candidate_weights[i]}});
+  for (int i = 0; i < e.ncandidates; ++i)
+    candidates.push_back({{"effect", e.candidates[i]}, {"weight", e.candidate_weights[i]}});
   auto floats = [](const std::vector<float>& v) {
     nlohmann::json a = nlohmann::json::array();
     for (const float x : v) a.push_back(std::isfinite(x) ? nlohmann::json(x) : nlohmann::json(nullptr));
     return a;
   };
-  return {{"utime", e.utime},          {"effect", e.effect},           {"params", params},
-          {"confidence", e.confidence}, {"kind", e.kind},               {"onset_s", e.onset_s},
-          {"detected_s", e.detected_s}, {"onset_cycle", e.onset_cycle}, {"detected_cycle", e.detected_cycle},
-          {"gap_before_db", e.gap_before_db}, {"gap_after_db", e.gap_after_db}, {"features", e.features},
-          {"explanation", e.explanation}, {"band_hz", floats(e.band_hz)}, {"gap_change_db", floats(e.gap_change_db)},
-          {"mic_change_db", floats(e.mic_change_db)}, {"candidates", candidates}};
+  return {{"utime", e.utime},
+          {"effect", e.effect},
+          {"params", params},
+          {"confidence", e.confidence},
+          {"kind", e.kind},
+          {"onset_s", e.onset_s},
+          {"detected_s", e.detected_s},
+          {"onset_cycle", e.onset_cycle},
+          {"detected_cycle", e.detected_cycle},
+          {"gap_before_db", e.gap_before_db},
+          {"gap_after_db", e.gap_after_db},
+          {"features", e.features},
+          {"explanation", e.explanation},
+          {"band_hz", floats(e.band_hz)},
+          {"gap_change_db", floats(e.gap_change_db)},
+          {"mic_change_db", floats(e.mic_change_db)},
+          {"candidates", candidates}};
 }
 
 nlohmann::json gap_status_json(const noisemon::gap_status_t& s) {
-  return {{"utime", s.utime},       {"cycles", s.cycles},           {"events", s.events},
-          {"operating_points", s.operating_points}, {"learning", s.learning}, {"reference_s", s.reference_s},
-          {"since_reference_s", s.since_reference_s}, {"watched_features", s.watched_features}};
+  return {{"utime", s.utime},
+          {"cycles", s.cycles},
+          {"events", s.events},
+          {"operating_points", s.operating_points},
+          {"learning", s.learning},
+          {"reference_s", s.reference_s},
+          {"since_reference_s", s.since_reference_s},
+          {"watched_features", s.watched_features}};
 }
 
 }  // namespace noisemon::cli

@@ -14,11 +14,11 @@ namespace noisemon::cli {
 
 struct MetricsInput {
   std::string cell;
-  std::optional<noisemon::status_t> status;         // the last status message, if any
-  std::optional<noisemon::cycle_report_t> cycle;    // the last cycle report, if any
-  double status_age_s = 0;                          // seconds since the status arrived
-  long long cycles_received = 0;                    // by the dash since it started
-  std::optional<noisemon::gap_status_t> gap_status; // noisemon gapwatch's last state, if any
+  std::optional<noisemon::status_t> status;               // the last status message, if any
+  std::optional<noisemon::cycle_report_t> cycle;          // the last cycle report, if any
+  double status_age_s = 0;                                // seconds since the status arrived
+  long long cycles_received = 0;                          // by the dash since it started
+  std::optional<noisemon::gap_status_t> gap_status;       // noisemon gapwatch's last state, if any
   std::map<std::string, long long> gap_events_by_effect;  // its events since the dash started
 };
 

@@ -28,7 +28,8 @@ bool next_event(DashState& state, Client& c, std::chrono::milliseconds min_inter
   const std::uint64_t seq = state.wait_newer(c.sent, std::chrono::seconds(2));
   if (state.stopped()) return false;
   // A comment line every 2 s without cycles: finds browsers that went away.
-  const std::string data = seq == c.sent ? std::string(": idle\n\n") : "data: " + state.event_json(c.sent, c.sent) + "\n\n";
+  const std::string data =
+      seq == c.sent ? std::string(": idle\n\n") : "data: " + state.event_json(c.sent, c.sent) + "\n\n";
   c.last_send = std::chrono::steady_clock::now();
   return sink.write(data.data(), data.size());
 }

@@ -76,9 +76,16 @@ nlohmann::json DashState::snapshot_locked(std::uint64_t after) const {
   nlohmann::json trend = nlohmann::json::array();
   for (const auto& [seq, point] : trend_)
     if (seq > after) trend.push_back(point);
-  nlohmann::json snapshot = {{"cell", cell_},    {"seq", sequence_}, {"history", history_cycles_}, {"full", after == 0},
-                             {"cycle", cycle_}, {"status", status_}, {"op", operating_point_},       {"trend", std::move(trend)},
-                             {"gap_status", gap_status_}, {"gap_events", nlohmann::json(gap_events_)}};
+  nlohmann::json snapshot = {{"cell", cell_},
+                             {"seq", sequence_},
+                             {"history", history_cycles_},
+                             {"full", after == 0},
+                             {"cycle", cycle_},
+                             {"status", status_},
+                             {"op", operating_point_},
+                             {"trend", std::move(trend)},
+                             {"gap_status", gap_status_},
+                             {"gap_events", nlohmann::json(gap_events_)}};
   if (after == 0) snapshot["reference"] = reference_;
   return snapshot;
 }

@@ -13,14 +13,14 @@
 
 #include "cli/band_data.hpp"
 #include "cli/cli_support.hpp"
-#include "cli/report/diagnosis_report.hpp"
 #include "cli/fit_command.hpp"
-#include "daemon/params_file.hpp"
+#include "cli/report/diagnosis_report.hpp"
 #include "cli/report/report_html.hpp"
-#include "model/fit/band_fit.hpp"
+#include "daemon/params_file.hpp"
 #include "model/diagnosis/diagnosis.hpp"
-#include "model/fit/pressure_floor.hpp"
 #include "model/diagnosis/waveform_diagnosis.hpp"
+#include "model/fit/band_fit.hpp"
+#include "model/fit/pressure_floor.hpp"
 
 namespace noisemon::cli {
 namespace {
@@ -79,8 +79,9 @@ void print_band_summary(std::FILE* out, const model::DiagnosisResult& r) {
   const model::Verdict& v = r.verdict;
   std::string also;
   for (const auto& a : v.also) also += " + " + a;
-  std::fprintf(out, "verdict: %s%s  held-out gap %.2f -> %.2f dB (%.0f %% closed; thesis metric %.2f -> %.2f dB; "
-                    "noise %.2f dB)\n  %s\n",
+  std::fprintf(out,
+               "verdict: %s%s  held-out gap %.2f -> %.2f dB (%.0f %% closed; thesis metric %.2f -> %.2f dB; "
+               "noise %.2f dB)\n  %s\n",
                v.effect.c_str(), also.c_str(), v.heldout_rms_before_db, v.heldout_rms_after_db,
                100.0 * v.gap_closed_fraction, v.heldout_thesis_before_db, v.heldout_thesis_after_db, v.noise_db,
                v.explanation.c_str());
@@ -92,12 +93,14 @@ void print_band_summary(std::FILE* out, const model::DiagnosisResult& r) {
 void print_floors(std::FILE* out, const model::BandDataset& data, const model::Where& w) {
   for (std::size_t k = 0; k < data.conditions.size() && k < w.pressure_floor_judged_by.size(); ++k) {
     const std::string stated = std::isfinite(w.pressure_floor_stated_bar[k])
-                                   ? fmt("%.4g bar", w.pressure_floor_stated_bar[k]) : std::string("not stated");
+                                   ? fmt("%.4g bar", w.pressure_floor_stated_bar[k])
+                                   : std::string("not stated");
     const std::string est = std::isfinite(w.pressure_floor_estimated_bar[k])
                                 ? fmt("%.4g bar rms per encoder sample", w.pressure_floor_estimated_bar[k])
                                 : fmt("%.4g bar rms on the 40 kHz grid", w.pressure_floor_estimated_grid_bar[k]);
     std::fprintf(out, "pressure floor %-16s %s; estimated %s (judged by the %s floor)\n",
-                 data.conditions[k].info.name.c_str(), stated.c_str(), est.c_str(), w.pressure_floor_judged_by[k].c_str());
+                 data.conditions[k].info.name.c_str(), stated.c_str(), est.c_str(),
+                 w.pressure_floor_judged_by[k].c_str());
   }
   std::fprintf(out, "microphone floor from the %s\n", w.mic_floor_source.c_str());
   for (const std::string& line : w.floor_summary) std::fprintf(out, "  %s\n", line.c_str());
@@ -111,7 +114,8 @@ void override_pressure_floor(const std::string& text, model::BandDataset& data) 
     char* end = nullptr;
     bar = std::strtod(text.c_str(), &end);
     if (end == text.c_str() || *end != '\0' || !(bar >= 0.0) || !std::isfinite(bar))
-      throw std::runtime_error("--pressure-floor " + text + ": expected bar rms per encoder sample (>= 0) or 'estimate'");
+      throw std::runtime_error("--pressure-floor " + text +
+                               ": expected bar rms per encoder sample (>= 0) or 'estimate'");
   }
   for (model::ConditionData& d : data.conditions) d.info.pressure_floor_pa = bar * 1e5;
   model::judge_pressure_floors(data);
@@ -160,7 +164,8 @@ nlohmann::json diagnose_band(const DiagnoseOptions& o, const report::ReportConte
 }
 
 nlohmann::json diagnose_waveform(const DiagnoseOptions& o, const report::ReportContext& ctx, std::FILE* out) {
-  if (!(o.fs_hz > 0.0)) throw std::runtime_error("--fs: the sample rate of the waveform (Hz) is required in waveform mode");
+  if (!(o.fs_hz > 0.0))
+    throw std::runtime_error("--fs: the sample rate of the waveform (Hz) is required in waveform mode");
   std::vector<std::pair<std::string, std::string>> test_specs;
   for (const std::string& t : o.tests) {
     const auto eq = t.find('=');
@@ -216,9 +221,11 @@ nlohmann::json diagnose_waveform(const DiagnoseOptions& o, const report::ReportC
   };
   for (const auto& c : d.candidates) row(c, "");
   for (const auto& c : d.second_round) row(c, "  (on top of the first)");
-  for (const auto& n : d.not_applicable) std::fprintf(out, "%-18s not applicable: %s\n", n.effect.c_str(), n.reason.c_str());
-  std::fprintf(out, "verdict: %s  held-out RMS %.4g -> %.4g (%.0f %% closed)\n", d.verdict.c_str(), d.heldout_rms_before,
-               d.heldout_rms_after, d.heldout_rms_before > 0 ? 100.0 * (1.0 - d.heldout_rms_after / d.heldout_rms_before) : 0.0);
+  for (const auto& n : d.not_applicable)
+    std::fprintf(out, "%-18s not applicable: %s\n", n.effect.c_str(), n.reason.c_str());
+  std::fprintf(out, "verdict: %s  held-out RMS %.4g -> %.4g (%.0f %% closed)\n", d.verdict.c_str(),
+               d.heldout_rms_before, d.heldout_rms_after,
+               d.heldout_rms_before > 0 ? 100.0 * (1.0 - d.heldout_rms_after / d.heldout_rms_before) : 0.0);
   if (!tests.empty()) {
     std::size_t width = 28;
     for (const auto& t : tests) width = std::max(width, t.name.size() + 18);
@@ -278,9 +285,11 @@ DiagnoseCommand::DiagnoseCommand(CLI::App& app) {
   cmd_->add_option("--train", options_.train, "fit only on these (same syntax); default: every condition not held out");
   cmd_->add_option("--candidates", options_.candidates,
                    "comma-separated effects to try (default: all of DESIGN.md's list that apply to the mode)");
-  cmd_->add_option("--free", options_.free, "baseline free parameters (default: k1,b1,c0,c1, +y_offset in waveform mode)");
+  cmd_->add_option("--free", options_.free,
+                   "baseline free parameters (default: k1,b1,c0,c1, +y_offset in waveform mode)");
   cmd_->add_option("--fs", options_.fs_hz, "waveform mode: sample rate of the CSV, Hz")->check(CLI::PositiveNumber);
-  cmd_->add_option("--settle", options_.settle, "waveform mode: samples at each segment's start that only settle the state")
+  cmd_->add_option("--settle", options_.settle,
+                   "waveform mode: samples at each segment's start that only settle the state")
       ->capture_default_str();
   cmd_->add_option("--max-iterations", options_.max_iterations, "waveform mode: Ceres iterations per fit")
       ->capture_default_str()

@@ -12,11 +12,11 @@
 
 #include "cli/band_data.hpp"
 #include "cli/cli_support.hpp"
-#include "daemon/params_file.hpp"
 #include "cli/formats/waveform_csv.hpp"
+#include "daemon/params_file.hpp"
+#include "model/diagnosis/diagnosis.hpp"
 #include "model/fit/band_fit.hpp"
 #include "model/fit/pressure_floor.hpp"
-#include "model/diagnosis/diagnosis.hpp"
 #include "model/fit/waveform_fit.hpp"
 
 namespace noisemon::cli {
@@ -48,15 +48,18 @@ void print_table(std::FILE* out, const FitCommandResult& r) {
     const double rel = r.values[k] != 0.0 ? 100.0 * r.sigma[k] / std::fabs(r.values[k]) : kNaN;
     std::fprintf(out, "  %-9s = %-14s +- %-11s (%s %%)", r.free[k].c_str(), format_g(r.values[k], 8).c_str(),
                  format_g(r.sigma[k], 3).c_str(), std::isfinite(rel) ? format_g(rel, 2).c_str() : "-");
-    if (k < r.sigma_blocks.size()) std::fprintf(out, "   correlated residuals: +- %s", format_g(r.sigma_blocks[k], 3).c_str());
+    if (k < r.sigma_blocks.size())
+      std::fprintf(out, "   correlated residuals: +- %s", format_g(r.sigma_blocks[k], 3).c_str());
     std::fputc('\n', out);
   }
   std::fprintf(out, "train RMS    %s %s (start %s) on %s\n", format_g(r.train_rms, 4).c_str(), r.units.c_str(),
-               format_g(r.start_train_rms, 4).c_str(), [&] {
+               format_g(r.start_train_rms, 4).c_str(),
+               [&] {
                  std::string s;
                  for (const auto& t : r.train_sets) s += (s.empty() ? "" : ", ") + t;
                  return s;
-               }().c_str());
+               }()
+                   .c_str());
   if (std::isfinite(r.heldout_rms)) {
     std::string s;
     for (const auto& t : r.heldout_sets) s += (s.empty() ? "" : ", ") + t;
@@ -69,7 +72,6 @@ void print_table(std::FILE* out, const FitCommandResult& r) {
 // ------------------------------------------------------------------------------------------ waveform mode
 
 std::string range_text(model::SampleRange r) { return std::to_string(r.begin) + ":" + std::to_string(r.end); }
-
 
 // Training ranges = the complement of the held-out ones within each file.
 std::vector<model::SampleRange> complement(const std::vector<model::SampleRange>& held, const WaveformData& data) {
@@ -145,7 +147,8 @@ WaveformData load_waveform_data(const std::vector<std::string>& paths, const std
 namespace {
 
 FitCommandResult fit_waveform_mode(const FitCommandOptions& o, std::FILE* out) {
-  if (!(o.fs_hz > 0.0)) throw std::runtime_error("--fs: the sample rate of the waveform (Hz) is required in waveform mode");
+  if (!(o.fs_hz > 0.0))
+    throw std::runtime_error("--fs: the sample rate of the waveform (Hz) is required in waveform mode");
   const WaveformData data = load_waveform_data(o.data, o.train, o.holdout, o.settle, out);
 
   model::WaveformFitOptions fo;
@@ -209,8 +212,9 @@ FitCommandResult fit_waveform_mode(const FitCommandOptions& o, std::FILE* out) {
   for (std::size_t k = 0; k < r.at_bound.size(); ++k)
     if (r.at_bound[k]) std::fprintf(out, "note: %s ended on its bound\n", r.free_params[k].c_str());
   if (r.model.u_offset != 0.0 || r.model.y_offset != 0.0)
-    std::fprintf(out, "note: offsets u_offset = %s, y_offset = %s are part of the fit but not of the parameter file "
-                      "(the daemon's model has none)\n",
+    std::fprintf(out,
+                 "note: offsets u_offset = %s, y_offset = %s are part of the fit but not of the parameter file "
+                 "(the daemon's model has none)\n",
                  format_g(r.model.u_offset).c_str(), format_g(r.model.y_offset).c_str());
   return res;
 }
@@ -326,8 +330,8 @@ FitCommandResult fit_band_mode(const FitCommandOptions& o, std::FILE* out) {
   const model::ExtendedModel start = start_model(o, setup, line, out, res.start_name);
   setup.free = free.empty() ? model::default_free_params(start.block) : free;
   setup.progress = [&](const model::FitProgress& p) {
-    line.show("fit: anchor " + std::to_string(p.anchor) + " iteration " + std::to_string(p.iteration) +
-              "  train gap " + format_g(p.rms_db, 4) + " dB  " + p.note);
+    line.show("fit: anchor " + std::to_string(p.anchor) + " iteration " + std::to_string(p.iteration) + "  train gap " +
+              format_g(p.rms_db, 4) + " dB  " + p.note);
   };
   res.start_train_rms = mean_rms(data, split.train, start, split.scored);
   const model::FitOutcome fit = model::fit_model(setup, start);
@@ -376,7 +380,8 @@ FitCommandResult run_fit(const FitCommandOptions& o, std::FILE* out) {
     for (const auto& d : o.data) data_list += (data_list.empty() ? "" : " ") + d;
     comments.push_back("data: " + data_list);
     for (std::size_t k = 0; k < r.free.size(); ++k)
-      comments.push_back(r.free[k] + " = " + format_g(r.values[k], 8) + " +- " + format_g(r.sigma[k], 3) + " (1 sigma)");
+      comments.push_back(r.free[k] + " = " + format_g(r.values[k], 8) + " +- " + format_g(r.sigma[k], 3) +
+                         " (1 sigma)");
     comments.push_back("train RMS " + format_g(r.train_rms, 4) + " " + r.units +
                        (std::isfinite(r.heldout_rms) ? ", held-out RMS " + format_g(r.heldout_rms, 4) + " " + r.units
                                                      : std::string()));
@@ -391,9 +396,10 @@ FitCommandResult run_fit(const FitCommandOptions& o, std::FILE* out) {
 }
 
 FitCommand::FitCommand(CLI::App& app) {
-  fit_ = app.add_subcommand("fit",
-                            "tune the block model (k1, b1, k3, b3, c0, c1; m fixed) to band spectra (run directories, LCM "
-                            "logs) or to a u,y waveform, and write a parameter file the daemon loads");
+  fit_ =
+      app.add_subcommand("fit",
+                         "tune the block model (k1, b1, k3, b3, c0, c1; m fixed) to band spectra (run directories, LCM "
+                         "logs) or to a u,y waveform, and write a parameter file the daemon loads");
   fit_->add_option("DATA", options_.data,
                    "run directories or raw LCM logs (band mode), or CSV files of u,y (waveform mode)")
       ->required();
@@ -402,17 +408,20 @@ FitCommand::FitCommand(CLI::App& app) {
   fit_->add_option("--mode", options_.mode, "band or waveform (default: waveform for .csv DATA, band otherwise)")
       ->check(CLI::IsMember({"band", "waveform"}));
   fit_->add_option("--fs", options_.fs_hz, "waveform mode: sample rate of the CSV, Hz")->check(CLI::PositiveNumber);
-  fit_->add_option("--free", options_.free,
-                   "parameters to fit, comma-separated: k1,b1,k3,b3,c0,c1 (waveform mode also k1_2,b1_2,c0_2,c1_2,"
-                   "u_offset,y_offset); default k1,b1,c0,c1 (+y_offset in waveform mode, +k3/b3 when the start has them)");
+  fit_->add_option(
+      "--free", options_.free,
+      "parameters to fit, comma-separated: k1,b1,k3,b3,c0,c1 (waveform mode also k1_2,b1_2,c0_2,c1_2,"
+      "u_offset,y_offset); default k1,b1,c0,c1 (+y_offset in waveform mode, +k3/b3 when the start has them)");
   fit_->add_option("--model", options_.model,
                    "start from this preset (linear, nl_damper, nl_spring_damper, nl_spring_damper_opt) or parameter "
                    "file; default: the preset nearest the data");
   fit_->add_option("--holdout", options_.holdout,
                    "held out (scored, not fitted): band mode condition names/patterns (idle, full_mi18, *_mi12); "
                    "waveform mode sample ranges A:B or DATA files; comma-separated or repeated");
-  fit_->add_option("--train", options_.train, "fit only on these (same syntax as --holdout); default: all not held out");
-  fit_->add_option("--settle", options_.settle, "waveform mode: samples at each segment's start that only settle the state")
+  fit_->add_option("--train", options_.train,
+                   "fit only on these (same syntax as --holdout); default: all not held out");
+  fit_->add_option("--settle", options_.settle,
+                   "waveform mode: samples at each segment's start that only settle the state")
       ->capture_default_str();
   fit_->add_option("--max-iterations", options_.max_iterations, "waveform mode: Ceres iterations")
       ->capture_default_str()

@@ -15,8 +15,8 @@
 #include <string>
 #include <vector>
 
-#include "model/fit/band_fit.hpp"
 #include "model/block_params.hpp"
+#include "model/fit/band_fit.hpp"
 #include "model/fit/waveform_fit.hpp"
 
 namespace CLI {
@@ -51,7 +51,7 @@ struct FitCommandResult {
   std::string units;                  // of the RMS figures: "dB" (band) or "data units" (waveform)
   double start_train_rms = 0.0;
   double train_rms = 0.0;
-  double heldout_rms = 0.0;           // NaN when nothing is held out
+  double heldout_rms = 0.0;                           // NaN when nothing is held out
   std::vector<std::string> train_sets, heldout_sets;  // condition names or ranges
   double seconds = 0.0;
 };

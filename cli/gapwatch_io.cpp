@@ -91,7 +91,8 @@ noisemon::gap_event_t gap_event_message(const model::GapEvent& e, std::int64_t u
     m.cpl_change_db.push_back(static_cast<float>(g.cpl_after[b] - g.cpl_before[b]));
   }
   m.nbands = static_cast<std::int16_t>(m.band_hz.size());
-  for (std::size_t i = 0; i < g.mic_before.size(); ++i) m.mic_change_db.push_back(static_cast<float>(g.mic_after[i] - g.mic_before[i]));
+  for (std::size_t i = 0; i < g.mic_before.size(); ++i)
+    m.mic_change_db.push_back(static_cast<float>(g.mic_after[i] - g.mic_before[i]));
   m.nmics = static_cast<std::int16_t>(m.mic_change_db.size());
   for (const auto& c : e.attribution.candidates) {
     m.candidates.push_back(c.effect);
@@ -121,7 +122,8 @@ nlohmann::json gap_event_json(const model::GapEvent& e) {
   for (const auto& c : e.attribution.candidates) {
     nlohmann::json p = nlohmann::json::object();
     for (const auto& [key, value] : c.params) p[key] = number(value);
-    candidates.push_back({{"effect", c.effect}, {"weight", c.weight}, {"chi2", c.chi2}, {"parameters", c.parameters}, {"params", p}});
+    candidates.push_back(
+        {{"effect", c.effect}, {"weight", c.weight}, {"chi2", c.chi2}, {"parameters", c.parameters}, {"params", p}});
   }
   return {{"effect", e.effect},
           {"params", params},
@@ -149,13 +151,24 @@ nlohmann::json reference_json(const model::GapReference& r) {
   for (const auto& p : r.points) {
     if (p.features.empty()) continue;  // still learning
     nlohmann::json features = nlohmann::json::array();
-    for (const auto& f : p.features) features.push_back({{"mean", number(f.mean)}, {"sigma", number(f.sigma)}, {"blocks", f.blocks}});
-    points.push_back({{"speed_rpm", p.speed_rpm}, {"load_nm", p.load_nm}, {"soi_deg_btdc", p.soi_deg_btdc},
-                      {"motored", p.motored}, {"cycles", p.cycles}, {"features", features},
-                      {"measured_db", array(p.measured_db)}, {"predicted_db", array(p.predicted_db)},
-                      {"cpl_db", array(p.cpl_db)}, {"mic_db", array(p.mic_db)}, {"window_db", array(p.window_db)}});
+    for (const auto& f : p.features)
+      features.push_back({{"mean", number(f.mean)}, {"sigma", number(f.sigma)}, {"blocks", f.blocks}});
+    points.push_back({{"speed_rpm", p.speed_rpm},
+                      {"load_nm", p.load_nm},
+                      {"soi_deg_btdc", p.soi_deg_btdc},
+                      {"motored", p.motored},
+                      {"cycles", p.cycles},
+                      {"features", features},
+                      {"measured_db", array(p.measured_db)},
+                      {"predicted_db", array(p.predicted_db)},
+                      {"cpl_db", array(p.cpl_db)},
+                      {"mic_db", array(p.mic_db)},
+                      {"window_db", array(p.window_db)}});
   }
-  return {{"format", "noisemon gapwatch reference 1"}, {"band_hz", r.band_hz}, {"mics", r.mics}, {"windows", r.windows},
+  return {{"format", "noisemon gapwatch reference 1"},
+          {"band_hz", r.band_hz},
+          {"mics", r.mics},
+          {"windows", r.windows},
           {"points", points}};
 }
 
@@ -179,7 +192,8 @@ model::GapReference load_reference(const std::string& path) {
       o.cycles = p.at("cycles").get<std::size_t>();
       for (const auto& f : p.at("features"))
         o.features.push_back({f.at("mean").is_null() ? model::kNoValue : f.at("mean").get<double>(),
-                              f.at("sigma").is_null() ? model::kNoValue : f.at("sigma").get<double>(), f.at("blocks").get<std::size_t>()});
+                              f.at("sigma").is_null() ? model::kNoValue : f.at("sigma").get<double>(),
+                              f.at("blocks").get<std::size_t>()});
       o.measured_db = numbers(p.at("measured_db"));
       o.predicted_db = numbers(p.at("predicted_db"));
       o.cpl_db = numbers(p.at("cpl_db"));

@@ -20,7 +20,8 @@ namespace noisemon::cli {
 [[nodiscard]] model::CycleGap cycle_gap(const noisemon::cycle_report_t& report);
 
 [[nodiscard]] noisemon::gap_event_t gap_event_message(const model::GapEvent& event, std::int64_t utime);
-[[nodiscard]] noisemon::gap_status_t gap_status_message(const model::GapWatch& watch, std::int64_t utime, std::int32_t events);
+[[nodiscard]] noisemon::gap_status_t gap_status_message(const model::GapWatch& watch, std::int64_t utime,
+                                                        std::int32_t events);
 // effect, params (the effect's own keys), onset_s, detected_s, onset_cycle, detected_cycle, gap_before_db,
 // gap_after_db, confidence, explained, features, the operating point, explanation and the candidates' weights.
 [[nodiscard]] nlohmann::json gap_event_json(const model::GapEvent& event);

@@ -32,7 +32,8 @@ struct BandColumn {  // per band (or per microphone) of a report
 };
 
 const IntegerColumn kIntegerColumns[] = {
-    {"utime", "us", "start of the cycle (crank angle -360 deg), microseconds since 1970", [](auto& m) { return m.utime; }},
+    {"utime", "us", "start of the cycle (crank angle -360 deg), microseconds since 1970",
+     [](auto& m) { return m.utime; }},
     {"cycle", "1", "index since the run started, 0-based, counting dropped cycles", [](auto& m) { return m.cycle; }},
     {"flags", "1", "CYCLE_* bits of cycle_report_t (msgs/cycle_report_t.lcm); 0 = fully valid",
      [](auto& m) { return static_cast<std::int64_t>(m.flags); }},
@@ -49,20 +50,25 @@ const RealColumn kRealColumns[] = {
     {"lpa_predicted_db", "dB(A) re 20 uPa", "the block model's A-weighted level from the cylinder pressure",
      [](auto& m) { return m.lpa_predicted_db; }},
     {"lwa_measured_db", "dB(A) re 1 pW",
-     "per-cycle A-weighted sound power (ISO 3744:2010, lw_low_hz ... lw_high_hz: K1 per band, K2, C1, C2), hemisphere of radius_m",
+     "per-cycle A-weighted sound power (ISO 3744:2010, lw_low_hz ... lw_high_hz: K1 per band, K2, C1, C2), hemisphere "
+     "of radius_m",
      [](auto& m) { return m.lwa_measured_db; }},
-    {"lwa_predicted_db", "dB(A) re 1 pW", "the block model's per-cycle sound power", [](auto& m) { return m.lwa_predicted_db; }},
+    {"lwa_predicted_db", "dB(A) re 1 pW", "the block model's per-cycle sound power",
+     [](auto& m) { return m.lwa_predicted_db; }},
     {"radius_m", "m", "measurement hemisphere radius", [](auto& m) { return m.radius_m; }},
     {"k2_db", "dB", "ISO 3744 environmental correction K2 in lwa_*", [](auto& m) { return m.k2_db; }},
     {"c1_db", "dB", "ISO 3744:2010 reference quantity correction C1 in lwa_*", [](auto& m) { return m.c1_db; }},
     {"c2_db", "dB", "ISO 3744:2010 radiation impedance correction C2 in lwa_*", [](auto& m) { return m.c2_db; }},
     {"lw_low_hz", "Hz", "lowest nominal band of lwa_*", [](auto& m) { return static_cast<double>(m.lw_low_hz); }},
-    {"lw_high_hz", "Hz", "highest nominal band of lwa_* (inf: all)", [](auto& m) { return static_cast<double>(m.lw_high_hz); }},
+    {"lw_high_hz", "Hz", "highest nominal band of lwa_* (inf: all)",
+     [](auto& m) { return static_cast<double>(m.lw_high_hz); }},
     {"processing_ms", "ms", "CPU time the processing spent on the cycle",
      [](auto& m) { return static_cast<double>(m.processing_ms); }},
     {"peak_pressure_bar", "bar", "peak cylinder pressure", [](auto& m) { return m.peak_pressure_bar; }},
-    {"peak_pressure_deg", "deg", "crank angle of the peak pressure after firing TDC", [](auto& m) { return m.peak_pressure_deg; }},
-    {"max_rise_bar_per_deg", "bar/deg", "maximum rate of pressure rise in the combustion window (from the start of injection)",
+    {"peak_pressure_deg", "deg", "crank angle of the peak pressure after firing TDC",
+     [](auto& m) { return m.peak_pressure_deg; }},
+    {"max_rise_bar_per_deg", "bar/deg",
+     "maximum rate of pressure rise in the combustion window (from the start of injection)",
      [](auto& m) { return m.max_rise_bar_per_deg; }},
     {"max_rise_deg", "deg", "crank angle of the maximum rate of pressure rise", [](auto& m) { return m.max_rise_deg; }},
     {"imep_gross_bar", "bar", "gross indicated mean effective pressure", [](auto& m) { return m.imep_gross_bar; }},
@@ -73,18 +79,22 @@ const RealColumn kRealColumns[] = {
     {"ca90_deg", "deg", "crank angle of 90 % of the heat release", [](auto& m) { return m.ca90_deg; }},
     {"ringing_intensity_MW_per_m2", "MW/m^2", "ringing intensity (Eng, SAE 2002-01-2859)",
      [](auto& m) { return m.ringing_intensity_MW_per_m2; }},
-    {"max_rise_motored_bar_per_deg", "bar/deg", "the motored-equivalent slope at max_rise_deg (the compression's polytropic)",
+    {"max_rise_motored_bar_per_deg", "bar/deg",
+     "the motored-equivalent slope at max_rise_deg (the compression's polytropic)",
      [](auto& m) { return m.max_rise_motored_bar_per_deg; }},
     {"pmep_bar", "bar", "pumping mean effective pressure (net - gross IMEP)", [](auto& m) { return m.pmep_bar; }},
-    {"n_compression", "1", "polytropic exponent of the compression (-90 ... -40 deg)", [](auto& m) { return m.n_compression; }},
-    {"n_expansion", "1", "polytropic exponent of the expansion (60 ... 110 deg)", [](auto& m) { return m.n_expansion; }},
+    {"n_compression", "1", "polytropic exponent of the compression (-90 ... -40 deg)",
+     [](auto& m) { return m.n_compression; }},
+    {"n_expansion", "1", "polytropic exponent of the expansion (60 ... 110 deg)",
+     [](auto& m) { return m.n_expansion; }},
     {"ca05_deg", "deg", "crank angle of 5 % of the heat release", [](auto& m) { return m.ca05_deg; }},
     {"burn_duration_deg", "deg", "CA10 to CA90", [](auto& m) { return m.burn_duration_deg; }},
     {"tdc_deg", "deg", "the encoder's angle of firing TDC the combustion metrics used ([combustion] tdc_deg)",
      [](auto& m) { return m.tdc_deg; }},
     {"pegging_offset_bar", "bar", "pegging offset added to the whole cycle ([combustion] pegging; 0: none)",
      [](auto& m) { return m.pegging_offset_bar; }},
-    {"mapo_bar", "bar", "MAPO: largest |pressure| band-passed to [combustion] mapo_low_hz ... mapo_high_hz, in its window",
+    {"mapo_bar", "bar",
+     "MAPO: largest |pressure| band-passed to [combustion] mapo_low_hz ... mapo_high_hz, in its window",
      [](auto& m) { return m.mapo_bar; }},
     {"combustion_noise_db", "dB(A)", "CPL through the thesis's fixed eq. 4.1 structure attenuation, A-weighted",
      [](auto& m) { return m.combustion_noise_db; }},
@@ -95,16 +105,21 @@ const BandColumn kBandColumns[] = {
     {"spl_a_predicted_db", "dB(A) re 20 uPa", "A-weighted band level of the block model",
      [](auto& m, int b) { return m.spl_a_predicted_db[b]; }},
     {"cpl_db", "dB re 20 uPa", "cylinder pressure level", [](auto& m, int b) { return m.cpl_db[b]; }},
-    {"att_measured_db", "dB", "attenuation CPL - SPL(A), measured", [](auto& m, int b) { return m.att_measured_db[b]; }},
-    {"att_predicted_db", "dB", "attenuation CPL - SPL(A), predicted", [](auto& m, int b) { return m.att_predicted_db[b]; }},
-    {"band_flags", "1", "BAND_* bits of cycle_report_t", [](auto& m, int b) { return static_cast<float>(m.band_flags[b]); }},
-    {"k1_db", "dB", "ISO 3744:2010 background correction K1 of the measured band (1.3 with BAND_BACKGROUND: an upper bound)",
+    {"att_measured_db", "dB", "attenuation CPL - SPL(A), measured",
+     [](auto& m, int b) { return m.att_measured_db[b]; }},
+    {"att_predicted_db", "dB", "attenuation CPL - SPL(A), predicted",
+     [](auto& m, int b) { return m.att_predicted_db[b]; }},
+    {"band_flags", "1", "BAND_* bits of cycle_report_t",
+     [](auto& m, int b) { return static_cast<float>(m.band_flags[b]); }},
+    {"k1_db", "dB",
+     "ISO 3744:2010 background correction K1 of the measured band (1.3 with BAND_BACKGROUND: an upper bound)",
      [](auto& m, int b) { return m.k1_db[b]; }},
     {"background_db", "dB re 20 uPa", "background band level behind K1, unweighted (NaN: none)",
      [](auto& m, int b) { return m.background_db[b]; }},
 };
 const BandColumn kMicColumns[] = {
-    {"mic_lpa_db", "dB(A) re 20 uPa", "each microphone's own A-weighted level", [](auto& m, int i) { return m.mic_lpa_db[i]; }},
+    {"mic_lpa_db", "dB(A) re 20 uPa", "each microphone's own A-weighted level",
+     [](auto& m, int i) { return m.mic_lpa_db[i]; }},
     {"mic_flags", "1", "MIC_* bits of cycle_report_t; 0 = in the measured levels",
      [](auto& m, int i) { return static_cast<float>(m.mic_flags[i]); }},
 };
@@ -121,7 +136,8 @@ void string_attribute(hid_t object, const char* name, const std::string& value, 
   const hid_t type = H5Tcopy(H5T_C_S1);
   H5Tset_size(type, value.empty() ? 1 : value.size());
   const hid_t space = H5Screate(H5S_SCALAR);
-  const hid_t attribute = checked(H5Acreate2(object, name, type, space, H5P_DEFAULT, H5P_DEFAULT), path, "add an attribute");
+  const hid_t attribute =
+      checked(H5Acreate2(object, name, type, space, H5P_DEFAULT, H5P_DEFAULT), path, "add an attribute");
   check(H5Awrite(attribute, type, value.c_str()), path, "write an attribute");
   H5Aclose(attribute);
   H5Sclose(space);
@@ -188,7 +204,9 @@ struct Hdf5Publisher::File {
   int band_count = -1, mic_count = -1;  // fixed by the first report
   std::int64_t run = -1;
 
-  hid_t group(const char* name) { return checked(H5Gcreate2(file, name, H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT), path, "create a group"); }
+  hid_t group(const char* name) {
+    return checked(H5Gcreate2(file, name, H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT), path, "create a group");
+  }
   void describe(hid_t dataset, const char* units, const char* description) {
     string_attribute(dataset, "units", units, path);
     string_attribute(dataset, "description", description, path);
@@ -219,9 +237,11 @@ void Hdf5Publisher::File::open_per_band_sets(const cycle_report_t& first) {
   mic_count = first.nmics;
   const hsize_t bands_dims[1] = {static_cast<hsize_t>(band_count)};
   const hid_t space = H5Screate_simple(1, bands_dims, nullptr);
-  const hid_t band_hz = checked(H5Dcreate2(bands, "band_hz", H5T_NATIVE_FLOAT, space, H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT),
-                                path, "create band_hz");
-  check(H5Dwrite(band_hz, H5T_NATIVE_FLOAT, H5S_ALL, H5S_ALL, H5P_DEFAULT, first.band_hz.data()), path, "write band_hz");
+  const hid_t band_hz =
+      checked(H5Dcreate2(bands, "band_hz", H5T_NATIVE_FLOAT, space, H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT), path,
+              "create band_hz");
+  check(H5Dwrite(band_hz, H5T_NATIVE_FLOAT, H5S_ALL, H5S_ALL, H5P_DEFAULT, first.band_hz.data()), path,
+        "write band_hz");
   describe(band_hz, "Hz", "nominal mid-band frequency of the 1/3-octave bands (IEC 61260-1, base 10)");
   H5Dclose(band_hz);
   H5Sclose(space);

@@ -75,7 +75,8 @@ std::int64_t first_epoch(std::int64_t requested) { return requested != 0 ? reque
 
 // The next run starts a second after this one ends, so the log's time stamps keep increasing.
 std::int64_t next_epoch(const formats::Recording& rec) {
-  const double end_s = static_cast<double>(rec.first_index + static_cast<std::int64_t>(rec.frames())) / drivers::kPipelineRateHz;
+  const double end_s =
+      static_cast<double>(rec.first_index + static_cast<std::int64_t>(rec.frames())) / drivers::kPipelineRateHz;
   return rec.info.epoch_utime + std::llround(end_s * 1e6) + 1'000'000;
 }
 
@@ -116,19 +117,22 @@ void note_unknowns(const std::string& dir, const drivers::RunCondition& c, const
   const bool speed_null = std::isnan(c.speed_rpm);
   if (!speed_null && !std::isnan(c.load_nm) && !std::isnan(c.soi_deg_btdc) && c.rail_pressure_bar && c.motored_known)
     return;
-  notes.push_back(dir + ": condition '" + c.name + "' (null in run.json: n/a): speed " + value_text(op.speed_rpm, "rpm") +
+  notes.push_back(dir + ": condition '" + c.name + "' (null in run.json: n/a): speed " +
+                  value_text(op.speed_rpm, "rpm") +
                   (speed_null ? " (speed_rpm null: measured from the encoder, mean over the run)" : "") + ", load " +
-                  value_text(c.load_nm, "N m") + ", SOI " + value_text(c.soi_deg_btdc, "deg BTDC") + ", rail pressure " +
-                  (c.rail_pressure_bar ? value_text(*c.rail_pressure_bar, "bar") : "n/a") + ", motored " +
-                  (c.motored_known ? (c.motored ? "yes" : "no") : "n/a"));
+                  value_text(c.load_nm, "N m") + ", SOI " + value_text(c.soi_deg_btdc, "deg BTDC") +
+                  ", rail pressure " + (c.rail_pressure_bar ? value_text(*c.rail_pressure_bar, "bar") : "n/a") +
+                  ", motored " + (c.motored_known ? (c.motored ? "yes" : "no") : "n/a"));
   if (!c.motored_known)
-    notes.push_back(dir + ": condition.motored is null: published as false (the operating point's field is a boolean); "
-                          "noisemon diagnose needs it and refuses this run directory until it is true or false");
+    notes.push_back(dir +
+                    ": condition.motored is null: published as false (the operating point's field is a boolean); "
+                    "noisemon diagnose needs it and refuses this run directory until it is true or false");
 }
 
 std::string dir_name_for(const std::string& condition, std::size_t index) {
   std::string s;
-  for (char c : condition) s += (std::isalnum(static_cast<unsigned char>(c)) || c == '.' || c == '-' || c == '_') ? c : '_';
+  for (char c : condition)
+    s += (std::isalnum(static_cast<unsigned char>(c)) || c == '.' || c == '-' || c == '_') ? c : '_';
   if (s.empty() || s == "." || s == "..") s = "run" + std::to_string(index);
   return s;
 }
@@ -141,8 +145,9 @@ model::MotoredTdc table_tdc(const CycleTableImportOptions& o, const formats::Cyc
     return (t.crank_deg.back() - t.crank_deg.front()) / static_cast<double>(t.crank_deg.size() - 1);
   };
   if (std::abs(step(m) - step(fired)) > 1e-6 * step(fired))
-    throw std::runtime_error(o.motored_table + ": " + value_text(step(m), "deg") + " steps, the fired table " + o.table +
-                             " has " + value_text(step(fired), "deg") + ": give a motored table of the same resolution");
+    throw std::runtime_error(o.motored_table + ": " + value_text(step(m), "deg") + " steps, the fired table " +
+                             o.table + " has " + value_text(step(fired), "deg") +
+                             ": give a motored table of the same resolution");
   const double rpm = o.motored_rpm > 0 ? o.motored_rpm : o.table_options.speed_rpm;
   if (std::abs(rpm / o.table_options.speed_rpm - 1.0) > 0.02)
     throw std::runtime_error(o.motored_table + ": motored at " + value_text(rpm, "rpm") + ", the fired table at " +
@@ -170,7 +175,8 @@ MicSynthesizer mic_synthesizer(const std::string& name) {
       // The virtual engine's acoustic side driven by the imported pressure, with its default installation
       // (thesis microphone layout, linear true block, no effects). The virtual engine is set up with the run's
       // load and SOI: an unknown one is named rather than replaced by a made-up number.
-      const drivers::OperatingPoint op = rec.operating_points.empty() ? drivers::OperatingPoint{} : rec.operating_points.front();
+      const drivers::OperatingPoint op =
+          rec.operating_points.empty() ? drivers::OperatingPoint{} : rec.operating_points.front();
       for (const auto& [value, key] : {std::pair{op.load_nm, "load_nm"}, std::pair{op.soi_deg_btdc, "soi_deg_btdc"}})
         if (std::isnan(value))
           throw std::invalid_argument(std::string("--mics sim: the virtual engine needs condition.") + key +
@@ -186,7 +192,8 @@ model::MotoredTdc motored_table_tdc(const formats::CycleTable& table, const std:
   const bool drop = formats::drops_pegging_row(table, formats::PeggingRow::kAuto);
   std::vector<std::vector<double>> cycles;
   for (const std::vector<double>& c : table.cycles_bar) cycles.emplace_back(c.begin() + (drop ? 1 : 0), c.end());
-  const double step = (table.crank_deg.back() - table.crank_deg.front()) / static_cast<double>(table.crank_deg.size() - 1);
+  const double step =
+      (table.crank_deg.back() - table.crank_deg.front()) / static_cast<double>(table.crank_deg.size() - 1);
   try {
     return model::motored_tdc(cycles, table.crank_deg[drop ? 1 : 0] - nominal_tdc_deg, step, model::EngineGeometry{},
                               loss_angle_deg);
@@ -209,7 +216,8 @@ ImportSummary run_import(const ImportOptions& o) {
   }
   for (std::size_t i = 0; i < o.run_dirs.size(); ++i) {
     const std::string& dir = o.run_dirs[i];
-    const std::string prefix = "import " + std::to_string(i + 1) + "/" + std::to_string(o.run_dirs.size()) + " " + dir + ":";
+    const std::string prefix =
+        "import " + std::to_string(i + 1) + "/" + std::to_string(o.run_dirs.size()) + " " + dir + ":";
     progress.stage(prefix + " reading");
     formats::Recording rec;
     {
@@ -264,7 +272,8 @@ ImportSummary run_import_cycle_table(const CycleTableImportOptions& o) {
   guard.keep();
   sum.runs.push_back(describe(o.table, rec));
   char buf[512];
-  const double step = (table.crank_deg.back() - table.crank_deg.front()) / static_cast<double>(table.crank_deg.size() - 1);
+  const double step =
+      (table.crank_deg.back() - table.crank_deg.front()) / static_cast<double>(table.crank_deg.size() - 1);
   std::snprintf(buf, sizeof buf, "%zu cycles of %zu rows (%.3g deg steps, %.0f Hz at %.1f rpm); first row %s",
                 conv.cycles, table.crank_deg.size(), step, 6.0 * to.speed_rpm / step, to.speed_rpm,
                 conv.pegging_row_dropped ? "taken as the pegging value and dropped" : "kept as a sample");
@@ -284,7 +293,8 @@ ExportSummary run_export(const ExportOptions& o) {
   ExportSummary sum;
   Progress progress(o.progress);
   progress.stage("export " + o.log + ": reading");
-  std::vector<formats::Recording> recs = formats::read_recordings_log(o.log, o.channels, nullptr, &sum.stats, progress.fn());
+  std::vector<formats::Recording> recs =
+      formats::read_recordings_log(o.log, o.channels, nullptr, &sum.stats, progress.fn());
   // Name every directory and check them all before writing anything.
   std::vector<fs::path> dirs;
   std::set<std::string> used;

@@ -32,9 +32,9 @@ MicSynthesizer mic_synthesizer(const std::string& name);
 
 struct ImportCommon {
   std::string out_log;
-  std::int64_t epoch_utime = 0;      // epoch of the first run; 0: the wall clock now. Later runs follow it.
-  MicSynthesizer synthesize_mics;    // empty: the runs' own microphones (or none)
-  bool progress = true;              // on stderr, when it is a terminal
+  std::int64_t epoch_utime = 0;    // epoch of the first run; 0: the wall clock now. Later runs follow it.
+  MicSynthesizer synthesize_mics;  // empty: the runs' own microphones (or none)
+  bool progress = true;            // on stderr, when it is a terminal
   formats::LogChannels channels;
 };
 
@@ -63,16 +63,16 @@ model::MotoredTdc motored_table_tdc(const formats::CycleTable& table, const std:
                                     double loss_angle_deg);
 
 struct ImportedRun {
-  std::string source;       // run directory or table file
+  std::string source;  // run directory or table file
   std::string condition;
   std::int64_t epoch_utime = 0;
-  std::size_t frames = 0;   // at 40 kHz
+  std::size_t frames = 0;  // at 40 kHz
   std::uint32_t mics = 0;
 };
 
 struct ImportSummary {
   std::vector<ImportedRun> runs;
-  std::vector<std::string> notes;  // what the user should know (pegging row dropped, cycles expected, ...)
+  std::vector<std::string> notes;        // what the user should know (pegging row dropped, cycles expected, ...)
   std::optional<model::MotoredTdc> tdc;  // a cycle table's thermodynamic TDC, when a motored table was given
 };
 
@@ -85,7 +85,7 @@ struct ExportOptions {
   std::string log;
   std::string out_dir;
   std::string pressure_units = "bar";
-  bool force = false;     // overwrite run directories that already exist
+  bool force = false;  // overwrite run directories that already exist
   bool progress = true;
   formats::LogChannels channels;
 };

@@ -5,17 +5,17 @@
 #include <cstdio>
 #include <memory>
 
-#include "daemon/config.hpp"
-#include "cli/import_export_cli.hpp"
-#include "cli/replay_command.hpp"
 #include "cli/dash_command.hpp"
 #include "cli/diagnose_command.hpp"
-#include "cli/summary_command.hpp"
-#include "cli/tdc_command.hpp"
 #include "cli/fit_command.hpp"
 #include "cli/gapwatch_command.hpp"
+#include "cli/import_export_cli.hpp"
+#include "cli/replay_command.hpp"
 #include "cli/sim_command.hpp"
+#include "cli/summary_command.hpp"
+#include "cli/tdc_command.hpp"
 #include "cli/watch.hpp"
+#include "daemon/config.hpp"
 
 namespace {
 
@@ -31,7 +31,8 @@ CLI::App* add_watch(CLI::App& app, noisemon::cli::WatchOptions& watch, std::stri
   w->add_flag("--bands", watch.bands, "also print each report's 1/3-octave spectra");
   w->add_flag("--status", watch.status, "print the daemon's 1 Hz status messages instead (threads, rings, counters)");
   w->add_option("--status-channel", watch.status_channel, "channel of the status messages")->capture_default_str();
-  w->add_flag("--stats", watch.stats, "print the daemon's 1 Hz rolling statistics instead (mean, std, COV, min, max, Leq(A))");
+  w->add_flag("--stats", watch.stats,
+              "print the daemon's 1 Hz rolling statistics instead (mean, std, COV, min, max, Leq(A))");
   w->add_option("--stats-channel", watch.stats_channel, "channel of the statistics messages")->capture_default_str();
   w->add_option("--cell", cell, "test cell id: append _ID to the channels (docs/sources-and-formats.md)");
   return w;

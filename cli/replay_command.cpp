@@ -1,7 +1,7 @@
 #include "cli/replay_command.hpp"
 
-#include <CLI/CLI.hpp>
 #include <spdlog/spdlog.h>
+#include <CLI/CLI.hpp>
 
 #include <algorithm>
 #include <atomic>
@@ -69,7 +69,8 @@ LogReplayResult replay_one(const MultiReplayOptions& m, const std::string& log) 
     o.on_report = nullptr;
     if (!m.out_dir.empty()) o.out_log = output_path(m.out_dir, log, ".lcmlog");
     if (!m.csv_dir.empty()) o.csv_path = output_path(m.csv_dir, log, ".csv");
-    if (!m.hdf5_dir.empty()) o.publishers.push_back(std::make_shared<Hdf5Publisher>(output_path(m.hdf5_dir, log, ".h5")));
+    if (!m.hdf5_dir.empty())
+      o.publishers.push_back(std::make_shared<Hdf5Publisher>(output_path(m.hdf5_dir, log, ".h5")));
     r.summary = daemon::run_replay(o);
   } catch (const std::exception& e) {  // the outputs are closed here, before the log counts as finished
     r.error = e.what();
@@ -112,8 +113,7 @@ void check_multi_replay(const MultiReplayOptions& m) {
 }
 
 std::vector<LogReplayResult> run_replays(
-    const MultiReplayOptions& m,
-    const std::function<void(const LogReplayResult&, std::size_t, std::size_t)>& on_done) {
+    const MultiReplayOptions& m, const std::function<void(const LogReplayResult&, std::size_t, std::size_t)>& on_done) {
   check_multi_replay(m);
   // spdlog's registry is built on first use; build it here, before the threads log (a race as ThreadSanitizer
   // sees it: the library's own once-only initialisation is not instrumented).
@@ -140,7 +140,8 @@ std::vector<LogReplayResult> run_replays(
 }
 
 ReplayCommand::ReplayCommand(CLI::App& app) {
-  replay_ = app.add_subcommand("replay", "run raw LCM logs (lcm-logger of noisemond's channels) through the processing");
+  replay_ =
+      app.add_subcommand("replay", "run raw LCM logs (lcm-logger of noisemond's channels) through the processing");
   replay_->add_option("LOG", logs_, "LCM logs holding NOISEMON_SESSION, NOISEMON_RAW and NOISEMON_OP (one or more)")
       ->required()
       ->check(CLI::ExistingFile);
@@ -152,11 +153,13 @@ ReplayCommand::ReplayCommand(CLI::App& app) {
   replay_->add_option("-j,--jobs", jobs_, "replay up to N of several logs at a time, each in a thread of its own")
       ->check(CLI::Range(1, 256))
       ->capture_default_str();
-  replay_->add_flag("--realtime", options_.realtime, "pace the events at their recorded times (default: as fast as possible)");
+  replay_->add_flag("--realtime", options_.realtime,
+                    "pace the events at their recorded times (default: as fast as possible)");
   replay_->add_option("--config", config_path_, "noisemond TOML configuration for the model and channel names")
       ->check(CLI::ExistingFile);
-  replay_->add_option("--model", model_,
-                      "model preset, overrides [model] preset (linear, nl_damper, nl_spring_damper, nl_spring_damper_opt)");
+  replay_->add_option(
+      "--model", model_,
+      "model preset, overrides [model] preset (linear, nl_damper, nl_spring_damper, nl_spring_damper_opt)");
   replay_->add_flag("!--no-progress", options_.progress, "no progress bar");
   replay_->footer(
       "\nSeveral logs: --out, --csv and --hdf5 name existing directories; each log's reports go to DIR/<name>.lcmlog,\n"

@@ -25,7 +25,7 @@ struct MultiReplayOptions {
   std::vector<std::string> logs;
   std::string out_dir, csv_dir, hdf5_dir;  // empty: no such output
   int jobs = 1;                            // logs replayed at the same time
-  daemon::ReplayOptions base;                      // config, realtime (log_path, outputs and progress are set per log)
+  daemon::ReplayOptions base;              // config, realtime (log_path, outputs and progress are set per log)
 };
 
 struct LogReplayResult {

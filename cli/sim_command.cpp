@@ -1,8 +1,8 @@
 #include "cli/sim_command.hpp"
 
+#include <unistd.h>
 #include <CLI/CLI.hpp>
 #include <nlohmann/json.hpp>
-#include <unistd.h>
 
 #include <cctype>
 #include <chrono>
@@ -14,9 +14,9 @@
 #include <utility>
 
 #include "cli/cli_support.hpp"
+#include "cli/sim_run.hpp"
 #include "daemon/params_file.hpp"
 #include "drivers/formats/run_dir.hpp"
-#include "cli/sim_run.hpp"
 #include "model/engine/effects.hpp"
 
 namespace noisemon::cli {
@@ -116,7 +116,8 @@ std::vector<Job> make_jobs(const SimOptions& o) {
   for (const auto& c : cli::resolve_conditions(o.conditions)) jobs.push_back({c.name, c.name, c, "", false});
   for (std::size_t i = 0; i < o.pressure_dirs.size(); ++i) {
     const fs::path p(o.pressure_dirs[i]);
-    if (!fs::is_regular_file(p / "run.json")) throw std::invalid_argument("--pressure " + p.string() + ": no run.json there");
+    if (!fs::is_regular_file(p / "run.json"))
+      throw std::invalid_argument("--pressure " + p.string() + ": no run.json there");
     std::string name = p.filename().string();
     if (name.empty()) name = p.parent_path().filename().string();
     Job job;
@@ -137,13 +138,15 @@ std::vector<Job> make_jobs(const SimOptions& o) {
 
 void check_outputs(const SimOptions& o, const std::vector<Job>& jobs) {
   const fs::path out(o.out_dir);
-  if (fs::exists(out) && !fs::is_directory(out)) throw std::invalid_argument("-o " + out.string() + " exists and is not a directory");
+  if (fs::exists(out) && !fs::is_directory(out))
+    throw std::invalid_argument("-o " + out.string() + " exists and is not a directory");
   if (o.force) return;
   for (const auto& j : jobs)
     if (fs::exists(out / j.dir / "run.json"))
       throw std::invalid_argument("" + (out / j.dir).string() + " already holds a run; use --force to replace it");
   if (fs::exists(out / "truth.json"))
-    throw std::invalid_argument((out / "truth.json").string() + " already records an earlier sim; use --force to replace it");
+    throw std::invalid_argument((out / "truth.json").string() +
+                                " already records an earlier sim; use --force to replace it");
 }
 
 // Every setting of the virtual test cell (what the diagnosis has to cope with; for checking by hand).
@@ -152,14 +155,25 @@ json test_cell_json(const drivers::SimConfig& e, bool ideal) {
   const auto& m = e.mic_chain;
   const auto& g = e.gas_ringing;
   return {{"ideal_cell", ideal},
-          {"pressure_chain", {{"noise_bar", p.noise_bar}, {"flicker_bar", p.flicker_bar}, {"adc_bits", p.adc_bits},
-                              {"adc_min_bar", p.adc_min_bar}, {"adc_max_bar", p.adc_max_bar},
-                              {"floor_bar", p.floor_bar()}}},
-          {"mic_chain", {{"self_noise_dba", m.has_self_noise() ? json(m.self_noise_dba) : json(nullptr)},
-                         {"directivity_db", m.directivity_db}, {"adc_bits", m.adc_bits}, {"adc_range_pa", m.adc_range_pa},
-                         {"gain_spread_db", e.mic_gain_spread_db}, {"background_floor_db", e.background_noise_db}}},
-          {"gas_ringing", {{"gain_us", 1e6 * g.gain_s}, {"decay_ms", 1e3 * g.decay_s}, {"mode_weights", g.mode_weights},
-                           {"draper_alpha", model::kDraperAlpha}}}};
+          {"pressure_chain",
+           {{"noise_bar", p.noise_bar},
+            {"flicker_bar", p.flicker_bar},
+            {"adc_bits", p.adc_bits},
+            {"adc_min_bar", p.adc_min_bar},
+            {"adc_max_bar", p.adc_max_bar},
+            {"floor_bar", p.floor_bar()}}},
+          {"mic_chain",
+           {{"self_noise_dba", m.has_self_noise() ? json(m.self_noise_dba) : json(nullptr)},
+            {"directivity_db", m.directivity_db},
+            {"adc_bits", m.adc_bits},
+            {"adc_range_pa", m.adc_range_pa},
+            {"gain_spread_db", e.mic_gain_spread_db},
+            {"background_floor_db", e.background_noise_db}}},
+          {"gas_ringing",
+           {{"gain_us", 1e6 * g.gain_s},
+            {"decay_ms", 1e3 * g.decay_s},
+            {"mode_weights", g.mode_weights},
+            {"draper_alpha", model::kDraperAlpha}}}};
 }
 
 // One run: generated (or driven by a given pressure) and its clipping noted.
@@ -201,7 +215,8 @@ SimSummary run_sim(const SimOptions& o) {
   const model::BlockParams true_block = true_model(o, model_name);
   if (effects.mic_gain_db != 0.0 && o.pressure_dirs.empty() &&
       static_cast<std::uint32_t>(effects.mic_gain_mic) > cli::SimRunSpec::default_engine().mic_count)
-    throw std::invalid_argument("effect mic_gain: microphone " + std::to_string(effects.mic_gain_mic) + " does not exist (the layout has " +
+    throw std::invalid_argument("effect mic_gain: microphone " + std::to_string(effects.mic_gain_mic) +
+                                " does not exist (the layout has " +
                                 std::to_string(cli::SimRunSpec::default_engine().mic_count) + ")");
   cli::SimRunSpec base;
   base.cycles = o.cycles;
@@ -237,16 +252,19 @@ SimSummary run_sim(const SimOptions& o) {
                     {"soi_deg_btdc", run.condition.soi_deg_btdc},
                     {"motored", run.condition.motored},
                     {"background", job.background},
-                    {"pressure", job.background ? json("engine off: ambient pressure through the chain")
-                                 : job.pressure_dir.empty() ? json("engine model") : json(job.pressure_dir)},
-                    {"pressure_noise_floor_bar", run.pressure_noise_floor_bar ? json(*run.pressure_noise_floor_bar) : json(nullptr)},
+                    {"pressure", job.background             ? json("engine off: ambient pressure through the chain")
+                                 : job.pressure_dir.empty() ? json("engine model")
+                                                            : json(job.pressure_dir)},
+                    {"pressure_noise_floor_bar",
+                     run.pressure_noise_floor_bar ? json(*run.pressure_noise_floor_bar) : json(nullptr)},
                     {"cycles", job.pressure_dir.empty() ? json(o.cycles) : json(nullptr)}});
   }
   progress.finish();
 
   json truth = {
       {"generator", "noisemon sim"},
-      {"note", "what was injected into the true engine: for checking by hand only; noisemon diagnose never reads this file"},
+      {"note",
+       "what was injected into the true engine: for checking by hand only; noisemon diagnose never reads this file"},
       {"seed", o.seed},
       {"true_model", {{"name", model_name}, {"params", block_json(true_block)}}},
       {"true_block_with_effects", block_json(model::with_structural_effects(true_block, effects))},
@@ -273,49 +291,57 @@ SimCommand::SimCommand(CLI::App& app) {
                    "0 N m / 3450 rpm 20 N m, SOI deg BTDC), motored_idle, motored_full");
   sim_->add_option("--effect", options_.effects,
                    "effect injected into the true engine (repeatable): NAME[=MAGNITUDE][,key=value...]; see below");
-  sim_->add_option("--cycles", options_.cycles, "engine cycles per run")->capture_default_str()->check(CLI::Range(1, 100000));
-  sim_->add_option("--seed", options_.seed, "seed: the same seed gives the same runs, bit for bit")->capture_default_str();
+  sim_->add_option("--cycles", options_.cycles, "engine cycles per run")
+      ->capture_default_str()
+      ->check(CLI::Range(1, 100000));
+  sim_->add_option("--seed", options_.seed, "seed: the same seed gives the same runs, bit for bit")
+      ->capture_default_str();
   sim_->add_option("--true-model", options_.true_model,
                    "the engine's true block before the effects: a preset (linear, nl_damper, nl_spring_damper, "
                    "nl_spring_damper_opt) or a parameter file from `noisemon fit`")
       ->capture_default_str();
-  sim_->add_option("--pressure", options_.pressure_dirs,
-                   "instead of --condition: run directories whose (true) pressure drives the virtual engine (repeatable); "
-                   "their condition is kept, the microphones are replaced")
+  sim_->add_option(
+          "--pressure", options_.pressure_dirs,
+          "instead of --condition: run directories whose (true) pressure drives the virtual engine (repeatable); "
+          "their condition is kept, the microphones are replaced")
       ->check(CLI::ExistingDirectory);
   sim_->add_option("--encoder-deg", options_.encoder_deg, "encoder resolution of pressure.csv, deg")
       ->capture_default_str()
       ->check(CLI::Range(0.01, 6.0));
-  sim_->add_option("--pressure-floor", options_.pressure_floor_bar,
-                   "the pressure chain's configured white floor, bar rms per encoder sample (recorded in each run.json as "
-                   "pressure.noise_floor_bar; 0.02: a good piezo chain, the real Yanmar records carry about 0.2; 0: an ideal "
-                   "pressure chain, no floor and no ADC). The transducer_noise effect comes on top and is not recorded")
+  sim_->add_option(
+          "--pressure-floor", options_.pressure_floor_bar,
+          "the pressure chain's configured white floor, bar rms per encoder sample (recorded in each run.json as "
+          "pressure.noise_floor_bar; 0.02: a good piezo chain, the real Yanmar records carry about 0.2; 0: an ideal "
+          "pressure chain, no floor and no ADC). The transducer_noise effect comes on top and is not recorded")
       ->capture_default_str()
       ->check(CLI::Range(0.0, 10.0));
-  sim_->add_flag("--ideal-cell", options_.ideal_cell,
-                 "an ideal test cell: no pressure-chain floor or ADC, no microphone self-noise, directivity or ADC, no gas "
-                 "ringing (the 40 dB pink floor and the 0.3 dB gain spread stay)");
+  sim_->add_flag(
+      "--ideal-cell", options_.ideal_cell,
+      "an ideal test cell: no pressure-chain floor or ADC, no microphone self-noise, directivity or ADC, no gas "
+      "ringing (the 40 dB pink floor and the 0.3 dB gain spread stay)");
   sim_->add_flag("--background-run", options_.background_run,
                  "also write the engine-off run `background` (the microphones hear only the test cell: its floor, the "
                  "background_noise effect, their self-noise; the pressure reads ambient through the chain), which "
                  "`noisemon diagnose` takes as the floor");
   sim_->add_option("-o,--out", options_.out_dir, "output directory: one run directory per condition, and truth.json");
   sim_->add_flag("--force", options_.force, "replace run directories and a truth.json that already exist");
-  sim_->add_flag("--list-effects", list_effects_, "print every effect (unit, meaning, default, realistic range) and exit");
+  sim_->add_flag("--list-effects", list_effects_,
+                 "print every effect (unit, meaning, default, realistic range) and exit");
   sim_->add_flag("!--no-progress", options_.progress, "no progress display");
-  sim_->footer(model::effect_help_text() +
-               "\nExamples:\n"
-               "  noisemon sim --condition all -o runs/null\n"
-               "  noisemon sim --condition all --effect cubic_stiffness -o runs/k3\n"
-               "  noisemon sim --condition all --background-run --effect transducer_noise=0.1 -o runs/noisy_chain\n"
-               "  noisemon sim --condition all --ideal-cell -o runs/ideal\n"
-               "  noisemon sim --condition idle_mi18 --condition full_mi18 --effect second_mode=6,hz=3150 "
-               "--effect background_noise=60 --cycles 20 --seed 7 -o runs/mix\n"
-               "  # real Yanmar cycles driving the virtual engine (the pressure is kept, the microphones are the sim's):\n"
-               "  noisemon import --cycles-table yanmar_l100v_fired_18Nm.txt --rpm 1799.9 --load 18 --soi 9.6 "
-               "--condition yanmar_fired -o fired.lcmlog\n"
-               "  noisemon export fired.lcmlog -o pressure/yanmar_fired\n"
-               "  noisemon sim --pressure pressure/yanmar_fired --effect mechanical_noise=80 -o runs/yanmar_sim");
+  sim_->footer(
+      model::effect_help_text() +
+      "\nExamples:\n"
+      "  noisemon sim --condition all -o runs/null\n"
+      "  noisemon sim --condition all --effect cubic_stiffness -o runs/k3\n"
+      "  noisemon sim --condition all --background-run --effect transducer_noise=0.1 -o runs/noisy_chain\n"
+      "  noisemon sim --condition all --ideal-cell -o runs/ideal\n"
+      "  noisemon sim --condition idle_mi18 --condition full_mi18 --effect second_mode=6,hz=3150 "
+      "--effect background_noise=60 --cycles 20 --seed 7 -o runs/mix\n"
+      "  # real Yanmar cycles driving the virtual engine (the pressure is kept, the microphones are the sim's):\n"
+      "  noisemon import --cycles-table yanmar_l100v_fired_18Nm.txt --rpm 1799.9 --load 18 --soi 9.6 "
+      "--condition yanmar_fired -o fired.lcmlog\n"
+      "  noisemon export fired.lcmlog -o pressure/yanmar_fired\n"
+      "  noisemon sim --pressure pressure/yanmar_fired --effect mechanical_noise=80 -o runs/yanmar_sim");
 }
 
 int SimCommand::run() {
@@ -327,8 +353,10 @@ int SimCommand::run() {
   return exit_status_of("sim", [&] {
     const SimSummary s = run_sim(options_);
     for (const auto& w : s.warnings) std::fprintf(stderr, "noisemon sim: warning: %s\n", w.c_str());
-    std::fprintf(stderr, "noisemon sim: wrote %zu run director%s and truth.json under %s (generating %.2f s CPU, writing %.2f s)\n",
-                 s.run_dirs.size(), s.run_dirs.size() == 1 ? "y" : "ies", options_.out_dir.c_str(), s.generate_s, s.write_s);
+    std::fprintf(
+        stderr,
+        "noisemon sim: wrote %zu run director%s and truth.json under %s (generating %.2f s CPU, writing %.2f s)\n",
+        s.run_dirs.size(), s.run_dirs.size() == 1 ? "y" : "ies", options_.out_dir.c_str(), s.generate_s, s.write_s);
   });
 }
 

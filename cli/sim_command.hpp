@@ -16,29 +16,29 @@ class App;
 namespace noisemon::cli {
 
 struct SimOptions {
-  std::vector<std::string> conditions;      // names or "all" (cli::thesis_conditions)
-  std::vector<std::string> effects;         // NAME[=MAGNITUDE][,key=value...] (model/engine/effects.hpp)
-  std::vector<std::string> pressure_dirs;   // instead of conditions: run directories whose pressure drives the sim
+  std::vector<std::string> conditions;     // names or "all" (cli::thesis_conditions)
+  std::vector<std::string> effects;        // NAME[=MAGNITUDE][,key=value...] (model/engine/effects.hpp)
+  std::vector<std::string> pressure_dirs;  // instead of conditions: run directories whose pressure drives the sim
   int cycles = 40;
   std::uint64_t seed = 1;
-  std::string true_model = "linear";        // preset or parameter file (daemon/params_file.hpp)
+  std::string true_model = "linear";  // preset or parameter file (daemon/params_file.hpp)
   double encoder_deg = 0.2;
-  double pressure_floor_bar = 0.02;         // the pressure chain's white floor, bar rms per encoder sample;
-                                            // 0: an ideal pressure chain (no floor, no ADC)
-  bool ideal_cell = false;                  // no chain floors, ADCs, directivity or gas ringing at all
-  bool background_run = false;              // add the engine-off run "background"
+  double pressure_floor_bar = 0.02;  // the pressure chain's white floor, bar rms per encoder sample;
+                                     // 0: an ideal pressure chain (no floor, no ADC)
+  bool ideal_cell = false;           // no chain floors, ADCs, directivity or gas ringing at all
+  bool background_run = false;       // add the engine-off run "background"
   std::string out_dir;
-  bool force = false;                       // replace existing run directories
-  bool progress = true;                     // on stderr, when it is a terminal
+  bool force = false;    // replace existing run directories
+  bool progress = true;  // on stderr, when it is a terminal
 };
 
 struct SimSummary {
-  std::vector<std::string> run_dirs;        // written, in order
-  double generate_s = 0.0;                  // CPU time generating (without writing)
+  std::vector<std::string> run_dirs;  // written, in order
+  double generate_s = 0.0;            // CPU time generating (without writing)
   double write_s = 0.0;
-  std::uint64_t pressure_clipped = 0;       // samples the ADCs clipped, over every run
+  std::uint64_t pressure_clipped = 0;  // samples the ADCs clipped, over every run
   std::uint64_t mic_clipped = 0;
-  std::vector<std::string> warnings;        // one per run that clipped
+  std::vector<std::string> warnings;  // one per run that clipped
 };
 
 // Generates and writes every run and DIR/truth.json. Throws std::exception with a message naming the

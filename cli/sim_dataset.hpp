@@ -9,19 +9,19 @@
 #include <string>
 #include <vector>
 
-#include "drivers/formats/run_dir.hpp"
 #include "cli/sim_run.hpp"
-#include "model/fit/band_dataset.hpp"
+#include "drivers/formats/run_dir.hpp"
 #include "model/engine/effects.hpp"
+#include "model/fit/band_dataset.hpp"
 
 namespace noisemon::cli {
 
 struct SimCampaign {
-  std::vector<cli::SimCondition> conditions;   // e.g. cli::thesis_conditions()
+  std::vector<cli::SimCondition> conditions;  // e.g. cli::thesis_conditions()
   int cycles = 12;
-  model::Effects effects;                          // injected into the true engine of every condition
+  model::Effects effects;  // injected into the true engine of every condition
   model::BlockParams true_block = model::preset("linear");
-  std::uint64_t seed = 1;                          // per condition: cli::condition_seed(seed, name)
+  std::uint64_t seed = 1;  // per condition: cli::condition_seed(seed, name)
   std::uint64_t setup_seed = 1;
   // The engine and test cell of every run: encoder, pressure and microphone chains, gas ringing (realistic by
   // default; drivers::with_ideal_cell(engine) for an ideal cell). Its operating point, true block, effects and seed

@@ -19,7 +19,7 @@ namespace noisemon::cli {
 namespace {
 
 constexpr double kPreRollS = drivers::sim::kPreRollS;  // virtual engine run before t = 0 (grid aligned)
-constexpr std::size_t kRenderBatch = 4096;    // microphone frames per render call
+constexpr std::size_t kRenderBatch = 4096;             // microphone frames per render call
 
 std::string fmt(double v) {
   char buf[32];
@@ -41,7 +41,8 @@ drivers::SimConfig run_config(const SimRunSpec& spec) {
 }
 
 // Renders `frames` microphone frames after skipping `skip` (the pre-roll) into run.mic_pa.
-void render_mics(model::VirtualEngine& engine, model::PressureFeed& feed, std::int64_t skip, std::int64_t frames, drivers::RunDir& run) {
+void render_mics(model::VirtualEngine& engine, model::PressureFeed& feed, std::int64_t skip, std::int64_t frames,
+                 drivers::RunDir& run) {
   const std::size_t m = engine.mic_count();
   std::vector<double> buf(kRenderBatch * m);
   while (skip > 0) {
@@ -88,7 +89,8 @@ class RunFeed final : public model::PressureFeed {
   // Emits the encoder samples up to crank angle theta (all of them for +inf).
   void encoder_until(double theta) {
     for (; next_ < end_; ++next_) {
-      const double a = divide_ ? -360.0 + static_cast<double>(next_) / per_deg_ : -360.0 + static_cast<double>(next_) * res_;
+      const double a =
+          divide_ ? -360.0 + static_cast<double>(next_) / per_deg_ : -360.0 + static_cast<double>(next_) * res_;
       if (a > theta) break;
       run_.time_s.push_back(kin_.time_s(a));
       run_.crank_deg.push_back(a);
@@ -128,10 +130,13 @@ class ArrayFeed final : public model::PressureFeed {
 void check_config(const SimRunSpec& spec) {
   const drivers::SimConfig& c = spec.engine;
   if (!(spec.condition.speed_rpm > 0.0 && spec.condition.speed_rpm <= 10000.0))
-    throw std::invalid_argument("sim run " + spec.condition.name + ": speed " + fmt(spec.condition.speed_rpm) + " rpm outside (0, 10000]");
+    throw std::invalid_argument("sim run " + spec.condition.name + ": speed " + fmt(spec.condition.speed_rpm) +
+                                " rpm outside (0, 10000]");
   if (!(spec.condition.soi_deg_btdc >= 0.0 && spec.condition.soi_deg_btdc <= 60.0))
-    throw std::invalid_argument("sim run " + spec.condition.name + ": SOI " + fmt(spec.condition.soi_deg_btdc) + " deg BTDC outside [0, 60]");
-  if (!(spec.condition.load_nm >= 0.0)) throw std::invalid_argument("sim run " + spec.condition.name + ": negative load");
+    throw std::invalid_argument("sim run " + spec.condition.name + ": SOI " + fmt(spec.condition.soi_deg_btdc) +
+                                " deg BTDC outside [0, 60]");
+  if (!(spec.condition.load_nm >= 0.0))
+    throw std::invalid_argument("sim run " + spec.condition.name + ": negative load");
   if (spec.cycles < 1 || spec.cycles > 100000) throw std::invalid_argument("sim run: cycles must be in [1, 100000]");
   if (!(c.encoder_resolution_deg >= 0.01 && c.encoder_resolution_deg <= 6.0))
     throw std::invalid_argument("sim run: encoder resolution must be in [0.01, 6] deg");
@@ -232,7 +237,7 @@ drivers::RunDir simulate_run(const SimRunSpec& spec, SimRunStats* stats) {
   const double fine_rate = 2.0 * config.mic_rate_hz;
   drivers::RunDir run;
   run.condition = {spec.condition.name, spec.condition.speed_rpm, spec.condition.load_nm, spec.condition.soi_deg_btdc,
-                   std::nullopt, spec.condition.motored};
+                   std::nullopt,        spec.condition.motored};
   model::VirtualEngineConfig vcfg = drivers::sim::virtual_engine_config(config, fine_rate);
   vcfg.setup_seed = spec.setup_seed;
   model::VirtualEngine engine(vcfg);
@@ -284,7 +289,8 @@ namespace {
 // Missing encoder samples (a crank step of 1.5 .. kMaxCrankGapSteps nominal steps, e.g. a dropped pegging row)
 // filled by linear interpolation in time, angle and pressure: the band-limited resampler wants the samples
 // evenly spaced in angle. The nominal step is the most common one (the median step).
-void fill_encoder_gaps(std::vector<double>& t, std::vector<double>& th, std::vector<double>& p, const std::string& what) {
+void fill_encoder_gaps(std::vector<double>& t, std::vector<double>& th, std::vector<double>& p,
+                       const std::string& what) {
   std::vector<double> steps(th.size() - 1);
   for (std::size_t i = 1; i < th.size(); ++i) steps[i - 1] = th[i] - th[i - 1];
   std::nth_element(steps.begin(), steps.begin() + static_cast<std::ptrdiff_t>(steps.size() / 2), steps.end());
@@ -297,8 +303,9 @@ void fill_encoder_gaps(std::vector<double>& t, std::vector<double>& th, std::vec
     if (i > 0) {
       const double gap = (th[i] - th[i - 1]) / step;
       if (gap > drivers::kMaxCrankGapSteps + 1e-6)
-        throw std::invalid_argument(what + ": crank angle jumps by " + fmt(th[i] - th[i - 1]) + " deg at pressure sample " +
-                                    std::to_string(i) + " (more than " + fmt(drivers::kMaxCrankGapSteps) + " encoder steps)");
+        throw std::invalid_argument(what + ": crank angle jumps by " + fmt(th[i] - th[i - 1]) +
+                                    " deg at pressure sample " + std::to_string(i) + " (more than " +
+                                    fmt(drivers::kMaxCrankGapSteps) + " encoder steps)");
       const auto missing = static_cast<int>(std::lround(gap)) - 1;
       for (int k = 1; k <= missing && gap >= 1.5; ++k) {
         const double f = static_cast<double>(k) / (missing + 1);
@@ -439,7 +446,8 @@ FinePressure resample_fine(const EncoderTrace& e, double fine_rate, const std::s
     const std::size_t m = std::min(tt.size(), e.t.size() - i);
     for (std::size_t j = 0; j < m; ++j) tt[j] = e.t[i + j] - t_ref;
     if (take(resampler.process(tt.data(), e.p.data() + i, m, out.data(), out.size())))
-      while (take(resampler.process(nullptr, nullptr, 0, out.data(), out.size()))) {}
+      while (take(resampler.process(nullptr, nullptr, 0, out.data(), out.size()))) {
+      }
   }
   if (k_first < 0) throw std::invalid_argument(what + ": the pressure could not be resampled");
   std::int64_t k0 = k_first + 64;

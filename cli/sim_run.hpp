@@ -48,7 +48,7 @@ std::vector<SimCondition> resolve_conditions(const std::vector<std::string>& nam
 
 struct SimRunSpec {
   SimCondition condition;
-  int cycles = 40;                                   // whole engine cycles recorded (simulate_run)
+  int cycles = 40;  // whole engine cycles recorded (simulate_run)
   model::Effects effects;
   model::BlockParams true_block = model::preset("linear");
   std::uint64_t seed = 1;        // this run's realisation: cycle-to-cycle variation, noise, impacts

@@ -8,8 +8,8 @@
 
 #include <nlohmann/json.hpp>
 
-#include "daemon/cycle_statistics.hpp"
 #include "cli/import_export.hpp"
+#include "daemon/cycle_statistics.hpp"
 #include "daemon/replay.hpp"
 #include "model/block_params.hpp"
 
@@ -59,8 +59,9 @@ void summarize_input(const std::string& input, const daemon::ReplayOptions& base
 }  // namespace
 
 SummaryCommand::SummaryCommand(CLI::App& app) {
-  summary_ = app.add_subcommand("summary", "statistics over the cycles of whole recordings, per run: energy-mean levels, "
-                                           "Leq(A), mean, std, COV, min and max of every scalar, valid and flagged cycles");
+  summary_ = app.add_subcommand("summary",
+                                "statistics over the cycles of whole recordings, per run: energy-mean levels, "
+                                "Leq(A), mean, std, COV, min and max of every scalar, valid and flagged cycles");
   summary_->add_option("DATA", inputs_, "raw LCM logs (lcm-logger of noisemond's channels) or run directories")
       ->required()
       ->check(CLI::ExistingPath);
@@ -70,7 +71,9 @@ SummaryCommand::SummaryCommand(CLI::App& app) {
       ->check(CLI::ExistingFile);
   summary_->add_option("--model", model_, "model preset for the predicted levels (default: the configuration's)");
   summary_->add_flag("!--no-progress", progress_, "no progress bar");
-  summary_->footer("\nExamples:\n  noisemon summary runs/full_mi12 runs/idle_mi12\n  noisemon summary fired.lcmlog --csv > fired_summary.csv\n");
+  summary_->footer(
+      "\nExamples:\n  noisemon summary runs/full_mi12 runs/idle_mi12\n  noisemon summary fired.lcmlog --csv > "
+      "fired_summary.csv\n");
 }
 
 int SummaryCommand::run() {
@@ -84,13 +87,16 @@ int SummaryCommand::run() {
   for (const std::string& input : inputs_) summarize_input(input, base, runs);
   if (json_) {
     nlohmann::json all = nlohmann::json::object();
-    for (const std::string& run : runs.order) all[run] = nlohmann::json::parse(daemon::statistics_json(runs.stats.at(run).result()));
+    for (const std::string& run : runs.order)
+      all[run] = nlohmann::json::parse(daemon::statistics_json(runs.stats.at(run).result()));
     std::cout << all.dump(1) << "\n";
   } else if (csv_) {
     std::cout << daemon::statistics_csv_header();
-    for (const std::string& run : runs.order) std::cout << daemon::statistics_csv_rows(runs.stats.at(run).result(), run);
+    for (const std::string& run : runs.order)
+      std::cout << daemon::statistics_csv_rows(runs.stats.at(run).result(), run);
   } else {
-    for (const std::string& run : runs.order) std::cout << run << ": " << daemon::statistics_text(runs.stats.at(run).result()) << "\n";
+    for (const std::string& run : runs.order)
+      std::cout << run << ": " << daemon::statistics_text(runs.stats.at(run).result()) << "\n";
   }
   if (runs.order.empty()) {
     std::cerr << "noisemon summary: no complete cycle in the data\n";

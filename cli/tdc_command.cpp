@@ -9,10 +9,9 @@
 #include <sstream>
 #include <stdexcept>
 
-#include "cli/import_export.hpp"
 #include "cli/formats/cycle_table.hpp"
 #include "cli/formats/recording.hpp"
-#include "drivers/formats/run_dir.hpp"
+#include "cli/import_export.hpp"
 #include "drivers/formats/run_dir.hpp"
 
 namespace noisemon::cli {
@@ -55,7 +54,8 @@ model::MotoredTdc motored_run_tdc(const std::string& path, double loss_angle_deg
     run = drivers::read_run_dir(path);
   } else {  // a raw log the daemon recorded while motoring: its first run, unwrapped as export writes it
     const std::vector<formats::Recording> recs = formats::read_recordings_log(path);
-    if (recs.front().operating_points.front().motored == false && recs.front().operating_points.front().soi_deg_btdc > 0)
+    if (recs.front().operating_points.front().motored == false &&
+        recs.front().operating_points.front().soi_deg_btdc > 0)
       throw std::runtime_error(path + ": the log's first run was fired (its operating point); record a motored run");
     run = formats::to_run_dir(recs.front());
   }
@@ -76,43 +76,55 @@ void write_tdc_deg(const std::string& path, double tdc_deg) {
   std::size_t at = lines.size(), in_table = lines.size();
   for (std::size_t i = 0; i < lines.size(); ++i) {
     std::smatch m;
-    if (std::regex_match(lines[i], m, table)) in_table = m[1] == "combustion" ? i : lines.size();
-    else if (in_table < lines.size() && std::regex_match(lines[i], key)) at = i;
+    if (std::regex_match(lines[i], m, table))
+      in_table = m[1] == "combustion" ? i : lines.size();
+    else if (in_table < lines.size() && std::regex_match(lines[i], key))
+      at = i;
   }
   std::size_t combustion = lines.size();
   for (std::size_t i = 0; i < lines.size(); ++i) {
     std::smatch m;
     if (std::regex_match(lines[i], m, table) && m[1] == "combustion") combustion = i;
   }
-  if (at < lines.size()) lines[at] = value;
-  else if (combustion < lines.size()) lines.insert(lines.begin() + static_cast<std::ptrdiff_t>(combustion) + 1, value);
-  else lines.insert(lines.end(), {"", "[combustion]", value});
+  if (at < lines.size())
+    lines[at] = value;
+  else if (combustion < lines.size())
+    lines.insert(lines.begin() + static_cast<std::ptrdiff_t>(combustion) + 1, value);
+  else
+    lines.insert(lines.end(), {"", "[combustion]", value});
   std::ostringstream out;
   for (const std::string& l : lines) out << l << '\n';
   std::ofstream(path) << out.str();
 }
 
 TdcCommand::TdcCommand(CLI::App& app) {
-  tdc_ = app.add_subcommand("tdc", "thermodynamic TDC from motored cycles: the motored pressure peak plus the loss angle, "
-                                   "and a polytropic fit that needs none (model/motored_tdc.hpp)");
-  CLI::Option* dir = tdc_->add_option("RUN", run_dir_, "a motored run directory, or a raw log (.lcmlog) the daemon "
-                                                     "recorded while motoring (its first run): the result is on the "
-                                                     "encoder's scale, [combustion] tdc_deg")
+  tdc_ = app.add_subcommand("tdc",
+                            "thermodynamic TDC from motored cycles: the motored pressure peak plus the loss angle, "
+                            "and a polytropic fit that needs none (model/motored_tdc.hpp)");
+  CLI::Option* dir = tdc_->add_option("RUN", run_dir_,
+                                      "a motored run directory, or a raw log (.lcmlog) the daemon "
+                                      "recorded while motoring (its first run): the result is on the "
+                                      "encoder's scale, [combustion] tdc_deg")
                          ->check(CLI::ExistingPath);
   CLI::Option* table = tdc_->add_option("--cycles-table", table_, "a motored cycle table instead (its own scale)")
                            ->check(CLI::ExistingFile)
                            ->excludes(dir);
-  tdc_->add_option("--tdc-deg", table_tdc_deg_, "the table's nominal angle of firing TDC")->capture_default_str()->needs(table);
-  tdc_->add_option("--loss-angle-deg", loss_angle_deg_, "how far before TDC the motored peak lies (0 ... 3; measured "
-                                                        "0.4 ... 1.3)")
+  tdc_->add_option("--tdc-deg", table_tdc_deg_, "the table's nominal angle of firing TDC")
+      ->capture_default_str()
+      ->needs(table);
+  tdc_->add_option("--loss-angle-deg", loss_angle_deg_,
+                   "how far before TDC the motored peak lies (0 ... 3; measured "
+                   "0.4 ... 1.3)")
       ->capture_default_str();
-  tdc_->add_option("--write-config", write_config_, "set [combustion] tdc_deg in this TOML configuration (by the loss "
-                                                    "angle; the rest of the file kept)")
+  tdc_->add_option("--write-config", write_config_,
+                   "set [combustion] tdc_deg in this TOML configuration (by the loss "
+                   "angle; the rest of the file kept)")
       ->check(CLI::ExistingFile)
       ->excludes(table);
-  tdc_->footer("Examples:\n"
-               "  noisemon tdc runs/motored_1800 --write-config /etc/noisemon/noisemond.toml\n"
-               "  noisemon tdc --cycles-table yanmar_l100v_motored.txt");
+  tdc_->footer(
+      "Examples:\n"
+      "  noisemon tdc runs/motored_1800 --write-config /etc/noisemon/noisemond.toml\n"
+      "  noisemon tdc --cycles-table yanmar_l100v_motored.txt");
 }
 
 int TdcCommand::run() {

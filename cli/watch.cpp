@@ -33,26 +33,32 @@ void on_signal(int) { g_stop = 1; }
 void print_bands(const noisemon::cycle_report_t& r) {
   std::printf("      band Hz   CPL dB   meas dB(A)  pred dB(A)  att meas  att pred    K1 dB  flags\n");
   for (int b = 0; b < r.nbands; ++b)
-    std::printf("    %9.1f %8.1f %12.1f %11.1f %9.1f %9.1f %8.2f  %d\n", r.band_hz[b], r.cpl_db[b], r.spl_a_measured_db[b],
-                r.spl_a_predicted_db[b], r.att_measured_db[b], r.att_predicted_db[b], r.k1_db[b], r.band_flags[b]);
+    std::printf("    %9.1f %8.1f %12.1f %11.1f %9.1f %9.1f %8.2f  %d\n", r.band_hz[b], r.cpl_db[b],
+                r.spl_a_measured_db[b], r.spl_a_predicted_db[b], r.att_measured_db[b], r.att_predicted_db[b],
+                r.k1_db[b], r.band_flags[b]);
 }
 
 const char* thread_state_name(std::int8_t s) {
   switch (s) {
-    case noisemon::status_t::THREAD_IDLE: return "idle";
-    case noisemon::status_t::THREAD_RUNNING: return "running";
-    case noisemon::status_t::THREAD_STOPPED: return "stopped";
-    case noisemon::status_t::THREAD_FAILED: return "FAILED";
+    case noisemon::status_t::THREAD_IDLE:
+      return "idle";
+    case noisemon::status_t::THREAD_RUNNING:
+      return "running";
+    case noisemon::status_t::THREAD_STOPPED:
+      return "stopped";
+    case noisemon::status_t::THREAD_FAILED:
+      return "FAILED";
   }
   return "?";
 }
 
 void print_status(const noisemon::status_t& s) {
-  std::printf("status  source=%s uptime=%.1fs published=%lld dropped=%lld latency=%.1f/%.1fms processing=%.3f/%.3fms "
-              "report latency p50/p99/max=%.3f/%.3f/%.3fms\n",
-              s.source.c_str(), s.uptime_s, static_cast<long long>(s.cycles_published),
-              static_cast<long long>(s.cycles_dropped), s.latency_ms_mean, s.latency_ms_max, s.processing_ms_mean,
-              s.processing_ms_max, s.report_latency_ms_p50, s.report_latency_ms_p99, s.report_latency_ms_max);
+  std::printf(
+      "status  source=%s uptime=%.1fs published=%lld dropped=%lld latency=%.1f/%.1fms processing=%.3f/%.3fms "
+      "report latency p50/p99/max=%.3f/%.3f/%.3fms\n",
+      s.source.c_str(), s.uptime_s, static_cast<long long>(s.cycles_published),
+      static_cast<long long>(s.cycles_dropped), s.latency_ms_mean, s.latency_ms_max, s.processing_ms_mean,
+      s.processing_ms_max, s.report_latency_ms_p50, s.report_latency_ms_p99, s.report_latency_ms_max);
   std::printf("  threads:");
   for (int i = 0; i < s.nthreads; ++i) {
     std::printf(" %s=%s", s.thread_name[i].c_str(), thread_state_name(s.thread_state[i]));
@@ -60,7 +66,8 @@ void print_status(const noisemon::status_t& s) {
   }
   std::printf("\n  rings:");
   for (int i = 0; i < s.nrings; ++i)
-    std::printf(" %s=%.0f%%/%lld overruns", s.ring_name[i].c_str(), 100.0 * s.ring_fill[i], static_cast<long long>(s.ring_overruns[i]));
+    std::printf(" %s=%.0f%%/%lld overruns", s.ring_name[i].c_str(), 100.0 * s.ring_fill[i],
+                static_cast<long long>(s.ring_overruns[i]));
   std::printf("\n");
   if (s.ncounters > 0) {
     std::printf("  counters:");
@@ -75,7 +82,9 @@ void print_status(const noisemon::status_t& s) {
 int run_watch(const WatchOptions& o) {
   lcm::LCM lcm(o.lcm_url);
   if (!lcm.good()) {
-    std::fprintf(stderr, "noisemon watch: cannot open LCM at '%s': the network needs a multicast route (see docs/sources-and-formats.md, 'LCM and multicast')\n",
+    std::fprintf(stderr,
+                 "noisemon watch: cannot open LCM at '%s': the network needs a multicast route (see "
+                 "docs/sources-and-formats.md, 'LCM and multicast')\n",
                  o.lcm_url.empty() ? "default URL" : o.lcm_url.c_str());
     return 1;
   }
@@ -129,7 +138,8 @@ int run_watch(const WatchOptions& o) {
     pollfd pfd{lcm.getFileno(), POLLIN, 0};
     const int ready = ::poll(&pfd, 1, 100);
     if (ready > 0) lcm.handle();
-    if (o.timeout_s > 0 && std::chrono::duration<double>(std::chrono::steady_clock::now() - last).count() > o.timeout_s) {
+    if (o.timeout_s > 0 &&
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - last).count() > o.timeout_s) {
       const std::string& channel = o.stats ? o.stats_channel : o.status ? o.status_channel : o.channel;
       std::fprintf(stderr, "noisemon watch: nothing on %s for %.1f s\n", channel.c_str(), o.timeout_s);
       return 2;

@@ -26,7 +26,8 @@ void AngleCycles::edge(double t, double crank_deg, double pressure_pa) {
   if (has_last_ && crank_deg < last_deg_ - 360.0) {
     wrap(t, crank_deg, pressure_pa);
   } else {
-    if (has_last_ && !(crank_deg > last_deg_ && crank_deg - last_deg_ <= kMaxStepsBridged * step_deg_)) open_.break_line();
+    if (has_last_ && !(crank_deg > last_deg_ && crank_deg - last_deg_ <= kMaxStepsBridged * step_deg_))
+      open_.break_line();
     open_.add(crank_deg, pressure_pa);
   }
   last_deg_ = crank_deg;

@@ -39,9 +39,9 @@ class AngleCycles {
   [[nodiscard]] bool started() const { return covered_until_ != INT64_MIN; }  // a block has come
   [[nodiscard]] double step_deg() const { return step_deg_; }
 
-  // The first completed cycle whose closing edge's block begins within `tolerance_frames` of the 40 kHz frame `boundary`;
-  // nullptr when there is none (the stream had a gap there). Cycles closed before it are forgotten. The grid may
-  // hold NaN points (complete() says); it stays valid until the next add() or take().
+  // The first completed cycle whose closing edge's block begins within `tolerance_frames` of the 40 kHz frame
+  // `boundary`; nullptr when there is none (the stream had a gap there). Cycles closed before it are forgotten. The
+  // grid may hold NaN points (complete() says); it stays valid until the next add() or take().
   CrankGrid* take(std::int64_t boundary, double tolerance_frames);
 
  private:
@@ -61,7 +61,7 @@ class AngleCycles {
   std::vector<Completed> completed_;  // oldest first, closed within horizon_frames_ of the newest edge
   std::optional<Completed> taken_;    // what take() returned last
   std::vector<Completed> spare_;      // grids of forgotten cycles, reused: no allocation per cycle once warm
-  double last_deg_ = 0;  // the last known angle (kept across unknown ones, to see the wrap)
+  double last_deg_ = 0;               // the last known angle (kept across unknown ones, to see the wrap)
   bool has_last_ = false;
   std::int64_t covered_until_ = INT64_MIN;
 };

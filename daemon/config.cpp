@@ -2,14 +2,14 @@
 
 #include <sched.h>
 
+#include <toml++/toml.h>
 #include <cctype>
 #include <cmath>
-#include <limits>
+#include <filesystem>
 #include <fstream>
+#include <limits>
 #include <set>
 #include <sstream>
-#include <filesystem>
-#include <toml++/toml.h>
 
 #include "daemon/background_run.hpp"
 #include "drivers/mic_positions.hpp"
@@ -41,7 +41,9 @@ class TableReader {
     if (!n) return;
     if (!n->is_integer()) fail(key, "expected an integer");
     const std::int64_t v = *n->value<std::int64_t>();
-    if (v < min || v > max) fail(key, "value " + std::to_string(v) + " out of range [" + std::to_string(min) + ", " + std::to_string(max) + "]");
+    if (v < min || v > max)
+      fail(key,
+           "value " + std::to_string(v) + " out of range [" + std::to_string(min) + ", " + std::to_string(max) + "]");
     out = v;
   }
   void boolean(const char* key, bool& out) {
@@ -73,7 +75,8 @@ class TableReader {
       const std::string name(k.str());
       if (!seen_.count(name)) {
         std::ostringstream s;
-        s << origin_ << ":" << v.source().begin.line << ": unknown key '" << (path_.empty() ? name : path_ + "." + name) << "'";
+        s << origin_ << ":" << v.source().begin.line << ": unknown key '" << (path_.empty() ? name : path_ + "." + name)
+          << "'";
         throw ConfigError(s.str());
       }
     }
@@ -107,7 +110,8 @@ void read_sim_cell(TableReader& sr, drivers::SimConfig& s) {
   read_adc_bits(sr, "pressure_adc_bits", p.adc_bits);
   sr.number("pressure_adc_min_bar", p.adc_min_bar, -1e3, 1e4);
   sr.number("pressure_adc_max_bar", p.adc_max_bar, -1e3, 1e4);
-  if (p.adc_bits > 0 && !(p.adc_max_bar > p.adc_min_bar)) sr.fail("pressure_adc_max_bar", "must be above pressure_adc_min_bar");
+  if (p.adc_bits > 0 && !(p.adc_max_bar > p.adc_min_bar))
+    sr.fail("pressure_adc_max_bar", "must be above pressure_adc_min_bar");
   auto& m = s.mic_chain;
   sr.number("mic_self_noise_dba", m.self_noise_dba, -kInf, 120);
   sr.number("mic_directivity_db", m.directivity_db, 0, 6);
@@ -134,7 +138,8 @@ void read_faults(TableReader& sr, const std::string& origin, drivers::SimConfig&
     const std::optional<drivers::SimFaultKind> kind = drivers::parse_fault_kind(kind_name);
     if (!kind)
       r.fail("kind", "unknown fault '" + kind_name +
-                         "' (expected missing_edges, extra_edges, lost_index, reverse, flat, overload, nan, unplugged, stall, overrun, fail)");
+                         "' (expected missing_edges, extra_edges, lost_index, reverse, flat, overload, nan, unplugged, "
+                         "stall, overrun, fail)");
     drivers::SimFault f;
     f.kind = *kind;
     r.string("channel", channel);
@@ -163,7 +168,8 @@ void read_effects(TableReader& sr, const std::string& origin, drivers::SimConfig
     TableReader r((*list)[i].as_table(), "sim.effects[" + std::to_string(i) + "]", origin);
     std::string text;
     r.string("effect", text);
-    if (text.empty()) r.fail("effect", "missing: the effect as `noisemon sim --effect` spells it, e.g. \"mic_gain=3,mic=4\"");
+    if (text.empty())
+      r.fail("effect", "missing: the effect as `noisemon sim --effect` spells it, e.g. \"mic_gain=3,mic=4\"");
     drivers::ScheduledEffect e;
     r.number("onset_s", e.onset_s, 0, 1e9);
     r.number("ramp_s", e.ramp_s, 0, 1e9);
@@ -173,8 +179,8 @@ void read_effects(TableReader& sr, const std::string& origin, drivers::SimConfig
       model::Effects all = drivers::cumulative_effects(s.effects, s.scheduled_effects, s.scheduled_effects.size());
       all.add(e.setting);  // validates magnitude and qualifiers, and an effect given twice
       if (e.setting.name == "mic_gain" && (all.mic_gain_mic < 1 || all.mic_gain_mic > static_cast<int>(s.mic_count)))
-        throw std::invalid_argument("microphone " + std::to_string(all.mic_gain_mic) + " does not exist (mic_count is " +
-                                    std::to_string(s.mic_count) + ")");
+        throw std::invalid_argument("microphone " + std::to_string(all.mic_gain_mic) +
+                                    " does not exist (mic_count is " + std::to_string(s.mic_count) + ")");
     } catch (const std::invalid_argument& err) {
       r.fail("effect", err.what());
     }
@@ -211,9 +217,11 @@ void read_schedule(TableReader& sr, const std::string& origin, drivers::SimConfi
     s.operating_schedule.push_back(step);
     previous = step.condition;
   }
-  if (drivers::sized_by_operating_point(drivers::cumulative_effects(s.effects, s.scheduled_effects, s.scheduled_effects.size())))
-    sr.fail("schedule", "cannot be combined with effects that depend on the operating point (speed_dependence, "
-                        "mechanical_noise): they would keep the first operating point's size");
+  if (drivers::sized_by_operating_point(
+          drivers::cumulative_effects(s.effects, s.scheduled_effects, s.scheduled_effects.size())))
+    sr.fail("schedule",
+            "cannot be combined with effects that depend on the operating point (speed_dependence, "
+            "mechanical_noise): they would keep the first operating point's size");
 }
 
 // [model] or [sim.true_block]: a preset plus optional parameter overrides.
@@ -243,9 +251,12 @@ void read_positions(TableReader& r, const char* key, double radius_m, std::vecto
   if (!n) return;
   if (n->is_string()) {
     const std::string preset = *n->value<std::string>();
-    if (preset == "iso3744") out = dsp::iso3744_key_positions(radius_m);
-    else if (preset == "table3.1") out = drivers::thesis_mic_positions(radius_m / 1.75);
-    else r.fail(key, "unknown preset '" + preset + "' (expected iso3744, table3.1 or an array of [x, y, z])");
+    if (preset == "iso3744")
+      out = dsp::iso3744_key_positions(radius_m);
+    else if (preset == "table3.1")
+      out = drivers::thesis_mic_positions(radius_m / 1.75);
+    else
+      r.fail(key, "unknown preset '" + preset + "' (expected iso3744, table3.1 or an array of [x, y, z])");
     return;
   }
   const toml::array* a = n->as_array();
@@ -274,22 +285,27 @@ void read_sound_power(TableReader& top, const std::string& origin, SoundPowerCon
   r.number("air_pressure_kpa", sp.air_pressure_kpa, 50, 120);
   r.boolean("lw_full_range", sp.full_range);
   r.number("source_dimension_m", sp.source_dimension_m, 0, 100);
-  if (r.node("background_db") && r.node("background_run")) r.fail("background_run", "give background_db or background_run, not both");
+  if (r.node("background_db") && r.node("background_run"))
+    r.fail("background_run", "give background_db or background_run, not both");
   if (const toml::node* n = r.node("background_db")) {
     const toml::array* a = n->as_array();
     if (!a || a->size() != kBackgroundBands)
-      r.fail("background_db", "expected 31 band levels, 20 Hz ... 20 kHz (dB re 20 uPa, unweighted; nan: not measured)");
+      r.fail("background_db",
+             "expected 31 band levels, 20 Hz ... 20 kHz (dB re 20 uPa, unweighted; nan: not measured)");
     for (const toml::node& v : *a) {
       if (!v.is_number()) r.fail("background_db", "expected numbers (dB re 20 uPa; nan for a band not measured)");
       sp.background_db.push_back(*v.value<double>());
     }
   }
   if (const toml::node* n = r.node("area_weights")) {
-    if (n->is_string() && *n->value<std::string>() == "voronoi") sp.voronoi_area_weights = true;
-    else if (n->is_string() && *n->value<std::string>() == "equal") sp.voronoi_area_weights = false;
+    if (n->is_string() && *n->value<std::string>() == "voronoi")
+      sp.voronoi_area_weights = true;
+    else if (n->is_string() && *n->value<std::string>() == "equal")
+      sp.voronoi_area_weights = false;
     else if (const toml::array* a = n->as_array()) {
       for (const toml::node& v : *a) {
-        if (!v.is_number() || !(*v.value<double>() > 0)) r.fail("area_weights", "expected positive numbers, one per microphone");
+        if (!v.is_number() || !(*v.value<double>() > 0))
+          r.fail("area_weights", "expected positive numbers, one per microphone");
         sp.area_weights.push_back(*v.value<double>());
       }
     } else {
@@ -300,7 +316,8 @@ void read_sound_power(TableReader& top, const std::string& origin, SoundPowerCon
   r.string("background_run", run);
   if (!run.empty()) {
     std::filesystem::path path(run);
-    if (path.is_relative() && std::filesystem::path(origin).has_parent_path()) path = std::filesystem::path(origin).parent_path() / path;
+    if (path.is_relative() && std::filesystem::path(origin).has_parent_path())
+      path = std::filesystem::path(origin).parent_path() / path;
     try {
       sp.background_db = background_from_run_dir(path);
     } catch (const std::exception& e) {
@@ -313,7 +330,8 @@ void read_sound_power(TableReader& top, const std::string& origin, SoundPowerCon
 // ---- [comedi] -----------------------------------------------------------------------------------------------
 
 template <class T>
-T pick(TableReader& r, const char* key, const std::string& value, std::initializer_list<std::pair<const char*, T>> choices) {
+T pick(TableReader& r, const char* key, const std::string& value,
+       std::initializer_list<std::pair<const char*, T>> choices) {
   std::string names;
   for (const auto& [name, v] : choices) {
     if (value == name) return v;
@@ -323,7 +341,8 @@ T pick(TableReader& r, const char* key, const std::string& value, std::initializ
 }
 
 unsigned read_aref(TableReader& r, const char* key, const std::string& value) {
-  return pick<unsigned>(r, key, value, {{"ground", AREF_GROUND}, {"common", AREF_COMMON}, {"diff", AREF_DIFF}, {"other", AREF_OTHER}});
+  return pick<unsigned>(r, key, value,
+                        {{"ground", AREF_GROUND}, {"common", AREF_COMMON}, {"diff", AREF_DIFF}, {"other", AREF_OTHER}});
 }
 
 void read_aref_key(TableReader& r, const char* key, unsigned& out) {
@@ -415,8 +434,9 @@ void read_comedi_encoder(TableReader& r, const std::string& origin, drivers::Com
   if (er.node("timestamp_mode")) {
     std::string mode;
     er.string("timestamp_mode", mode);
-    e.timestamp_mode = pick<drivers::TimestampMode>(er, "timestamp_mode", mode,
-                                                    {{"absolute", drivers::TimestampMode::kAbsolute}, {"period", drivers::TimestampMode::kPeriod}});
+    e.timestamp_mode = pick<drivers::TimestampMode>(
+        er, "timestamp_mode", mode,
+        {{"absolute", drivers::TimestampMode::kAbsolute}, {"period", drivers::TimestampMode::kPeriod}});
   }
   er.number("timebase_hz", e.timebase_hz, 1, 1e10);
   std::int64_t bits = e.timestamp_bits, cpr = e.counts_per_rev;
@@ -439,7 +459,8 @@ void read_mic_channels(TableReader& mr, drivers::ComediSourceConfig::Mics& m) {
   if (const toml::node* n = mr.node("channels")) {
     const toml::array* a = n->as_array();
     if (!a || a->empty() || a->size() > drivers::SampleBlock::kMaxChannels)
-      mr.fail("channels", "expected an array of 1.." + std::to_string(drivers::SampleBlock::kMaxChannels) + " channel numbers");
+      mr.fail("channels",
+              "expected an array of 1.." + std::to_string(drivers::SampleBlock::kMaxChannels) + " channel numbers");
     m.channels.clear();
     for (const toml::node& ch : *a) {
       if (!ch.is_integer() || *ch.value<std::int64_t>() < 0 || *ch.value<std::int64_t>() > 65535)
@@ -449,13 +470,16 @@ void read_mic_channels(TableReader& mr, drivers::ComediSourceConfig::Mics& m) {
   }
   const std::size_t n = m.channels.size();
   const auto ranges = per_channel<unsigned>(mr, "range", n, 0u, [&](const toml::node& v, const char* key) {
-    if (!v.is_integer() || *v.value<std::int64_t>() < 0 || *v.value<std::int64_t>() > 255) mr.fail(key, "expected integers in [0, 255]");
+    if (!v.is_integer() || *v.value<std::int64_t>() < 0 || *v.value<std::int64_t>() > 255)
+      mr.fail(key, "expected integers in [0, 255]");
     return static_cast<unsigned>(*v.value<std::int64_t>());
   });
-  const auto arefs = per_channel<unsigned>(mr, "aref", n, static_cast<unsigned>(AREF_GROUND), [&](const toml::node& v, const char* key) {
-    if (!v.is_string()) mr.fail(key, "expected \"ground\", \"common\", \"diff\" or \"other\"");
-    return read_aref(mr, key, *v.value<std::string>());
-  });
+  const auto arefs = per_channel<unsigned>(mr, "aref", n, static_cast<unsigned>(AREF_GROUND),
+                                           [&](const toml::node& v, const char* key) {
+                                             if (!v.is_string())
+                                               mr.fail(key, "expected \"ground\", \"common\", \"diff\" or \"other\"");
+                                             return read_aref(mr, key, *v.value<std::string>());
+                                           });
   for (std::size_t i = 0; i < n; ++i) {
     m.channels[i].range = ranges[i];
     m.channels[i].aref = arefs[i];
@@ -471,14 +495,16 @@ void read_comedi_mics(TableReader& r, const std::string& origin, drivers::Comedi
   read_mic_channels(mr, m);
   const std::size_t n = m.channels.size();
   if (mr.node("sensitivity_mv_per_pa") || n != m.sensitivity_mv_per_pa.size())
-    m.sensitivity_mv_per_pa = per_channel<double>(mr, "sensitivity_mv_per_pa", n, 0.0, [&](const toml::node& v, const char* key) {
-      if (!v.is_number() || !(*v.value<double>() > 0.0)) mr.fail(key, "expected positive numbers (mV/Pa)");
-      return *v.value<double>();
-    });
+    m.sensitivity_mv_per_pa =
+        per_channel<double>(mr, "sensitivity_mv_per_pa", n, 0.0, [&](const toml::node& v, const char* key) {
+          if (!v.is_number() || !(*v.value<double>() > 0.0)) mr.fail(key, "expected positive numbers (mV/Pa)");
+          return *v.value<double>();
+        });
   mr.number("radius_m", m.radius_m, 0.1, 100);
   read_positions(mr, "positions_m", m.radius_m, m.positions_m);
   if (!m.positions_m.empty() && m.positions_m.size() != n)
-    mr.fail("positions_m", "has " + std::to_string(m.positions_m.size()) + " positions but there are " + std::to_string(n) + " channels");
+    mr.fail("positions_m", "has " + std::to_string(m.positions_m.size()) + " positions but there are " +
+                               std::to_string(n) + " channels");
   mr.number("speed_of_sound_m_s", m.speed_of_sound_m_s, 100, 1000);
   read_kernel_buffer(mr, m.buffer_bytes, m.wake_every_scan);
   mr.reject_unknown();
@@ -543,7 +569,8 @@ void read_engine(TableReader& top, const std::string& origin, model::EngineGeome
   r.number("rod_mm", rod_mm, 1, 20000);
   r.number("compression_ratio", e.compression_ratio, 1.5, 100);
   r.reject_unknown();
-  if (!(rod_mm > stroke_mm / 2)) r.fail("rod_mm", "the connecting rod must be longer than the crank throw (half the stroke)");
+  if (!(rod_mm > stroke_mm / 2))
+    r.fail("rod_mm", "the connecting rod must be longer than the crank throw (half the stroke)");
   // Only what the file gives changes (mm to m by division: 86 mm is exactly the default 0.086 m).
   if (r.node("bore_mm")) e.bore_m = bore_mm / 1000.0;
   if (r.node("stroke_mm")) e.stroke_m = stroke_mm / 1000.0;
@@ -557,9 +584,12 @@ void read_combustion(TableReader& top, const std::string& origin, model::Metrics
   TableReader r(top.table("combustion"), "combustion", origin);
   std::string pegging = "none";
   r.string("pegging", pegging);
-  if (pegging == "intake") o.pegging = model::Pegging::kIntake;
-  else if (pegging == "polytropic") o.pegging = model::Pegging::kPolytropic;
-  else if (pegging != "none") r.fail("pegging", "expected \"none\", \"intake\" or \"polytropic\"");
+  if (pegging == "intake")
+    o.pegging = model::Pegging::kIntake;
+  else if (pegging == "polytropic")
+    o.pegging = model::Pegging::kPolytropic;
+  else if (pegging != "none")
+    r.fail("pegging", "expected \"none\", \"intake\" or \"polytropic\"");
   double intake_bar = o.peg_intake_pa / 1e5, exponent = 0.0;
   r.number("intake_pressure_bar", intake_bar, 0.1, 10);
   r.number("pegging_window_deg", o.peg_half_width_deg, 1, 90);
@@ -593,7 +623,8 @@ void read_combustion(TableReader& top, const std::string& origin, model::Metrics
 // ---- [threads] ----------------------------------------------------------------------------------------------
 
 // [threads.<name>]: priority = SCHED_FIFO priority (0: normal scheduling), cpu = CPU index (-1: any).
-void read_thread_policy(TableReader& threads, const char* name, const std::string& origin, drivers::ThreadPolicy& policy) {
+void read_thread_policy(TableReader& threads, const char* name, const std::string& origin,
+                        drivers::ThreadPolicy& policy) {
   TableReader r(threads.table(name), threads.key_path(name), origin);
   std::int64_t priority = policy.fifo_priority, cpu = policy.cpu.value_or(-1);
   r.integer("priority", priority, 0, 99);  // 99: Linux's highest SCHED_FIFO priority
@@ -606,10 +637,13 @@ void read_thread_policy(TableReader& threads, const char* name, const std::strin
 void read_threads(TableReader& top, const std::string& origin, ThreadsConfig& t) {
   TableReader r(top.table("threads"), "threads", origin);
   r.boolean("lock_memory", t.lock_memory);
-  const std::pair<const char*, drivers::ThreadPolicy*> policies[] = {
-      {"pressure", &t.pressure}, {"mics", &t.mics},         {"operating_point", &t.operating_point},
-      {"can", &t.can},           {"lcm_receive", &t.lcm_receive}, {"processing", &t.processing},
-      {"publishing", &t.publishing}};
+  const std::pair<const char*, drivers::ThreadPolicy*> policies[] = {{"pressure", &t.pressure},
+                                                                     {"mics", &t.mics},
+                                                                     {"operating_point", &t.operating_point},
+                                                                     {"can", &t.can},
+                                                                     {"lcm_receive", &t.lcm_receive},
+                                                                     {"processing", &t.processing},
+                                                                     {"publishing", &t.publishing}};
   for (const auto& [name, policy] : policies) read_thread_policy(r, name, origin, *policy);
   r.reject_unknown();
 }
@@ -657,7 +691,8 @@ void read_sim(TableReader& top, const std::string& origin, drivers::SimConfig& s
   sr.number("radius_m", s.radius_m, 0.1, 100);
   read_positions(sr, "mic_positions_m", s.radius_m, s.mic_positions_m);
   if (!s.mic_positions_m.empty() && s.mic_positions_m.size() != s.mic_count)
-    sr.fail("mic_positions_m", "has " + std::to_string(s.mic_positions_m.size()) + " positions but mic_count is " + std::to_string(s.mic_count));
+    sr.fail("mic_positions_m", "has " + std::to_string(s.mic_positions_m.size()) + " positions but mic_count is " +
+                                   std::to_string(s.mic_count));
   sr.number("speed_of_sound_m_s", s.speed_of_sound_m_s, 100, 1000);
   sr.number("mic_rate_hz", s.mic_rate_hz, 40000, 1e6);
   sr.number("mic_gain_spread_db", s.mic_gain_spread_db, 0, 20);
@@ -731,9 +766,9 @@ void set_cell(LcmConfig& lcm, const std::string& cell) {
     if (!std::isalnum(static_cast<unsigned char>(ch)) && ch != '-')
       throw ConfigError("cell id '" + cell + "': only letters, digits and '-' are allowed");
   const std::string old_suffix = lcm.cell.empty() ? "" : "_" + lcm.cell;
-  for (std::string* channel : {&lcm.report_channel, &lcm.status_channel, &lcm.raw_channel, &lcm.operating_point_channel,
-                               &lcm.session_channel, &lcm.stats_channel, &lcm.gap_event_channel,
-                               &lcm.gap_status_channel}) {
+  for (std::string* channel :
+       {&lcm.report_channel, &lcm.status_channel, &lcm.raw_channel, &lcm.operating_point_channel, &lcm.session_channel,
+        &lcm.stats_channel, &lcm.gap_event_channel, &lcm.gap_status_channel}) {
     if (!old_suffix.empty() && channel->ends_with(old_suffix)) channel->resize(channel->size() - old_suffix.size());
     if (!cell.empty()) *channel += "_" + cell;
   }

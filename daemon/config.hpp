@@ -24,13 +24,13 @@ struct LcmConfig {
   std::string raw_channel = "NOISEMON_RAW";
   std::string operating_point_channel = "NOISEMON_OP";
   std::string session_channel = "NOISEMON_SESSION";
-  std::string stats_channel = "NOISEMON_STATS";  // the rolling statistics (cycle_stats_t)
+  std::string stats_channel = "NOISEMON_STATS";            // the rolling statistics (cycle_stats_t)
   std::string gap_event_channel = "NOISEMON_GAP_EVENT";    // noisemon gapwatch's events (gap_event_t)
   std::string gap_status_channel = "NOISEMON_GAP_STATUS";  // and its state, 1 Hz (gap_status_t)
   bool publish_raw = true;
   bool publish_operating_point = true;
   double session_timeout_s = 30.0;  // source "lcm": how long to wait for the session message
-  std::string cell;  // test cell id, appended to every channel as "_<cell>" (empty: the plain names)
+  std::string cell;                 // test cell id, appended to every channel as "_<cell>" (empty: the plain names)
 };
 
 // [threads]: memory locking and the scheduling of each thread the daemon may run (drivers/worker_thread.hpp).
@@ -47,27 +47,27 @@ struct ThreadsConfig {
 };
 
 struct Config {
-  std::string source = "sim";       // sim, lcm, comedi
-  std::int64_t cycles = 0;          // stop after this many cycles; 0 = until SIGINT/SIGTERM
+  std::string source = "sim";  // sim, lcm, comedi
+  std::int64_t cycles = 0;     // stop after this many cycles; 0 = until SIGINT/SIGTERM
   std::string log_level = "info";
-  bool live = false;                // print one line per cycle on stdout
+  bool live = false;  // print one line per cycle on stdout
   LcmConfig lcm;
-  std::string model_name = "linear";// the preset the model parameters start from
+  std::string model_name = "linear";  // the preset the model parameters start from
   model::BlockParams model = model::preset("linear");
-  double acoustic_delay_s = -1;     // < 0: radius / speed of sound, as the source reports it
-  double mic_low_db = 20.0;         // a microphone this far below the median of the others is left out (unplugged)
-  bool mic_average_time = false;    // [processing] mic_average = "time": the thesis's mean time history, not "energy"
-  double ring_seconds = 0.5;        // capacity of each driver ring buffer
+  double acoustic_delay_s = -1;   // < 0: radius / speed of sound, as the source reports it
+  double mic_low_db = 20.0;       // a microphone this far below the median of the others is left out (unplugged)
+  bool mic_average_time = false;  // [processing] mic_average = "time": the thesis's mean time history, not "energy"
+  double ring_seconds = 0.5;      // capacity of each driver ring buffer
   drivers::SimConfig sim;
-  drivers::ComediSourceConfig comedi;  // [comedi]: the DAQ hardware (source = "comedi")
-  drivers::CanSourceConfig can;        // [can]: operating points from CAN; when configured, they replace the
-                                       // source's own (any source)
-  ThreadsConfig threads;               // [threads]: handed to the sources and the pipeline
-  model::EngineGeometry engine;        // [engine]: for the combustion metrics (default: the Yanmar L100V)
-  model::MetricsOptions combustion;    // [combustion]: pegging and the combustion window of dp/dtheta max
-  bool tdc_deg_configured = false;     // [combustion] tdc_deg was given (else a replay takes its session's)
+  drivers::ComediSourceConfig comedi;      // [comedi]: the DAQ hardware (source = "comedi")
+  drivers::CanSourceConfig can;            // [can]: operating points from CAN; when configured, they replace the
+                                           // source's own (any source)
+  ThreadsConfig threads;                   // [threads]: handed to the sources and the pipeline
+  model::EngineGeometry engine;            // [engine]: for the combustion metrics (default: the Yanmar L100V)
+  model::MetricsOptions combustion;        // [combustion]: pegging and the combustion window of dp/dtheta max
+  bool tdc_deg_configured = false;         // [combustion] tdc_deg was given (else a replay takes its session's)
   std::int64_t stats_window_cycles = 100;  // [statistics] window_cycles: the rolling statistics' window; 0: none
-  SoundPowerConfig sound_power;        // [sound_power]: ISO 3744's K1 (background) and K2, the surface check
+  SoundPowerConfig sound_power;            // [sound_power]: ISO 3744's K1 (background) and K2, the surface check
 };
 
 // A configuration error; what() names the file and the field.

@@ -32,8 +32,8 @@ class CrankWindows {
  private:
   std::size_t channels_;
   std::vector<dsp::Biquad> sections_;
-  std::vector<double> z0_, z1_;      // [s * channels + c]: the direct form II transposed state, section-major so that
-  std::vector<double> x_;            // the loop over the channels vectorises; x_: one frame on its way through
+  std::vector<double> z0_, z1_;       // [s * channels + c]: the direct form II transposed state, section-major so that
+  std::vector<double> x_;             // the loop over the channels vectorises; x_: one frame on its way through
   std::vector<double> sum_, closed_;  // [w * channels + c]
   std::array<std::size_t, kCrankWindows> frames_{}, closed_frames_{};
 };

@@ -14,12 +14,12 @@ namespace {
 
 constexpr double kFs = drivers::kPipelineRateHz;
 constexpr std::size_t kChunkFrames = 512;
-constexpr std::size_t kModelPrimeFrames = 4096;  // 0.1 s: many time constants of the block model's modes
-constexpr double kGridStepDeg = 0.25;              // the combustion metrics' crank-angle grid from the 40 kHz frames
-constexpr std::int64_t kAngleWaitFrames = 20000;   // 0.5 s: how long the processing waits for a crank-angle stream
+constexpr std::size_t kModelPrimeFrames = 4096;   // 0.1 s: many time constants of the block model's modes
+constexpr double kGridStepDeg = 0.25;             // the combustion metrics' crank-angle grid from the 40 kHz frames
+constexpr std::int64_t kAngleWaitFrames = 20000;  // 0.5 s: how long the processing waits for a crank-angle stream
 constexpr std::size_t kReplacedChannel = drivers::kPressureStreamChannels;  // pressure FIFO: 1 where replaced
 constexpr std::size_t kPressureFifoChannels = drivers::kPressureStreamChannels + 1;
-constexpr double kOverloadFraction = 0.99;  // of the full scale: a sample there was clipped
+constexpr double kOverloadFraction = 0.99;    // of the full scale: a sample there was clipped
 constexpr double kHiddenBoundaryRatio = 1.5;  // a flagged-encoder cycle this much longer than a good one hid a boundary
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 constexpr double kInf = std::numeric_limits<double>::infinity();
@@ -49,7 +49,9 @@ struct CycleProcessor::CpuScope {
   double start_;
 };
 
-CycleProcessor::CpuBatch::CpuBatch(CycleProcessor& p) : p_(p), start_(thread_cpu_seconds()) { p_.cpu_batch_open_ = true; }
+CycleProcessor::CpuBatch::CpuBatch(CycleProcessor& p) : p_(p), start_(thread_cpu_seconds()) {
+  p_.cpu_batch_open_ = true;
+}
 CycleProcessor::CpuBatch::~CpuBatch() {
   p_.cpu_batch_open_ = false;
   p_.cpu_spent_s_ += thread_cpu_seconds() - start_;
@@ -61,7 +63,8 @@ CycleProcessor::CycleProcessor(const ProcessorConfig& config, const drivers::Str
       sink_(std::move(sink)),
       mics_(info.mic_count),
       bank_channels_(2 + info.mic_count + (config.time_average_mics && info.mic_count > 0 ? 1 : 0)),
-      delay_frames_(std::llround((config.acoustic_delay_s >= 0 ? config.acoustic_delay_s : info.acoustic_delay_s) * kFs)),
+      delay_frames_(
+          std::llround((config.acoustic_delay_s >= 0 ? config.acoustic_delay_s : info.acoustic_delay_s) * kFs)),
       model_(config.model, kFs),
       model_latency_(static_cast<std::int64_t>(model_.latency_samples())),
       pressure_(kPressureFifoChannels, static_cast<std::size_t>(config.fifo_seconds * kFs)),
@@ -81,13 +84,16 @@ CycleProcessor::CycleProcessor(const ProcessorConfig& config, const drivers::Str
       pressure_overload_pa_(overload_level(info.pressure_full_scale_pa)),
       mic_overload_pa_(overload_level(info.mic_full_scale_pa)),
       frame_grid_(kGridStepDeg),
-      angle_(info.pressure_angle_step_deg > 0 ? std::make_unique<AngleCycles>(info.pressure_angle_step_deg, config.fifo_seconds * kFs) : nullptr) {
+      angle_(info.pressure_angle_step_deg > 0
+                 ? std::make_unique<AngleCycles>(info.pressure_angle_step_deg, config.fifo_seconds * kFs)
+                 : nullptr) {
   // 0 microphones: a pressure-only recording (an imported cycle table); measured levels are then NaN.
   if (info.mic_count > kMaxMics)
     throw std::invalid_argument("CycleProcessor: microphone count must be 0.." + std::to_string(kMaxMics));
   if (bank_.band_count() > kMaxBands) throw std::logic_error("CycleProcessor: too many bands");
   mean_square_.assign(bank_channels_ * bank_.band_count(), 0.0);
-  for (const dsp::ThirdOctaveBand& b : bank_.bands()) a_gain_.push_back(std::pow(10.0, dsp::a_weighting_db(b.exact_mid_hz) / 10.0));
+  for (const dsp::ThirdOctaveBand& b : bank_.bands())
+    a_gain_.push_back(std::pow(10.0, dsp::a_weighting_db(b.exact_mid_hz) / 10.0));
   reset_stats();
 }
 
@@ -141,7 +147,8 @@ void CycleProcessor::add_pressure(const drivers::SampleBlock& block) {
   const std::int64_t skip = new_first - first;
   if (skip >= n) return;
   for (std::int64_t f = skip; f < n; ++f)
-    model_in_[static_cast<std::size_t>(f - skip)] = clean_[static_cast<std::size_t>(f) * kPressureFifoChannels + drivers::kPressureChannel];
+    model_in_[static_cast<std::size_t>(f - skip)] =
+        clean_[static_cast<std::size_t>(f) * kPressureFifoChannels + drivers::kPressureChannel];
   run_model(new_first, static_cast<std::size_t>(n - skip));
 }
 
@@ -171,9 +178,11 @@ void CycleProcessor::run_model(std::int64_t first, std::size_t n) {
 
 void CycleProcessor::add_pressure_angle(const drivers::SampleBlock& block) {
   CpuScope cpu(*this);
-  if (!angle_) throw std::invalid_argument("CycleProcessor: crank-angle block for a stream without a crank-angle stream");
+  if (!angle_)
+    throw std::invalid_argument("CycleProcessor: crank-angle block for a stream without a crank-angle stream");
   if (block.channels != drivers::kAngleStreamChannels)
-    throw std::invalid_argument("CycleProcessor: crank-angle block with " + std::to_string(block.channels) + " channels");
+    throw std::invalid_argument("CycleProcessor: crank-angle block with " + std::to_string(block.channels) +
+                                " channels");
   angle_->add(block);
 }
 
@@ -370,7 +379,7 @@ CrankGrid* CycleProcessor::combustion_grid(std::int64_t start, std::int64_t end_
 }
 
 model::CombustionMetrics CycleProcessor::take_combustion(std::int64_t start, std::int64_t end_index, bool wanted,
-                                                          bool& angle_gap) {
+                                                         bool& angle_gap) {
   model::CombustionMetrics combustion;  // NaN throughout unless the grid is complete
   angle_gap = false;
   CrankGrid* grid = combustion_grid(start, end_index, angle_gap);
@@ -544,7 +553,8 @@ void CycleProcessor::window_levels(CycleReport& r, bool pressure_fault) const {
         weight_sum += weights[m];
       }
     r.window_lpa_measured_db[w] = static_cast<float>(weight_sum > 0 ? dsp::level_db(sum / weight_sum) : kNaN);
-    r.window_lpa_predicted_db[w] = static_cast<float>(pressure_fault ? kNaN : dsp::level_db(windows_.mean_square(w, 0)));
+    r.window_lpa_predicted_db[w] =
+        static_cast<float>(pressure_fault ? kNaN : dsp::level_db(windows_.mean_square(w, 0)));
   }
 }
 
@@ -593,7 +603,8 @@ void CycleProcessor::band_levels(CycleReport& r, double settled_s, bool pressure
     r.band_flags[b] = f;
   }
   const bool measured = !std::isnan(measured_mean_square(r, 0));
-  const double lw_term = sound_power_.surface_term_db() - sound_power_.k2_db() + sound_power_.c1_db() + sound_power_.c2_db();
+  const double lw_term =
+      sound_power_.surface_term_db() - sound_power_.k2_db() + sound_power_.c1_db() + sound_power_.c2_db();
   r.k2_db = sound_power_.k2_db();
   r.c1_db = sound_power_.c1_db();
   r.c2_db = sound_power_.c2_db();

@@ -60,9 +60,9 @@ struct ProcessorCounters {
   std::int64_t cycles_completed = 0;  // reported + dropped
   std::int64_t cycles_dropped = 0;    // not reported: samples were lost in them
   std::int64_t frames_processed = 0;
-  std::int64_t gap_frames = 0;        // frames filled in because blocks were lost, or skipped after a stall
-  std::int64_t frames_discarded = 0;  // frames pushed out unconsumed: one stream ran fifo_seconds ahead of another
-  std::int64_t samples_replaced = 0;  // non-finite pressure or microphone samples replaced before the filters
+  std::int64_t gap_frames = 0;            // frames filled in because blocks were lost, or skipped after a stall
+  std::int64_t frames_discarded = 0;      // frames pushed out unconsumed: one stream ran fifo_seconds ahead of another
+  std::int64_t samples_replaced = 0;      // non-finite pressure or microphone samples replaced before the filters
   std::int64_t crank_unknown_frames = 0;  // frames whose crank angle was NaN (encoder fault, before a resync)
 };
 
@@ -152,9 +152,9 @@ class CycleProcessor {
 
   model::BlockModel model_;
   std::int64_t model_latency_;
-  FrameFifo pressure_;   // pressure (non-finite replaced), crank, 1 where the pressure was replaced
-  FrameFifo predicted_;  // model output, indexed by the instant it describes
-  FrameFifo mics_fifo_;  // as received (non-finite samples are replaced on their way to the bank)
+  FrameFifo pressure_;         // pressure (non-finite replaced), crank, 1 where the pressure was replaced
+  FrameFifo predicted_;        // model output, indexed by the instant it describes
+  FrameFifo mics_fifo_;        // as received (non-finite samples are replaced on their way to the bank)
   std::vector<double> clean_;  // a pressure block as the FIFO holds it
   std::vector<double> model_in_, model_out_, model_prime_;
   bool model_primed_ = false;
@@ -164,40 +164,42 @@ class CycleProcessor {
   dsp::ThirdOctaveBank bank_;  // channels: pressure, predicted, mic 1..M
   SoundPowerSetup sound_power_;
   std::vector<double> a_gain_;  // A-weighting per band as a mean-square factor
-  std::vector<double> chunk_;  // combined frames waiting for the bank
+  std::vector<double> chunk_;   // combined frames waiting for the bank
   std::size_t chunk_frames_ = 0;
   std::vector<double> mean_square_;
-  CrankWindows windows_;         // A-weighted prediction and microphones per crank window (out[1 ...] of a frame)
-  std::size_t window_ = 0;       // the crank window of the frames being added
+  CrankWindows windows_;    // A-weighted prediction and microphones per crank window (out[1 ...] of a frame)
+  std::size_t window_ = 0;  // the crank window of the frames being added
   std::vector<ChannelStats> stats_;
   // Per channel: one past the last combined frame whose sample was replaced. The bank's filters ring after the
   // replaced stretch: the channel stays faulty into the next cycle while its non-slow bands have not settled.
   std::vector<std::int64_t> replaced_until_;
   double pressure_overload_pa_, mic_overload_pa_;  // 0.99 of the full scales; +inf when not known
 
-  std::int64_t next_ = INT64_MIN;        // next combined frame to process
-  double last_crank_ = 0;                // the last known crank angle
+  std::int64_t next_ = INT64_MIN;  // next combined frame to process
+  double last_crank_ = 0;          // the last known crank angle
   bool have_last_crank_ = false;
-  bool crank_unknown_ = false;           // NaN crank angles since last_crank_
-  bool cycle_encoder_ = false;           // the current cycle had unknown angles or started after them
+  bool crank_unknown_ = false;            // NaN crank angles since last_crank_
+  bool cycle_encoder_ = false;            // the current cycle had unknown angles or started after them
   std::int64_t cycle_start_ = INT64_MIN;  // INT64_MIN until the first boundary
   std::int64_t settle_from_ = INT64_MIN;  // start of the stretch of continuous data (start or last gap)
-  struct Gap { std::int64_t from, to; };  // combined-frame interval affected by lost samples
+  struct Gap {
+    std::int64_t from, to;
+  };  // combined-frame interval affected by lost samples
   std::vector<Gap> gaps_;
   void note_gap(std::int64_t from, std::int64_t to);
   // The cycle's pressure on a uniform crank-angle grid, for the combustion metrics: from the crank-angle stream's
   // edges when the source has one, else from the 40 kHz frames (a kGridStepDeg grid).
   CrankGrid* combustion_grid(std::int64_t start, std::int64_t end_index, bool& angle_gap);
-  CrankGrid frame_grid_;                 // NaN where no frame has reached yet
-  std::unique_ptr<AngleCycles> angle_;   // the crank-angle stream's cycles (nullptr: the source has none)
-  bool angle_abandoned_ = false;          // none came while kAngleWaitFrames of pressure did: the frames' grid
+  CrankGrid frame_grid_;                // NaN where no frame has reached yet
+  std::unique_ptr<AngleCycles> angle_;  // the crank-angle stream's cycles (nullptr: the source has none)
+  bool angle_abandoned_ = false;        // none came while kAngleWaitFrames of pressure did: the frames' grid
   bool streams_ended_ = false;
   std::int64_t angle_end(std::int64_t end);
   model::MetricsWorkspace metrics_scratch_;  // sized by the first cycle, reused: no allocation per cycle
-  double last_duration_s_ = 0;          // of the last reported cycle without kCycleEncoder
+  double last_duration_s_ = 0;               // of the last reported cycle without kCycleEncoder
   drivers::OperatingPoint op_;
   bool have_op_ = false;
-  double cpu_spent_s_ = 0;  // CPU time spent in add_*/process since the last cycle was finished
+  double cpu_spent_s_ = 0;       // CPU time spent in add_*/process since the last cycle was finished
   bool cpu_batch_open_ = false;  // a CpuBatch times the calls
   struct CpuScope;
   ProcessorCounters counters_;

@@ -41,7 +41,8 @@ const std::vector<Field>& fields() {
       {"peak_pressure_deg", "deg", false, [](const Report& r) { return r.peak_pressure_deg; }},
       {"max_rise_bar_per_deg", "bar/deg", false, [](const Report& r) { return r.max_rise_bar_per_deg; }},
       {"max_rise_deg", "deg", false, [](const Report& r) { return r.max_rise_deg; }},
-      {"max_rise_motored_bar_per_deg", "bar/deg", false, [](const Report& r) { return r.max_rise_motored_bar_per_deg; }},
+      {"max_rise_motored_bar_per_deg", "bar/deg", false,
+       [](const Report& r) { return r.max_rise_motored_bar_per_deg; }},
       {"imep_gross_bar", "bar", false, [](const Report& r) { return r.imep_gross_bar; }},
       {"imep_net_bar", "bar", false, [](const Report& r) { return r.imep_net_bar; }},
       {"heat_release_j", "J", false, [](const Report& r) { return r.heat_release_j; }},
@@ -127,7 +128,9 @@ void CycleStatisticsAccumulator::add(const Report& r) {
 
 namespace {
 
-double energy_mean_db(double energy, std::int64_t n) { return n > 0 ? 10.0 * std::log10(energy / static_cast<double>(n)) : kNaN; }
+double energy_mean_db(double energy, std::int64_t n) {
+  return n > 0 ? 10.0 * std::log10(energy / static_cast<double>(n)) : kNaN;
+}
 
 // COV (std / mean) means something only on a scale with a true zero: not for a level in dB, nor for a crank angle,
 // whose zero is TDC by convention (a CA50 at 1 deg would scatter "100 %" at the same spread as one at 20 deg at 5 %).
@@ -157,8 +160,9 @@ CycleStatistics CycleStatisticsAccumulator::result() const {
   s.seconds = seconds_;
   s.leq_a_measured_db =
       seconds_measured_ > 0 && energy_measured_s_ > 0 ? dsp::level_db(energy_measured_s_ / seconds_measured_) : kNaN;
-  s.leq_a_predicted_db =
-      seconds_predicted_ > 0 && energy_predicted_s_ > 0 ? dsp::level_db(energy_predicted_s_ / seconds_predicted_) : kNaN;
+  s.leq_a_predicted_db = seconds_predicted_ > 0 && energy_predicted_s_ > 0
+                             ? dsp::level_db(energy_predicted_s_ / seconds_predicted_)
+                             : kNaN;
   for (std::size_t i = 0; i < fields().size(); ++i) {
     const Running r = i < scalars_.size() ? scalars_[i] : Running{};
     s.scalars.push_back(finish(fields()[i], r.n, r.sum, r.sum_sq, r.energy, r.min, r.max));
@@ -175,18 +179,23 @@ CycleStatistics CycleStatisticsAccumulator::result() const {
 
 // ISO 3744 over the cycles: see CycleStatistics::lwa_run_measured_db.
 void CycleStatisticsAccumulator::add_run_sound_power(CycleStatistics& s) const {
-  constexpr std::int8_t kNotOverall = Report::BAND_BELOW_FIRING | Report::BAND_PRESSURE_PASSBAND | Report::BAND_MIC_PASSBAND;
+  constexpr std::int8_t kNotOverall =
+      Report::BAND_BELOW_FIRING | Report::BAND_PRESSURE_PASSBAND | Report::BAND_MIC_PASSBAND;
   double measured = 0, predicted = 0;
   bool any = false;
   for (std::size_t b = 0; b < band_hz_.size(); ++b) {
     const double mid = dsp::third_octave_exact_mid_hz(band_hz_[b]);
     const double background = b < background_db_.size() ? background_db_[b] : kNaN;
     dsp::BackgroundCorrection k1;  // no background: uncorrected
-    if (!std::isnan(background)) k1 = dsp::background_correction(s.spl_a_measured_db[b] - dsp::a_weighting_db(mid), background);
-    std::int8_t validity = k1.validity == dsp::BandValidity::kUpperBound ? kBandUpperBound
-                           : k1.validity == dsp::BandValidity::kCorrected ? kBandCorrected : kBandUncorrected;
-    if (band_flags_seen_[b] & kNotOverall) validity = kBandNotInOverall;
-    else if (band_hz_[b] < lw_low_hz_ || band_hz_[b] > lw_high_hz_) validity = kBandOutsideLwRange;
+    if (!std::isnan(background))
+      k1 = dsp::background_correction(s.spl_a_measured_db[b] - dsp::a_weighting_db(mid), background);
+    std::int8_t validity = k1.validity == dsp::BandValidity::kUpperBound  ? kBandUpperBound
+                           : k1.validity == dsp::BandValidity::kCorrected ? kBandCorrected
+                                                                          : kBandUncorrected;
+    if (band_flags_seen_[b] & kNotOverall)
+      validity = kBandNotInOverall;
+    else if (band_hz_[b] < lw_low_hz_ || band_hz_[b] > lw_high_hz_)
+      validity = kBandOutsideLwRange;
     s.band_validity.push_back(validity);
     const bool in = validity <= kBandUpperBound && std::isfinite(k1.k1_db);
     s.k1_db.push_back(in ? k1.k1_db : kNaN);
@@ -259,7 +268,8 @@ CycleStatistics from_message(const noisemon::cycle_stats_t& m) {
   s.leq_a_measured_db = m.leq_a_measured_db;
   s.leq_a_predicted_db = m.leq_a_predicted_db;
   for (int i = 0; i < m.nscalars; ++i)
-    s.scalars.push_back({m.name[i], m.unit[i], m.level[i] != 0, m.n[i], m.mean[i], m.stddev[i], m.cov[i], m.min[i], m.max[i]});
+    s.scalars.push_back(
+        {m.name[i], m.unit[i], m.level[i] != 0, m.n[i], m.mean[i], m.stddev[i], m.cov[i], m.min[i], m.max[i]});
   s.band_hz = m.band_hz;
   s.spl_a_measured_db = m.spl_a_measured_db;
   s.spl_a_predicted_db = m.spl_a_predicted_db;
@@ -298,29 +308,34 @@ std::string band_validity_text(const CycleStatistics& s) {
   }
   std::string out;
   if (!corrected.empty()) out += "  bands corrected for the background (K1): " + corrected + "\n";
-  if (!bound.empty()) out += "  bands 6 dB or less above the background (K1 1.3 dB, LW an upper bound): " + bound + "\n";
+  if (!bound.empty())
+    out += "  bands 6 dB or less above the background (K1 1.3 dB, LW an upper bound): " + bound + "\n";
   return out;
 }
 }  // namespace
 
 std::string statistics_text(const CycleStatistics& s) {
   char line[256];
-  std::snprintf(line, sizeof line, "cycles %lld: %lld valid, %lld flagged (settling, gap or encoder); %.2f s; Leq(A) measured %.2f dB, predicted %.2f dB\n",
-                static_cast<long long>(s.cycles), static_cast<long long>(s.valid), static_cast<long long>(s.flagged), s.seconds,
-                s.leq_a_measured_db, s.leq_a_predicted_db);
+  std::snprintf(line, sizeof line,
+                "cycles %lld: %lld valid, %lld flagged (settling, gap or encoder); %.2f s; Leq(A) measured %.2f dB, "
+                "predicted %.2f dB\n",
+                static_cast<long long>(s.cycles), static_cast<long long>(s.valid), static_cast<long long>(s.flagged),
+                s.seconds, s.leq_a_measured_db, s.leq_a_predicted_db);
   std::string out = line;
-  const std::string range = std::isfinite(s.lw_high_hz) ? fmt_range(s.lw_low_hz, s.lw_high_hz) : std::string("all bands");
+  const std::string range =
+      std::isfinite(s.lw_high_hz) ? fmt_range(s.lw_low_hz, s.lw_high_hz) : std::string("all bands");
   std::snprintf(line, sizeof line,
                 "LW(A) over the cycles (ISO 3744:2010, %s: energy-mean bands, K1, K2, C1 %+.2f, C2 %+.2f dB): "
                 "measured %.2f dB%s, predicted %.2f dB\n",
-                range.c_str(), s.c1_db, s.c2_db, s.lwa_run_measured_db, s.lwa_run_upper_bound ? " (an upper bound)" : "",
-                s.lwa_run_predicted_db);
+                range.c_str(), s.c1_db, s.c2_db, s.lwa_run_measured_db,
+                s.lwa_run_upper_bound ? " (an upper bound)" : "", s.lwa_run_predicted_db);
   out += line;
   out += band_validity_text(s);
   out += "  quantity                     unit         mean        std      cov        min        max      n\n";
   for (const ScalarStats& v : s.scalars) {
-    std::snprintf(line, sizeof line, "  %-28s %-8s %10.4g %10.4g %8.4f %10.4g %10.4g %6lld%s\n", v.name.c_str(), v.unit.c_str(),
-                  v.mean, v.std, v.cov, v.min, v.max, static_cast<long long>(v.n), v.level ? "  (energy mean)" : "");
+    std::snprintf(line, sizeof line, "  %-28s %-8s %10.4g %10.4g %8.4f %10.4g %10.4g %6lld%s\n", v.name.c_str(),
+                  v.unit.c_str(), v.mean, v.std, v.cov, v.min, v.max, static_cast<long long>(v.n),
+                  v.level ? "  (energy mean)" : "");
     out += line;
   }
   const auto lnv = [&](const char* name) {
@@ -329,8 +344,8 @@ std::string statistics_text(const CycleStatistics& s) {
     return kNaN;
   };
   if (std::isfinite(lnv("imep_gross_bar")) || std::isfinite(lnv("imep_net_bar"))) {
-    std::snprintf(line, sizeof line, "  LNV of IMEP (lowest / mean): gross %.1f %%, net %.1f %%\n", 100 * lnv("imep_gross_bar"),
-                  100 * lnv("imep_net_bar"));
+    std::snprintf(line, sizeof line, "  LNV of IMEP (lowest / mean): gross %.1f %%, net %.1f %%\n",
+                  100 * lnv("imep_gross_bar"), 100 * lnv("imep_net_bar"));
     out += line;
   }
   return out;
@@ -338,11 +353,16 @@ std::string statistics_text(const CycleStatistics& s) {
 
 std::string statistics_json(const CycleStatistics& s) {
   auto num = [](double v) { return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(nullptr); };
-  nlohmann::json j = {{"cycles", s.cycles}, {"valid", s.valid}, {"flagged", s.flagged}, {"seconds", s.seconds},
-                      {"leq_a_measured_db", num(s.leq_a_measured_db)}, {"leq_a_predicted_db", num(s.leq_a_predicted_db)}};
+  nlohmann::json j = {{"cycles", s.cycles},
+                      {"valid", s.valid},
+                      {"flagged", s.flagged},
+                      {"seconds", s.seconds},
+                      {"leq_a_measured_db", num(s.leq_a_measured_db)},
+                      {"leq_a_predicted_db", num(s.leq_a_predicted_db)}};
   for (const ScalarStats& v : s.scalars)
-    j["scalars"][v.name] = {{"unit", v.unit}, {"energy_mean", v.level}, {"n", v.n}, {"mean", num(v.mean)}, {"std", num(v.std)},
-                            {"cov", num(v.cov)}, {"min", num(v.min)}, {"max", num(v.max)}, {"lnv", num(v.lnv)}};
+    j["scalars"][v.name] = {{"unit", v.unit},      {"energy_mean", v.level}, {"n", v.n},
+                            {"mean", num(v.mean)}, {"std", num(v.std)},      {"cov", num(v.cov)},
+                            {"min", num(v.min)},   {"max", num(v.max)},      {"lnv", num(v.lnv)}};
   j["lwa_run_measured_db"] = num(s.lwa_run_measured_db);
   j["lwa_run_predicted_db"] = num(s.lwa_run_predicted_db);
   j["lwa_run_upper_bound"] = s.lwa_run_upper_bound;
@@ -351,7 +371,10 @@ std::string statistics_json(const CycleStatistics& s) {
   j["lw_band_range_hz"] = {num(s.lw_low_hz), num(s.lw_high_hz)};
   j["bands"]["hz"] = s.band_hz;
   j["bands"]["band_validity"] = s.band_validity;
-  for (auto [key, values] : {std::pair{"spl_a_measured_db", &s.spl_a_measured_db}, {"spl_a_predicted_db", &s.spl_a_predicted_db}, {"cpl_db", &s.cpl_db}, {"k1_db", &s.k1_db}}) {
+  for (auto [key, values] : {std::pair{"spl_a_measured_db", &s.spl_a_measured_db},
+                             {"spl_a_predicted_db", &s.spl_a_predicted_db},
+                             {"cpl_db", &s.cpl_db},
+                             {"k1_db", &s.k1_db}}) {
     nlohmann::json a = nlohmann::json::array();
     for (double v : *values) a.push_back(num(v));
     j["bands"][key] = a;
@@ -367,11 +390,12 @@ std::string statistics_csv_rows(const CycleStatistics& s, const std::string& run
   auto plain = [](double v) { return std::isnan(v) ? kNaN : v; };
   for (const ScalarStats& v : s.scalars) {
     std::snprintf(line, sizeof line, "%s,%s,%s,%d,%lld,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g\n", run.c_str(), v.name.c_str(),
-                  v.unit.c_str(), v.level ? 1 : 0, static_cast<long long>(v.n), plain(v.mean), plain(v.std), plain(v.cov),
-                  plain(v.min), plain(v.max), plain(v.lnv));
+                  v.unit.c_str(), v.level ? 1 : 0, static_cast<long long>(v.n), plain(v.mean), plain(v.std),
+                  plain(v.cov), plain(v.min), plain(v.max), plain(v.lnv));
     out += line;
   }
-  for (auto [name, value] : {std::pair{"lwa_run_measured_db", s.lwa_run_measured_db}, {"lwa_run_predicted_db", s.lwa_run_predicted_db}}) {
+  for (auto [name, value] :
+       {std::pair{"lwa_run_measured_db", s.lwa_run_measured_db}, {"lwa_run_predicted_db", s.lwa_run_predicted_db}}) {
     std::snprintf(line, sizeof line, "%s,%s,dB(A),1,%lld,%.6g,nan,nan,nan,nan,nan\n", run.c_str(), name,
                   static_cast<long long>(s.valid), plain(value));
     out += line;

@@ -19,25 +19,25 @@
 namespace noisemon::daemon {
 
 struct ScalarStats {
-  std::string name;   // the cycle_report_t field, e.g. "imep_net_bar"
+  std::string name;  // the cycle_report_t field, e.g. "imep_net_bar"
   std::string unit;
   bool level = false;  // a level in dB: its mean is the energy mean, its std the std of the dB values
   std::int64_t n = 0;  // cycles with a finite value
-  double mean = 0, std = 0, cov = 0, min = 0, max = 0;  // NaN when n == 0 (std, cov: n < 2; cov: a level, an
-                                                        // angle, or values of both signs)
+  double mean = 0, std = 0, cov = 0, min = 0, max = 0;    // NaN when n == 0 (std, cov: n < 2; cov: a level, an
+                                                          // angle, or values of both signs)
   double lnv = std::numeric_limits<double>::quiet_NaN();  // lowest normalised value, min / mean: where COV is, for
                                                           // positive values (the IMEPs' stability figure)
 };
 
 struct CycleStatistics {
-  std::int64_t cycles = 0;        // every cycle seen
-  std::int64_t valid = 0;         // the ones in the statistics
-  std::int64_t flagged = 0;       // settling, with a gap or an encoder fault: counted, not averaged
-  double seconds = 0;             // time the valid cycles cover
-  double leq_a_measured_db = 0;   // Leq(A) over that time: energy mean of Lp(A) weighted by each cycle's duration
+  std::int64_t cycles = 0;       // every cycle seen
+  std::int64_t valid = 0;        // the ones in the statistics
+  std::int64_t flagged = 0;      // settling, with a gap or an encoder fault: counted, not averaged
+  double seconds = 0;            // time the valid cycles cover
+  double leq_a_measured_db = 0;  // Leq(A) over that time: energy mean of Lp(A) weighted by each cycle's duration
   double leq_a_predicted_db = 0;
   std::vector<ScalarStats> scalars;
-  std::vector<float> band_hz;                       // of the first valid cycle
+  std::vector<float> band_hz;                                         // of the first valid cycle
   std::vector<double> spl_a_measured_db, spl_a_predicted_db, cpl_db;  // energy means per band
   // Sound power over the cycles as ISO 3744:2010 computes it over a measurement time: each band's energy mean, its K1
   // against the background (the reports' background_db; 15 dB limit; 1.3 dB within 6 dB of it, which makes the
@@ -46,18 +46,18 @@ struct CycleStatistics {
   // per-cycle LW(A)s' energy mean is the scalar lwa_measured_db.
   double lwa_run_measured_db = std::numeric_limits<double>::quiet_NaN();
   double lwa_run_predicted_db = std::numeric_limits<double>::quiet_NaN();
-  bool lwa_run_upper_bound = false;    // a band of lwa_run_measured_db lies within 6 dB of the background
-  double c1_db = 0, c2_db = 0;         // in lwa_run_* (of the first valid cycle)
-  float lw_low_hz = 0, lw_high_hz = 0; // the nominal band range of lwa_run_*
-  std::vector<double> k1_db;           // per band, of the energy mean (NaN: out of the sound power)
+  bool lwa_run_upper_bound = false;        // a band of lwa_run_measured_db lies within 6 dB of the background
+  double c1_db = 0, c2_db = 0;             // in lwa_run_* (of the first valid cycle)
+  float lw_low_hz = 0, lw_high_hz = 0;     // the nominal band range of lwa_run_*
+  std::vector<double> k1_db;               // per band, of the energy mean (NaN: out of the sound power)
   std::vector<std::int8_t> band_validity;  // per band: BandRunValidity
 };
 enum BandRunValidity : std::int8_t {
-  kBandUncorrected = 0,    // more than 15 dB above the background, or none
-  kBandCorrected = 1,      // 6 ... 15 dB above it: K1 by the formula
-  kBandUpperBound = 2,     // 6 dB or less above it: K1 1.3 dB, an upper bound (in the sound power)
-  kBandNotInOverall = 3,   // not in the overall levels (below the firing frequency, beyond a passband)
-  kBandOutsideLwRange = 4, // outside the sound power's band range (100 Hz ... 10 kHz unless full_range)
+  kBandUncorrected = 0,     // more than 15 dB above the background, or none
+  kBandCorrected = 1,       // 6 ... 15 dB above it: K1 by the formula
+  kBandUpperBound = 2,      // 6 dB or less above it: K1 1.3 dB, an upper bound (in the sound power)
+  kBandNotInOverall = 3,    // not in the overall levels (below the firing frequency, beyond a passband)
+  kBandOutsideLwRange = 4,  // outside the sound power's band range (100 Hz ... 10 kHz unless full_range)
 };
 
 class CycleStatisticsAccumulator {

@@ -16,12 +16,15 @@ class FrameFifo {
  public:
   // capacity_frames is rounded up to a power of two (indexing by mask, not division).
   FrameFifo(std::size_t channels, std::size_t capacity_frames)
-      : channels_(channels), capacity_(round_up_pow2(capacity_frames)), mask_(capacity_ - 1),
-        data_(channels * capacity_, 0.0), last_(channels, 0.0) {}
+      : channels_(channels),
+        capacity_(round_up_pow2(capacity_frames)),
+        mask_(capacity_ - 1),
+        data_(channels * capacity_, 0.0),
+        last_(channels, 0.0) {}
 
   std::size_t channels() const { return channels_; }
   bool started() const { return started_; }
-  std::int64_t begin_index() const { return begin_; }           // index of the oldest frame held
+  std::int64_t begin_index() const { return begin_; }  // index of the oldest frame held
   std::int64_t end_index() const { return begin_ + static_cast<std::int64_t>(size_); }  // one past the newest
   std::size_t size() const { return size_; }
   std::size_t capacity() const { return capacity_; }
@@ -49,7 +52,8 @@ class FrameFifo {
       a.held = static_cast<std::size_t>(first - end);
       for (std::size_t i = 0; i < a.held; ++i) a.dropped += push(last_.data());
     }
-    std::size_t skip = first < end_index() ? static_cast<std::size_t>(std::min<std::int64_t>(end_index() - first, n)) : 0;
+    std::size_t skip =
+        first < end_index() ? static_cast<std::size_t>(std::min<std::int64_t>(end_index() - first, n)) : 0;
     std::size_t count = n - skip;
     if (count == 0) return a;
     if (count > capacity_) {  // more new frames than it holds: keep the newest, beginning where they begin

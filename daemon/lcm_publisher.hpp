@@ -21,7 +21,6 @@ class LcmPublisher final : public Publisher {
   void publish_bytes(const std::string& channel, const std::uint8_t* data, std::size_t size,
                      std::int64_t utime) override;
 
-
  private:
   std::unique_ptr<lcm::LCM> lcm_;
 };

@@ -32,7 +32,8 @@ class MemoryPublisher final : public Publisher {
     std::lock_guard lock(mutex_);
     std::vector<Published<Message>> out;
     for (const Encoded& e : kept_)
-      if (auto m = decode_as<Message>(e.bytes.data(), e.bytes.size())) out.push_back({e.channel, std::move(*m), e.utime});
+      if (auto m = decode_as<Message>(e.bytes.data(), e.bytes.size()))
+        out.push_back({e.channel, std::move(*m), e.utime});
     return out;
   }
   [[nodiscard]] auto reports() const { return messages<noisemon::cycle_report_t>(); }

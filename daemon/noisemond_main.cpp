@@ -3,10 +3,10 @@
 // (Type=notify): READY=1 once the drivers deliver data, STATUS= once a second, WATCHDOG=1 only while every thread
 // runs and the processing and publishing loops go round; SIGHUP reloads the configuration file (a broken one is
 // logged and the running configuration stays).
-#include <CLI/CLI.hpp>
 #include <spdlog/sinks/stdout_color_sinks.h>
 #include <spdlog/spdlog.h>
 #include <systemd/sd-daemon.h>
+#include <CLI/CLI.hpp>
 
 #include <algorithm>
 #include <chrono>
@@ -35,13 +35,17 @@ struct Options {
 };
 
 void add_options(CLI::App& app, Options& o) {
-  app.add_option("--config", o.config_path, "TOML configuration file (default: built-in defaults, simulated engine); "
-                                             "SIGHUP reads it again")
+  app.add_option("--config", o.config_path,
+                 "TOML configuration file (default: built-in defaults, simulated engine); "
+                 "SIGHUP reads it again")
       ->check(CLI::ExistingFile);
-  app.add_option("--source", o.source, "acquisition source, overrides [daemon] source: sim (virtual engine), lcm (raw blocks on the bus), comedi (DAQ card, see [comedi])")
+  app.add_option("--source", o.source,
+                 "acquisition source, overrides [daemon] source: sim (virtual engine), lcm (raw blocks on the bus), "
+                 "comedi (DAQ card, see [comedi])")
       ->check(CLI::IsMember({"sim", "lcm", "comedi"}));
   app.add_option("--lcm", o.lcm_url, "LCM URL, overrides [lcm] url (e.g. udpm://239.255.76.67:7667?ttl=0)");
-  app.add_option("--cycles", o.cycles, "stop after publishing N cycles (0 = run until SIGINT/SIGTERM)")->check(CLI::NonNegativeNumber);
+  app.add_option("--cycles", o.cycles, "stop after publishing N cycles (0 = run until SIGINT/SIGTERM)")
+      ->check(CLI::NonNegativeNumber);
   app.add_flag("--live", o.live, "print one line per cycle on stdout (predicted and measured Lp(A), LW(A))");
   app.add_option("--log-level", o.log_level, "trace, debug, info, warn, error, critical or off")
       ->check(CLI::IsMember({"trace", "debug", "info", "warn", "error", "critical", "off"}));
@@ -95,7 +99,8 @@ void reload(const Options& o, std::unique_ptr<daemon::Pipeline>& pipeline) {
     spdlog::error("SIGHUP: {}: keeping the running configuration", e.what());
     return;
   }
-  spdlog::info("SIGHUP: {} read: restarting the pipeline with it", o.config_path.empty() ? "(built-in defaults)" : o.config_path);
+  spdlog::info("SIGHUP: {} read: restarting the pipeline with it",
+               o.config_path.empty() ? "(built-in defaults)" : o.config_path);
   sd_notify(0, "RELOADING=1");
   pipeline->stop();
   pipeline.reset();

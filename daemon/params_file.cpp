@@ -19,7 +19,8 @@ void write_params_file(const std::string& path, const model::BlockParams& p, con
     std::snprintf(buf, sizeof buf, "%.17g", v);
     f << key << " = " << buf << '\n';
   };
-  f << "[model]\n" << "preset = \"" << preset << "\"\n";
+  f << "[model]\n"
+    << "preset = \"" << preset << "\"\n";
   num("m", p.m);
   num("k1", p.k1);
   num("k3", p.k3);

@@ -57,7 +57,8 @@ struct Pipeline::Impl {
   dsp::SpscRing<drivers::OperatingPoint> op_publish_ring{64};
 
   std::unique_ptr<CycleProcessor> processor;  // made with the pipeline, run by the processing thread
-  std::deque<noisemon::cycle_report_t> stats_window;  // the latest reports, for the rolling statistics (publishing thread)
+  std::deque<noisemon::cycle_report_t>
+      stats_window;  // the latest reports, for the rolling statistics (publishing thread)
   std::atomic<std::int64_t> cycles_dropped{0};
   // Heartbeats: the steady clock (ns) at the top of the processing and publishing loops' latest iteration.
   std::atomic<std::int64_t> processing_beat_ns{0}, publishing_beat_ns{0};
@@ -66,9 +67,9 @@ struct Pipeline::Impl {
   static std::int64_t now_ns() {
     return std::chrono::duration_cast<std::chrono::nanoseconds>(Clock::now().time_since_epoch()).count();
   }
-  std::atomic<std::int64_t> frames_discarded{0};  // the processor's FIFOs: one stream ran ahead of a stalled one
-  std::atomic<std::int64_t> gap_frames{0};        // frames lost in the streams, held or skipped
-  std::atomic<std::int64_t> samples_replaced{0};  // non-finite pressure or microphone samples replaced
+  std::atomic<std::int64_t> frames_discarded{0};      // the processor's FIFOs: one stream ran ahead of a stalled one
+  std::atomic<std::int64_t> gap_frames{0};            // frames lost in the streams, held or skipped
+  std::atomic<std::int64_t> samples_replaced{0};      // non-finite pressure or microphone samples replaced
   std::atomic<std::int64_t> crank_unknown_frames{0};  // frames whose crank angle was NaN (encoder fault)
   std::atomic<std::int64_t> reports_queued{0};
   std::atomic<std::uint64_t> report_overruns{0};
@@ -87,7 +88,8 @@ struct Pipeline::Impl {
     return static_cast<std::size_t>(std::clamp(std::ceil(edges_per_s / 256.0 / 312.5), 1.0, 5.0));
   }
   static std::size_t blocks_for(double seconds) {
-    return static_cast<std::size_t>(std::ceil(seconds * drivers::kPipelineRateHz / 128.0));  // room even for half-full blocks
+    return static_cast<std::size_t>(
+        std::ceil(seconds * drivers::kPipelineRateHz / 128.0));  // room even for half-full blocks
   }
 
   Impl(const Config& c, std::unique_ptr<drivers::Source> s, std::shared_ptr<Publisher> p, PipelineOptions o)
@@ -369,9 +371,9 @@ void Pipeline::start() {
   drivers::Streams streams{&d.pressure_ring, &d.mic_ring, &d.op_ring, &d.angle_ring};
   // Processing first: the publishing thread ends once the processing thread no longer runs.
   d.processing_thread.start("nm-processing", d.config.threads.processing,
-                     [this](const std::atomic<bool>& drain) { impl_->run_processing(drain); });
+                            [this](const std::atomic<bool>& drain) { impl_->run_processing(drain); });
   d.publishing_thread.start("nm-publish", d.config.threads.publishing,
-                     [this](const std::atomic<bool>&) { impl_->run_publishing(published_); });
+                            [this](const std::atomic<bool>&) { impl_->run_publishing(published_); });
   try {
     d.source->start(streams);
   } catch (...) {

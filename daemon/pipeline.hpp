@@ -42,7 +42,7 @@ class Pipeline {
   // Stops the drivers, processes and publishes every complete cycle already acquired, joins all threads.
   void stop();
 
-  bool ready() const;     // every driver thread delivers data
+  bool ready() const;  // every driver thread delivers data
   // The configured number of cycles is published, the source has delivered all it has (a log), or a thread failed.
   bool finished() const;
   std::string failure() const;  // why a thread failed; empty otherwise

@@ -71,7 +71,8 @@ std::shared_ptr<FanoutPublisher> open_outputs(const ReplayOptions& o) {
 
 // One run of the log through the daemon's pipeline, until its source has delivered the whole session.
 void replay_session(const ReplayOptions& o, const Config& config, std::unique_ptr<drivers::Source> source,
-                    const std::shared_ptr<FanoutPublisher>& outputs, const drivers::LogSessions& log, Progress& progress, ReplaySummary& sum) {
+                    const std::shared_ptr<FanoutPublisher>& outputs, const drivers::LogSessions& log,
+                    Progress& progress, ReplaySummary& sum) {
   const std::string condition = log.condition();
   outputs->begin_run(condition);
   PipelineOptions po;

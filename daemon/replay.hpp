@@ -21,16 +21,16 @@ struct ReplayOptions {
   std::string out_log;   // cycle reports as an LCM log (channel config.lcm.report_channel); empty: none
   std::string csv_path;  // one row per cycle; empty: none
   std::vector<std::shared_ptr<Publisher>> publishers;  // further outputs (the tool's HDF5 file)
-  bool realtime = false; // pace events at their recorded times
-  bool progress = true;  // progress bar on stderr when it is a terminal
-  Config config;         // model parameters and channel names
+  bool realtime = false;                               // pace events at their recorded times
+  bool progress = true;                                // progress bar on stderr when it is a terminal
+  Config config;                                       // model parameters and channel names
   // Called with every cycle report and its run's condition name (may be empty).
   std::function<void(const noisemon::cycle_report_t&, const std::string&)> on_report;
 };
 
 struct ReplaySummary {
   std::int64_t events = 0;
-  std::int64_t sessions = 0;         // runs: a new epoch starts a fresh pipeline (cycle numbers restart at 0)
+  std::int64_t sessions = 0;  // runs: a new epoch starts a fresh pipeline (cycle numbers restart at 0)
   std::int64_t raw_blocks = 0;
   std::int64_t reports = 0;
   std::int64_t cycles_dropped = 0;

@@ -72,9 +72,11 @@ noisemon::cycle_report_t to_message(const CycleReport& r) {
 
 std::string cycle_csv_header() {
   return "cycle,utime,speed_rpm,load_nm,soi_deg_btdc,motored,lpa_measured_db,lpa_predicted_db,lwa_measured_db,"
-         "lwa_predicted_db,k2_db,flags,peak_pressure_bar,peak_pressure_deg,max_rise_bar_per_deg,max_rise_deg,imep_gross_bar,"
+         "lwa_predicted_db,k2_db,flags,peak_pressure_bar,peak_pressure_deg,max_rise_bar_per_deg,max_rise_deg,imep_"
+         "gross_bar,"
          "imep_net_bar,heat_release_j,ca10_deg,ca50_deg,ca90_deg,ringing_intensity_MW_per_m2,combustion_noise_db,"
-         "pmep_bar,n_compression,n_expansion,ca05_deg,burn_duration_deg,max_rise_motored_bar_per_deg,pegging_offset_bar,"
+         "pmep_bar,n_compression,n_expansion,ca05_deg,burn_duration_deg,max_rise_motored_bar_per_deg,pegging_offset_"
+         "bar,"
          "mapo_bar,condition\n";
 }
 
@@ -86,14 +88,16 @@ double plain(double v) { return std::isnan(v) ? std::numeric_limits<double>::qui
 std::string cycle_csv_row(const noisemon::cycle_report_t& r, const std::string& condition) {
   char buf[1024];
   std::snprintf(buf, sizeof buf,
-                "%lld,%lld,%.3f,%.3f,%.3f,%d,%.4f,%.4f,%.4f,%.4f,%.2f,%d,%.3f,%.2f,%.4f,%.2f,%.4f,%.4f,%.2f,%.2f,%.2f,%.2f,%.4f,%.3f,%.4f,%.4f,%.4f,%.2f,%.2f,%.4f,%.4f,%.4f,",
+                "%lld,%lld,%.3f,%.3f,%.3f,%d,%.4f,%.4f,%.4f,%.4f,%.2f,%d,%.3f,%.2f,%.4f,%.2f,%.4f,%.4f,%.2f,%.2f,%.2f,%"
+                ".2f,%.4f,%.3f,%.4f,%.4f,%.4f,%.2f,%.2f,%.4f,%.4f,%.4f,",
                 static_cast<long long>(r.cycle), static_cast<long long>(r.utime), plain(r.speed_rpm), plain(r.load_nm),
                 plain(r.soi_deg_btdc), r.motored ? 1 : 0, plain(r.lpa_measured_db), plain(r.lpa_predicted_db),
-                plain(r.lwa_measured_db), plain(r.lwa_predicted_db), plain(r.k2_db), r.flags, plain(r.peak_pressure_bar),
-                plain(r.peak_pressure_deg), plain(r.max_rise_bar_per_deg), plain(r.max_rise_deg), plain(r.imep_gross_bar),
-                plain(r.imep_net_bar), plain(r.heat_release_j), plain(r.ca10_deg), plain(r.ca50_deg), plain(r.ca90_deg),
-                plain(r.ringing_intensity_MW_per_m2), plain(r.combustion_noise_db), plain(r.pmep_bar), plain(r.n_compression),
-                plain(r.n_expansion), plain(r.ca05_deg), plain(r.burn_duration_deg), plain(r.max_rise_motored_bar_per_deg),
+                plain(r.lwa_measured_db), plain(r.lwa_predicted_db), plain(r.k2_db), r.flags,
+                plain(r.peak_pressure_bar), plain(r.peak_pressure_deg), plain(r.max_rise_bar_per_deg),
+                plain(r.max_rise_deg), plain(r.imep_gross_bar), plain(r.imep_net_bar), plain(r.heat_release_j),
+                plain(r.ca10_deg), plain(r.ca50_deg), plain(r.ca90_deg), plain(r.ringing_intensity_MW_per_m2),
+                plain(r.combustion_noise_db), plain(r.pmep_bar), plain(r.n_compression), plain(r.n_expansion),
+                plain(r.ca05_deg), plain(r.burn_duration_deg), plain(r.max_rise_motored_bar_per_deg),
                 plain(r.pegging_offset_bar), plain(r.mapo_bar));
   std::string row = buf;
   // RFC 4180 quoting when the name needs it.

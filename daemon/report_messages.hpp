@@ -6,8 +6,8 @@
 #include <string>
 
 #include "daemon/cycle_report.hpp"
-#include "noisemon/cycle_report_t.hpp"
 #include "drivers/formats/stream_messages.hpp"
+#include "noisemon/cycle_report_t.hpp"
 
 namespace noisemon::daemon {
 

@@ -14,7 +14,9 @@ constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 
 }  // namespace
 
-int background_band_index(double nominal_hz) { return static_cast<int>(std::lround(10.0 * std::log10(nominal_hz / 20.0))); }
+int background_band_index(double nominal_hz) {
+  return static_cast<int>(std::lround(10.0 * std::log10(nominal_hz / 20.0)));
+}
 
 double background_band_hz(int i) { return dsp::kThirdOctaveNominalHz[static_cast<std::size_t>(i)]; }
 
@@ -26,19 +28,22 @@ SoundPowerSetup::SoundPowerSetup(const SoundPowerConfig& config, const drivers::
   if (positions_known) check_ = dsp::check_hemisphere(info.mic_positions_m, info.radius_m, config.source_dimension_m);
   weights_.assign(mics, mics > 0 ? 1.0 / static_cast<double>(mics) : 0.0);
   if (config.voronoi_area_weights) {
-    if (!positions_known) throw std::invalid_argument("[sound_power] area_weights = \"voronoi\": the source reports no microphone positions");
+    if (!positions_known)
+      throw std::invalid_argument(
+          "[sound_power] area_weights = \"voronoi\": the source reports no microphone positions");
     weights_ = dsp::hemisphere_area_weights(info.mic_positions_m);
   } else if (!config.area_weights.empty()) {
     if (config.area_weights.size() != mics)
-      throw std::invalid_argument("[sound_power] area_weights: " + std::to_string(config.area_weights.size()) + " shares for " +
-                                  std::to_string(mics) + " microphones");
+      throw std::invalid_argument("[sound_power] area_weights: " + std::to_string(config.area_weights.size()) +
+                                  " shares for " + std::to_string(mics) + " microphones");
     double sum = 0;
     for (double w : config.area_weights) sum += w;
     for (std::size_t m = 0; m < mics; ++m) weights_[m] = config.area_weights[m] / sum;
   }
   const double surface_m2 = dsp::hemisphere_area_m2(info.radius_m);
   surface_term_db_ = dsp::hemisphere_area_term_db(info.radius_m);
-  k2_db_ = config.absorption_area_m2 > 0 ? dsp::environmental_correction_k2_db(surface_m2, config.absorption_area_m2) : config.k2_db;
+  k2_db_ = config.absorption_area_m2 > 0 ? dsp::environmental_correction_k2_db(surface_m2, config.absorption_area_m2)
+                                         : config.k2_db;
   c1_db_ = dsp::reference_quantity_correction_c1_db(config.air_temperature_c, config.air_pressure_kpa);
   c2_db_ = dsp::radiation_impedance_correction_c2_db(config.air_temperature_c, config.air_pressure_kpa);
   lw_low_hz_ = config.full_range ? 0.0 : dsp::kIso3744LowestBandHz;
@@ -47,7 +52,8 @@ SoundPowerSetup::SoundPowerSetup(const SoundPowerConfig& config, const drivers::
   has_background_ = !config.background_db.empty();
   for (std::size_t b = 0; b < bands.size() && has_background_; ++b) {
     const int i = background_band_index(bands[b].nominal_hz);
-    if (i >= 0 && i < static_cast<int>(config.background_db.size())) background_[b] = config.background_db[static_cast<std::size_t>(i)];
+    if (i >= 0 && i < static_cast<int>(config.background_db.size()))
+      background_[b] = config.background_db[static_cast<std::size_t>(i)];
   }
 }
 

@@ -21,10 +21,10 @@ struct SoundPowerConfig {
   // 20 Hz ... 20 kHz, NaN where not measured; empty: no background, K1 = 0 and no band is judged against one.
   std::vector<double> background_db;
   double no_correction_above_db = dsp::kNoCorrectionAboveDb;  // ISO 3744:2010: 15 dB (the 1994 edition: 10 dB)
-  double air_temperature_c = 23.0;       // during the test, for C1 and C2 (ISO 3744:2010 8.2.5); default: the
+  double air_temperature_c = 23.0;  // during the test, for C1 and C2 (ISO 3744:2010 8.2.5); default: the
   double air_pressure_kpa = dsp::kReferenceStaticPressureKpa;  // reference atmosphere's, 23 deg C, 101.325 kPa
-  bool full_range = false;               // LW(A) over every band of the overall levels; false: 100 Hz ... 10 kHz
-  double source_dimension_m = 0.0;       // the source's characteristic dimension d0 for the surface check; 0: unknown
+  bool full_range = false;          // LW(A) over every band of the overall levels; false: 100 Hz ... 10 kHz
+  double source_dimension_m = 0.0;  // the source's characteristic dimension d0 for the surface check; 0: unknown
   // Each microphone's share of the surface (ISO 3744 eq. 13, S_i / S): empty and not voronoi: equal shares, as for
   // the standard's key positions and the thesis's Table 3.1 (each is the centre of an equal share by construction);
   // voronoi: each position's spherical-Voronoi cell, for positions laid out otherwise; or the shares themselves,

@@ -25,7 +25,8 @@ std::unique_ptr<drivers::Source> make_stream_source(const Config& c) {
     l.session_channel = c.lcm.session_channel;
     l.session_timeout_s = c.lcm.session_timeout_s;
     l.thread = c.threads.lcm_receive;
-    spdlog::info("lcm source: waiting up to {} s for {} (start lcm-logplayer now)", l.session_timeout_s, l.session_channel);
+    spdlog::info("lcm source: waiting up to {} s for {} (start lcm-logplayer now)", l.session_timeout_s,
+                 l.session_channel);
     return drivers::make_lcm_source(l);
   }
   if (c.source == "comedi") {
@@ -49,9 +50,10 @@ std::unique_ptr<drivers::Source> make_source(const Config& config) {
   drivers::CanSourceConfig can_config = config.can;
   can_config.thread = config.threads.can;
   auto can = drivers::make_can_source(can_config);
-  spdlog::info("operating points from {} ({} signals)",
-               config.can.candump_path.empty() ? "CAN interface " + config.can.interface : "candump log " + config.can.candump_path,
-               config.can.map.signals().size());
+  spdlog::info(
+      "operating points from {} ({} signals)",
+      config.can.candump_path.empty() ? "CAN interface " + config.can.interface : "candump log " + config.can.candump_path,
+      config.can.map.signals().size());
   return drivers::combine_sources(std::move(streams), std::move(can));
 }
 

@@ -24,7 +24,8 @@ inline constexpr double kPipelineRateHz = 40000.0;
 
 // The wall clock as an LCM utime: microseconds since 1970.
 inline std::int64_t wall_utime() {
-  return std::chrono::duration_cast<std::chrono::microseconds>(std::chrono::system_clock::now().time_since_epoch()).count();
+  return std::chrono::duration_cast<std::chrono::microseconds>(std::chrono::system_clock::now().time_since_epoch())
+      .count();
 }
 
 // A block of consecutive frames of one stream, channels interleaved: data[frame * channels + channel].
@@ -40,7 +41,7 @@ struct SampleBlock {
 // Pressure stream channels.
 inline constexpr std::uint32_t kPressureChannel = 0;  // cylinder pressure, Pa (absolute)
 inline constexpr std::uint32_t kCrankChannel = 1;     // crank angle, degrees in [-360, 360), 0 = firing TDC;
-                                                      // NaN where the angle is not known (encoder fault, before a resync)
+                                                   // NaN where the angle is not known (encoder fault, before a resync)
 inline constexpr std::uint32_t kPressureStreamChannels = 2;
 
 // The crank-angle stream (a source whose pressure is sampled on encoder edges): each edge's sample as taken, before
@@ -67,8 +68,8 @@ struct OperatingPoint {
   std::int64_t utime = 0;
   double speed_rpm = 0.0;
   double load_nm = 0.0;
-  double soi_deg_btdc = 0.0;      // start of injection, degrees before firing TDC
-  double rail_pressure_bar = 0.0; // NaN when unknown
+  double soi_deg_btdc = 0.0;       // start of injection, degrees before firing TDC
+  double rail_pressure_bar = 0.0;  // NaN when unknown
   bool motored = false;
 };
 
@@ -87,7 +88,7 @@ struct StreamInfo {
   std::int64_t epoch_utime = 0;  // utime of frame index 0
   std::uint32_t mic_count = 0;
   std::vector<std::array<double, 3>> mic_positions_m;  // one per microphone
-  double radius_m = 1.75;         // measurement hemisphere radius
+  double radius_m = 1.75;                              // measurement hemisphere radius
   double acoustic_delay_s = 0.0;  // engine-to-microphone propagation time the processing should remove
   // The converters' rails as 40 kHz values (0: not known): a sample at or beyond them was clipped (overload).
   double pressure_full_scale_pa = 0.0;  // top of the pressure converter's range, Pa (absolute)

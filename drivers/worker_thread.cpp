@@ -15,13 +15,20 @@ namespace {
 // The errno symbol an administrator looks up ("EPERM"), or the C library's text for the unexpected ones.
 std::string error_name(int err) {
   switch (err) {
-    case EPERM: return "EPERM";
-    case EINVAL: return "EINVAL";
-    case ENOMEM: return "ENOMEM";
-    case ESRCH: return "ESRCH";
-    case EAGAIN: return "EAGAIN";
-    case ERANGE: return "ERANGE";
-    default: return std::strerror(err);
+    case EPERM:
+      return "EPERM";
+    case EINVAL:
+      return "EINVAL";
+    case ENOMEM:
+      return "ENOMEM";
+    case ESRCH:
+      return "ESRCH";
+    case EAGAIN:
+      return "EAGAIN";
+    case ERANGE:
+      return "ERANGE";
+    default:
+      return std::strerror(err);
   }
 }
 
@@ -71,7 +78,8 @@ void make_calling_thread_fifo(const std::string& name, int priority) {
   const std::string what = "thread " + name + ": SCHED_FIFO priority " + std::to_string(priority);
   const int lowest = sched_get_priority_min(SCHED_FIFO), highest = sched_get_priority_max(SCHED_FIFO);
   if (priority < lowest || priority > highest)
-    throw std::runtime_error(what + " refused: out of range [" + std::to_string(lowest) + ", " + std::to_string(highest) + "]");
+    throw std::runtime_error(what + " refused: out of range [" + std::to_string(lowest) + ", " +
+                             std::to_string(highest) + "]");
   sched_param param{};
   param.sched_priority = priority;
   const int err = pthread_setschedparam(pthread_self(), SCHED_FIFO, &param);

@@ -105,8 +105,8 @@ std::vector<Biquad> chebyshev2_lowpass(int m, double f_stop_hz, double stop_atte
   std::sort(poles.begin(), poles.end(), [](cd a, cd b) { return -a.real() / std::abs(a) < -b.real() / std::abs(b); });
   std::vector<Biquad> out;
   for (cd s : poles) {
-    auto nearest = std::min_element(zeros.begin(), zeros.end(),
-                                     [&](cd a, cd b) { return std::abs(a - s) < std::abs(b - s); });
+    auto nearest =
+        std::min_element(zeros.begin(), zeros.end(), [&](cd a, cd b) { return std::abs(a - s) < std::abs(b - s); });
     const cd zz = bilinear(*nearest);
     zeros.erase(nearest);
     Biquad q{1.0, -2.0 * zz.real(), std::norm(zz), 0, 0};

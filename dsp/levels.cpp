@@ -9,7 +9,7 @@
 namespace noisemon::dsp {
 namespace {
 
-constexpr double kReferenceArea = 1.0;             // S0, m^2 (ISO 3744)
+constexpr double kReferenceArea = 1.0;  // S0, m^2 (ISO 3744)
 
 double energy_of(double level) { return std::pow(10.0, level / 10.0); }
 
@@ -19,9 +19,7 @@ double level_db(double mean_square_pa2) {
   return 10.0 * std::log10(mean_square_pa2 / (kReferencePressurePa * kReferencePressurePa));
 }
 
-double mean_square_from_level(double level) {
-  return kReferencePressurePa * kReferencePressurePa * energy_of(level);
-}
+double mean_square_from_level(double level) { return kReferencePressurePa * kReferencePressurePa * energy_of(level); }
 
 double energy_sum_db(std::span<const double> levels_db) {
   double e = 0;

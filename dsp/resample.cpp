@@ -270,9 +270,9 @@ class PolyphaseFir {
   }
 
   std::int64_t up_, down_, half_;
-  std::size_t taps_;      // per phase
+  std::size_t taps_;  // per phase
   std::size_t channels_;
-  std::size_t stride_;    // history capacity per channel
+  std::size_t stride_;  // history capacity per channel
   std::vector<T> coef_;
   std::vector<T> history_;
   std::int64_t base_ = 0;  // absolute input index of history_[ch * stride_]
@@ -332,13 +332,15 @@ struct RationalResampler::Impl {
         passband_hz(converter_passband_hz(std::min(in_hz, out_hz))),
         fir(make_fir(in_hz, out_hz, ch, precision)),
         queue(ch, kPendingFrames) {
-    std::visit([&](auto& f) {
-      scratch.resize(f.max_ready() * ch);
-      // Before input frame 0 the signal is zero.
-      const auto zeros = static_cast<std::size_t>(-f.start(0));
-      for (std::size_t c = 0; c < channels; ++c) std::fill_n(f.channel_tail(c), zeros, 0);
-      f.commit(zeros);
-    }, fir);
+    std::visit(
+        [&](auto& f) {
+          scratch.resize(f.max_ready() * ch);
+          // Before input frame 0 the signal is zero.
+          const auto zeros = static_cast<std::size_t>(-f.start(0));
+          for (std::size_t c = 0; c < channels; ++c) std::fill_n(f.channel_tail(c), zeros, 0);
+          f.commit(zeros);
+        },
+        fir);
   }
 
   // Copies interleaved input into the FIR's channel rows (in its precision) and runs it, as far as it goes.
@@ -415,15 +417,15 @@ std::size_t RationalResampler::channels() const { return impl_->channels; }
 // Before the first input the signal is held at the first sample's value (no step for a signal on a mean).
 
 namespace {
-constexpr std::int64_t kMidFactor = 2;        // the decimation's intermediate rate, in output rates
+constexpr std::int64_t kMidFactor = 2;  // the decimation's intermediate rate, in output rates
 // The first decimation step is short (about 30 taps), so it is designed far below the second's ripple: the
 // pair then passes tones as flat as the single filter did.
 constexpr double kFirstStepAttenuationDb = 110.0;
 constexpr std::size_t kKernelHalfWidth = 16;  // taps each side of the interpolation instant
 constexpr std::size_t kKernelTaps = 2 * kKernelHalfWidth;
-constexpr std::size_t kKernelPhases = 1024;   // kernel table resolution (linear interpolation between rows)
+constexpr std::size_t kKernelPhases = 1024;  // kernel table resolution (linear interpolation between rows)
 constexpr double kKernelAttenuationDb = 90.0;
-constexpr std::size_t kPlanFrames = 256;      // fine-grid instants planned per pass
+constexpr std::size_t kPlanFrames = 256;  // fine-grid instants planned per pass
 // Transition of the windowed sinc is centred on 0.5 cycles/sample with width (A - 8) / (2.285 * 2 pi * 2W);
 // the passband ends half a width below (0.41 for W = 16, A = 90 dB; the tests measure it).
 constexpr double kIndexPassband =
@@ -515,13 +517,12 @@ struct NonuniformResampler::Impl {
   static PolyphaseFir<double> make_fine_to_mid(double out_hz, std::int64_t fine_factor, std::size_t ch) {
     const double fine_hz = static_cast<double>(fine_factor) * out_hz;
     const double mid_hz = static_cast<double>(kMidFactor) * out_hz;
-    return PolyphaseFir<double>(
-        kaiser_design(fine_hz, 0.5 * out_hz, mid_hz - 0.5 * out_hz, kFirstStepAttenuationDb), 1,
-        static_cast<std::size_t>(fine_factor / kMidFactor), ch);
+    return PolyphaseFir<double>(kaiser_design(fine_hz, 0.5 * out_hz, mid_hz - 0.5 * out_hz, kFirstStepAttenuationDb), 1,
+                                static_cast<std::size_t>(fine_factor / kMidFactor), ch);
   }
   static PolyphaseFir<double> make_mid_to_out(double out_hz, std::size_t ch) {
     return PolyphaseFir<double>(design_lowpass(static_cast<double>(kMidFactor) * out_hz, out_hz), 1,
-                        static_cast<std::size_t>(kMidFactor), ch);
+                                static_cast<std::size_t>(kMidFactor), ch);
   }
 
   Impl(double out_hz, std::size_t ch, double max_edge_rate_hz)
@@ -600,8 +601,8 @@ struct NonuniformResampler::Impl {
   // Decimates what the fine grid holds as far as it goes, into the output queue.
   void decimate() {
     for (;;) {
-      const std::size_t n = fine_to_mid.run(FirOutput{mid_to_out.channel_tail(0), mid_to_out.history_stride(), 1},
-                                            mid_to_out.room());
+      const std::size_t n =
+          fine_to_mid.run(FirOutput{mid_to_out.channel_tail(0), mid_to_out.history_stride(), 1}, mid_to_out.room());
       mid_to_out.commit(n);
       mid_to_out.run(queue, scratch.data());
       if (n == 0) return;
@@ -732,8 +733,6 @@ double NonuniformResampler::passband_edge_hz() const {
 
 std::size_t NonuniformResampler::channels() const { return impl_->channels; }
 
-double NonuniformResampler::max_edge_rate_hz() const {
-  return 2.0 * (impl_->fine_rate - 0.5 * impl_->out_rate);
-}
+double NonuniformResampler::max_edge_rate_hz() const { return 2.0 * (impl_->fine_rate - 0.5 * impl_->out_rate); }
 
 }  // namespace noisemon::dsp

@@ -9,9 +9,9 @@
 namespace noisemon::dsp {
 namespace {
 
-constexpr double kReferenceAreaM2 = 1.0;  // S0
-constexpr double kMinRadiusM = 1.0;       // ISO 3744 7.2.3
-constexpr std::size_t kMinPositions = 10; // ISO 3744 8.1.1, one reflecting plane
+constexpr double kReferenceAreaM2 = 1.0;   // S0
+constexpr double kMinRadiusM = 1.0;        // ISO 3744 7.2.3
+constexpr std::size_t kMinPositions = 10;  // ISO 3744 8.1.1, one reflecting plane
 // Points of the quasi-uniform lattice that partitions the hemisphere: shares come out within about 1e-3.
 constexpr int kLatticePoints = 40000;
 
@@ -79,17 +79,21 @@ std::vector<double> hemisphere_area_weights(std::span<const Position> positions)
 SurfaceCheck check_hemisphere(std::span<const Position> positions, double radius_m, double source_dimension_m,
                               double tolerance) {
   SurfaceCheck check;
-  if (!(radius_m >= kMinRadiusM)) check.surface.push_back(format("radius %.2f m is under %.0f m", radius_m, kMinRadiusM));
+  if (!(radius_m >= kMinRadiusM))
+    check.surface.push_back(format("radius %.2f m is under %.0f m", radius_m, kMinRadiusM));
   if (source_dimension_m > 0.0 && radius_m < 2.0 * source_dimension_m)
-    check.surface.push_back(format("radius %.2f m is under twice the source's dimension %.2f m", radius_m, source_dimension_m));
+    check.surface.push_back(
+        format("radius %.2f m is under twice the source's dimension %.2f m", radius_m, source_dimension_m));
   if (positions.size() < kMinPositions)
-    check.surface.push_back(format("%.0f positions, fewer than the %.0f a hemisphere needs", positions.size(), kMinPositions));
+    check.surface.push_back(
+        format("%.0f positions, fewer than the %.0f a hemisphere needs", positions.size(), kMinPositions));
   for (const Position& p : positions) {
     const double distance = norm(p);
     if (p[2] < 0.0)
       check.positions.push_back(format("below the reflecting plane (z = %.2f m)", p[2]));
     else if (!(std::abs(distance - radius_m) <= tolerance * radius_m))
-      check.positions.push_back(format("%.2f m from the source centre, not on the %.2f m hemisphere", distance, radius_m));
+      check.positions.push_back(
+          format("%.2f m from the source centre, not on the %.2f m hemisphere", distance, radius_m));
     else
       check.positions.emplace_back();
   }

@@ -28,8 +28,8 @@ std::vector<double> hemisphere_area_weights(std::span<const Position> positions)
 // surface itself: radius under 1 m or under twice the source's characteristic dimension (ISO 3744 7.2.3; 0 = not
 // known), fewer than ten positions (ISO 3744 8.1.1 for one reflecting plane).
 struct SurfaceCheck {
-  std::vector<std::string> surface;      // problems of the surface as a whole
-  std::vector<std::string> positions;    // one per position, "" when it is fine
+  std::vector<std::string> surface;    // problems of the surface as a whole
+  std::vector<std::string> positions;  // one per position, "" when it is fine
   bool ok() const;
 };
 SurfaceCheck check_hemisphere(std::span<const Position> positions, double radius_m, double source_dimension_m = 0.0,

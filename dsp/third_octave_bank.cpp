@@ -31,16 +31,16 @@ namespace {
 constexpr int kFirstBandIndex = -17;  // 1000 * 10^(-17/10) = 19.95 Hz, nominal 20 Hz
 constexpr int kLastBandIndex = 13;    // 19953 Hz, nominal 20 kHz
 
-constexpr int kBandSections = 4;           // 8th-order Butterworth band-pass (see the top of the file)
+constexpr int kBandSections = 4;                          // 8th-order Butterworth band-pass (see the top of the file)
 constexpr int kCutBandHighpassOrder = 2 * kBandSections;  // band cut by Nyquist: high-pass from its lower edge
-constexpr double kUpperEdgeRatio = 0.29;   // band upper edge <= this * stage rate
-constexpr int kDecimatorOrder = 8;         // Chebyshev II
+constexpr double kUpperEdgeRatio = 0.29;                  // band upper edge <= this * stage rate
+constexpr int kDecimatorOrder = 8;                        // Chebyshev II
 constexpr std::size_t kDecimatorSections = kDecimatorOrder / 2;
 // Decimator stop band from 0.35 * stage rate: whatever would alias onto the next stage's bands (upper
 // edges <= 0.145 * this rate) lies above 0.355; what lies between aliases above those bands.
 constexpr double kDecimatorStopRatio = 0.35;
 constexpr double kDecimatorAttenDb = 90;
-constexpr std::size_t kLaneAlign = 8;  // one AVX2 vector of floats
+constexpr std::size_t kLaneAlign = 8;        // one AVX2 vector of floats
 constexpr std::size_t kBlockFrames = 256;    // stage-0 frames per internal block
 constexpr std::size_t kPartialSamples = 32;  // squares summed in float before going into the double sum
 // A band's settling time is taken as this many group delays (mid-band, through the whole path): after a
@@ -68,20 +68,20 @@ struct FloatBiquad {
 
 struct Stage {
   double rate_hz = 0;
-  std::vector<std::size_t> bands;  // output band indices handled here
-  std::size_t lanes = 0;           // bands.size() * padded channels
-  std::vector<BandFilter> filters; // per band
-  std::vector<float> state;        // per band and section: 2 rows of padded channels
-  std::vector<double> acc, held;   // per lane: sum of squares since the take; last mean square
-  std::vector<float> part;         // per lane: sum of squares of the current float run (see filter_band)
-  std::int64_t count = 0;          // samples accumulated since the take (shared by the stage's bands)
-  bool has_output = false;         // at least one sample was produced since construction / reset
+  std::vector<std::size_t> bands;   // output band indices handled here
+  std::size_t lanes = 0;            // bands.size() * padded channels
+  std::vector<BandFilter> filters;  // per band
+  std::vector<float> state;         // per band and section: 2 rows of padded channels
+  std::vector<double> acc, held;    // per lane: sum of squares since the take; last mean square
+  std::vector<float> part;          // per lane: sum of squares of the current float run (see filter_band)
+  std::int64_t count = 0;           // samples accumulated since the take (shared by the stage's bands)
+  bool has_output = false;          // at least one sample was produced since construction / reset
   // Decimator feeding the next stage (empty on the last stage).
-  std::vector<Biquad> decimator;            // as designed (for the group delay)
-  std::vector<FloatBiquad> dec_sections;   // as run
-  std::vector<float> dec_state;    // per section: 2 rows of padded channels
-  int phase = 0;                   // 0: the next sample is kept for the next stage
-  std::vector<float> in;           // this stage's input for the current block, padded channels per frame
+  std::vector<Biquad> decimator;          // as designed (for the group delay)
+  std::vector<FloatBiquad> dec_sections;  // as run
+  std::vector<float> dec_state;           // per section: 2 rows of padded channels
+  int phase = 0;                          // 0: the next sample is kept for the next stage
+  std::vector<float> in;                  // this stage's input for the current block, padded channels per frame
 };
 
 std::size_t round_up(std::size_t n, std::size_t a) { return (n + a - 1) / a * a; }
@@ -203,8 +203,8 @@ NOISEMON_INLINE void decimate_lanes(const FloatBiquad* q, const float* in, std::
 
 // Decimator over n frames: low-pass every frame (state z: 2 rows of P per section) and keep every second
 // one, starting with the current phase, as rows of out_rows. Returns the kept frames; updates phase.
-NOISEMON_KERNEL_CLONES std::size_t decimate(const FloatBiquad* sections, const float* in, std::size_t n,
-                                            std::size_t P, float* z, float* out_rows, int& phase) {
+NOISEMON_KERNEL_CLONES std::size_t decimate(const FloatBiquad* sections, const float* in, std::size_t n, std::size_t P,
+                                            float* z, float* out_rows, int& phase) {
   FloatBiquad q[kDecimatorSections];
   std::copy_n(sections, kDecimatorSections, q);
   std::size_t l = 0;
@@ -293,8 +293,8 @@ ThirdOctaveBank::Impl::Impl(double fs_hz, std::size_t ch) : fs(fs_hz), channels(
       st.filters.push_back(f);
     }
     if (k + 1 < nstages) {
-      st.decimator = chebyshev2_lowpass(kDecimatorOrder, kDecimatorStopRatio * st.rate_hz, kDecimatorAttenDb,
-                                        st.rate_hz);
+      st.decimator =
+          chebyshev2_lowpass(kDecimatorOrder, kDecimatorStopRatio * st.rate_hz, kDecimatorAttenDb, st.rate_hz);
       for (const Biquad& q : st.decimator)
         st.dec_sections.push_back({static_cast<float>(q.b0), static_cast<float>(q.b1), static_cast<float>(q.b2),
                                    static_cast<float>(q.a1), static_cast<float>(q.a2)});
@@ -391,8 +391,7 @@ void ThirdOctaveBank::Impl::reset() {
   processed_since_take = false;
 }
 
-ThirdOctaveBank::ThirdOctaveBank(double fs_hz, std::size_t channels)
-    : impl_(std::make_unique<Impl>(fs_hz, channels)) {}
+ThirdOctaveBank::ThirdOctaveBank(double fs_hz, std::size_t channels) : impl_(std::make_unique<Impl>(fs_hz, channels)) {}
 ThirdOctaveBank::~ThirdOctaveBank() = default;
 ThirdOctaveBank::ThirdOctaveBank(ThirdOctaveBank&&) noexcept = default;
 ThirdOctaveBank& ThirdOctaveBank::operator=(ThirdOctaveBank&&) noexcept = default;

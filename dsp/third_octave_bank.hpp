@@ -19,20 +19,20 @@ namespace noisemon::dsp {
 
 // IEC 61260-1 nominal mid-band frequencies of the bank's bands, 20 Hz ... 20 kHz, in order.
 inline constexpr std::array<double, 31> kThirdOctaveNominalHz{
-    20,   25,   31.5, 40,   50,   63,   80,   100,  125,   160,   200,   250,   315,   400,   500,  630,
-    800,  1000, 1250, 1600, 2000, 2500, 3150, 4000, 5000,  6300,  8000,  10000, 12500, 16000, 20000};
+    20,  25,   31.5, 40,   50,   63,   80,   100,  125,  160,  200,  250,   315,   400,   500,  630,
+    800, 1000, 1250, 1600, 2000, 2500, 3150, 4000, 5000, 6300, 8000, 10000, 12500, 16000, 20000};
 // The exact mid-band frequency 1000 * 10^(x/10) of the band whose nominal frequency is nominal_hz.
 double third_octave_exact_mid_hz(double nominal_hz);
 
 struct ThirdOctaveBand {
-  double nominal_hz = 0;      // IEC 61260-1 nominal mid-band frequency (20, 25, 31.5, ... 20000)
-  double exact_mid_hz = 0;    // 1000 * 10^(x/10)
-  double lower_edge_hz = 0;   // exact_mid * 10^(-1/20)
-  double upper_edge_hz = 0;   // exact_mid * 10^(+1/20)
-  bool nyquist_cut = false;   // the upper edge lies at or above fs/2: the band is truncated (measured as a
-                              // high-pass from the lower edge up to fs/2)
-  double response_time_s = 0; // settling time: after a step in the input the band level stays within 0.5 dB
-                              // of its final value from here on (3.5 group delays at mid-band)
+  double nominal_hz = 0;       // IEC 61260-1 nominal mid-band frequency (20, 25, 31.5, ... 20000)
+  double exact_mid_hz = 0;     // 1000 * 10^(x/10)
+  double lower_edge_hz = 0;    // exact_mid * 10^(-1/20)
+  double upper_edge_hz = 0;    // exact_mid * 10^(+1/20)
+  bool nyquist_cut = false;    // the upper edge lies at or above fs/2: the band is truncated (measured as a
+                               // high-pass from the lower edge up to fs/2)
+  double response_time_s = 0;  // settling time: after a step in the input the band level stays within 0.5 dB
+                               // of its final value from here on (3.5 group delays at mid-band)
 };
 
 class ThirdOctaveBank {

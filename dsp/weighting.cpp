@@ -37,8 +37,8 @@ std::vector<Biquad> a_weighting_sections(double fs_hz) {
   const double p1 = bilinear(kF1), p2 = bilinear(kF2), p3 = bilinear(kF3);
   const double p4 = std::exp(-2.0 * std::numbers::pi * kF4 * t);
   // Sections: zeros (1, 1) with poles (p1, p1); zeros (1, 1) with (p2, p3); poles (p4, p4) without zeros.
-  std::vector<Biquad> s{{1.0, -2.0, 1.0, -2.0 * p1, p1 * p1}, {1.0, -2.0, 1.0, -(p2 + p3), p2 * p3},
-                        {1.0, 0.0, 0.0, -2.0 * p4, p4 * p4}};
+  std::vector<Biquad> s{
+      {1.0, -2.0, 1.0, -2.0 * p1, p1 * p1}, {1.0, -2.0, 1.0, -(p2 + p3), p2 * p3}, {1.0, 0.0, 0.0, -2.0 * p4, p4 * p4}};
   const double gain = std::abs(cascade_response(s, 1000.0, fs_hz));
   s[2].b0 /= gain;
   return s;

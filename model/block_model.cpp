@@ -47,9 +47,9 @@ constexpr double kKaiserBeta = 9.0;
 constexpr int kFirstTapOffset = -(kTaps / 2 - 1);
 
 // Newton on the stage equations.
-constexpr int kFastIterations = 8;      // from the extrapolated guess, full steps
-constexpr int kSafeIterations = 60;     // from the step-start state, damped steps
-constexpr double kNewtonTol = 1e-9;     // relative to the size of the terms in the stage equations
+constexpr int kFastIterations = 8;   // from the extrapolated guess, full steps
+constexpr int kSafeIterations = 60;  // from the step-start state, damped steps
+constexpr double kNewtonTol = 1e-9;  // relative to the size of the terms in the stage equations
 // Step refinement: a step whose estimated output error exceeds kRelTol x (C1 x recent velocity peak)
 // is split in two, down to kMaxLevel halvings; stage weights are tabulated down to kTabulatedLevels.
 constexpr double kRelTol = 1e-4;
@@ -227,7 +227,8 @@ BlockModel::Impl::Impl(const BlockParams& params, double fs_hz, const BlockModel
       for (int i = 0; i < kStages; ++i) {
         const double phase = (j + kRadauC[i]) / n;
         if (phase < 1.0)
-          design_input_weights(opt.input, phase, &taps[taps_offset[d] + static_cast<std::size_t>((j * kStages + i) * kTaps)]);
+          design_input_weights(opt.input, phase,
+                               &taps[taps_offset[d] + static_cast<std::size_t>((j * kStages + i) * kTaps)]);
       }
   }
   hist.assign(2 * kTaps, 0.0);
@@ -241,8 +242,7 @@ void BlockModel::Impl::setup_linear_map() {
   Eigen::Matrix3d ha;
   for (int i = 0; i < kStages; ++i)
     for (int j = 0; j < kStages; ++j) ha(i, j) = tab[0].hA[i][j];
-  const Eigen::Matrix3d k =
-      (Eigen::Matrix3d::Identity() + p.b1 * inv_m * ha + p.k1 * inv_m * ha * ha).inverse();
+  const Eigen::Matrix3d k = (Eigen::Matrix3d::Identity() + p.b1 * inv_m * ha + p.k1 * inv_m * ha * ha).inverse();
   const Eigen::Vector3d dv_dv0 = k * Eigen::Vector3d::Ones();
   const Eigen::Vector3d dv_dz0 = -p.k1 * inv_m * k * ha * Eigen::Vector3d::Ones();
   const Eigen::Matrix3d dv_du = inv_m * k * ha;
@@ -328,8 +328,8 @@ struct StageEquations {
     Mat3 J;
     for (int i = 0; i < kStages; ++i)
       for (int k = 0; k < kStages; ++k)
-        J[i][k] = (i == k ? 1.0 : 0.0) + q[0][i][k] * Pz[0] + q[1][i][k] * Pz[1] + q[2][i][k] * Pz[2] +
-                  hA[i][k] * Pv[k];
+        J[i][k] =
+            (i == k ? 1.0 : 0.0) + q[0][i][k] * Pz[0] + q[1][i][k] * Pz[1] + q[2][i][k] * Pz[2] + hA[i][k] * Pv[k];
     const double c00 = J[1][1] * J[2][2] - J[1][2] * J[2][1];
     const double c01 = J[1][2] * J[2][0] - J[1][0] * J[2][2];
     const double c02 = J[1][0] * J[2][1] - J[1][1] * J[2][0];
@@ -367,8 +367,8 @@ struct StageEquations {
 
 // Newton's method on the stage equations from the start guess V. `damped` halves a step until the residual
 // decreases (a globalisation for far-off starts on the cubic terms).
-bool BlockModel::Impl::solve_stages(const RadauTables& t, double z0, double v0, const Vec3& U, Vec3& V,
-                                    bool damped, int max_iter) const {
+bool BlockModel::Impl::solve_stages(const RadauTables& t, double z0, double v0, const Vec3& U, Vec3& V, bool damped,
+                                    int max_iter) const {
   const StageEquations eq{p.k1, p.k3, p.b1, p.b3, inv_m, t, z0, v0, U};
   Vec3 G, Pz, Pv;
   double scale = 0.0;
@@ -440,8 +440,7 @@ void BlockModel::Impl::advance_interval(int level, int index) {
   if (level < kMaxLevel) {
     const double scale = p.c1 * std::max({vpeak, std::fabs(v), std::fabs(V[2])});
     double det = 1.0;
-    const bool refine =
-        opt.refine && refine_tokens >= 2.0 && !(local_error(t, V, det) <= kRelTol * scale * det);
+    const bool refine = opt.refine && refine_tokens >= 2.0 && !(local_error(t, V, det) <= kRelTol * scale * det);
     if (!ok || refine) {
       refine_tokens -= 2.0;  // may go negative after Newton failures: the budget catches up later
       advance_interval(level + 1, 2 * index);

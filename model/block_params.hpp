@@ -11,13 +11,13 @@
 namespace noisemon::model {
 
 struct BlockParams {
-  double m = 1.0;        // kg
-  double k1 = 9.87e8;    // N/m
-  double k3 = 0.0;       // N/m^3
-  double b1 = 2.20e4;    // N s/m
-  double b3 = 0.0;       // N s^3/m^3
-  double c0 = 7467.57;   // output gain on displacement
-  double c1 = 11.885;    // output gain on velocity
+  double m = 1.0;       // kg
+  double k1 = 9.87e8;   // N/m
+  double k3 = 0.0;      // N/m^3
+  double b1 = 2.20e4;   // N s/m
+  double b3 = 0.0;      // N s^3/m^3
+  double c0 = 7467.57;  // output gain on displacement
+  double c1 = 11.885;   // output gain on velocity
 
   bool is_linear() const { return k3 == 0.0 && b3 == 0.0; }
 };

@@ -13,7 +13,11 @@ namespace {
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 constexpr double kGasConstant = 287.0;  // J/(kg K), air
 constexpr double kValleyHalfWidthDeg = 2.0;
-constexpr double kPegExponentLow = 1.20, kPegExponentHigh = 1.45, kPegExponentStep = 0.005;  // a fitted pegging n  // dp/dtheta max: the window's initial descent, followed on this average
+constexpr double
+    kPegExponentLow = 1.20,
+    kPegExponentHigh = 1.45,
+    kPegExponentStep =
+        0.005;  // a fitted pegging n  // dp/dtheta max: the window's initial descent, followed on this average
 
 struct Grid {
   std::span<const double> p;
@@ -60,8 +64,7 @@ void slope_per_deg(const Grid& g, int half, std::vector<double>& out) {
 double work_j(const Grid& g, double a, double b) {
   const auto [lo, hi] = g.range(a, b);
   double w = 0.0;
-  for (std::size_t i = lo; i < hi; ++i)
-    w += 0.5 * g.step * (g.p[i] * g.dvolume[i] + g.p[i + 1] * g.dvolume[i + 1]);
+  for (std::size_t i = lo; i < hi; ++i) w += 0.5 * g.step * (g.p[i] * g.dvolume[i] + g.p[i + 1] * g.dvolume[i + 1]);
   return w;
 }
 
@@ -109,8 +112,8 @@ void max_rise(const Grid& g, const std::vector<double>& slope, const MetricsOpti
 
 // Apparent heat release (Heywood eq. 9.25) over the window, and the angles where its cumulative sum, counted from
 // its minimum before its maximum, reaches 10, 50 and 90 % of that rise.
-void heat_release(const Grid& g, const std::vector<double>& slope, const MetricsOptions& o,
-                  std::vector<double>& q, CombustionMetrics& m) {
+void heat_release(const Grid& g, const std::vector<double>& slope, const MetricsOptions& o, std::vector<double>& q,
+                  CombustionMetrics& m) {
   const auto [lo, hi] = g.range(o.heat_release_from_deg, o.heat_release_to_deg);
   // m R of the trapped charge, for the temperature (and gamma) at each angle.
   double mass_r = kNaN;
@@ -132,7 +135,8 @@ void heat_release(const Grid& g, const std::vector<double>& slope, const Metrics
     q.push_back(q.back() + 0.5 * g.step * (rate(i) + rate(i + 1)));
   }
   const auto top = static_cast<std::size_t>(std::max_element(q.begin(), q.end()) - q.begin());
-  const auto bottom = static_cast<std::size_t>(std::min_element(q.begin(), q.begin() + static_cast<std::ptrdiff_t>(top) + 1) - q.begin());
+  const auto bottom = static_cast<std::size_t>(
+      std::min_element(q.begin(), q.begin() + static_cast<std::ptrdiff_t>(top) + 1) - q.begin());
   const double total = q[top] - q[bottom];
   // Without combustion the rise is noise and heat-transfer residue, a few % of the compression work; with it, several
   // times that work.
@@ -185,7 +189,8 @@ double ringing_intensity(const Grid& g, const EngineGeometry& e, double speed_rp
   if (!(speed_rpm > 0) || !std::isfinite(m.max_rise_pa_per_deg) || !g.covers(o.ivc_deg, o.ivc_deg)) return kNaN;
   const double p_ivc = g.at(o.ivc_deg);
   if (!(p_ivc > 0) || !(m.peak_pressure_pa > 0)) return kNaN;
-  const double t_max = o.intake_temperature_k * m.peak_pressure_pa * e.volume_m3(m.peak_angle_deg) / (p_ivc * e.volume_m3(o.ivc_deg));
+  const double t_max =
+      o.intake_temperature_k * m.peak_pressure_pa * e.volume_m3(m.peak_angle_deg) / (p_ivc * e.volume_m3(o.ivc_deg));
   const double dpdt = m.max_rise_pa_per_deg * 6.0 * speed_rpm;  // deg/s = 6 rpm
   const double b = o.ringing_beta_s * dpdt;
   return b * b / (2.0 * o.gamma * m.peak_pressure_pa) * std::sqrt(o.gamma * kGasConstant * t_max);
@@ -193,9 +198,11 @@ double ringing_intensity(const Grid& g, const EngineGeometry& e, double speed_rp
 
 void check(std::span<const double> p, double step, const EngineGeometry& e, const MetricsOptions& o) {
   if (!(e.bore_m > 0) || !(e.stroke_m > 0) || !(e.compression_ratio > 1) || !(e.conrod_m > 0.5 * e.stroke_m))
-    throw std::invalid_argument("engine geometry: bore, stroke and rod must be positive, the rod longer than the crank "
-                                "(half the stroke) and the compression ratio above 1");
-  if (!(step > 0) || !(step <= 2.0)) throw std::invalid_argument("crank-angle step must be in (0, 2] deg, got " + std::to_string(step));
+    throw std::invalid_argument(
+        "engine geometry: bore, stroke and rod must be positive, the rod longer than the crank "
+        "(half the stroke) and the compression ratio above 1");
+  if (!(step > 0) || !(step <= 2.0))
+    throw std::invalid_argument("crank-angle step must be in (0, 2] deg, got " + std::to_string(step));
   const int half = static_cast<int>(std::lround(o.derivative_half_width_deg / step));
   if (p.size() < static_cast<std::size_t>(2 * std::max(half, 1) + 3))
     throw std::invalid_argument("a cycle of " + std::to_string(p.size()) + " samples is too short for the metrics");
@@ -244,7 +251,8 @@ double polytropic_offset(const Grid& g, const MetricsOptions& o, double n, doubl
 // The pegging's offset and exponent (NaN for intake pegging); (0, NaN) without pegging.
 std::pair<double, double> pegging(const Grid& g, const MetricsOptions& o) {
   if (o.pegging == Pegging::kIntake) {
-    if (!g.covers(o.peg_intake_deg - o.peg_half_width_deg, o.peg_intake_deg + o.peg_half_width_deg)) return {kNaN, kNaN};
+    if (!g.covers(o.peg_intake_deg - o.peg_half_width_deg, o.peg_intake_deg + o.peg_half_width_deg))
+      return {kNaN, kNaN};
     return {intake_offset(g, o), kNaN};
   }
   if (o.pegging == Pegging::kPolytropic && !g.covers(o.peg_poly_from_deg, o.peg_poly_to_deg)) return {kNaN, kNaN};

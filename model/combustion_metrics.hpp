@@ -35,7 +35,7 @@ struct MetricsOptions {
   double peg_half_width_deg = 10.0;
   double peg_poly_from_deg = -100.0, peg_poly_to_deg = -40.0;
   double peg_exponent = std::numeric_limits<double>::quiet_NaN();
-  double gamma = 1.35;                    // ratio of specific heats for the heat release (Heywood: 1.3 ... 1.35)
+  double gamma = 1.35;  // ratio of specific heats for the heat release (Heywood: 1.3 ... 1.35)
   // Or gamma of the gas temperature at each angle (the heat release only): T from the ideal gas law with the charge
   // trapped at ivc_deg at intake_temperature_k, gamma(T) = 1.338 - 6.0e-5 T + 1.0e-8 T^2 (Brunt, Rai and Emtage,
   // SAE 981052, for diesel combustion products and air). NaN heat release when the grid misses ivc_deg.
@@ -53,7 +53,7 @@ struct MetricsOptions {
   // compression before any injection and the expansion after the burn, before the exhaust valve opens.
   double compression_from_deg = -90.0, compression_to_deg = -40.0;
   double expansion_from_deg = 60.0, expansion_to_deg = 110.0;
-  double ringing_beta_s = 0.05e-3;         // Eng's beta
+  double ringing_beta_s = 0.05e-3;  // Eng's beta
   // MAPO (maximum amplitude of pressure oscillations, the knock figure of AVL IndiCom and Kistler KiBox): the largest
   // |p| of the pressure band-passed (Butterworth, 4th order, forward and backward: zero phase) to
   // [mapo_low_hz, mapo_high_hz] on the grid itself, within [mapo_from_deg, mapo_to_deg]. The grid's sample rate
@@ -61,8 +61,8 @@ struct MetricsOptions {
   // lower edge above 0.4 of it leaves MAPO NaN.
   double mapo_low_hz = 4000.0, mapo_high_hz = 20000.0;
   double mapo_from_deg = -20.0, mapo_to_deg = 90.0;
-  double intake_temperature_k = 313.0;     // trapped charge at intake valve closing, for T_max
-  double ivc_deg = -150.0;                 // intake valve closing (deg re firing TDC)
+  double intake_temperature_k = 313.0;  // trapped charge at intake valve closing, for T_max
+  double ivc_deg = -150.0;              // intake valve closing (deg re firing TDC)
 };
 
 // Every value NaN until computed (a cycle with a gap keeps them so).
@@ -70,21 +70,23 @@ struct CombustionMetrics {
   static constexpr double kUnknown = std::numeric_limits<double>::quiet_NaN();
   double peak_pressure_pa = kUnknown, peak_angle_deg = kUnknown;
   double max_rise_pa_per_deg = kUnknown, max_rise_angle_deg = kUnknown;  // in the combustion window (MetricsOptions),
-                                                                          // with derivative_half_width_deg's smoothing
-  double max_rise_motored_pa_per_deg = kUnknown;  // beside it: the motored-equivalent slope at that angle, the
-                                                  // compression's polytropic carried on (what the burn adds is the rest)
+                                                                         // with derivative_half_width_deg's smoothing
+  double max_rise_motored_pa_per_deg =
+      kUnknown;  // beside it: the motored-equivalent slope at that angle, the
+                 // compression's polytropic carried on (what the burn adds is the rest)
   double imep_gross_pa = kUnknown, imep_net_pa = kUnknown;  // NaN when the cycle misses more than 2 deg of
                                                             // -180 ... 180 (gross) or -360 ... 360 (net)
-  double pmep_pa = kUnknown;                        // pumping: net - gross (negative for a naturally aspirated engine)
+  double pmep_pa = kUnknown;  // pumping: net - gross (negative for a naturally aspirated engine)
   double n_compression = kUnknown, n_expansion = kUnknown;  // polytropic exponents (MetricsOptions' windows)
-  double heat_release_j = kUnknown;                 // cumulative apparent heat release, minimum to maximum
-  double ca05_deg = kUnknown, ca10_deg = kUnknown, ca50_deg = kUnknown, ca90_deg = kUnknown;  // 5, 10, 50, 90 % of it
-                                                                                            // (NaN without combustion)
-  double burn_duration_deg = kUnknown;              // CA10 to CA90
-  double ringing_intensity_w_per_m2 = kUnknown;     // NaN without the speed
-  double mapo_pa = kUnknown;                        // NaN without the speed, or a band the grid cannot carry
-  double pegging_offset_pa = kUnknown;              // added to the whole cycle before the figures (0: no pegging)
-  double pegging_exponent = kUnknown;               // the polytropic pegging's n (fixed or fitted)
+  double heat_release_j = kUnknown;                         // cumulative apparent heat release, minimum to maximum
+  double ca05_deg = kUnknown, ca10_deg = kUnknown, ca50_deg = kUnknown,
+         ca90_deg = kUnknown;                    // 5, 10, 50, 90 % of it
+                                                 // (NaN without combustion)
+  double burn_duration_deg = kUnknown;           // CA10 to CA90
+  double ringing_intensity_w_per_m2 = kUnknown;  // NaN without the speed
+  double mapo_pa = kUnknown;                     // NaN without the speed, or a band the grid cannot carry
+  double pegging_offset_pa = kUnknown;           // added to the whole cycle before the figures (0: no pegging)
+  double pegging_exponent = kUnknown;            // the polytropic pegging's n (fixed or fitted)
 };
 
 // Metrics of one cycle: pressure_pa[i] at crank angle first_deg + i * step_deg (0 = firing TDC); the whole
@@ -93,7 +95,8 @@ struct CombustionMetrics {
 // speed_rpm converts dp/dtheta to dp/dt for the ringing intensity. Throws std::invalid_argument naming what is
 // wrong (geometry, step, too few samples).
 CombustionMetrics combustion_metrics(std::span<const double> pressure_pa, double first_deg, double step_deg,
-                                     const EngineGeometry& engine, double speed_rpm, const MetricsOptions& options = {});
+                                     const EngineGeometry& engine, double speed_rpm,
+                                     const MetricsOptions& options = {});
 
 // The metrics' scratch space: sized by the first call and reused, so a caller that keeps one (the processing
 // thread) does not allocate per cycle. It also keeps the cylinder volume and its derivative at the grid's angles

@@ -39,7 +39,8 @@ double EngineGeometry::dvolume_m3_per_deg(double theta_deg) const {
 }
 
 double EngineGeometry::wall_area_m2(double theta_deg) const {
-  return 2.0 * piston_area_m2() + kPi * bore_m * (piston_travel_m(theta_deg) + clearance_volume_m3() / piston_area_m2());
+  return 2.0 * piston_area_m2() +
+         kPi * bore_m * (piston_travel_m(theta_deg) + clearance_volume_m3() / piston_area_m2());
 }
 
 double EngineGeometry::mean_piston_speed_m_s(double speed_rpm) const { return 2.0 * stroke_m * speed_rpm / 60.0; }
@@ -54,7 +55,8 @@ CrankKinematics::CrankKinematics(std::vector<SpeedStep> steps, double speed_fluc
   if (steps_.empty()) throw std::invalid_argument("CrankKinematics: no speed");
   for (std::size_t i = 0; i < steps_.size(); ++i) {
     if (!(steps_[i].speed_rpm > 0.0)) throw std::invalid_argument("CrankKinematics: mean speed must be positive");
-    if (i > 0 && !(steps_[i].t_s > steps_[i - 1].t_s)) throw std::invalid_argument("CrankKinematics: steps out of order");
+    if (i > 0 && !(steps_[i].t_s > steps_[i - 1].t_s))
+      throw std::invalid_argument("CrankKinematics: steps out of order");
   }
   if (!(speed_fluctuation >= 0.0 && speed_fluctuation < 0.5))
     throw std::invalid_argument("CrankKinematics: speed fluctuation must be in [0, 0.5)");
@@ -62,7 +64,8 @@ CrankKinematics::CrankKinematics(std::vector<SpeedStep> steps, double speed_fluc
 
 // The mean angle at t_s and the step in force then (the first step also before its instant).
 double CrankKinematics::mean_angle_deg(double t_s, const SpeedStep** step) const {
-  auto after = std::upper_bound(steps_.begin() + 1, steps_.end(), t_s, [](double t, const SpeedStep& s) { return t < s.t_s; });
+  auto after =
+      std::upper_bound(steps_.begin() + 1, steps_.end(), t_s, [](double t, const SpeedStep& s) { return t < s.t_s; });
   const SpeedStep& s = *(after - 1);
   *step = &s;
   return s.phi_deg + 6.0 * s.speed_rpm * (t_s - s.t_s);
@@ -90,7 +93,8 @@ double CrankKinematics::time_s(double theta_deg) const {
     phi -= step;
     if (std::abs(step) <= 1e-13 * (1.0 + std::abs(phi))) break;
   }
-  auto after = std::upper_bound(steps_.begin() + 1, steps_.end(), phi, [](double p, const SpeedStep& s) { return p < s.phi_deg; });
+  auto after = std::upper_bound(steps_.begin() + 1, steps_.end(), phi,
+                                [](double p, const SpeedStep& s) { return p < s.phi_deg; });
   const SpeedStep& s = *(after - 1);
   return s.t_s + (phi - s.phi_deg) / (6.0 * s.speed_rpm);
 }

@@ -50,9 +50,9 @@ class CrankKinematics {
   // Steps in increasing time, each phi_deg where the previous step's speed brings the mean angle at its t_s.
   CrankKinematics(std::vector<SpeedStep> steps, double speed_fluctuation);
 
-  double theta_deg(double t_s) const;       // unwrapped
-  double speed_rpm(double t_s) const;       // instantaneous
-  double time_s(double theta_deg) const;    // inverse of theta_deg (Newton on the monotone phi -> theta)
+  double theta_deg(double t_s) const;     // unwrapped
+  double speed_rpm(double t_s) const;     // instantaneous
+  double time_s(double theta_deg) const;  // inverse of theta_deg (Newton on the monotone phi -> theta)
 
   // Cycle k spans unwrapped angles [720 k - 360, 720 k + 360).
   static std::int64_t cycle_index(double theta_deg);

@@ -10,10 +10,10 @@
 namespace noisemon::model {
 namespace {
 
-constexpr double kPeakSearchDeg = 60.0;    // the peak is looked for within +-this of the nominal TDC ...
-constexpr double kMaxPeakOffsetDeg = 10.0;  // ... and must lie within +-this of it
-constexpr double kVertexHalfWidthDeg = 3.0; // the parabola through the top
-constexpr double kFitHalfWidthDeg = 30.0;   // the polytropic fit's window about the peak
+constexpr double kPeakSearchDeg = 60.0;      // the peak is looked for within +-this of the nominal TDC ...
+constexpr double kMaxPeakOffsetDeg = 10.0;   // ... and must lie within +-this of it
+constexpr double kVertexHalfWidthDeg = 3.0;  // the parabola through the top
+constexpr double kFitHalfWidthDeg = 30.0;    // the polytropic fit's window about the peak
 constexpr double kScanBeforeDeg = 3.0, kScanAfterDeg = 5.0, kScanStepDeg = 0.02;  // its TDC scan about the peak
 constexpr double kPeggingSpanBar = 0.5, kPeggingStepBar = 0.05;
 // A motored cycle's fit: an exponent a gas can have and a curve it follows within 2 % (the real Yanmar record: n 1.23,
@@ -129,9 +129,11 @@ MotoredTdc motored_tdc(std::span<const std::vector<double>> cycles_bar, double f
   r.polytropic_exponent = fit.exponent;
   r.fit_rms = fit.rms;
   if (!(fit.exponent >= kMinExponent && fit.exponent <= kMaxExponent && fit.rms <= kMaxFitRms))
-    throw std::invalid_argument("the cycles do not follow a polytropic compression and expansion about their peak "
-                                "(exponent " + num(fit.exponent) + ", rms " + num(100 * fit.rms) +
-                                " % of the pressure): not a motored cycle (a fired one burns there)");
+    throw std::invalid_argument(
+        "the cycles do not follow a polytropic compression and expansion about their peak "
+        "(exponent " +
+        num(fit.exponent) + ", rms " + num(100 * fit.rms) +
+        " % of the pressure): not a motored cycle (a fired one burns there)");
   return r;
 }
 

@@ -25,8 +25,8 @@ inline constexpr double kDefaultLossAngleDeg = 0.7;
 inline constexpr double kMaxLossAngleDeg = 3.0;  // beyond this a loss angle is not a loss angle: refused
 
 struct MotoredTdc {
-  int cycles = 0;                      // motored cycles averaged
-  double peak_deg = 0.0;               // the mean motored cycle's peak, on the recording's scale
+  int cycles = 0;         // motored cycles averaged
+  double peak_deg = 0.0;  // the mean motored cycle's peak, on the recording's scale
   double peak_bar = 0.0;
   double loss_angle_deg = kDefaultLossAngleDeg;
   double tdc_by_loss_angle_deg = 0.0;  // peak + loss angle: the TDC used

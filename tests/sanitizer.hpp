@@ -36,9 +36,7 @@ inline std::chrono::milliseconds allowance(std::chrono::duration<double> idle) {
 }
 
 // The same, in seconds (a command-line --timeout).
-inline double allowance_s(double idle_s) {
-  return idle_s * kSanitizerSlowdown * kLoadedMachineSlowdown;
-}
+inline double allowance_s(double idle_s) { return idle_s * kSanitizerSlowdown * kLoadedMachineSlowdown; }
 
 // A noisemond configuration's [sim] pacing: at the wall clock's pace in the normal build; under a sanitizer, which
 // cannot keep that pace, as fast as the processing takes the data (nothing lost to the pace, the same cycles).

@@ -108,48 +108,53 @@ CycleTable parse_cycle_table(std::string_view text, const std::string& file) {
         ++header_lines;
         continue;
       }
-      throw drivers::RunDirError(at(line_no) + "column 1 (crank angle) is \"" + std::string(fields[0]) + "\", expected a number");
+      throw drivers::RunDirError(at(line_no) + "column 1 (crank angle) is \"" + std::string(fields[0]) +
+                                 "\", expected a number");
     }
     if (std::abs(crank) > kMaxAbsCrankDeg)
       throw drivers::RunDirError(at(line_no) + "crank angle " + fmt(crank) + " deg, expected a crank angle within +-" +
-                        fmt(kMaxAbsCrankDeg) + " deg");
+                                 fmt(kMaxAbsCrankDeg) + " deg");
     if (columns == 0) {
       columns = fields.size();
       if (columns < 2)
-        throw drivers::RunDirError(at(line_no) + "1 column, expected the crank angle followed by one pressure column per cycle");
+        throw drivers::RunDirError(at(line_no) +
+                                   "1 column, expected the crank angle followed by one pressure column per cycle");
       t.cycles_bar.assign(columns - 1, {});
       t.first_data_line = line_no;
     } else if (fields.size() != columns) {
-      throw drivers::RunDirError(at(line_no) + std::to_string(fields.size()) + " columns, expected " + std::to_string(columns) +
-                        " like line " + std::to_string(t.first_data_line));
+      throw drivers::RunDirError(at(line_no) + std::to_string(fields.size()) + " columns, expected " +
+                                 std::to_string(columns) + " like line " + std::to_string(t.first_data_line));
     }
     if (!t.crank_deg.empty() && !(crank > t.crank_deg.back()))
       throw drivers::RunDirError(at(line_no) + "crank angle " + fmt(crank) + " does not increase (previous row " +
-                        fmt(t.crank_deg.back()) + ")");
+                                 fmt(t.crank_deg.back()) + ")");
     t.crank_deg.push_back(crank);
     for (std::size_t c = 1; c < columns; ++c) {
       double p;
       if (!parse_number(fields[c], p, decimal_comma) || std::abs(p) > kMaxAbsPressureBar)
         throw drivers::RunDirError(at(line_no) + "column " + std::to_string(c + 1) + " is \"" + std::string(fields[c]) +
-                          "\", expected a pressure in bar (within +-" + fmt(kMaxAbsPressureBar) + ")");
+                                   "\", expected a pressure in bar (within +-" + fmt(kMaxAbsPressureBar) + ")");
       t.cycles_bar[c - 1].push_back(p);
     }
   }
   const std::size_t n = t.crank_deg.size();
-  if (n < 8) throw drivers::RunDirError(file + ": " + std::to_string(n) + " rows of data, expected a table over one 720-degree cycle");
+  if (n < 8)
+    throw drivers::RunDirError(file + ": " + std::to_string(n) +
+                               " rows of data, expected a table over one 720-degree cycle");
   // A uniform step over exactly one four-stroke cycle: the columns then join end to end.
   const double step = (t.crank_deg.back() - t.crank_deg.front()) / static_cast<double>(n - 1);
   for (std::size_t i = 1; i < n; ++i) {
     const double d = t.crank_deg[i] - t.crank_deg[i - 1];
     if (std::abs(d - step) > 0.01 * step)
-      throw drivers::RunDirError(at(t.first_data_line + i) + "crank angle " + fmt(t.crank_deg[i]) + " after " + fmt(t.crank_deg[i - 1]) +
-                        ", expected a uniform step of " + fmt(step) + " deg (line numbers count data rows from line " +
-                        std::to_string(t.first_data_line) + ")");
+      throw drivers::RunDirError(at(t.first_data_line + i) + "crank angle " + fmt(t.crank_deg[i]) + " after " +
+                                 fmt(t.crank_deg[i - 1]) + ", expected a uniform step of " + fmt(step) +
+                                 " deg (line numbers count data rows from line " + std::to_string(t.first_data_line) +
+                                 ")");
   }
   const double span = step * static_cast<double>(n);
   if (std::abs(span - 720.0) > 0.5 * step)
-    throw drivers::RunDirError(file + ": the crank column covers " + fmt(span) + " deg (" + std::to_string(n) + " rows of " +
-                      fmt(step) + " deg), expected 720 deg: one four-stroke cycle per column");
+    throw drivers::RunDirError(file + ": the crank column covers " + fmt(span) + " deg (" + std::to_string(n) +
+                               " rows of " + fmt(step) + " deg), expected 720 deg: one four-stroke cycle per column");
   return t;
 }
 

@@ -38,9 +38,9 @@
 namespace noisemon::cli::formats {
 
 struct CycleTable {
-  std::vector<double> crank_deg;              // one per row, strictly increasing, uniform step
+  std::vector<double> crank_deg;                // one per row, strictly increasing, uniform step
   std::vector<std::vector<double>> cycles_bar;  // one vector per cycle (column), crank_deg.size() values each
-  std::size_t first_data_line = 1;            // line number of the first row (after a header line, if any)
+  std::size_t first_data_line = 1;              // line number of the first row (after a header line, if any)
 };
 
 // Reads a table; throws RunDirError naming the file, the line and column and what was expected (a numeric
@@ -57,10 +57,10 @@ enum class PeggingRow { kAuto, kFirstRow, kNone };
 bool drops_pegging_row(const CycleTable& table, PeggingRow pegging);
 
 struct CycleTableOptions {
-  double speed_rpm = 0.0;        // required: the speed the cycles were recorded at
-  double tdc_deg = 0.0;          // table crank angle of firing TDC (0 for the Yanmar tables, 360 for 0..720 tables)
+  double speed_rpm = 0.0;  // required: the speed the cycles were recorded at
+  double tdc_deg = 0.0;    // table crank angle of firing TDC (0 for the Yanmar tables, 360 for 0..720 tables)
   PeggingRow pegging = PeggingRow::kAuto;
-  drivers::RunCondition condition;        // name, load, SOI, rail pressure, motored (speed_rpm is taken from above)
+  drivers::RunCondition condition;  // name, load, SOI, rail pressure, motored (speed_rpm is taken from above)
 };
 
 struct CycleTableConversion {

@@ -242,7 +242,8 @@ struct Interval {
 };
 
 std::vector<Interval> coverage(std::vector<RawBlock>& blocks) {
-  std::stable_sort(blocks.begin(), blocks.end(), [](const RawBlock& a, const RawBlock& b) { return a.first < b.first; });
+  std::stable_sort(blocks.begin(), blocks.end(),
+                   [](const RawBlock& a, const RawBlock& b) { return a.first < b.first; });
   std::vector<Interval> out;
   for (const RawBlock& b : blocks) {
     const std::int64_t to = b.first + b.frames;
@@ -282,7 +283,8 @@ void gather(const std::vector<RawBlock>& blocks, std::size_t channels, std::int6
 // The crank-angle blocks in the order of their first frames (a block's edges in order; blocks of one first frame
 // in the log's order).
 std::vector<EdgeBlock> edge_blocks(std::vector<RawBlock>& blocks) {
-  std::stable_sort(blocks.begin(), blocks.end(), [](const RawBlock& a, const RawBlock& b) { return a.first < b.first; });
+  std::stable_sort(blocks.begin(), blocks.end(),
+                   [](const RawBlock& a, const RawBlock& b) { return a.first < b.first; });
   std::vector<EdgeBlock> out;
   for (const RawBlock& b : blocks) out.push_back({b.first, b.data});
   return out;
@@ -322,7 +324,9 @@ std::vector<drivers::OperatingPoint> distinct_points(const std::vector<drivers::
 class LogAssembler {
  public:
   LogAssembler(std::string name, const LogChannels& channels, LogReadStats& stats)
-      : name_(std::move(name)), ch_(channels), stats_(stats),
+      : name_(std::move(name)),
+        ch_(channels),
+        stats_(stats),
         decoder_({channels, drivers::SessionChanges::kFollow, drivers::BlockCheck::kFinite}) {}
 
   void event(const drivers::LcmLogEvent& e) {
@@ -392,8 +396,10 @@ class LogAssembler {
         const std::int64_t u1 = utime_of_index(s.info.epoch_utime, span.to);
         const drivers::OperatingPoint* before = nullptr;
         for (const drivers::OperatingPoint& op : s.ops) {
-          if (op.utime <= u0) before = &op;
-          else if (op.utime < u1) rec.operating_points.push_back(op);
+          if (op.utime <= u0)
+            before = &op;
+          else if (op.utime < u1)
+            rec.operating_points.push_back(op);
         }
         if (before) rec.operating_points.insert(rec.operating_points.begin(), *before);
         if (rec.operating_points.empty() && !s.ops.empty()) rec.operating_points.push_back(s.ops.front());
@@ -427,8 +433,8 @@ class LogAssembler {
   }
   void damage(const drivers::LcmLogEvent& e, const std::string& what) {
     ++stats_.damaged;
-    note("event " + std::to_string(e.eventnum) + " at byte " + std::to_string(e.offset) + " on " + std::string(e.channel) +
-         ": " + what);
+    note("event " + std::to_string(e.eventnum) + " at byte " + std::to_string(e.offset) + " on " +
+         std::string(e.channel) + ": " + what);
   }
   void note(std::string s) {
     if (stats_.damage.size() < kMaxDamageNotes) stats_.damage.push_back(std::move(s));
@@ -468,16 +474,17 @@ namespace {
 void check_run(const drivers::RunDir& run) {
   const std::size_t n = run.time_s.size();
   if (n < 2 || run.crank_deg.size() != n || run.pressure_pa.size() != n)
-    throw drivers::RunDirError("run '" + run.condition.name + "': time, crank and pressure columns must have the same length >= 2");
-  if (run.mic_count > drivers::SampleBlock::kMaxChannels || (run.mic_count > 0 && (run.mic_positions_m.size() != run.mic_count ||
-                                                                          run.mic_pa.size() % run.mic_count != 0)))
+    throw drivers::RunDirError("run '" + run.condition.name +
+                               "': time, crank and pressure columns must have the same length >= 2");
+  if (run.mic_count > drivers::SampleBlock::kMaxChannels ||
+      (run.mic_count > 0 && (run.mic_positions_m.size() != run.mic_count || run.mic_pa.size() % run.mic_count != 0)))
     throw drivers::RunDirError("run '" + run.condition.name + "': microphone data does not match its positions");
   // Before any frame count is computed from times: absurd times would overflow it (and memory).
   const double span_s = run.time_s.back() - run.time_s.front();
   if (!(std::abs(run.time_s.front()) <= kMaxRecordingSeconds && span_s <= kMaxRecordingSeconds))
-    throw drivers::RunDirError("run '" + run.condition.name + "': time_s " + std::to_string(run.time_s.front()) + " .. " +
-                      std::to_string(run.time_s.back()) + " s, expected a run within " +
-                      std::to_string(static_cast<int>(kMaxRecordingSeconds)) + " s of time 0");
+    throw drivers::RunDirError("run '" + run.condition.name + "': time_s " + std::to_string(run.time_s.front()) +
+                               " .. " + std::to_string(run.time_s.back()) + " s, expected a run within " +
+                               std::to_string(static_cast<int>(kMaxRecordingSeconds)) + " s of time 0");
 }
 
 template <class T>
@@ -486,7 +493,8 @@ void free_vector(std::vector<T>& v) {
 }
 
 // The pressure and crank streams; frees the run's columns when `release` is the run.
-void pressure_streams(const drivers::RunDir& run, drivers::RunDir* release, Recording& rec, Stream& pressure, Stream& crank) {
+void pressure_streams(const drivers::RunDir& run, drivers::RunDir* release, Recording& rec, Stream& pressure,
+                      Stream& crank) {
   std::int64_t first = 0;
   if (on_pipeline_grid(run.time_s, first)) {
     rec.info.pressure_edges_per_rev = run.pressure_edges_per_rev.value_or(0.0);
@@ -503,7 +511,8 @@ void pressure_streams(const drivers::RunDir& run, drivers::RunDir* release, Reco
     // What the encoder's edges carry (run.json says it only for samples already on the 40 kHz grid).
     const double step = resample_pressure(run, pressure, crank, rec.angle_edges);
     rec.info.pressure_edges_per_rev = 360.0 / step;
-    if (!rec.angle_edges.empty()) rec.info.pressure_angle_step_deg = drivers::angle_step_deg(rec.info.pressure_edges_per_rev);
+    if (!rec.angle_edges.empty())
+      rec.info.pressure_angle_step_deg = drivers::angle_step_deg(rec.info.pressure_edges_per_rev);
   }
   if (release) {
     free_vector(release->time_s);
@@ -524,26 +533,29 @@ Recording convert(const drivers::RunDir& run, drivers::RunDir* release, std::int
   rec.info.acoustic_delay_s = run.acoustic_delay_s >= 0 ? run.acoustic_delay_s
                               : run.mic_count > 0       ? run.radius_m / kSpeedOfSoundMS
                                                         : 0.0;
-  drivers::OperatingPoint op = operating_point_of(run, 0);  // before the columns it may measure the speed from are freed
+  drivers::OperatingPoint op =
+      operating_point_of(run, 0);  // before the columns it may measure the speed from are freed
 
   // The two resamplers on two threads; errors as when the pressure is resampled first.
   Stream pressure, crank, mics;
   drivers::run_both([&] { pressure_streams(run, release, rec, pressure, crank); },
-           [&] {
-             if (run.mic_count == 0) return;
-             resample_mics(run, mics);
-             if (release) free_vector(release->mic_pa);
-           });
+                    [&] {
+                      if (run.mic_count == 0) return;
+                      resample_mics(run, mics);
+                      if (release) free_vector(release->mic_pa);
+                    });
   std::int64_t from = pressure.first, to = pressure.end();
   if (run.mic_count > 0) {
-    rec.info.mic_passband_hz = run.mic_passband_hz.value_or(run.mic_rate_hz != kFs ? dsp::converter_passband_hz(run.mic_rate_hz) : 0.0);
+    rec.info.mic_passband_hz =
+        run.mic_passband_hz.value_or(run.mic_rate_hz != kFs ? dsp::converter_passband_hz(run.mic_rate_hz) : 0.0);
     from = std::max(from, mics.first);
     to = std::min(to, mics.end());
   }
   if (to <= from)
     throw drivers::RunDirError("run '" + run.condition.name + "': " +
-                      (run.mic_count > 0 ? std::string("the pressure and the microphones do not overlap in time")
-                                         : std::string("too short to resample")));
+                               (run.mic_count > 0
+                                    ? std::string("the pressure and the microphones do not overlap in time")
+                                    : std::string("too short to resample")));
   const auto frames = static_cast<std::size_t>(to - from);
   rec.first_index = from;
   rec.pressure_pa = take_frames(pressure, from, frames);
@@ -557,7 +569,9 @@ Recording convert(const drivers::RunDir& run, drivers::RunDir* release, std::int
 
 }  // namespace
 
-Recording to_recording(const drivers::RunDir& run, std::int64_t epoch_utime) { return convert(run, nullptr, epoch_utime); }
+Recording to_recording(const drivers::RunDir& run, std::int64_t epoch_utime) {
+  return convert(run, nullptr, epoch_utime);
+}
 
 Recording to_recording(drivers::RunDir&& run, std::int64_t epoch_utime) { return convert(run, &run, epoch_utime); }
 
@@ -566,7 +580,7 @@ drivers::OperatingPoint operating_point_of(const drivers::RunDir& run, std::int6
   drivers::OperatingPoint op;
   op.utime = utime;
   op.speed_rpm = std::isnan(c.speed_rpm) ? drivers::encoder_speed_rpm(run) : c.speed_rpm;
-  op.load_nm = c.load_nm;            // NaN when unknown: travels as NaN
+  op.load_nm = c.load_nm;  // NaN when unknown: travels as NaN
   op.soi_deg_btdc = c.soi_deg_btdc;
   op.rail_pressure_bar = c.rail_pressure_bar.value_or(std::numeric_limits<double>::quiet_NaN());
   op.motored = c.motored_known && c.motored;  // the message's boolean: false when unknown
@@ -636,8 +650,10 @@ void RecordingLogWriter::write(const Recording& rec, const ProgressFn& progress)
   Impl& w = *impl_;
   if (rec.crank_deg.size() != rec.frames() || rec.mics_pa.size() != rec.frames() * rec.info.mic_count ||
       rec.info.mic_count > drivers::SampleBlock::kMaxChannels || rec.info.mic_positions_m.size() < rec.info.mic_count)
-    throw std::invalid_argument(w.path.string() + ": recording '" + rec.condition + "' has streams of different lengths");
-  if (rec.angle_edges.size() % kEdgeValues != 0 || (!rec.angle_edges.empty() && !(rec.info.pressure_angle_step_deg > 0)))
+    throw std::invalid_argument(w.path.string() + ": recording '" + rec.condition +
+                                "' has streams of different lengths");
+  if (rec.angle_edges.size() % kEdgeValues != 0 ||
+      (!rec.angle_edges.empty() && !(rec.info.pressure_angle_step_deg > 0)))
     throw std::invalid_argument(w.path.string() + ": recording '" + rec.condition +
                                 "' has crank-angle edges without a crank-angle step (or a partial edge)");
   if (std::find(w.epochs.begin(), w.epochs.end(), rec.info.epoch_utime) != w.epochs.end())
@@ -653,7 +669,8 @@ void RecordingLogWriter::write(const Recording& rec, const ProgressFn& progress)
     const std::int64_t utime = utime_of_index(epoch, k);
     const bool repeat = f % kRepeatFrames < kBlockFrames;  // first block of each second
     if (repeat)
-      write_event(w.log, w.path, w.channels.session, drivers::to_message(rec.info, rec.source, utime, rec.condition), utime, w.buf);
+      write_event(w.log, w.path, w.channels.session, drivers::to_message(rec.info, rec.source, utime, rec.condition),
+                  utime, w.buf);
     // Each operating point when its time comes; the first one at the start in any case.
     bool op_written = false;
     while (next_op < rec.operating_points.size() &&
@@ -666,7 +683,8 @@ void RecordingLogWriter::write(const Recording& rec, const ProgressFn& progress)
       write_event(w.log, w.path, w.channels.operating_point, drivers::to_message(*current), utime, w.buf);
     const std::size_t frames = std::min(kBlockFrames, rec.frames() - f);
     noisemon::raw_block_t& p = w.pressure_block;
-    drivers::set_raw_block(p, k, frames, drivers::kPressureStreamChannels, noisemon::raw_block_t::STREAM_PRESSURE, epoch);
+    drivers::set_raw_block(p, k, frames, drivers::kPressureStreamChannels, noisemon::raw_block_t::STREAM_PRESSURE,
+                           epoch);
     for (std::size_t i = 0; i < frames; ++i) {
       p.data[i * drivers::kPressureStreamChannels + drivers::kPressureChannel] = rec.pressure_pa[f + i];
       p.data[i * drivers::kPressureStreamChannels + drivers::kCrankChannel] = rec.crank_deg[f + i];
@@ -682,8 +700,7 @@ void RecordingLogWriter::write(const Recording& rec, const ProgressFn& progress)
                                                    : std::numeric_limits<double>::infinity();
     while (next_edge_block(rec.angle_edges, next_edge, until, rec.info.pressure_angle_step_deg, epoch, w.angle_block))
       write_event(w.log, w.path, w.channels.raw, w.angle_block, w.angle_block.utime, w.buf);
-    if (progress && (f / kBlockFrames) % 256 == 0)
-      progress(static_cast<double>(f) / static_cast<double>(rec.frames()));
+    if (progress && (f / kBlockFrames) % 256 == 0) progress(static_cast<double>(f) / static_cast<double>(rec.frames()));
   }
   std::fflush(w.log.getFilePtr());
   if (progress) progress(1.0);
@@ -697,7 +714,9 @@ void write_recordings_log(const std::filesystem::path& path, const std::vector<R
   for (const Recording& r : recordings) {
     ProgressFn part;
     if (progress && total > 0)
-      part = [&](double f) { progress((static_cast<double>(done) + f * static_cast<double>(r.frames())) / static_cast<double>(total)); };
+      part = [&](double f) {
+        progress((static_cast<double>(done) + f * static_cast<double>(r.frames())) / static_cast<double>(total));
+      };
     writer.write(r, part);
     done += r.frames();
   }

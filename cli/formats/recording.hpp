@@ -18,13 +18,13 @@
 namespace noisemon::cli::formats {
 
 struct Recording {
-  std::string condition;             // the run's condition name ("" when unknown)
-  std::string source = "import";     // session_t source
-  drivers::StreamInfo info;                   // epoch, microphones, radius, acoustic delay
-  std::int64_t first_index = 0;      // 40 kHz grid index of frame 0 of both streams
-  std::vector<double> pressure_pa;   // one per frame
-  std::vector<double> crank_deg;     // one per frame, wrapped to [-360, 360) as on the pressure stream
-  std::vector<double> mics_pa;       // frames * info.mic_count, frame-major; empty without microphones
+  std::string condition;            // the run's condition name ("" when unknown)
+  std::string source = "import";    // session_t source
+  drivers::StreamInfo info;         // epoch, microphones, radius, acoustic delay
+  std::int64_t first_index = 0;     // 40 kHz grid index of frame 0 of both streams
+  std::vector<double> pressure_pa;  // one per frame
+  std::vector<double> crank_deg;    // one per frame, wrapped to [-360, 360) as on the pressure stream
+  std::vector<double> mics_pa;      // frames * info.mic_count, frame-major; empty without microphones
   // The crank-angle stream (info.pressure_angle_step_deg > 0): the encoder edges within the frames, frame-major,
   // kEdgeValues values each (angle_edges.hpp); empty without one.
   std::vector<double> angle_edges;
@@ -87,12 +87,12 @@ class RecordingLogWriter {
 };
 
 struct LogReadStats {
-  std::int64_t events = 0;           // well-framed events read
-  std::int64_t sessions = 0;         // distinct sessions (epochs)
-  std::int64_t other_channels = 0;   // events of channels not read here (reports, status, ...): ignored
-  std::int64_t damaged = 0;          // skipped: see read_recordings_log
-  std::int64_t pieces_split = 0;     // extra recordings made because a session had a hole
-  std::vector<std::string> damage;   // what was wrong with the first damaged events (at most 10)
+  std::int64_t events = 0;          // well-framed events read
+  std::int64_t sessions = 0;        // distinct sessions (epochs)
+  std::int64_t other_channels = 0;  // events of channels not read here (reports, status, ...): ignored
+  std::int64_t damaged = 0;         // skipped: see read_recordings_log
+  std::int64_t pieces_split = 0;    // extra recordings made because a session had a hole
+  std::vector<std::string> damage;  // what was wrong with the first damaged events (at most 10)
 };
 
 // Reads every session of a raw log back into recordings, in the order of the log. A session (a new epoch,

@@ -14,10 +14,14 @@ enum class Separator { unknown, comma, tab, spaces };
 
 const char* separator_name(Separator s) {
   switch (s) {
-    case Separator::comma: return "comma";
-    case Separator::tab: return "tab";
-    case Separator::spaces: return "spaces";
-    default: return "unknown";
+    case Separator::comma:
+      return "comma";
+    case Separator::tab:
+      return "tab";
+    case Separator::spaces:
+      return "spaces";
+    default:
+      return "unknown";
   }
 }
 

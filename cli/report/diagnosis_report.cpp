@@ -110,15 +110,13 @@ json score_json(const model::ModelScore& s) {
   c["group_worse"] = s.group_worse;
   if (s.motored_law_checked) {
     // An additive source claimed louder than all the motored runs hear (beyond 3 standard errors): refuted.
-    c["motored_law"] = {{"refuted", s.refuted},
-                        {"overshoot_db", number(s.motored_overshoot_db)},
-                        {"where", s.motored_overshoot_where}};
+    c["motored_law"] = {
+        {"refuted", s.refuted}, {"overshoot_db", number(s.motored_overshoot_db)}, {"where", s.motored_overshoot_where}};
   }
   if (s.pressure_law_checked) {
     // A pressure-driven fit that predicts the motored runs worse than the baseline (beyond 3 standard errors): refuted.
-    c["pressure_law"] = {{"refuted", s.refuted},
-                         {"motored_worse_db", number(s.motored_worse_db)},
-                         {"where", s.motored_worse_where}};
+    c["pressure_law"] = {
+        {"refuted", s.refuted}, {"motored_worse_db", number(s.motored_worse_db)}, {"where", s.motored_worse_where}};
   }
   c["params"] = model_params(s.model);
   return c;
@@ -351,8 +349,8 @@ json test_sets_json(const std::vector<WaveformTestSet>& tests) {
 
 }  // namespace
 
-json band_report_json(const model::BandDataset& data, const model::DiagnosisResult& r,
-                      const model::DiagnosisOptions& o, const ReportContext& ctx) {
+json band_report_json(const model::BandDataset& data, const model::DiagnosisResult& r, const model::DiagnosisOptions& o,
+                      const ReportContext& ctx) {
   json j = report_head(
       "band", "dB", ctx,
       "heldout_rms_db: the ranking gap, sqrt(thesis band gap^2 + microphone-calibration residual^2 + crank-window "

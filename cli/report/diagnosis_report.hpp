@@ -16,9 +16,9 @@
 #include <string>
 #include <vector>
 
-#include "model/fit/band_dataset.hpp"
 #include "model/diagnosis/diagnosis.hpp"
 #include "model/diagnosis/waveform_diagnosis.hpp"
+#include "model/fit/band_dataset.hpp"
 
 namespace noisemon::cli::report {
 

@@ -310,12 +310,13 @@ std::string floors_section(Page& pg, const json& f, const json& conds) {
   const std::string head = row({"condition", "pressure floor judged by", "stated (bar rms)", "estimated (bar rms)",
                                 "floor-limited bands", "crank-window cells at the pressure floor"},
                                "", "th");
-  return section("floors", "Floors (never fitted, never scored)",
-                 el("ul", {}, lines) + table(head, rows, "txt") +
-                     note("Microphone floor from the " + esc(text(get(f, "mic_floor_source"))) +
-                          ". A band is floor-limited where the microphones are within the margin of the background "
-                          "runs' level, or the cylinder pressure within the margin of the pressure chain's floor (every "
-                          "prediction subtracts what that floor drives; cells within the margin are upper bounds)."));
+  return section(
+      "floors", "Floors (never fitted, never scored)",
+      el("ul", {}, lines) + table(head, rows, "txt") +
+          note("Microphone floor from the " + esc(text(get(f, "mic_floor_source"))) +
+               ". A band is floor-limited where the microphones are within the margin of the background "
+               "runs' level, or the cylinder pressure within the margin of the pressure chain's floor (every "
+               "prediction subtracts what that floor drives; cells within the margin are upper bounds)."));
 }
 
 // What the band-mode sections share: the report, its "where", the bands, the baseline gap per held-out condition
@@ -512,8 +513,8 @@ std::string noise_floor_panel(Page& pg, const BandView& v) {
   const auto fl = nums(get(get(v.w, "noise_floor"), "combustion_independent_db")),
              bg = nums(get(get(v.w, "noise_floor"), "background_db"));
   if (fl.empty() || hz.empty()) return pg.lack("where.noise_floor");
-  Plot p("noise-floor", "Noise floor per band", band_axis(hz, true), linear_axis(extent({&fl, &bg}), "level (dB)"),
-         500, 260);
+  Plot p("noise-floor", "Noise floor per band", band_axis(hz, true), linear_axis(extent({&fl, &bg}), "level (dB)"), 500,
+         260);
   p.line(hz, fl, {"combustion-independent (motored excess)", kMeasured, ""},
          band_tips(hz, fl, "combustion-independent", " dB"));
   p.line(hz, bg, {"background run", kGreen, "5 3"}, band_tips(hz, bg, "background", " dB"));
@@ -663,12 +664,11 @@ std::string test_sets_section(Page& pg, const json& r, const std::string& u) {
 std::string explainable_gap_section(Page& pg, const json& w, const std::string& u) {
   const json& eg = get(w, "explainable_gap");
   if (!eg.is_object()) return section("explainable-gap", "Explainable gap", pg.lack("where.explainable_gap"));
-  std::string s =
-      table(row({"model", "explainable share of the error", "p-value", "significant"}, "", "th"),
-            row({"baseline", closed_cell(num(get(eg, "baseline_fraction"))), sig(num(get(eg, "baseline_p_value")), 2),
-                 yesno(get(eg, "baseline_significant"))}) +
-                row({"best model (remaining)", closed_cell(num(get(eg, "remaining_fraction"))),
-                     sig(num(get(eg, "remaining_p_value")), 2), yesno(get(eg, "remaining_significant"))}));
+  std::string s = table(row({"model", "explainable share of the error", "p-value", "significant"}, "", "th"),
+                        row({"baseline", closed_cell(num(get(eg, "baseline_fraction"))),
+                             sig(num(get(eg, "baseline_p_value")), 2), yesno(get(eg, "baseline_significant"))}) +
+                            row({"best model (remaining)", closed_cell(num(get(eg, "remaining_fraction"))),
+                                 sig(num(get(eg, "remaining_p_value")), 2), yesno(get(eg, "remaining_significant"))}));
   const auto sb = nums(get(w, "heldout_segment_rms_before")), sa = nums(get(w, "heldout_segment_rms_after"));
   for (std::size_t i = 0; i < sb.size(); ++i)
     s += note("Held-out segment " + std::to_string(i + 1) + ": RMS " + sig(sb[i]) + " &rarr; " + sig(at(sa, i, kNaN)) +

@@ -139,8 +139,8 @@ void Plot::line(const Series& xs, const Series& ys, const Style& s, const std::v
                  tip(i < tips.size() ? tips[i] : s.name + ": " + sig(xs[i]) + ", " + sig(ys[i])));
   }
   if (s.line && !d.empty())
-    body_ += el("path", {"d", d.substr(1), "fill", "none", "stroke", s.colour, "stroke-width", 1.8,
-                         "stroke-dasharray", s.dash});
+    body_ += el("path", {"d", d.substr(1), "fill", "none", "stroke", s.colour, "stroke-width", 1.8, "stroke-dasharray",
+                         s.dash});
   body_ += dots;
   legend(s);
 }
@@ -377,8 +377,8 @@ std::string heat_map(const std::string& id, const std::string& title, const std:
                      const HeatKey& key) {
   const HeatGrid g = heat_grid(id, rows.size(), hz.size(), v);
   std::string o = heat_head(id, title, key);
-  o += el("rect", {"class", "frame", "x", HeatGrid::kLeftEdge, "y", HeatGrid::kTop, "width", HeatGrid::kWidth,
-                   "height", g.height, "fill", "none"});
+  o += el("rect", {"class", "frame", "x", HeatGrid::kLeftEdge, "y", HeatGrid::kTop, "width", HeatGrid::kWidth, "height",
+                   g.height, "fill", "none"});
   o += heat_cells(g, rows, hz, v, dots, key);
   o += heat_band_labels(g, hz);
   o += heat_colour_bar(g);

@@ -21,12 +21,12 @@ inline bool finite(double v) { return std::isfinite(v); }
 // ---- Formatting: a value that is not finite shows as kDash ----
 
 constexpr const char* kDash = "\xE2\x80\x94";  // an em dash: no value
-std::string esc(std::string_view s);              // HTML-escaped: & < > " '
-std::string fixed(double v, int decimals);        // "%.*f", never "-0.00"
-std::string sig(double v, int digits = 4);        // "%.*g"
+std::string esc(std::string_view s);           // HTML-escaped: & < > " '
+std::string fixed(double v, int decimals);     // "%.*f", never "-0.00"
+std::string sig(double v, int digits = 4);     // "%.*g"
 // dB: 2 decimals; two significant digits below 0.005 (a tiny noise figure is not "0.00").
 std::string db(double v);
-std::string hz_label(double f);                   // 31.5, 500, 1k, 12.5k
+std::string hz_label(double f);                          // 31.5, 500, 1k, 12.5k
 inline std::string px(double v) { return fixed(v, 2); }  // an SVG coordinate
 
 // An element <name k="v" ...>inner</name> (<name .../> without inner) from alternating attribute names and values

@@ -9,8 +9,8 @@
 #include <stdexcept>
 #include <thread>
 
-#include "drivers/formats/candump.hpp"
 #include "drivers/can/socketcan_reader.hpp"
+#include "drivers/formats/candump.hpp"
 
 namespace noisemon::drivers {
 namespace {
@@ -75,7 +75,9 @@ class CanSourceBase : public OperatingPointSource {
     }
     worker_.add_blocks_written();
   }
-  static std::int64_t count(const std::atomic<std::uint64_t>& a) { return static_cast<std::int64_t>(a.load(std::memory_order_relaxed)); }
+  static std::int64_t count(const std::atomic<std::uint64_t>& a) {
+    return static_cast<std::int64_t>(a.load(std::memory_order_relaxed));
+  }
 
   std::string name_;
   CanSignalMap map_;
@@ -88,16 +90,22 @@ class CanSourceBase : public OperatingPointSource {
 class SocketCanSource final : public CanSourceBase {
  public:
   SocketCanSource(int fd, bool owns_fd, const CanSignalMap& map, std::string label, const ThreadPolicy& policy)
-      : CanSourceBase("socketcan", "socketcan." + label, map, policy), fd_(fd), owns_fd_(owns_fd), label_(std::move(label)) {}
+      : CanSourceBase("socketcan", "socketcan." + label, map, policy),
+        fd_(fd),
+        owns_fd_(owns_fd),
+        label_(std::move(label)) {}
   ~SocketCanSource() override {
     stop();
     if (owns_fd_) ::close(fd_);
   }
   std::vector<DriverCounter> counters() const override {
-    return {{"can.data_frames", count(data_frames_)},      {"can.decoded_frames", count(decoded_)},
-            {"can.error_frames", count(error_frames_)},    {"can.bus_off", count(bus_off_)},
+    return {{"can.data_frames", count(data_frames_)},
+            {"can.decoded_frames", count(decoded_)},
+            {"can.error_frames", count(error_frames_)},
+            {"can.bus_off", count(bus_off_)},
             {"can.controller_problems", count(controller_problems_)},
-            {"can.kernel_drops", count(kernel_drops_)},    {"can.malformed", count(malformed_)}};
+            {"can.kernel_drops", count(kernel_drops_)},
+            {"can.malformed", count(malformed_)}};
   }
 
  private:
@@ -138,7 +146,10 @@ class SocketCanSource final : public CanSourceBase {
 class CandumpSource final : public CanSourceBase {
  public:
   explicit CandumpSource(const CanSourceConfig& c)
-      : CanSourceBase("candump", "candump.replay", c.map, c.thread), path_(c.candump_path), interface_(c.interface), paced_(c.paced),
+      : CanSourceBase("candump", "candump.replay", c.map, c.thread),
+        path_(c.candump_path),
+        interface_(c.interface),
+        paced_(c.paced),
         reader_(std::make_unique<CandumpReader>(c.candump_path)) {}
   ~CandumpSource() override { stop(); }
   std::vector<DriverCounter> counters() const override {
@@ -195,8 +206,9 @@ class CandumpSource final : public CanSourceBase {
 
 std::unique_ptr<OperatingPointSource> make_can_source(const CanSourceConfig& config) {
   if (config.map.signals().empty())
-    throw std::invalid_argument("can: no [[can.signal]] entries: nothing to decode from " +
-                                (config.candump_path.empty() ? "interface '" + config.interface + "'" : "'" + config.candump_path + "'"));
+    throw std::invalid_argument(
+        "can: no [[can.signal]] entries: nothing to decode from " +
+        (config.candump_path.empty() ? "interface '" + config.interface + "'" : "'" + config.candump_path + "'"));
   if (!config.candump_path.empty()) return std::make_unique<CandumpSource>(config);
   const int fd = open_socketcan(config.interface, config.map);
   return std::make_unique<SocketCanSource>(fd, true, config.map, config.interface, config.thread);

@@ -23,7 +23,7 @@ struct CanSourceConfig {
   std::string candump_path;  // non-empty: replay this candump -l log instead of a live bus
   bool paced = true;         // candump: at the recorded pace (re-timed to now); false: as fast as taken, recorded times
   CanSignalMap map;
-  ThreadPolicy thread;       // scheduling of the thread nm-can (the daemon's [threads.can])
+  ThreadPolicy thread;  // scheduling of the thread nm-can (the daemon's [threads.can])
 
   bool configured() const { return !interface.empty() || !candump_path.empty(); }
 };

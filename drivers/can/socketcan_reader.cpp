@@ -2,23 +2,21 @@
 
 #include "drivers/source.hpp"
 
-#include <cerrno>
-#include <cstring>
-#include <ctime>
 #include <linux/can.h>
 #include <linux/can/error.h>
 #include <linux/can/raw.h>
 #include <net/if.h>
 #include <poll.h>
-#include <stdexcept>
 #include <sys/time.h>
-#include <system_error>
 #include <unistd.h>
+#include <cerrno>
+#include <cstring>
+#include <ctime>
+#include <stdexcept>
+#include <system_error>
 
 namespace noisemon::drivers {
-namespace {
-
-}  // namespace
+namespace {}  // namespace
 
 bool parse_can_ancillary(const msghdr& msg, std::int64_t& utime, bool& have_drops, std::uint32_t& drops) {
   bool have_time = false;
@@ -56,8 +54,8 @@ CanReadResult SocketCanReader::read(int timeout_ms, ReceivedCanFrame& out) {
 
   can_frame raw{};
   iovec iov{&raw, sizeof raw};
-  alignas(cmsghdr) char control[CMSG_SPACE(sizeof(timespec)) + CMSG_SPACE(sizeof(timeval)) +
-                                CMSG_SPACE(sizeof(std::uint32_t))];
+  alignas(cmsghdr) char
+      control[CMSG_SPACE(sizeof(timespec)) + CMSG_SPACE(sizeof(timeval)) + CMSG_SPACE(sizeof(std::uint32_t))];
   msghdr msg{};
   msg.msg_iov = &iov;
   msg.msg_iovlen = 1;
@@ -127,9 +125,10 @@ int open_socketcan(const std::string& interface, const CanSignalMap& map) {
   const int fd = ::socket(PF_CAN, SOCK_RAW | SOCK_CLOEXEC, CAN_RAW);
   if (fd < 0) {
     const int e = errno;
-    throw std::runtime_error(where + (e == EAFNOSUPPORT || e == EPROTONOSUPPORT
-                                          ? "kernel CAN support missing (load the can and can_raw modules): "
-                                          : "cannot open a raw CAN socket: ") +
+    throw std::runtime_error(where +
+                             (e == EAFNOSUPPORT || e == EPROTONOSUPPORT
+                                  ? "kernel CAN support missing (load the can and can_raw modules): "
+                                  : "cannot open a raw CAN socket: ") +
                              std::strerror(e));
   }
   auto fail = [&](const std::string& what) {

@@ -3,9 +3,9 @@
 // drop counter, error frames recognised and counted, data frames decoded through a CanSignalMap.
 #pragma once
 
+#include <sys/socket.h>
 #include <cstdint>
 #include <string>
-#include <sys/socket.h>
 #include <vector>
 
 #include "drivers/formats/can_signal_map.hpp"

@@ -178,8 +178,10 @@ comedi_cmd external_scan_command(unsigned subdevice, unsigned external_trigger, 
 }
 
 void apply_wake_flag(comedi_cmd& cmd, bool wake_every_scan) {
-  if (wake_every_scan) cmd.flags |= CMDF_WAKE_EOS;
-  else cmd.flags &= ~static_cast<unsigned>(CMDF_WAKE_EOS);
+  if (wake_every_scan)
+    cmd.flags |= CMDF_WAKE_EOS;
+  else
+    cmd.flags &= ~static_cast<unsigned>(CMDF_WAKE_EOS);
 }
 
 unsigned size_kernel_buffer(unsigned bytes, const KernelBufferCalls& calls, const std::string& device_path,
@@ -232,8 +234,8 @@ void settle_command(comedi_cmd& cmd, const std::function<int(comedi_cmd&)>& test
     note(before.stop_src != cmd.stop_src, "stop_src");
     note(before.stop_arg != cmd.stop_arg, "stop_arg");
     if (unsettled.empty()) {
-      static const char* const kStage[] = {"", "trigger sources", "trigger source combination",
-                                           "argument range", "adjusted arguments", "chanlist"};
+      static const char* const kStage[] = {
+          "", "trigger sources", "trigger source combination", "argument range", "adjusted arguments", "chanlist"};
       unsettled = (r >= 1 && r <= 5) ? kStage[r] : "unknown field";
     }
   }
@@ -249,12 +251,11 @@ ComediDevice::ComediDevice(ComediAcquisitionConfig config) : config_(std::move(c
   if (!dev_) throw std::runtime_error("cannot open comedi device " + config_.device_path + ": " + comedi_error());
   try {
     const int sub = config_.subdevice >= 0 ? config_.subdevice : comedi_get_read_subdevice(dev_);
-    if (sub < 0)
-      throw std::runtime_error("comedi device " + config_.device_path + " has no streaming read subdevice");
+    if (sub < 0) throw std::runtime_error("comedi device " + config_.device_path + " has no streaming read subdevice");
     subdevice_ = static_cast<unsigned>(sub);
     const int flags = comedi_get_subdevice_flags(dev_, subdevice_);
-    if (flags < 0) throw std::runtime_error("cannot query " + where(config_.device_path, subdevice_) + ": " +
-                                            comedi_error());
+    if (flags < 0)
+      throw std::runtime_error("cannot query " + where(config_.device_path, subdevice_) + ": " + comedi_error());
     if (!(flags & SDF_CMD))
       throw std::runtime_error(where(config_.device_path, subdevice_) + " does not support streaming commands");
     width_ = (flags & SDF_LSAMPL) ? SampleWidth::k32Bit : SampleWidth::k16Bit;
@@ -273,8 +274,8 @@ ComediDevice::ComediDevice(ComediAcquisitionConfig config) : config_(std::move(c
           comedi_set_counter_mode(dev_, subdevice_, ch.channel, static_cast<unsigned>(ch.counter_mode)) < 0) {
         if (calibration) comedi_cleanup_calibration(calibration);
         throw std::runtime_error("cannot set counter mode " + std::to_string(ch.counter_mode) + " of channel " +
-                                 std::to_string(ch.channel) + " on " + where(config_.device_path, subdevice_) +
-                                 ": " + comedi_error());
+                                 std::to_string(ch.channel) + " on " + where(config_.device_path, subdevice_) + ": " +
+                                 comedi_error());
       }
       if (ch.raw_counts) {
         const lsampl_t maxdata = comedi_get_maxdata(dev_, subdevice_, ch.channel);
@@ -351,8 +352,8 @@ void ComediDevice::build_command() {
                                  config_.convert_src);
   }
   apply_wake_flag(cmd_, config_.wake_every_scan);
-  settle_command(cmd_, [this](comedi_cmd& c) { return comedi_command_test(dev_, &c); }, config_.device_path,
-                 subdevice_);
+  settle_command(
+      cmd_, [this](comedi_cmd& c) { return comedi_command_test(dev_, &c); }, config_.device_path, subdevice_);
   scan_period_s_ = cmd_.scan_begin_src == TRIG_TIMER ? cmd_.scan_begin_arg * 1e-9 : 0.0;
 }
 

@@ -24,18 +24,18 @@ namespace noisemon::drivers {
 // ---- read loop -------------------------------------------------------------------------------------------
 
 struct ReadLoopConfig {
-  std::string device_path;  // for messages only
-  unsigned subdevice = 0;   // for messages only
+  std::string device_path;                           // for messages only
+  unsigned subdevice = 0;                            // for messages only
   std::chrono::microseconds initial_backoff{10000};  // wait before the first restart after an overrun
   std::chrono::microseconds max_backoff{1000000};    // backoff doubles per consecutive overrun up to this
   unsigned max_consecutive_overruns = 16;            // then give up (the card cannot be kept up with)
 };
 
 struct ReadLoopResult {
-  bool failed = false;          // false: clean end (EOF or stop requested)
+  bool failed = false;  // false: clean end (EOF or stop requested)
   std::uint64_t bytes = 0;
-  std::uint64_t overruns = 0;   // EPIPE (comedi buffer overrun) occurrences
-  std::string message;          // names device and subdevice
+  std::uint64_t overruns = 0;  // EPIPE (comedi buffer overrun) occurrences
+  std::string message;         // names device and subdevice
 };
 
 using ReadFunction = std::function<ssize_t(int fd, void* buffer, std::size_t size)>;
@@ -89,13 +89,13 @@ struct ComediAcquisitionConfig {
   int subdevice = -1;  // -1: the device's default read subdevice
   std::vector<ComediChannelConfig> channels;
   ScanClock clock = ScanClock::kTimed;
-  double scan_rate_hz = 51200.0;     // kTimed
-  unsigned external_trigger = 0;     // kExternal: scan_begin_arg (trigger input number, driver-specific)
-  int start_trigger = -1;            // kExternal: >= 0 starts on that external trigger (start_src TRIG_EXT)
-  unsigned convert_src = TRIG_TIMER; // kExternal: TRIG_TIMER (fastest the card allows), TRIG_NOW or TRIG_FOLLOW
-  bool use_soft_calibration = true;  // when the subdevice is SDF_SOFT_CALIBRATED and a calibration file exists
-  unsigned buffer_bytes = 0;         // > 0: size the kernel's acquisition buffer to this; 0: leave it as it is
-  bool wake_every_scan = false;      // CMDF_WAKE_EOS: the kernel wakes the reader after every scan
+  double scan_rate_hz = 51200.0;      // kTimed
+  unsigned external_trigger = 0;      // kExternal: scan_begin_arg (trigger input number, driver-specific)
+  int start_trigger = -1;             // kExternal: >= 0 starts on that external trigger (start_src TRIG_EXT)
+  unsigned convert_src = TRIG_TIMER;  // kExternal: TRIG_TIMER (fastest the card allows), TRIG_NOW or TRIG_FOLLOW
+  bool use_soft_calibration = true;   // when the subdevice is SDF_SOFT_CALIBRATED and a calibration file exists
+  unsigned buffer_bytes = 0;          // > 0: size the kernel's acquisition buffer to this; 0: leave it as it is
+  bool wake_every_scan = false;       // CMDF_WAKE_EOS: the kernel wakes the reader after every scan
 };
 
 // Channel list entries CR_PACK(channel, range, aref) in configuration order.
@@ -113,9 +113,9 @@ void apply_wake_flag(comedi_cmd& cmd, bool wake_every_scan);
 
 // The libcomedi calls that size a subdevice's kernel buffer (injected, so tests need no card).
 struct KernelBufferCalls {
-  std::function<int()> get_size, get_max_size;               // comedi_get_buffer_size / _max_buffer_size
-  std::function<int(unsigned)> set_size, set_max_size;       // comedi_set_buffer_size / _max_buffer_size
-  std::function<std::string()> error;                        // the last call's error text
+  std::function<int()> get_size, get_max_size;          // comedi_get_buffer_size / _max_buffer_size
+  std::function<int(unsigned)> set_size, set_max_size;  // comedi_set_buffer_size / _max_buffer_size
+  std::function<std::string()> error;                   // the last call's error text
 };
 
 // Sizes the kernel buffer to bytes (0: leaves it), raising the subdevice's maximum first when bytes exceeds it

@@ -28,8 +28,7 @@ double charge_pressure_pa_per_volt(double pc_per_bar, double amplifier_mv_per_pc
   return 1e3 * 1e5 / (amplifier_mv_per_pc * pc_per_bar);
 }
 
-ChannelConversion linear_conversion(double range_min, double range_max, std::uint32_t maxdata,
-                                    double si_per_volt) {
+ChannelConversion linear_conversion(double range_min, double range_max, std::uint32_t maxdata, double si_per_volt) {
   if (maxdata == 0 || !(range_max > range_min)) throw std::invalid_argument("invalid comedi range");
   ChannelConversion c;
   c.kind = ChannelConversion::Kind::kLinear;
@@ -53,8 +52,7 @@ ChannelConversion polynomial_conversion(const double* coefficients, unsigned ord
 }
 
 ScanDecoder::ScanDecoder(SampleWidth width, std::vector<ChannelConversion> channels)
-    : width_(width), channels_(std::move(channels)),
-      scan_bytes_(channels_.size() * static_cast<std::size_t>(width)) {
+    : width_(width), channels_(std::move(channels)), scan_bytes_(channels_.size() * static_cast<std::size_t>(width)) {
   if (channels_.empty() || channels_.size() > kMaxChannels)
     throw std::invalid_argument("comedi scan needs 1.." + std::to_string(kMaxChannels) + " channels");
 }

@@ -52,8 +52,7 @@ struct ChannelConversion {
   double to_si(std::uint32_t raw) const { return to_volts(raw) * si_per_volt; }
 };
 
-ChannelConversion linear_conversion(double range_min, double range_max, std::uint32_t maxdata,
-                                    double si_per_volt);
+ChannelConversion linear_conversion(double range_min, double range_max, std::uint32_t maxdata, double si_per_volt);
 ChannelConversion polynomial_conversion(const double* coefficients, unsigned order, double expansion_origin,
                                         double si_per_volt);
 

@@ -21,7 +21,9 @@ std::string where(const std::string& device, int subdevice) {
 class DeviceAcquisition final : public Acquisition {
  public:
   explicit DeviceAcquisition(const ComediAcquisitionConfig& config) : device_(config) {}
-  std::string where() const override { return device_.device_path() + " subdevice " + std::to_string(device_.subdevice()); }
+  std::string where() const override {
+    return device_.device_path() + " subdevice " + std::to_string(device_.subdevice());
+  }
   int fd() const override { return device_.fd(); }
   SampleWidth sample_width() const override { return device_.sample_width(); }
   const std::vector<ChannelConversion>& conversions() const override { return device_.conversions(); }
@@ -55,7 +57,8 @@ double pressure_si_per_volt(const ComediSourceConfig::Pressure& p) {
         "amplifier_mv_per_pc (charge-output transducer and charge amplifier)");
   if (voltage) return pressure_pa_per_volt(p.sensitivity_mv_per_bar);
   if (!(p.sensitivity_pc_per_bar > 0.0 && p.amplifier_mv_per_pc > 0.0))
-    throw std::invalid_argument("comedi.pressure: a charge chain needs both sensitivity_pc_per_bar and amplifier_mv_per_pc");
+    throw std::invalid_argument(
+        "comedi.pressure: a charge chain needs both sensitivity_pc_per_bar and amplifier_mv_per_pc");
   return charge_pressure_pa_per_volt(p.sensitivity_pc_per_bar, p.amplifier_mv_per_pc);
 }
 
@@ -89,14 +92,17 @@ EdgeStreamConfig edge_stream_config(const ComediSourceConfig& c) {
 class ComediSource final : public Source {
  public:
   ComediSource(const ComediSourceConfig& config, const AcquisitionFactory& factory, std::int64_t epoch_utime)
-      : config_(config), edge_config_(edge_stream_config(config)), epoch_utime_(epoch_utime ? epoch_utime : wall_utime()) {
+      : config_(config),
+        edge_config_(edge_stream_config(config)),
+        epoch_utime_(epoch_utime ? epoch_utime : wall_utime()) {
     acquisition_configs_ = comedi_acquisitions(config);
     for (const ComediAcquisitionConfig& a : acquisition_configs_) {
       acquisitions_.push_back(factory ? factory(a) : open_comedi_acquisition(a));
       if (acquisitions_.back()->conversions().size() != a.channels.size())
         throw std::runtime_error("comedi " + acquisitions_.back()->where() + ": " +
-                                 std::to_string(acquisitions_.back()->conversions().size()) + " channel conversions for " +
-                                 std::to_string(a.channels.size()) + " configured channels");
+                                 std::to_string(acquisitions_.back()->conversions().size()) +
+                                 " channel conversions for " + std::to_string(a.channels.size()) +
+                                 " configured channels");
     }
     edge_count_ = acquisitions_.size() - 1;
     timestamp_acquisition_ = edge_config_.timestamp.stream;
@@ -121,7 +127,8 @@ class ComediSource final : public Source {
 
   void start(const Streams& streams) override {
     if (started_) throw std::logic_error("comedi source: start() while running; stop() first");
-    if (!streams.pressure || !streams.mics) throw std::invalid_argument("comedi source: start() needs the pressure and mic rings");
+    if (!streams.pressure || !streams.mics)
+      throw std::invalid_argument("comedi source: start() needs the pressure and mic rings");
     decoders_.clear();
     for (const auto& a : acquisitions_) decoders_.emplace_back(a->sample_width(), a->conversions());
     edge_ = std::make_unique<EdgeStreamAssembler>(edge_config_, epoch_utime_);
@@ -164,10 +171,14 @@ class ComediSource final : public Source {
     return true;
   }
 
-  std::vector<DriverThreadStatus> thread_status() const override { return {edge_worker_.status(), mic_worker_.status()}; }
+  std::vector<DriverThreadStatus> thread_status() const override {
+    return {edge_worker_.status(), mic_worker_.status()};
+  }
 
   std::vector<DriverCounter> counters() const override {
-    auto v = [](const std::atomic<std::uint64_t>& a) { return static_cast<std::int64_t>(a.load(std::memory_order_relaxed)); };
+    auto v = [](const std::atomic<std::uint64_t>& a) {
+      return static_cast<std::int64_t>(a.load(std::memory_order_relaxed));
+    };
     return {{"comedi.pressure.overruns", v(c_.pressure_overruns)},
             {"comedi.pressure.restarts", v(c_.pressure_restarts)},
             {"comedi.mics.overruns", v(c_.mic_overruns)},
@@ -208,8 +219,10 @@ class ComediSource final : public Source {
       const std::string rate_what = mic ? "the card's settled scan rate" : edge_rate_what(config_.encoder);
       const double rate = mic ? 1.0 / a.scan_period_s() : edge_scan_rate_hz(config_.encoder);
       const std::string note = buffer_note(a, acquisition_configs_[i], rate, rate_what);
-      if (config_.log_info) config_.log_info(note);
-      else std::fprintf(stderr, "%s\n", note.c_str());
+      if (config_.log_info)
+        config_.log_info(note);
+      else
+        std::fprintf(stderr, "%s\n", note.c_str());
     }
   }
 
@@ -336,7 +349,7 @@ class ComediSource final : public Source {
   std::int64_t epoch_utime_;
   StreamInfo info_;
   std::vector<ComediAcquisitionConfig> acquisition_configs_;  // as comedi_acquisitions() gives them
-  std::vector<std::unique_ptr<Acquisition>> acquisitions_;  // encoder-clocked ones, then the microphones
+  std::vector<std::unique_ptr<Acquisition>> acquisitions_;    // encoder-clocked ones, then the microphones
   std::size_t edge_count_ = 0;
   std::uint32_t timestamp_acquisition_ = 1;
   std::vector<ScanDecoder> decoders_;
@@ -392,8 +405,10 @@ ComediAcquisitionConfig pressure_acquisition(const ComediSourceConfig& c) {
   pc.si_per_volt = pressure_si_per_volt(c.pressure);
   p.channels.push_back(pc);
   if (c.pressure.cam_channel >= 0)
-    p.channels.push_back({.channel = static_cast<unsigned>(c.pressure.cam_channel), .range = c.pressure.cam_range,
-                          .aref = c.pressure.cam_aref, .si_per_volt = 1.0});
+    p.channels.push_back({.channel = static_cast<unsigned>(c.pressure.cam_channel),
+                          .range = c.pressure.cam_range,
+                          .aref = c.pressure.cam_aref,
+                          .si_per_volt = 1.0});
   else if (c.phase == PhaseSource::kCam)
     fail_config("comedi.phase = \"cam\" needs comedi.pressure.cam_channel");
   return p;
@@ -401,7 +416,8 @@ ComediAcquisitionConfig pressure_acquisition(const ComediSourceConfig& c) {
 
 // The encoder's counter: position (and timestamp, on its own subdevice when configured so) per edge.
 void add_encoder_acquisitions(const ComediSourceConfig& c, std::vector<ComediAcquisitionConfig>& out) {
-  if (c.encoder.subdevice < 0) fail_config("comedi.encoder.subdevice: set the counter subdevice that streams the encoder");
+  if (c.encoder.subdevice < 0)
+    fail_config("comedi.encoder.subdevice: set the counter subdevice that streams the encoder");
   ComediAcquisitionConfig e;
   e.device_path = c.encoder.device;
   e.subdevice = c.encoder.subdevice;
@@ -412,10 +428,18 @@ void add_encoder_acquisitions(const ComediSourceConfig& c, std::vector<ComediAcq
   e.use_soft_calibration = false;
   e.buffer_bytes = c.encoder.buffer_bytes;
   e.wake_every_scan = c.encoder.wake_every_scan;
-  const ComediChannelConfig position{.channel = c.encoder.position_channel, .range = 0, .aref = AREF_GROUND,
-                                     .si_per_volt = 1.0, .raw_counts = true, .counter_mode = c.encoder.position_counter_mode};
-  const ComediChannelConfig timestamp{.channel = c.encoder.timestamp_channel, .range = 0, .aref = AREF_GROUND,
-                                      .si_per_volt = 1.0, .raw_counts = true, .counter_mode = c.encoder.timestamp_counter_mode};
+  const ComediChannelConfig position{.channel = c.encoder.position_channel,
+                                     .range = 0,
+                                     .aref = AREF_GROUND,
+                                     .si_per_volt = 1.0,
+                                     .raw_counts = true,
+                                     .counter_mode = c.encoder.position_counter_mode};
+  const ComediChannelConfig timestamp{.channel = c.encoder.timestamp_channel,
+                                      .range = 0,
+                                      .aref = AREF_GROUND,
+                                      .si_per_volt = 1.0,
+                                      .raw_counts = true,
+                                      .counter_mode = c.encoder.timestamp_counter_mode};
   e.channels.push_back(position);
   if (c.encoder.timestamp_subdevice < 0) e.channels.push_back(timestamp);
   out.push_back(e);
@@ -434,12 +458,14 @@ ComediAcquisitionConfig mic_acquisition(const ComediSourceConfig& c) {
     fail_config("comedi.mics.channels: 1.." + std::to_string(SampleBlock::kMaxChannels) + " microphone channels");
   if (m.sensitivity_mv_per_pa.size() != m.channels.size())
     fail_config("comedi.mics.sensitivity_mv_per_pa: one sensitivity per channel (" + std::to_string(m.channels.size()) +
-         "), got " + std::to_string(m.sensitivity_mv_per_pa.size()));
+                "), got " + std::to_string(m.sensitivity_mv_per_pa.size()));
   if (m.positions_m.empty() && m.channels.size() > thesis_mic_positions().size())
-    fail_config("comedi.mics.positions_m: required for more than " + std::to_string(thesis_mic_positions().size()) + " microphones");
+    fail_config("comedi.mics.positions_m: required for more than " + std::to_string(thesis_mic_positions().size()) +
+                " microphones");
   if (!m.positions_m.empty() && m.positions_m.size() != m.channels.size())
     fail_config("comedi.mics.positions_m: one position per channel");
-  if (!(m.radius_m > 0.0) || !(m.speed_of_sound_m_s > 0.0)) fail_config("comedi.mics: radius_m and speed_of_sound_m_s must be positive");
+  if (!(m.radius_m > 0.0) || !(m.speed_of_sound_m_s > 0.0))
+    fail_config("comedi.mics: radius_m and speed_of_sound_m_s must be positive");
   ComediAcquisitionConfig mic;
   mic.device_path = m.device;
   mic.subdevice = m.subdevice;

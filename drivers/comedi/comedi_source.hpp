@@ -37,57 +37,57 @@ namespace noisemon::drivers {
 struct ComediSourceConfig {
   struct Pressure {
     std::string device = "/dev/comedi0";
-    int subdevice = -1;             // -1: the device's default streaming read subdevice
-    unsigned edge_trigger = 0;      // scan_begin_arg of the TRIG_EXT scan clock (the input wired to the encoder edge)
-    int start_trigger = -1;         // >= 0: start on this external trigger (the index line); -1: start at once
+    int subdevice = -1;         // -1: the device's default streaming read subdevice
+    unsigned edge_trigger = 0;  // scan_begin_arg of the TRIG_EXT scan clock (the input wired to the encoder edge)
+    int start_trigger = -1;     // >= 0: start on this external trigger (the index line); -1: start at once
     unsigned convert_src = TRIG_TIMER;
-    ComediChannelConfig channel;    // si_per_volt is set from the sensitivity below
+    ComediChannelConfig channel;          // si_per_volt is set from the sensitivity below
     double sensitivity_mv_per_bar = 0.0;  // voltage-output chain; or:
     double sensitivity_pc_per_bar = 0.0;  // charge-output transducer ...
     double amplifier_mv_per_pc = 0.0;     // ... behind a charge amplifier of this gain
-    int cam_channel = -1;           // analog channel of the cam sensor (V), scanned after the pressure; -1: none
+    int cam_channel = -1;                 // analog channel of the cam sensor (V), scanned after the pressure; -1: none
     unsigned cam_range = 0;
     unsigned cam_aref = AREF_GROUND;
-    double peg_pa = 0.0;            // > 0: relative sensor, pegged to this pressure at peg_angle_deg every cycle
+    double peg_pa = 0.0;  // > 0: relative sensor, pegged to this pressure at peg_angle_deg every cycle
     double peg_angle_deg = -180.0;
-    unsigned buffer_bytes = 0;      // > 0: the kernel acquisition buffer's size; 0: leave the driver's
-    bool wake_every_scan = false;   // CMDF_WAKE_EOS: wake the driver thread after every scan
+    unsigned buffer_bytes = 0;     // > 0: the kernel acquisition buffer's size; 0: leave the driver's
+    bool wake_every_scan = false;  // CMDF_WAKE_EOS: wake the driver thread after every scan
   } pressure;
 
   struct Encoder {
     std::string device = "/dev/comedi0";
-    int subdevice = -1;             // the counter subdevice (required)
+    int subdevice = -1;  // the counter subdevice (required)
     unsigned edge_trigger = 0;
     int start_trigger = -1;
     unsigned convert_src = TRIG_NOW;
     unsigned position_channel = 0;
-    int position_counter_mode = -1; // comedi_set_counter_mode bits (card-specific), -1: leave as configured
-    int timestamp_subdevice = -1;   // -1: the timestamp counter is on `subdevice`, scanned after the position
+    int position_counter_mode = -1;  // comedi_set_counter_mode bits (card-specific), -1: leave as configured
+    int timestamp_subdevice = -1;    // -1: the timestamp counter is on `subdevice`, scanned after the position
     unsigned timestamp_channel = 1;
     int timestamp_counter_mode = -1;
     TimestampMode timestamp_mode = TimestampMode::kAbsolute;
     double timebase_hz = 80e6;
     std::uint32_t timestamp_bits = 32;
     std::uint32_t counts_per_rev = 3600;
-    double index_angle_deg = 0.0;   // crank angle of the index pulse, degrees after a TDC
-    bool index_resets_counter = true;  // the index resets the position counter: each revolution's count is checked
-    std::uint32_t counts_per_edge = 1; // position counts between two clocking edges (4 for x4 decoding on one edge)
-    double max_rpm = 0.0;              // the engine's highest speed (sizes the resampler); 0: any encoder
-    unsigned buffer_bytes = 0;         // as for the pressure (also the separate timestamp subdevice's)
+    double index_angle_deg = 0.0;       // crank angle of the index pulse, degrees after a TDC
+    bool index_resets_counter = true;   // the index resets the position counter: each revolution's count is checked
+    std::uint32_t counts_per_edge = 1;  // position counts between two clocking edges (4 for x4 decoding on one edge)
+    double max_rpm = 0.0;               // the engine's highest speed (sizes the resampler); 0: any encoder
+    unsigned buffer_bytes = 0;          // as for the pressure (also the separate timestamp subdevice's)
     bool wake_every_scan = false;
   } encoder;
 
   PhaseSource phase = PhaseSource::kPressure;
   double cam_threshold_v = 2.5;
-  double cam_edge_deg = 0.0;        // crank angle of the cam signal's rising edge (0 = firing TDC)
+  double cam_edge_deg = 0.0;  // crank angle of the cam signal's rising edge (0 = firing TDC)
 
   struct Mics {
     std::string device = "/dev/comedi1";
     int subdevice = -1;
-    double scan_rate_hz = 50000.0;  // the settled rate must be a whole number of Hz
-    std::vector<ComediChannelConfig> channels;        // si_per_volt set from the sensitivities
-    std::vector<double> sensitivity_mv_per_pa;        // one per channel
-    std::vector<std::array<double, 3>> positions_m;   // empty: thesis Table 3.1 (up to 10 microphones)
+    double scan_rate_hz = 50000.0;                   // the settled rate must be a whole number of Hz
+    std::vector<ComediChannelConfig> channels;       // si_per_volt set from the sensitivities
+    std::vector<double> sensitivity_mv_per_pa;       // one per channel
+    std::vector<std::array<double, 3>> positions_m;  // empty: thesis Table 3.1 (up to 10 microphones)
     double radius_m = 1.75;
     double speed_of_sound_m_s = 343.0;
     unsigned buffer_bytes = 0;
@@ -115,13 +115,13 @@ class Acquisition {
   virtual int fd() const = 0;
   virtual SampleWidth sample_width() const = 0;
   virtual const std::vector<ChannelConversion>& conversions() const = 0;  // raw -> SI, channel-list order
-  virtual double scan_period_s() const = 0;  // timed acquisitions, after start(); 0 for externally clocked
-  virtual void start() = 0;                  // issues the command; throws naming the device on failure
-  virtual bool restart() = 0;                // after an overrun: re-issue; false on failure
-  virtual void cancel() = 0;                 // stop acquiring (unblocks readers)
+  virtual double scan_period_s() const = 0;       // timed acquisitions, after start(); 0 for externally clocked
+  virtual void start() = 0;                       // issues the command; throws naming the device on failure
+  virtual bool restart() = 0;                     // after an overrun: re-issue; false on failure
+  virtual void cancel() = 0;                      // stop acquiring (unblocks readers)
   virtual std::int64_t origin_utime() const = 0;  // host time of the first timer tick of the latest (re)start
   virtual ReadFunction read_function() const { return {}; }  // empty: ::read
-  virtual unsigned buffer_bytes() const { return 0; }  // the kernel buffer's size; 0: no kernel buffer
+  virtual unsigned buffer_bytes() const { return 0; }        // the kernel buffer's size; 0: no kernel buffer
 };
 
 // The libcomedi-backed Acquisition (ComediDevice); origin_utime is the host time around comedi_command.

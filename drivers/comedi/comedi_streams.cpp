@@ -11,16 +11,16 @@
 namespace noisemon::drivers {
 namespace {
 
-constexpr std::size_t kEdgeBatch = 1024;       // edges per resampler call
-constexpr std::size_t kOutFrames = 8192;       // resampler output room per call (frames)
-constexpr std::size_t kHistory = 1 << 15;      // recent edges kept for the crank-angle interpolation
-constexpr double kTdcWindowDeg = 30.0;         // pressure rise measured over TDC +- this
-constexpr double kFiringRiseRatio = 3.0;       // firing TDC's rise must exceed the other TDC's by this factor
-constexpr int kMismatchesToCorrect = 2;        // consecutive contrary phase votes before re-phasing
-constexpr std::size_t kCardBatch = 1024;       // card scans per resampler call
+constexpr std::size_t kEdgeBatch = 1024;   // edges per resampler call
+constexpr std::size_t kOutFrames = 8192;   // resampler output room per call (frames)
+constexpr std::size_t kHistory = 1 << 15;  // recent edges kept for the crank-angle interpolation
+constexpr double kTdcWindowDeg = 30.0;     // pressure rise measured over TDC +- this
+constexpr double kFiringRiseRatio = 3.0;   // firing TDC's rise must exceed the other TDC's by this factor
+constexpr int kMismatchesToCorrect = 2;    // consecutive contrary phase votes before re-phasing
+constexpr std::size_t kCardBatch = 1024;   // card scans per resampler call
 // Encoder checks only (index_resets_counter):
-constexpr double kMaxEdgeGapS = 0.05;          // no edge for this long: the resampler starts afresh (a gap)
-constexpr double kMaxBatchSpanS = 0.1;         // a batch spanning this long is resampled at once (slow edges)
+constexpr double kMaxEdgeGapS = 0.05;   // no edge for this long: the resampler starts afresh (a gap)
+constexpr double kMaxBatchSpanS = 0.1;  // a batch spanning this long is resampled at once (slow edges)
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 
 std::int64_t floor_mod2(std::int64_t j) { return ((j % 2) + 2) % 2; }
@@ -67,8 +67,10 @@ EdgeStreamAssembler::EdgeStreamAssembler(const EdgeStreamConfig& config, std::in
   if (c.phase == PhaseSource::kCam && !c.cam) fail("phase from the cam needs a cam channel");
   if (c.counts_per_rev < 4) fail("counts_per_rev must be at least 4");
   if (!(c.timebase_hz > 0.0)) fail("timebase_hz must be positive");
-  if (c.timestamp_bits < 8 || c.timestamp_bits > 32) fail("timestamp_bits must be in [8, 32] (comedi samples are 32-bit at most)");
-  if (c.peg_pa > 0.0 && !(c.peg_window_deg > 0.0 && c.peg_window_deg < 180.0)) fail("peg_window_deg must be in (0, 180)");
+  if (c.timestamp_bits < 8 || c.timestamp_bits > 32)
+    fail("timestamp_bits must be in [8, 32] (comedi samples are 32-bit at most)");
+  if (c.peg_pa > 0.0 && !(c.peg_window_deg > 0.0 && c.peg_window_deg < 180.0))
+    fail("peg_window_deg must be in (0, 180)");
   if (c.max_scan_skew == 0) fail("max_scan_skew must be positive");
   if (c.index_resets_counter) {
     if (c.counts_per_edge == 0 || c.counts_per_rev % c.counts_per_edge != 0 || c.counts_per_rev / c.counts_per_edge < 4)
@@ -168,7 +170,8 @@ void EdgeStreamAssembler::add_edge(std::uint64_t position, std::uint64_t ticks_r
   else
     count_plain(position);
   const double t = origin_s_ + static_cast<double>(ticks_) / config_.timebase_hz;
-  const double psi = static_cast<double>(count_) * 360.0 / static_cast<double>(config_.counts_per_rev) + config_.index_angle_deg;
+  const double psi =
+      static_cast<double>(count_) * 360.0 / static_cast<double>(config_.counts_per_rev) + config_.index_angle_deg;
   if (psi_valid_) track_phase(psi, pressure, cam, continuous);
   have_prev_ = true;
   prev_psi_ = psi;
@@ -194,7 +197,8 @@ bool EdgeStreamAssembler::advance_time(std::uint64_t ticks_raw) {
   if (!have_prev_) {
     ticks_ = raw;
   } else {
-    const std::uint64_t delta = config_.timestamp_mode == TimestampMode::kAbsolute ? (raw - prev_ticks_raw_) & tick_mask_ : raw;
+    const std::uint64_t delta =
+        config_.timestamp_mode == TimestampMode::kAbsolute ? (raw - prev_ticks_raw_) & tick_mask_ : raw;
     if (delta == 0) {
       ++counters_.encoder_errors;
       return false;
@@ -238,7 +242,8 @@ bool EdgeStreamAssembler::count_checked(std::uint32_t raw, bool first, BlockRing
     return false;
   }
   const auto step = static_cast<std::int64_t>(static_cast<std::int32_t>(static_cast<std::uint32_t>(raw - prev)));
-  if (step < 0 && raw < slack_ && static_cast<std::uint64_t>(-step) >= cpr / 2) return close_revolution(raw, prev, ring);
+  if (step < 0 && raw < slack_ && static_cast<std::uint64_t>(-step) >= cpr / 2)
+    return close_revolution(raw, prev, ring);
   if (step < 0 || static_cast<std::uint64_t>(step) > slack_) {
     // Counting down (reverse rotation, a direction fault) or a jump the count cannot follow (a glitch, a wrap
     // of a narrower register): the raw position means nothing until the next index.
@@ -354,8 +359,10 @@ void EdgeStreamAssembler::track_phase(double psi, double pressure, double cam, b
       const double rise = window_.hi - window_.lo;
       const std::int64_t j = window_.tdc;
       if (last_tdc_.valid && last_tdc_.index == j - 1) {
-        if (rise > kFiringRiseRatio * last_tdc_.rise) vote(static_cast<int>(floor_mod2(j)));
-        else if (last_tdc_.rise > kFiringRiseRatio * rise) vote(static_cast<int>(floor_mod2(j - 1)));
+        if (rise > kFiringRiseRatio * last_tdc_.rise)
+          vote(static_cast<int>(floor_mod2(j)));
+        else if (last_tdc_.rise > kFiringRiseRatio * rise)
+          vote(static_cast<int>(floor_mod2(j - 1)));
       }
       last_tdc_ = {j, rise, true};
     }
@@ -567,8 +574,9 @@ namespace {
 double whole_rate(double hz) {
   const double r = std::round(hz);
   if (!(r >= 1.0) || std::abs(hz - r) > 1e-6 * r)
-    throw std::invalid_argument("card scan rate " + std::to_string(hz) +
-                                " Hz is not a whole number of Hz (choose a rate whose period the card's timer hits exactly, e.g. 50000)");
+    throw std::invalid_argument(
+        "card scan rate " + std::to_string(hz) +
+        " Hz is not a whole number of Hz (choose a rate whose period the card's timer hits exactly, e.g. 50000)");
   return r;
 }
 }  // namespace
@@ -590,7 +598,8 @@ TimedStreamAssembler::~TimedStreamAssembler() = default;
 void TimedStreamAssembler::restart(std::int64_t origin_utime) {
   // 40 kHz frames are 25 us apart.
   first_index_ = std::llround(static_cast<double>(origin_utime - epoch_utime_) / 25.0);
-  resampler_ = dsp::RationalResampler(card_rate_hz_, kPipelineRateHz, channels_, dsp::SamplePrecision::kSingle);  // ADC words
+  resampler_ =
+      dsp::RationalResampler(card_rate_hz_, kPipelineRateHz, channels_, dsp::SamplePrecision::kSingle);  // ADC words
   batch_ = 0;
 }
 

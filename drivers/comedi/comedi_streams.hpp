@@ -67,16 +67,16 @@ struct EdgeStreamConfig {
   std::uint32_t counts_per_rev = 3600;  // position counts per crank revolution
   double index_angle_deg = 0.0;         // crank angle at position 0 (the index), degrees after a TDC
   double timebase_hz = 80e6;
-  std::uint32_t timestamp_bits = 32;    // the timebase counter wraps at 2^bits
+  std::uint32_t timestamp_bits = 32;  // the timebase counter wraps at 2^bits
   TimestampMode timestamp_mode = TimestampMode::kAbsolute;
 
   PhaseSource phase = PhaseSource::kPressure;
   double cam_threshold_v = 2.5;
   double cam_edge_deg = 0.0;  // crank angle of the cam signal's rising edge, 0 = firing TDC, within +-180 deg
 
-  double peg_pa = 0.0;           // > 0: the pressure at peg_angle_deg is set to this every cycle (relative sensor)
-  double peg_angle_deg = -180.0; // intake BDC
-  double peg_window_deg = 10.0;  // mean over this crank-angle width around peg_angle_deg
+  double peg_pa = 0.0;            // > 0: the pressure at peg_angle_deg is set to this every cycle (relative sensor)
+  double peg_angle_deg = -180.0;  // intake BDC
+  double peg_window_deg = 10.0;   // mean over this crank-angle width around peg_angle_deg
 
   std::size_t max_scan_skew = 65536;  // scans one subdevice may run ahead of another before it is an error
 
@@ -95,11 +95,11 @@ struct EdgeStreamConfig {
 double max_edge_rate_hz(std::uint32_t counts_per_rev, std::uint32_t counts_per_edge, double max_rpm);
 
 struct EdgeStreamCounters {
-  std::uint64_t edges = 0;             // paired encoder-clocked scans
-  std::uint64_t edges_before_lock = 0; // not output: cam phase (or the first pegging) not known yet
-  std::uint64_t encoder_errors = 0;    // position stepping backwards (or jumping), timestamps not increasing
-  std::uint64_t phase_corrections = 0; // firing/gas-exchange TDC re-decided while running
-  std::uint64_t frames = 0;            // 40 kHz frames written
+  std::uint64_t edges = 0;              // paired encoder-clocked scans
+  std::uint64_t edges_before_lock = 0;  // not output: cam phase (or the first pegging) not known yet
+  std::uint64_t encoder_errors = 0;     // position stepping backwards (or jumping), timestamps not increasing
+  std::uint64_t phase_corrections = 0;  // firing/gas-exchange TDC re-decided while running
+  std::uint64_t frames = 0;             // 40 kHz frames written
   // index_resets_counter only:
   std::uint64_t revolutions_checked = 0;  // revolutions from one index to the next whose count was checked
   std::uint64_t revolutions_flagged = 0;  // of those, failed a check (NaN crank)
@@ -173,8 +173,8 @@ class EdgeStreamAssembler {
   // Edge state.
   bool have_prev_ = false;
   std::uint64_t prev_ticks_raw_ = 0, prev_position_ = 0;  // prev_position_: modulo counts_per_rev, or raw
-  std::uint64_t ticks_ = 0;  // unwrapped timebase count since the origin
-  std::int64_t count_ = 0;   // unwrapped position count
+  std::uint64_t ticks_ = 0;                               // unwrapped timebase count since the origin
+  std::int64_t count_ = 0;                                // unwrapped position count
   std::uint64_t tick_mask_;
   double prev_psi_ = 0.0, prev_cam_ = 0.0;
 
@@ -182,8 +182,16 @@ class EdgeStreamAssembler {
   bool locked_ = false;
   int phase_ = 0;
   int mismatches_ = 0;
-  struct Window { std::int64_t tdc = 0; double lo = 0, hi = 0; bool open = false, complete = false; } window_;
-  struct Tdc { std::int64_t index = 0; double rise = 0; bool valid = false; } last_tdc_;
+  struct Window {
+    std::int64_t tdc = 0;
+    double lo = 0, hi = 0;
+    bool open = false, complete = false;
+  } window_;
+  struct Tdc {
+    std::int64_t index = 0;
+    double rise = 0;
+    bool valid = false;
+  } last_tdc_;
 
   // Encoder checks (index_resets_counter). The revolution being counted: opened by an index (or the part one
   // after a (re)start); `bad` once a check failed or its edges were released unconfirmed: its edges then go
@@ -196,8 +204,10 @@ class EdgeStreamAssembler {
   bool psi_valid_ = true;             // the unwrapped count follows the crank (false from a sync fault to an index)
   bool output_ = false;               // the first lock (and pegging) since the (re)start is done: edges go out
   bool release_on_lock_ = false;      // the phase was just decided again: release the confirmed revolution
-  struct Held { double t, x, psi; };
-  std::vector<Held> held_;            // ring: a confirmed revolution awaiting its phase, then the open one
+  struct Held {
+    double t, x, psi;
+  };
+  std::vector<Held> held_;  // ring: a confirmed revolution awaiting its phase, then the open one
   std::size_t held_head_ = 0, held_n_ = 0, confirmed_n_ = 0;
 
   // Pegging: peg_offset_ is cycle peg_cycle_'s, peg_prev_offset_ the cycle's before; edges of a later cycle wait.
@@ -212,7 +222,9 @@ class EdgeStreamAssembler {
   dsp::NonuniformResampler resampler_;
   std::vector<double> t_, x_, out_;
   std::size_t batch_ = 0;
-  struct Edge { double t, theta; };
+  struct Edge {
+    double t, theta;
+  };
   std::vector<Edge> history_;  // ring of recent edges for the crank-angle interpolation
   std::uint64_t history_end_ = 0, cursor_ = 0;
   bool have_fed_ = false;  // the resampler has had an edge (since the last (soft) restart)

@@ -28,7 +28,9 @@ std::string hex_id(std::uint32_t id) {
 void validate_can_signal(const CanSignal& s) {
   const std::uint32_t max_id = s.extended ? kMaxExtendedId : kMaxStandardId;
   if (s.id > max_id) {
-    throw std::invalid_argument("id " + hex_id(s.id) + (s.extended ? " exceeds 29 bits" : " exceeds 11 bits (set extended = true for a 29-bit id)"));
+    throw std::invalid_argument(
+        "id " + hex_id(s.id) +
+        (s.extended ? " exceeds 29 bits" : " exceeds 11 bits (set extended = true for a 29-bit id)"));
   }
   if (s.length < 1 || s.length > 64) throw std::invalid_argument("length must be 1..64 bits");
   if (s.start_bit > 63) throw std::invalid_argument("start_bit must be 0..63");
@@ -46,7 +48,7 @@ void validate_can_signal(const CanSignal& s) {
 
 std::uint32_t can_signal_min_dlc(const CanSignal& s) {
   const std::uint32_t last_bit = s.byte_order == CanByteOrder::kIntel ? s.start_bit + s.length - 1
-                                                                       : motorola_msb_index(s.start_bit) + s.length - 1;
+                                                                      : motorola_msb_index(s.start_bit) + s.length - 1;
   return last_bit / 8 + 1;
 }
 
@@ -90,11 +92,21 @@ int CanSignalMap::decode(const CanFrame& frame, OperatingPoint& op) const {
     if (s.id != frame.id || s.extended != frame.extended || frame.dlc < min_dlc_[i]) continue;
     const double v = can_signal_value(s, frame.data);
     switch (s.field) {
-      case OperatingPointField::kSpeedRpm: op.speed_rpm = v; break;
-      case OperatingPointField::kLoadNm: op.load_nm = v; break;
-      case OperatingPointField::kSoiDegBtdc: op.soi_deg_btdc = v; break;
-      case OperatingPointField::kRailPressureBar: op.rail_pressure_bar = v; break;
-      case OperatingPointField::kMotored: op.motored = v != 0.0; break;
+      case OperatingPointField::kSpeedRpm:
+        op.speed_rpm = v;
+        break;
+      case OperatingPointField::kLoadNm:
+        op.load_nm = v;
+        break;
+      case OperatingPointField::kSoiDegBtdc:
+        op.soi_deg_btdc = v;
+        break;
+      case OperatingPointField::kRailPressureBar:
+        op.rail_pressure_bar = v;
+        break;
+      case OperatingPointField::kMotored:
+        op.motored = v != 0.0;
+        break;
     }
     ++set;
   }
@@ -103,11 +115,16 @@ int CanSignalMap::decode(const CanFrame& frame, OperatingPoint& op) const {
 
 const char* to_string(OperatingPointField f) {
   switch (f) {
-    case OperatingPointField::kSpeedRpm: return "speed_rpm";
-    case OperatingPointField::kLoadNm: return "load_nm";
-    case OperatingPointField::kSoiDegBtdc: return "soi_deg_btdc";
-    case OperatingPointField::kRailPressureBar: return "rail_pressure_bar";
-    case OperatingPointField::kMotored: return "motored";
+    case OperatingPointField::kSpeedRpm:
+      return "speed_rpm";
+    case OperatingPointField::kLoadNm:
+      return "load_nm";
+    case OperatingPointField::kSoiDegBtdc:
+      return "soi_deg_btdc";
+    case OperatingPointField::kRailPressureBar:
+      return "rail_pressure_bar";
+    case OperatingPointField::kMotored:
+      return "motored";
   }
   return "?";
 }
@@ -130,7 +147,9 @@ class SignalReader {
     if (!n) return std::nullopt;
     if (!n->is_integer()) fail(key, "expected an integer");
     const std::int64_t v = *n->value<std::int64_t>();
-    if (v < min || v > max) fail(key, "value " + std::to_string(v) + " out of range [" + std::to_string(min) + ", " + std::to_string(max) + "]");
+    if (v < min || v > max)
+      fail(key,
+           "value " + std::to_string(v) + " out of range [" + std::to_string(min) + ", " + std::to_string(max) + "]");
     return v;
   }
   std::optional<double> number(const char* key) {
@@ -172,7 +191,8 @@ OperatingPointField parse_field(SignalReader& r, const std::string& name) {
   for (auto f : {OperatingPointField::kSpeedRpm, OperatingPointField::kLoadNm, OperatingPointField::kSoiDegBtdc,
                  OperatingPointField::kRailPressureBar, OperatingPointField::kMotored})
     if (name == to_string(f)) return f;
-  r.fail("field", "unknown field '" + name + "' (expected speed_rpm, load_nm, soi_deg_btdc, rail_pressure_bar or motored)");
+  r.fail("field",
+         "unknown field '" + name + "' (expected speed_rpm, load_nm, soi_deg_btdc, rail_pressure_bar or motored)");
 }
 
 }  // namespace
@@ -199,9 +219,12 @@ CanSignalMap parse_can_signal_map(const toml::table& root, const std::string& or
     s.start_bit = static_cast<std::uint32_t>(*r.integer("start_bit", true, 0, 63));
     s.length = static_cast<std::uint32_t>(*r.integer("length", true, 1, 64));
     const std::string order = *r.string("byte_order", true);
-    if (order == "intel") s.byte_order = CanByteOrder::kIntel;
-    else if (order == "motorola") s.byte_order = CanByteOrder::kMotorola;
-    else r.fail("byte_order", "expected \"intel\" or \"motorola\", got '" + order + "'");
+    if (order == "intel")
+      s.byte_order = CanByteOrder::kIntel;
+    else if (order == "motorola")
+      s.byte_order = CanByteOrder::kMotorola;
+    else
+      r.fail("byte_order", "expected \"intel\" or \"motorola\", got '" + order + "'");
     s.is_signed = r.boolean("signed").value_or(false);
     s.factor = r.number("factor").value_or(1.0);
     s.offset = r.number("offset").value_or(0.0);

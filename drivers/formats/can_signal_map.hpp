@@ -3,9 +3,9 @@
 // field it sets. Built once from the config; decoding a frame allocates nothing.
 #pragma once
 
+#include <toml++/toml.h>
 #include <cstdint>
 #include <string>
-#include <toml++/toml.h>
 #include <vector>
 
 #include "drivers/source.hpp"

@@ -15,7 +15,7 @@ namespace noisemon::drivers {
 struct CandumpRecord {
   std::int64_t utime = 0;  // microseconds since the Unix epoch
   std::string interface;
-  CanFrame frame;          // for a remote frame: dlc as requested, data zero
+  CanFrame frame;  // for a remote frame: dlc as requested, data zero
   bool remote = false;
 };
 

@@ -128,7 +128,8 @@ bool LcmLogReader::next(LcmLogEvent& e) {
     }
     e.eventnum = eventnum;
     e.timestamp = timestamp;
-    e.channel = std::string_view(reinterpret_cast<const char*>(data_ + m + kHeaderBytes), static_cast<std::size_t>(channel_len));
+    e.channel = std::string_view(reinterpret_cast<const char*>(data_ + m + kHeaderBytes),
+                                 static_cast<std::size_t>(channel_len));
     e.data = data_ + m + kHeaderBytes + channel_len;
     e.datalen = data_len;
     e.offset = m;

@@ -64,7 +64,7 @@ struct RawEvent {
   std::int8_t stream = 0;        // kBlock: noisemon::raw_block_t::STREAM_PRESSURE, STREAM_MICS or STREAM_PRESSURE_ANGLE
   SampleBlock block;             // kBlock
   OperatingPoint operating_point;
-  std::string reason;            // kDamaged, kBadBlock, kOtherSessionBlock
+  std::string reason;  // kDamaged, kBadBlock, kOtherSessionBlock
 };
 
 // The ring of `streams` a raw block of `stream` (noisemon::raw_block_t::STREAM_*) goes to; nullptr when it has none

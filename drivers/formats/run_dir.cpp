@@ -92,13 +92,20 @@ class MappedFile {
 
 const char* json_type_name(const json& v) {
   switch (v.type()) {
-    case json::value_t::null: return "null";
-    case json::value_t::boolean: return "a boolean";
-    case json::value_t::string: return "a string";
-    case json::value_t::array: return "an array";
-    case json::value_t::object: return "an object";
-    case json::value_t::discarded: return "nothing";
-    default: return "a number";
+    case json::value_t::null:
+      return "null";
+    case json::value_t::boolean:
+      return "a boolean";
+    case json::value_t::string:
+      return "a string";
+    case json::value_t::array:
+      return "an array";
+    case json::value_t::object:
+      return "an object";
+    case json::value_t::discarded:
+      return "nothing";
+    default:
+      return "a number";
   }
 }
 
@@ -126,7 +133,8 @@ class JsonFields {
   }
   std::string string(const json& obj, const std::string& parent, const char* key, const char* meaning) const {
     const json* v = find(obj, parent, key, true, meaning);
-    if (!v->is_string()) fail(join(parent, key), std::string("expected a string (") + meaning + "), found " + json_type_name(*v));
+    if (!v->is_string())
+      fail(join(parent, key), std::string("expected a string (") + meaning + "), found " + json_type_name(*v));
     return v->get<std::string>();
   }
   double number(const json& v, const std::string& key, const char* meaning) const {
@@ -142,17 +150,22 @@ class JsonFields {
   double number_or_null(const json& obj, const std::string& parent, const char* key, const char* meaning) const {
     const json* v = find(obj, parent, key, true, meaning);
     if (v->is_null()) return std::numeric_limits<double>::quiet_NaN();
-    if (!v->is_number()) fail(join(parent, key), std::string("expected a number or null (") + meaning + "), found " + json_type_name(*v));
+    if (!v->is_number())
+      fail(join(parent, key), std::string("expected a number or null (") + meaning + "), found " + json_type_name(*v));
     return number(*v, join(parent, key), meaning);
   }
-  std::optional<bool> boolean_or_null(const json& obj, const std::string& parent, const char* key, const char* meaning) const {
+  std::optional<bool> boolean_or_null(const json& obj, const std::string& parent, const char* key,
+                                      const char* meaning) const {
     const json* v = find(obj, parent, key, true, meaning);
     if (v->is_null()) return std::nullopt;
     if (!v->is_boolean())
-      fail(join(parent, key), std::string("expected true, false or null (") + meaning + "), found " + json_type_name(*v));
+      fail(join(parent, key),
+           std::string("expected true, false or null (") + meaning + "), found " + json_type_name(*v));
     return v->get<bool>();
   }
-  static std::string join(const std::string& parent, const char* key) { return parent.empty() ? key : parent + "." + key; }
+  static std::string join(const std::string& parent, const char* key) {
+    return parent.empty() ? key : parent + "." + key;
+  }
 
  private:
   std::string file_;
@@ -203,16 +216,26 @@ sf_count_t mem_tell(void* user) { return static_cast<MemoryFile*>(user)->pos; }
 
 const char* subtype_name(int subtype) {
   switch (subtype) {
-    case SF_FORMAT_PCM_S8: return "8-bit signed PCM";
-    case SF_FORMAT_PCM_U8: return "8-bit unsigned PCM";
-    case SF_FORMAT_PCM_16: return "16-bit PCM";
-    case SF_FORMAT_PCM_24: return "24-bit PCM";
-    case SF_FORMAT_PCM_32: return "32-bit PCM";
-    case SF_FORMAT_FLOAT: return "32-bit IEEE float";
-    case SF_FORMAT_DOUBLE: return "64-bit IEEE float";
-    case SF_FORMAT_ULAW: return "u-law";
-    case SF_FORMAT_ALAW: return "A-law";
-    default: return "a compressed or unusual encoding";
+    case SF_FORMAT_PCM_S8:
+      return "8-bit signed PCM";
+    case SF_FORMAT_PCM_U8:
+      return "8-bit unsigned PCM";
+    case SF_FORMAT_PCM_16:
+      return "16-bit PCM";
+    case SF_FORMAT_PCM_24:
+      return "24-bit PCM";
+    case SF_FORMAT_PCM_32:
+      return "32-bit PCM";
+    case SF_FORMAT_FLOAT:
+      return "32-bit IEEE float";
+    case SF_FORMAT_DOUBLE:
+      return "64-bit IEEE float";
+    case SF_FORMAT_ULAW:
+      return "u-law";
+    case SF_FORMAT_ALAW:
+      return "A-law";
+    default:
+      return "a compressed or unusual encoding";
   }
 }
 
@@ -250,8 +273,8 @@ void read_samples(SNDFILE* sf, sf_count_t frames, const std::string& file, std::
     throw RunDirError(file + ": ends after frame " + std::to_string(done) + " of " + std::to_string(frames) +
                       " (truncated or damaged)");
   if (bad < mic.size())
-    throw RunDirError(file + ": frame " + std::to_string(bad / channels) + ", channel " + std::to_string(bad % channels + 1) +
-                      ": not a finite number");
+    throw RunDirError(file + ": frame " + std::to_string(bad / channels) + ", channel " +
+                      std::to_string(bad % channels + 1) + ": not a finite number");
 }
 
 // Checks and reads an opened sound file into run (closes it).
@@ -286,10 +309,11 @@ void read_sound(SNDFILE* sf, const SF_INFO& info, const std::string& file, std::
     try {
       dsp::RationalResampler probe(rate, kPipelineRateHz, 1);
     } catch (const std::invalid_argument&) {
-      throw RunDirError(file + ": sample rate " + std::to_string(info.samplerate) +
-                        " Hz cannot be resampled to 40000 Hz (the ratio needs more than 4096 filter phases or decimates by "
-                        "more than 4096); "
-                        "expected a common rate such as 44100, 48000, 51200 or 96000 Hz");
+      throw RunDirError(
+          file + ": sample rate " + std::to_string(info.samplerate) +
+          " Hz cannot be resampled to 40000 Hz (the ratio needs more than 4096 filter phases or decimates by "
+          "more than 4096); "
+          "expected a common rate such as 44100, 48000, 51200 or 96000 Hz");
     }
   }
   if (info.frames <= 0) throw RunDirError(file + ": no samples");
@@ -299,8 +323,8 @@ void read_sound(SNDFILE* sf, const SF_INFO& info, const std::string& file, std::
   if (const char* d = std::strstr(log, "\ndata : ")) {
     long long claimed = 0, actual = 0;
     if (std::sscanf(d, "\ndata : %lld (should be %lld)", &claimed, &actual) == 2 && actual < claimed)
-      throw RunDirError(file + ": truncated: the header promises " + std::to_string(claimed) + " bytes of samples, the file holds " +
-                        std::to_string(actual));
+      throw RunDirError(file + ": truncated: the header promises " + std::to_string(claimed) +
+                        " bytes of samples, the file holds " + std::to_string(actual));
   }
   run.mic_rate_hz = rate;
   run.mic_count = channels;
@@ -355,7 +379,8 @@ void parse_pressure_entry(const JsonFields& f, const json& p, RunManifest& m) {
       f.fail("pressure.noise_floor_bar", "expected a noise floor >= 0 bar rms per encoder sample, or null (unknown)");
     m.pressure_noise_floor_bar = floor;
   }
-  m.pressure_edges_per_rev = optional_positive(f, p, "pressure", "encoder_edges_per_rev", "encoder edges per revolution");
+  m.pressure_edges_per_rev =
+      optional_positive(f, p, "pressure", "encoder_edges_per_rev", "encoder edges per revolution");
 }
 
 void parse_mics_entry(const JsonFields& f, const json& mics, RunManifest& m) {
@@ -372,7 +397,8 @@ void parse_mics_entry(const JsonFields& f, const json& mics, RunManifest& m) {
     const json& xyz = (*pos)[i];
     const std::string key = "mics.positions_m[" + std::to_string(i) + "]";
     if (!xyz.is_array() || xyz.size() != 3) f.fail(key, "expected [x, y, z] in m");
-    m.mic_positions_m.push_back({f.number(xyz[0], key, "x, m"), f.number(xyz[1], key, "y, m"), f.number(xyz[2], key, "z, m")});
+    m.mic_positions_m.push_back(
+        {f.number(xyz[0], key, "x, m"), f.number(xyz[1], key, "y, m"), f.number(xyz[2], key, "z, m")});
   }
   if (const json* r = f.find(mics, "mics", "radius_m", false, "")) {
     m.radius_m = f.number(*r, "mics.radius_m", "measurement radius, m");
@@ -518,7 +544,8 @@ void parse_rows_sequential(std::string_view text, const std::string& file, doubl
     append_row(run, v, to_pa, line, file, line_no);
   }
   if (line_no == 0) throw RunDirError(file + ": empty file, expected the header \"" + kCsvHeader + "\" and rows");
-  if (run.time_s.size() < 2) throw RunDirError(file + ": " + std::to_string(run.time_s.size()) + " data rows, expected at least 2");
+  if (run.time_s.size() < 2)
+    throw RunDirError(file + ": " + std::to_string(run.time_s.size()) + " data rows, expected at least 2");
 }
 
 // ------------------------------------------------------------------------------------------------ CSV fast path
@@ -534,8 +561,8 @@ constexpr std::size_t kReleaseBytes = std::size_t{8} << 20;      // mapped pages
 struct CsvPart {
   std::string_view text;  // whole lines of the data
   std::vector<double> t, crank, p;
-  bool plain = true;         // every line was a plain row, or only blank lines follow the last row
-  bool blank_end = false;    // stopped at a blank line (only blank lines follow in this part)
+  bool plain = true;       // every line was a plain row, or only blank lines follow the last row
+  bool blank_end = false;  // stopped at a blank line (only blank lines follow in this part)
 
   void reserve(std::size_t rows) {
     for (std::vector<double>* column : {&t, &crank, &p}) {
@@ -586,7 +613,8 @@ void parse_part(CsvPart& part, double to_pa, const MappedFile* map) {
       return;
     }
     const double pa = v[2] * to_pa;
-    const bool follows = part.t.empty() || (time_increases(v[0], part.t.back()) && crank_increases(v[1], part.crank.back()));
+    const bool follows =
+        part.t.empty() || (time_increases(v[0], part.t.back()) && crank_increases(v[1], part.crank.back()));
     if (!follows || !pressure_in_range(pa)) {
       part.plain = false;
       return;
@@ -780,7 +808,8 @@ RunDir read_run_dir(const std::filesystem::path& dir) {
   run_both([&] { read_pressure(dir, m, run); },
            [&] {
              if (m.has_mics)
-               read_mics_wav(dir / m.mics_file, static_cast<std::uint32_t>(m.mic_positions_m.size()), m.full_scale_pa, run);
+               read_mics_wav(dir / m.mics_file, static_cast<std::uint32_t>(m.mic_positions_m.size()), m.full_scale_pa,
+                             run);
            });
   if (m.has_mics) {
     run.mic_positions_m = m.mic_positions_m;
@@ -840,9 +869,11 @@ void write_run_dir(const std::filesystem::path& dir, const RunDir& run, const st
   if (run.crank_deg.size() != n || run.pressure_pa.size() != n)
     throw RunDirError(dir.string() + ": time, crank and pressure columns of different lengths");
   if (run.mic_count > 0 && (run.mic_positions_m.size() != run.mic_count || run.mic_pa.size() % run.mic_count != 0))
-    throw RunDirError(dir.string() + ": microphone data does not match the " + std::to_string(run.mic_count) + " positions");
+    throw RunDirError(dir.string() + ": microphone data does not match the " + std::to_string(run.mic_count) +
+                      " positions");
   if (const auto& floor = run.pressure_noise_floor_bar; floor && !(*floor >= 0 && std::isfinite(*floor)))
-    throw RunDirError(dir.string() + ": pressure noise floor " + std::to_string(*floor) + " bar, expected a finite value >= 0");
+    throw RunDirError(dir.string() + ": pressure noise floor " + std::to_string(*floor) +
+                      " bar, expected a finite value >= 0");
   std::error_code ec;
   std::filesystem::create_directories(dir, ec);
   if (ec) throw RunDirError(dir.string() + ": cannot create directory (" + ec.message() + ")");

@@ -26,28 +26,28 @@ namespace noisemon::drivers {
 // made-up number: a motored run's SOI (no injection), a load that was not recorded, a speed that is to be
 // measured from the encoder (encoder_speed_rpm). Code that needs an unknown value names the run and the key.
 struct RunCondition {
-  std::string name;                        // e.g. "idle_mi12"
-  double speed_rpm = 0.0;                  // NaN: unknown (measured from the encoder where a number is needed)
-  double load_nm = 0.0;                    // NaN: unknown
-  double soi_deg_btdc = 0.0;               // NaN: unknown or not applicable (motored: no injection)
-  std::optional<double> rail_pressure_bar; // null in run.json when unknown
-  bool motored = false;                    // false when unknown (motored_known false): what a message publishes
-  bool motored_known = true;               // false: run.json's "motored" is null; ask before using `motored`
+  std::string name;                         // e.g. "idle_mi12"
+  double speed_rpm = 0.0;                   // NaN: unknown (measured from the encoder where a number is needed)
+  double load_nm = 0.0;                     // NaN: unknown
+  double soi_deg_btdc = 0.0;                // NaN: unknown or not applicable (motored: no injection)
+  std::optional<double> rail_pressure_bar;  // null in run.json when unknown
+  bool motored = false;                     // false when unknown (motored_known false): what a message publishes
+  bool motored_known = true;                // false: run.json's "motored" is null; ask before using `motored`
 };
 
 struct RunDir {
   RunCondition condition;
   // Pressure on the encoder's samples (uneven in time), converted to Pa on reading.
   std::vector<double> time_s;
-  std::vector<double> crank_deg;            // unwrapped, strictly increasing
+  std::vector<double> crank_deg;  // unwrapped, strictly increasing
   std::vector<double> pressure_pa;
   // Microphones (absent: mic_count == 0 and the run has no "mics" entry).
   double mic_rate_hz = 0.0;
   std::uint32_t mic_count = 0;
-  std::vector<float> mic_pa;                // frame-major: mic_pa[frame * mic_count + mic]
+  std::vector<float> mic_pa;  // frame-major: mic_pa[frame * mic_count + mic]
   std::vector<std::array<double, 3>> mic_positions_m;
   double radius_m = 1.75;
-  double acoustic_delay_s = -1.0;           // engine-to-microphone delay; < 0: radius_m / 343 m/s
+  double acoustic_delay_s = -1.0;  // engine-to-microphone delay; < 0: radius_m / 343 m/s
   // The pressure chain's commissioned noise floor, bar rms per encoder sample (run.json
   // "pressure.noise_floor_bar"); nullopt when absent or null: the diagnosis then estimates it from the data.
   std::optional<double> pressure_noise_floor_bar;
@@ -60,14 +60,14 @@ struct RunDir {
 // The contents of run.json, checked (what parse_run_json returns).
 struct RunManifest {
   RunCondition condition;
-  std::string pressure_file;               // relative to the run directory (or absolute)
-  double pressure_to_pa = 1e5;             // 1e5 for "bar", 1 for "Pa"
+  std::string pressure_file;    // relative to the run directory (or absolute)
+  double pressure_to_pa = 1e5;  // 1e5 for "bar", 1 for "Pa"
   bool has_mics = false;
   std::string mics_file;
   std::vector<std::array<double, 3>> mic_positions_m;
   double radius_m = 1.75;
   double acoustic_delay_s = -1.0;
-  std::optional<double> full_scale_pa;     // PCM WAVs only: the Pa of digital full scale
+  std::optional<double> full_scale_pa;             // PCM WAVs only: the Pa of digital full scale
   std::optional<double> pressure_noise_floor_bar;  // "pressure.noise_floor_bar" (see RunDir)
   std::optional<double> pressure_edges_per_rev;    // "pressure.encoder_edges_per_rev" (see RunDir)
   std::optional<double> mic_passband_hz;           // "mics.passband_hz" (see RunDir)

@@ -1,7 +1,7 @@
 #include "drivers/formats/stream_messages.hpp"
 
-#include <cmath>
 #include <algorithm>
+#include <cmath>
 #include <cstdint>
 #include <limits>
 #include <stdexcept>
@@ -32,7 +32,8 @@ void set_raw_block(noisemon::raw_block_t& m, std::int64_t first_index, std::size
                    std::int8_t stream, std::int64_t epoch_utime) {
   m.epoch_utime = epoch_utime;
   m.first_index = first_index;
-  m.utime = epoch_utime + static_cast<std::int64_t>(std::llround(static_cast<double>(first_index) * 1e6 / kPipelineRateHz));
+  m.utime =
+      epoch_utime + static_cast<std::int64_t>(std::llround(static_cast<double>(first_index) * 1e6 / kPipelineRateHz));
   m.stream = stream;
   m.sample_rate_hz = kPipelineRateHz;
   m.channels = static_cast<std::int16_t>(channels);
@@ -85,12 +86,13 @@ StreamInfo from_message(const noisemon::session_t& m) {
   // A full scale is a level the samples are compared with: finite, and 0 (unknown) or above.
   for (const double fs : {m.pressure_full_scale_pa, m.mic_full_scale_pa})
     if (!(fs >= 0) || !std::isfinite(fs))
-      throw std::invalid_argument("session with full scale " + std::to_string(fs) + " Pa (0 = unknown, or above 0 expected)");
+      throw std::invalid_argument("session with full scale " + std::to_string(fs) +
+                                  " Pa (0 = unknown, or above 0 expected)");
   for (const double limit : {m.pressure_edges_per_rev, m.mic_passband_hz})
     if (!(limit >= 0) || !std::isfinite(limit))
-      throw std::invalid_argument("session with encoder edges per revolution " + std::to_string(m.pressure_edges_per_rev) +
-                                  " and microphone passband " + std::to_string(m.mic_passband_hz) +
-                                  " Hz (0 = unknown, or above 0 expected)");
+      throw std::invalid_argument("session with encoder edges per revolution " +
+                                  std::to_string(m.pressure_edges_per_rev) + " and microphone passband " +
+                                  std::to_string(m.mic_passband_hz) + " Hz (0 = unknown, or above 0 expected)");
   StreamInfo info;
   info.epoch_utime = m.epoch_utime;
   info.mic_count = static_cast<std::uint32_t>(m.nmics);
@@ -102,7 +104,8 @@ StreamInfo from_message(const noisemon::session_t& m) {
   info.mic_passband_hz = m.mic_passband_hz;
   info.pressure_angle_step_deg = angle_step_deg(m.pressure_edges_per_rev);
   if (!(std::abs(m.tdc_deg) <= 30.0))
-    throw std::invalid_argument("session with firing TDC at " + std::to_string(m.tdc_deg) + " deg (-30 ... 30 expected)");
+    throw std::invalid_argument("session with firing TDC at " + std::to_string(m.tdc_deg) +
+                                " deg (-30 ... 30 expected)");
   info.tdc_deg = m.tdc_deg;
   for (const auto& p : m.mic_positions_m) info.mic_positions_m.push_back({p[0], p[1], p[2]});
   return info;
@@ -120,8 +123,8 @@ SampleBlock from_message(const noisemon::raw_block_t& m) {
   b.frames = static_cast<std::uint32_t>(m.frames);
   b.channels = static_cast<std::uint32_t>(m.channels);
   if (m.nsamples != m.frames * m.channels || m.data.size() != static_cast<std::size_t>(m.nsamples))
-    throw std::invalid_argument("raw block holds " + std::to_string(m.nsamples) + " samples, expected frames x channels = " +
-                                std::to_string(m.frames * m.channels));
+    throw std::invalid_argument("raw block holds " + std::to_string(m.nsamples) +
+                                " samples, expected frames x channels = " + std::to_string(m.frames * m.channels));
   std::copy(m.data.begin(), m.data.end(), b.data);
   return b;
 }
@@ -140,7 +143,8 @@ OperatingPoint from_message(const noisemon::operating_point_t& m) {
 namespace {
 
 std::int32_t be32(const std::uint8_t* p) {
-  return static_cast<std::int32_t>((std::uint32_t{p[0]} << 24) | (std::uint32_t{p[1]} << 16) | (std::uint32_t{p[2]} << 8) | p[3]);
+  return static_cast<std::int32_t>((std::uint32_t{p[0]} << 24) | (std::uint32_t{p[1]} << 16) |
+                                   (std::uint32_t{p[2]} << 8) | p[3]);
 }
 std::int16_t be16(const std::uint8_t* p) { return static_cast<std::int16_t>((p[0] << 8) | p[1]); }
 
@@ -149,7 +153,8 @@ bool skip_string(const std::uint8_t* d, std::size_t size, std::size_t& pos) {
   if (size - pos < 4) return false;
   const std::int32_t len = be32(d + pos);
   pos += 4;
-  if (len < 1 || static_cast<std::size_t>(len) > size - pos || d[pos + static_cast<std::size_t>(len) - 1] != 0) return false;
+  if (len < 1 || static_cast<std::size_t>(len) > size - pos || d[pos + static_cast<std::size_t>(len) - 1] != 0)
+    return false;
   pos += static_cast<std::size_t>(len);
   return true;
 }
@@ -224,8 +229,8 @@ const char* stream_name(std::int8_t stream) {
 // A crank-angle block's edges: no more than its encoder's block holds, angles within [-360, 360] or NaN (not known).
 std::string angle_block_problem(const noisemon::raw_block_t& m, const StreamInfo& info) {
   if (static_cast<std::uint32_t>(m.frames) > max_edges_per_angle_block(info.pressure_angle_step_deg))
-    return "crank-angle block of " + std::to_string(m.frames) + " edges: more than " + std::to_string(kMaxAngleBlockDeg) +
-           " deg of crank angle";
+    return "crank-angle block of " + std::to_string(m.frames) + " edges: more than " +
+           std::to_string(kMaxAngleBlockDeg) + " deg of crank angle";
   for (std::int16_t f = 0; f < m.frames; ++f) {
     const double c = m.data[static_cast<std::size_t>(f) * kAngleStreamChannels + kAngleCrankChannel];
     if (c < -360.0 || c > 360.0) return "crank angle outside [-360, 360] deg";
@@ -236,15 +241,18 @@ std::string angle_block_problem(const noisemon::raw_block_t& m, const StreamInfo
 }  // namespace
 
 std::string raw_block_problem(const noisemon::raw_block_t& m, const StreamInfo& info) {
-  if (m.sample_rate_hz != kPipelineRateHz) return "sample rate " + std::to_string(m.sample_rate_hz) + " Hz, expected 40000";
+  if (m.sample_rate_hz != kPipelineRateHz)
+    return "sample rate " + std::to_string(m.sample_rate_hz) + " Hz, expected 40000";
   if (m.frames < 0 || m.frames > static_cast<int>(SampleBlock::kMaxFrames) || m.channels < 1 ||
       m.channels > static_cast<int>(SampleBlock::kMaxChannels) || m.nsamples != m.frames * m.channels ||
       m.data.size() != static_cast<std::size_t>(m.nsamples))
     return "block of " + std::to_string(m.frames) + " frames x " + std::to_string(m.channels) + " channels holding " +
            std::to_string(m.nsamples) + " samples";
-  if (m.epoch_utime != info.epoch_utime) return "block of another session (epoch " + std::to_string(m.epoch_utime) + ")";
+  if (m.epoch_utime != info.epoch_utime)
+    return "block of another session (epoch " + std::to_string(m.epoch_utime) + ")";
   if (m.first_index < -(std::int64_t{1} << 50) || m.first_index > (std::int64_t{1} << 50) ||
-      m.utime != m.epoch_utime + static_cast<std::int64_t>(std::llround(static_cast<double>(m.first_index) * 1e6 / kPipelineRateHz)))
+      m.utime != m.epoch_utime + static_cast<std::int64_t>(
+                                     std::llround(static_cast<double>(m.first_index) * 1e6 / kPipelineRateHz)))
     return "utime does not match first_index (a damaged field)";
   std::size_t expected;
   if (m.stream == noisemon::raw_block_t::STREAM_PRESSURE)

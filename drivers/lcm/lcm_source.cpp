@@ -18,17 +18,21 @@ constexpr int kQueuedMessages = 4096;
 class LcmSource final : public Source {
  public:
   explicit LcmSource(const LcmSourceConfig& c)
-      : config_(c), lcm_(c.url),
+      : config_(c),
+        lcm_(c.url),
         decoder_({{c.raw_channel, c.operating_point_channel, c.session_channel}, SessionChanges::kKeepFirst}) {
-    const std::string where = "'" + c.session_channel + "' at " + (c.url.empty() ? std::string("LCM's default URL") : c.url);
-    if (!lcm_.good()) throw std::runtime_error("lcm source: cannot open LCM " + where + " (is there a multicast route?)");
+    const std::string where =
+        "'" + c.session_channel + "' at " + (c.url.empty() ? std::string("LCM's default URL") : c.url);
+    if (!lcm_.good())
+      throw std::runtime_error("lcm source: cannot open LCM " + where + " (is there a multicast route?)");
     for (const std::string* channel : {&c.session_channel, &c.raw_channel, &c.operating_point_channel})
       lcm_.subscribe(*channel, &LcmSource::on_message, this)->setQueueCapacity(kQueuedMessages);
     const auto deadline = std::chrono::steady_clock::now() + std::chrono::duration<double>(c.session_timeout_s);
     while (!decoder_.has_session() && std::chrono::steady_clock::now() < deadline) lcm_.handleTimeout(100);
     if (!decoder_.has_session())
       throw std::runtime_error("lcm source: no noisemon.session_t on " + where + " within " +
-                               std::to_string(c.session_timeout_s) + " s (start lcm-logplayer, or a daemon publishing raw blocks)");
+                               std::to_string(c.session_timeout_s) +
+                               " s (start lcm-logplayer, or a daemon publishing raw blocks)");
     info_ = decoder_.info();
   }
   ~LcmSource() override { stop(); }

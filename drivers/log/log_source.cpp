@@ -156,10 +156,10 @@ class LogSource final : public Source {
     last_ = op;
     have_last_ = true;
     const auto taken = [&] {
-      return streams.pressure->empty() && streams.mics->empty() && (!streams.pressure_angle || streams.pressure_angle->empty());
+      return streams.pressure->empty() && streams.mics->empty() &&
+             (!streams.pressure_angle || streams.pressure_angle->empty());
     };
-    return wait_until(stop, kTakenInterval, taken) &&
-           push_waiting(*streams.operating_point, op, stop) &&
+    return wait_until(stop, kTakenInterval, taken) && push_waiting(*streams.operating_point, op, stop) &&
            wait_until(stop, kTakenInterval, [&] { return streams.operating_point->empty(); });
   }
 

@@ -28,7 +28,7 @@ struct ScheduledEffect {
 
 // The effects of engine k (0 ... schedule.size()): the static ones plus the first k scheduled. Throws
 // std::invalid_argument (Effects::add's message) for an effect given twice.
-[[nodiscard]] model::Effects cumulative_effects(const model::Effects& fixed, const std::vector<ScheduledEffect>& schedule,
-                                                std::size_t k);
+[[nodiscard]] model::Effects cumulative_effects(const model::Effects& fixed,
+                                                const std::vector<ScheduledEffect>& schedule, std::size_t k);
 
 }  // namespace noisemon::drivers

@@ -28,9 +28,17 @@
 namespace noisemon::drivers {
 
 enum class SimFaultKind : std::uint8_t {
-  kMissingEdges, kExtraEdges, kLostIndex, kReverse,  // encoder
-  kFlat, kOverload, kNan, kUnplugged,                // one channel
-  kStall, kOverrun, kFail,                           // one stream
+  kMissingEdges,
+  kExtraEdges,
+  kLostIndex,
+  kReverse,  // encoder
+  kFlat,
+  kOverload,
+  kNan,
+  kUnplugged,  // one channel
+  kStall,
+  kOverrun,
+  kFail,  // one stream
 };
 
 inline constexpr int kPressureTarget = -1;  // SimFault::target: the pressure channel / the encoder-clocked stream
@@ -41,8 +49,8 @@ struct SimFault {
   int target = kPressureTarget;  // kPressureTarget, kMicsTarget or a microphone (0-based); ignored by encoder faults
   double at_s = 0.0;             // start, s after the source's first frame
   double duration_s = 1.0;
-  double per_rev = 3.0;          // missing_edges, extra_edges: edges per revolution
-  double gain = 4.0;             // overload: factor on the signal before the converter
+  double per_rev = 3.0;  // missing_edges, extra_edges: edges per revolution
+  double gain = 4.0;     // overload: factor on the signal before the converter
 
   bool active(double t_since_start_s) const { return t_since_start_s >= at_s && t_since_start_s < at_s + duration_s; }
 };
@@ -59,7 +67,8 @@ int parse_fault_target(SimFaultKind kind, std::string_view name, std::uint32_t m
 void validate_faults(const std::vector<SimFault>& faults, std::uint32_t mic_count);
 
 // The faults of one kind and target active at t (s after the first frame): the first, or nullptr.
-const SimFault* active_fault(const std::vector<SimFault>& faults, SimFaultKind kind, int target, double t_since_start_s);
+const SimFault* active_fault(const std::vector<SimFault>& faults, SimFaultKind kind, int target,
+                             double t_since_start_s);
 
 // Whether a stream delivers what it produced at t: false inside a stall, and in the lost part of an overrun burst.
 bool stream_delivers(const std::vector<SimFault>& faults, int stream_target, double t_since_start_s);

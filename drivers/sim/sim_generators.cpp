@@ -13,8 +13,8 @@ namespace noisemon::drivers::sim {
 
 namespace {
 
-constexpr std::size_t kCardBatch = 256;           // card frames per resampler call
-constexpr std::size_t kOutFrames = 4096;          // resampler output room (frames)
+constexpr std::size_t kCardBatch = 256;   // card frames per resampler call
+constexpr std::size_t kOutFrames = 4096;  // resampler output room (frames)
 
 std::int64_t to_index(double t_s, double rate_hz) { return std::llround(t_s * rate_hz); }
 
@@ -35,8 +35,10 @@ model::OperatingCondition operating_condition(const SimConfig& config) {
 }
 
 OperatingProfile operating_profile(const SimConfig& config, double t_first_s) {
-  const model::OperatingCondition initial{
-      .speed_rpm = config.speed_rpm, .load_nm = config.load_nm, .soi_deg_btdc = config.soi_deg_btdc, .motored = config.motored};
+  const model::OperatingCondition initial{.speed_rpm = config.speed_rpm,
+                                          .load_nm = config.load_nm,
+                                          .soi_deg_btdc = config.soi_deg_btdc,
+                                          .motored = config.motored};
   return OperatingProfile(initial, config.operating_schedule, config.speed_fluctuation, t_first_s);
 }
 
@@ -110,7 +112,8 @@ PressureGenerator::PressureGenerator(const SimConfig& config, double t_first_s)
       min_rpm_(profile_->min_speed_rpm()),
       counts_per_rev_(std::llround(360.0 / config.encoder_resolution_deg)),
       index_edge_(std::llround(kIndexAngleDeg / config.encoder_resolution_deg)),
-      next_edge_(static_cast<std::int64_t>(std::ceil(kin_.theta_deg(t_first_s - kPreRollS) / config.encoder_resolution_deg))),
+      next_edge_(
+          static_cast<std::int64_t>(std::ceil(kin_.theta_deg(t_first_s - kPreRollS) / config.encoder_resolution_deg))),
       first_index_(to_index(t_first_s, kPipelineRateHz)),
       t_first_(t_first_s),
       origin_s_(1e-6 * static_cast<double>(std::llround((t_first_s - kPreRollS) * 1e6))),
@@ -161,7 +164,8 @@ void PressureGenerator::add_scheduled_transducer_noise(std::size_t n) {
     for (std::size_t i = 0; i < n; ++i) {
       const double w = effect_weight(schedule_[k], t_[i] - t_first_);
       if (w > 0.0)
-        x_[i] += w * sigma * model::rnd::normal_at(model::rnd::key(seed_, 0x5c4ed, k), 0, static_cast<std::uint64_t>(edge_[i]));
+        x_[i] += w * sigma *
+                 model::rnd::normal_at(model::rnd::key(seed_, 0x5c4ed, k), 0, static_cast<std::uint64_t>(edge_[i]));
     }
   }
 }
@@ -189,7 +193,8 @@ void PressureGenerator::fill_batch(double t_end_s, std::size_t& n) {
     if (t >= t_end_s) break;
     t_[n] = t;
     x_[n] = cache_.pressure_pa(theta);
-    if (const SimFault* f = active_fault(faults_, SimFaultKind::kOverload, kPressureTarget, t - t_first_)) x_[n] *= f->gain;
+    if (const SimFault* f = active_fault(faults_, SimFaultKind::kOverload, kPressureTarget, t - t_first_))
+      x_[n] *= f->gain;
     edge_[n] = next_edge_++;
   }
 }
@@ -201,7 +206,8 @@ void PressureGenerator::apply_channel_faults(std::size_t n) {
     const double since = t_[i] - t_first_;
     if (active_fault(faults_, SimFaultKind::kFlat, kPressureTarget, since)) x_[i] = held_pressure_;
     held_pressure_ = x_[i];
-    if (active_fault(faults_, SimFaultKind::kNan, kPressureTarget, since)) x_[i] = std::numeric_limits<double>::quiet_NaN();
+    if (active_fault(faults_, SimFaultKind::kNan, kPressureTarget, since))
+      x_[i] = std::numeric_limits<double>::quiet_NaN();
   }
 }
 
@@ -211,7 +217,8 @@ void PressureGenerator::count_edge(std::int64_t edge, double t, double pressure,
   const std::int64_t in_rev = floor_mod(edge - index_edge_, counts_per_rev_);
   // (active_fault over an empty list is a null check: the fault-free run pays nothing.)
   const auto fault = [&](SimFaultKind kind) { return active_fault(faults_, kind, kPressureTarget, since); };
-  if (const SimFault* missing = fault(SimFaultKind::kMissingEdges); missing && picked(in_rev, counts_per_rev_, missing->per_rev))
+  if (const SimFault* missing = fault(SimFaultKind::kMissingEdges);
+      missing && picked(in_rev, counts_per_rev_, missing->per_rev))
     return;  // never reaches the counter
   if (in_rev == 0 && !fault(SimFaultKind::kLostIndex))
     counter_ = 0;  // the index resets the counter
@@ -285,7 +292,8 @@ model::VirtualEngineConfig virtual_engine_config(const SimConfig& config, double
   return v;
 }
 
-EngineFeed::EngineFeed(const SimConfig& config, std::shared_ptr<const OperatingProfile> profile, double t0_s, double rate_hz)
+EngineFeed::EngineFeed(const SimConfig& config, std::shared_ptr<const OperatingProfile> profile, double t0_s,
+                       double rate_hz)
     : kin_(profile->kinematics()), cache_(config, profile), t0_(t0_s), rate_(rate_hz) {}
 
 void EngineFeed::fill(std::int64_t first, double* pressure_pa, double* crank_deg, std::size_t n) {
@@ -305,7 +313,8 @@ MicGenerator::MicGenerator(const SimConfig& config, double t_first_s)
       schedule_(config.scheduled_effects),
       to_pipeline_(config.mic_rate_hz, kPipelineRateHz, config.mic_count),
       t_first_(t_first_s),
-      adc_range_pa_(config.mic_chain.adc_bits > 0 ? config.mic_chain.adc_range_pa : std::numeric_limits<double>::infinity()),
+      adc_range_pa_(config.mic_chain.adc_bits > 0 ? config.mic_chain.adc_range_pa
+                                                  : std::numeric_limits<double>::infinity()),
       seed_(config.seed),
       faults_(config.faults),
       held_(config.mic_count, 0.0),
@@ -378,7 +387,8 @@ void MicGenerator::apply_channel_faults(std::size_t n) {
       if (const SimFault* f = active_fault(faults_, SimFaultKind::kOverload, target, since))
         x = std::clamp(x * f->gain, -adc_range_pa_, adc_range_pa_);
       if (active_fault(faults_, SimFaultKind::kUnplugged, target, since))
-        x = kOpenInputNoisePa * model::rnd::normal_at(seed_, kOpenInputStream + m, static_cast<std::uint64_t>(card_frame));
+        x = kOpenInputNoisePa *
+            model::rnd::normal_at(seed_, kOpenInputStream + m, static_cast<std::uint64_t>(card_frame));
       if (active_fault(faults_, SimFaultKind::kFlat, target, since)) x = held_[m];
       held_[m] = x;
       if (active_fault(faults_, SimFaultKind::kNan, target, since)) x = std::numeric_limits<double>::quiet_NaN();

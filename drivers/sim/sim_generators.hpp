@@ -97,22 +97,22 @@ class PressureGenerator {
   std::vector<ScheduledEffect> schedule_;  // those with transducer_noise: on the measured pressure
   std::uint64_t seed_;
   double resolution_deg_;
-  double min_rpm_;                   // the slowest operating point of the run
+  double min_rpm_;  // the slowest operating point of the run
   std::int64_t counts_per_rev_;
-  std::int64_t index_edge_;          // an edge at the index (edges index_edge_ + k * counts_per_rev_)
-  std::int64_t next_edge_;           // edge m at m * resolution
+  std::int64_t index_edge_;  // an edge at the index (edges index_edge_ + k * counts_per_rev_)
+  std::int64_t next_edge_;   // edge m at m * resolution
   std::int64_t first_index_;
   double t_first_;
-  double origin_s_;                  // the counters' start, s on the source clock (whole microseconds)
-  std::uint32_t counter_ = 0;        // the card's position counter
-  double held_pressure_ = 0.0;       // last converter sample (a stuck converter repeats it)
+  double origin_s_;             // the counters' start, s on the source clock (whole microseconds)
+  std::uint32_t counter_ = 0;   // the card's position counter
+  double held_pressure_ = 0.0;  // last converter sample (a stuck converter repeats it)
   std::unique_ptr<EdgeStreamAssembler> decoder_;
-  BlockRing staging_;                // the decoder's output, passed on from first_index_ (pre-roll frames trimmed)
+  BlockRing staging_;  // the decoder's output, passed on from first_index_ (pre-roll frames trimmed)
   SampleBlock trimmed_;
-  BlockRing* angle_out_ = nullptr;   // the crank-angle stream's ring
-  BlockRing angle_staging_;          // the decoder's crank-angle blocks, passed on from first_index_
-  std::uint64_t forwarded_ = 0;      // blocks written to the ring
-  std::size_t batch_;                // edges per chain call
+  BlockRing* angle_out_ = nullptr;  // the crank-angle stream's ring
+  BlockRing angle_staging_;         // the decoder's crank-angle blocks, passed on from first_index_
+  std::uint64_t forwarded_ = 0;     // blocks written to the ring
+  std::size_t batch_;               // edges per chain call
   std::vector<double> t_, x_;
   std::vector<std::int64_t> edge_;
 };
@@ -154,8 +154,8 @@ class MicGenerator {
   void apply_channel_faults(std::size_t n);
 
   double card_rate_;
-  double t0_;                  // sim time of fine index 0, card index 0 and local 40 kHz index 0
-  std::int64_t index0_;        // global 40 kHz index of local index 0
+  double t0_;            // sim time of fine index 0, card index 0 and local 40 kHz index 0
+  std::int64_t index0_;  // global 40 kHz index of local index 0
   std::int64_t first_index_;
   std::uint32_t mics_;
   // One engine per step of the effect schedule (sim_effect_schedule.hpp), each with its own feed: engine 0 the
@@ -163,14 +163,14 @@ class MicGenerator {
   std::vector<EngineFeed> feeds_;
   std::vector<model::VirtualEngine> engines_;
   std::vector<ScheduledEffect> schedule_;
-  std::vector<double> layer_card_;        // engine k's frames while mixing
+  std::vector<double> layer_card_;  // engine k's frames while mixing
   dsp::RationalResampler to_pipeline_;
-  std::int64_t card_next_ = 0;            // next card frame of the microphones
+  std::int64_t card_next_ = 0;  // next card frame of the microphones
   double t_first_;
-  double adc_range_pa_;                   // the card's rails (overload clips there)
+  double adc_range_pa_;  // the card's rails (overload clips there)
   std::uint64_t seed_;
   std::vector<SimFault> faults_;
-  std::vector<double> held_;              // per microphone: last card sample (a stuck converter repeats it)
+  std::vector<double> held_;  // per microphone: last card sample (a stuck converter repeats it)
   BlockWriter writer_;
   std::vector<double> mic_card_, out_;
 };

@@ -60,7 +60,8 @@ void OperatingProfile::add_step(const OperatingStep& step, double t_first_s) {
   const double mean_period_s = 240.0 / (last.condition.speed_rpm + step.condition.speed_rpm);
   const auto ramp_cycles = std::max<std::int64_t>(1, std::llround(step.ramp_s / mean_period_s));
   for (std::int64_t j = 1; j <= ramp_cycles; ++j)
-    append(first + j - 1, between(last.condition, step.condition, static_cast<double>(j) / static_cast<double>(ramp_cycles)));
+    append(first + j - 1,
+           between(last.condition, step.condition, static_cast<double>(j) / static_cast<double>(ramp_cycles)));
 }
 
 void OperatingProfile::append(std::int64_t cycle, const model::OperatingCondition& condition) {

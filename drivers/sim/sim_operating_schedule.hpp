@@ -30,7 +30,8 @@ void validate_operating_schedule(const std::vector<OperatingStep>& schedule);
 // Effects whose size follows the operating point (speed_dependence, mechanical_noise, the foreign SOI gain): a
 // schedule cannot carry them (the virtual engine sizes them once, at the first point).
 [[nodiscard]] inline bool sized_by_operating_point(const model::Effects& e) {
-  return e.speed_dependence_db_per_krpm != 0.0 || e.foreign_soi_gain_db_per_deg != 0.0 || e.mechanical_noise_dba.has_value();
+  return e.speed_dependence_db_per_krpm != 0.0 || e.foreign_soi_gain_db_per_deg != 0.0 ||
+         e.mechanical_noise_dba.has_value();
 }
 
 class OperatingProfile {

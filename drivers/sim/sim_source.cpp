@@ -13,8 +13,8 @@
 #include <thread>
 
 #include "drivers/mic_positions.hpp"
-#include "dsp/resample.hpp"
 #include "drivers/sim/sim_generators.hpp"
+#include "dsp/resample.hpp"
 
 namespace noisemon::drivers {
 
@@ -27,11 +27,11 @@ SimConfig with_ideal_cell(SimConfig config) {
 
 namespace {
 
-constexpr double kChunkS = 0.005;             // generation chunk of the sample streams
+constexpr double kChunkS = 0.005;               // generation chunk of the sample streams
 constexpr double kOperatingPointPeriodS = 0.1;  // 10 Hz
-constexpr double kMaxCatchUpS = 0.05;         // simulated time per loop pass when behind (keeps stop() prompt)
-constexpr double kMaxLeadS = 0.05;            // unpaced: how far a stream may run ahead of the slowest
-constexpr std::size_t kUnpacedRoomBlocks = 16; // unpaced: free ring slots a pass needs (a pass writes a few blocks)
+constexpr double kMaxCatchUpS = 0.05;           // simulated time per loop pass when behind (keeps stop() prompt)
+constexpr double kMaxLeadS = 0.05;              // unpaced: how far a stream may run ahead of the slowest
+constexpr std::size_t kUnpacedRoomBlocks = 16;  // unpaced: free ring slots a pass needs (a pass writes a few blocks)
 
 void validate(const SimConfig& c) {
   auto fail = [](const std::string& what) { throw std::invalid_argument("sim source: " + what); };
@@ -40,7 +40,8 @@ void validate(const SimConfig& c) {
   if (!(c.cycle_variation >= 0.0 && c.cycle_variation < 0.2)) fail("cycle_variation must be in [0, 0.2)");
   if (!(c.soi_deg_btdc >= 0.0 && c.soi_deg_btdc <= 60.0)) fail("soi_deg_btdc must be in [0, 60]");
   if (!(c.load_nm >= 0.0) || !(c.full_load_nm > 0.0)) fail("load_nm must be >= 0 and full_load_nm > 0");
-  if (!(c.encoder_resolution_deg >= 0.01 && c.encoder_resolution_deg <= 6.0)) fail("encoder_resolution_deg must be in [0.01, 6]");
+  if (!(c.encoder_resolution_deg >= 0.01 && c.encoder_resolution_deg <= 6.0))
+    fail("encoder_resolution_deg must be in [0.01, 6]");
   if (const double counts = 360.0 / c.encoder_resolution_deg; std::abs(counts - std::round(counts)) > 1e-6)
     fail("encoder_resolution_deg must divide 360 (a whole number of counts per revolution)");
   if (c.mic_count == 0 || c.mic_count > SampleBlock::kMaxChannels) fail("mic_count must be in [1, 16]");
@@ -49,14 +50,17 @@ void validate(const SimConfig& c) {
   if (!c.mic_positions_m.empty() && c.mic_positions_m.size() != c.mic_count)
     fail("mic_positions_m must have mic_count entries");
   if (!(c.radius_m > 0.0) || !(c.speed_of_sound_m_s > 0.0)) fail("radius_m and speed_of_sound_m_s must be positive");
-  if (!(c.mic_rate_hz >= 8000.0 && c.mic_rate_hz == std::round(c.mic_rate_hz))) fail("mic_rate_hz must be a whole number >= 8000");
+  if (!(c.mic_rate_hz >= 8000.0 && c.mic_rate_hz == std::round(c.mic_rate_hz)))
+    fail("mic_rate_hz must be a whole number >= 8000");
   if (!(c.mic_gain_spread_db >= 0.0 && c.mic_gain_spread_db <= 6.0)) fail("mic_gain_spread_db must be in [0, 6]");
-  if (!(c.gas_ringing.gain_s >= 0.0 && c.gas_ringing.gain_s <= 1e-3) || !(c.gas_ringing.decay_s > 0.0 && c.gas_ringing.decay_s <= 0.1))
+  if (!(c.gas_ringing.gain_s >= 0.0 && c.gas_ringing.gain_s <= 1e-3) ||
+      !(c.gas_ringing.decay_s > 0.0 && c.gas_ringing.decay_s <= 0.1))
     fail("gas ringing: gain must be in [0, 1 ms] and decay in (0, 100 ms]");
   if (!c.operating_schedule.empty() &&
       sized_by_operating_point(cumulative_effects(c.effects, c.scheduled_effects, c.scheduled_effects.size())))
-    fail("sim.schedule cannot be combined with effects that depend on the operating point (speed_dependence, "
-         "mechanical_noise, the foreign SOI gain): they would keep the first operating point's size");
+    fail(
+        "sim.schedule cannot be combined with effects that depend on the operating point (speed_dependence, "
+        "mechanical_noise, the foreign SOI gain): they would keep the first operating point's size");
   try {
     validate_operating_schedule(c.operating_schedule);
     c.pressure_chain.validate();
@@ -110,9 +114,10 @@ class SimSource final : public Source {
                         run_stream(workers_[0], 0, *pressure, *ring, t_first, stop,
                                    [this, &pressure] { publish_encoder(pressure->encoder_counters()); });
                       });
-    workers_[1].start("nm-mics", policy.mics, [this, mics, ring = streams.mics, t_first](const std::atomic<bool>& stop) {
-      run_stream(workers_[1], 1, *mics, *ring, t_first, stop, [] {});
-    });
+    workers_[1].start("nm-mics", policy.mics,
+                      [this, mics, ring = streams.mics, t_first](const std::atomic<bool>& stop) {
+                        run_stream(workers_[1], 1, *mics, *ring, t_first, stop, [] {});
+                      });
     auto profile = std::make_shared<const OperatingProfile>(sim::operating_profile(config_, t_first));
     workers_[2].start("nm-op", policy.operating_point,
                       [this, profile, ring = streams.operating_point, t_first](const std::atomic<bool>& stop) {
@@ -133,7 +138,9 @@ class SimSource final : public Source {
   }
 
   std::vector<DriverCounter> counters() const override {
-    auto count = [](const std::atomic<std::uint64_t>& c) { return static_cast<std::int64_t>(c.load(std::memory_order_relaxed)); };
+    auto count = [](const std::atomic<std::uint64_t>& c) {
+      return static_cast<std::int64_t>(c.load(std::memory_order_relaxed));
+    };
     std::vector<DriverCounter> out{{"sim.pressure.adc_clipped", count(stats_[0].clipped)},
                                    {"sim.mics.adc_clipped", count(stats_[1].clipped)}};
     if (config_.faults.empty()) return out;
@@ -162,8 +169,8 @@ class SimSource final : public Source {
   // One stream's driver loop. A stream fault (stall, overrun) makes a pass's blocks vanish before the ring, as a
   // device that delivers nothing; they are counted, never silent.
   template <class Generator, class AfterPass>
-  void run_stream(WorkerThread& w, int stream, Generator& gen, BlockRing& ring, double t_first, const std::atomic<bool>& stop,
-                  AfterPass after_pass) {
+  void run_stream(WorkerThread& w, int stream, Generator& gen, BlockRing& ring, double t_first,
+                  const std::atomic<bool>& stop, AfterPass after_pass) {
     const int target = stream == 0 ? kPressureTarget : kMicsTarget;
     std::unique_ptr<BlockRing> staged;  // with faults configured: each block waits here to be delivered or lost
     if (!config_.faults.empty()) staged = std::make_unique<BlockRing>(64);
@@ -222,8 +229,14 @@ class SimSource final : public Source {
   }
 
   void publish_encoder(const EdgeStreamCounters& c) {
-    const std::uint64_t values[] = {c.edges,          c.edges_before_lock,   c.encoder_errors,   c.phase_corrections,
-                                    c.revolutions_checked, c.revolutions_flagged, c.missing_or_extra, c.lost_index,
+    const std::uint64_t values[] = {c.edges,
+                                    c.edges_before_lock,
+                                    c.encoder_errors,
+                                    c.phase_corrections,
+                                    c.revolutions_checked,
+                                    c.revolutions_flagged,
+                                    c.missing_or_extra,
+                                    c.lost_index,
                                     c.reverse_steps};
     static_assert(std::size(values) == kEncoderCounterNames.size());
     for (std::size_t i = 0; i < std::size(values); ++i) encoder_[i].store(values[i], std::memory_order_relaxed);
@@ -256,11 +269,17 @@ class SimSource final : public Source {
     std::atomic<std::uint64_t> clipped{0};      // samples the ADC clipped, every session
     std::atomic<std::uint64_t> lost_blocks{0};  // blocks a stream fault kept from the ring
   };
-  std::array<StreamStats, 2> stats_;  // pressure, microphones
+  std::array<StreamStats, 2> stats_;               // pressure, microphones
   std::array<std::atomic<double>, 2> progress_{};  // simulated time each stream has delivered up to (unpaced pacing)
-  static constexpr std::array<const char*, 9> kEncoderCounterNames{
-      "edges", "edges_before_lock", "errors", "phase_corrections", "revolutions_checked",
-      "revolutions_flagged", "missing_or_extra", "lost_index", "reverse_steps"};
+  static constexpr std::array<const char*, 9> kEncoderCounterNames{"edges",
+                                                                   "edges_before_lock",
+                                                                   "errors",
+                                                                   "phase_corrections",
+                                                                   "revolutions_checked",
+                                                                   "revolutions_flagged",
+                                                                   "missing_or_extra",
+                                                                   "lost_index",
+                                                                   "reverse_steps"};
   std::array<std::atomic<std::uint64_t>, kEncoderCounterNames.size()> encoder_{};  // the decoder's counters
   bool started_ = false;
   // Last: destroyed (stopped) first, before anything their bodies use.

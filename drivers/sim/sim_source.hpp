@@ -37,11 +37,11 @@ struct SimConfig {
   // Operating point (thesis conditions: idle 3050 rpm / 0 N m, full load 3450 rpm; SOI 12..24 deg BTDC).
   double speed_rpm = 3050.0;
   double load_nm = 0.0;
-  double full_load_nm = 20.0;          // load at which the fuelling is full; sets the injected fuel mass
+  double full_load_nm = 20.0;  // load at which the fuelling is full; sets the injected fuel mass
   double soi_deg_btdc = 18.0;
   bool motored = false;
-  double speed_fluctuation = 0.01;     // peak relative speed ripple within a cycle
-  double cycle_variation = 0.03;       // relative cycle-to-cycle variation of the heat release
+  double speed_fluctuation = 0.01;  // peak relative speed ripple within a cycle
+  double cycle_variation = 0.03;    // relative cycle-to-cycle variation of the heat release
   // Changes of the operating point mid-run (sim_operating_schedule.hpp): none, the one above throughout.
   std::vector<OperatingStep> operating_schedule;
   // Encoder.
@@ -52,17 +52,17 @@ struct SimConfig {
   double radius_m = 1.75;
   double speed_of_sound_m_s = 343.0;
   double mic_rate_hz = 51200.0;
-  double mic_gain_spread_db = 0.3;       // per-microphone gain differences (deterministic from seed)
-  double background_noise_db = 40.0;     // per-microphone pink floor, unweighted Lp up to 20 kHz, dB re 20 uPa
+  double mic_gain_spread_db = 0.3;    // per-microphone gain differences (deterministic from seed)
+  double background_noise_db = 40.0;  // per-microphone pink floor, unweighted Lp up to 20 kHz, dB re 20 uPa
   model::BlockParams true_block = model::preset("linear");  // the engine's "true" structural response
-  model::Effects effects;             // effects injected into the true engine (model/engine/effects.hpp); none by default
+  model::Effects effects;  // effects injected into the true engine (model/engine/effects.hpp); none by default
   std::vector<ScheduledEffect> scheduled_effects;  // effects that switch on mid-run (sim_effect_schedule.hpp): none
   // The realistic test cell (each part documented and cited in its header; each switchable off):
   model::PressureChainConfig pressure_chain;  // floor 0.02 bar, flicker off, 16-bit ADC over 0..250 bar
   model::MicChainConfig mic_chain;            // self-noise 20 dB(A), directivity +-1 dB, 24-bit ADC +-800 Pa
   model::GasRingingParams gas_ringing;        // combustion-excited gas ringing in the true pressure
   std::uint64_t seed = 1;
-  std::vector<SimFault> faults;       // injected faults (drivers/sim/sim_faults.hpp): none by default
+  std::vector<SimFault> faults;  // injected faults (drivers/sim/sim_faults.hpp): none by default
   // true: the driver threads keep to the wall clock, as hardware does. false: as fast as the processing takes the
   // data, the streams in step and never a block lost to the pace (soak tests, benchmarks); utimes then run ahead of
   // the wall clock.

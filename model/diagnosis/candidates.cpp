@@ -13,7 +13,7 @@
 namespace noisemon::model::diagnosis {
 namespace {
 
-constexpr double kCloseRunnerUp = 1.5;  // a runner-up within this factor of the best gap starts pairs too
+constexpr double kCloseRunnerUp = 1.5;   // a runner-up within this factor of the best gap starts pairs too
 constexpr double kThesisWorseDb = 0.05;  // a model this much worse on the thesis metric is never significant
 
 // The pairs of `first` with every ranked candidate but itself and those in `skip`, appended to *combinations;
@@ -24,8 +24,8 @@ void pairs_from(const Context& cx, const CandidateRound& round, std::size_t firs
   for (std::size_t i : round.order) {
     if (i == first || std::find(skip.begin(), skip.end(), i) != skip.end()) continue;
     log.say("combination " + round.evals[first].score.name + " + " + round.evals[i].score.name);
-    Evaluated e = evaluate(cx, combine(round.specs[first], round.specs[i]), round.evals[first].score.model, base_free,
-                           false);
+    Evaluated e =
+        evaluate(cx, combine(round.specs[first], round.specs[i]), round.evals[first].score.model, base_free, false);
     judge_pressure_law(cx, baseline, e.score);
     compare_with(e.score, baseline, cx.opt->min_improvement_db);
     combinations->push_back(e.score);
@@ -40,15 +40,24 @@ CandidateSpec spec_for(const std::string& name) {
   CandidateSpec s;
   s.name = name;
   s.effects = {name};
-  if (name == "cubic_damping") s.extra_free = {BlockParam::kB3};
-  else if (name == "cubic_stiffness") s.extra_free = {BlockParam::kK3};
-  else if (name == "second_mode") s.ext.second_mode = true;
-  else if (name == "mechanical_noise") s.ext.locked = true;
-  else if (name == "background_noise") s.ext.stationary = true;
-  else if (name == "transducer_noise") s.ext.transducer = true;
-  else if (name == "mic_gain") s.ext.mic_gain = true;
-  else if (name == "speed_dependence") s.ext.speed = true;
-  else throw std::invalid_argument("unknown candidate effect '" + name + "'");
+  if (name == "cubic_damping")
+    s.extra_free = {BlockParam::kB3};
+  else if (name == "cubic_stiffness")
+    s.extra_free = {BlockParam::kK3};
+  else if (name == "second_mode")
+    s.ext.second_mode = true;
+  else if (name == "mechanical_noise")
+    s.ext.locked = true;
+  else if (name == "background_noise")
+    s.ext.stationary = true;
+  else if (name == "transducer_noise")
+    s.ext.transducer = true;
+  else if (name == "mic_gain")
+    s.ext.mic_gain = true;
+  else if (name == "speed_dependence")
+    s.ext.speed = true;
+  else
+    throw std::invalid_argument("unknown candidate effect '" + name + "'");
   return s;
 }
 

@@ -12,8 +12,9 @@ namespace noisemon::model {
 namespace {
 
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
-constexpr double kAdditiveSplitHz = 1000.0;  // additive sound centred below: test-cell noise; above: the engine's impacts
-constexpr int kBandPoints = 16;              // frequencies averaged over a band for the spectral templates
+constexpr double kAdditiveSplitHz =
+    1000.0;                      // additive sound centred below: test-cell noise; above: the engine's impacts
+constexpr int kBandPoints = 16;  // frequencies averaged over a band for the spectral templates
 
 double lin(double db) { return std::pow(10.0, db / 10.0); }
 double db(double x) { return 10.0 * std::log10(x); }
@@ -55,7 +56,8 @@ Observed observe(const GapChange& c, double floor_db) {
     o.sigma.mic.push_back(quad(c.mic_sigma_db[m]));
   }
   for (const auto* part : {&o.value.gap, &o.value.cpl, &o.value.mic})
-    o.count += static_cast<std::size_t>(std::count_if(part->begin(), part->end(), [](double v) { return std::isfinite(v); }));
+    o.count +=
+        static_cast<std::size_t>(std::count_if(part->begin(), part->end(), [](double v) { return std::isfinite(v); }));
   return o;
 }
 
@@ -105,7 +107,8 @@ double minimize_1d(const std::function<double(double)>& f, double lo, double hi,
 // Log-spaced frequencies across the 1/3-octave band of a nominal centre.
 std::vector<double> band_points(double nominal_hz) {
   std::vector<double> f;
-  for (int i = 0; i < kBandPoints; ++i) f.push_back(nominal_hz * std::pow(10.0, (-0.05 + 0.1 * (i + 0.5) / kBandPoints)));
+  for (int i = 0; i < kBandPoints; ++i)
+    f.push_back(nominal_hz * std::pow(10.0, (-0.05 + 0.1 * (i + 0.5) / kBandPoints)));
   return f;
 }
 
@@ -170,7 +173,8 @@ CandidateFit fit_transducer_noise(const GapChange& c, const Observed& o) {
   double x = 0.0;
   const double value = minimize_1d([&](double v) { return chi2(o, predict(v)); }, -14.0, 10.0, &x);
   std::vector<std::pair<std::string, double>> params{{"density_db", db(std::pow(10.0, x) / (p0 * p0))}};
-  if (c.pressure_edge_rate_hz > 0.0) params.insert(params.begin(), {"bar", std::sqrt(std::pow(10.0, x) * c.pressure_edge_rate_hz / 2.0) / 1e5});
+  if (c.pressure_edge_rate_hz > 0.0)
+    params.insert(params.begin(), {"bar", std::sqrt(std::pow(10.0, x) * c.pressure_edge_rate_hz / 2.0) / 1e5});
   return make_fit("transducer_noise", std::move(params), 1, value, o.count);
 }
 
@@ -189,7 +193,8 @@ double stationary_weight(const GapChange& c, double floor_db) {
   const double penalty = std::log(static_cast<double>(y.size()));
   auto stationary_chi2 = [&](double log_power) {
     double sum = 0.0;
-    for (std::size_t w = 0; w < y.size(); ++w) sum += std::pow((y[w] - db(1.0 + std::pow(10.0, log_power) / m[w])) / s[w], 2);
+    for (std::size_t w = 0; w < y.size(); ++w)
+      sum += std::pow((y[w] - db(1.0 + std::pow(10.0, log_power) / m[w])) / s[w], 2);
     return sum;
   };
   const auto [lo, hi] = std::minmax_element(m.begin(), m.end());
@@ -237,7 +242,8 @@ CandidateFit fit_additive(const GapChange& c, const Observed& o, double floor_db
   *named_weight = std::isfinite(stationary) ? (background ? stationary : 1.0 - stationary) : 1.0;
   std::vector<std::pair<std::string, double>> params{{"db", db(power)}, {"centre_hz", centre_hz}};
   if (std::isfinite(stationary)) params.emplace_back("stationary", stationary);
-  return make_fit(background ? "background_noise" : "mechanical_noise", std::move(params), parameters, chi2(o, d), o.count);
+  return make_fit(background ? "background_noise" : "mechanical_noise", std::move(params), parameters, chi2(o, d),
+                  o.count);
 }
 
 // The model block's transfer H(f) = (c0 + j w c1) / (k1 - m w^2 + j w b1) (its linear part).
@@ -250,8 +256,9 @@ std::complex<double> block_transfer(const BlockParams& p, double f_hz) {
 // block's output (the structure's response rises by |1 + g R|^2: the virtual engine's form) or driven by the same
 // pressure beside the block (the diagnosis's parallel mode: |H + g |H(f2)| R|^2 / |H|^2, H the model block's
 // transfer: where the block is weak the mode's own path shows whole; M >= 0, a panel adds its sound, an absorber
-// acts on the output). g = 10^(M/20) - 1, R the unit-peak band-pass at f2 with quality Q. The better form is reported. No phase is fitted: a mode out of phase imitates a shift of the
-// block's own resonance, which is the cubic candidates' (tried, a phase took them over).
+// acts on the output). g = 10^(M/20) - 1, R the unit-peak band-pass at f2 with quality Q. The better form is reported.
+// No phase is fitted: a mode out of phase imitates a shift of the block's own resonance, which is the cubic candidates'
+// (tried, a phase took them over).
 CandidateFit fit_second_mode(const GapChange& c, const Observed& o, const BlockParams& block) {
   CandidateFit best = make_fit("second_mode", {}, 3, std::numeric_limits<double>::infinity(), o.count);
   const std::size_t nb = c.band_hz.size();
@@ -289,7 +296,8 @@ CandidateFit fit_second_mode(const GapChange& c, const Observed& o, const BlockP
         // A panel beside the block adds its sound (M >= 0); an absorber acts on the structure's output.
         const double value = minimize_1d(chi2_at, parallel ? 0.0 : -20.0, 30.0, &m_db);
         if (value < best.chi2)
-          best = make_fit("second_mode", {{"hz", f2}, {"db", m_db}, {"q", q}, {"parallel", parallel ? 1.0 : 0.0}}, 3, value, o.count);
+          best = make_fit("second_mode", {{"hz", f2}, {"db", m_db}, {"q", q}, {"parallel", parallel ? 1.0 : 0.0}}, 3,
+                          value, o.count);
       }
   }
   return best;
@@ -323,16 +331,20 @@ std::vector<CandidateFit> fit_cubic(const GapChange& c, const Observed& o, const
   auto chi2_at = [&](double k1, double b1) {
     for (std::size_t b = 0; b < c.band_hz.size(); ++b)
       if (std::isfinite(o.value.gap[b]))
-        d.gap[b] = band_db(c.band_hz[b], [&](double f) { return denominator2(f, p.k1, p.b1) / denominator2(f, k1, b1); });
+        d.gap[b] =
+            band_db(c.band_hz[b], [&](double f) { return denominator2(f, p.k1, p.b1) / denominator2(f, k1, b1); });
     return chi2(o, d);
   };
   double log_b = 0.0, log_k = 0.0;
-  const double chi2_b = minimize_1d([&](double x) { return chi2_at(p.k1, p.b1 * std::pow(10.0, x)); }, 0.0, 2.0, &log_b);
-  const double chi2_k = minimize_1d([&](double x) { return chi2_at(p.k1 * std::pow(10.0, x), p.b1); }, 0.0, std::log10(4.0), &log_k);
+  const double chi2_b =
+      minimize_1d([&](double x) { return chi2_at(p.k1, p.b1 * std::pow(10.0, x)); }, 0.0, 2.0, &log_b);
+  const double chi2_k =
+      minimize_1d([&](double x) { return chi2_at(p.k1 * std::pow(10.0, x), p.b1); }, 0.0, std::log10(4.0), &log_k);
   const double f0 = std::sqrt(p.k1 / p.m) / (2.0 * std::numbers::pi);
   const double k_factor = std::pow(10.0, log_k);
   return {make_fit("cubic_damping", {{"delta_b1", p.b1 * (std::pow(10.0, log_b) - 1.0)}}, 1, chi2_b, o.count),
-          make_fit("cubic_stiffness", {{"delta_k1", p.k1 * (k_factor - 1.0)}, {"f0_shift_hz", f0 * (std::sqrt(k_factor) - 1.0)}}, 1,
+          make_fit("cubic_stiffness",
+                   {{"delta_k1", p.k1 * (k_factor - 1.0)}, {"f0_shift_hz", f0 * (std::sqrt(k_factor) - 1.0)}}, 1,
                    chi2_k, o.count)};
 }
 
@@ -344,9 +356,11 @@ std::string explain(const Attribution& a, const CandidateFit& best, const Candid
                      " % of the change (chi2 " + std::to_string(static_cast<int>(std::lround(none.chi2))) + " -> " +
                      std::to_string(static_cast<int>(std::lround(best.chi2))) + ")";
   if (a.effect == "background_noise" || a.effect == "mechanical_noise") {
-    const bool windows = std::any_of(a.params.begin(), a.params.end(), [](const auto& p) { return p.first == "stationary"; });
+    const bool windows =
+        std::any_of(a.params.begin(), a.params.end(), [](const auto& p) { return p.first == "stationary"; });
     text += std::string("; additive, ") + (a.effect == "background_noise" ? "stationary" : "crank-angle-locked") +
-            (windows ? " by the crank windows' levels" : " by its spectrum's centre alone (the reports carry no crank-window levels)");
+            (windows ? " by the crank windows' levels"
+                     : " by its spectrum's centre alone (the reports carry no crank-window levels)");
   }
   return text;
 }

@@ -34,43 +34,43 @@
 namespace noisemon::model {
 
 struct GapChange {
-  std::vector<double> band_hz;                      // nominal centres
-  std::vector<char> band_used;                      // watched (finite before and after)
+  std::vector<double> band_hz;                            // nominal centres
+  std::vector<char> band_used;                            // watched (finite before and after)
   std::vector<double> measured_before, measured_after;    // per band, dB
   std::vector<double> predicted_before, predicted_after;  // per band, dB
   std::vector<double> cpl_before, cpl_after;              // per band, dB re 20 uPa
-  std::vector<double> band_sigma_db;                // standard error of (after - before) of a band's gap, dB
-  std::vector<double> cpl_sigma_db;                 // of a band's CPL, dB
-  std::vector<double> mic_before, mic_after;        // per microphone, dB(A); NaN: not usable
-  std::vector<double> mic_sigma_db;                 // standard error of (after - before) of its offset, dB
-  std::vector<double> window_before, window_after;  // per crank window, measured dB(A); empty: not reported
+  std::vector<double> band_sigma_db;                      // standard error of (after - before) of a band's gap, dB
+  std::vector<double> cpl_sigma_db;                       // of a band's CPL, dB
+  std::vector<double> mic_before, mic_after;              // per microphone, dB(A); NaN: not usable
+  std::vector<double> mic_sigma_db;                       // standard error of (after - before) of its offset, dB
+  std::vector<double> window_before, window_after;        // per crank window, measured dB(A); empty: not reported
   std::vector<double> window_sigma_db;
   double speed_rpm = 0.0;
-  double pressure_edge_rate_hz = 0.0;               // encoder edges per second (0: unknown; transducer D as density)
+  double pressure_edge_rate_hz = 0.0;  // encoder edges per second (0: unknown; transducer D as density)
 };
 
 struct AttributionOptions {
-  BlockParams model_block = preset("linear");       // the daemon's model (the cubic candidates' templates)
-  double model_error_db = 0.15;                     // added in quadrature to every standard error
-  double min_explained = 0.5;                       // the best candidate closes at least this share of the change
+  BlockParams model_block = preset("linear");  // the daemon's model (the cubic candidates' templates)
+  double model_error_db = 0.15;                // added in quadrature to every standard error
+  double min_explained = 0.5;                  // the best candidate closes at least this share of the change
 };
 
 struct CandidateFit {
-  std::string effect;                               // candidate name, or "none"
+  std::string effect;  // candidate name, or "none"
   std::vector<std::pair<std::string, double>> params;
   int parameters = 0;
   double chi2 = 0.0;
-  double criterion = 0.0;                           // chi2 + parameters ln(n)
-  double weight = 0.0;                              // Schwarz weight among the candidates
+  double criterion = 0.0;  // chi2 + parameters ln(n)
+  double weight = 0.0;     // Schwarz weight among the candidates
 };
 
 struct Attribution {
-  std::string effect;                               // the named candidate, or "unexplained"
+  std::string effect;  // the named candidate, or "unexplained"
   std::vector<std::pair<std::string, double>> params;
   double confidence = 0.0;
-  double explained = 0.0;                           // 1 - chi2(best) / chi2(none)
-  std::vector<CandidateFit> candidates;             // best first
-  std::string explanation;                          // one sentence
+  double explained = 0.0;                // 1 - chi2(best) / chi2(none)
+  std::vector<CandidateFit> candidates;  // best first
+  std::string explanation;               // one sentence
 };
 
 [[nodiscard]] Attribution attribute_change(const GapChange& change, const AttributionOptions& options = {});

@@ -140,8 +140,8 @@ Parts score_heldout(const Context& cx, Evaluated& ev, double* thesis) {
     ev.preds.push_back(predict_condition(data, k, sc.fold_models[h], true));
     ev.measured.push_back(measured_side(d, sc.fold_models[h]));
     ScoreDetail det;
-    const Parts p = score_condition(d, ev.measured.back(), ev.preds.back(), cx.base_mask[k], cx.fast, ev.floors[h],
-                                    nullptr, &det);
+    const Parts p =
+        score_condition(d, ev.measured.back(), ev.preds.back(), cx.base_mask[k], cx.fast, ev.floors[h], nullptr, &det);
     sum.band_ms += p.band_ms;
     sum.mic += p.mic;
     sum.window_ms += p.window_ms;
@@ -165,7 +165,8 @@ std::vector<double> replicate_gaps(const Context& cx, const Evaluated& ev) {
     for (std::size_t h = 0; h < cx.heldout.size(); ++h) {
       const std::size_t k = cx.heldout[h];
       tot += score_condition(data.conditions[k], ev.measured[h], ev.preds[h], cx.base_mask[k], cx.fast, ev.floors[h],
-                             &rep[h], nullptr).total();
+                             &rep[h], nullptr)
+                 .total();
     }
     gaps.push_back(std::sqrt(tot / H));
   }
@@ -188,7 +189,8 @@ double group_gap(const Context& cx, const CandidateSpec& spec, const FitSetup& s
       const std::size_t k = cx.heldout[h];
       const ConditionData& d = data.conditions[k];
       total += score_condition(d, measured_side(d, model), predict_condition(data, k, model, true), cx.base_mask[k],
-                               cx.fast, ev.floors[h], nullptr, nullptr).total();
+                               cx.fast, ev.floors[h], nullptr, nullptr)
+                   .total();
       ++scored;
     }
   }

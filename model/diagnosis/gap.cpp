@@ -81,9 +81,9 @@ int band_part(const ConditionData& d, const Measured& ms, const ConditionPredict
     const bool ub = !p.upper.empty() && p.upper[b];
     const double g = ub ? std::max(0.0, db(s.m[b] / s.q[b])) : db(s.m[b] / s.q[b]);
     if (!ub)
-      parts.band_ms -= gap_variance([&](std::size_t c) { return ms.meas[c * nb + b]; },
-                                    [&](std::size_t c) { return p.cycle_ms[c * nb + b]; }, s.m[b], s.q[b], 0.0, s.n,
-                                    nc, counts);
+      parts.band_ms -=
+          gap_variance([&](std::size_t c) { return ms.meas[c * nb + b]; },
+                       [&](std::size_t c) { return p.cycle_ms[c * nb + b]; }, s.m[b], s.q[b], 0.0, s.n, nc, counts);
     parts.band_ms += g * g;
     ++nbands;
     if (detail) detail->gaps[b] = g;

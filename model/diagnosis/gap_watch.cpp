@@ -9,7 +9,11 @@ namespace noisemon::model {
 namespace {
 
 OperatingSample operating_sample(const CycleGap& c) {
-  return {.time_s = c.time_s, .speed_rpm = c.speed_rpm, .load_nm = c.load_nm, .soi_deg_btdc = c.soi_deg_btdc, .motored = c.motored};
+  return {.time_s = c.time_s,
+          .speed_rpm = c.speed_rpm,
+          .load_nm = c.load_nm,
+          .soi_deg_btdc = c.soi_deg_btdc,
+          .motored = c.motored};
 }
 
 double energy_mean_db(const std::vector<double>& levels) {
@@ -21,7 +25,8 @@ double energy_mean_db(const std::vector<double>& levels) {
 }
 
 // The A-weighted level gap over the bands used: 10 lg of the measured band energies' sum over the predicted ones'.
-double overall_gap_db(const std::vector<double>& measured, const std::vector<double>& predicted, const std::vector<char>& used) {
+double overall_gap_db(const std::vector<double>& measured, const std::vector<double>& predicted,
+                      const std::vector<char>& used) {
   double m = 0.0, p = 0.0;
   for (std::size_t b = 0; b < measured.size(); ++b)
     if (used[b] && std::isfinite(measured[b]) && std::isfinite(predicted[b])) {
@@ -100,7 +105,8 @@ std::size_t GapWatch::watched_features() const {
 
 double GapWatch::reference_seconds() const {
   if (current_point_ >= points_.size() || points_[current_point_].learning) return 0.0;
-  return static_cast<double>(reference_.points[current_point_].cycles) * 120.0 / reference_.points[current_point_].speed_rpm;
+  return static_cast<double>(reference_.points[current_point_].cycles) * 120.0 /
+         reference_.points[current_point_].speed_rpm;
 }
 
 double GapWatch::since_reference_seconds() const {
@@ -179,7 +185,7 @@ std::string GapWatch::feature_name(std::size_t f, int side) const {
   if (f < nb) {
     const double hz = reference_.band_hz[f];
     name = "band " + (hz < 1000.0 ? std::to_string(static_cast<int>(std::lround(hz))) + " Hz"
-                                   : std::to_string(hz / 1000.0).substr(0, hz < 10000.0 ? 4 : 5) + " kHz");
+                                  : std::to_string(hz / 1000.0).substr(0, hz < 10000.0 ? 4 : 5) + " kHz");
   } else if (f < nb + reference_.mics) {
     name = "mic " + std::to_string(f - nb + 1);
   } else if (f == nb + reference_.mics) {
@@ -197,7 +203,7 @@ void GapWatch::add(const CycleGap& report) {
   if (!layout_) start_layout(report);
   if (report.band_hz.size() != reference_.band_hz.size() || report.mic_db.size() != reference_.mics ||
       report.window_measured_db.size() != reference_.windows || report.window_predicted_db.size() != reference_.windows)
-    return;  // another layout
+    return;                                                                  // another layout
   if (!pending_.empty() && report.time_s < pending_.back().time_s) flush();  // another run's clock: this one has ended
   if (report.speed_rpm > 0.0) steady_.add(operating_sample(report));
   pending_.push_back(report);
@@ -424,7 +430,8 @@ void GapWatch::complete_event() {
   const std::int64_t cusum_onset = event_.onset_cycle;
   refine_onset();
   // A drift is attributed on the stretch the CUSUM found (its latest state), a step on everything from its onset.
-  const std::int64_t after_from = event_.kind == "drift" ? std::max(cusum_onset, event_.onset_cycle) : event_.onset_cycle;
+  const std::int64_t after_from =
+      event_.kind == "drift" ? std::max(cusum_onset, event_.onset_cycle) : event_.onset_cycle;
   const OperatingPointReference& r = reference_.points[p];
   const Layout l(reference_);
   Block after;
@@ -450,7 +457,8 @@ void GapWatch::complete_event() {
     g.cpl_after.push_back(after.mean(l.cpl(b)));
     g.band_sigma_db.push_back(sigma(b));
     g.cpl_sigma_db.push_back(sigma(b));
-    g.band_used.push_back(points_[p].watched[b] && std::isfinite(g.measured_after[b]) && std::isfinite(g.predicted_after[b]));
+    g.band_used.push_back(points_[p].watched[b] && std::isfinite(g.measured_after[b]) &&
+                          std::isfinite(g.predicted_after[b]));
   }
   for (std::size_t m = 0; m < l.nm; ++m) {
     g.mic_after.push_back(after.mean(l.mic(m)));
@@ -459,7 +467,8 @@ void GapWatch::complete_event() {
   g.window_before = r.window_db;
   for (std::size_t w = 0; w < l.nw; ++w) {
     g.window_after.push_back(after.mean(l.window(w)));
-    g.window_sigma_db.push_back(std::isfinite(sigma(l.window_gap(w))) ? sigma(l.window_gap(w)) : options_.sigma_floor_db);
+    g.window_sigma_db.push_back(std::isfinite(sigma(l.window_gap(w))) ? sigma(l.window_gap(w))
+                                                                      : options_.sigma_floor_db);
   }
   g.speed_rpm = r.speed_rpm;
   g.pressure_edge_rate_hz = options_.pressure_edge_rate_per_rev * r.speed_rpm / 60.0;

@@ -2,9 +2,9 @@
 // change detected as it happens, its onset located and its cause named (change_attribution.hpp).
 //
 // Features of a cycle: per 1/3-octave band the gap measured - predicted (dB(A)), per microphone its offset from the
-// array's energy mean, the overall gap, and per crank window the gap of its A-weighted levels (when reported). Cycles are averaged in blocks of `block_cycles` consecutive usable
-// cycles at one operating point (cycle-to-cycle scatter and the slow bands' smearing average out; a block's
-// spread is measured, not assumed).
+// array's energy mean, the overall gap, and per crank window the gap of its A-weighted levels (when reported). Cycles
+// are averaged in blocks of `block_cycles` consecutive usable cycles at one operating point (cycle-to-cycle scatter and
+// the slow bands' smearing average out; a block's spread is measured, not assumed).
 //
 // Reference: per operating point (speed, load, SOI within tolerances, motored or fired) the first `reference_s`
 // engine seconds of blocks give each feature's mean and block-to-block standard deviation (and the levels the
@@ -41,37 +41,37 @@ inline constexpr double kNoValue = std::numeric_limits<double>::quiet_NaN();
 // What the watch reads of one cycle report (the tool converts noisemon.cycle_report_t).
 struct CycleGap {
   std::int64_t cycle = 0;
-  double time_s = 0.0;                   // the reports' own clock (utime), s
+  double time_s = 0.0;  // the reports' own clock (utime), s
   double speed_rpm = 0.0, load_nm = 0.0, soi_deg_btdc = 0.0;
   bool motored = false;
-  bool usable = true;                    // no fault flag: settling, gap, encoder, pressure fault, overload ...
-  std::vector<double> band_hz;           // nominal centres
+  bool usable = true;           // no fault flag: settling, gap, encoder, pressure fault, overload ...
+  std::vector<double> band_hz;  // nominal centres
   std::vector<double> measured_db, predicted_db, cpl_db;  // per band; NaN where the band says nothing
-  std::vector<double> mic_db;            // per microphone, dB(A); NaN when flagged
+  std::vector<double> mic_db;                             // per microphone, dB(A); NaN when flagged
   double overall_measured_db = kNoValue, overall_predicted_db = kNoValue;
   std::vector<double> window_measured_db, window_predicted_db;  // per crank window, dB(A); empty: not reported
 };
 
 struct GapWatchOptions {
-  double reference_s = 120.0;            // engine seconds of each operating point's reference
+  double reference_s = 120.0;  // engine seconds of each operating point's reference
   std::size_t block_cycles = 16;
-  double false_alarm_hours = 8.0;        // mean engine time between false alarms, over every feature
-  double min_shift_db = 1.0;             // smallest shift to detect
-  double sigma_floor_db = 0.05;          // a feature's block spread is never taken below this
-  std::size_t after_blocks = 8;          // gathered after an alarm before the attribution
-  std::size_t history_cycles = 60000;    // cycles kept for an onset far back (a slow drift)
-  double speed_tolerance_rpm = 60.0;     // one operating point: within these of its centre
+  double false_alarm_hours = 8.0;      // mean engine time between false alarms, over every feature
+  double min_shift_db = 1.0;           // smallest shift to detect
+  double sigma_floor_db = 0.05;        // a feature's block spread is never taken below this
+  std::size_t after_blocks = 8;        // gathered after an alarm before the attribution
+  std::size_t history_cycles = 60000;  // cycles kept for an onset far back (a slow drift)
+  double speed_tolerance_rpm = 60.0;   // one operating point: within these of its centre
   double load_tolerance_nm = 2.0;
   double soi_tolerance_deg = 1.0;
-  SteadyStateOptions steady;             // cycles in and near a change of operating point are not watched
+  SteadyStateOptions steady;                   // cycles in and near a change of operating point are not watched
   double pressure_edge_rate_per_rev = 3600.0;  // encoder edges per revolution (transducer_noise in bar)
   AttributionOptions attribution;
 };
 
 // One feature's reference at an operating point.
 struct FeatureReference {
-  double mean = kNoValue;                // of the block means
-  double sigma = kNoValue;               // block-to-block standard deviation
+  double mean = kNoValue;   // of the block means
+  double sigma = kNoValue;  // block-to-block standard deviation
   std::size_t blocks = 0;
 };
 
@@ -92,20 +92,20 @@ struct GapReference {
 };
 
 struct GapEvent {
-  std::string effect;                    // a candidate of change_attribution.hpp, or "unexplained"
+  std::string effect;  // a candidate of change_attribution.hpp, or "unexplained"
   std::vector<std::pair<std::string, double>> params;
   double confidence = 0.0;
-  std::string kind = "step";             // "step" or "drift" (a shift growing linearly from the onset)
-  double drift_db_per_min = kNoValue;    // a drift's rate on the first feature that fired
+  std::string kind = "step";           // "step" or "drift" (a shift growing linearly from the onset)
+  double drift_db_per_min = kNoValue;  // a drift's rate on the first feature that fired
   std::int64_t onset_cycle = 0, detected_cycle = 0;
   double onset_s = 0.0, detected_s = 0.0;  // since the first cycle report, on the reports' clock
   // The overall A-weighted gap measured - predicted over the watched bands (their energies summed), dB: the reference's
   // and the cycles' from the onset on.
   double gap_before_db = 0.0, gap_after_db = 0.0;
-  std::vector<std::string> features;     // those that fired, e.g. "band 2000 Hz +", "mic 4 +", "overall -"
+  std::vector<std::string> features;  // those that fired, e.g. "band 2000 Hz +", "mic 4 +", "overall -"
   double speed_rpm = 0.0, load_nm = 0.0, soi_deg_btdc = 0.0;
   bool motored = false;
-  GapChange change;                      // the evidence
+  GapChange change;  // the evidence
   Attribution attribution;
 };
 
@@ -133,9 +133,9 @@ class GapWatch {
   // State for the operators' views.
   std::size_t watched_features() const;
   double seconds_since_first() const { return last_s_ - first_s_; }
-  double reference_seconds() const;      // of the current operating point's reference (0: learning)
+  double reference_seconds() const;        // of the current operating point's reference (0: learning)
   double since_reference_seconds() const;  // engine seconds since it was complete (0: learning)
-  bool learning() const;                 // the current operating point's reference is not complete
+  bool learning() const;                   // the current operating point's reference is not complete
   std::int64_t cycles() const { return cycles_; }
   std::int64_t blocks() const { return blocks_; }
   std::int64_t transient_cycles() const { return transient_cycles_; }  // left out: the operating point moved
@@ -182,10 +182,10 @@ class GapWatch {
   GapReference reference_;
   std::vector<PointState> points_;
   SteadyStateGate steady_;
-  std::deque<CycleGap> pending_;             // waiting for the gate's decision
+  std::deque<CycleGap> pending_;  // waiting for the gate's decision
   std::int64_t transient_cycles_ = 0;
-  std::deque<CycleGap> history_;             // its cycle: the watch's own count
-  std::deque<std::int64_t> report_cycles_;   // the reports' cycle numbers, beside it
+  std::deque<CycleGap> history_;            // its cycle: the watch's own count
+  std::deque<std::int64_t> report_cycles_;  // the reports' cycle numbers, beside it
   Block block_;
   std::size_t block_point_ = SIZE_MAX;
   std::deque<std::pair<std::int64_t, double>> block_starts_;  // first cycle and time of the recent blocks

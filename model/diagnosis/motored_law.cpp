@@ -17,8 +17,8 @@
 namespace noisemon::model::diagnosis {
 namespace {
 
-constexpr double kMarginDb = 1.0;         // beyond the cycle-to-cycle error: the model this much above the measurement
-constexpr double kStandardErrors = 3.0;   // of the motored run's cycle-mean level in the band
+constexpr double kMarginDb = 1.0;        // beyond the cycle-to-cycle error: the model this much above the measurement
+constexpr double kStandardErrors = 3.0;  // of the motored run's cycle-mean level in the band
 
 // Cycle-mean band levels of a prediction, Pa^2.
 std::vector<double> cycle_mean(const std::vector<double>& cycle_ms, std::size_t nb) {
@@ -131,8 +131,8 @@ void judge_motored_law(const Context& cx, ModelScore& m) {
       const double beyond = db(p.full[b] / meas) - std::max(0.0, db(p.bare[b] / meas)) - kStandardErrors * se_db;
       if (beyond > m.motored_overshoot_db) {
         m.motored_overshoot_db = beyond;
-        m.motored_overshoot_where = d.info.name + " " + std::to_string(static_cast<int>(data.bands[b].nominal_hz)) +
-                                    " Hz";
+        m.motored_overshoot_where =
+            d.info.name + " " + std::to_string(static_cast<int>(data.bands[b].nominal_hz)) + " Hz";
       }
     }
   }

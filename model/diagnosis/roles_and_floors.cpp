@@ -133,9 +133,12 @@ void assign_roles(Context& cx) {
   const DiagnosisOptions& opt = *cx.opt;
   for (std::size_t k = 0; k < data.conditions.size(); ++k) {
     const ConditionInfo& i = data.conditions[k].info;
-    if (i.background) cx.backgrounds.push_back(k);
-    else if (i.motored) cx.refs.push_back(k);
-    else cx.fired.push_back(k);
+    if (i.background)
+      cx.backgrounds.push_back(k);
+    else if (i.motored)
+      cx.refs.push_back(k);
+    else
+      cx.fired.push_back(k);
   }
   check_patterns_match(data, opt);
   cx.loo = opt.holdout.empty();

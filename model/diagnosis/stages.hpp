@@ -31,8 +31,8 @@ namespace noisemon::model::diagnosis {
 inline constexpr std::size_t kW = kCrankWindows;
 inline constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 
-double db(double ratio);                 // 10 log10(ratio)
-double median(std::vector<double> v);    // NaN when empty
+double db(double ratio);               // 10 log10(ratio)
+double median(std::vector<double> v);  // NaN when empty
 
 // Everything computed once per diagnosis by the first stages, for the others.
 struct Context {
@@ -46,16 +46,16 @@ struct Context {
   // empty when the groups would be single conditions or one group, or under a given split.
   std::vector<std::vector<std::size_t>> groups;
   // Bands and floors (mark_bands_and_floors), per condition and band unless said otherwise.
-  std::vector<double> background_ms;                  // per band: the background runs' mean microphone level, Pa^2
-  std::vector<std::vector<double>> motored_excess;    // motored runs only: measured beyond the model, Pa^2 (the start
-                                                      // model's, then the tuned block's: remark_noise_dominated)
+  std::vector<double> background_ms;                // per band: the background runs' mean microphone level, Pa^2
+  std::vector<std::vector<double>> motored_excess;  // motored runs only: measured beyond the model, Pa^2 (the start
+                                                    // model's, then the tuned block's: remark_noise_dominated)
   std::vector<std::vector<char>> base_mask, tune_mask, floor_limited, noise_dominated;
-  std::vector<std::string> band_notes;                // per band: "nyquist_cut", "line_free" or ""
-  std::vector<char> fast;                             // per band: fast enough for a crank window
+  std::vector<std::string> band_notes;  // per band: "nyquist_cut", "line_free" or ""
+  std::vector<char> fast;               // per band: fast enough for a crank window
   // The pressure chain's floor per condition, and the cells it limits (see pressure_floor.hpp).
   std::vector<PressureFloor> pressure_floors;
-  std::vector<std::vector<char>> pfloor_band;  // per condition, per band: cycle-mean pressure within the margin
-  std::vector<std::vector<char>> pfloor_win;   // per condition, per band * W: the window's pressure likewise
+  std::vector<std::vector<char>> pfloor_band;         // per condition, per band: cycle-mean pressure within the margin
+  std::vector<std::vector<char>> pfloor_win;          // per condition, per band * W: the window's pressure likewise
   std::vector<std::vector<std::vector<int>>> counts;  // bootstrap draws (draw_bootstrap): [replicate][heldout][cycle]
   // Where the time goes (seconds, summed over models).
   mutable double t_fit = 0, t_folds = 0, t_heldout = 0, t_groups = 0, t_floors = 0, t_bootstrap = 0;

@@ -14,8 +14,8 @@
 namespace noisemon::model {
 
 struct SteadyStateOptions {
-  double before_s = 5.0;        // the engine held the point this long before the cycle ...
-  double after_s = 2.0;         // ... and this long after it
+  double before_s = 5.0;         // the engine held the point this long before the cycle ...
+  double after_s = 2.0;          // ... and this long after it
   double speed_band_rpm = 30.0;  // half the watch's tolerances: a point's own spread, never its neighbour's
   double load_band_nm = 1.0;
   double soi_band_deg = 0.5;

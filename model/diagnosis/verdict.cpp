@@ -84,8 +84,8 @@ void conclude(Verdict& v, const ModelScore& selected, const DiagnosisOptions& op
     const std::string best_name = v.effect;
     v.effect = "unexplained";
     v.also.clear();
-    v.explanation = "a significant gap remains: the best candidate (" + best_name + ") closes only " +
-                    percent(closed) + " % of it";
+    v.explanation =
+        "a significant gap remains: the best candidate (" + best_name + ") closes only " + percent(closed) + " % of it";
   } else {
     v.explanation = v.effect + " closes " + percent(closed) + " % of the held-out gap";
     if (!v.also.empty()) v.explanation += " together with " + v.also.front();

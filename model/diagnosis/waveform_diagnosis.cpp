@@ -62,7 +62,8 @@ std::vector<std::vector<double>> squared_difference(const std::vector<std::vecto
   std::vector<std::vector<double>> d(before.size());
   for (std::size_t s = 0; s < before.size(); ++s) {
     d[s].resize(before[s].size());
-    for (std::size_t i = 0; i < before[s].size(); ++i) d[s][i] = before[s][i] * before[s][i] - after[s][i] * after[s][i];
+    for (std::size_t i = 0; i < before[s].size(); ++i)
+      d[s][i] = before[s][i] * before[s][i] - after[s][i] * after[s][i];
   }
   return d;
 }
@@ -77,7 +78,8 @@ std::size_t welch(const std::vector<std::vector<double>>& a, const std::vector<s
   sab.assign(nfft / 2 + 1, 0.0);
   saa.assign(nfft / 2 + 1, 0.0);
   std::vector<double> wa(nfft), wb(nfft), win(nfft);
-  for (std::size_t i = 0; i < nfft; ++i) win[i] = 0.5 - 0.5 * std::cos(2.0 * std::numbers::pi * static_cast<double>(i) / static_cast<double>(nfft));
+  for (std::size_t i = 0; i < nfft; ++i)
+    win[i] = 0.5 - 0.5 * std::cos(2.0 * std::numbers::pi * static_cast<double>(i) / static_cast<double>(nfft));
   std::vector<std::complex<double>> fa, fb;
   std::size_t windows = 0;
   for (std::size_t s = 0; s < a.size(); ++s) {
@@ -151,8 +153,9 @@ constexpr std::size_t kBasis = 13;
 
 std::array<double, kBasis> force_basis(double z, double v) {
   const double sz = std::tanh(z / 0.05), sv = std::tanh(v / 0.05);  // smoothed sign(z), sign(v)
-  return {z, v, z * z - 1.0, v * v - 1.0, z * v, z * z * z, v * v * v, z * std::fabs(z), v * std::fabs(v), sz, sv,
-          std::fabs(v) - 0.8, std::fabs(z) - 0.8};
+  return {
+      z,  v,  z * z - 1.0,        v * v - 1.0,       z * v, z * z * z, v * v * v, z * std::fabs(z), v * std::fabs(v),
+      sz, sv, std::fabs(v) - 0.8, std::fabs(z) - 0.8};
 }
 
 struct RangeSignals {
@@ -318,7 +321,9 @@ struct CandidateSpec {
   std::string start_note;
 };
 
-bool has(const std::vector<std::string>& v, const std::string& s) { return std::find(v.begin(), v.end(), s) != v.end(); }
+bool has(const std::vector<std::string>& v, const std::string& s) {
+  return std::find(v.begin(), v.end(), s) != v.end();
+}
 
 // The candidate `effect` on top of `base` (fitted with free parameters `base_free`); nullopt when the base
 // already contains it.
@@ -410,7 +415,8 @@ std::vector<CandidateResult> run_round(const WaveformFitResult& base, const std:
     }
     try {
       c.fit = fit_waveform(u, y, fo);
-      const auto held = errors_of(c.fit.model, opt.fs_hz, with_steps(opt.sim, c.fit.steps_per_sample), u, y, opt.heldout);
+      const auto held =
+          errors_of(c.fit.model, opt.fs_hz, with_steps(opt.sim, c.fit.steps_per_sample), u, y, opt.heldout);
       c.heldout_rms = rms_of(held);
       c.heldout_segment_rms = c.fit.heldout_segment_rms;
       c.gap_closed_fraction = 1.0 - c.heldout_rms / before;
@@ -422,10 +428,9 @@ std::vector<CandidateResult> run_round(const WaveformFitResult& base, const std:
       c.gap_closed_fraction = 0.0;
     }
     if (opt.log)
-      opt.log(c.error.empty()
-                  ? effect + fmt(": held-out rms %.6g (%.1f %% of the gap closed), p = %.4f", c.heldout_rms,
-                                 100.0 * c.gap_closed_fraction, c.test.p_value)
-                  : effect + ": fit failed: " + c.error);
+      opt.log(c.error.empty() ? effect + fmt(": held-out rms %.6g (%.1f %% of the gap closed), p = %.4f", c.heldout_rms,
+                                             100.0 * c.gap_closed_fraction, c.test.p_value)
+                              : effect + ": fit failed: " + c.error);
     out.push_back(std::move(c));
   }
   const double k = static_cast<double>(std::max<std::size_t>(out.size(), 1));
@@ -449,8 +454,9 @@ void check_options(const WaveformDiagnosisOptions& opt) {
 std::vector<NotApplicable> not_applicable_effects() {
   return {
       {"mechanical_noise", "crank-angle-locked impacts: a u,y waveform carries no crank angle"},
-      {"background_noise", "output noise independent of the input: no model extension reduces a free-run error; "
-                           "it is the floor the explainable-gap test measures against"},
+      {"background_noise",
+       "output noise independent of the input: no model extension reduces a free-run error; "
+       "it is the floor the explainable-gap test measures against"},
       {"transducer_noise", "noise on the measured input: irreducible by a model of the system (errors in variables)"},
       {"mic_gain", "a single output channel: a gain error is absorbed by c0 and c1"},
       {"speed_dependence", "no engine speed in a waveform"},
@@ -475,9 +481,9 @@ WaveformFitResult fit_baseline(std::span<const double> u, std::span<const double
 
 // The second round on top of the verdict's candidate `best`: the best model becomes the verdict's effect plus the
 // best significant one fitted on top of it. Updates best_held and best_sim with it.
-void second_round_on_top(WaveformDiagnosis& d, const CandidateResult& best,
-                         std::vector<std::vector<double>>& best_held, WaveformSimOptions& best_sim,
-                         std::span<const double> u, std::span<const double> y, const WaveformDiagnosisOptions& opt) {
+void second_round_on_top(WaveformDiagnosis& d, const CandidateResult& best, std::vector<std::vector<double>>& best_held,
+                         WaveformSimOptions& best_sim, std::span<const double> u, std::span<const double> y,
+                         const WaveformDiagnosisOptions& opt) {
   std::vector<std::string> rest;
   for (const std::string& c : opt.candidates)
     if (c != best.effect) rest.push_back(c);
@@ -649,7 +655,8 @@ std::vector<BandRms> third_octave_rms(const std::vector<std::vector<double>>& se
   std::vector<BandRms> out;
   if (windows == 0) return out;
   // Hann window power: sum w^2 = 3 nfft / 8. One-sided mean square per bin: 2 |X|^2 / (sum w^2 nfft).
-  const double norm = 2.0 / (static_cast<double>(windows) * 0.375 * static_cast<double>(nfft) * static_cast<double>(nfft));
+  const double norm =
+      2.0 / (static_cast<double>(windows) * 0.375 * static_cast<double>(nfft) * static_cast<double>(nfft));
   const double df = fs_hz / static_cast<double>(nfft);
   for (int band = -20; band <= 43; ++band) {  // 10 mHz .. 20 kHz
     const double fc = std::pow(10.0, band / 10.0);
@@ -685,8 +692,8 @@ WaveformDiagnosis diagnose_waveform(std::span<const double> u, std::span<const d
   d.candidates = run_round(d.baseline, opt.baseline_free, opt.candidates, base_held, u, y, opt);
   d.baseline_gap = explainable_gap(d.baseline.model, opt.fs_hz, opt, base_sim, u, y);
   if (opt.log)
-    opt.log(fmt("baseline error explainable from the input: %.1f %% of its rms (p = %.4f)", 100.0 * d.baseline_gap.fraction,
-                d.baseline_gap.test.p_value));
+    opt.log(fmt("baseline error explainable from the input: %.1f %% of its rms (p = %.4f)",
+                100.0 * d.baseline_gap.fraction, d.baseline_gap.test.p_value));
   const std::vector<std::vector<double>> best_held = choose_best(d, base_held, u, y, opt);
   if (opt.log) opt.log("verdict: " + d.verdict);
 

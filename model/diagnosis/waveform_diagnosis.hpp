@@ -112,15 +112,15 @@ struct WaveformDiagnosis {
   std::vector<CandidateResult> candidates;    // ranked, best first
   std::vector<CandidateResult> second_round;  // on top of the best significant candidate, ranked
   std::vector<NotApplicable> not_applicable;
-  ExplainableGap baseline_gap;                // of the baseline's held-out error
-  ExplainableGap remaining_gap;               // of the best model's held-out error
+  ExplainableGap baseline_gap;   // of the baseline's held-out error
+  ExplainableGap remaining_gap;  // of the best model's held-out error
   std::vector<BandGap> bands;
   std::vector<AmplitudeGap> amplitude;
   std::vector<double> segment_rms_before, segment_rms_after;
-  std::string verdict;                // effect name, "none" or "unexplained"
+  std::string verdict;                        // effect name, "none" or "unexplained"
   std::vector<std::string> also_significant;  // second-round effects that are significant on top
   double heldout_rms_before = 0.0;
-  double heldout_rms_after = 0.0;     // best model (the verdict's, plus the significant second-round one)
+  double heldout_rms_after = 0.0;  // best model (the verdict's, plus the significant second-round one)
   WaveformModel best_model;
   int best_steps_per_sample = 1;
   double seconds = 0.0;
@@ -149,11 +149,11 @@ struct WaveformReport {
   std::vector<std::pair<std::string, double>> baseline_params;
   std::vector<WaveformReportCandidate> candidates;
   std::vector<NotApplicable> not_applicable;
-  std::string verdict;                 // effect, "none" or "unexplained"
+  std::string verdict;  // effect, "none" or "unexplained"
   std::vector<std::string> also_significant;
   double heldout_rms_before = 0.0, heldout_rms_after = 0.0;
-  std::vector<BandGap> bands;          // "where": per 1/3-octave band of the output
-  std::vector<AmplitudeGap> amplitude; // "where": against the output level
+  std::vector<BandGap> bands;           // "where": per 1/3-octave band of the output
+  std::vector<AmplitudeGap> amplitude;  // "where": against the output level
 };
 WaveformReport waveform_report(const WaveformDiagnosis& d);
 

@@ -72,14 +72,15 @@ void count_floor_cells(const Context& cx, std::size_t k, Where& wh, std::vector<
 
 std::string summary_line(const FloorGroup& g, std::size_t nb) {
   char line[256];
-  const std::string range = g.bands_min == g.bands_max ? std::to_string(g.bands_min)
-                                                      : std::to_string(g.bands_min) + "-" + std::to_string(g.bands_max);
-  std::snprintf(line, sizeof line,
-                "%s (%d run%s): %s of %zu bands floor-limited%s; %d of %d crank-window cells at the pressure floor",
-                g.name.c_str(), g.runs, g.runs == 1 ? "" : "s", range.c_str(), nb,
-                std::isfinite(g.from_hz) ? (" from " + std::to_string(static_cast<int>(g.from_hz)) + " Hz up").c_str()
-                                         : "",
-                g.windows, g.windows + g.cells);
+  const std::string range = g.bands_min == g.bands_max
+                                ? std::to_string(g.bands_min)
+                                : std::to_string(g.bands_min) + "-" + std::to_string(g.bands_max);
+  std::snprintf(
+      line, sizeof line,
+      "%s (%d run%s): %s of %zu bands floor-limited%s; %d of %d crank-window cells at the pressure floor",
+      g.name.c_str(), g.runs, g.runs == 1 ? "" : "s", range.c_str(), nb,
+      std::isfinite(g.from_hz) ? (" from " + std::to_string(static_cast<int>(g.from_hz)) + " Hz up").c_str() : "",
+      g.windows, g.windows + g.cells);
   return line;
 }
 

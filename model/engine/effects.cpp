@@ -3,10 +3,10 @@
 #include <algorithm>
 #include <array>
 #include <charconv>
-#include <initializer_list>
 #include <cmath>
 #include <complex>
 #include <cstdio>
+#include <initializer_list>
 #include <limits>
 #include <numbers>
 #include <stdexcept>
@@ -43,49 +43,99 @@ constexpr std::array<EffectQualifierInfo, 1> kMicGainQualifiers{{
 // Defaults are realistic magnitudes that leave a clear trace in the attenuation curves of the thesis
 // conditions (see the table in docs/diagnosis.md, 'Proof on withheld effects': each one's measured gap).
 const std::array<EffectInfo, 9> kCatalog{{
-    {"cubic_damping", "N s^3/m^3",
+    {"cubic_damping",
+     "N s^3/m^3",
      "cubic damper b3 added to the true block (eq. 4.13): damping grows with vibration velocity",
      "true block b3 += M; the resonance flattens at high amplitude (loud, early-injection cycles). Off: 0.",
-     500.0, 100.0, 4.0e3, 0.0, 1.0e7, {}, false},
-    {"cubic_stiffness", "N/m^3",
+     500.0,
+     100.0,
+     4.0e3,
+     0.0,
+     1.0e7,
+     {},
+     false},
+    {"cubic_stiffness",
+     "N/m^3",
      "cubic spring k3 added to the true block (eq. 4.13): stiffness grows with displacement",
      "true block k3 += M; the resonance rises with amplitude (tangent stiffness k1 + 3 k3 z^2). Off: 0.",
-     5.0e12, 1.0e12, 2.0e13, 0.0, 1.0e16, {}, false},
-    {"second_mode", "dB",
-     "a further structural resonance (cover panel): the structural response at f2 rises by M dB",
+     5.0e12,
+     1.0e12,
+     2.0e13,
+     0.0,
+     1.0e16,
+     {},
+     false},
+    {"second_mode", "dB", "a further structural resonance (cover panel): the structural response at f2 rises by M dB",
      "y += (10^(M/20) - 1) (cos(phase) R(y) - sin(phase) D(y)), R unit-peak resonance at f2 "
      "(default 2000 Hz, Q 5, phase 0), D its displacement-like partner; negative M: an absorber. Off: 0.",
      8.0, 3.0, 12.0, -20.0, 30.0, kSecondModeQualifiers, false},
-    {"mechanical_noise", "dB(A)",
+    {"mechanical_noise",
+     "dB(A)",
      "crank-angle-locked impacts (piston slap, valves, injector), Leq(A) at the microphones (energy mean) at 3050 rpm",
-     "7 impacts per cycle at fixed crank angles (below), motored and fired alike (the injector is actuated in motored runs too); "
+     "7 impacts per cycle at fixed crank angles (below), motored and fired alike (the injector is actuated in motored "
+     "runs too); "
      "Leq +30 log10(n/3050 rpm). Off: not given.",
-     85.0, 75.0, 95.0, 0.0, 160.0, {}, false},
+     85.0,
+     75.0,
+     95.0,
+     0.0,
+     160.0,
+     {},
+     false},
     // Against this engine (111 dB(A) at 1.75 m at idle) a stationary noise leaves a trace in the fired spectra above
     // the pressure chain's floor only when it is within about 10 dB of the engine: a dynamometer or a second engine in
     // the cell, not the ventilation of a hemi-anechoic room (tens of dB quieter, below every scored band).
-    {"background_noise", "dB(A)",
-     "stationary noise in the test cell (ventilation, dynamometer, a second engine), Lp(A) at each microphone (20 Hz - 20 kHz)",
+    {"background_noise",
+     "dB(A)",
+     "stationary noise in the test cell (ventilation, dynamometer, a second engine), Lp(A) at each microphone (20 Hz - "
+     "20 kHz)",
      "independent per microphone; white noise through a 200 Hz first-order low-pass. Off: not given.",
-     105.0, 95.0, 110.0, 0.0, 160.0, {}, false},
+     105.0,
+     95.0,
+     110.0,
+     0.0,
+     160.0,
+     {},
+     false},
     // A worn or noisy chain: the real Yanmar records carry about 0.2 bar against a good chain's 0.02 bar.
-    {"transducer_noise", "bar rms",
+    {"transducer_noise",
+     "bar rms",
      "more pressure-chain floor than configured: extra white noise, rms per encoder sample",
-     "added to the measured pressure only, in quadrature on top of the configured chain floor ([sim] pressure_noise_bar, "
+     "added to the measured pressure only, in quadrature on top of the configured chain floor ([sim] "
+     "pressure_noise_bar, "
      "sim --pressure-floor), before the ADC; not heard by the microphones. Off: 0.",
-     0.05, 0.02, 0.3, 0.0, 10.0, {}, false},
-    {"mic_gain", "dB",
-     "one microphone channel reads M dB high (wrong sensitivity at calibration)",
-     "everything the chosen microphone (default 1) records is scaled by 10^(M/20). Off: 0.",
-     3.0, -6.0, 6.0, -40.0, 40.0, kMicGainQualifiers, false},
-    {"speed_dependence", "dB per 1000 rpm",
+     0.05,
+     0.02,
+     0.3,
+     0.0,
+     10.0,
+     {},
+     false},
+    {"mic_gain", "dB", "one microphone channel reads M dB high (wrong sensitivity at calibration)",
+     "everything the chosen microphone (default 1) records is scaled by 10^(M/20). Off: 0.", 3.0, -6.0, 6.0, -40.0,
+     40.0, kMicGainQualifiers, false},
+    {"speed_dependence",
+     "dB per 1000 rpm",
      "the structural transfer changes by M dB per 1000 rpm above 3050 rpm (below: the opposite)",
      "gain 10^(M (n - 3050) / 20000) on the radiated combustion noise (not on mechanical or background). Off: 0.",
-     4.0, -8.0, 8.0, -40.0, 40.0, {}, false},
-    {"foreign_soi_gain", "dB per deg",
+     4.0,
+     -8.0,
+     8.0,
+     -40.0,
+     40.0,
+     {},
+     false},
+    {"foreign_soi_gain",
+     "dB per deg",
      "TEST ONLY, foreign to every diagnosis candidate: fired cycles louder by M dB per degree of SOI advance over 18",
      "gain 10^(M (SOI - 18) / 20) on the structural path of fired cycles; proves the `unexplained` verdict. Off: 0.",
-     0.3, -1.0, 1.0, -5.0, 5.0, {}, true},
+     0.3,
+     -1.0,
+     1.0,
+     -5.0,
+     5.0,
+     {},
+     true},
 }};
 
 std::string trim(std::string_view s) {
@@ -131,8 +181,12 @@ double a_weighted_integral(Psd psd, double f_lo, double f_hi) {
 double impact_a_weighted_energy(double ring_hz, double decay_s) {
   const double a1 = 1.0 / decay_s, a2 = a1 + 1.0 / kImpactRiseS, w0 = 2.0 * kPi * ring_hz;
   const auto d2 = [&](double v) { return (a2 - a1) * (a2 - a1) / ((a1 * a1 + v * v) * (a2 * a2 + v * v)); };
-  return a_weighted_integral([&](double f) { const double w = 2.0 * kPi * f; return 0.5 * (d2(w - w0) + d2(w + w0)); },
-                             0.0, 20000.0);
+  return a_weighted_integral(
+      [&](double f) {
+        const double w = 2.0 * kPi * f;
+        return 0.5 * (d2(w - w0) + d2(w + w0));
+      },
+      0.0, 20000.0);
 }
 
 constexpr std::array<ImpactEvent, 7> kEvents{{
@@ -183,19 +237,21 @@ std::string effect_help_text() {
       add({"      ,", q.key, "=", fmt(q.default_value), q.unit.empty() ? "" : " ", q.unit, ": ", q.meaning, " (",
            fmt(q.min), " .. ", fmt(q.max), ")\n"});
   }
-  out +=
-      "\n  mechanical_noise impacts (crank angle re firing TDC, level re the strongest, ringing mode, decay):\n";
+  out += "\n  mechanical_noise impacts (crank angle re firing TDC, level re the strongest, ringing mode, decay):\n";
   for (const auto& ev : kEvents) {
     char line[160];
     if (ev.at_soi)
-      std::snprintf(line, sizeof line, "      %-26s at SOI (the commanded start of injection)   %+5.1f dB  %6.0f Hz  %.1f ms\n",
+      std::snprintf(line, sizeof line,
+                    "      %-26s at SOI (the commanded start of injection)   %+5.1f dB  %6.0f Hz  %.1f ms\n",
                     std::string(ev.name).c_str(), ev.relative_db, ev.ring_hz, 1e3 * ev.decay_s);
     else
-      std::snprintf(line, sizeof line, "      %-26s %+7.1f deg                                %+5.1f dB  %6.0f Hz  %.1f ms\n",
+      std::snprintf(line, sizeof line,
+                    "      %-26s %+7.1f deg                                %+5.1f dB  %6.0f Hz  %.1f ms\n",
                     std::string(ev.name).c_str(), ev.angle_deg, ev.relative_db, ev.ring_hz, 1e3 * ev.decay_s);
     out += line;
   }
-  out += "      each impact: level scatter " + fmt(kImpactAmplitudeSigmaDb) + " dB, angle jitter " + fmt(kImpactJitterDeg) +
+  out += "      each impact: level scatter " + fmt(kImpactAmplitudeSigmaDb) + " dB, angle jitter " +
+         fmt(kImpactJitterDeg) +
          " deg, random phase per cycle; heard r/c later at the microphones (5.1 ms at 1.75 m).\n";
   return out;
 }
@@ -208,7 +264,8 @@ EffectSetting parse_effect(std::string_view text) {
   std::size_t start = 0;
   for (;;) {
     const std::size_t comma = whole.find(',', start);
-    parts.push_back(trim(std::string_view(whole).substr(start, comma == std::string::npos ? std::string::npos : comma - start)));
+    parts.push_back(
+        trim(std::string_view(whole).substr(start, comma == std::string::npos ? std::string::npos : comma - start)));
     if (comma == std::string::npos) break;
     start = comma + 1;
   }
@@ -218,8 +275,8 @@ EffectSetting parse_effect(std::string_view text) {
   s.name = trim(std::string_view(head).substr(0, eq));
   const EffectInfo* info = find_effect(s.name);
   if (!info)
-    throw std::invalid_argument("effect \"" + whole + "\": unknown effect \"" + s.name + "\"; valid effects: " +
-                                valid_effect_names());
+    throw std::invalid_argument("effect \"" + whole + "\": unknown effect \"" + s.name +
+                                "\"; valid effects: " + valid_effect_names());
   const std::string where = "effect \"" + whole + "\"";
   s.magnitude = eq == std::string::npos ? info->default_magnitude
                                         : parse_number(std::string_view(head).substr(eq + 1), where + ": magnitude");
@@ -242,7 +299,8 @@ EffectSetting parse_effect(std::string_view text) {
     if (qeq == std::string::npos) throw std::invalid_argument(where + ": qualifier \"" + key + "\" needs =VALUE");
     const double v = parse_number(std::string_view(parts[i]).substr(qeq + 1), where + ": " + key);
     if (v < q->min || v > q->max)
-      throw std::invalid_argument(where + ": " + key + " = " + fmt(v) + " is outside " + fmt(q->min) + " .. " + fmt(q->max));
+      throw std::invalid_argument(where + ": " + key + " = " + fmt(v) + " is outside " + fmt(q->min) + " .. " +
+                                  fmt(q->max));
     for (const auto& [k, _] : s.qualifiers)
       if (k == key) throw std::invalid_argument(where + ": qualifier \"" + key + "\" given twice");
     s.qualifiers.emplace_back(key, v);
@@ -252,7 +310,8 @@ EffectSetting parse_effect(std::string_view text) {
 
 void Effects::add(const EffectSetting& setting) {
   const EffectInfo* info = find_effect(setting.name);
-  if (!info) throw std::invalid_argument("unknown effect \"" + setting.name + "\"; valid effects: " + valid_effect_names());
+  if (!info)
+    throw std::invalid_argument("unknown effect \"" + setting.name + "\"; valid effects: " + valid_effect_names());
   for (const auto& s : settings)
     if (s.name == setting.name) throw std::invalid_argument("effect " + setting.name + " given twice");
   if (!(setting.magnitude >= info->min && setting.magnitude <= info->max))
@@ -264,8 +323,8 @@ void Effects::add(const EffectSetting& setting) {
       for (const auto& [k, v] : setting.qualifiers)
         if (k == key) {
           if (!(v >= q.min && v <= q.max))
-            throw std::invalid_argument("effect " + setting.name + ": " + k + " = " + fmt(v) + " outside " + fmt(q.min) +
-                                        " .. " + fmt(q.max));
+            throw std::invalid_argument("effect " + setting.name + ": " + k + " = " + fmt(v) + " outside " +
+                                        fmt(q.min) + " .. " + fmt(q.max));
           return v;
         }
       return q.default_value;
@@ -333,8 +392,8 @@ double structural_gain(const Effects& effects, double speed_rpm, double soi_deg_
 SecondModeFilter::SecondModeFilter(const Effects& effects, double fs_hz) {
   if (effects.second_mode_db == 0.0) return;
   if (!(effects.second_mode_hz < 0.45 * fs_hz))
-    throw std::invalid_argument("second_mode: f2 = " + fmt(effects.second_mode_hz) + " Hz is too close to the Nyquist frequency of " +
-                                fmt(fs_hz) + " Hz");
+    throw std::invalid_argument("second_mode: f2 = " + fmt(effects.second_mode_hz) +
+                                " Hz is too close to the Nyquist frequency of " + fmt(fs_hz) + " Hz");
   a_ = std::pow(10.0, effects.second_mode_db / 20.0) - 1.0;
   // Bilinear transform of (w/Q) s / (s^2 + (w/Q) s + w^2) pre-warped at f2 (RBJ constant-peak band-pass).
   const double w0 = 2.0 * kPi * effects.second_mode_hz / fs_hz;
@@ -369,7 +428,8 @@ void SecondModeFilter::process(double* y, std::size_t n) {
 
 std::span<const ImpactEvent> mechanical_events() { return kEvents; }
 
-MechanicalNoise::MechanicalNoise(double level_dba, double speed_rpm, double soi_deg_btdc, double fs_hz, std::uint64_t seed)
+MechanicalNoise::MechanicalNoise(double level_dba, double speed_rpm, double soi_deg_btdc, double fs_hz,
+                                 std::uint64_t seed)
     : fs_(fs_hz), soi_(soi_deg_btdc), seed_(seed), active_(64) {
   if (!(speed_rpm > 0.0)) throw std::invalid_argument("mechanical_noise: the speed must be positive");
   // Amplitude at the reference speed from the Leq(A) over one cycle: sum of the events' A-weighted energies
@@ -394,7 +454,8 @@ MechanicalNoise::MechanicalNoise(double level_dba, double speed_rpm, double soi_
 void MechanicalNoise::schedule_next() {
   const std::size_t e = order_[next_slot_];
   const std::uint64_t idx = static_cast<std::uint64_t>(next_cycle_) * 16 + e;
-  next_angle_ = 720.0 * static_cast<double>(next_cycle_) + angle_[e] + kImpactJitterDeg * rnd::normal_at(seed_, kStreamImpactJitter, idx);
+  next_angle_ = 720.0 * static_cast<double>(next_cycle_) + angle_[e] +
+                kImpactJitterDeg * rnd::normal_at(seed_, kStreamImpactJitter, idx);
 }
 
 void MechanicalNoise::start(std::size_t event, double delay_s, std::int64_t cycle) {
@@ -415,7 +476,8 @@ void MechanicalNoise::start(std::size_t event, double delay_s, std::int64_t cycl
   if (slot == active_.size()) {
     slot = 0;
     for (std::size_t i = 1; i < active_.size(); ++i)
-      if (std::norm(std::complex<double>(active_[i].re1, active_[i].im1)) < std::norm(std::complex<double>(active_[slot].re1, active_[slot].im1)))
+      if (std::norm(std::complex<double>(active_[i].re1, active_[i].im1)) <
+          std::norm(std::complex<double>(active_[slot].re1, active_[slot].im1)))
         slot = i;
   } else {
     ++active_count_;
@@ -502,7 +564,8 @@ void add_transducer_noise(const Effects& effects, std::uint64_t seed, std::int64
   const double sigma = transducer_noise_rms_pa(effects);
   if (sigma == 0.0) return;
   for (std::size_t i = 0; i < n; ++i)
-    pressure_pa[i] += sigma * rnd::normal_at(seed, kStreamTransducer, static_cast<std::uint64_t>(first_index + static_cast<std::int64_t>(i)));
+    pressure_pa[i] += sigma * rnd::normal_at(seed, kStreamTransducer,
+                                             static_cast<std::uint64_t>(first_index + static_cast<std::int64_t>(i)));
 }
 
 double mic_gain_factor(const Effects& effects, std::size_t mic) {

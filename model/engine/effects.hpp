@@ -68,9 +68,9 @@ struct EffectInfo {
   std::string_view how;      // how it is injected, where, and what "off" is (one or two lines)
   double default_magnitude;  // realistic; used by the withheld-effect tests
   double realistic_min, realistic_max;
-  double min, max;           // accepted by the parser
+  double min, max;  // accepted by the parser
   std::span<const EffectQualifierInfo> qualifiers;
-  bool test_only;            // not a DESIGN.md effect (the foreign effect)
+  bool test_only;  // not a DESIGN.md effect (the foreign effect)
 };
 
 // DESIGN.md's eight effects in its order, then the test-only foreign effect.
@@ -105,9 +105,9 @@ struct Effects {
   double second_mode_phase_deg = 0.0;  // the mode's phase against the block's output at f2 (the diagnosis fits it)
   std::optional<double> mechanical_noise_dba;  // nullopt: off
   std::optional<double> background_noise_dba;  // nullopt: off
-  double transducer_noise_bar = 0.0;            // rms per encoder sample
+  double transducer_noise_bar = 0.0;           // rms per encoder sample
   double mic_gain_db = 0.0;
-  int mic_gain_mic = 1;                         // 1-based (Table 3.1 numbering)
+  int mic_gain_mic = 1;  // 1-based (Table 3.1 numbering)
   double speed_dependence_db_per_krpm = 0.0;
   double foreign_soi_gain_db_per_deg = 0.0;
 
@@ -144,23 +144,23 @@ class SecondModeFilter {
  private:
   double a_ = 0.0, cos_ = 1.0, sin_ = 0.0;
   double b0_ = 0, b2_ = 0, a1_ = 0, a2_ = 0;  // normalised band-pass biquad (b1 = 0)
-  double l0_ = 0, l1_ = 0;                     // the low-pass partner's numerator (l2 = l0), over Q; same poles
+  double l0_ = 0, l1_ = 0;                    // the low-pass partner's numerator (l2 = l0), over Q; same poles
   double x1_ = 0, x2_ = 0, y1_ = 0, y2_ = 0, d1_ = 0, d2_ = 0;
 };
 
 // One crank-angle-locked impact source of mechanical_noise.
 struct ImpactEvent {
   std::string_view name;
-  double angle_deg;      // cycle angle, 0 = firing TDC; for the injector: added to -SOI
-  bool at_soi;           // angle is relative to the start of injection
-  double relative_db;    // A-weighted impact energy relative to the strongest event
-  double ring_hz;        // the structural mode the impact rings
-  double decay_s;        // its exponential decay time constant
+  double angle_deg;    // cycle angle, 0 = firing TDC; for the injector: added to -SOI
+  bool at_soi;         // angle is relative to the start of injection
+  double relative_db;  // A-weighted impact energy relative to the strongest event
+  double ring_hz;      // the structural mode the impact rings
+  double decay_s;      // its exponential decay time constant
 };
 std::span<const ImpactEvent> mechanical_events();
-inline constexpr double kImpactRiseS = 50e-6;          // onset time constant of every impact
-inline constexpr double kImpactAmplitudeSigmaDb = 1.5; // cycle-to-cycle scatter of each impact's level
-inline constexpr double kImpactJitterDeg = 0.3;        // cycle-to-cycle scatter of each impact's angle
+inline constexpr double kImpactRiseS = 50e-6;           // onset time constant of every impact
+inline constexpr double kImpactAmplitudeSigmaDb = 1.5;  // cycle-to-cycle scatter of each impact's level
+inline constexpr double kImpactJitterDeg = 0.3;         // cycle-to-cycle scatter of each impact's angle
 
 // mechanical_noise: the impacts of every event in every cycle, added to a signal sampled at fs whose crank
 // angle (unwrapped, increasing) is given per sample. Deterministic in (seed, cycle, event): chunking does not
@@ -190,8 +190,8 @@ class MechanicalNoise {
   bool started_ = false;
   double prev_crank_ = 0.0;
   std::int64_t next_cycle_ = 0;
-  std::size_t next_slot_ = 0;       // index into order_
-  double next_angle_ = 0.0;         // unwrapped, jittered
+  std::size_t next_slot_ = 0;  // index into order_
+  double next_angle_ = 0.0;    // unwrapped, jittered
 };
 
 // background_noise at one microphone: white Gaussian noise through a first-order low-pass at

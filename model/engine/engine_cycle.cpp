@@ -67,34 +67,35 @@ double fuel_mass_per_cycle_kg(const EngineCycleParams& params, const OperatingCo
 // Per-compute() constants of the rate function.
 struct EngineCycle::Constants {
   double m, r, cv0, cv1, tw, deg_per_s, a, mp, md, cn_ea, hh_speed, p_motored_ref;
-  double woschni_w0;     // C1 Sp, m/s
-  double woschni_coef;   // scale * 3.26 B^-0.2 (m R / 1000)^0.8 / (deg/s): times A V^-0.8 T^0.25 w^0.8 (T - Tw)
+  double woschni_w0;    // C1 Sp, m/s
+  double woschni_coef;  // scale * 3.26 B^-0.2 (m R / 1000)^0.8 / (deg/s): times A V^-0.8 T^0.25 w^0.8 (T - Tw)
 };
 
 struct EngineCycle::Combustion {
-  double soi = 0;          // deg
-  bool injected = false;   // fuel this cycle
+  double soi = 0;         // deg
+  bool injected = false;  // fuel this cycle
   bool ignited = false;
   double soc = 0;
   double delay_scale = 1;
   double q_premixed = 0, q_diffusion = 0;  // J
   double dur_p = 1, dur_d = 1;
-  double woschni_k = 0;    // C2 Vd Tr / (pr Vr)
-  double woschni_w = 0;    // C1 Sp
+  double woschni_k = 0;  // C2 Vd Tr / (pr Vr)
+  double woschni_w = 0;  // C1 Sp
 };
 
 struct EngineCycle::Rates {
-  double dtemp;    // K/deg
-  double htr;      // heat loss rate, J/deg
-  double pdv;      // p dV/dtheta, J/deg
-  double dign;     // Livengood-Wu integrand, 1/deg
-  double hrr;      // heat release rate, J/deg
-  double p;        // Pa
+  double dtemp;  // K/deg
+  double htr;    // heat loss rate, J/deg
+  double pdv;    // p dV/dtheta, J/deg
+  double dign;   // Livengood-Wu integrand, 1/deg
+  double hrr;    // heat release rate, J/deg
+  double p;      // Pa
 };
 
 EngineCycle::EngineCycle(const EngineCycleParams& params) : params_(params) {
   const auto& g = params_.geometry;
-  if (!(params_.step_deg > 0.0 && params_.step_deg <= 1.0)) throw std::invalid_argument("EngineCycle: step_deg must be in (0, 1]");
+  if (!(params_.step_deg > 0.0 && params_.step_deg <= 1.0))
+    throw std::invalid_argument("EngineCycle: step_deg must be in (0, 1]");
   if (!(params_.ivc_deg > -360.0 && params_.ivc_deg < -90.0 && params_.evo_deg > 90.0 && params_.evo_deg < 340.0))
     throw std::invalid_argument("EngineCycle: IVC must be in (-360, -90) and EVO in (90, 340) deg");
   if (!(g.compression_ratio > 1.0 && g.conrod_m > 0.5 * g.stroke_m && g.bore_m > 0.0))
@@ -288,8 +289,9 @@ void EngineCycle::compute(const OperatingCondition& op, const CycleVariation& va
   if (c.ignited) {
     const double a = params_.wiebe_a;
     const double x = params_.evo_deg - c.soc;
-    summary_.heat_release_j = c.q_premixed * (1.0 - std::exp(-a * std::pow(x / c.dur_p, params_.premixed_shape + 1.0))) +
-                              c.q_diffusion * (1.0 - std::exp(-a * std::pow(x / c.dur_d, params_.diffusion_shape + 1.0)));
+    summary_.heat_release_j =
+        c.q_premixed * (1.0 - std::exp(-a * std::pow(x / c.dur_p, params_.premixed_shape + 1.0))) +
+        c.q_diffusion * (1.0 - std::exp(-a * std::pow(x / c.dur_d, params_.diffusion_shape + 1.0)));
   }
   fill_open_part();
   summarise();
@@ -318,8 +320,9 @@ void EngineCycle::add_ringing(double deg_per_s, const CycleVariation& variation,
   in.cv0 = params_.cv0_j_kg_k;
   in.cv1 = params_.cv1_j_kg_k2;
   in.phase_rad = variation.ringing_phase_rad;
-  summary_.ringing_amplitude_pa = add_gas_ringing(params_.ringing, in, std::span<double>(pt_).subspan(ivc_node_, closed),
-                                                  std::span<double>(dpt_).subspan(ivc_node_, closed), ring_scratch_);
+  summary_.ringing_amplitude_pa =
+      add_gas_ringing(params_.ringing, in, std::span<double>(pt_).subspan(ivc_node_, closed),
+                      std::span<double>(dpt_).subspan(ivc_node_, closed), ring_scratch_);
 }
 
 void EngineCycle::fill_open_part() {

@@ -35,9 +35,9 @@ struct EngineCycleParams {
   double intake_pressure_pa = 1.0e5;    // absolute, also the pressure at IVC
   double intake_temperature_k = 330.0;  // charge temperature at IVC (intake air heated by walls and residuals)
   double exhaust_pressure_pa = 1.05e5;
-  double ivc_deg = -150.0;              // intake valve closes 30 deg after BDC
-  double evo_deg = 130.0;               // exhaust valve opens 50 deg before BDC
-  double blowdown_deg = 35.0;           // width of the Gaussian blowdown decay after EVO
+  double ivc_deg = -150.0;     // intake valve closes 30 deg after BDC
+  double evo_deg = 130.0;      // exhaust valve opens 50 deg before BDC
+  double blowdown_deg = 35.0;  // width of the Gaussian blowdown decay after EVO
   // Gas: R and cv(T) = cv0 + cv1 T. cv1 = 0 with cv0 = R / (gamma - 1) gives a constant gamma.
   double gas_constant_j_kg_k = 287.0;
   double cv0_j_kg_k = 680.6;
@@ -92,22 +92,22 @@ double fuel_mass_per_cycle_kg(const EngineCycleParams& params, const OperatingCo
 
 struct CycleSummary {
   double trapped_mass_kg = 0;
-  double fuel_mass_kg = 0;           // including the cycle's heat-release scale
-  double fuel_energy_j = 0;          // fuel_mass * LHV * combustion efficiency
+  double fuel_mass_kg = 0;   // including the cycle's heat-release scale
+  double fuel_energy_j = 0;  // fuel_mass * LHV * combustion efficiency
   double equivalence_ratio = 0;
-  double soi_deg = 0;                // start of injection (negative: BTDC)
-  double soc_deg = 0;                // start of combustion; NaN when motored or no ignition
+  double soi_deg = 0;  // start of injection (negative: BTDC)
+  double soc_deg = 0;  // start of combustion; NaN when motored or no ignition
   double ignition_delay_deg = 0;
   double premixed_fraction = 0;
   double peak_pressure_pa = 0;
   double peak_pressure_deg = 0;
   double max_dp_dtheta_pa_per_deg = 0;
-  double heat_release_j = 0;         // IVC..EVO
-  double heat_loss_j = 0;            // IVC..EVO, to the walls
-  double closed_work_j = 0;          // IVC..EVO, integral of p dV
-  double imep_gross_pa = 0;          // compression + expansion strokes (-180..180)
-  double imep_net_pa = 0;            // whole cycle
-  double ringing_amplitude_pa = 0;   // gas ringing: peak of mode (1,0) (0: none)
+  double heat_release_j = 0;        // IVC..EVO
+  double heat_loss_j = 0;           // IVC..EVO, to the walls
+  double closed_work_j = 0;         // IVC..EVO, integral of p dV
+  double imep_gross_pa = 0;         // compression + expansion strokes (-180..180)
+  double imep_net_pa = 0;           // whole cycle
+  double ringing_amplitude_pa = 0;  // gas ringing: peak of mode (1,0) (0: none)
 };
 
 // One engine cycle. The constructor allocates every table; compute() does not allocate.
@@ -149,7 +149,7 @@ class EngineCycle {
   void add_ringing(double deg_per_s, const CycleVariation& variation, const Combustion& c);
 
   EngineCycleParams params_;
-  double h_ = 0.05;                   // table and integration step, deg
+  double h_ = 0.05;  // table and integration step, deg
   std::size_t ivc_node_ = 0, evo_node_ = 0, nodes_ = 0;
   // Geometry on the half-step grid of the whole cycle (index 2 i = node i), computed once: V, dV/dtheta, wall
   // area times V^-0.8 (Woschni's p^0.8 at fixed T), motored polytropic pressure ratio (V_ivc / V)^1.35.

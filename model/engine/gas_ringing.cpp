@@ -36,18 +36,20 @@ double premixed_peak_fraction(double wiebe_a, double shape) {
   return std::pow(shape / ((shape + 1.0) * wiebe_a), 1.0 / (shape + 1.0));
 }
 
-double add_gas_ringing(const GasRingingParams& params, const RingingInput& in, std::span<double> p, std::span<double> dp,
-                       std::span<double> scratch) {
+double add_gas_ringing(const GasRingingParams& params, const RingingInput& in, std::span<double> p,
+                       std::span<double> dp, std::span<double> scratch) {
   const std::size_t n = in.angle_deg.size();
   if (!params.active() || !(in.premixed_j > 0.0) || n < 2 || !(in.deg_per_s > 0.0)) return 0.0;
-  if (p.size() < n || dp.size() < n || scratch.size() < 2 * n) throw std::invalid_argument("add_gas_ringing: spans too short");
+  if (p.size() < n || dp.size() < n || scratch.size() < 2 * n)
+    throw std::invalid_argument("add_gas_ringing: spans too short");
   const double h = in.angle_deg[1] - in.angle_deg[0];
   const double a = in.wiebe_a, m = in.premixed_shape, dur = in.premixed_duration_deg;
   const double xs = premixed_peak_fraction(a, m);
   const double shape_peak = a * (m + 1.0) * std::pow(xs, m) * std::exp(-a * std::pow(xs, m + 1.0));
   // Amplitude: gain times the pressure-rise rate of the premixed burn at its peak, dp/dt = (gamma - 1) / V dQ/dt.
   const double theta_pk = in.soc_deg + xs * dur;
-  const auto node = static_cast<std::size_t>(std::clamp(std::lround((theta_pk - in.angle_deg[0]) / h), 0L, static_cast<long>(n - 1)));
+  const auto node =
+      static_cast<std::size_t>(std::clamp(std::lround((theta_pk - in.angle_deg[0]) / h), 0L, static_cast<long>(n - 1)));
   const double t_pk = in.temperature_k[node];
   const double cv = in.cv0 + in.cv1 * t_pk;
   const double qdot_pk = in.premixed_j / dur * shape_peak * in.deg_per_s;  // J/s

@@ -39,8 +39,8 @@ inline constexpr std::size_t kRingingModes = 3;
 inline constexpr std::array<double, kRingingModes> kDraperAlpha{1.841, 3.054, 3.832};
 
 struct GasRingingParams {
-  double gain_s = 6e-6;    // mode (1,0) peak = gain_s * premixed pressure-rise rate (Pa/s); 0: no ringing
-  double decay_s = 1.0e-3; // time constant of the envelope's decay
+  double gain_s = 6e-6;     // mode (1,0) peak = gain_s * premixed pressure-rise rate (Pa/s); 0: no ringing
+  double decay_s = 1.0e-3;  // time constant of the envelope's decay
   std::array<double, kRingingModes> mode_weights{1.0, 0.5, 0.3};  // (1,0), (2,0), (0,1) relative to A
 
   static GasRingingParams off() {
@@ -66,7 +66,7 @@ struct RingingInput {
   double premixed_duration_deg = 1.0;
   double wiebe_a = 6.908;
   double premixed_shape = 2.0;
-  double volume_at_peak_m3 = 0.0;         // cylinder volume at the premixed peak (soc + x* duration)
+  double volume_at_peak_m3 = 0.0;  // cylinder volume at the premixed peak (soc + x* duration)
   double bore_m = 0.086;
   double gas_constant = 287.0, cv0 = 680.6, cv1 = 0.1247;
   std::array<double, kRingingModes> phase_rad{};
@@ -77,7 +77,7 @@ double premixed_peak_fraction(double wiebe_a, double shape);
 
 // Adds the ringing to p (Pa) and its derivative to dp (Pa/deg), both on in.angle_deg's grid; returns the mode
 // (1,0) peak amplitude A (Pa), 0 when inactive or without premixed heat. scratch: 2 n doubles (no allocation).
-double add_gas_ringing(const GasRingingParams& params, const RingingInput& in, std::span<double> p, std::span<double> dp,
-                       std::span<double> scratch);
+double add_gas_ringing(const GasRingingParams& params, const RingingInput& in, std::span<double> p,
+                       std::span<double> dp, std::span<double> scratch);
 
 }  // namespace noisemon::model

@@ -16,8 +16,8 @@ namespace {
 
 constexpr double kPi = std::numbers::pi;
 constexpr double kQ = 1.0;  // broad peaks (1.9 octaves between the half-gain points): neighbours overlap smoothly
-constexpr double kSpreadCornerHz = 1000.0;       // sigma(f) = D sqrt(f / (f + corner))
-constexpr int kNormaliseIterations = 20;         // band-centre energy normalisation (a contraction: ~1e-9 dB left)
+constexpr double kSpreadCornerHz = 1000.0;  // sigma(f) = D sqrt(f / (f + corner))
+constexpr int kNormaliseIterations = 20;    // band-centre energy normalisation (a contraction: ~1e-9 dB left)
 constexpr std::uint64_t kStreamDirectivity = 0x5001;
 
 bool band_used(std::size_t k, double fs_hz) { return kDirectivityBandsHz[k] < 0.45 * fs_hz; }

@@ -30,7 +30,8 @@
 namespace noisemon::model {
 
 inline constexpr std::size_t kDirectivityBands = 8;
-inline constexpr std::array<double, kDirectivityBands> kDirectivityBandsHz{125, 250, 500, 1000, 2000, 4000, 8000, 16000};
+inline constexpr std::array<double, kDirectivityBands> kDirectivityBandsHz{125,  250,  500,  1000,
+                                                                           2000, 4000, 8000, 16000};
 
 struct MicChainConfig {
   double self_noise_dba = 20.0;  // A-weighted, each microphone; -inf: none

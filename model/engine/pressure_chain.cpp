@@ -83,7 +83,8 @@ void PressureChain::measure(std::int64_t first_index, double* pressure_pa, std::
   const double white = 1e5 * config_.noise_bar, flicker = 1e5 * config_.flicker_bar;
   for (std::size_t i = 0; i < n; ++i) {
     const std::int64_t index = first_index + static_cast<std::int64_t>(i);
-    if (white > 0.0) pressure_pa[i] += white * rnd::normal_at(seed_, kStreamPressureFloor, static_cast<std::uint64_t>(index));
+    if (white > 0.0)
+      pressure_pa[i] += white * rnd::normal_at(seed_, kStreamPressureFloor, static_cast<std::uint64_t>(index));
     if (flicker > 0.0) pressure_pa[i] += flicker * flicker_at(index);
   }
   add_transducer_noise(effects_, seed_, first_index, pressure_pa, n);

@@ -17,8 +17,8 @@
 //   and are counted (PressureChain::clipped_samples()).
 // - transducer_noise (model/engine/effects.hpp): more floor than configured, added before the ADC.
 //
-// Every noise is counter-based on the global encoder sample index (model/engine/random.hpp): the measured value of sample
-// i depends only on (seed, i), never on how the stream was chunked.
+// Every noise is counter-based on the global encoder sample index (model/engine/random.hpp): the measured value of
+// sample i depends only on (seed, i), never on how the stream was chunked.
 #pragma once
 
 #include <cstddef>

@@ -115,11 +115,11 @@ struct VirtualEngine::Impl {
   std::vector<double> spread, mic_factor;
   std::vector<std::int64_t> delay;  // output samples
   std::int64_t min_delay = 0;
-  std::vector<double> line;         // engine sound at the output rate, circular
+  std::vector<double> line;  // engine sound at the output rate, circular
   std::size_t line_mask = 0;
-  std::int64_t line_avail = 0;      // output samples of engine sound produced
-  std::int64_t input_next = 0;      // next input index to pull
-  std::int64_t frames = 0;          // output frames rendered
+  std::int64_t line_avail = 0;  // output samples of engine sound produced
+  std::int64_t input_next = 0;  // next input index to pull
+  std::int64_t frames = 0;      // output frames rendered
   std::vector<PinkNoise> floor;
   std::vector<BackgroundNoise> background;
   std::vector<rnd::Normal> self_noise;
@@ -145,7 +145,8 @@ struct VirtualEngine::Impl {
     if (!(c.output_rate_hz > 0.0) || !(ratio >= 1.0) || std::abs(ratio - std::round(ratio)) > 1e-9)
       throw std::invalid_argument("virtual engine: the input rate must be a whole multiple of the output rate");
     if (mics == 0) throw std::invalid_argument("virtual engine: no microphone positions");
-    if (c.effects.mic_gain_db != 0.0 && (c.effects.mic_gain_mic < 1 || static_cast<std::size_t>(c.effects.mic_gain_mic) > mics))
+    if (c.effects.mic_gain_db != 0.0 &&
+        (c.effects.mic_gain_mic < 1 || static_cast<std::size_t>(c.effects.mic_gain_mic) > mics))
       throw std::invalid_argument("effect mic_gain: microphone " + std::to_string(c.effects.mic_gain_mic) +
                                   " does not exist (the layout has " + std::to_string(mics) + ")");
     if (!(c.speed_of_sound_m_s > 0.0)) throw std::invalid_argument("virtual engine: speed of sound must be positive");
@@ -156,7 +157,8 @@ struct VirtualEngine::Impl {
     spread = mic_spread_gains(mics, c.mic_gain_spread_db, c.setup_seed);
     for (std::size_t i = 0; i < mics; ++i) mic_factor.push_back(mic_gain_factor(c.effects, i));
     for (const auto& q : c.mic_positions_m)
-      delay.push_back(std::llround(std::sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2]) / c.speed_of_sound_m_s * c.output_rate_hz));
+      delay.push_back(
+          std::llround(std::sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2]) / c.speed_of_sound_m_s * c.output_rate_hz));
     min_delay = *std::min_element(delay.begin(), delay.end());
     const auto max_delay = static_cast<std::size_t>(*std::max_element(delay.begin(), delay.end()));
     line.assign(next_pow2(max_delay + 4 * kBatch + 64), 0.0);
@@ -168,8 +170,10 @@ struct VirtualEngine::Impl {
       for (std::size_t i = 1; i < mics; ++i) floor.emplace_back(floor.front(), rnd::key(c.seed, kStreamFloor, i));
     }
     if (c.effects.background_noise_dba) {
-      background.emplace_back(*c.effects.background_noise_dba, c.output_rate_hz, rnd::key(c.seed, kStreamBackground, 0));
-      for (std::size_t i = 1; i < mics; ++i) background.emplace_back(background.front(), rnd::key(c.seed, kStreamBackground, i));
+      background.emplace_back(*c.effects.background_noise_dba, c.output_rate_hz,
+                              rnd::key(c.seed, kStreamBackground, 0));
+      for (std::size_t i = 1; i < mics; ++i)
+        background.emplace_back(background.front(), rnd::key(c.seed, kStreamBackground, i));
     }
     set_up_mic_chain(c);
     u.resize(kBatch);
@@ -187,7 +191,8 @@ struct VirtualEngine::Impl {
     }
     for (const auto& g : directivity_gains_db(mics, c.mic_chain.directivity_db, c.output_rate_hz, c.setup_seed))
       directivity.emplace_back(g, c.output_rate_hz);
-    if (c.mic_chain.adc_bits > 0) mic_adc = Adc(c.mic_chain.adc_bits, -c.mic_chain.adc_range_pa, c.mic_chain.adc_range_pa);
+    if (c.mic_chain.adc_bits > 0)
+      mic_adc = Adc(c.mic_chain.adc_bits, -c.mic_chain.adc_range_pa, c.mic_chain.adc_range_pa);
   }
 
   // One input batch through the structural path into the line.

@@ -7,11 +7,11 @@
 //   y --second_mode--> --structural gain (speed_dependence, foreign)--> --AC coupling (2 Hz high-pass, as the
 //   microphones and the card)--> + mechanical_noise impacts (crank-angle locked) = the engine's sound at the
 //   origin --decimate to fs_out--> microphone i hears it delayed by |x_i| / c (whole output samples), scaled
-//   by its spread gain and through its directivity filter (model/engine/mic_chain.hpp), plus the test cell's pink floor,
-//   background_noise and its own self-noise; its ADC (clipping counted), then mic_gain scales everything one
+//   by its spread gain and through its directivity filter (model/engine/mic_chain.hpp), plus the test cell's pink
+//   floor, background_noise and its own self-noise; its ADC (clipping counted), then mic_gain scales everything one
 //   microphone records.
-// Measured pressure = the pressure chain (model/engine/pressure_chain.hpp: floor, flicker, transducer_noise, ADC) on the
-// true pressure (measured_pressure()).
+// Measured pressure = the pressure chain (model/engine/pressure_chain.hpp: floor, flicker, transducer_noise, ADC) on
+// the true pressure (measured_pressure()).
 //
 // Deterministic from the seeds: `seed` for every random realisation of a run (noise, impacts), `setup_seed` for
 // the per-microphone spread gains and directivity (a property of the installation, the same for every run of a
@@ -36,12 +36,12 @@
 namespace noisemon::model {
 
 struct VirtualEngineConfig {
-  double input_rate_hz = 102400.0;   // pressure / crank grid
-  double output_rate_hz = 51200.0;   // microphones; input_rate / output_rate must be a whole number
-  BlockParams true_block = preset("linear");  // before the structural effects
+  double input_rate_hz = 102400.0;                     // pressure / crank grid
+  double output_rate_hz = 51200.0;                     // microphones; input_rate / output_rate must be a whole number
+  BlockParams true_block = preset("linear");           // before the structural effects
   std::vector<std::array<double, 3>> mic_positions_m;  // engine at the origin; one entry per microphone
   double speed_of_sound_m_s = 343.0;
-  double mic_gain_spread_db = 0.3;   // per-microphone directivity differences (normal, energy mean exactly 1)
+  double mic_gain_spread_db = 0.3;  // per-microphone directivity differences (normal, energy mean exactly 1)
   // Stationary floor at each microphone: pink (equal energy per octave), unweighted Lp up to 20 kHz,
   // dB re 20 uPa; -inf: none. The background_noise effect comes on top of it.
   double floor_db = 40.0;
@@ -49,7 +49,7 @@ struct VirtualEngineConfig {
   MicChainConfig mic_chain;
   PressureChainConfig pressure_chain;
   double ac_coupling_hz = 2.0;
-  double mean_pressure_pa = 0.0;     // expected mean input: the AC coupling starts settled on its static response
+  double mean_pressure_pa = 0.0;  // expected mean input: the AC coupling starts settled on its static response
   // Operating point (for the speed- and timing-dependent effects).
   double speed_rpm = 3050.0;
   double soi_deg_btdc = 18.0;
@@ -90,11 +90,11 @@ class VirtualEngine {
   std::uint64_t mic_clipped() const;
 
   const VirtualEngineConfig& config() const;
-  const BlockParams& structural_block() const;     // the true block with the cubic effects
-  const std::vector<double>& spread_gains() const; // per microphone, on the engine's sound
+  const BlockParams& structural_block() const;      // the true block with the cubic effects
+  const std::vector<double>& spread_gains() const;  // per microphone, on the engine's sound
   // Per microphone, the directivity filter's response at f (complex; 1 without directivity).
   std::complex<double> directivity_response(std::size_t mic, double f_hz) const;
-  std::vector<double> delays_s() const;            // per microphone (whole output samples)
+  std::vector<double> delays_s() const;  // per microphone (whole output samples)
 
  private:
   struct Impl;

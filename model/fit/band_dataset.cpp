@@ -261,8 +261,8 @@ std::size_t segment_frames(const PreparedSegment& segment, std::size_t cycles) {
   return segment.cycle_starts[cycles];
 }
 
-void segment_band_powers(const PreparedSegment& segment, const double* signal, std::size_t channels,
-                         std::size_t cycles, std::vector<double>& cycle_out, std::vector<double>* win_out) {
+void segment_band_powers(const PreparedSegment& segment, const double* signal, std::size_t channels, std::size_t cycles,
+                         std::vector<double>& cycle_out, std::vector<double>* win_out) {
   const std::size_t n_cycles = (cycles == 0 || cycles > segment_cycles(segment)) ? segment_cycles(segment) : cycles;
   dsp::ThirdOctaveBank bank(kDatasetRateHz, channels);
   const std::size_t nb = bank.band_count();

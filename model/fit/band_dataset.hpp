@@ -56,16 +56,16 @@ struct ConditionRecording {
   std::vector<double> crank_deg;    // one per frame, wrapped to [-360, 360)
   std::vector<double> mics_pa;      // frames * mic_count, frame-major
   std::size_t mic_count = 0;
-  std::int64_t delay_frames = 0;    // acoustic delay: microphone frame n + d belongs to pressure frame n
+  std::int64_t delay_frames = 0;  // acoustic delay: microphone frame n + d belongs to pressure frame n
 };
 
 // A recording prepared for the bank: the pre-roll plus the complete cycles, and where they are.
 struct PreparedSegment {
-  std::vector<double> pressure_pa;           // pre-roll + cycles (absolute pressure: the model input)
-  std::vector<std::size_t> cycle_starts;     // indices into pressure_pa; cycles + 1 entries (the last is the end)
-  std::vector<std::size_t> window_starts;    // per cycle kCrankWindows + 1 entries, flattened (c * (W + 1) + w)
-  std::size_t data_start = 0;                // first frame after the pre-roll (= cycle_starts[0])
-  std::size_t first_cycle = 0;               // index of this segment's first cycle in the condition's list
+  std::vector<double> pressure_pa;         // pre-roll + cycles (absolute pressure: the model input)
+  std::vector<std::size_t> cycle_starts;   // indices into pressure_pa; cycles + 1 entries (the last is the end)
+  std::vector<std::size_t> window_starts;  // per cycle kCrankWindows + 1 entries, flattened (c * (W + 1) + w)
+  std::size_t data_start = 0;              // first frame after the pre-roll (= cycle_starts[0])
+  std::size_t first_cycle = 0;             // index of this segment's first cycle in the condition's list
 };
 
 struct CycleInfo {
@@ -80,16 +80,16 @@ struct ConditionData {
   std::vector<CycleInfo> cycles;
   std::vector<PreparedSegment> segments;
   // Band mean squares (Pa^2), per cycle:
-  std::vector<double> cpl_ms;        // [c * bands + b]  cylinder pressure
-  std::vector<double> mic_ms;        // [(c * mics + m) * bands + b]
-  std::vector<double> win_ms;        // [(c * W + w) * bands + b]  microphone average per crank window
-  std::vector<double> cpl_win_ms;    // [(c * W + w) * bands + b]  cylinder pressure per crank window
-  std::vector<double> win_frames;    // [c * W + w]
+  std::vector<double> cpl_ms;      // [c * bands + b]  cylinder pressure
+  std::vector<double> mic_ms;      // [(c * mics + m) * bands + b]
+  std::vector<double> win_ms;      // [(c * W + w) * bands + b]  microphone average per crank window
+  std::vector<double> cpl_win_ms;  // [(c * W + w) * bands + b]  cylinder pressure per crank window
+  std::vector<double> win_frames;  // [c * W + w]
   // Coherence with the cylinder pressure across cycles (per band, microphone-averaged; NaN with < 4 cycles):
-  std::vector<double> periodic_share;      // power of the cycle-synchronous average / total power
-  std::vector<double> fluct_coherence;     // coherence of the cycle-to-cycle fluctuations with the pressure's
-  std::vector<double> coherent_fraction;   // periodic + coherent fluctuating share: upper bound of what any
-                                           // pressure-driven model can predict
+  std::vector<double> periodic_share;     // power of the cycle-synchronous average / total power
+  std::vector<double> fluct_coherence;    // coherence of the cycle-to-cycle fluctuations with the pressure's
+  std::vector<double> coherent_fraction;  // periodic + coherent fluctuating share: upper bound of what any
+                                          // pressure-driven model can predict
 
   std::size_t cycle_count() const { return cycles.size(); }
   double mic_avg_ms(std::size_t c, std::size_t b) const;  // energy average over microphones
@@ -98,17 +98,19 @@ struct ConditionData {
 
 struct DatasetOptions {
   std::size_t preroll_cycles = 4;
-  std::size_t max_cycles = 0;      // per condition, 0 = all
+  std::size_t max_cycles = 0;  // per condition, 0 = all
   bool coherence = true;
 };
 
 struct BandDataset {
   std::vector<dsp::ThirdOctaveBand> bands;
   std::vector<ConditionData> conditions;
-  std::vector<bool> line_free;     // per condition * bands: no cycle harmonic in the band (leakage only)
+  std::vector<bool> line_free;  // per condition * bands: no cycle harmonic in the band (leakage only)
 
   std::size_t band_count() const { return bands.size(); }
-  bool band_line_free(std::size_t condition, std::size_t band) const { return line_free[condition * bands.size() + band]; }
+  bool band_line_free(std::size_t condition, std::size_t band) const {
+    return line_free[condition * bands.size() + band];
+  }
 };
 
 // Cuts, prepares and measures one condition (all its recordings). Throws std::invalid_argument naming the
@@ -124,8 +126,8 @@ BandDataset make_dataset(std::vector<ConditionData> conditions);
 // and the segment's first `cycles` cycles (0: all), and returns the mean square per cycle, channel and band
 // ([(c * channels + ch) * bands + b]), and, when win_out is given, per cycle, crank window, channel and band
 // ([((c * W + w) * channels + ch) * bands + b]). `signal` needs segment_frames(segment, cycles) frames.
-void segment_band_powers(const PreparedSegment& segment, const double* signal, std::size_t channels,
-                         std::size_t cycles, std::vector<double>& cycle_out, std::vector<double>* win_out = nullptr);
+void segment_band_powers(const PreparedSegment& segment, const double* signal, std::size_t channels, std::size_t cycles,
+                         std::vector<double>& cycle_out, std::vector<double>* win_out = nullptr);
 
 // Frames of the pre-roll and the first `cycles` cycles of a segment (0: all).
 std::size_t segment_frames(const PreparedSegment& segment, std::size_t cycles = 0);

@@ -56,8 +56,8 @@ struct Anchoring {
   int& anchors;
 
   Anchoring(const FitSetup& s, const ExtendedModel& start, int& count) : setup(s), anchors(count) {
-    const bool nonlinear = !start.block.is_linear() ||
-                           std::any_of(s.free.begin(), s.free.end(), [](BlockParam p) { return is_cubic(p); });
+    const bool nonlinear =
+        !start.block.is_linear() || std::any_of(s.free.begin(), s.free.end(), [](BlockParam p) { return is_cubic(p); });
     if (nonlinear)
       for (BlockParam p : s.free)
         if (param_value(start.block, p) > 0) jac.push_back(p);

@@ -29,8 +29,8 @@
 #include <string_view>
 #include <vector>
 
-#include "model/fit/band_dataset.hpp"
 #include "model/block_params.hpp"
+#include "model/fit/band_dataset.hpp"
 
 namespace noisemon::model {
 
@@ -65,8 +65,8 @@ struct ExtensionParams {
   double mode_db = 0.0, mode_hz = 2000.0, mode_q = 5.0;
   double mode_phase_deg = 0.0;
   double speed_gain_db_per_krpm = 0.0, speed_shift_per_krpm = 0.0, speed_ref_rpm = 3050.0;
-  double transducer_density = 0.0;  // one-sided Pa^2/Hz at 1 kHz
-  double transducer_slope = 0.0;    // density ~ (f / 1 kHz)^slope
+  double transducer_density = 0.0;    // one-sided Pa^2/Hz at 1 kHz
+  double transducer_slope = 0.0;      // density ~ (f / 1 kHz)^slope
   std::vector<double> stationary_ms;  // per band, Pa^2
   std::vector<double> locked_ms;      // per band * kCrankWindows: mean square within the window at speed_ref
   double locked_speed_exp = 0.0;      // locked power ~ (n / speed_ref)^exp
@@ -93,7 +93,10 @@ struct ConditionSpectrum {
   std::vector<double> df_hz;  // bin width
   std::vector<double> s;      // pressure power in the bin (Pa^2), mean removed
   std::vector<double> floor;  // the judged floor's density in the bin (Pa^2/Hz); empty: none (ConditionInfo)
-  struct Tap { std::size_t bin; double q; };  // q = W_b(f) s
+  struct Tap {
+    std::size_t bin;
+    double q;
+  };  // q = W_b(f) s
   std::vector<std::vector<Tap>> band_taps;
 };
 
@@ -101,11 +104,11 @@ struct ConditionSpectrum {
 // the anchor's block `anchor_block`: predicted = anchor_ms * mult - sub + additive (per cycle and
 // window: the same factors).
 struct ConditionFactors {
-  std::vector<double> mult;      // per band
-  std::vector<double> sub;       // per band: stationary part to subtract, mean square (what the pressure chain's
-                                 // noise alone drove: its judged floor and the transducer candidate's extra)
-  std::vector<double> add;       // per band (cycle mean of the additive terms)
-  std::vector<double> add_win;   // per band * W (window mean squares of the additive terms)
+  std::vector<double> mult;     // per band
+  std::vector<double> sub;      // per band: stationary part to subtract, mean square (what the pressure chain's
+                                // noise alone drove: its judged floor and the transducer candidate's extra)
+  std::vector<double> add;      // per band (cycle mean of the additive terms)
+  std::vector<double> add_win;  // per band * W (window mean squares of the additive terms)
 };
 ConditionFactors extension_factors(const BandDataset& data, std::size_t condition, const ConditionSpectrum& spec,
                                    const BlockParams& anchor_block, const ExtendedModel& model);
@@ -124,24 +127,24 @@ double measured_ms(const ConditionData& condition, std::size_t cycle, std::size_
 // ------------------------------------------------------------------------------------------ fitting
 
 struct FitProgress {
-  int anchor = 0;         // time-domain re-simulations so far
-  int iteration = 0;      // solver iterations in the current anchor
-  double rms_db = 0.0;    // current training gap (surrogate)
-  std::string note;       // what is happening ("anchor", "b3 = ...", ...)
+  int anchor = 0;       // time-domain re-simulations so far
+  int iteration = 0;    // solver iterations in the current anchor
+  double rms_db = 0.0;  // current training gap (surrogate)
+  std::string note;     // what is happening ("anchor", "b3 = ...", ...)
 };
 
 struct FitSetup {
   const BandDataset* data = nullptr;
-  std::vector<std::size_t> train;              // condition indices
-  std::vector<std::vector<char>> scored;       // per dataset condition, per band: counted (1) or not
-  std::vector<BlockParam> free;                // free block parameters (m fixed)
-  ExtensionSet extensions;                     // free extensions
-  std::size_t fit_cycles = 8;                  // re-simulated cycles per condition
+  std::vector<std::size_t> train;         // condition indices
+  std::vector<std::vector<char>> scored;  // per dataset condition, per band: counted (1) or not
+  std::vector<BlockParam> free;           // free block parameters (m fixed)
+  ExtensionSet extensions;                // free extensions
+  std::size_t fit_cycles = 8;             // re-simulated cycles per condition
   int max_anchors = 5;
-  double step_tol = 2e-3;                      // converged when no log-parameter moves more than this
-  bool robust = false;                         // soft-L1 loss (scale 3 dB) instead of least squares
-  double window_weight = 1.0;                  // weight of the crank-window residuals (locked noise only)
-  bool evaluate_only = false;                  // refit_on_anchor: no solve, figures at the start values
+  double step_tol = 2e-3;      // converged when no log-parameter moves more than this
+  bool robust = false;         // soft-L1 loss (scale 3 dB) instead of least squares
+  double window_weight = 1.0;  // weight of the crank-window residuals (locked noise only)
+  bool evaluate_only = false;  // refit_on_anchor: no solve, figures at the start values
   std::function<void(const FitProgress&)> progress;
 };
 
@@ -150,12 +153,12 @@ struct Anchor;
 struct FitOutcome {
   ExtendedModel model;
   std::vector<BlockParam> free;
-  std::vector<double> sigma;      // 1-sigma uncertainty of each free block parameter (same units), NaN if unknown
-  double train_rms_db = 0.0;      // thesis metric over the training conditions, at the final anchor
-  double objective = 0.0;         // the weighted sum of squares the fit minimises (at the final anchor)
+  std::vector<double> sigma;  // 1-sigma uncertainty of each free block parameter (same units), NaN if unknown
+  double train_rms_db = 0.0;  // thesis metric over the training conditions, at the final anchor
+  double objective = 0.0;     // the weighted sum of squares the fit minimises (at the final anchor)
   int anchors = 0;
   int iterations = 0;
-  int parameters = 0;             // fitted parameters (block and extensions)
+  int parameters = 0;  // fitted parameters (block and extensions)
   bool converged = false;
   std::shared_ptr<const Anchor> anchor;  // the last time-domain anchor (at, or within step_tol of, the result)
 };
@@ -193,10 +196,10 @@ double rms_db(const std::vector<double>& gaps);
 // Prediction of every cycle (or of the first `cycles`) of a condition by the model, exactly (time-domain at the
 // model's block, its second mode included).
 struct ConditionPrediction {
-  std::vector<double> cycle_ms;  // [c * bands + b]
-  std::vector<double> win_ms;    // [(c * W + w) * bands + b]
-  std::vector<char> upper;       // per band: the prediction is an upper bound (see apply_factors); may be empty
-  std::vector<char> upper_win;   // per band * W
+  std::vector<double> cycle_ms;     // [c * bands + b]
+  std::vector<double> win_ms;       // [(c * W + w) * bands + b]
+  std::vector<char> upper;          // per band: the prediction is an upper bound (see apply_factors); may be empty
+  std::vector<char> upper_win;      // per band * W
   std::vector<double> additive_ms;  // per band: the cycle mean of the additive sources' part of cycle_ms (or empty)
 };
 ConditionPrediction predict_condition(const BandDataset& data, std::size_t condition, const ExtendedModel& model,

@@ -59,8 +59,23 @@ double band_power_response(const dsp::ThirdOctaveBand& band, double f_hz);
 
 // Structural (shared) variables of the surrogate, as Jet components.
 inline constexpr int kStruct = 15;
-enum StructIndex : int { kSK1 = 0, kSB1, kSC0, kSC1, kSModeDb, kSModeLogF, kSModeLogQ, kSSpeedGain, kSSpeedShift,
-                         kSTnLogD, kSTnSlope, kSLockExp, kSK3, kSB3, kSModePhase };
+enum StructIndex : int {
+  kSK1 = 0,
+  kSB1,
+  kSC0,
+  kSC1,
+  kSModeDb,
+  kSModeLogF,
+  kSModeLogQ,
+  kSSpeedGain,
+  kSSpeedShift,
+  kSTnLogD,
+  kSTnSlope,
+  kSLockExp,
+  kSK3,
+  kSB3,
+  kSModePhase
+};
 using Jet = ceres::Jet<double, kStruct>;
 
 inline constexpr BlockParam kLinearParams[] = {BlockParam::kK1, BlockParam::kB1, BlockParam::kC0, BlockParam::kC1};
@@ -71,45 +86,45 @@ bool is_cubic(BlockParam p);
 
 // Everything the surrogate needs about one training condition.
 struct CondSetup {
-  std::size_t k = 0;                       // dataset index
-  std::vector<std::size_t> bands;          // scored bands
-  std::vector<double> meas;                // per scored band: measured (gain-corrected) mean square, fit cycles
-  std::vector<double> anchor;              // per scored band: anchor prediction
-  std::vector<double> f0;                  // per scored band: F at the anchor block, no extensions
-  std::vector<double> jac;                 // Taylor mode: per scored band * free block params, d ln P / d x
-  std::vector<std::size_t> wbands;         // scored window bands (locked noise only)
-  std::vector<double> wmeas, wanchor;      // per window band * W
-  std::vector<char> wfloor;                // per window band * W: the pressure within its floor's margin
-  std::vector<double> frac;                // per window: mean share of the cycle's frames
-  double dn_krpm = 0.0;                    // (speed - ref) / 1000
-  double speed_ratio = 1.0;                // speed / ref
-  double weight = 1.0;                     // 1 / sqrt(scored bands)
+  std::size_t k = 0;                   // dataset index
+  std::vector<std::size_t> bands;      // scored bands
+  std::vector<double> meas;            // per scored band: measured (gain-corrected) mean square, fit cycles
+  std::vector<double> anchor;          // per scored band: anchor prediction
+  std::vector<double> f0;              // per scored band: F at the anchor block, no extensions
+  std::vector<double> jac;             // Taylor mode: per scored band * free block params, d ln P / d x
+  std::vector<std::size_t> wbands;     // scored window bands (locked noise only)
+  std::vector<double> wmeas, wanchor;  // per window band * W
+  std::vector<char> wfloor;            // per window band * W: the pressure within its floor's margin
+  std::vector<double> frac;            // per window: mean share of the cycle's frames
+  double dn_krpm = 0.0;                // (speed - ref) / 1000
+  double speed_ratio = 1.0;            // speed / ref
+  double weight = 1.0;                 // 1 / sqrt(scored bands)
   double wweight = 0.0;
   const ConditionSpectrum* spec = nullptr;
 };
 
 // The parameter layout of one surrogate problem.
 struct Layout {
-  BlockParams anchor;                      // block of the anchor
-  BlockParams fixed;                       // values of the non-free block parameters (and the start)
-  std::vector<int> lin_free;               // struct indices of the free block parameters
-  bool taylor = false;                     // block part from the anchor's exact Jacobian (nonlinear blocks)
+  BlockParams anchor;         // block of the anchor
+  BlockParams fixed;          // values of the non-free block parameters (and the start)
+  std::vector<int> lin_free;  // struct indices of the free block parameters
+  bool taylor = false;        // block part from the anchor's exact Jacobian (nonlinear blocks)
   ExtensionSet on;
-  std::vector<std::size_t> add_bands;      // bands with additive-noise parameters
-  std::vector<char> add_windowed;          // per add band: W parameters (locked) or 1
-  std::vector<double> add_ref;             // per add band: reference mean square
+  std::vector<std::size_t> add_bands;  // bands with additive-noise parameters
+  std::vector<char> add_windowed;      // per add band: W parameters (locked) or 1
+  std::vector<double> add_ref;         // per add band: reference mean square
   std::size_t nbands = 0;
 };
 
 // Parameter values of one problem (Ceres works on these in place).
 struct Values {
-  std::vector<double> lin;                 // log(theta / anchor) per free linear parameter
-  std::array<double, 4> mode{};            // dB, log(f / 1 kHz), log Q, phase (rad)
-  std::array<double, 2> speed{};           // dB per krpm, relative shift per krpm
-  std::array<double, 2> tn{};              // log10 density at 1 kHz, slope
-  std::array<double, 1> lexp{};            // locked speed exponent
-  std::vector<double> stat;                // per add band: log(B / ref)
-  std::vector<std::vector<double>> locked; // per add band: log(M / ref), W or 1 entries
+  std::vector<double> lin;                  // log(theta / anchor) per free linear parameter
+  std::array<double, 4> mode{};             // dB, log(f / 1 kHz), log Q, phase (rad)
+  std::array<double, 2> speed{};            // dB per krpm, relative shift per krpm
+  std::array<double, 2> tn{};               // log10 density at 1 kHz, slope
+  std::array<double, 1> lexp{};             // locked speed exponent
+  std::vector<double> stat;                 // per add band: log(B / ref)
+  std::vector<std::vector<double>> locked;  // per add band: log(M / ref), W or 1 entries
 };
 
 // ------------------------------------------------------------------------------------------ the shortcut
@@ -132,11 +147,11 @@ extern template void band_sums<Jet>(const Layout&, const CondSetup&, const Jet*,
 
 // Residuals (and, with Jet, their structural derivatives) of one condition.
 struct CondResiduals {
-  std::vector<Jet> r;                     // structural part, per residual
-  std::vector<std::size_t> add_index;     // per residual: index into Layout::add_bands (or npos)
-  std::vector<int> window;                // per residual: window (or -1 for the cycle value)
-  std::vector<double> pred;               // per residual: predicted mean square
-  std::vector<double> dpred_add;          // per residual: d pred / d (stationary log param)
+  std::vector<Jet> r;                             // structural part, per residual
+  std::vector<std::size_t> add_index;             // per residual: index into Layout::add_bands (or npos)
+  std::vector<int> window;                        // per residual: window (or -1 for the cycle value)
+  std::vector<double> pred;                       // per residual: predicted mean square
+  std::vector<double> dpred_add;                  // per residual: d pred / d (stationary log param)
   std::vector<std::vector<double>> dpred_locked;  // per residual: d pred / d (locked log params of its band)
 };
 

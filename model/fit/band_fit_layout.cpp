@@ -77,7 +77,8 @@ void initial_additive_values(const Layout& L, const ExtensionParams& e, const st
     if (b * kW + kW <= e.locked_ms.size()) {
       for (std::size_t w = 0; w < nw; ++w) {
         double m = 0.0;
-        if (nw == kW) m = e.locked_ms[b * kW + w];
+        if (nw == kW)
+          m = e.locked_ms[b * kW + w];
         else
           for (std::size_t ww = 0; ww < kW; ++ww) m += e.locked_ms[b * kW + ww] / kW;
         if (m > 0) v.locked[s][w] = std::log(std::clamp(m / L.add_ref[s], kAdditiveFloor * 10, kAdditiveCeil / 10));

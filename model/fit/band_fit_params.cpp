@@ -20,36 +20,60 @@ double mode_rise_db(const ExtensionParams& e) {
 
 std::string_view param_name(BlockParam p) {
   switch (p) {
-    case BlockParam::kK1: return "k1";
-    case BlockParam::kB1: return "b1";
-    case BlockParam::kK3: return "k3";
-    case BlockParam::kB3: return "b3";
-    case BlockParam::kC0: return "c0";
-    case BlockParam::kC1: return "c1";
+    case BlockParam::kK1:
+      return "k1";
+    case BlockParam::kB1:
+      return "b1";
+    case BlockParam::kK3:
+      return "k3";
+    case BlockParam::kB3:
+      return "b3";
+    case BlockParam::kC0:
+      return "c0";
+    case BlockParam::kC1:
+      return "c1";
   }
   return "?";
 }
 
 double param_value(const BlockParams& q, BlockParam p) {
   switch (p) {
-    case BlockParam::kK1: return q.k1;
-    case BlockParam::kB1: return q.b1;
-    case BlockParam::kK3: return q.k3;
-    case BlockParam::kB3: return q.b3;
-    case BlockParam::kC0: return q.c0;
-    case BlockParam::kC1: return q.c1;
+    case BlockParam::kK1:
+      return q.k1;
+    case BlockParam::kB1:
+      return q.b1;
+    case BlockParam::kK3:
+      return q.k3;
+    case BlockParam::kB3:
+      return q.b3;
+    case BlockParam::kC0:
+      return q.c0;
+    case BlockParam::kC1:
+      return q.c1;
   }
   return 0.0;
 }
 
 void set_param(BlockParams& q, BlockParam p, double v) {
   switch (p) {
-    case BlockParam::kK1: q.k1 = v; break;
-    case BlockParam::kB1: q.b1 = v; break;
-    case BlockParam::kK3: q.k3 = v; break;
-    case BlockParam::kB3: q.b3 = v; break;
-    case BlockParam::kC0: q.c0 = v; break;
-    case BlockParam::kC1: q.c1 = v; break;
+    case BlockParam::kK1:
+      q.k1 = v;
+      break;
+    case BlockParam::kB1:
+      q.b1 = v;
+      break;
+    case BlockParam::kK3:
+      q.k3 = v;
+      break;
+    case BlockParam::kB3:
+      q.b3 = v;
+      break;
+    case BlockParam::kC0:
+      q.c0 = v;
+      break;
+    case BlockParam::kC1:
+      q.c1 = v;
+      break;
   }
 }
 
@@ -92,24 +116,36 @@ namespace band_fit_internal {
 
 int struct_index(BlockParam p) {
   switch (p) {
-    case BlockParam::kK1: return kSK1;
-    case BlockParam::kB1: return kSB1;
-    case BlockParam::kC0: return kSC0;
-    case BlockParam::kC1: return kSC1;
-    case BlockParam::kK3: return kSK3;
-    case BlockParam::kB3: return kSB3;
+    case BlockParam::kK1:
+      return kSK1;
+    case BlockParam::kB1:
+      return kSB1;
+    case BlockParam::kC0:
+      return kSC0;
+    case BlockParam::kC1:
+      return kSC1;
+    case BlockParam::kK3:
+      return kSK3;
+    case BlockParam::kB3:
+      return kSB3;
   }
   return kSK1;
 }
 
 BlockParam param_of_struct(int idx) {
   switch (idx) {
-    case kSK1: return BlockParam::kK1;
-    case kSB1: return BlockParam::kB1;
-    case kSC0: return BlockParam::kC0;
-    case kSC1: return BlockParam::kC1;
-    case kSK3: return BlockParam::kK3;
-    default: return BlockParam::kB3;
+    case kSK1:
+      return BlockParam::kK1;
+    case kSB1:
+      return BlockParam::kB1;
+    case kSC0:
+      return BlockParam::kC0;
+    case kSC1:
+      return BlockParam::kC1;
+    case kSK3:
+      return BlockParam::kK3;
+    default:
+      return BlockParam::kB3;
   }
 }
 

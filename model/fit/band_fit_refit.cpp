@@ -48,12 +48,18 @@ BlockRefs block_refs(const Layout& L, Values& v) {
 // Struct indices of a block's entries.
 std::vector<int> struct_indices(const Layout& L, int kind) {
   switch (kind) {
-    case -1: return L.lin_free;
-    case -2: return {kSModeDb, kSModeLogF, kSModeLogQ, kSModePhase};
-    case -3: return {kSSpeedGain, kSSpeedShift};
-    case -4: return {kSTnLogD, kSTnSlope};
-    case -5: return {kSLockExp};
-    default: return {};
+    case -1:
+      return L.lin_free;
+    case -2:
+      return {kSModeDb, kSModeLogF, kSModeLogQ, kSModePhase};
+    case -3:
+      return {kSSpeedGain, kSSpeedShift};
+    case -4:
+      return {kSTnLogD, kSTnSlope};
+    case -5:
+      return {kSLockExp};
+    default:
+      return {};
   }
 }
 
@@ -87,15 +93,27 @@ class ConditionCost final : public ceres::CostFunction {
       const int kind = refs_.kind[i];
       const double* p = parameters[i];
       switch (kind) {
-        case -1: std::copy(p, p + refs_.size[i], v.lin.begin()); break;
-        case -2: std::copy(p, p + 4, v.mode.begin()); break;
-        case -3: std::copy(p, p + 2, v.speed.begin()); break;
-        case -4: std::copy(p, p + 2, v.tn.begin()); break;
-        case -5: v.lexp[0] = p[0]; break;
+        case -1:
+          std::copy(p, p + refs_.size[i], v.lin.begin());
+          break;
+        case -2:
+          std::copy(p, p + 4, v.mode.begin());
+          break;
+        case -3:
+          std::copy(p, p + 2, v.speed.begin());
+          break;
+        case -4:
+          std::copy(p, p + 2, v.tn.begin());
+          break;
+        case -5:
+          v.lexp[0] = p[0];
+          break;
         default: {
           const std::size_t slot = static_cast<std::size_t>(kind / 2);
-          if (kind % 2 == 0) v.stat[slot] = p[0];
-          else std::copy(p, p + refs_.size[i], v.locked[slot].begin());
+          if (kind % 2 == 0)
+            v.stat[slot] = p[0];
+          else
+            std::copy(p, p + refs_.size[i], v.locked[slot].begin());
         }
       }
     }
@@ -261,8 +279,8 @@ void set_bounds(ceres::Problem& problem, const BlockRefs& refs, const Surrogate&
 
 // Uncertainty of the free linear block parameters: covariance of the log parameters scaled by the residual
 // variance (delta method to the parameters themselves).
-void block_sigma(const FitSetup& setup, ceres::Problem& problem, const ceres::Solver::Summary& summary,
-                 Surrogate& sg, FitOutcome& out) {
+void block_sigma(const FitSetup& setup, ceres::Problem& problem, const ceres::Solver::Summary& summary, Surrogate& sg,
+                 FitOutcome& out) {
   out.sigma.assign(setup.free.size(), std::numeric_limits<double>::quiet_NaN());
   std::vector<double>& lin = sg.v.lin;
   if (lin.empty()) return;

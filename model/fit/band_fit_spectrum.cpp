@@ -62,8 +62,7 @@ std::vector<std::complex<double>> pressure_fft(const PreparedSegment& seg, std::
 }
 
 // One-sided power per FFT bin (Pa^2), merged into 1/48-octave bins above kCompressFromHz, into sp's bins.
-void power_bins(const std::vector<std::complex<double>>& X, std::size_t nfft, double wsum2,
-                ConditionSpectrum& sp) {
+void power_bins(const std::vector<std::complex<double>>& X, std::size_t nfft, double wsum2, ConditionSpectrum& sp) {
   const double df = kDatasetRateHz / static_cast<double>(nfft);
   double acc_p = 0.0, acc_pf = 0.0, acc_df = 0.0, edge = kCompressFromHz;
   auto flush = [&]() {

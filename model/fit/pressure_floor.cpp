@@ -22,7 +22,8 @@ double median(std::vector<double> v) {
 
 // The floor's upper frequency on the 40 kHz grid for an encoder rate (NaN: unknown, the whole grid).
 double floor_upper_hz(double encoder_rate_hz) {
-  return std::isfinite(encoder_rate_hz) && encoder_rate_hz > 0 ? std::min(0.5 * encoder_rate_hz, kGridMaxHz) : kGridMaxHz;
+  return std::isfinite(encoder_rate_hz) && encoder_rate_hz > 0 ? std::min(0.5 * encoder_rate_hz, kGridMaxHz)
+                                                               : kGridMaxHz;
 }
 
 // Per band: the quiet-window pressure over the band's noise bandwidth (see the header); empty when no band is fast
@@ -77,7 +78,8 @@ std::vector<double> floor_band_ms(const BandDataset& data, const std::vector<dou
 }  // namespace
 
 double PressureFloor::estimated_rms_per_sample_pa(double encoder_rate_hz) const {
-  return std::isfinite(encoder_rate_hz) && encoder_rate_hz > 0 ? std::sqrt(0.5 * estimated_white * encoder_rate_hz) : kNaN;
+  return std::isfinite(encoder_rate_hz) && encoder_rate_hz > 0 ? std::sqrt(0.5 * estimated_white * encoder_rate_hz)
+                                                               : kNaN;
 }
 
 double PressureFloor::estimated_rms_on_grid_pa(const BandDataset& data) const {
@@ -105,7 +107,8 @@ std::vector<double> mean_window_cpl(const ConditionData& d) {
   std::vector<double> out(nb * kW, 0.0);
   for (std::size_t c = 0; c < nc; ++c)
     for (std::size_t w = 0; w < kW; ++w)
-      for (std::size_t b = 0; b < nb; ++b) out[b * kW + w] += d.cpl_win_ms[(c * kW + w) * nb + b] / static_cast<double>(nc);
+      for (std::size_t b = 0; b < nb; ++b)
+        out[b * kW + w] += d.cpl_win_ms[(c * kW + w) * nb + b] / static_cast<double>(nc);
   return out;
 }
 
@@ -148,8 +151,8 @@ PressureFloor pressure_floor(const BandDataset& data, std::size_t k) {
   PressureFloor f;
   const double upper = floor_upper_hz(info.encoder_rate_hz);
   f.estimated = estimate_floor(data, k, upper, f.estimated_white);
-  f.stated = std::isfinite(info.pressure_floor_pa) && info.pressure_floor_pa >= 0 && std::isfinite(info.encoder_rate_hz) &&
-             info.encoder_rate_hz > 0;
+  f.stated = std::isfinite(info.pressure_floor_pa) && info.pressure_floor_pa >= 0 &&
+             std::isfinite(info.encoder_rate_hz) && info.encoder_rate_hz > 0;
   f.density = f.stated ? stated_floor(data, info.pressure_floor_pa, info.encoder_rate_hz) : f.estimated;
   f.band_ms = floor_band_ms(data, f.density);
   return f;

@@ -60,7 +60,8 @@ void judge_pressure_floors(BandDataset& data);
 std::vector<std::vector<char>> floor_limited_bands(const BandDataset& data,
                                                    std::vector<std::vector<char>>* windows = nullptr);
 // The same for one condition, computed from its floor_density (judge_pressure_floors stores it).
-std::vector<char> floor_limited_cells(const BandDataset& data, std::size_t condition, std::vector<char>* windows = nullptr);
+std::vector<char> floor_limited_cells(const BandDataset& data, std::size_t condition,
+                                      std::vector<char>* windows = nullptr);
 
 // Noise bandwidth of a band's filter (the integral of its power response) from 0 to f_max, Hz.
 double band_noise_bandwidth(const dsp::ThirdOctaveBand& band, double f_max_hz);

@@ -17,9 +17,9 @@
 namespace noisemon::model {
 namespace {
 
-constexpr double kStepOmega = 0.3;         // h * omega of the fixed integration step
+constexpr double kStepOmega = 0.3;  // h * omega of the fixed integration step
 constexpr int kMaxStepsPerSample = 4096;
-constexpr double kFiniteDifference = 1e-5;  // in the O(1) fitting coordinates
+constexpr double kFiniteDifference = 1e-5;       // in the O(1) fitting coordinates
 constexpr double kLogBound = 6.907755278982137;  // ln(1e3): log parameters move at most a factor 1e3
 constexpr double kCubicUpper = 1e3;
 
@@ -106,8 +106,7 @@ class SegmentRunner {
     }
     for (std::size_t j = 1; j < n;) {
       const std::size_t k = states ? 1 : std::min(kChunk, n - j);
-      for (std::size_t i = 0; i < k; ++i)
-        buf_in_[i] = input(begin + lat + static_cast<std::ptrdiff_t>(j + i));
+      for (std::size_t i = 0; i < k; ++i) buf_in_[i] = input(begin + lat + static_cast<std::ptrdiff_t>(j + i));
       sim_.process(buf_in_.data(), out + j, k);
       for (std::size_t i = 0; i < k; ++i) out[j + i] += m_.y_offset;
       if (states) (*states)[j] = sim_.state();
@@ -158,14 +157,14 @@ State estimate_initial_state(const WaveformModel& m, SegmentRunner& runner, cons
   y_rms = std::sqrt(y_rms / static_cast<double>(w)) + 1e-300;
   std::array<double, 4> scale{};
   const double om1 = std::sqrt(m.block.k1 / m.block.m);
-  const double zs = std::max(y_rms / std::max(std::fabs(m.block.c0) + std::fabs(m.block.c1) * om1, 1e-300),
-                             std::fabs(s[0]));
+  const double zs =
+      std::max(y_rms / std::max(std::fabs(m.block.c0) + std::fabs(m.block.c1) * om1, 1e-300), std::fabs(s[0]));
   scale[0] = zs;
   scale[1] = om1 * zs;
   if (m.has_second_mode) {
     const double om2 = std::sqrt(std::max(m.second.k1, 1e-300));
-    const double ws = std::max(y_rms / std::max(std::fabs(m.second.c0) + std::fabs(m.second.c1) * om2, 1e-300),
-                               std::fabs(s[2]));
+    const double ws =
+        std::max(y_rms / std::max(std::fabs(m.second.c0) + std::fabs(m.second.c1) * om2, 1e-300), std::fabs(s[2]));
     scale[2] = ws;
     scale[3] = om2 * ws;
   }
@@ -215,10 +214,8 @@ void check_range(SampleRange r, std::size_t n, std::size_t settle) {
                                 std::to_string(settle) + " settling samples");
 }
 
-
-std::vector<double> simulate_with_steps(const WaveformModel& m, double fs_hz, const WaveformSimOptions& sim,
-                                        int steps, std::span<const double> u, std::span<const double> y,
-                                        SampleRange r) {
+std::vector<double> simulate_with_steps(const WaveformModel& m, double fs_hz, const WaveformSimOptions& sim, int steps,
+                                        std::span<const double> u, std::span<const double> y, SampleRange r) {
   check_range(r, std::min(u.size(), y.size()), sim.settle_samples);
   SegmentRunner runner(m, fs_hz, block_options(sim, fs_hz, steps), u, r);
   const State s0 = estimate_initial_state(m, runner, y.data() + r.begin, sim.settle_samples);
@@ -285,7 +282,8 @@ void least_squares_gains(WaveformModel& m, double fs_hz, const WaveformSimOption
                          const std::vector<std::string>& free) {
   std::vector<std::string> gains;
   for (const char* g : {"c0", "c1", "c0_2", "c1_2", "y_offset"})
-    if (std::find(free.begin(), free.end(), g) != free.end() && (m.has_second_mode || std::string(g).find("_2") == std::string::npos))
+    if (std::find(free.begin(), free.end(), g) != free.end() &&
+        (m.has_second_mode || std::string(g).find("_2") == std::string::npos))
       gains.emplace_back(g);
   if (gains.empty()) return;
   const auto g = static_cast<Eigen::Index>(gains.size());
@@ -468,8 +466,8 @@ CoreResult solve(FitContext& ctx, const WaveformFitOptions& opt, std::chrono::st
   const std::size_t p = ctx.maps.size();
   std::vector<double> theta(p);
   for (std::size_t k = 0; k < p; ++k)
-    theta[k] = std::clamp(ctx.maps[k].theta(get_parameter(ctx.base, ctx.maps[k].name)), ctx.maps[k].lower,
-                          ctx.maps[k].upper);
+    theta[k] =
+        std::clamp(ctx.maps[k].theta(get_parameter(ctx.base, ctx.maps[k].name)), ctx.maps[k].lower, ctx.maps[k].upper);
   ceres::Problem::Options popt;
   ceres::Problem problem(popt);
   problem.AddResidualBlock(new FreeRunCost(ctx), nullptr, theta.data());
@@ -502,8 +500,8 @@ CoreResult solve(FitContext& ctx, const WaveformFitOptions& opt, std::chrono::st
 }
 
 // Parameter maps around the start model (see the header for the choices).
-std::vector<ParamMap> make_maps(const WaveformModel& start, const std::vector<std::string>& free,
-                                const StateRms& st, double u_rms, double y_rms, double fs_hz) {
+std::vector<ParamMap> make_maps(const WaveformModel& start, const std::vector<std::string>& free, const StateRms& st,
+                                double u_rms, double y_rms, double fs_hz) {
   std::vector<ParamMap> maps;
   for (const std::string& name : free) {
     ParamMap pm;

@@ -108,7 +108,7 @@ struct WaveformFitProgress {
   double train_rms = 0.0;  // data units
   bool step_accepted = false;
   double seconds = 0.0;
-  WaveformModel model;     // current parameters
+  WaveformModel model;  // current parameters
 };
 
 struct WaveformFitOptions {

@@ -106,6 +106,5 @@ BENCHMARK_CAPTURE(BM_BlockModel_PressureTrace, nl_spring_damper_opt_100kHz, std:
 BENCHMARK_CAPTURE(BM_BlockModel_FullBandNoise, nl_spring_damper_opt, std::string("nl_spring_damper_opt"))
     ->Unit(benchmark::kMillisecond);
 BENCHMARK_CAPTURE(BM_BlockModel_SilenceAfterPulses, linear, std::string("linear"))->Unit(benchmark::kMillisecond);
-BENCHMARK_CAPTURE(BM_BlockModel_SilenceAfterPulses, nl_damper, std::string("nl_damper"))
-    ->Unit(benchmark::kMillisecond);
+BENCHMARK_CAPTURE(BM_BlockModel_SilenceAfterPulses, nl_damper, std::string("nl_damper"))->Unit(benchmark::kMillisecond);
 BENCHMARK_MAIN();

@@ -4,6 +4,7 @@
 // Counters: x_realtime = seconds of data simulated per CPU second; iterations_ceres, fit_s.
 #include <benchmark/benchmark.h>
 
+#include <unistd.h>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -11,11 +12,10 @@
 #include <numbers>
 #include <random>
 #include <vector>
-#include <unistd.h>
 
 #include "cli/fit_command.hpp"
-#include "daemon/params_file.hpp"
 #include "cli/sim_command.hpp"
+#include "daemon/params_file.hpp"
 #include "model/fit/waveform_fit.hpp"
 
 namespace {
@@ -66,8 +66,8 @@ void BM_FreeRunSimulation(benchmark::State& state) {
     auto y = model::simulate_waveform(duffing(), kFs, sim, d.u, d.y, {0, d.u.size()});
     benchmark::DoNotOptimize(y.data());
   }
-  state.counters["x_realtime"] = benchmark::Counter(60.0 * static_cast<double>(state.iterations()),
-                                                    benchmark::Counter::kIsRate);
+  state.counters["x_realtime"] =
+      benchmark::Counter(60.0 * static_cast<double>(state.iterations()), benchmark::Counter::kIsRate);
 }
 BENCHMARK(BM_FreeRunSimulation)->Unit(benchmark::kMillisecond);
 

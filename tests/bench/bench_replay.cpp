@@ -5,8 +5,8 @@
 
 #include <chrono>
 #include <cmath>
-#include <ctime>
 #include <cstdio>
+#include <ctime>
 #include <lcm/lcm-cpp.hpp>
 #include <numbers>
 #include <random>

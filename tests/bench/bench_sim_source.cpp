@@ -28,12 +28,14 @@ void run_stream(benchmark::State& state) {
   Generator gen(c, 0.0);
   double t = 0.0;
   gen.advance(t, ring);  // pre-roll
-  while (ring.read(&block, 1)) {}
+  while (ring.read(&block, 1)) {
+  }
   for (auto _ : state) {
     for (int i = 0; i < 200; ++i) {
       t += 0.005;
       gen.advance(t, ring);
-      while (ring.read(&block, 1)) {}
+      while (ring.read(&block, 1)) {
+      }
     }
   }
 }
@@ -43,7 +45,8 @@ void BM_MicStream(benchmark::State& state) { run_stream<nd::sim::MicGenerator>(s
 
 void BM_EngineCycleCompute(benchmark::State& state) {
   noisemon::model::EngineCycle cycle;
-  const noisemon::model::OperatingCondition op{.speed_rpm = 3450.0, .load_nm = 20.0, .soi_deg_btdc = 18.0, .motored = false};
+  const noisemon::model::OperatingCondition op{
+      .speed_rpm = 3450.0, .load_nm = 20.0, .soi_deg_btdc = 18.0, .motored = false};
   for (auto _ : state) {
     cycle.compute(op);
     benchmark::DoNotOptimize(cycle.summary().peak_pressure_pa);
@@ -53,8 +56,18 @@ void BM_EngineCycleCompute(benchmark::State& state) {
 }  // namespace
 
 // Args: speed rpm, encoder resolution in 0.1 deg, nonlinear true block (0/1).
-BENCHMARK(BM_PressureStream)->Args({3450, 1, 0})->Args({3050, 1, 0})->Args({3450, 5, 0})->Unit(benchmark::kMillisecond)->UseRealTime();
-BENCHMARK(BM_MicStream)->Args({3450, 1, 0})->Args({3450, 1, 1})->Args({3050, 1, 0})->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK(BM_PressureStream)
+    ->Args({3450, 1, 0})
+    ->Args({3050, 1, 0})
+    ->Args({3450, 5, 0})
+    ->Unit(benchmark::kMillisecond)
+    ->UseRealTime();
+BENCHMARK(BM_MicStream)
+    ->Args({3450, 1, 0})
+    ->Args({3450, 1, 1})
+    ->Args({3050, 1, 0})
+    ->Unit(benchmark::kMillisecond)
+    ->UseRealTime();
 BENCHMARK(BM_EngineCycleCompute)->Unit(benchmark::kMicrosecond);
 
 BENCHMARK_MAIN();

@@ -15,8 +15,8 @@
 
 namespace {
 
-using noisemon::dsp::SpscRing;
 using noisemon::drivers::SampleBlock;
+using noisemon::dsp::SpscRing;
 
 // The baseline: same interface, one lock around a deque.
 template <class T>
@@ -83,9 +83,7 @@ constexpr std::size_t kBlocks = 1 << 12;
 void BM_SpscRing_double(benchmark::State& s) { run<SpscRing<double>, double>(s, 1 << 14, kDoubles); }
 void BM_MutexDeque_double(benchmark::State& s) { run<MutexDequeQueue<double>, double>(s, 1 << 14, kDoubles); }
 void BM_SpscRing_SampleBlock(benchmark::State& s) { run<SpscRing<SampleBlock>, SampleBlock>(s, 16, kBlocks); }
-void BM_MutexDeque_SampleBlock(benchmark::State& s) {
-  run<MutexDequeQueue<SampleBlock>, SampleBlock>(s, 16, kBlocks);
-}
+void BM_MutexDeque_SampleBlock(benchmark::State& s) { run<MutexDequeQueue<SampleBlock>, SampleBlock>(s, 16, kBlocks); }
 
 // Argument: items per write (and per read).
 BENCHMARK(BM_SpscRing_double)->Arg(1)->Arg(64)->Arg(256)->UseRealTime()->Unit(benchmark::kMillisecond);

@@ -39,7 +39,8 @@ r = {"groups": sorted(f.keys()),
      "conditions": [c.decode() if isinstance(c, bytes) else c for c in f["runs/condition"][:].tolist()]}
 json.dump(r, open(sys.argv[2], "w"))
 )";
-  const std::string command = std::string(kDebianPython) + " " + script + " " + h5 + " " + out + " 2>" + dir + "/err.txt";
+  const std::string command =
+      std::string(kDebianPython) + " " + script + " " + h5 + " " + out + " 2>" + dir + "/err.txt";
   const int status = std::system(command.c_str());
   std::ifstream err(dir + "/err.txt");
   std::stringstream message;
@@ -54,11 +55,12 @@ inline bool have_h5py() {
 
 }  // namespace noisemon::test
 
-// Skips without h5py; fails instead under CI (tests/support/required.hpp), where scripts/install-deps.sh has installed it.
-#define NOISEMON_REQUIRE_H5PY()                                                                      \
-  do {                                                                                               \
-    if (!::noisemon::test::have_h5py()) {                                                            \
+// Skips without h5py; fails instead under CI (tests/support/required.hpp), where scripts/install-deps.sh has installed
+// it.
+#define NOISEMON_REQUIRE_H5PY()                                                                                    \
+  do {                                                                                                             \
+    if (!::noisemon::test::have_h5py()) {                                                                          \
       if (::noisemon::test::under_ci()) FAIL() << "python3-h5py is missing (scripts/install-deps.sh installs it)"; \
-      GTEST_SKIP() << "python3-h5py is not installed";                                               \
-    }                                                                                                \
+      GTEST_SKIP() << "python3-h5py is not installed";                                                             \
+    }                                                                                                              \
   } while (0)

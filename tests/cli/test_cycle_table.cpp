@@ -102,9 +102,9 @@ TEST(CycleTable, TableOverZeroTo720WithTdcAt360) {
   o.speed_rpm = 600.0;
   o.tdc_deg = 360.0;
   const CycleTableConversion c = cycle_table_to_run(t, o, "t.txt");
-  EXPECT_FALSE(c.pegging_row_dropped);  // the first rows differ between cycles: samples
+  EXPECT_FALSE(c.pegging_row_dropped);                  // the first rows differ between cycles: samples
   EXPECT_NEAR(c.run.crank_deg.front(), -360.0, 1e-12);  // a window centred on TDC needs no rotation
-  EXPECT_NEAR(c.run.crank_deg[360], 0.0, 1e-12);  // table 360 deg = firing TDC
+  EXPECT_NEAR(c.run.crank_deg[360], 0.0, 1e-12);        // table 360 deg = firing TDC
   EXPECT_NEAR(c.run.pressure_pa[360], cell(0, 360.0) * 1e5, 1e-3);
   EXPECT_NEAR(c.run.crank_deg.back(), 720.0 + 719.0 - 360.0, 1e-12);
   EXPECT_NEAR(c.run.time_s.back(), (720.0 + 719.0) / 3600.0, 1e-12);
@@ -133,7 +133,8 @@ TEST(CycleTableBadInput, ErrorsNameFileLineColumnAndWhatWasExpected) {
   std::size_t line5 = 0;
   for (int i = 0; i < 4; ++i) line5 = t.find('\n', line5) + 1;
   std::string ragged = t;
-  ragged.replace(ragged.find('\t', ragged.find('\t', line5) + 1), ragged.find('\n', line5) - ragged.find('\t', ragged.find('\t', line5) + 1) - 1, "");
+  ragged.replace(ragged.find('\t', ragged.find('\t', line5) + 1),
+                 ragged.find('\n', line5) - ragged.find('\t', ragged.find('\t', line5) + 1) - 1, "");
   EXPECT_HAS(table_error(ragged), "t.txt: line 5: 2 columns, expected 3 like line 1");
   std::string bad = t;
   bad.replace(bad.find('\t', line5) + 1, 8, "1.5e+x");
@@ -144,8 +145,10 @@ TEST(CycleTableBadInput, ErrorsNameFileLineColumnAndWhatWasExpected) {
   EXPECT_HAS(table_error(crank), "t.txt: line 5: crank angle -175.5 after -177, expected a uniform step of");
   std::size_t half = 0;  // the first 360 rows only
   for (int i = 0; i < 360; ++i) half = t.find('\n', half) + 1;
-  EXPECT_HAS(table_error(t.substr(0, half)), "t.txt: the crank column covers 360 deg (360 rows of 1 deg), expected 720 deg");
-  EXPECT_HAS(table_error("angle p1 p2\n1 1 2\nabc 1 2\n"), "t.txt: line 3: column 1 (crank angle) is \"abc\", expected a number");
+  EXPECT_HAS(table_error(t.substr(0, half)),
+             "t.txt: the crank column covers 360 deg (360 rows of 1 deg), expected 720 deg");
+  EXPECT_HAS(table_error("angle p1 p2\n1 1 2\nabc 1 2\n"),
+             "t.txt: line 3: column 1 (crank angle) is \"abc\", expected a number");
   EXPECT_HAS(table_error("1\n2\n3\n4\n5\n6\n7\n8\n"), "t.txt: line 1: 1 column, expected the crank angle followed by");
 }
 

@@ -51,7 +51,8 @@ std::map<std::string, std::string> parse_labels(const std::string& text, std::ve
 Exposition parse(const std::string& text) {
   static const std::regex help(R"(# HELP ([a-zA-Z_:][a-zA-Z0-9_:]*) .*)");
   static const std::regex type(R"(# TYPE ([a-zA-Z_:][a-zA-Z0-9_:]*) (counter|gauge|histogram|summary|untyped))");
-  static const std::regex sample(R"(([a-zA-Z_:][a-zA-Z0-9_:]*)(?:\{(.*)\})? (NaN|[+-]Inf|[-+]?[0-9.]+(?:[eE][-+]?[0-9]+)?))");
+  static const std::regex sample(
+      R"(([a-zA-Z_:][a-zA-Z0-9_:]*)(?:\{(.*)\})? (NaN|[+-]Inf|[-+]?[0-9.]+(?:[eE][-+]?[0-9]+)?))");
   Exposition e;
   std::set<std::string> helped, sampled;
   std::istringstream in(text);
@@ -67,7 +68,10 @@ Exposition parse(const std::string& text) {
     } else if (std::regex_match(line, m, sample)) {
       const std::string value = m[3];
       e.samples.push_back({m[1], parse_labels(m[2], e.errors),
-                           value == "NaN" ? NAN : value == "+Inf" ? INFINITY : value == "-Inf" ? -INFINITY : std::stod(value)});
+                           value == "NaN"    ? NAN
+                           : value == "+Inf" ? INFINITY
+                           : value == "-Inf" ? -INFINITY
+                                             : std::stod(value)});
       sampled.insert(m[1]);
       if (!e.types.count(m[1])) e.errors.push_back("sample before its TYPE: " + line);
     } else {
@@ -101,7 +105,8 @@ noisemon::status_t make_status() {
   return s;
 }
 
-const Sample* find(const Exposition& e, const std::string& name, const std::string& label = "", const std::string& value = "") {
+const Sample* find(const Exposition& e, const std::string& name, const std::string& label = "",
+                   const std::string& value = "") {
   for (const Sample& s : e.samples)
     if (s.name == name && (label.empty() || (s.labels.count(label) && s.labels.at(label) == value))) return &s;
   return nullptr;

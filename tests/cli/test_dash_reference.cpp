@@ -22,7 +22,7 @@ double eq_4_1_gain_db(double f_hz) {
 struct Row {
   double nominal_hz, a_db;  // IEC 61672-1:2013 Table 3, A-weighting design goal
 };
-constexpr Row kTable3[] = {{100, -19.1}, {250, -8.6}, {500, -3.2}, {1000, 0.0}, {2000, 1.2},
+constexpr Row kTable3[] = {{100, -19.1}, {250, -8.6}, {500, -3.2},  {1000, 0.0},   {2000, 1.2},
                            {3150, 1.2},  {5000, 0.5}, {8000, -1.1}, {12500, -4.3}, {16000, -6.6}};
 
 }  // namespace

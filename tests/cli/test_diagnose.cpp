@@ -18,8 +18,8 @@
 
 #include <cctype>
 #include <cmath>
-#include <cstdlib>
 #include <cstdio>
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <iterator>
@@ -36,8 +36,8 @@
 #include "cli/sim_dataset.hpp"
 #include "model/diagnosis/diagnosis.hpp"
 #include "model/engine/pressure_chain.hpp"
-#include "tests/support/unique_temp.hpp"
 #include "tests/support/required.hpp"
+#include "tests/support/unique_temp.hpp"
 
 namespace noisemon::cli {
 namespace {
@@ -71,10 +71,11 @@ model::DiagnosisResult run(const model::BandDataset& data, const model::Diagnosi
 }
 
 void print(const std::string& title, const model::DiagnosisResult& r) {
-  std::printf("%s: verdict %s%s, held-out gap %.2f -> %.2f dB (%.0f %% closed), thesis metric %.2f -> %.2f dB, %.1f s\n",
-              title.c_str(), r.verdict.effect.c_str(), r.verdict.also.empty() ? "" : (" + " + r.verdict.also[0]).c_str(),
-              r.verdict.heldout_rms_before_db, r.verdict.heldout_rms_after_db, 100 * r.verdict.gap_closed_fraction,
-              r.verdict.heldout_thesis_before_db, r.verdict.heldout_thesis_after_db, r.seconds);
+  std::printf(
+      "%s: verdict %s%s, held-out gap %.2f -> %.2f dB (%.0f %% closed), thesis metric %.2f -> %.2f dB, %.1f s\n",
+      title.c_str(), r.verdict.effect.c_str(), r.verdict.also.empty() ? "" : (" + " + r.verdict.also[0]).c_str(),
+      r.verdict.heldout_rms_before_db, r.verdict.heldout_rms_after_db, 100 * r.verdict.gap_closed_fraction,
+      r.verdict.heldout_thesis_before_db, r.verdict.heldout_thesis_after_db, r.seconds);
   for (const auto& c : r.candidates)
     std::printf("    %-18s gap %6.2f dB  closed %5.0f %%  %s\n", c.name.c_str(), c.heldout_gap_db,
                 100 * c.gap_closed_fraction, c.significant ? "significant" : "");
@@ -106,19 +107,20 @@ TEST_P(WithheldEffect, VerdictNamesItAndTheHeldOutGapShrinksByAtLeast60Percent) 
 
 // The catalogue default of each effect (its realistic magnitude) and a second realistic magnitude (and qualifiers),
 // so that nothing is tuned to one value, at the realistic floor. (transducer_noise has no second magnitude yet: at
-// 0.15 bar on a stated 0.02 the impact extension wins, 72 % closed; an open issue.) (Against this engine, 111 dB(A) at 1.75 m, quieter
-// impacts or backgrounds than the catalogue's ranges change no fired band above the pressure floor's margin by more
-// than the cycle-to-cycle noise, and `none` is then the right answer: docs/diagnosis.md, known limits.)
+// 0.15 bar on a stated 0.02 the impact extension wins, 72 % closed; an open issue.) (Against this engine, 111 dB(A)
+// at 1.75 m, quieter impacts or backgrounds than the catalogue's ranges change no fired band above the pressure floor's
+// margin by more than the cycle-to-cycle noise, and `none` is then the right answer: docs/diagnosis.md, known limits.)
 INSTANTIATE_TEST_SUITE_P(
     DesignEffects, WithheldEffect,
-    ::testing::Values(Withheld{"cubic_damping", "cubic_damping"}, Withheld{"cubic_damping", "cubic_damping=2000"},
-                      Withheld{"cubic_stiffness", "cubic_stiffness"}, Withheld{"cubic_stiffness", "cubic_stiffness=1.5e13"},
-                      Withheld{"second_mode", "second_mode"}, Withheld{"second_mode", "second_mode=10,hz=800,q=3"},
-                      Withheld{"mechanical_noise", "mechanical_noise"}, Withheld{"mechanical_noise", "mechanical_noise=80"},
-                      Withheld{"background_noise", "background_noise"}, Withheld{"background_noise", "background_noise=110"},
-                      Withheld{"transducer_noise", "transducer_noise"},
-                      Withheld{"mic_gain", "mic_gain"}, Withheld{"mic_gain", "mic_gain=-4,mic=6"},
-                      Withheld{"speed_dependence", "speed_dependence"}, Withheld{"speed_dependence", "speed_dependence=-6"}),
+    ::testing::Values(
+        Withheld{"cubic_damping", "cubic_damping"}, Withheld{"cubic_damping", "cubic_damping=2000"},
+        Withheld{"cubic_stiffness", "cubic_stiffness"}, Withheld{"cubic_stiffness", "cubic_stiffness=1.5e13"},
+        Withheld{"second_mode", "second_mode"}, Withheld{"second_mode", "second_mode=10,hz=800,q=3"},
+        Withheld{"mechanical_noise", "mechanical_noise"}, Withheld{"mechanical_noise", "mechanical_noise=80"},
+        Withheld{"background_noise", "background_noise"}, Withheld{"background_noise", "background_noise=110"},
+        Withheld{"transducer_noise", "transducer_noise"}, Withheld{"mic_gain", "mic_gain"},
+        Withheld{"mic_gain", "mic_gain=-4,mic=6"}, Withheld{"speed_dependence", "speed_dependence"},
+        Withheld{"speed_dependence", "speed_dependence=-6"}),
     [](const ::testing::TestParamInfo<Withheld>& info) {
       std::string n = info.param.effect;
       for (char& ch : n)
@@ -142,12 +144,12 @@ TEST_P(WithheldEffectAtTheRealFloor, VerdictNamesItAndTheHeldOutGapShrinksByAtLe
   EXPECT_GE(r.verdict.gap_closed_fraction, 0.6);
 }
 
-INSTANTIATE_TEST_SUITE_P(
-    AboveTheFloor, WithheldEffectAtTheRealFloor,
-    ::testing::Values(Withheld{"cubic_damping", "cubic_damping=2000"}, Withheld{"cubic_stiffness", "cubic_stiffness=1.5e13"},
-                      Withheld{"second_mode", "second_mode"}, Withheld{"mic_gain", "mic_gain"},
-                      Withheld{"speed_dependence", "speed_dependence"}),
-    [](const ::testing::TestParamInfo<Withheld>& info) { return std::string(info.param.name); });
+INSTANTIATE_TEST_SUITE_P(AboveTheFloor, WithheldEffectAtTheRealFloor,
+                         ::testing::Values(Withheld{"cubic_damping", "cubic_damping=2000"},
+                                           Withheld{"cubic_stiffness", "cubic_stiffness=1.5e13"},
+                                           Withheld{"second_mode", "second_mode"}, Withheld{"mic_gain", "mic_gain"},
+                                           Withheld{"speed_dependence", "speed_dependence"}),
+                         [](const ::testing::TestParamInfo<Withheld>& info) { return std::string(info.param.name); });
 
 // ------------------------------------------------------------------------------------------ none, unexplained
 
@@ -322,7 +324,8 @@ TEST(Diagnose, CommandLineWritesTheReportSchemaFromRunDirectories) {
   for (const char* k : {"baseline", "where", "candidates", "verdict"}) EXPECT_TRUE(j.contains(k)) << k;
   for (const char* k : {"model", "train_rms_db", "heldout_rms_db"}) EXPECT_TRUE(j["baseline"].contains(k)) << k;
   for (const char* k : {"bands_hz", "conditions", "mics"}) EXPECT_TRUE(j["where"].contains(k)) << k;
-  for (const char* k : {"effect", "heldout_rms_before_db", "heldout_rms_after_db"}) EXPECT_TRUE(j["verdict"].contains(k)) << k;
+  for (const char* k : {"effect", "heldout_rms_before_db", "heldout_rms_after_db"})
+    EXPECT_TRUE(j["verdict"].contains(k)) << k;
   ASSERT_TRUE(j["candidates"].is_array());
   ASSERT_EQ(j["candidates"].size(), 8u);  // every effect of DESIGN.md's list was tried
   for (const auto& c : j["candidates"])
@@ -458,7 +461,8 @@ TEST(Diagnose, SilverboxFitThenWaveformDiagnosisNamesTheCubicSpringAndBeatsThePu
   NOISEMON_REQUIRE(std::ifstream(csv), csv);
   const std::string dir = test::unique_temp_dir();
   std::vector<std::string> train, held;
-  for (std::size_t b = 40650; b + 4000 <= 105712; b += 16000) train.push_back(std::to_string(b) + ":" + std::to_string(b + 4000));
+  for (std::size_t b = 40650; b + 4000 <= 105712; b += 16000)
+    train.push_back(std::to_string(b) + ":" + std::to_string(b + 4000));
   for (std::size_t b = 40650 + 8000; b + 4000 <= 105712; b += 16000)
     held.push_back(std::to_string(b) + ":" + std::to_string(b + 4000));
   cli::FitCommandOptions fo;
@@ -487,8 +491,10 @@ TEST(Diagnose, SilverboxFitThenWaveformDiagnosisNamesTheCubicSpringAndBeatsThePu
   EXPECT_EQ(r["mode"], "waveform");
   EXPECT_EQ(r["verdict"]["effect"], "cubic_stiffness");
   ASSERT_EQ(r["test_sets"].size(), 1u);
-  const double base = r["test_sets"][0]["baseline_rms"].get<double>(), best = r["test_sets"][0]["best_rms"].get<double>();
-  std::printf("Silverbox arrow (extrapolating): linear %.2f mV, diagnosed model %.3f mV (LSTM 2.68 mV)\n", 1e3 * base, 1e3 * best);
+  const double base = r["test_sets"][0]["baseline_rms"].get<double>(),
+               best = r["test_sets"][0]["best_rms"].get<double>();
+  std::printf("Silverbox arrow (extrapolating): linear %.2f mV, diagnosed model %.3f mV (LSTM 2.68 mV)\n", 1e3 * base,
+              1e3 * best);
   EXPECT_LT(best, base / 3.0);
   EXPECT_LT(1e3 * best, 2.68);
 }
@@ -511,9 +517,7 @@ TEST(Diagnose, BadArgumentsAreErrorsNamingTheOptionOrPath) {
   std::filesystem::create_directories(dir + "/empty");
   o.data = {dir + "/empty"};
   EXPECT_NE(error_of(o).find("neither a run directory (no run.json) nor a directory of them"), std::string::npos);
-  {
-    std::ofstream(dir + "/w.csv") << "1,2\n3,4\n";
-  }
+  { std::ofstream(dir + "/w.csv") << "1,2\n3,4\n"; }
   o.data = {dir + "/w.csv"};
   EXPECT_NE(error_of(o).find("--fs"), std::string::npos);
   o.data = {dir + "/w.csv", dir + "/empty"};

@@ -9,9 +9,9 @@
 //                  the test chose, far from the start preset: the fit must find it (within the few per cent the
 //                  sim's acoustics and cycle-to-cycle noise allow) and close the gap.
 // Plus: the written file loads to exactly the reported parameters; errors name the file, line or parameter.
-#include <CLI/CLI.hpp>
 #include <gtest/gtest.h>
 #include <unistd.h>
+#include <CLI/CLI.hpp>
 
 #include <cmath>
 #include <cstdio>
@@ -22,11 +22,11 @@
 #include <string>
 #include <vector>
 
-#include "daemon/config.hpp"
 #include "cli/fit_command.hpp"
 #include "cli/import_export.hpp"
-#include "daemon/params_file.hpp"
 #include "cli/sim_command.hpp"
+#include "daemon/config.hpp"
+#include "daemon/params_file.hpp"
 
 namespace noisemon::cli {
 namespace {

@@ -36,7 +36,8 @@ fs::path make_log(const fs::path& dir) {
   std::ofstream(config) << "[lcm]\nurl = \"file://" << log.string() << "?mode=w\"\npublish_raw = false\n"
                         << "[sim]\npaced = false\nencoder_resolution_deg = 0.5\nmic_count = 4\n"
                         << "[[sim.effects]]\neffect = \"mic_gain=4,mic=3\"\nonset_s = " << kOnsetS << "\n";
-  const auto r = noisemon::test::run_command(kNoisemond + " --config " + config.string() + " --cycles 762 --log-level error");
+  const auto r =
+      noisemon::test::run_command(kNoisemond + " --config " + config.string() + " --cycles 762 --log-level error");
   EXPECT_EQ(r.status, 0) << r.text;
   return log;
 }
@@ -64,8 +65,8 @@ TEST(GapwatchCommand, NamesAMicrophoneStepInALogAndAgainFromItsSavedReference) {
   fs::create_directories(dir);
   const fs::path log = make_log(dir);
   const std::string watch = kNoisemon + " gapwatch --no-progress --reference-s 15 --log " + log.string();
-  const auto first = noisemon::test::run_command(watch + " --json " + (dir / "a.jsonl").string() + " --save-reference " +
-                                                 (dir / "ref.json").string());
+  const auto first = noisemon::test::run_command(watch + " --json " + (dir / "a.jsonl").string() +
+                                                 " --save-reference " + (dir / "ref.json").string());
   ASSERT_EQ(first.status, 0) << first.text;
   EXPECT_NE(first.text.find("mic_gain mic=3"), std::string::npos) << first.text;
   expect_the_mic_gain(read_events(dir / "a.jsonl"));
@@ -82,11 +83,13 @@ TEST(GapwatchCommand, BadInputNamesTheFile) {
   fs::create_directories(dir);
   std::ofstream(dir / "empty.lcmlog") << "";
   std::ofstream(dir / "ref.json") << "{\"format\": \"something else\"}";
-  const auto empty = noisemon::test::run_command(kNoisemon + " gapwatch --no-progress --log " + (dir / "empty.lcmlog").string());
+  const auto empty =
+      noisemon::test::run_command(kNoisemon + " gapwatch --no-progress --log " + (dir / "empty.lcmlog").string());
   EXPECT_EQ(empty.status, 1);
   EXPECT_NE(empty.text.find("empty.lcmlog: no cycle reports"), std::string::npos) << empty.text;
-  const auto ref = noisemon::test::run_command(kNoisemon + " gapwatch --no-progress --log " + (dir / "empty.lcmlog").string() +
-                                               " --reference " + (dir / "ref.json").string());
+  const auto ref =
+      noisemon::test::run_command(kNoisemon + " gapwatch --no-progress --log " + (dir / "empty.lcmlog").string() +
+                                  " --reference " + (dir / "ref.json").string());
   EXPECT_EQ(ref.status, 1);
   EXPECT_NE(ref.text.find("ref.json"), std::string::npos) << ref.text;
   const auto help = noisemon::test::run_command(kNoisemon + " gapwatch --help");

@@ -17,8 +17,8 @@
 
 namespace {
 
-using noisemon::cycle_report_t;
 using nlohmann::json;
+using noisemon::cycle_report_t;
 using noisemon::test::read_with_h5py;
 
 cycle_report_t report(std::int64_t cycle, int nbands, int nmics) {

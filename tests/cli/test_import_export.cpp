@@ -11,6 +11,7 @@
 // pressure within 1 % of the table's in every cycle.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <complex>
 #include <cstdlib>
@@ -18,21 +19,20 @@
 #include <fstream>
 #include <iterator>
 #include <lcm/lcm-cpp.hpp>
-#include <algorithm>
 #include <map>
 #include <numbers>
 #include <random>
 #include <sstream>
 
 #include "cli/band_data.hpp"
+#include "cli/formats/cycle_table.hpp"
 #include "cli/import_export.hpp"
 #include "daemon/replay.hpp"
 #include "dsp/resample.hpp"
-#include "cli/formats/cycle_table.hpp"
 #include "noisemon/cycle_report_t.hpp"
 #include "tests/daemon/csv_column.hpp"
-#include "tests/support/unique_temp.hpp"
 #include "tests/support/required.hpp"
+#include "tests/support/unique_temp.hpp"
 
 using namespace noisemon;
 namespace fs = std::filesystem;
@@ -43,7 +43,9 @@ constexpr double kRpm = 1799.9;  // the fired table's speed (data README); the m
 constexpr std::int64_t kEpoch = 1'600'000'000'000'000;
 constexpr double kPi = std::numbers::pi;
 
-fs::path temp(const std::string& name) { return fs::path(noisemon::test::unique_temp_dir()) / ("import_export_" + name); }
+fs::path temp(const std::string& name) {
+  return fs::path(noisemon::test::unique_temp_dir()) / ("import_export_" + name);
+}
 
 std::string shared_file(const std::string& name) { return noisemon::test::reference_file(name); }
 
@@ -226,7 +228,7 @@ TEST_F(YanmarTables, BandsAboveWhatACoarseEncoderCarriesAreFlagged) {
 
 TEST_F(YanmarTables, CplSpectraAgreeWithAnIndependentDftOfTheSameCycle) {
   const double fs_table = 6.0 * kRpm / 0.2;
-  std::vector<double> all;                 // |report - reference| for every cycle and band
+  std::vector<double> all;                       // |report - reference| for every cycle and band
   std::map<std::pair<int, float>, double> bias;  // mean difference per table and band
   for (const TableRun* t : {fired_, motored_}) {
     for (const auto& r : t->reports) {
@@ -257,9 +259,10 @@ TEST_F(YanmarTables, CplSpectraAgreeWithAnIndependentDftOfTheSameCycle) {
     // spectrum's steep fall above 630 Hz that adds up to 1 dB; the 250 Hz band spans only 4 DFT bins.
     EXPECT_LT(std::abs(b), 1.25) << (key.first ? "fired " : "motored ") << key.second << " Hz";
   }
-  std::printf("CPL vs independent DFT, 250 Hz..10 kHz, %zu cycle-bands: median %.2f dB, 95th percentile %.2f dB, "
-              "worst %.2f dB; worst mean bias of a band %.2f dB\n",
-              all.size(), p50, p95, all.back(), worst_bias);
+  std::printf(
+      "CPL vs independent DFT, 250 Hz..10 kHz, %zu cycle-bands: median %.2f dB, 95th percentile %.2f dB, "
+      "worst %.2f dB; worst mean bias of a band %.2f dB\n",
+      all.size(), p50, p95, all.back(), worst_bias);
   // Per cycle the two estimators differ only where the bank's response reaches into the neighbouring cycles
   // (the tables' transducer noise is not the same there): a report matched to the wrong cycle would not do this.
   EXPECT_LT(p50, 0.5);
@@ -272,7 +275,8 @@ TEST_F(YanmarTables, FiredIsLouderThanMotoredInTheCombustionBands) {
     double e = 0;
     for (const auto& r : t->reports)
       for (int b = 0; b < r.nbands; ++b)
-        if (r.band_hz[b] >= lo && r.band_hz[b] <= hi) e += std::pow(10.0, r.cpl_db[b] / 10.0) / static_cast<double>(t->reports.size());
+        if (r.band_hz[b] >= lo && r.band_hz[b] <= hi)
+          e += std::pow(10.0, r.cpl_db[b] / 10.0) / static_cast<double>(t->reports.size());
     return 10 * std::log10(e);
   };
   for (double f : {1000., 1250., 1600., 2000., 2500., 3150., 4000.}) {
@@ -326,7 +330,8 @@ TEST_F(YanmarTables, EachCyclesFiguresAreThoseOfItsOwnColumn) {
   const auto volume = [](double theta_deg) {
     const double bore = 0.086, stroke = 0.075, rod = 0.118, cr = 21.2, a = stroke / 2;
     const double th = theta_deg * kPi / 180, area = kPi / 4 * bore * bore;
-    return area * stroke / (cr - 1) + area * (rod + a - a * std::cos(th) - std::sqrt(rod * rod - a * a * std::sin(th) * std::sin(th)));
+    return area * stroke / (cr - 1) +
+           area * (rod + a - a * std::cos(th) - std::sqrt(rod * rod - a * a * std::sin(th) * std::sin(th)));
   };
   const double vd = kPi / 4 * 0.086 * 0.086 * 0.075;
   double worst_gross = 0, worst_net = 0, worst_peak = 0;
@@ -353,8 +358,10 @@ TEST_F(YanmarTables, EachCyclesFiguresAreThoseOfItsOwnColumn) {
     ++compared;
   }
   EXPECT_EQ(compared, 58);
-  std::printf("against the columns: IMEP gross within %.4f bar, net within %.4f bar, peak at most %.3f bar above the largest sample\n",
-              worst_gross, worst_net, worst_peak);
+  std::printf(
+      "against the columns: IMEP gross within %.4f bar, net within %.4f bar, peak at most %.3f bar above the largest "
+      "sample\n",
+      worst_gross, worst_net, worst_peak);
 }
 
 // Firing TDC from the motored table (--motored-table): the fired table's angles move by the motored peak plus the
@@ -377,7 +384,8 @@ TEST_F(YanmarTables, MotoredTableSetsFiringTdcAndTheFiguresObeyThePhysics) {
   double top = -1e300, top_deg = 0;
   for (std::size_t r = 1; r < motored_->table.crank_deg.size(); ++r) {
     double mean = 0;
-    for (const auto& c : motored_->table.cycles_bar) mean += c[r] / static_cast<double>(motored_->table.cycles_bar.size());
+    for (const auto& c : motored_->table.cycles_bar)
+      mean += c[r] / static_cast<double>(motored_->table.cycles_bar.size());
     if (mean > top) top = mean, top_deg = motored_->table.crank_deg[r];
   }
   EXPECT_NEAR(sum.tdc->peak_deg, top_deg, 0.5);
@@ -396,9 +404,11 @@ TEST_F(YanmarTables, MotoredTableSetsFiringTdcAndTheFiguresObeyThePhysics) {
   ASSERT_GT(n, 40);
   const double bmep_bar = 4 * kPi * 18.0 / (kPi / 4 * 0.086 * 0.086 * 0.075) / 1e5;  // 4 pi T / Vd: 5.19 bar
   const double mg = gross / n, mn = net / n;
-  const double cov_g = std::sqrt((gross2 / n - mg * mg) * n / (n - 1)) / mg, cov_n = std::sqrt((net2 / n - mn * mn) * n / (n - 1)) / mn;
+  const double cov_g = std::sqrt((gross2 / n - mg * mg) * n / (n - 1)) / mg,
+               cov_n = std::sqrt((net2 / n - mn * mn) * n / (n - 1)) / mn;
   std::printf("TDC %+.2f deg (polytropic %+.2f): IMEP gross %.3f net %.3f bar (BMEP %.3f), COV %.2f / %.2f %%\n",
-              sum.tdc->tdc_by_loss_angle_deg, sum.tdc->tdc_by_polytropic_deg, mg, mn, bmep_bar, 100 * cov_g, 100 * cov_n);
+              sum.tdc->tdc_by_loss_angle_deg, sum.tdc->tdc_by_polytropic_deg, mg, mn, bmep_bar, 100 * cov_g,
+              100 * cov_n);
   EXPECT_GT(mn, bmep_bar);
   EXPECT_LT(mn, mg);
   EXPECT_LT(cov_n, cov_g + 0.005);
@@ -586,7 +596,8 @@ TEST(ImportExport, BadRunDirectoryFailsNamingTheFileAndLeavesNoLog) {
     cli::run_import(i);
     ADD_FAILURE() << "no error";
   } catch (const drivers::RunDirError& e) {
-    EXPECT_NE(std::string(e.what()).find((dir / "pressure.csv").string() + ": line 3: field pressure is \"oops\""), std::string::npos)
+    EXPECT_NE(std::string(e.what()).find((dir / "pressure.csv").string() + ": line 3: field pressure is \"oops\""),
+              std::string::npos)
         << e.what();
   }
   EXPECT_FALSE(fs::exists(i.out_log));
@@ -656,7 +667,8 @@ fs::path foreign_run(const std::string& name, const std::string& condition, cons
   fs::remove_all(dir);
   fs::create_directories(dir);
   std::ofstream(dir / "run.json") << R"({"condition": {"name": ")" << name << "\", " << condition << R"(},
-      "pressure": {"file": "pressure.csv", "units": "bar")" << pressure_extra << "}}";
+      "pressure": {"file": "pressure.csv", "units": "bar")"
+                                  << pressure_extra << "}}";
   std::ofstream csv(dir / "pressure.csv");
   csv << "time_s,crank_deg,pressure\n";
   const double omega = 6.0 * kForeignRpm, ripple = 0.005 * 720.0 / omega / (2 * kPi);
@@ -736,7 +748,8 @@ TEST(ImportNulls, NullLoadAndRailTravelAsUnknownTheRestAsGiven) {
 }
 
 TEST(ImportNulls, NullSpeedIsMeasuredFromTheEncoderAndSaidSo) {
-  const fs::path dir = foreign_run("speed_null", R"("speed_rpm": null, "load_nm": 5, "soi_deg_btdc": 10, "motored": false)");
+  const fs::path dir =
+      foreign_run("speed_null", R"("speed_rpm": null, "load_nm": 5, "soi_deg_btdc": 10, "motored": false)");
   const fs::path log = temp("speed_null.lcmlog");
   const cli::ImportSummary sum = import_dir(dir, log);
   EXPECT_NE(all_notes(sum).find("measured from the encoder"), std::string::npos) << all_notes(sum);
@@ -751,7 +764,8 @@ TEST(ImportNulls, NullSpeedIsMeasuredFromTheEncoderAndSaidSo) {
 }
 
 TEST(ImportNulls, NullMotoredImportsButTheDiagnosisLoaderRefusesTheRun) {
-  const fs::path dir = foreign_run("motored_null", R"("speed_rpm": 1800, "load_nm": 0, "soi_deg_btdc": 12, "motored": null)");
+  const fs::path dir =
+      foreign_run("motored_null", R"("speed_rpm": 1800, "load_nm": 0, "soi_deg_btdc": 12, "motored": null)");
   const fs::path log = temp("motored_null.lcmlog");
   const cli::ImportSummary sum = import_dir(dir, log);
   EXPECT_NE(all_notes(sum).find("motored n/a"), std::string::npos) << all_notes(sum);
@@ -768,20 +782,23 @@ TEST(ImportNulls, NullMotoredImportsButTheDiagnosisLoaderRefusesTheRun) {
     EXPECT_NE(what.find("condition.motored"), std::string::npos) << what;
   }
   // A missing key is still an error naming it and the file.
-  std::ofstream(dir / "run.json") << R"({"condition": {"name": "x", "speed_rpm": 1800, "load_nm": 0, "soi_deg_btdc": 12},
+  std::ofstream(dir / "run.json")
+      << R"({"condition": {"name": "x", "speed_rpm": 1800, "load_nm": 0, "soi_deg_btdc": 12},
       "pressure": {"file": "pressure.csv", "units": "bar"}})";
   try {
     import_dir(dir, temp("motored_missing.lcmlog"));
     ADD_FAILURE() << "no error";
   } catch (const drivers::RunDirError& e) {
-    EXPECT_NE(std::string(e.what()).find((dir / "run.json").string() + ": missing key \"condition.motored\""), std::string::npos)
+    EXPECT_NE(std::string(e.what()).find((dir / "run.json").string() + ": missing key \"condition.motored\""),
+              std::string::npos)
         << e.what();
   }
 }
 
 TEST(ImportNulls, TheDiagnosisLoaderPassesUnknownSoiAndLoadAndTheNoiseFloor) {
-  const fs::path dir = foreign_run("loader_nulls", R"("speed_rpm": null, "load_nm": null, "soi_deg_btdc": null, "motored": true)",
-                                   R"(, "noise_floor_bar": 0.0025)");
+  const fs::path dir =
+      foreign_run("loader_nulls", R"("speed_rpm": null, "load_nm": null, "soi_deg_btdc": null, "motored": true)",
+                  R"(, "noise_floor_bar": 0.0025)");
   const std::vector<cli::LoadedRecording> recs = cli::load_recordings({dir.string()});
   ASSERT_EQ(recs.size(), 1u);
   const model::ConditionInfo info = cli::condition_info(recs[0]);
@@ -789,8 +806,8 @@ TEST(ImportNulls, TheDiagnosisLoaderPassesUnknownSoiAndLoadAndTheNoiseFloor) {
   EXPECT_TRUE(std::isnan(info.soi_deg_btdc));
   EXPECT_TRUE(std::isnan(info.load_nm));
   EXPECT_TRUE(info.motored);
-  EXPECT_NEAR(info.speed_rpm, kForeignRpm, 0.005 * kForeignRpm);  // measured from the encoder
-  EXPECT_NEAR(info.pressure_floor_pa, 250.0, 1e-9);                // 0.0025 bar
+  EXPECT_NEAR(info.speed_rpm, kForeignRpm, 0.005 * kForeignRpm);                    // measured from the encoder
+  EXPECT_NEAR(info.pressure_floor_pa, 250.0, 1e-9);                                 // 0.0025 bar
   EXPECT_NEAR(info.encoder_rate_hz, 6.0 * kForeignRpm, 0.005 * 6.0 * kForeignRpm);  // 1 deg steps
   // A raw LCM log knows no floor and no encoder.
   const fs::path log = temp("loader_nulls.lcmlog");
@@ -826,7 +843,8 @@ TEST(ImportNulls, ImportThenExportKeepsNullsAsNull) {
 }
 
 TEST(ImportNulls, MicsSimNamesTheRunAndTheKeyItLacks) {
-  const fs::path dir = foreign_run("mics_sim_soi_null", R"("speed_rpm": 1800, "load_nm": 0, "soi_deg_btdc": null, "motored": true)");
+  const fs::path dir =
+      foreign_run("mics_sim_soi_null", R"("speed_rpm": 1800, "load_nm": 0, "soi_deg_btdc": null, "motored": true)");
   cli::ImportOptions i;
   i.run_dirs = {dir.string()};
   i.out_log = temp("mics_sim_soi_null.lcmlog").string();

@@ -23,8 +23,8 @@
 #include <numbers>
 
 #include "cli/formats/angle_edges.hpp"
-#include "drivers/formats/lcm_log_reader.hpp"
 #include "cli/formats/recording.hpp"
+#include "drivers/formats/lcm_log_reader.hpp"
 #include "drivers/formats/stream_messages.hpp"
 #include "tests/support/unique_temp.hpp"
 
@@ -35,8 +35,8 @@ namespace fs = std::filesystem;
 namespace {
 
 constexpr double kPi = std::numbers::pi;
-constexpr double kOmega = 6.0 * 2000.0;          // deg/s at 2000 rpm
-constexpr double kCycleS = 720.0 / kOmega;       // 0.06 s
+constexpr double kOmega = 6.0 * 2000.0;               // deg/s at 2000 rpm
+constexpr double kCycleS = 720.0 / kOmega;            // 0.06 s
 constexpr double kRipple = 0.01 * 720.0 / (2 * kPi);  // deg: 1 % speed ripple once per cycle
 constexpr double kTheta0 = -300.0;
 
@@ -113,7 +113,8 @@ std::vector<std::uint8_t> read_bytes(const fs::path& p) {
   return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
 }
 void write_bytes(const fs::path& p, const std::vector<std::uint8_t>& b) {
-  std::ofstream(p, std::ios::binary).write(reinterpret_cast<const char*>(b.data()), static_cast<std::streamsize>(b.size()));
+  std::ofstream(p, std::ios::binary)
+      .write(reinterpret_cast<const char*>(b.data()), static_cast<std::streamsize>(b.size()));
 }
 
 // Event layout of an LCM log, walked from the format (sync, eventnum, timestamp, channel length, data length).
@@ -125,7 +126,9 @@ struct EventAt {
 std::vector<EventAt> walk(const std::vector<std::uint8_t>& b) {
   std::vector<EventAt> out;
   std::size_t pos = 0;
-  const auto u32 = [&](std::size_t at) { return (std::uint32_t{b[at]} << 24) | (b[at + 1] << 16) | (b[at + 2] << 8) | b[at + 3]; };
+  const auto u32 = [&](std::size_t at) {
+    return (std::uint32_t{b[at]} << 24) | (b[at + 1] << 16) | (b[at + 2] << 8) | b[at + 3];
+  };
   while (pos + 28 <= b.size()) {
     const std::uint32_t ch = u32(pos + 20), dl = u32(pos + 24);
     out.push_back({pos, pos + 28 + ch, std::string(reinterpret_cast<const char*>(&b[pos + 28]), ch), dl});
@@ -164,7 +167,8 @@ void expect_subset_of(const std::vector<Recording>& pieces, const Recording& ori
   for (const Recording& p : pieces) {
     ASSERT_EQ(p.info.epoch_utime, original.info.epoch_utime);
     ASSERT_GE(p.first_index, original.first_index);
-    ASSERT_LE(p.first_index + static_cast<std::int64_t>(p.frames()), original.first_index + static_cast<std::int64_t>(original.frames()));
+    ASSERT_LE(p.first_index + static_cast<std::int64_t>(p.frames()),
+              original.first_index + static_cast<std::int64_t>(original.frames()));
     const auto off = static_cast<std::size_t>(p.first_index - original.first_index);
     for (std::size_t i = 0; i < p.frames(); ++i) {
       ASSERT_EQ(p.pressure_pa[i], original.pressure_pa[off + i]) << "frame " << i;
@@ -218,7 +222,8 @@ TEST(Recording, RunDirToLogAndBackMatchesTheAnalyticSignals) {
   std::size_t within = 0;
   for (std::size_t i = 0; i < run.time_s.size(); ++i) {
     const double t = run.time_s[i] * 40000.0;
-    if (t < static_cast<double>(rec.first_index) || t >= static_cast<double>(rec.first_index + static_cast<std::int64_t>(rec.frames())))
+    if (t < static_cast<double>(rec.first_index) ||
+        t >= static_cast<double>(rec.first_index + static_cast<std::int64_t>(rec.frames())))
       continue;
     ASSERT_LT(within, edges);
     EXPECT_EQ(rec.angle_edges[within * kEdgeValues + kEdgeInstant], t);
@@ -233,7 +238,8 @@ TEST(Recording, RunDirToLogAndBackMatchesTheAnalyticSignals) {
   for (std::size_t i = 0; i < edges; ++i) {
     EXPECT_EQ(back[0].angle_edges[i * kEdgeValues + kEdgeCrank], rec.angle_edges[i * kEdgeValues + kEdgeCrank]);
     EXPECT_EQ(back[0].angle_edges[i * kEdgeValues + kEdgePressure], rec.angle_edges[i * kEdgeValues + kEdgePressure]);
-    const double lag = rec.angle_edges[i * kEdgeValues + kEdgeInstant] - back[0].angle_edges[i * kEdgeValues + kEdgeInstant];
+    const double lag =
+        rec.angle_edges[i * kEdgeValues + kEdgeInstant] - back[0].angle_edges[i * kEdgeValues + kEdgeInstant];
     ASSERT_GE(lag, 0.0) << i;
     ASSERT_LE(lag, block_frames + 1.0) << i;
   }
@@ -270,7 +276,8 @@ TEST(Recording, RunDirToLogAndBackMatchesTheAnalyticSignals) {
     ASSERT_EQ(out.time_s[i], static_cast<double>(i) / 40000.0);
     wrapped[i] = wrap(out.crank_deg[i]);
     // The first frame lies in cycle 0, so the unwrapped angle is the analytic one.
-    unwrap_err = std::max(unwrap_err, std::abs(out.crank_deg[i] - theta_at((rec.first_index + static_cast<double>(i)) / 40000.0)));
+    unwrap_err = std::max(unwrap_err,
+                          std::abs(out.crank_deg[i] - theta_at((rec.first_index + static_cast<double>(i)) / 40000.0)));
   }
   EXPECT_LT(unwrap_err, 1e-4);
   e = compare(rec.first_index, out.pressure_pa, wrapped, mics);
@@ -306,7 +313,9 @@ TEST(Recording, MissingEncoderSamplesAreFilledNotWarped) {
   const Recording rec = to_recording(holes, 0);
   double err = 0;
   for (std::size_t i = 0; i < rec.frames(); ++i)
-    err = std::max(err, std::abs(rec.pressure_pa[i] - pressure_at(static_cast<double>(rec.first_index + static_cast<std::int64_t>(i)) / 40000.0)));
+    err = std::max(
+        err, std::abs(rec.pressure_pa[i] -
+                      pressure_at(static_cast<double>(rec.first_index + static_cast<std::int64_t>(i)) / 40000.0)));
   std::printf("missing encoder samples: max error %.3g Pa of a 5e6 Pa peak\n", err);
   EXPECT_LT(err, 1e-3 * 5e6);
 }
@@ -368,7 +377,7 @@ TEST(RecordingUnknowns, UnknownValuesTravelAsNaNThroughTheLogAndAreWrittenAsNull
   EXPECT_TRUE(std::isnan(op.rail_pressure_bar));
   EXPECT_FALSE(op.motored);  // unknown: the boolean message says false
   // Through a log where the point is repeated every second: NaN is not "a new value" at each repeat.
-  op.speed_rpm = 3000.0;  // the long recording's crank speed
+  op.speed_rpm = 3000.0;                                        // the long recording's crank speed
   op.soi_deg_btdc = -std::numeric_limits<double>::quiet_NaN();  // sign bit set, as 0.0 / 0.0 gives on x86
   const fs::path log = temp("unknowns.lcmlog");
   write_recordings_log(log, {long_recording(op)});
@@ -479,7 +488,8 @@ TEST(RecordingLogDamage, DamagedDataLengthLosesOnlyThatEvent) {
   for (const EventAt& e : events)
     if (e.channel == "NOISEMON_RAW" && ++seen == 25) {
       const std::uint32_t len = e.datalen + 1000;
-      for (int i = 0; i < 4; ++i) bytes[e.offset + 24 + static_cast<std::size_t>(i)] = static_cast<std::uint8_t>(len >> (24 - 8 * i));
+      for (int i = 0; i < 4; ++i)
+        bytes[e.offset + 24 + static_cast<std::size_t>(i)] = static_cast<std::uint8_t>(len >> (24 - 8 * i));
     }
   const fs::path p = temp("len.lcmlog");
   write_bytes(p, bytes);
@@ -586,7 +596,8 @@ TEST(RecordingLogDamage, LogWithoutSessionIsAnErrorNamingTheFile) {
       read_recordings_log(f);
       ADD_FAILURE() << "no error for " << f;
     } catch (const std::runtime_error& e) {
-      EXPECT_NE(std::string(e.what()).find(f.string() + ": no NOISEMON_SESSION message"), std::string::npos) << e.what();
+      EXPECT_NE(std::string(e.what()).find(f.string() + ": no NOISEMON_SESSION message"), std::string::npos)
+          << e.what();
     }
   }
 }

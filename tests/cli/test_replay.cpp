@@ -18,16 +18,16 @@
 
 #include "cli/hdf5_publisher.hpp"
 #include "cli/replay_command.hpp"
+#include "cli/watch.hpp"
 #include "daemon/cycle_processor.hpp"
 #include "daemon/replay.hpp"
 #include "daemon/report_messages.hpp"
-#include "cli/watch.hpp"
 #include "noisemon/cycle_report_t.hpp"
 #include "tests/cli/h5py_reader.hpp"
 #include "tests/cli/run_command.hpp"
 #include "tests/daemon/csv_column.hpp"
-#include "tests/support/unique_temp.hpp"
 #include "tests/sanitizer.hpp"
+#include "tests/support/unique_temp.hpp"
 
 using namespace noisemon;
 
@@ -124,7 +124,8 @@ void write_mixed_log(const std::string& path, const drivers::OperatingPoint* op 
     log.writeEvent(&other);
     for (int first = 0; first < total; first += 200) {
       drivers::SampleBlock p, m;
-      tone_blocks(first, 1000.0, [](int) { return 1.0; }, p, m);
+      tone_blocks(
+          first, 1000.0, [](int) { return 1.0; }, p, m);
       write(log, "NOISEMON_RAW", daemon::to_message(p, 0, 1'000'000), 2);
       write(log, "NOISEMON_RAW", daemon::to_message(m, 1, 1'000'000), 2);
     }
@@ -295,7 +296,8 @@ void write_two_runs_with_changing_operating_points(const std::string& path) {
         if (n % 2 == 0) write(log, "NOISEMON_OP", daemon::to_message(op), op.utime + 1);  // a repeat
       }
       drivers::SampleBlock p, m;
-      tone_blocks(first, 1000.0 + 300 * run, [](int k) { return 1 + 0.1 * (k / 5000); }, p, m);
+      tone_blocks(
+          first, 1000.0 + 300 * run, [](int k) { return 1 + 0.1 * (k / 5000); }, p, m);
       write(log, "NOISEMON_RAW", daemon::to_message(p, 0, i.epoch_utime), i.epoch_utime + first * 25);
       write(log, "NOISEMON_RAW", daemon::to_message(m, 1, i.epoch_utime), i.epoch_utime + first * 25);
     }
@@ -495,7 +497,8 @@ TEST(Replay, SeveralLogsRefuseAmbiguousOutputs) {
   m.logs = {a, c};
   m.csv_dir = dir + "/cycles.csv";  // a file name, not a directory
   std::string err = multi_replay_error(m);
-  EXPECT_NE(err.find("--csv " + m.csv_dir + ": with 2 logs, --csv names an existing directory"), std::string::npos) << err;
+  EXPECT_NE(err.find("--csv " + m.csv_dir + ": with 2 logs, --csv names an existing directory"), std::string::npos)
+      << err;
   m.csv_dir = a;  // an existing file
   EXPECT_NE(multi_replay_error(m).find("is not one"), std::string::npos);
   m.csv_dir = "";

@@ -29,23 +29,24 @@ json band_report() {
   j["data"] = {"runs/x"};
   j["metric"] = "thesis metric";
   j["baseline"] = {{"model", "linear"}, {"train_rms_db", 1.2}, {"heldout_rms_db", 1.5}, {"parameters", 4}};
-  j["candidates"] = json::array({{{"effect", "second_mode"},
-                                  {"effects", {"second_mode"}},
-                                  {"heldout_rms_db", 0.3},
-                                  {"heldout_thesis_rms_db", 0.25},
-                                  {"gap_closed_fraction", 0.8},
-                                  {"significant", true},
-                                  {"win_fraction", 1.0},
-                                  {"parameters", 7}},
-                                 {{"effect", "mic_gain"},
-                                  {"effects", {"mic_gain"}},
-                                  {"heldout_rms_db", 1.49},
-                                  {"gap_closed_fraction", 0.01},
-                                  {"significant", false},
-                                  {"win_fraction", 0.5},
-                                  {"thesis_metric_worse", true},
-                                  {"closes_db", {{"thesis_bands", -0.25}, {"mic_calibration", 0.5}, {"crank_windows", 0.0}}},
-                                  {"parameters", 14}}});
+  j["candidates"] =
+      json::array({{{"effect", "second_mode"},
+                    {"effects", {"second_mode"}},
+                    {"heldout_rms_db", 0.3},
+                    {"heldout_thesis_rms_db", 0.25},
+                    {"gap_closed_fraction", 0.8},
+                    {"significant", true},
+                    {"win_fraction", 1.0},
+                    {"parameters", 7}},
+                   {{"effect", "mic_gain"},
+                    {"effects", {"mic_gain"}},
+                    {"heldout_rms_db", 1.49},
+                    {"gap_closed_fraction", 0.01},
+                    {"significant", false},
+                    {"win_fraction", 0.5},
+                    {"thesis_metric_worse", true},
+                    {"closes_db", {{"thesis_bands", -0.25}, {"mic_calibration", 0.5}, {"crank_windows", 0.0}}},
+                    {"parameters", 14}}});
   j["combinations"] = json::array({{{"effect", "second_mode+mic_gain"},
                                     {"effects", {"second_mode", "mic_gain"}},
                                     {"heldout_rms_db", 0.29},
@@ -251,7 +252,8 @@ TEST(ReportHtml, BandPageShowsTheFloorsAndWhatEachCandidateCloses) {
   // Per condition: which floor judged it, stated and estimated floors, the cells at a floor.
   EXPECT_NE(html.find("<td>cond_a</td><td>stated</td><td>0.02</td><td>0.0213</td><td>2</td><td>40</td>"),
             std::string::npos);
-  EXPECT_NE(html.find("<td>estimated</td><td>\xE2\x80\x94</td><td>0.187</td><td>7</td><td>120</td>"), std::string::npos);
+  EXPECT_NE(html.find("<td>estimated</td><td>\xE2\x80\x94</td><td>0.187</td><td>7</td><td>120</td>"),
+            std::string::npos);
   EXPECT_NE(html.find("Microphone floor from the quiet crank windows"), std::string::npos);
   // A candidate that makes the thesis metric worse is marked; the parts of the gap it closes are shown.
   EXPECT_NE(html.find("mic_gain<span class=\"tag\">thesis metric worse</span>"), std::string::npos);
@@ -336,8 +338,10 @@ TEST(ReportHtml, EmptyOrOddReportsStillRenderAPageSayingWhatIsMissing) {
     EXPECT_NE(html.find("Missing from this report"), std::string::npos) << j.dump();
     EXPECT_EQ(count(html, "<svg"), count(html, "</svg>"));
   }
-  EXPECT_NE(noisemon::cli::report::report_html(json::object()).find("the report is an empty object"), std::string::npos);
-  EXPECT_NE(noisemon::cli::report::report_html(json{{"mode", "band"}, {"verdict", {{"effect", "none"}}}}).find("Not in this report: where"),
+  EXPECT_NE(noisemon::cli::report::report_html(json::object()).find("the report is an empty object"),
+            std::string::npos);
+  EXPECT_NE(noisemon::cli::report::report_html(json{{"mode", "band"}, {"verdict", {{"effect", "none"}}}})
+                .find("Not in this report: where"),
             std::string::npos);
 }
 

@@ -8,9 +8,9 @@
 // run.json (without the transducer_noise effect, which adds in quadrature on top), and the engine-off background
 // run, which the diagnosis loader takes as the floor.
 #include <gtest/gtest.h>
-#include <nlohmann/json.hpp>
 #include <sys/wait.h>
 #include <unistd.h>
+#include <nlohmann/json.hpp>
 
 #include <algorithm>
 #include <chrono>
@@ -28,8 +28,8 @@
 
 #include "cli/band_data.hpp"
 #include "drivers/formats/run_dir.hpp"
-#include "tests/support/unique_temp.hpp"
 #include "tests/support/required.hpp"
+#include "tests/support/unique_temp.hpp"
 
 namespace fs = std::filesystem;
 using noisemon::drivers::read_run_dir;
@@ -137,7 +137,8 @@ double a_weight_power(double f) {
 // A-weighted mean squares of x (sampled at fs) through a transfer h, by FFT (Parseval): element 0 over
 // 20 Hz - 20 kHz, then one per octave band of `octaves` (centre frequencies).
 template <class H>
-std::vector<double> weighted_mean_squares(const std::vector<double>& x, double fs, H h, const std::vector<double>& octaves) {
+std::vector<double> weighted_mean_squares(const std::vector<double>& x, double fs, H h,
+                                          const std::vector<double>& octaves) {
   std::size_t n = 1;
   while (n < x.size()) n <<= 1;
   std::vector<cd> a(n, 0.0);
@@ -149,7 +150,8 @@ std::vector<double> weighted_mean_squares(const std::vector<double>& x, double f
   for (std::size_t k = 1; k < n / 2; ++k) {
     const double f = fs * static_cast<double>(k) / static_cast<double>(n);
     if (f < 20.0 || f > 20000.0) continue;
-    const double v = 2.0 * std::norm(a[k] * h(f)) * a_weight_power(f) / static_cast<double>(n) / static_cast<double>(x.size());
+    const double v =
+        2.0 * std::norm(a[k] * h(f)) * a_weight_power(f) / static_cast<double>(n) / static_cast<double>(x.size());
     e[0] += v;
     for (std::size_t b = 0; b < octaves.size(); ++b)
       if (f >= octaves[b] / std::sqrt(2.0) && f < octaves[b] * std::sqrt(2.0)) e[b + 1] += v;
@@ -158,8 +160,9 @@ std::vector<double> weighted_mean_squares(const std::vector<double>& x, double f
 }
 double db(double ms) { return 10.0 * std::log10(ms / (kPref * kPref)); }
 
-const std::vector<std::string> kDesignEffects{"cubic_damping",    "cubic_stiffness",  "second_mode", "mechanical_noise",
-                                              "background_noise", "transducer_noise", "mic_gain",    "speed_dependence"};
+const std::vector<std::string> kDesignEffects{"cubic_damping",    "cubic_stiffness",  "second_mode",
+                                              "mechanical_noise", "background_noise", "transducer_noise",
+                                              "mic_gain",         "speed_dependence"};
 
 }  // namespace
 
@@ -184,7 +187,8 @@ TEST(SimCommand, HelpAndListEffectsNameEveryDesignEffectWithItsUnit) {
 // an ideal chain's (--pressure-floor 0) is the configured floor, which run.json records.
 TEST(SimCommand, WritesRunDirectoriesThatLoadAndCarryTheInjectedEffect) {
   const fs::path base = temp("small");
-  const std::vector<std::string> common{"sim", "--condition", "idle_mi18", "--cycles", "3", "--seed", "5", "--no-progress"};
+  const std::vector<std::string> common{"sim", "--condition", "idle_mi18", "--cycles",
+                                        "3",   "--seed",      "5",         "--no-progress"};
   auto args = [&](std::vector<std::string> extra) {
     std::vector<std::string> a = common;
     a.insert(a.end(), extra.begin(), extra.end());
@@ -250,8 +254,8 @@ TEST(SimCommand, WritesRunDirectoriesThatLoadAndCarryTheInjectedEffect) {
   EXPECT_EQ(e.mic_pa, a.mic_pa);  // the microphones hear the true pressure
   for (std::size_t i = 0; i < d.size(); ++i) d[i] = a.pressure_pa[i] - e.pressure_pa[i];
   const double step_bar = 250.0 / 65536.0, floor_bar = std::sqrt(0.02 * 0.02 + step_bar * step_bar / 12.0);
-  std::printf("pressure floor: measured %.5f bar rms per encoder sample, configured %.5f bar\n", 1e-5 * std::sqrt(mean_square(d)),
-              floor_bar);
+  std::printf("pressure floor: measured %.5f bar rms per encoder sample, configured %.5f bar\n",
+              1e-5 * std::sqrt(mean_square(d)), floor_bar);
   EXPECT_NEAR(1e-5 * std::sqrt(mean_square(d)) / floor_bar, 1.0, 0.03);
   ASSERT_TRUE(a.pressure_noise_floor_bar.has_value());
   EXPECT_NEAR(*a.pressure_noise_floor_bar, floor_bar, 1e-12);
@@ -271,7 +275,8 @@ TEST(SimCommand, WritesRunDirectoriesThatLoadAndCarryTheInjectedEffect) {
 
 TEST(SimCommand, BadOptionsFailWithClearErrorsAndWriteNothing) {
   const fs::path out = temp("bad");
-  const std::vector<std::string> run{"sim", "--condition", "idle_mi12", "--cycles", "1", "--no-progress", "-o", out.string()};
+  const std::vector<std::string> run{"sim", "--condition",   "idle_mi12", "--cycles",
+                                     "1",   "--no-progress", "-o",        out.string()};
   auto with = [&](std::vector<std::string> extra) {
     std::vector<std::string> a = run;
     a.insert(a.end(), extra.begin(), extra.end());
@@ -293,7 +298,8 @@ TEST(SimCommand, BadOptionsFailWithClearErrorsAndWriteNothing) {
   for (const auto& c : cases) {
     const Result r = with(c.extra);
     EXPECT_NE(r.status, 0) << c.extra.back();
-    for (const auto& s : c.says) EXPECT_NE(r.err.find(s), std::string::npos) << "stderr for " << c.extra.back() << ": " << r.err;
+    for (const auto& s : c.says)
+      EXPECT_NE(r.err.find(s), std::string::npos) << "stderr for " << c.extra.back() << ": " << r.err;
     EXPECT_FALSE(fs::exists(out / "idle_mi12")) << "nothing is written on a bad option";
   }
   {
@@ -325,10 +331,12 @@ std::string shared_table(const std::string& name) { return noisemon::test::refer
 // The table imported (noisemon import) and exported (noisemon export) as a pressure-only run directory.
 fs::path import_table(const std::string& table, const std::string& name, bool motored, const fs::path& base) {
   const fs::path log = base / (name + ".lcmlog"), dir = base / "pressure" / name;
-  std::vector<std::string> args{"import", "--cycles-table", table, "--rpm", "1799.9", "--condition", name,
-                                "--no-progress", "-o", log.string()};
-  if (motored) args.push_back("--motored");
-  else args.insert(args.end(), {"--load", "18", "--soi", "9.6"});
+  std::vector<std::string> args{"import", "--cycles-table", table, "--rpm",     "1799.9", "--condition",
+                                name,     "--no-progress",  "-o",  log.string()};
+  if (motored)
+    args.push_back("--motored");
+  else
+    args.insert(args.end(), {"--load", "18", "--soi", "9.6"});
   const Result imp = run_noisemon(args);
   EXPECT_EQ(imp.status, 0) << imp.err;
   const Result exp = run_noisemon({"export", log.string(), "--no-progress", "-o", dir.string()});
@@ -348,7 +356,8 @@ double uniform_pressure(const RunDir& run, std::vector<double>& p) {
     if (i > 0) {
       const double gap = run.time_s[i] - run.time_s[i - 1];
       for (long k = 1; k < std::lround(gap / dt); ++k)
-        p.push_back(run.pressure_pa[i - 1] + (run.pressure_pa[i] - run.pressure_pa[i - 1]) * static_cast<double>(k) * dt / gap);
+        p.push_back(run.pressure_pa[i - 1] +
+                    (run.pressure_pa[i] - run.pressure_pa[i - 1]) * static_cast<double>(k) * dt / gap);
     }
     p.push_back(run.pressure_pa[i]);
   }
@@ -366,7 +375,8 @@ std::vector<double> mic_levels(const RunDir& a, const RunDir* b, std::size_t fro
       for (std::size_t i = 0; i < x.size(); ++i) x[i] -= y[i];
     }
     x.erase(x.begin(), x.begin() + static_cast<std::ptrdiff_t>(from));
-    const auto em = weighted_mean_squares(x, a.mic_rate_hz, [](double) { return 1.0; }, octaves);
+    const auto em = weighted_mean_squares(
+        x, a.mic_rate_hz, [](double) { return 1.0; }, octaves);
     for (std::size_t i = 0; i < e.size(); ++i) e[i] += em[i] / a.mic_count;
   }
   for (double& v : e) v = db(v);
@@ -387,8 +397,8 @@ TEST(SimCommand, RealYanmarFiredAndMotoredCyclesDriveTheVirtualEngine) {
   ASSERT_FALSE(HasFailure());
   // Same seed and run names: the "mech" runs differ from the "clean" ones by the impacts alone.
   for (const char* set : {"clean", "mech"}) {
-    std::vector<std::string> args{"sim", "--pressure", fired_p.string(), "--pressure", motored_p.string(), "--seed", "3",
-                                  "--no-progress", "-o", (base / set).string()};
+    std::vector<std::string> args{"sim",    "--pressure", fired_p.string(), "--pressure", motored_p.string(),
+                                  "--seed", "3",          "--no-progress",  "-o",         (base / set).string()};
     if (std::string(set) == "mech") args.insert(args.end(), {"--effect", "mechanical_noise=80"});
     const Result r = run_noisemon(args);
     ASSERT_EQ(r.status, 0) << r.err;
@@ -409,7 +419,8 @@ TEST(SimCommand, RealYanmarFiredAndMotoredCyclesDriveTheVirtualEngine) {
     worst_p = std::max(worst_p, std::abs(fired.pressure_pa[i] - fired_in.pressure_pa[i]));
   EXPECT_LT(worst_p, 1.0) << "the real pressure is passed through (to the CSV's digits)";
   ASSERT_EQ(fired.mic_count, 10u);
-  EXPECT_NEAR(static_cast<double>(fired.mic_pa.size() / 10) / fired.mic_rate_hz, fired.time_s.back(), 2.0 / fired.mic_rate_hz);
+  EXPECT_NEAR(static_cast<double>(fired.mic_pa.size() / 10) / fired.mic_rate_hz, fired.time_s.back(),
+              2.0 / fired.mic_rate_hz);
 
   // Mechanical noise: the documented Leq(A), 80 + 30 log10(1799.9 / 3050), in both, equal within the scatter.
   const std::size_t skip = static_cast<std::size_t>(0.05 * fired.mic_rate_hz);  // the first impacts' delay
@@ -457,7 +468,8 @@ TEST(SimCommand, RealYanmarFiredAndMotoredCyclesDriveTheVirtualEngine) {
   // overall A-weighted difference is only a few dB.)
   for (std::size_t b : {2u, 3u}) {
     EXPECT_GT(measured[0][b + 1] - measured[1][b + 1], 8.0) << octaves[b] << " Hz";
-    EXPECT_NEAR(measured[0][b + 1] - measured[1][b + 1], predicted[0][b + 1] - predicted[1][b + 1], 1.5) << octaves[b] << " Hz";
+    EXPECT_NEAR(measured[0][b + 1] - measured[1][b + 1], predicted[0][b + 1] - predicted[1][b + 1], 1.5)
+        << octaves[b] << " Hz";
   }
 }
 
@@ -465,9 +477,9 @@ TEST(SimCommand, RealYanmarFiredAndMotoredCyclesDriveTheVirtualEngine) {
 // microphones hear only the test cell, its pressure is ambient through the chain; truth.json records the cell.
 TEST(SimCommand, BackgroundRunIsTheTestCellAloneAndLoadsAsTheDiagnosisFloor) {
   const fs::path base = temp("background");
-  const Result r = run_noisemon({"sim", "--condition", "motored_idle", "--background-run", "--effect", "background_noise=60",
-                                 "--effect", "transducer_noise=0.1", "--cycles", "4", "--seed", "2", "--no-progress", "-o",
-                                 (base / "runs").string()});
+  const Result r = run_noisemon({"sim", "--condition", "motored_idle", "--background-run", "--effect",
+                                 "background_noise=60", "--effect", "transducer_noise=0.1", "--cycles", "4", "--seed",
+                                 "2", "--no-progress", "-o", (base / "runs").string()});
   ASSERT_EQ(r.status, 0) << r.err;
   const RunDir bg = read_run_dir(base / "runs" / "background");
   const RunDir mot = read_run_dir(base / "runs" / "motored_idle");
@@ -489,9 +501,10 @@ TEST(SimCommand, BackgroundRunIsTheTestCellAloneAndLoadsAsTheDiagnosisFloor) {
       e += weighted_mean_squares(channel(run, m), run.mic_rate_hz, [](double) { return 1.0; }, {})[0] / run.mic_count;
     return db(e);
   };
-  std::printf("background run: pressure %.4f bar +- %.4f bar rms (floor %.4f and 0.1 in quadrature: %.4f); microphones "
-              "%.2f dB(A), the motored engine %.2f dB(A)\n", 1e-5 * mean, noise_bar, floor_bar, std::hypot(floor_bar, 0.1),
-              level(bg), level(mot));
+  std::printf(
+      "background run: pressure %.4f bar +- %.4f bar rms (floor %.4f and 0.1 in quadrature: %.4f); microphones "
+      "%.2f dB(A), the motored engine %.2f dB(A)\n",
+      1e-5 * mean, noise_bar, floor_bar, std::hypot(floor_bar, 0.1), level(bg), level(mot));
   EXPECT_NEAR(1e-5 * mean, 1.0, 0.01);
   EXPECT_NEAR(noise_bar / std::hypot(floor_bar, 0.1), 1.0, 0.05);
   EXPECT_NEAR(level(bg), 60.0, 0.5);
@@ -499,8 +512,8 @@ TEST(SimCommand, BackgroundRunIsTheTestCellAloneAndLoadsAsTheDiagnosisFloor) {
   ASSERT_TRUE(bg.pressure_noise_floor_bar.has_value());
   EXPECT_NEAR(*bg.pressure_noise_floor_bar, floor_bar, 1e-12);
   // The diagnosis loader: a background condition beside the motored reference.
-  const auto data = noisemon::cli::make_band_dataset(
-      noisemon::cli::load_recordings({(base / "runs" / "background").string(), (base / "runs" / "motored_idle").string()}));
+  const auto data = noisemon::cli::make_band_dataset(noisemon::cli::load_recordings(
+      {(base / "runs" / "background").string(), (base / "runs" / "motored_idle").string()}));
   ASSERT_EQ(data.conditions.size(), 2u);
   for (const auto& c : data.conditions) {
     EXPECT_EQ(c.info.background, c.info.name == "background") << c.info.name;
@@ -519,11 +532,12 @@ TEST(SimCommand, BackgroundRunIsTheTestCellAloneAndLoadsAsTheDiagnosisFloor) {
   EXPECT_EQ(truth.at("adc_clipped").at("pressure_samples"), 0);
   EXPECT_EQ(truth.at("adc_clipped").at("mic_samples"), 0);
   bool marked = false;
-  for (const auto& run : truth.at("runs")) marked = marked || (run.at("dir") == "background" && run.at("background") == true);
+  for (const auto& run : truth.at("runs"))
+    marked = marked || (run.at("dir") == "background" && run.at("background") == true);
   EXPECT_TRUE(marked);
   // --ideal-cell: every part off, recorded as such.
-  const Result ideal = run_noisemon({"sim", "--condition", "idle_mi12", "--ideal-cell", "--cycles", "1", "--no-progress", "-o",
-                                     (base / "ideal").string()});
+  const Result ideal = run_noisemon({"sim", "--condition", "idle_mi12", "--ideal-cell", "--cycles", "1",
+                                     "--no-progress", "-o", (base / "ideal").string()});
   ASSERT_EQ(ideal.status, 0) << ideal.err;
   const auto ideal_truth = nlohmann::json::parse(read_text(base / "ideal" / "truth.json"));
   EXPECT_EQ(ideal_truth.at("test_cell").at("ideal_cell"), true);
@@ -531,8 +545,8 @@ TEST(SimCommand, BackgroundRunIsTheTestCellAloneAndLoadsAsTheDiagnosisFloor) {
   EXPECT_TRUE(ideal_truth.at("test_cell").at("mic_chain").at("self_noise_dba").is_null());
   EXPECT_EQ(ideal_truth.at("test_cell").at("gas_ringing").at("gain_us"), 0.0);
   // The loudest thesis condition does not clip the default microphone range; a clipping run says so.
-  const Result loud = run_noisemon({"sim", "--condition", "full_mi24", "--cycles", "2", "--no-progress", "-o",
-                                    (base / "loud").string()});
+  const Result loud = run_noisemon(
+      {"sim", "--condition", "full_mi24", "--cycles", "2", "--no-progress", "-o", (base / "loud").string()});
   ASSERT_EQ(loud.status, 0) << loud.err;
   EXPECT_EQ(nlohmann::json::parse(read_text(base / "loud" / "truth.json")).at("adc_clipped").at("mic_samples"), 0);
   EXPECT_EQ(loud.err.find("clipped"), std::string::npos) << loud.err;

@@ -13,8 +13,8 @@
 
 #include "tests/cli/run_command.hpp"
 #include "tests/daemon/csv_column.hpp"
-#include "tests/support/unique_temp.hpp"
 #include "tests/support/required.hpp"
+#include "tests/support/unique_temp.hpp"
 
 namespace fs = std::filesystem;
 
@@ -58,7 +58,8 @@ TEST(SummaryCommand, StatisticsOfTheRealCyclesAgreeWithTheReplayCsv) {
   fs::remove_all(dir);
   fs::create_directories(dir);
   const std::string log = (dir / "fired.lcmlog").string(), csv = (dir / "fired.csv").string();
-  ASSERT_EQ(run("import --cycles-table " + kTable + " --rpm 1799.9 --load 18 --soi 9.6 --rail 470 -o " + log).status, 0);
+  ASSERT_EQ(run("import --cycles-table " + kTable + " --rpm 1799.9 --load 18 --soi 9.6 --rail 470 -o " + log).status,
+            0);
   ASSERT_EQ(run("replay " + log + " --csv " + csv + " --no-progress").status, 0);
   const Output json_out = run("summary " + log + " --json --no-progress");
   ASSERT_EQ(json_out.status, 0) << json_out.text;
@@ -67,7 +68,8 @@ TEST(SummaryCommand, StatisticsOfTheRealCyclesAgreeWithTheReplayCsv) {
   const nlohmann::json& s = all["yanmar_l100v_fired_18Nm"];
 
   // Worked out from the CSV: valid cycles are those without the settling (1) or gap (2) bits.
-  const std::vector<double> flags = column(csv, "flags"), imep = column(csv, "imep_net_bar"), lpa = column(csv, "lpa_predicted_db");
+  const std::vector<double> flags = column(csv, "flags"), imep = column(csv, "imep_net_bar"),
+                            lpa = column(csv, "lpa_predicted_db");
   double n = 0, sum = 0, energy = 0, lo = 1e300, hi = -1e300;
   for (std::size_t i = 0; i < flags.size(); ++i) {
     if (static_cast<int>(flags[i]) & 3) continue;
@@ -97,7 +99,8 @@ TEST(SummaryCommand, StatisticsOfTheRealCyclesAgreeWithTheReplayCsv) {
   const std::string row = csv_out.text.substr(at, csv_out.text.find('\n', at) - at);
   EXPECT_NEAR(std::stod(row.substr(row.rfind(',') + 1)), lo / (sum / n), 1e-4) << row;
   EXPECT_NE(csv_out.text.find("yanmar_l100v_fired_18Nm,tdc_deg,deg,0," + std::to_string(static_cast<int>(n)) + ",0,0,"),
-            std::string::npos) << csv_out.text;
+            std::string::npos)
+      << csv_out.text;
   EXPECT_NE(csv_out.text.find("yanmar_l100v_fired_18Nm,ca50_deg,deg,0,"), std::string::npos);
   ASSERT_EQ(run("export " + log + " -o " + (dir / "fired_run").string()).status, 0);
   const Output from_dir = run("summary " + (dir / "fired_run").string() + " --json --no-progress");
@@ -129,12 +132,16 @@ TEST(SummaryCommand, BackgroundRunFromTheVirtualCellFlagsOnlyTheBandsItReaches) 
   const fs::path config = dir / "bg.toml", self = dir / "self.toml";
   std::ofstream(config) << "[sound_power]\nbackground_run = \"" << (dir / "background").string() << "\"\n";
   std::ofstream(self) << "[sound_power]\nbackground_run = \"" << (dir / "full_mi12").string() << "\"\n";
-  const Output with = run("summary --json --no-progress --config " + config.string() + " " + (dir / "full_mi12").string());
+  const Output with =
+      run("summary --json --no-progress --config " + config.string() + " " + (dir / "full_mi12").string());
   const Output without = run("summary --json --no-progress " + (dir / "full_mi12").string());
-  const Output itself = run("summary --json --no-progress --config " + self.string() + " " + (dir / "full_mi12").string());
+  const Output itself =
+      run("summary --json --no-progress --config " + self.string() + " " + (dir / "full_mi12").string());
   ASSERT_EQ(with.status, 0) << with.text;
   ASSERT_EQ(itself.status, 0) << itself.text;
-  const auto stats = [](const Output& o) { return nlohmann::json::parse(o.text.substr(o.text.find('{'))).begin().value(); };
+  const auto stats = [](const Output& o) {
+    return nlohmann::json::parse(o.text.substr(o.text.find('{'))).begin().value();
+  };
   const nlohmann::json s = stats(with), plain = stats(without), own = stats(itself);
   const auto& hz = s["bands"]["hz"];
   const auto& validity = s["bands"]["band_validity"];

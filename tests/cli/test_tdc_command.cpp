@@ -1,7 +1,7 @@
 // `noisemon tdc`: thermodynamic TDC on the real Yanmar motored record two ways — from the cycle table (its own scale)
 // and from a run directory made of it by `import` and `export` (40 kHz frames with the crank angle of each, as a
-// recorder writes them), and from the raw log: all must put TDC at the same angle. And --write-config sets [combustion] tdc_deg, which
-// the daemon's configuration reader then reads, the rest of the file kept.
+// recorder writes them), and from the raw log: all must put TDC at the same angle. And --write-config sets [combustion]
+// tdc_deg, which the daemon's configuration reader then reads, the rest of the file kept.
 #include <gtest/gtest.h>
 
 #include <cstdlib>
@@ -14,8 +14,8 @@
 #include "cli/tdc_command.hpp"
 #include "daemon/config.hpp"
 #include "tests/cli/run_command.hpp"
-#include "tests/support/unique_temp.hpp"
 #include "tests/support/required.hpp"
+#include "tests/support/unique_temp.hpp"
 
 namespace fs = std::filesystem;
 
@@ -51,7 +51,9 @@ TEST(TdcCommand, TheTableAndARunDirectoryOfItAgree) {
   const auto table = run("tdc --cycles-table " + kMotored);  // a table's TDC needs no speed
   ASSERT_EQ(table.status, 0) << table.text;
   ASSERT_EQ(run("import --cycles-table " + kMotored + " --rpm 1799.9 --motored --load 0 --no-progress -o " +
-                (dir / "m.lcmlog").string()).status, 0);
+                (dir / "m.lcmlog").string())
+                .status,
+            0);
   ASSERT_EQ(run("export " + (dir / "m.lcmlog").string() + " --no-progress -o " + (dir / "run").string()).status, 0);
   const auto from_run = run("tdc " + (dir / "run").string());
   ASSERT_EQ(from_run.status, 0) << from_run.text;
@@ -64,7 +66,8 @@ TEST(TdcCommand, TheTableAndARunDirectoryOfItAgree) {
   ASSERT_EQ(from_log.status, 0) << from_log.text;
   EXPECT_NEAR(tdc_printed(from_log.text), b, 1e-6);
   // A fired run is refused, naming it.
-  const auto fired = run("tdc --cycles-table " + std::string(NOISEMON_SHARED_DIR) + "/data/real/yanmar_l100v_fired_18Nm.txt");
+  const auto fired =
+      run("tdc --cycles-table " + std::string(NOISEMON_SHARED_DIR) + "/data/real/yanmar_l100v_fired_18Nm.txt");
   EXPECT_NE(fired.status, 0);
   EXPECT_NE(fired.text.find("not a motored cycle"), std::string::npos) << fired.text;
   fs::remove_all(dir);
@@ -74,7 +77,8 @@ TEST(TdcCommand, WriteConfigSetsTdcDegAndKeepsTheRest) {
   const fs::path dir = noisemon::test::unique_temp("tdc_config");
   fs::create_directories(dir);
   const fs::path with_key = dir / "a.toml", with_table = dir / "b.toml", without = dir / "c.toml";
-  std::ofstream(with_key) << "# cell 3\n[combustion]\npegging = \"intake\"\ntdc_deg = 0.0  # old\n[engine]\nbore_mm = 86.0\n";
+  std::ofstream(with_key)
+      << "# cell 3\n[combustion]\npegging = \"intake\"\ntdc_deg = 0.0  # old\n[engine]\nbore_mm = 86.0\n";
   std::ofstream(with_table) << "[combustion]\npegging = \"intake\"\n\n[engine]\nbore_mm = 86.0\n";
   std::ofstream(without) << "[engine]\nbore_mm = 86.0\n";
   for (const fs::path& p : {with_key, with_table, without}) {
@@ -123,9 +127,12 @@ TEST(TdcCommand, ImportWithAMotoredRunPutsTheRunsOnThePistonsAngles) {
   EXPECT_NE(imported.text.find("thermodynamic TDC from"), std::string::npos) << imported.text;
   ASSERT_EQ(run("import " + (dir / "fired").string() + " --no-progress -o " + without).status, 0);
   ASSERT_EQ(run("import --cycles-table " + fired_table + " --motored-table " + kMotored +
-                " --rpm 1799.9 --load 18 --soi 9.6 --no-progress -o " + table).status, 0);
+                " --rpm 1799.9 --load 18 --soi 9.6 --no-progress -o " + table)
+                .status,
+            0);
   const double a = net_imep(with), b = net_imep(without), c = net_imep(table);
-  std::printf("net IMEP: run directories with the motored run %.3f bar, without %.3f bar; the tables %.3f bar\n", a, b, c);
+  std::printf("net IMEP: run directories with the motored run %.3f bar, without %.3f bar; the tables %.3f bar\n", a, b,
+              c);
   EXPECT_GT(a, 5.19);
   EXPECT_LT(b, 5.19);
   EXPECT_NEAR(a, c, 0.03);

@@ -17,8 +17,8 @@ using namespace noisemon;
 namespace {
 
 constexpr double kPi = std::numbers::pi;
-constexpr int kCycleFrames = 1600;  // 3000 rpm at 40 kHz
-constexpr double kStepDeg = 0.1;    // the encoder: 183 kHz of edges, 4.5 a frame
+constexpr int kCycleFrames = 1600;   // 3000 rpm at 40 kHz
+constexpr double kStepDeg = 0.1;     // the encoder: 183 kHz of edges, 4.5 a frame
 constexpr double kPhaseDeg = 0.037;  // the encoder's edges lie this far after each multiple of the step
 constexpr double kN = 1.32;          // the motored cycle's polytropic exponent
 constexpr double kRippleHz = 30e3, kRipplePa = 0.2e5;  // above the 40 kHz stream's Nyquist: only the edges carry it
@@ -38,17 +38,19 @@ double motored(double theta_deg) {
   return std::abs(theta_deg) >= 180.0 ? 1.0e5 : 1.0e5 * std::pow(volume(180.0) / volume(theta_deg), kN);
 }
 double crank_of_instant(double frames) { return -360.0 + 720.0 * std::fmod(frames, kCycleFrames) / kCycleFrames; }
-double instant_of_edge(std::int64_t e) { return (kPhaseDeg + kStepDeg * static_cast<double>(e)) / 720.0 * kCycleFrames; }
+double instant_of_edge(std::int64_t e) {
+  return (kPhaseDeg + kStepDeg * static_cast<double>(e)) / 720.0 * kCycleFrames;
+}
 double with_ripple(double theta_deg, double frames) {
   return motored(theta_deg) + kRipplePa * std::sin(2 * kPi * kRippleHz * frames / 40000.0);
 }
 
 struct Feed {
-  bool angle_stream = true;                    // the stream's info says it may come
-  bool edges_sent = true;                      // and it does
-  bool angle_first = true;                     // each second's edge blocks before (true) or after its 40 kHz blocks
-  std::int64_t edges_lead_frames = 0;          // and this far ahead of them (a processing thread behind its drivers)
-  std::function<bool(std::int64_t)> dropped;   // edges the encoder missed
+  bool angle_stream = true;                   // the stream's info says it may come
+  bool edges_sent = true;                     // and it does
+  bool angle_first = true;                    // each second's edge blocks before (true) or after its 40 kHz blocks
+  std::int64_t edges_lead_frames = 0;         // and this far ahead of them (a processing thread behind its drivers)
+  std::function<bool(std::int64_t)> dropped;  // edges the encoder missed
 };
 
 std::vector<daemon::CycleReport> run(const Feed& feed) {
@@ -139,7 +141,8 @@ TEST(AngleStream, FiguresComeFromTheEncodersOwnSamples) {
   // Without the crank-angle stream the figures come from the 40 kHz pressure, which has no ripple.
   const std::vector<daemon::CycleReport> frames_only = run({.angle_stream = false});
   ASSERT_EQ(frames_only.size(), reports.size());
-  EXPECT_LT(frames_only.back().combustion.peak_pressure_pa, edge_peak(frames_only.back().cycle + 1).first - 0.5 * kRipplePa);
+  EXPECT_LT(frames_only.back().combustion.peak_pressure_pa,
+            edge_peak(frames_only.back().cycle + 1).first - 0.5 * kRipplePa);
 }
 
 // Edges the encoder missed: one is bridged (linear between its neighbours), five in a row are a gap that voids that
@@ -148,7 +151,8 @@ TEST(AngleStream, MissingEdgesVoidOnlyTheirCycleAndAreFlagged) {
   const std::int64_t per_cycle = static_cast<std::int64_t>(720.0 / kStepDeg);
   const std::int64_t gap_cycle = 10, single_cycle = 14;
   const std::vector<daemon::CycleReport> reports = run({.dropped = [&](std::int64_t e) {
-    return (e >= gap_cycle * per_cycle + 3000 && e < gap_cycle * per_cycle + 3005) || e == single_cycle * per_cycle + 3600;
+    return (e >= gap_cycle * per_cycle + 3000 && e < gap_cycle * per_cycle + 3005) ||
+           e == single_cycle * per_cycle + 3600;
   }});
   ASSERT_GE(reports.size(), 22u);
   for (const daemon::CycleReport& r : reports) {

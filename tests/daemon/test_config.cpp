@@ -132,16 +132,25 @@ TEST(Config, HardwareExampleFileIsAValidComediAndCanConfiguration) {
 }
 
 TEST(Config, ComediAndCanErrorsNameFileAndKey) {
-  EXPECT_NE(error_of("[comedi.pressure]\nchanel = 1\n").find("test.toml:2: unknown key 'comedi.pressure.chanel'"), std::string::npos);
-  EXPECT_NE(error_of("[comedi.pressure]\naref = \"earth\"\n").find("comedi.pressure.aref: unknown value 'earth'"), std::string::npos);
+  EXPECT_NE(error_of("[comedi.pressure]\nchanel = 1\n").find("test.toml:2: unknown key 'comedi.pressure.chanel'"),
+            std::string::npos);
+  EXPECT_NE(error_of("[comedi.pressure]\naref = \"earth\"\n").find("comedi.pressure.aref: unknown value 'earth'"),
+            std::string::npos);
   EXPECT_NE(error_of("[comedi.encoder]\nmax_rpm = -1\n").find("comedi.encoder.max_rpm"), std::string::npos);
-  EXPECT_NE(error_of("[comedi.encoder]\ntimestamp_bits = 48\n").find("comedi.encoder.timestamp_bits: value 48 out of range"), std::string::npos);
-  EXPECT_NE(error_of("[comedi.mics]\nchannels = [0, 1]\nsensitivity_mv_per_pa = [50.0]\n").find("comedi.mics.sensitivity_mv_per_pa: has 1 entries but there are 2 channels"), std::string::npos);
+  EXPECT_NE(
+      error_of("[comedi.encoder]\ntimestamp_bits = 48\n").find("comedi.encoder.timestamp_bits: value 48 out of range"),
+      std::string::npos);
+  EXPECT_NE(error_of("[comedi.mics]\nchannels = [0, 1]\nsensitivity_mv_per_pa = [50.0]\n")
+                .find("comedi.mics.sensitivity_mv_per_pa: has 1 entries but there are 2 channels"),
+            std::string::npos);
   EXPECT_NE(error_of("[comedi]\nphase = \"crank\"\n").find("comedi.phase"), std::string::npos);
-  EXPECT_NE(error_of("[can]\ninterface = \"can0\"\n").find("can.interface: no [[can.signal]] entries"), std::string::npos);
+  EXPECT_NE(error_of("[can]\ninterface = \"can0\"\n").find("can.interface: no [[can.signal]] entries"),
+            std::string::npos);
   EXPECT_NE(error_of("[can]\npace = \"slow\"\n").find("can.pace"), std::string::npos);
-  EXPECT_NE(error_of("[can]\ncandump = \"x.log\"\n[[can.signal]]\nfield = \"speed_rpm\"\nid = 1\nstart_bit = 0\nlength = 99\nbyte_order = \"intel\"\n")
-                .find("test.toml: can.signal[0].length"), std::string::npos);
+  EXPECT_NE(error_of("[can]\ncandump = \"x.log\"\n[[can.signal]]\nfield = \"speed_rpm\"\nid = 1\nstart_bit = 0\nlength "
+                     "= 99\nbyte_order = \"intel\"\n")
+                .find("test.toml: can.signal[0].length"),
+            std::string::npos);
   EXPECT_NE(error_of("[lcm]\nsession_timeout_s = 0\n").find("lcm.session_timeout_s"), std::string::npos);
   EXPECT_EQ(error_of("[daemon]\nsource = \"comedi\"\n"), "");  // devices are checked when the source opens them
 }
@@ -158,7 +167,8 @@ buffer_bytes = 4194304
 wake_every_scan = true
 [comedi.mics]
 wake_every_scan = true
-)", "test.toml");
+)",
+                                "test.toml");
   EXPECT_EQ(c.comedi.pressure.buffer_bytes, 1048576u);
   EXPECT_FALSE(c.comedi.pressure.wake_every_scan);
   EXPECT_EQ(c.comedi.encoder.buffer_bytes, 4194304u);
@@ -182,12 +192,22 @@ wake_every_scan = true
   EXPECT_EQ(a[3].buffer_bytes, 0u);
   EXPECT_TRUE(a[3].wake_every_scan);
 
-  EXPECT_NE(error_of("[comedi.pressure]\nbuffer_bytes = -1\n").find("comedi.pressure.buffer_bytes: value -1 out of range"), std::string::npos);
-  EXPECT_NE(error_of("[comedi.encoder]\nbuffer_bytes = 2147483648\n").find("comedi.encoder.buffer_bytes: value 2147483648 out of range"), std::string::npos);
-  EXPECT_NE(error_of("[comedi.mics]\nbuffer_bytes = 1.5e6\n").find("comedi.mics.buffer_bytes: expected an integer"), std::string::npos);
-  EXPECT_NE(error_of("[comedi.mics]\nwake_every_scan = \"yes\"\n").find("comedi.mics.wake_every_scan: expected true or false"), std::string::npos);
-  EXPECT_NE(error_of("[comedi.encoder]\nwake_every_scan = 1\n").find("comedi.encoder.wake_every_scan: expected true or false"), std::string::npos);
-  EXPECT_NE(error_of("[comedi]\nbuffer_bytes = 4096\n").find("unknown key 'comedi.buffer_bytes'"), std::string::npos);  // per acquisition only
+  EXPECT_NE(
+      error_of("[comedi.pressure]\nbuffer_bytes = -1\n").find("comedi.pressure.buffer_bytes: value -1 out of range"),
+      std::string::npos);
+  EXPECT_NE(error_of("[comedi.encoder]\nbuffer_bytes = 2147483648\n")
+                .find("comedi.encoder.buffer_bytes: value 2147483648 out of range"),
+            std::string::npos);
+  EXPECT_NE(error_of("[comedi.mics]\nbuffer_bytes = 1.5e6\n").find("comedi.mics.buffer_bytes: expected an integer"),
+            std::string::npos);
+  EXPECT_NE(error_of("[comedi.mics]\nwake_every_scan = \"yes\"\n")
+                .find("comedi.mics.wake_every_scan: expected true or false"),
+            std::string::npos);
+  EXPECT_NE(error_of("[comedi.encoder]\nwake_every_scan = 1\n")
+                .find("comedi.encoder.wake_every_scan: expected true or false"),
+            std::string::npos);
+  EXPECT_NE(error_of("[comedi]\nbuffer_bytes = 4096\n").find("unknown key 'comedi.buffer_bytes'"),
+            std::string::npos);  // per acquisition only
 }
 
 TEST(Config, PresetAndOverridesAreApplied) {
@@ -202,7 +222,8 @@ mic_count = 2
 mic_positions_m = [[1.0, 0.0, 0.5], [0.0, 1.0, 0.5]]
 [sim.true_block]
 preset = "nl_spring_damper"
-)", "t");
+)",
+                                "t");
   // Table 4.1, nonlinear damper row, with b3 overridden.
   EXPECT_DOUBLE_EQ(c.model.k1, 9.87e8);
   EXPECT_DOUBLE_EQ(c.model.b1, 7.00e3);
@@ -236,7 +257,8 @@ mic_directivity_db = 0
 mic_adc_bits = 0
 gas_ringing_us = 0
 gas_ringing_decay_ms = 2.5
-)", "t");
+)",
+                                  "t");
   EXPECT_EQ(off.sim.pressure_chain.noise_bar, 0.0);
   EXPECT_EQ(off.sim.pressure_chain.flicker_bar, 0.01);
   EXPECT_EQ(off.sim.pressure_chain.adc_bits, 0);
@@ -245,26 +267,32 @@ gas_ringing_decay_ms = 2.5
   EXPECT_EQ(off.sim.mic_chain.adc_bits, 0);
   EXPECT_FALSE(off.sim.gas_ringing.active());
   EXPECT_DOUBLE_EQ(off.sim.gas_ringing.decay_s, 2.5e-3);
-  const Config tuned = parse_config("[sim]\npressure_noise_bar = 0.2\nmic_adc_range_pa = 200\ngas_ringing_us = 12\n", "t");
+  const Config tuned =
+      parse_config("[sim]\npressure_noise_bar = 0.2\nmic_adc_range_pa = 200\ngas_ringing_us = 12\n", "t");
   EXPECT_EQ(tuned.sim.pressure_chain.noise_bar, 0.2);  // the real Yanmar chain
   EXPECT_EQ(tuned.sim.mic_chain.adc_range_pa, 200.0);
   EXPECT_DOUBLE_EQ(tuned.sim.gas_ringing.gain_s, 12e-6);
-  EXPECT_NE(error_of("[sim]\npressure_adc_bits = 2\n").find("test.toml: sim.pressure_adc_bits: expected 0 (no ADC) or 4 .. 32"),
+  EXPECT_NE(error_of("[sim]\npressure_adc_bits = 2\n")
+                .find("test.toml: sim.pressure_adc_bits: expected 0 (no ADC) or 4 .. 32"),
             std::string::npos);
   EXPECT_NE(error_of("[sim]\nmic_adc_bits = 40\n").find("sim.mic_adc_bits"), std::string::npos);
   EXPECT_NE(error_of("[sim]\npressure_adc_min_bar = 10\npressure_adc_max_bar = 5\n").find("sim.pressure_adc_max_bar"),
             std::string::npos);
-  EXPECT_NE(error_of("[sim]\npressure_noise_bar = -0.1\n").find("sim.pressure_noise_bar: value -0.1 out of range"), std::string::npos);
-  EXPECT_NE(error_of("[sim]\nmic_self_noise_dba = \"quiet\"\n").find("sim.mic_self_noise_dba: expected a number"), std::string::npos);
+  EXPECT_NE(error_of("[sim]\npressure_noise_bar = -0.1\n").find("sim.pressure_noise_bar: value -0.1 out of range"),
+            std::string::npos);
+  EXPECT_NE(error_of("[sim]\nmic_self_noise_dba = \"quiet\"\n").find("sim.mic_self_noise_dba: expected a number"),
+            std::string::npos);
 }
 
 TEST(Config, ErrorsNameFileAndKey) {
   EXPECT_NE(error_of("[sim]\nspeed_rmp = 3000\n").find("test.toml:2: unknown key 'sim.speed_rmp'"), std::string::npos);
-  EXPECT_NE(error_of("[sim]\nspeed_rpm = \"fast\"\n").find("test.toml: sim.speed_rpm: expected a number"), std::string::npos);
+  EXPECT_NE(error_of("[sim]\nspeed_rpm = \"fast\"\n").find("test.toml: sim.speed_rpm: expected a number"),
+            std::string::npos);
   EXPECT_NE(error_of("[sim]\nspeed_rpm = -5.0\n").find("sim.speed_rpm: value -5 out of range"), std::string::npos);
   EXPECT_NE(error_of("[model]\npreset = \"cubic\"\n").find("model.preset"), std::string::npos);
   EXPECT_NE(error_of("[daemon]\nsource = \"dac\"\n").find("daemon.source: unknown source 'dac'"), std::string::npos);
-  EXPECT_NE(error_of("[sim]\nmic_count = 3\nmic_positions_m = [[0,0,1]]\n").find("sim.mic_positions_m"), std::string::npos);
+  EXPECT_NE(error_of("[sim]\nmic_count = 3\nmic_positions_m = [[0,0,1]]\n").find("sim.mic_positions_m"),
+            std::string::npos);
   EXPECT_NE(error_of("[sim\nspeed_rpm = 1\n").find("test.toml:1:"), std::string::npos);  // syntax error: line named
   EXPECT_NE(error_of("bogus = 1\n").find("unknown key 'bogus'"), std::string::npos);
 }
@@ -280,7 +308,8 @@ background_db = [40, 40, 40, 40, 40, 40, 40, 40, 40, 40, 40, 40, 40, 40, 40, 40,
 mic_count = 10
 radius_m = 2.0
 mic_positions_m = "iso3744"
-)", "sp.toml");
+)",
+                                "sp.toml");
   EXPECT_EQ(c.sound_power.k2_db, 1.5);
   EXPECT_EQ(c.sound_power.no_correction_above_db, 15.0);
   EXPECT_EQ(c.sound_power.area_weights, (std::vector<double>{1, 1, 2}));
@@ -307,7 +336,8 @@ gamma = 1.32
 air_temperature_c = 35
 air_pressure_kpa = 92
 lw_full_range = true
-)", "c.toml");
+)",
+                                "c.toml");
   EXPECT_EQ(c.combustion.pegging, noisemon::model::Pegging::kPolytropic);
   EXPECT_TRUE(std::isnan(c.combustion.peg_exponent));  // 0: fitted
   EXPECT_EQ(c.combustion.peg_poly_from_deg, -110.0);
@@ -321,16 +351,22 @@ lw_full_range = true
   EXPECT_NEAR(d.combustion.peg_intake_pa, 1.2e5, 1e-9);
   EXPECT_TRUE(std::isnan(parse_config("", "e").combustion.rise_from_deg));  // default: from the start of injection
   EXPECT_NE(error_of("[combustion]\npegging = \"tdc\"\n").find("combustion.pegging"), std::string::npos);
-  EXPECT_NE(error_of("[combustion]\npolytropic_exponent = 0.8\n").find("combustion.polytropic_exponent"), std::string::npos);
+  EXPECT_NE(error_of("[combustion]\npolytropic_exponent = 0.8\n").find("combustion.polytropic_exponent"),
+            std::string::npos);
 }
 
 TEST(Config, SoundPowerErrorsNameTheKey) {
-  EXPECT_NE(error_of("[sound_power]\nbackground_db = [40, 40]\n").find("sound_power.background_db: expected 31 band levels"), std::string::npos);
+  EXPECT_NE(
+      error_of("[sound_power]\nbackground_db = [40, 40]\n").find("sound_power.background_db: expected 31 band levels"),
+      std::string::npos);
   EXPECT_NE(error_of("[sound_power]\narea_weights = \"thirds\"\n").find("sound_power.area_weights"), std::string::npos);
-  EXPECT_NE(error_of("[processing]\nmic_average = \"mean\"\n").find("processing.mic_average: expected"), std::string::npos);
+  EXPECT_NE(error_of("[processing]\nmic_average = \"mean\"\n").find("processing.mic_average: expected"),
+            std::string::npos);
   EXPECT_TRUE(parse_config("[processing]\nmic_average = \"time\"\n", "t").mic_average_time);
-  EXPECT_NE(error_of("[sound_power]\nk2_db = -1.0\n").find("sound_power.k2_db: value -1 out of range"), std::string::npos);
-  EXPECT_NE(error_of("[sim]\nmic_positions_m = \"iso\"\n").find("sim.mic_positions_m: unknown preset 'iso'"), std::string::npos);
+  EXPECT_NE(error_of("[sound_power]\nk2_db = -1.0\n").find("sound_power.k2_db: value -1 out of range"),
+            std::string::npos);
+  EXPECT_NE(error_of("[sim]\nmic_positions_m = \"iso\"\n").find("sim.mic_positions_m: unknown preset 'iso'"),
+            std::string::npos);
   const std::string missing = error_of("[sound_power]\nbackground_run = \"/nonexistent/bg\"\n");
   EXPECT_NE(missing.find("sound_power.background_run: /nonexistent/bg/run.json"), std::string::npos) << missing;
 }
@@ -362,7 +398,8 @@ cpu = 0
 [threads.publishing]
 priority = 0
 cpu = -1
-)", "t");
+)",
+                                "t");
   EXPECT_TRUE(c.threads.lock_memory);
   EXPECT_EQ(c.threads.processing.fifo_priority, 80);
   EXPECT_EQ(c.threads.processing.cpu, 1);
@@ -372,18 +409,25 @@ cpu = -1
   EXPECT_EQ(c.threads.publishing.fifo_priority, 0);
   EXPECT_FALSE(c.threads.publishing.cpu.has_value());
   EXPECT_EQ(c.threads.mics.fifo_priority, 0);  // not given: the default
-  EXPECT_NE(error_of("[threads.procesing]\npriority = 10\n").find("test.toml:1: unknown key 'threads.procesing'"), std::string::npos);
-  EXPECT_NE(error_of("[threads.mics]\nprio = 10\n").find("test.toml:2: unknown key 'threads.mics.prio'"), std::string::npos);
-  EXPECT_NE(error_of("[threads.mics]\npriority = \"high\"\n").find("test.toml: threads.mics.priority: expected an integer"),
+  EXPECT_NE(error_of("[threads.procesing]\npriority = 10\n").find("test.toml:1: unknown key 'threads.procesing'"),
             std::string::npos);
-  EXPECT_NE(error_of("[threads.can]\npriority = 100\n").find("threads.can.priority: value 100 out of range [0, 99]"), std::string::npos);
-  EXPECT_NE(error_of("[threads.can]\ncpu = -2\n").find("threads.can.cpu: value -2 out of range [-1, 1023]"), std::string::npos);
-  EXPECT_NE(error_of("[threads]\nlock_memory = 1\n").find("threads.lock_memory: expected true or false"), std::string::npos);
+  EXPECT_NE(error_of("[threads.mics]\nprio = 10\n").find("test.toml:2: unknown key 'threads.mics.prio'"),
+            std::string::npos);
+  EXPECT_NE(
+      error_of("[threads.mics]\npriority = \"high\"\n").find("test.toml: threads.mics.priority: expected an integer"),
+      std::string::npos);
+  EXPECT_NE(error_of("[threads.can]\npriority = 100\n").find("threads.can.priority: value 100 out of range [0, 99]"),
+            std::string::npos);
+  EXPECT_NE(error_of("[threads.can]\ncpu = -2\n").find("threads.can.cpu: value -2 out of range [-1, 1023]"),
+            std::string::npos);
+  EXPECT_NE(error_of("[threads]\nlock_memory = 1\n").find("threads.lock_memory: expected true or false"),
+            std::string::npos);
   EXPECT_NE(error_of("[threads]\nprocessing = 80\n").find("threads.processing: expected a table"), std::string::npos);
 }
 
 TEST(Config, EngineGeometryForTheCombustionMetrics) {
-  const Config c = parse_config("[engine]\nbore_mm = 92\nstroke_mm = 96\nrod_mm = 155\ncompression_ratio = 17.5\n", "e.toml");
+  const Config c =
+      parse_config("[engine]\nbore_mm = 92\nstroke_mm = 96\nrod_mm = 155\ncompression_ratio = 17.5\n", "e.toml");
   EXPECT_DOUBLE_EQ(c.engine.bore_m, 0.092);
   EXPECT_DOUBLE_EQ(c.engine.stroke_m, 0.096);
   EXPECT_DOUBLE_EQ(c.engine.conrod_m, 0.155);
@@ -429,7 +473,8 @@ duration_s = 30
   const std::string mic = error_of("[[sim.faults]]\nkind = \"flat\"\nchannel = \"mic11\"\n");
   EXPECT_NE(mic.find("sim.faults[0].channel"), std::string::npos) << mic;
   EXPECT_NE(mic.find("mic11"), std::string::npos) << mic;
-  const std::string stream = error_of("[[sim.faults]]\nkind = \"nan\"\nchannel = \"pressure\"\n[[sim.faults]]\nkind = \"stall\"\nchannel = \"mic2\"\n");
+  const std::string stream = error_of(
+      "[[sim.faults]]\nkind = \"nan\"\nchannel = \"pressure\"\n[[sim.faults]]\nkind = \"stall\"\nchannel = \"mic2\"\n");
   EXPECT_NE(stream.find("sim.faults[1].channel"), std::string::npos) << stream;
   const std::string key = error_of("[[sim.faults]]\nkind = \"flat\"\nchannel = \"pressure\"\nwhen = 3\n");
   EXPECT_NE(key.find("sim.faults[0].when"), std::string::npos) << key;
@@ -467,7 +512,8 @@ ramp_s = 600
   const std::string mic = error_of("[[sim.effects]]\neffect = \"mic_gain=3,mic=11\"\n");
   EXPECT_NE(mic.find("sim.effects[0].effect"), std::string::npos) << mic;
   EXPECT_NE(mic.find("11"), std::string::npos) << mic;
-  const std::string twice = error_of("[[sim.effects]]\neffect = \"mic_gain=3\"\n[[sim.effects]]\neffect = \"mic_gain=1\"\nonset_s = 5\n");
+  const std::string twice =
+      error_of("[[sim.effects]]\neffect = \"mic_gain=3\"\n[[sim.effects]]\neffect = \"mic_gain=1\"\nonset_s = 5\n");
   EXPECT_NE(twice.find("sim.effects[1].effect"), std::string::npos) << twice;
   const std::string negative = error_of("[[sim.effects]]\neffect = \"mic_gain=3\"\nramp_s = -1\n");
   EXPECT_NE(negative.find("sim.effects[0].ramp_s"), std::string::npos) << negative;
@@ -507,7 +553,8 @@ soi_deg_btdc = 14
   const std::string order = error_of("[[sim.schedule]]\nat_s = 60\nramp_s = 30\n[[sim.schedule]]\nat_s = 80\n");
   EXPECT_NE(order.find("sim.schedule[1].at_s"), std::string::npos) << order;
   EXPECT_NE(error_of("[[sim.schedule]]\nspeed_rpm = 2000\n").find("sim.schedule[0].at_s"), std::string::npos);
-  EXPECT_NE(error_of("[[sim.schedule]]\nat_s = 5\nspeed_rpm = 20000\n").find("sim.schedule[0].speed_rpm"), std::string::npos);
+  EXPECT_NE(error_of("[[sim.schedule]]\nat_s = 5\nspeed_rpm = 20000\n").find("sim.schedule[0].speed_rpm"),
+            std::string::npos);
   EXPECT_NE(error_of("[[sim.schedule]]\nat_s = 5\ngear = 3\n").find("gear"), std::string::npos);
   const std::string dependent =
       error_of("[[sim.effects]]\neffect = \"speed_dependence=2\"\n[[sim.schedule]]\nat_s = 5\nspeed_rpm = 2000\n");

@@ -34,7 +34,8 @@ std::complex<double> eq_4_1(double f) {
 double a_weight(double f) {
   const double f1 = 20.598997, f2 = 107.65265, f3 = 737.86223, f4 = 12194.217;
   const double f2s = f * f;
-  const double ra = f4 * f4 * f2s * f2s / ((f2s + f1 * f1) * std::sqrt((f2s + f2 * f2) * (f2s + f3 * f3)) * (f2s + f4 * f4));
+  const double ra =
+      f4 * f4 * f2s * f2s / ((f2s + f1 * f1) * std::sqrt((f2s + f2 * f2) * (f2s + f3 * f3)) * (f2s + f4 * f4));
   return 20 * std::log10(ra) + 2.000;
 }
 
@@ -164,8 +165,9 @@ TEST(CycleProcessor, SteadyTonesMatchAnalyticLevels) {
     }
     // Overall Lp(A): the energy sum of both tones' A-weighted levels; LW(A) adds 10 log10(2 pi r^2).
     const double expected_lpa =
-        10 * std::log10(std::pow(10, (level(2000 * std::abs(eq_4_1(1000))) + a_weight(r.bands[b1k].exact_mid_hz)) / 10) +
-                        std::pow(10, (level(300 * std::abs(eq_4_1(5000))) + a_weight(r.bands[b5k].exact_mid_hz)) / 10));
+        10 *
+        std::log10(std::pow(10, (level(2000 * std::abs(eq_4_1(1000))) + a_weight(r.bands[b1k].exact_mid_hz)) / 10) +
+                   std::pow(10, (level(300 * std::abs(eq_4_1(5000))) + a_weight(r.bands[b5k].exact_mid_hz)) / 10));
     EXPECT_NEAR(c.lpa_measured_db, expected_lpa, 0.2);
     EXPECT_NEAR(c.lpa_predicted_db, expected_lpa, 0.2);
     // The combustion-noise level: the CPL through eq. 4.1's fixed attenuation, A-weighted: the same two tones.
@@ -248,8 +250,8 @@ TEST(CycleProcessor, PressureOnlyStreamReportsCplAndPredictionsAndSaysNothingWas
   // dozen frames, is below the 128 frames fed after the last wrap at 48000). The first wrap only opens one.
   std::size_t wraps = 0;
   for (std::int64_t k = kCycleFrames; k < fed; k += kCycleFrames) ++wraps;
-  ASSERT_EQ(fed % kCycleFrames, 128);  // the premise above
-  ASSERT_EQ(reports.size(), wraps - 1);  // 29: [1600, 3200) ... [46400, 48000)
+  ASSERT_EQ(fed % kCycleFrames, 128);                       // the premise above
+  ASSERT_EQ(reports.size(), wraps - 1);                     // 29: [1600, 3200) ... [46400, 48000)
   EXPECT_EQ(reports.front().utime, 1'000'000 + 1600 * 25);  // 25 us per frame at 40 kHz
   EXPECT_EQ(reports.back().utime, 1'000'000 + 46400 * 25);
   const std::size_t b1k = band_index(p.bands(), 1000), b5k = band_index(p.bands(), 5000);
@@ -300,12 +302,13 @@ TEST(CycleProcessor, AStalledStreamDropsTheCyclesItTouchesAndProcessingResumes) 
       RunResult r;
       ASSERT_NO_THROW(r = run(s, 1.0 + stall_s + 1.0, -1, stall));
       const std::int64_t gap_from = from * 256, gap_to = to * 256;  // frames of the stalled stream
-      const std::int64_t shift = mics_stall ? kDelayFrames : 0;      // microphone frame n + d belongs to combined n
+      const std::int64_t shift = mics_stall ? kDelayFrames : 0;     // microphone frame n + d belongs to combined n
       std::int64_t first_after = INT64_MAX;
       const auto start_of = [](const daemon::CycleReport& c) { return (c.utime - 1'000'000) * 40 / 1000; };  // frames
       for (const auto& c : r.reports) {
         const std::int64_t start = start_of(c);  // combined frame where the report's cycle starts
-        EXPECT_FALSE(start < gap_to - shift && start + kCycleFrames > gap_from - shift) << "cycle " << c.cycle << " overlaps the stall";
+        EXPECT_FALSE(start < gap_to - shift && start + kCycleFrames > gap_from - shift)
+            << "cycle " << c.cycle << " overlaps the stall";
         if (start >= gap_to - shift) first_after = std::min(first_after, start);
       }
       EXPECT_LE(first_after, gap_to - shift + 2 * kCycleFrames) << "no valid cycle within two cycles of the resumption";
@@ -334,7 +337,8 @@ TEST(CycleProcessor, AStalledStreamDropsTheCyclesItTouchesAndProcessingResumes) 
 }
 
 // One second of a stream with one silent microphone: pressure(encoder angle) at the cell's crank angles.
-std::vector<daemon::CycleReport> pressure_run(const daemon::ProcessorConfig& pc, const std::function<double(double)>& pressure) {
+std::vector<daemon::CycleReport> pressure_run(const daemon::ProcessorConfig& pc,
+                                              const std::function<double(double)>& pressure) {
   drivers::StreamInfo info;
   info.epoch_utime = 1'000'000;
   info.mic_count = 1;
@@ -508,14 +512,16 @@ const daemon::CycleReport* find_cycle(const RunResult& r, std::int64_t cycle) {
 
 // Every number a report publishes is finite (mic levels of dead microphones aside: -inf for all-zero samples).
 void expect_all_finite(const daemon::CycleReport& c) {
-  EXPECT_TRUE(std::isfinite(c.lpa_measured_db) && std::isfinite(c.lpa_predicted_db) && std::isfinite(c.lwa_measured_db) &&
-              std::isfinite(c.lwa_predicted_db))
+  EXPECT_TRUE(std::isfinite(c.lpa_measured_db) && std::isfinite(c.lpa_predicted_db) &&
+              std::isfinite(c.lwa_measured_db) && std::isfinite(c.lwa_predicted_db))
       << "cycle " << c.cycle;
   for (std::size_t b = 0; b < c.nbands; ++b)
-    EXPECT_TRUE(std::isfinite(c.cpl_db[b]) && std::isfinite(c.spl_a_measured_db[b]) && std::isfinite(c.spl_a_predicted_db[b]) &&
-                std::isfinite(c.att_measured_db[b]) && std::isfinite(c.att_predicted_db[b]))
+    EXPECT_TRUE(std::isfinite(c.cpl_db[b]) && std::isfinite(c.spl_a_measured_db[b]) &&
+                std::isfinite(c.spl_a_predicted_db[b]) && std::isfinite(c.att_measured_db[b]) &&
+                std::isfinite(c.att_predicted_db[b]))
         << "cycle " << c.cycle << " band " << b;
-  for (std::size_t m = 0; m < c.nmics; ++m) EXPECT_TRUE(std::isfinite(c.mic_lpa_db[m])) << "cycle " << c.cycle << " mic " << m;
+  for (std::size_t m = 0; m < c.nmics; ++m)
+    EXPECT_TRUE(std::isfinite(c.mic_lpa_db[m])) << "cycle " << c.cycle << " mic " << m;
 }
 
 }  // namespace
@@ -549,7 +555,8 @@ TEST(CycleProcessorFaults, ADeadOrUnpluggedMicrophoneIsLeftOutOfTheArrayAverage)
     ASSERT_GE(r10.reports.size(), 25u);
     for (std::size_t i = 0; i < r10.reports.size(); ++i) {
       const auto &a = r10.reports[i], &b = r9.reports[i];
-      const std::int8_t want = daemon::kMicExcluded | (unplugged ? daemon::kMicLow : daemon::kMicFlat | daemon::kMicLow);
+      const std::int8_t want =
+          daemon::kMicExcluded | (unplugged ? daemon::kMicLow : daemon::kMicFlat | daemon::kMicLow);
       EXPECT_EQ(a.mic_flags[kDead], want) << "cycle " << a.cycle;
       for (std::uint32_t m = 0; m < 10; ++m)
         if (m != kDead) EXPECT_EQ(a.mic_flags[m], 0) << "cycle " << a.cycle << " mic " << m;
@@ -559,7 +566,8 @@ TEST(CycleProcessorFaults, ADeadOrUnpluggedMicrophoneIsLeftOutOfTheArrayAverage)
       EXPECT_NEAR(a.lpa_measured_db, b.lpa_measured_db, 0.01) << "cycle " << a.cycle;
       EXPECT_NEAR(a.lwa_measured_db, b.lwa_measured_db, 0.01) << "cycle " << a.cycle;
       for (std::size_t band = 0; band < a.nbands; ++band) {
-        EXPECT_NEAR(a.spl_a_measured_db[band], b.spl_a_measured_db[band], 0.01) << "cycle " << a.cycle << " band " << band;
+        EXPECT_NEAR(a.spl_a_measured_db[band], b.spl_a_measured_db[band], 0.01)
+            << "cycle " << a.cycle << " band " << band;
         EXPECT_NEAR(a.att_measured_db[band], b.att_measured_db[band], 0.01) << "cycle " << a.cycle << " band " << band;
       }
       // The dead microphone's own level is still reported: -inf for zeros, about 40 dB down for the noise.
@@ -682,8 +690,8 @@ TEST(CycleProcessorFaults, ANanBurstInThePressureVoidsThePredictionsUntilItsFilt
         EXPECT_TRUE(std::isnan(c.lpa_predicted_db) && std::isnan(c.lwa_predicted_db)) << "cycle " << c.cycle;
         EXPECT_TRUE(std::isnan(c.combustion.peak_pressure_pa) && std::isnan(c.combustion.imep_gross_pa));
         for (std::size_t b = 0; b < c.nbands; ++b)
-          EXPECT_TRUE(std::isnan(c.cpl_db[b]) && std::isnan(c.spl_a_predicted_db[b]) && std::isnan(c.att_measured_db[b]) &&
-                      std::isnan(c.att_predicted_db[b]))
+          EXPECT_TRUE(std::isnan(c.cpl_db[b]) && std::isnan(c.spl_a_predicted_db[b]) &&
+                      std::isnan(c.att_measured_db[b]) && std::isnan(c.att_predicted_db[b]))
               << "cycle " << c.cycle << " band " << b;
         EXPECT_NEAR(c.lpa_measured_db, ref.lpa_measured_db, 1e-9);  // the microphones are untouched
         EXPECT_NEAR(c.spl_a_measured_db[b1k], ref.spl_a_measured_db[b1k], 1e-6);
@@ -714,7 +722,9 @@ TEST(CycleProcessorFaults, ClippingAtTheFullScaleIsAnOverload) {
   const double mic_fs = peak2 / 0.96;
   const double pressure_fs = (1e5 + 2000) / 0.96;  // the pressure's peak at 96 % of its (absolute) rail too
   constexpr std::int64_t kMicCycle = 10, kPressureCycle = 14;
-  const auto in_cycle = [](std::int64_t n, std::int64_t cycle) { return n >= first_frame(cycle) && n < first_frame(cycle + 1); };
+  const auto in_cycle = [](std::int64_t n, std::int64_t cycle) {
+    return n >= first_frame(cycle) && n < first_frame(cycle + 1);
+  };
   Streams st = streams_of(s);
   st.mic_full_scale_pa = mic_fs;
   st.pressure_full_scale_pa = pressure_fs;
@@ -723,7 +733,8 @@ TEST(CycleProcessorFaults, ClippingAtTheFullScaleIsAnOverload) {
   constexpr double kClipped = 0.995;
   st.mic = [&](std::int64_t k, std::uint32_t m) {
     const double x = s.mic(k, m);
-    return m == 2 && in_cycle(k - kDelayFrames, kMicCycle) ? std::clamp(1.2 * x, -kClipped * mic_fs, kClipped * mic_fs) : x;
+    return m == 2 && in_cycle(k - kDelayFrames, kMicCycle) ? std::clamp(1.2 * x, -kClipped * mic_fs, kClipped * mic_fs)
+                                                           : x;
   };
   // The pressure swings four times as far in cycle kPressureCycle: beyond its rail, clipped there.
   st.pressure = [&](std::int64_t k) {
@@ -748,7 +759,8 @@ TEST(CycleProcessorFaults, ClippingAtTheFullScaleIsAnOverload) {
   }
   // The same streams with the full scales unknown: no overload anywhere.
   st.mic_full_scale_pa = st.pressure_full_scale_pa = 0;
-  for (const auto& c : run_streams(st, 1.0).reports) EXPECT_EQ(c.flags & ~daemon::kCycleSettling, 0) << "cycle " << c.cycle;
+  for (const auto& c : run_streams(st, 1.0).reports)
+    EXPECT_EQ(c.flags & ~daemon::kCycleSettling, 0) << "cycle " << c.cycle;
 }
 
 namespace {
@@ -762,7 +774,9 @@ Streams combustion_streams() {
 }
 
 Streams with_crank_unknown(Streams st, std::int64_t from, std::int64_t to) {
-  st.crank = [from, to](std::int64_t k) { return k >= from && k < to ? std::numeric_limits<double>::quiet_NaN() : crank(k); };
+  st.crank = [from, to](std::int64_t k) {
+    return k >= from && k < to ? std::numeric_limits<double>::quiet_NaN() : crank(k);
+  };
   return st;
 }
 
@@ -807,13 +821,21 @@ TEST(CycleProcessorFaults, UnknownCrankAngleAcrossABoundaryHidesOrBlursIt) {
   const RunResult clean = run_streams(combustion_streams(), 1.0);
   struct Case {
     const char* name;
-    std::int64_t from, to;            // unknown crank angles, combined frames
-    std::vector<std::int64_t> gone;   // report indices not published
+    std::int64_t from, to;              // unknown crank angles, combined frames
+    std::vector<std::int64_t> gone;     // report indices not published
     std::vector<std::int64_t> blurred;  // published with CYCLE_ENCODER
   };
   const std::vector<Case> cases = {
-      {"1.13 cycles, covering the boundary at the start of cycle 11", first_frame(10) + 1000, first_frame(11) + 1200, {10, 11}, {}},
-      {"400 frames around the boundary at the start of cycle 11", first_frame(11) - 200, first_frame(11) + 200, {}, {10, 11}},
+      {"1.13 cycles, covering the boundary at the start of cycle 11",
+       first_frame(10) + 1000,
+       first_frame(11) + 1200,
+       {10, 11},
+       {}},
+      {"400 frames around the boundary at the start of cycle 11",
+       first_frame(11) - 200,
+       first_frame(11) + 200,
+       {},
+       {10, 11}},
   };
   for (const Case& k : cases) {
     SCOPED_TRACE(k.name);
@@ -837,7 +859,8 @@ TEST(CycleProcessorFaults, UnknownCrankAngleAcrossABoundaryHidesOrBlursIt) {
       EXPECT_EQ(c.flags, ref->flags) << "cycle " << c.cycle;
       EXPECT_NEAR(c.combustion.peak_pressure_pa, ref->combustion.peak_pressure_pa, 1e-6) << "cycle " << c.cycle;
       const std::int64_t start = (c.utime - 1'000'000) * 40 / 1000;
-      if (start >= k.to && (c.flags & ~daemon::kCycleSettling) == 0) first_valid_after = std::min(first_valid_after, start);
+      if (start >= k.to && (c.flags & ~daemon::kCycleSettling) == 0)
+        first_valid_after = std::min(first_valid_after, start);
     }
     EXPECT_LE(first_valid_after, k.to + 2 * kCycleFrames) << "no valid cycle within two cycles of the stretch's end";
     // The blurred boundary sits at the first known angle: the cycle before it is longer, the one after shorter.
@@ -862,8 +885,10 @@ TEST(CycleProcessor, BandsTheStreamsCannotCarryAreFlaggedAndLeftOutOfTheOverallL
   st.mic_passband_hz = 10000;
   const RunResult r = run_streams(st, 1.2);
   ASSERT_GE(r.reports.size(), 20u);
-  const std::size_t b6k3 = band_index(r.bands, 6300), b8k = band_index(r.bands, 8000), b10k = band_index(r.bands, 10000);
-  const double expected_lpa = level(300 * std::abs(eq_4_1(5000))) + a_weight(r.bands[band_index(r.bands, 5000)].exact_mid_hz);
+  const std::size_t b6k3 = band_index(r.bands, 6300), b8k = band_index(r.bands, 8000),
+                    b10k = band_index(r.bands, 10000);
+  const double expected_lpa =
+      level(300 * std::abs(eq_4_1(5000))) + a_weight(r.bands[band_index(r.bands, 5000)].exact_mid_hz);
   for (const auto& c : r.reports) {
     EXPECT_FALSE(c.band_flags[b6k3] & (daemon::kBandPressurePassband | daemon::kBandMicPassband));
     EXPECT_TRUE(c.band_flags[b8k] & daemon::kBandPressurePassband);
@@ -872,7 +897,7 @@ TEST(CycleProcessor, BandsTheStreamsCannotCarryAreFlaggedAndLeftOutOfTheOverallL
       EXPECT_TRUE(c.band_flags[b] & daemon::kBandPressurePassband) << r.bands[b].nominal_hz;
       EXPECT_TRUE(c.band_flags[b] & daemon::kBandMicPassband) << r.bands[b].nominal_hz;
     }
-    if (c.cycle < 5) continue;  // let the filters settle
+    if (c.cycle < 5) continue;                                                        // let the filters settle
     EXPECT_GT(c.spl_a_measured_db[band_index(r.bands, 12500)], expected_lpa + 10.0);  // it is there, flagged
     EXPECT_NEAR(c.lpa_measured_db, expected_lpa, 0.2);
     EXPECT_NEAR(c.lpa_predicted_db, expected_lpa, 0.2);

@@ -101,7 +101,8 @@ TEST(CycleStatistics, LeqCoversOnlyTheTimeOfTheCyclesThatHaveTheLevel) {
 
 TEST(CycleStatistics, TextJsonAndCsvCarryEveryScalar) {
   const auto s = daemon::statistics_of({report(80.0, 5.0, 0.04), report(90.0, 7.0, 0.04)});
-  const std::string text = daemon::statistics_text(s), json = daemon::statistics_json(s), csv = daemon::statistics_csv_rows(s, "run1");
+  const std::string text = daemon::statistics_text(s), json = daemon::statistics_json(s),
+                    csv = daemon::statistics_csv_rows(s, "run1");
   for (const auto& v : s.scalars) {
     EXPECT_NE(text.find(v.name), std::string::npos) << v.name;
     EXPECT_NE(json.find("\"" + v.name + "\""), std::string::npos) << v.name;
@@ -137,7 +138,8 @@ TEST(CycleStatistics, SoundPowerOverTheCyclesCorrectsTheEnergyMeanBandsForTheBac
     r.radius_m = 1.75;
     return r;
   };
-  const auto s = daemon::statistics_of({with_background(80.0, 0), with_background(90.0, noisemon::cycle_report_t::BAND_BELOW_FIRING)});
+  const auto s = daemon::statistics_of(
+      {with_background(80.0, 0), with_background(90.0, noisemon::cycle_report_t::BAND_BELOW_FIRING)});
   ASSERT_EQ(s.band_validity.size(), 5u);
   EXPECT_EQ(s.band_validity[0], daemon::kBandCorrected);
   EXPECT_EQ(s.band_validity[1], daemon::kBandUncorrected);

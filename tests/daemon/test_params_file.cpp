@@ -2,11 +2,11 @@
 // configuration parser, and --model accepts a preset name or such a file.
 #include <gtest/gtest.h>
 
+#include <unistd.h>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <string>
-#include <unistd.h>
 
 #include "daemon/config.hpp"
 #include "daemon/params_file.hpp"
@@ -15,7 +15,8 @@ namespace noisemon::daemon {
 namespace {
 
 std::string temp_path(const char* name) {
-  return (std::filesystem::temp_directory_path() / (std::string("noisemon_params_") + std::to_string(getpid()) + name)).string();
+  return (std::filesystem::temp_directory_path() / (std::string("noisemon_params_") + std::to_string(getpid()) + name))
+      .string();
 }
 
 TEST(ParamsFile, WrittenParametersLoadBackExactlyAsADaemonConfiguration) {

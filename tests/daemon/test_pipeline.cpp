@@ -365,13 +365,12 @@ TEST(Pipeline, TheRawStreamsAndTheSessionGoOutAsTheyCameIn) {
   EXPECT_EQ(ops[0].channel, "NOISEMON_OP");
 }
 
-
 // The rolling statistics: once a second and when the pipeline finishes, the statistics of the last
 // stats_window_cycles reports on their own channel, as computed here from the published reports themselves
 // (energy mean of the levels, sample standard deviation, min and max; settling cycles counted, not averaged).
 TEST(Pipeline, TheRollingStatisticsAreThoseOfTheLastWindowOfPublishedReports) {
   std::vector<Block> blocks = tone(80);  // the lowest bands' filters have settled for the last ten cycles
-  for (Block& b : blocks)  // a level that changes from cycle to cycle: 1 + 0.3 sin(cycle)
+  for (Block& b : blocks)                // a level that changes from cycle to cycle: 1 + 0.3 sin(cycle)
     for (std::uint32_t f = 0; f < b.block.frames; ++f) {
       const double gain = 1.0 + 0.3 * std::sin(static_cast<double>((b.block.first_index + f) / 1000));
       double& x = b.block.data[f * b.block.channels];
@@ -447,7 +446,8 @@ TEST(Pipeline, TheSessionsTdcIsUsedUnlessTheConfigurationSetsOne) {
     config.lcm.publish_raw = true;
     config.tdc_deg_configured = configured;  // [combustion] tdc_deg = 0
     auto out = std::make_shared<MemoryPublisher>();
-    Pipeline pipeline(config, std::make_unique<MemorySource>(MemorySource::Script{tone(12), false, SIZE_MAX, -2.6}), out);
+    Pipeline pipeline(config, std::make_unique<MemorySource>(MemorySource::Script{tone(12), false, SIZE_MAX, -2.6}),
+                      out);
     pipeline.start();
     ASSERT_TRUE(wait_for([&] { return out->reports().size() >= 5; }));
     pipeline.stop();

@@ -31,7 +31,8 @@ void* operator new(std::size_t n) {
 void* operator new[](std::size_t n) { return operator new(n); }
 void* operator new(std::size_t n, std::align_val_t a) {
   if (counting.load(std::memory_order_relaxed)) allocations.fetch_add(1, std::memory_order_relaxed);
-  if (void* p = std::aligned_alloc(static_cast<std::size_t>(a), (n + static_cast<std::size_t>(a) - 1) & ~(static_cast<std::size_t>(a) - 1)))
+  if (void* p = std::aligned_alloc(static_cast<std::size_t>(a),
+                                   (n + static_cast<std::size_t>(a) - 1) & ~(static_cast<std::size_t>(a) - 1)))
     return p;
   throw std::bad_alloc();
 }
@@ -95,16 +96,22 @@ TEST(RealTimePath, DriverGeneratorsAndTheEncoderDecoderNeitherAllocateNorLockOnc
     mics.advance(t, mic_ring);
   }
   nd::SampleBlock sink;
-  while (pressure_ring.read(&sink, 1)) {}
-  while (mic_ring.read(&sink, 1)) {}
-  while (angle_ring.read(&sink, 1)) {}
+  while (pressure_ring.read(&sink, 1)) {
+  }
+  while (mic_ring.read(&sink, 1)) {
+  }
+  while (angle_ring.read(&sink, 1)) {
+  }
   const Counted c = count([&] {
     for (; t < 1.5; t += 0.005) {
       pressure.advance(t, pressure_ring);
       mics.advance(t, mic_ring);
-      while (pressure_ring.read(&sink, 1)) {}
-      while (mic_ring.read(&sink, 1)) {}
-      while (angle_ring.read(&sink, 1)) {}
+      while (pressure_ring.read(&sink, 1)) {
+      }
+      while (mic_ring.read(&sink, 1)) {
+      }
+      while (angle_ring.read(&sink, 1)) {
+      }
     }
   });
   EXPECT_EQ(c.allocations, 0);
@@ -143,7 +150,8 @@ struct Streams {
       const double crank = std::fmod(static_cast<double>(next) * 720.0 / 1600.0, 720.0) - 360.0;
       p.data[f * 2 + nd::kPressureChannel] = pulse(crank);
       p.data[f * 2 + nd::kCrankChannel] = crank;
-      for (int i = 0; i < 10; ++i) m.data[f * 10 + i] = 2.0 * std::sin(2 * M_PI * 1000.0 * static_cast<double>(next) / 40000.0 + i);
+      for (int i = 0; i < 10; ++i)
+        m.data[f * 10 + i] = 2.0 * std::sin(2 * M_PI * 1000.0 * static_cast<double>(next) / 40000.0 + i);
     }
   }
 };

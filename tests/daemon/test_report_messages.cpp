@@ -114,7 +114,7 @@ TEST(ReportMessages, RawBlockStaysUnderTheLcmFragmentLimit) {
   const noisemon::raw_block_t m = daemon::to_message(b, noisemon::raw_block_t::STREAM_MICS, 1'000'000);
   // LCM 1.3.1 fragments UDP datagrams above 64 KB; the largest raw block must fit with the channel name.
   EXPECT_LT(m.getEncodedSize() + 64, 65000);
-  EXPECT_EQ(m.utime, 1'000'000 + 123456 * 25);  // 25 us per frame at 40 kHz
+  EXPECT_EQ(m.utime, 1'000'000 + 123456 * 25);                         // 25 us per frame at 40 kHz
   EXPECT_DOUBLE_EQ(m.data[3 * b.channels + 5], 3.0 * b.channels + 5);  // frame 3, channel 5
 }
 
@@ -125,11 +125,12 @@ TEST(ReportMessages, PythonDecoderReadsWhatTheDaemonEncodes) {
   std::vector<std::uint8_t> buf(static_cast<std::size_t>(m.getEncodedSize()));
   m.encode(buf.data(), 0, static_cast<int>(buf.size()));
   const std::string path = noisemon::test::unique_temp_dir() + "/cycle_report.bin";
-  std::ofstream(path, std::ios::binary).write(reinterpret_cast<const char*>(buf.data()), static_cast<std::streamsize>(buf.size()));
-  const std::string out = run_command("PYTHONPATH=" + python_dir +
-                                      " python3 -c \"import noisemon; m = noisemon.cycle_report_t.decode(open('" + path +
-                                      "','rb').read()); print(m.cycle, m.nbands, round(m.lpa_measured_db, 3), "
-                                      "round(m.cpl_db[3], 3), m.band_flags[30], m.nmics, round(m.mic_lpa_db[9], 3), m.mic_flags[9], m.flags)\"");
+  std::ofstream(path, std::ios::binary)
+      .write(reinterpret_cast<const char*>(buf.data()), static_cast<std::streamsize>(buf.size()));
+  const std::string out = run_command(
+      "PYTHONPATH=" + python_dir + " python3 -c \"import noisemon; m = noisemon.cycle_report_t.decode(open('" + path +
+      "','rb').read()); print(m.cycle, m.nbands, round(m.lpa_measured_db, 3), "
+      "round(m.cpl_db[3], 3), m.band_flags[30], m.nmics, round(m.mic_lpa_db[9], 3), m.mic_flags[9], m.flags)\"");
   EXPECT_EQ(out, "42 31 84.25 197.0 1 10 84.9 17 129\n");
 }
 
@@ -137,12 +138,13 @@ TEST(ReportMessages, EveryUnknownValueIsPlainNanInTheCsv) {
   // A NaN with its sign bit set (what arithmetic on NaN may give) must not print as "-nan".
   daemon::CycleReport r;
   r.op.load_nm = -std::numeric_limits<double>::quiet_NaN();
-  for (double* v : {&r.combustion.peak_pressure_pa, &r.combustion.peak_angle_deg, &r.combustion.max_rise_pa_per_deg,
-                    &r.combustion.max_rise_angle_deg, &r.combustion.imep_gross_pa, &r.combustion.imep_net_pa,
-                    &r.combustion.heat_release_j, &r.combustion.ca10_deg, &r.combustion.ca50_deg, &r.combustion.ca90_deg,
-                    &r.combustion.ringing_intensity_w_per_m2, &r.combustion.pegging_offset_pa, &r.combustion.pmep_pa,
-                    &r.combustion.n_compression, &r.combustion.n_expansion, &r.combustion.ca05_deg,
-                    &r.combustion.burn_duration_deg, &r.combustion.max_rise_motored_pa_per_deg, &r.combustion.mapo_pa})
+  for (double* v :
+       {&r.combustion.peak_pressure_pa, &r.combustion.peak_angle_deg, &r.combustion.max_rise_pa_per_deg,
+        &r.combustion.max_rise_angle_deg, &r.combustion.imep_gross_pa, &r.combustion.imep_net_pa,
+        &r.combustion.heat_release_j, &r.combustion.ca10_deg, &r.combustion.ca50_deg, &r.combustion.ca90_deg,
+        &r.combustion.ringing_intensity_w_per_m2, &r.combustion.pegging_offset_pa, &r.combustion.pmep_pa,
+        &r.combustion.n_compression, &r.combustion.n_expansion, &r.combustion.ca05_deg, &r.combustion.burn_duration_deg,
+        &r.combustion.max_rise_motored_pa_per_deg, &r.combustion.mapo_pa})
     *v = -std::numeric_limits<double>::quiet_NaN();
   const std::string row = daemon::cycle_csv_row(daemon::to_message(r), "c");
   EXPECT_EQ(row.find("-nan"), std::string::npos) << row;

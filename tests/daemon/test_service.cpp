@@ -16,8 +16,8 @@
 #include <string>
 #include <vector>
 
-#include "tests/support/unique_temp.hpp"
 #include "tests/sanitizer.hpp"
+#include "tests/support/unique_temp.hpp"
 
 namespace {
 
@@ -90,7 +90,8 @@ TEST(Service, ReadyStatusWatchdogAndAReloadThatKeepsTheRunningConfigurationWhenT
     setenv("WATCHDOG_USEC", "1000000", 1);
     unsetenv("WATCHDOG_PID");
     if (!std::freopen(err.c_str(), "w", stderr) || !std::freopen("/dev/null", "w", stdout)) _exit(126);
-    execl(kNoisemond.c_str(), kNoisemond.c_str(), "--config", cfg.c_str(), "--lcm", "memq://", static_cast<char*>(nullptr));
+    execl(kNoisemond.c_str(), kNoisemond.c_str(), "--config", cfg.c_str(), "--lcm", "memq://",
+          static_cast<char*>(nullptr));
     _exit(127);
   }
   struct Reaper {
@@ -122,8 +123,8 @@ TEST(Service, ReadyStatusWatchdogAndAReloadThatKeepsTheRunningConfigurationWhenT
   // A good one: the pipeline restarts with it and says READY again.
   std::ofstream(cfg) << noisemon::test::sim_pacing_toml() << "[model]\npreset = \"nl_damper\"\n";
   kill(pid, SIGHUP);
-  const std::vector<std::string> good =
-      notify.collect([](const auto& got) { return count(got, "RELOADING=1") >= 1 && count(got, "READY=1") >= 1; }, allowance(4s));
+  const std::vector<std::string> good = notify.collect(
+      [](const auto& got) { return count(got, "RELOADING=1") >= 1 && count(got, "READY=1") >= 1; }, allowance(4s));
   EXPECT_EQ(count(good, "RELOADING=1"), 1);
   EXPECT_EQ(count(good, "READY=1"), 1);
 

@@ -39,7 +39,8 @@ std::complex<double> eq_4_1(double f) {
 
 double a_weight(double f) {
   const double f1 = 20.598997, f2 = 107.65265, f3 = 737.86223, f4 = 12194.217, f2s = f * f;
-  const double ra = f4 * f4 * f2s * f2s / ((f2s + f1 * f1) * std::sqrt((f2s + f2 * f2) * (f2s + f3 * f3)) * (f2s + f4 * f4));
+  const double ra =
+      f4 * f4 * f2s * f2s / ((f2s + f1 * f1) * std::sqrt((f2s + f2 * f2) * (f2s + f3 * f3)) * (f2s + f4 * f4));
   return 20 * std::log10(ra) + 2.000;
 }
 
@@ -69,7 +70,8 @@ struct Result {
 // Tones in the cylinder pressure whose eq. 4.1 response reaches every microphone, plus (sigma > 0) independent white
 // noise at each microphone: the prediction hears the tones only.
 Result run(const std::vector<Tone>& tones, double noise_sigma, const daemon::SoundPowerConfig& sp, double seconds = 1.0,
-           std::vector<std::array<double, 3>> positions = {}, std::vector<double> gains = {}, bool time_average = false) {
+           std::vector<std::array<double, 3>> positions = {}, std::vector<double> gains = {},
+           bool time_average = false) {
   drivers::StreamInfo info;
   info.mic_count = !positions.empty() ? static_cast<std::uint32_t>(positions.size())
                    : !gains.empty()   ? static_cast<std::uint32_t>(gains.size())
@@ -116,7 +118,8 @@ Result run(const std::vector<Tone>& tones, double noise_sigma, const daemon::Sou
 // The background as a configured spectrum: white noise's band levels at 40 kHz, every band.
 daemon::SoundPowerConfig white_background(double sigma) {
   daemon::SoundPowerConfig sp;
-  for (int i = 0; i < daemon::kBackgroundBands; ++i) sp.background_db.push_back(noise_band_db(daemon::background_band_hz(i), sigma, kFs));
+  for (int i = 0; i < daemon::kBackgroundBands; ++i)
+    sp.background_db.push_back(noise_band_db(daemon::background_band_hz(i), sigma, kFs));
   return sp;
 }
 
@@ -131,7 +134,8 @@ double settled_mean(const Result& r, F f) {
 }
 
 // Tones `over_db` above the background in their bands (default: 20, 8 and 0 dB in the 2, 5 and 8 kHz bands).
-std::vector<Tone> tones_over(double sigma, std::vector<std::pair<double, double>> nominal_over_db = {{2000.0, 20.0}, {5000.0, 8.0}, {8000.0, 0.0}}) {
+std::vector<Tone> tones_over(double sigma, std::vector<std::pair<double, double>> nominal_over_db = {
+                                               {2000.0, 20.0}, {5000.0, 8.0}, {8000.0, 0.0}}) {
   std::vector<Tone> t;
   for (auto [nominal, over_db] : nominal_over_db) {
     const double ms = std::pow(10.0, (noise_band_db(nominal, sigma, kFs) + over_db) / 10) * 4e-10;
@@ -160,7 +164,8 @@ TEST(SoundPower, BackgroundCorrectionRecoversTheSourceAloneAndBoundsBandsTooClos
   const double tone_5k = settled_mean(clean, [&](const auto& c) { return unweighted(c, b5k); });
   EXPECT_GT(settled_mean(noisy, [&](const auto& c) { return unweighted(c, b5k); }) - tone_5k, 0.5);
   EXPECT_NEAR(settled_mean(noisy, [&](const auto& c) { return unweighted(c, b5k) - c.k1_db[b5k]; }), tone_5k, 0.25);
-  EXPECT_NEAR(settled_mean(noisy, [&](const auto& c) { return c.k1_db[b5k]; }), -10 * std::log10(1 - std::pow(10, -0.8)), 0.3);
+  EXPECT_NEAR(settled_mean(noisy, [&](const auto& c) { return c.k1_db[b5k]; }),
+              -10 * std::log10(1 - std::pow(10, -0.8)), 0.3);
   for (const auto& c : noisy.reports) {
     if (c.cycle < 8) continue;
     EXPECT_EQ(c.band_flags[b2k] & daemon::kBandBackground, 0);
@@ -173,19 +178,25 @@ TEST(SoundPower, BackgroundCorrectionRecoversTheSourceAloneAndBoundsBandsTooClos
   }
   // LW(A) over 100 Hz ... 10 kHz: the 2 and 5 kHz tones alone; every other band, background only (its white-noise
   // level; twice it at 8 kHz, where the tone equals it), less 1.3 dB; plus 10 lg(2 pi r^2), C1 and C2.
-  double tones_and_bounds = std::pow(10, settled_mean(clean, [&](const auto& c) { return c.spl_a_measured_db[b2k]; }) / 10) +
-                            std::pow(10, (tone_5k + a_weight(noisy.bands[b5k].exact_mid_hz)) / 10);
+  double tones_and_bounds =
+      std::pow(10, settled_mean(clean, [&](const auto& c) { return c.spl_a_measured_db[b2k]; }) / 10) +
+      std::pow(10, (tone_5k + a_weight(noisy.bands[b5k].exact_mid_hz)) / 10);
   double tones_only = tones_and_bounds;
   for (const dsp::ThirdOctaveBand& band : noisy.bands) {
-    if (band.nominal_hz < 100 || band.nominal_hz > 10000 || band.nominal_hz == 2000 || band.nominal_hz == 5000) continue;
-    const double background = noise_band_db(band.nominal_hz, kNoiseSigmaPa, kFs) + (band.nominal_hz == 8000 ? 10 * std::log10(2.0) : 0.0);
+    if (band.nominal_hz < 100 || band.nominal_hz > 10000 || band.nominal_hz == 2000 || band.nominal_hz == 5000)
+      continue;
+    const double background =
+        noise_band_db(band.nominal_hz, kNoiseSigmaPa, kFs) + (band.nominal_hz == 8000 ? 10 * std::log10(2.0) : 0.0);
     tones_and_bounds += std::pow(10, (background + a_weight(band.exact_mid_hz) - 1.3) / 10);
-    if (band.nominal_hz == 8000) tones_only += std::pow(10, (background - 10 * std::log10(2.0) + a_weight(band.exact_mid_hz)) / 10);
+    if (band.nominal_hz == 8000)
+      tones_only += std::pow(10, (background - 10 * std::log10(2.0) + a_weight(band.exact_mid_hz)) / 10);
   }
   const double surface = 10 * std::log10(2 * kPi * 1.75 * 1.75);
-  EXPECT_NEAR(settled_mean(noisy, [](const auto& c) { return c.lwa_measured_db; }), 10 * std::log10(tones_and_bounds) + surface + kC1C2Db, 0.2);
+  EXPECT_NEAR(settled_mean(noisy, [](const auto& c) { return c.lwa_measured_db; }),
+              10 * std::log10(tones_and_bounds) + surface + kC1C2Db, 0.2);
   // The prediction hears the tones only, the 8 kHz one included; no K1 applies to it.
-  EXPECT_NEAR(settled_mean(noisy, [](const auto& c) { return c.lwa_predicted_db; }), 10 * std::log10(tones_only) + surface + kC1C2Db, 0.2);
+  EXPECT_NEAR(settled_mean(noisy, [](const auto& c) { return c.lwa_predicted_db; }),
+              10 * std::log10(tones_only) + surface + kC1C2Db, 0.2);
   // Lp(A) stays what the microphones heard: the background is in it.
   EXPECT_GT(settled_mean(noisy, [](const auto& c) { return c.lpa_measured_db; }),
             settled_mean(clean, [](const auto& c) { return c.lpa_measured_db; }) + 0.5);
@@ -201,7 +212,8 @@ TEST(SoundPower, LwOverTheStandardsBandsByDefaultAndEveryBandWhenAsked) {
   const double surface = 10 * std::log10(2 * kPi * 1.75 * 1.75), ms = 0.5 * 0.5 / 2;
   const auto tone_a = [&](double nominal) { return level_of_ms(ms) + a_weight(exact_mid(nominal)); };
   const double inside = tone_a(1000);
-  const double all = 10 * std::log10(std::pow(10, tone_a(63) / 10) + std::pow(10, inside / 10) + std::pow(10, tone_a(12500) / 10));
+  const double all =
+      10 * std::log10(std::pow(10, tone_a(63) / 10) + std::pow(10, inside / 10) + std::pow(10, tone_a(12500) / 10));
   EXPECT_NEAR(settled_mean(standard, [](const auto& c) { return c.lwa_measured_db; }), inside + surface + kC1C2Db, 0.1);
   EXPECT_NEAR(settled_mean(full, [](const auto& c) { return c.lwa_measured_db; }), all + surface + kC1C2Db, 0.1);
   EXPECT_EQ(standard.reports.back().lw_low_hz, 100.f);
@@ -237,7 +249,8 @@ TEST(SoundPower, MicrophonesThatAreNotEqualAreaAreWeightedByTheirShareOfTheHemis
   // Three at the rim 120 deg apart and one at the top: the top one stands for less of the surface.
   const double r = 1.75, z = 0.2 * r, rho = std::sqrt(r * r - z * z);
   std::vector<std::array<double, 3>> positions{{0, 0, r}};
-  for (int i = 0; i < 3; ++i) positions.push_back({rho * std::cos(2 * kPi * i / 3), rho * std::sin(2 * kPi * i / 3), z});
+  for (int i = 0; i < 3; ++i)
+    positions.push_back({rho * std::cos(2 * kPi * i / 3), rho * std::sin(2 * kPi * i / 3), z});
   const std::vector<double> gains{2.0, 1.0, 1.0, 1.0};  // the top microphone hears 6 dB more
   daemon::SoundPowerConfig sp;
   sp.voronoi_area_weights = true;
@@ -353,8 +366,10 @@ TEST(MicAverage, TimeMeanCancelsWhatDiffersInPhaseAndEnergyMeanDoesNot) {
   const Result time = run(tone, 0.0, {}, 0.5, {}, {1.0, -0.5}, true);
   const std::size_t b1k = energy.band(1000);
   const double tone_db = level_of_ms(0.5 * 0.5 / 2) + a_weight(energy.bands[b1k].exact_mid_hz);
-  EXPECT_NEAR(settled_mean(energy, [&](const auto& c) { return c.spl_a_measured_db[b1k]; }), tone_db + 10 * std::log10(0.625), 0.15);
-  EXPECT_NEAR(settled_mean(time, [&](const auto& c) { return c.spl_a_measured_db[b1k]; }), tone_db + 20 * std::log10(0.25), 0.15);
+  EXPECT_NEAR(settled_mean(energy, [&](const auto& c) { return c.spl_a_measured_db[b1k]; }),
+              tone_db + 10 * std::log10(0.625), 0.15);
+  EXPECT_NEAR(settled_mean(time, [&](const auto& c) { return c.spl_a_measured_db[b1k]; }),
+              tone_db + 20 * std::log10(0.25), 0.15);
   // The prediction does not depend on how the microphones are averaged.
   EXPECT_DOUBLE_EQ(settled_mean(energy, [](const auto& c) { return c.lpa_predicted_db; }),
                    settled_mean(time, [](const auto& c) { return c.lpa_predicted_db; }));

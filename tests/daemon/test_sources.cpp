@@ -22,12 +22,12 @@
 #include <sstream>
 #include <thread>
 
-#include "drivers/lcm/lcm_source.hpp"
 #include "drivers/formats/stream_messages.hpp"
-#include "tests/support/unique_temp.hpp"
+#include "drivers/lcm/lcm_source.hpp"
 #include "tests/e2e/private_network.hpp"
 #include "tests/sanitizer.hpp"
 #include "tests/support/required.hpp"
+#include "tests/support/unique_temp.hpp"
 
 using noisemon::daemon::Config;
 using noisemon::daemon::make_source;
@@ -57,7 +57,8 @@ std::string read_file(const std::string& path) {
 }
 
 // Runs a program with stdout and stderr to files; kills it after the timeout. Returns the exit status (-1: killed).
-int run(const std::vector<std::string>& args, const std::string& out, const std::string& err, std::chrono::milliseconds timeout) {
+int run(const std::vector<std::string>& args, const std::string& out, const std::string& err,
+        std::chrono::milliseconds timeout) {
   const pid_t pid = fork();
   if (pid == 0) {
     if (!std::freopen(out.c_str(), "w", stdout) || !std::freopen(err.c_str(), "w", stderr)) _exit(126);
@@ -171,18 +172,20 @@ TEST(Noisemond, DriverCountersAppearInWatchStatusAndTheRollingStatisticsInWatchS
   const std::string dir = noisemon::test::unique_temp_dir();  // made here: the child writes where we read
   const pid_t pid = fork();
   if (pid == 0) {
-    if (unshare(CLONE_NEWNET) != 0 || std::system("ip link set lo up && ip route add 224.0.0.0/4 dev lo") != 0) _exit(125);
+    if (unshare(CLONE_NEWNET) != 0 || std::system("ip link set lo up && ip route add 224.0.0.0/4 dev lo") != 0)
+      _exit(125);
     const std::string log = write_file("status.log",
                                        "(1700000000.000000) can0 0CF00400#FFFFFF405FFFFFFF\n"
                                        "garbage\n"
                                        "(1700000000.100000) can0 0CF00400#FFFFFF00640000FF\n");
-    const std::string cfg =
-        write_file("status.toml", noisemon::test::sim_pacing_toml() + "[can]\ncandump = \"" + log + "\"\n" + kSpeedSignal);
+    const std::string cfg = write_file(
+        "status.toml", noisemon::test::sim_pacing_toml() + "[can]\ncandump = \"" + log + "\"\n" + kSpeedSignal);
     const std::string url = noisemon::test::kLcmUrl;  // tests/e2e/private_network.hpp says why
     const pid_t daemon = fork();
     if (daemon == 0) {
       if (!std::freopen((dir + "/daemon.err").c_str(), "w", stderr)) _exit(126);
-      execl(kNoisemond.c_str(), kNoisemond.c_str(), "--config", cfg.c_str(), "--lcm", url.c_str(), static_cast<char*>(nullptr));
+      execl(kNoisemond.c_str(), kNoisemond.c_str(), "--config", cfg.c_str(), "--lcm", url.c_str(),
+            static_cast<char*>(nullptr));
       _exit(127);
     }
     // Status messages come once a second, the statistics with the cycles: the longest silence is the start-up.
@@ -226,7 +229,8 @@ TEST(LcmSource, BlocksOfAnotherSessionAreCountedNotMixedIn) {
   NOISEMON_REQUIRE(geteuid() == 0, "root, for a private network namespace (unshare -n)");
   const pid_t pid = fork();
   if (pid == 0) {
-    if (unshare(CLONE_NEWNET) != 0 || std::system("ip link set lo up && ip route add 224.0.0.0/4 dev lo") != 0) _exit(125);
+    if (unshare(CLONE_NEWNET) != 0 || std::system("ip link set lo up && ip route add 224.0.0.0/4 dev lo") != 0)
+      _exit(125);
     const std::string url = noisemon::test::kLcmUrl;  // tests/e2e/private_network.hpp says why
     lcm::LCM pub(url);
     if (!pub.good()) _exit(124);

@@ -7,9 +7,9 @@
 // expected values at any instant come from inverting the angle-time law here, never from the source.
 #pragma once
 
-#include <array>
 #include <fcntl.h>
 #include <unistd.h>
+#include <array>
 
 #include <algorithm>
 #include <atomic>
@@ -60,8 +60,9 @@ class PipeAcquisition final : public nd::Acquisition {
     bool counters = false;
     for (const auto& ch : cfg.channels) {
       counters = counters || ch.raw_counts;
-      conversions_.push_back(ch.raw_counts ? nd::linear_conversion(0.0, 4294967295.0, 4294967295u, 1.0)
-                                           : nd::linear_conversion(kRangeLo[ch.range], kRangeHi[ch.range], 65535, ch.si_per_volt));
+      conversions_.push_back(
+          ch.raw_counts ? nd::linear_conversion(0.0, 4294967295.0, 4294967295u, 1.0)
+                        : nd::linear_conversion(kRangeLo[ch.range], kRangeHi[ch.range], 65535, ch.si_per_volt));
     }
     width_ = counters ? nd::SampleWidth::k32Bit : nd::SampleWidth::k16Bit;
   }
@@ -144,14 +145,13 @@ constexpr double kRippleRad = 2.0 * kPi * 25;  // rad/s
 constexpr double kTheta0 = -290.3;             // crank angle at the acquisition origin, 0 = firing TDC
 constexpr double kResolution = 0.25;           // deg per encoder count
 constexpr std::uint32_t kCountsPerRev = 1440;
-constexpr double kIndexDeg = 37.5;             // index mark, degrees after a TDC
+constexpr double kIndexDeg = 37.5;  // index mark, degrees after a TDC
 constexpr double kTimebase = 80e6;
 
 inline double theta_at(double t) { return kTheta0 + kOmega * t + kRipple * std::sin(kRippleRad * t); }
 inline double time_at(double theta) {
   double t = (theta - kTheta0) / kOmega;
-  for (int i = 0; i < 30; ++i)
-    t -= (theta_at(t) - theta) / (kOmega + kRipple * kRippleRad * std::cos(kRippleRad * t));
+  for (int i = 0; i < 30; ++i) t -= (theta_at(t) - theta) / (kOmega + kRipple * kRippleRad * std::cos(kRippleRad * t));
   return t;
 }
 inline double wrap720(double theta) { return theta - 720.0 * std::floor((theta + 360.0) / 720.0); }
@@ -213,7 +213,9 @@ inline EdgeBytes engine_bytes(const EngineSetup& s, double t_from = 0.0) {
     if (theta >= theta_end) break;
     const double t = time_at(theta);
     const auto ticks = static_cast<std::uint64_t>(std::floor(t * kTimebase));
-    append(b.pressure, code16(chain_volts(pressure_pa(theta, s.second_peak), s.charge_chain, drift_bar(theta, s.offset_step_bar)), 0));
+    append(
+        b.pressure,
+        code16(chain_volts(pressure_pa(theta, s.second_peak), s.charge_chain, drift_bar(theta, s.offset_step_bar)), 0));
     if (s.cam) {
       const double a = wrap720(theta);
       append(b.pressure, code16(a >= -100.0 && a < -40.0 ? 5.0 : 0.2, 0));  // cam high from -100 deg
@@ -231,7 +233,9 @@ inline EdgeBytes engine_bytes(const EngineSetup& s, double t_from = 0.0) {
 // ---- microphones ------------------------------------------------------------------------------------------
 
 constexpr double kMicRate = 50000.0;
-struct Tone { double hz, amplitude_pa, phase; };
+struct Tone {
+  double hz, amplitude_pa, phase;
+};
 // Frequencies incommensurate with the card and output rates, so the 16-bit quantisation error is noise-like
 // rather than a fixed pattern repeating every period (which would bias the level).
 inline const Tone kTones[] = {{1013.7, std::sqrt(2.0), 0.3}, {4871.9, 0.1, 1.0}, {14873.1, 0.5, 2.0}};

@@ -110,14 +110,16 @@ TEST(CanSignalMap, MatchesBitWalkForRandomSignals) {
     const std::uint64_t r = rng();
     for (int i = 0; i < 8; ++i) d[i] = static_cast<std::uint8_t>(r >> (8 * i));
     const auto order = (rng() & 1) ? CanByteOrder::kIntel : CanByteOrder::kMotorola;
-    const CanSignal s = signal(static_cast<std::uint32_t>(rng() % 64), 1 + static_cast<std::uint32_t>(rng() % 64), order);
+    const CanSignal s =
+        signal(static_cast<std::uint32_t>(rng() % 64), 1 + static_cast<std::uint32_t>(rng() % 64), order);
     try {
       validate_can_signal(s);
     } catch (const std::invalid_argument&) {
       continue;
     }
     ASSERT_EQ(extract_can_raw(d, s.start_bit, s.length, order), walk(d, s.start_bit, s.length, order))
-        << "start " << s.start_bit << " length " << s.length << (order == CanByteOrder::kIntel ? " intel" : " motorola");
+        << "start " << s.start_bit << " length " << s.length
+        << (order == CanByteOrder::kIntel ? " intel" : " motorola");
     ++checked;
   }
   EXPECT_GT(checked, 5000);
@@ -226,15 +228,19 @@ TEST(CanSignalMapToml, ErrorsNameSignalAndKey) {
   EXPECT_EQ(parse_error(base + "length = 16\n"), "no error");
   EXPECT_NE(parse_error(base).find("cell.toml: can.signal[1].length: missing"), std::string::npos) << parse_error(base);
   EXPECT_NE(parse_error(base + "length = 65\n").find("can.signal[1].length: value 65 out of range"), std::string::npos);
-  EXPECT_NE(parse_error(base + "length = 16\ncolour = 1\n").find("can.signal[1].colour: unknown key"), std::string::npos);
-  EXPECT_NE(parse_error(base + "length = 16\nfactor = \"x\"\n").find("can.signal[1].factor: expected a number"), std::string::npos);
+  EXPECT_NE(parse_error(base + "length = 16\ncolour = 1\n").find("can.signal[1].colour: unknown key"),
+            std::string::npos);
+  EXPECT_NE(parse_error(base + "length = 16\nfactor = \"x\"\n").find("can.signal[1].factor: expected a number"),
+            std::string::npos);
   const std::string order = "field = \"load_nm\"\nid = 0x100\nstart_bit = 0\nlength = 8\n";
   EXPECT_NE(parse_error(order + "byte_order = \"big\"\n").find("can.signal[1].byte_order"), std::string::npos);
   const std::string field = "id = 0x100\nstart_bit = 0\nlength = 8\nbyte_order = \"intel\"\n";
-  EXPECT_NE(parse_error(field + "field = \"torque\"\n").find("can.signal[1].field: unknown field 'torque'"), std::string::npos);
+  EXPECT_NE(parse_error(field + "field = \"torque\"\n").find("can.signal[1].field: unknown field 'torque'"),
+            std::string::npos);
   // Fits the key ranges but not the frame: bits 60..67.
   const std::string over = "field = \"load_nm\"\nid = 0x100\nstart_bit = 60\nlength = 8\nbyte_order = \"intel\"\n";
-  EXPECT_NE(parse_error(over).find("can.signal[1]: intel signal (start_bit 60, length 8) runs past"), std::string::npos) << parse_error(over);
+  EXPECT_NE(parse_error(over).find("can.signal[1]: intel signal (start_bit 60, length 8) runs past"), std::string::npos)
+      << parse_error(over);
   const std::string wide = "field = \"load_nm\"\nid = 0x1000\nstart_bit = 0\nlength = 8\nbyte_order = \"intel\"\n";
   EXPECT_NE(parse_error(wide).find("can.signal[1]: id 0x1000 exceeds 11 bits"), std::string::npos) << parse_error(wide);
 }

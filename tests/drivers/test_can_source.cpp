@@ -11,15 +11,15 @@
 
 #include <gtest/gtest.h>
 
+#include <toml++/toml.h>
 #include <chrono>
 #include <cmath>
 #include <fstream>
 #include <thread>
-#include <toml++/toml.h>
 
 #include "drivers/combined_source.hpp"
-#include "tests/support/unique_temp.hpp"
 #include "tests/sanitizer.hpp"
+#include "tests/support/unique_temp.hpp"
 
 namespace nd = noisemon::drivers;
 using noisemon::test::allowance;
@@ -85,19 +85,19 @@ nd::CanSignalMap example_map() { return nd::parse_can_signal_map(toml::parse(kMa
 //             72 * 0.25 = 18 deg.  "FF 38 E8": 0xFF38 = -200 -> -20 N m; 0xE8 = -24 -> -6 deg.
 //  0x322 "D0 07 00": 0x07D0 = 2000 * 0.05 = 100 bar, bit 16 = 0 (fired); "E8 03 01": 0x03E8 = 1000 -> 50 bar, motored.
 constexpr const char* kLog =
-    "(1700000000.000000) can0 0CF00400#FFFFFF405FFFFFFF\n"   // speed only: not yet complete
-    "(1700000000.010000) can0 321#00C848\n"                  // + load, soi: rail, motored still missing
-    "(1700000000.020000) can1 322#D00700\n"                  // other interface: skipped
-    "(1700000000.030000) can0 322#D00700\n"                  // complete -> op 1: 3048, 20, 18, 100, fired
-    "this is not a candump line\n"                           // malformed
-    "(1700000000.040000) can0 7FF#0102\n"                    // unmapped id: ignored
-    "(1700000000.050000) can0 321#R\n"                       // remote frame: ignored
+    "(1700000000.000000) can0 0CF00400#FFFFFF405FFFFFFF\n"  // speed only: not yet complete
+    "(1700000000.010000) can0 321#00C848\n"                 // + load, soi: rail, motored still missing
+    "(1700000000.020000) can1 322#D00700\n"                 // other interface: skipped
+    "(1700000000.030000) can0 322#D00700\n"                 // complete -> op 1: 3048, 20, 18, 100, fired
+    "this is not a candump line\n"                          // malformed
+    "(1700000000.040000) can0 7FF#0102\n"                   // unmapped id: ignored
+    "(1700000000.050000) can0 321#R\n"                      // remote frame: ignored
     "\n"
-    "(1700000000.060000) can0 0CF00400#FFFFFF00640000FF\n"   // op 2: 3200 rpm
-    "(1700000000.070000) can0 321#FF38E8\n"                  // op 3: -20 N m, -6 deg
-    "(1700000000.080000) can0 322#E80301\n"                  // op 4: 50 bar, motored
-    "(1700000000.090000) can0 321#FF\n"                      // too short for load/soi: ignored
-    "(17000x0000.1) can0 321#FF38E8\n";                      // malformed
+    "(1700000000.060000) can0 0CF00400#FFFFFF00640000FF\n"  // op 2: 3200 rpm
+    "(1700000000.070000) can0 321#FF38E8\n"                 // op 3: -20 N m, -6 deg
+    "(1700000000.080000) can0 322#E80301\n"                 // op 4: 50 bar, motored
+    "(1700000000.090000) can0 321#FF\n"                     // too short for load/soi: ignored
+    "(17000x0000.1) can0 321#FF38E8\n";                     // malformed
 
 struct Expected {
   std::int64_t utime;
@@ -175,12 +175,14 @@ TEST(CandumpSource, PacedReplayKeepsTheRecordedSpacing) {
   nd::OperatingPointRing ring(64);
   const std::int64_t t0 = nd::wall_utime();
   source->start(ring);
-  std::vector<std::pair<std::int64_t, nd::OperatingPoint>> arrivals;  // wall time seen, op
+  std::vector<std::pair<std::int64_t, nd::OperatingPoint>> arrivals;                            // wall time seen, op
   const auto deadline = std::chrono::steady_clock::now() + allowance(std::chrono::seconds(1));  // 80 ms of frames
   while (arrivals.size() < 5 && std::chrono::steady_clock::now() < deadline) {
     nd::OperatingPoint op;
-    if (ring.read(&op, 1) == 1) arrivals.emplace_back(nd::wall_utime(), op);
-    else std::this_thread::sleep_for(std::chrono::microseconds(200));
+    if (ring.read(&op, 1) == 1)
+      arrivals.emplace_back(nd::wall_utime(), op);
+    else
+      std::this_thread::sleep_for(std::chrono::microseconds(200));
   }
   source->stop();
   // With can1's frame the operating point completes at 20 ms; then 30, 60, 70, 80 ms.
@@ -254,12 +256,12 @@ TEST_F(SocketCanPair, FramesBecomeOperatingPointsAndErrorsAreCounted) {
   source->start(ring);
   send_frame(0x0CF00400 | CAN_EFF_FLAG, {0xFF, 0xFF, 0xFF, 0x40, 0x5F, 0xFF, 0xFF, 0xFF});  // 3048 rpm
   send_frame(CAN_ERR_FLAG | CAN_ERR_BUSOFF, {0, 0, 0, 0, 0, 0, 0, 0});
-  send_frame(0x321, {0x00, 0xC8, 0x48});                                                     // 20 N m, 18 deg
+  send_frame(0x321, {0x00, 0xC8, 0x48});  // 20 N m, 18 deg
   send_frame(CAN_ERR_FLAG | CAN_ERR_CRTL, {0, CAN_ERR_CRTL_RX_OVERFLOW, 0, 0, 0, 0, 0, 0});
-  send_frame(0x322, {0xE8, 0x03, 0x01});                                                     // 50 bar, motored
+  send_frame(0x322, {0xE8, 0x03, 0x01});                                                    // 50 bar, motored
   send_frame(0x0CF00400 | CAN_EFF_FLAG, {0xFF, 0xFF, 0xFF, 0x00, 0x64, 0x00, 0x00, 0xFF});  // 3200 rpm
   ASSERT_EQ(::write(fds_[0], "x", 1), 1);  // not a can_frame: malformed
-  close(fds_[0]);                           // the peer goes away: the thread ends
+  close(fds_[0]);                          // the peer goes away: the thread ends
   fds_[0] = -1;
   wait_until_stopped(*source);
   source->stop();
@@ -298,7 +300,9 @@ class StubStreams final : public nd::Source {
   }
   void stop() override {}
   bool running() const override { return true; }
-  std::vector<nd::DriverThreadStatus> thread_status() const override { return {{"stub.thread", nd::ThreadState::kRunning, 1, ""}}; }
+  std::vector<nd::DriverThreadStatus> thread_status() const override {
+    return {{"stub.thread", nd::ThreadState::kRunning, 1, ""}};
+  }
   std::vector<nd::DriverCounter> counters() const override { return {{"stub.events", 7}}; }
   nd::BlockRing* pressure = nullptr;
 };

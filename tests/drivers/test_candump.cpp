@@ -3,9 +3,9 @@
 
 #include <gtest/gtest.h>
 
+#include <unistd.h>
 #include <cstdio>
 #include <fstream>
-#include <unistd.h>
 
 namespace noisemon::drivers {
 namespace {
@@ -73,9 +73,7 @@ TEST(Candump, EmptyRemoteAndShortFraction) {
 }
 
 TEST(Candump, BadLinesNameLineAndExpectation) {
-  auto has = [](const std::string& error, const std::string& part) {
-    return error.find(part) != std::string::npos;
-  };
+  auto has = [](const std::string& error, const std::string& part) { return error.find(part) != std::string::npos; };
   EXPECT_TRUE(has(parse_err("(1.0) can0 123##1DEADBEEF"), "line 7: CAN FD"));
   EXPECT_TRUE(has(parse_err("1.0 can0 123#00"), "line 7: expected '('"));
   EXPECT_TRUE(has(parse_err("(1) can0 123#00"), "expected '.'"));

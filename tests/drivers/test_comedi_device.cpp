@@ -57,7 +57,7 @@ nd::ReadLoopConfig test_config() {
 
 TEST(ComediDevice, MissingDeviceErrorNamesPath) {
   const std::string path = "/dev/comedi0";
-  struct stat st{};
+  struct stat st {};
   if (stat(path.c_str(), &st) == 0) GTEST_SKIP() << path << " exists on this machine";
   nd::ComediAcquisitionConfig cfg;
   cfg.device_path = path;
@@ -77,8 +77,8 @@ TEST(ComediReadLoop, OverrunRestartsAndCounts) {
   std::array<std::byte, 256> buffer{};
   std::atomic<bool> stop{false};
   const auto r = nd::run_read_loop(
-      -1, buffer, [&](const std::byte*, std::size_t n) { chunks.push_back(n); },
-      [&] { return ++restarts, true; }, stop, test_config(), scripted(steps));
+      -1, buffer, [&](const std::byte*, std::size_t n) { chunks.push_back(n); }, [&] { return ++restarts, true; }, stop,
+      test_config(), scripted(steps));
   EXPECT_FALSE(r.failed) << r.message;
   EXPECT_EQ(r.overruns, 1u);
   EXPECT_EQ(restarts, 1);
@@ -98,8 +98,8 @@ TEST(ComediReadLoop, ConsecutiveOverrunsBackOffThenGiveUp) {
       scripted(steps));
   const auto elapsed = std::chrono::steady_clock::now() - t0;
   EXPECT_TRUE(r.failed);
-  EXPECT_EQ(restarts, 3);      // max_consecutive_overruns
-  EXPECT_EQ(r.overruns, 4u);   // the fourth overrun gives up
+  EXPECT_EQ(restarts, 3);                                    // max_consecutive_overruns
+  EXPECT_EQ(r.overruns, 4u);                                 // the fourth overrun gives up
   EXPECT_GE(elapsed, std::chrono::milliseconds(1 + 2 + 4));  // backoff doubled each time
   EXPECT_NE(r.message.find("/dev/comedi7 subdevice 3"), std::string::npos) << r.message;
 }
@@ -109,8 +109,7 @@ TEST(ComediReadLoop, FailedRestartEndsWithError) {
   std::array<std::byte, 64> buffer{};
   std::atomic<bool> stop{false};
   const auto r = nd::run_read_loop(
-      -1, buffer, [](const std::byte*, std::size_t) {}, [] { return false; }, stop, test_config(),
-      scripted(steps));
+      -1, buffer, [](const std::byte*, std::size_t) {}, [] { return false; }, stop, test_config(), scripted(steps));
   EXPECT_TRUE(r.failed);
   EXPECT_EQ(r.overruns, 1u);
   EXPECT_NE(r.message.find("/dev/comedi7 subdevice 3"), std::string::npos) << r.message;
@@ -152,15 +151,14 @@ TEST(ComediReadLoop, StopRequestedEndsBeforeReading) {
   std::array<std::byte, 64> buffer{};
   std::atomic<bool> stop{true};
   const auto r = nd::run_read_loop(
-      -1, buffer, [](const std::byte*, std::size_t) {}, [] { return true; }, stop, test_config(),
-      scripted(steps));
+      -1, buffer, [](const std::byte*, std::size_t) {}, [] { return true; }, stop, test_config(), scripted(steps));
   EXPECT_FALSE(r.failed);
   EXPECT_EQ(steps.size(), 1u);
 }
 
 TEST(ComediCommand, ChannelListUsesCrPackLayout) {
-  const auto list = nd::pack_channel_list({{.channel = 5, .range = 2, .aref = AREF_DIFF},
-                                           {.channel = 0, .range = 0, .aref = AREF_GROUND}});
+  const auto list = nd::pack_channel_list(
+      {{.channel = 5, .range = 2, .aref = AREF_DIFF}, {.channel = 0, .range = 0, .aref = AREF_GROUND}});
   ASSERT_EQ(list.size(), 2u);
   EXPECT_EQ(list[0], 5u | (2u << 16) | (static_cast<unsigned>(AREF_DIFF) << 24));
   EXPECT_EQ(list[1], static_cast<unsigned>(AREF_GROUND) << 24);
@@ -185,14 +183,17 @@ TEST(ComediCommand, SettlesAdjustedArguments) {
   comedi_cmd cmd = nd::external_scan_command(0, 0, chanlist, 1);
   int calls = 0;
   // Like a driver: raise convert_arg to its 2000 ns minimum (return 3), then accept.
-  nd::settle_command(cmd, [&](comedi_cmd& c) {
-    ++calls;
-    if (c.convert_arg < 2000) {
-      c.convert_arg = 2000;
-      return 3;
-    }
-    return 0;
-  }, "/dev/comedi7", 3);
+  nd::settle_command(
+      cmd,
+      [&](comedi_cmd& c) {
+        ++calls;
+        if (c.convert_arg < 2000) {
+          c.convert_arg = 2000;
+          return 3;
+        }
+        return 0;
+      },
+      "/dev/comedi7", 3);
   EXPECT_EQ(calls, 2);
   EXPECT_EQ(cmd.convert_arg, 2000u);
 }
@@ -201,7 +202,11 @@ TEST(ComediCommand, UnsettledFieldIsNamed) {
   unsigned chanlist[1] = {0};
   comedi_cmd cmd = nd::external_scan_command(0, 0, chanlist, 1);
   int calls = 0;
-  auto oscillating = [&](comedi_cmd& c) { ++calls; c.scan_begin_arg ^= 1u; return 4; };
+  auto oscillating = [&](comedi_cmd& c) {
+    ++calls;
+    c.scan_begin_arg ^= 1u;
+    return 4;
+  };
   try {
     nd::settle_command(cmd, oscillating, "/dev/comedi7", 3);
     FAIL() << "an oscillating command settled";
@@ -215,13 +220,20 @@ TEST(ComediCommand, UnsettledFieldIsNamed) {
 
   // An unsupported source the driver cannot fix names the stage.
   try {
-    nd::settle_command(cmd, [](comedi_cmd&) { return 1; }, "/dev/comedi7", 3);
+    nd::settle_command(
+        cmd, [](comedi_cmd&) { return 1; }, "/dev/comedi7", 3);
     FAIL();
   } catch (const std::runtime_error& e) {
     EXPECT_NE(std::string(e.what()).find("trigger sources"), std::string::npos) << e.what();
   }
   // A failing test reports errno.
-  EXPECT_THROW(nd::settle_command(cmd, [](comedi_cmd&) { errno = EINVAL; return -1; }, "/dev/comedi7", 3),
+  EXPECT_THROW(nd::settle_command(
+                   cmd,
+                   [](comedi_cmd&) {
+                     errno = EINVAL;
+                     return -1;
+                   },
+                   "/dev/comedi7", 3),
                std::runtime_error);
 }
 
@@ -252,17 +264,19 @@ struct FakeKernelBuffer {
   nd::KernelBufferCalls calls() {
     return {.get_size = [this] { return size; },
             .get_max_size = [this] { return max; },
-            .set_size = [this](unsigned n) {
-              ++set_calls;
-              order += "s";
-              return size = pages(n);
-            },
-            .set_max_size = [this](unsigned n) {
-              ++set_max_calls;
-              order += "m";
-              if (!may_raise_max) return errno = EPERM, -1;
-              return max = pages(n);
-            },
+            .set_size =
+                [this](unsigned n) {
+                  ++set_calls;
+                  order += "s";
+                  return size = pages(n);
+                },
+            .set_max_size =
+                [this](unsigned n) {
+                  ++set_max_calls;
+                  order += "m";
+                  if (!may_raise_max) return errno = EPERM, -1;
+                  return max = pages(n);
+                },
             .error = [] { return std::string(std::strerror(EPERM)); }};
   }
 };
@@ -315,7 +329,8 @@ TEST(ComediBuffer, RefusedSizeNamesDeviceSubdeviceAndSize) {
   calls.set_size = [](unsigned) { return errno = EBUSY, -1; };  // e.g. a command running on the subdevice
   calls.error = [] { return std::string(std::strerror(EBUSY)); };
   const std::string what = error_of([&] { nd::size_kernel_buffer(1 << 20, calls, "/dev/comedi7", 3); });
-  EXPECT_NE(what.find("cannot set the kernel buffer of /dev/comedi7 subdevice 3 to 1048576 bytes"), std::string::npos) << what;
+  EXPECT_NE(what.find("cannot set the kernel buffer of /dev/comedi7 subdevice 3 to 1048576 bytes"), std::string::npos)
+      << what;
   EXPECT_NE(what.find(std::strerror(EBUSY)), std::string::npos) << what;
 }
 

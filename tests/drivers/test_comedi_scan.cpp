@@ -36,8 +36,8 @@ std::vector<double> decode_all(nd::ScanDecoder& d, const std::vector<std::byte>&
 }  // namespace
 
 TEST(ComediSensitivity, UnitChains) {
-  EXPECT_DOUBLE_EQ(nd::microphone_pa_per_volt(50.0), 20.0);            // 1 V / 50 mV/Pa = 20 Pa
-  EXPECT_DOUBLE_EQ(nd::pressure_pa_per_volt(20.0), 50.0 * 1e5);        // 1 V / 20 mV/bar = 50 bar
+  EXPECT_DOUBLE_EQ(nd::microphone_pa_per_volt(50.0), 20.0);                  // 1 V / 50 mV/Pa = 20 Pa
+  EXPECT_DOUBLE_EQ(nd::pressure_pa_per_volt(20.0), 50.0 * 1e5);              // 1 V / 20 mV/bar = 50 bar
   EXPECT_DOUBLE_EQ(nd::charge_pressure_pa_per_volt(2.0, 10.0), 50.0 * 1e5);  // 1000 mV/10 = 100 pC / 2 = 50 bar
   EXPECT_THROW(nd::microphone_pa_per_volt(0.0), std::invalid_argument);
   EXPECT_THROW(nd::charge_pressure_pa_per_volt(2.0, -1.0), std::invalid_argument);
@@ -47,7 +47,7 @@ TEST(ComediScan, Linear16BitHandValues) {
   // 12-bit card in sampl_t: range [-5, 5] V, maxdata 4095; codes 819, 2457 are -3 V and +1 V exactly.
   // Channel 0: microphone 50 mV/Pa; channel 1: raw volts.
   nd::ScanDecoder d(nd::SampleWidth::k16Bit, {nd::linear_conversion(-5, 5, 4095, nd::microphone_pa_per_volt(50)),
-                                               nd::linear_conversion(-5, 5, 4095, 1.0)});
+                                              nd::linear_conversion(-5, 5, 4095, 1.0)});
   const auto v = decode_all(d, bytes_of(std::vector<std::uint16_t>{819, 2457, 2457, 4095, 0, 819}));
   ASSERT_EQ(v.size(), 6u);
   EXPECT_NEAR(v[0], -60.0, 1e-12);  // -3 V * 20 Pa/V
@@ -84,8 +84,7 @@ TEST(ComediScan, PolynomialHandValues) {
 
   // Cubic, 32-bit: 1e-6 x + 1e-18 x^3 at x = 1e6 is 2 V; microphone 2 mV/Pa -> 1000 Pa.
   const double c32[] = {0.0, 1e-6, 0.0, 1e-18};
-  nd::ScanDecoder d32(nd::SampleWidth::k32Bit,
-                      {nd::polynomial_conversion(c32, 3, 0.0, nd::microphone_pa_per_volt(2))});
+  nd::ScanDecoder d32(nd::SampleWidth::k32Bit, {nd::polynomial_conversion(c32, 3, 0.0, nd::microphone_pa_per_volt(2))});
   const auto v32 = decode_all(d32, bytes_of(std::vector<std::uint32_t>{1000000u, 2000000u}));
   ASSERT_EQ(v32.size(), 2u);
   EXPECT_NEAR(v32[0], 1000.0, 1e-9);
@@ -127,8 +126,12 @@ Stream make_stream(nd::SampleWidth width, std::uint32_t seed) {
     (width == nd::SampleWidth::k16Bit) ? r16.push_back(static_cast<std::uint16_t>(raw)) : r32.push_back(raw);
     const double x = raw;
     switch (i % kChannels) {
-      case 0: s.expected.push_back(100.0 * (20.0 * (x / 65535.0) - 10.0)); break;
-      case 1: s.expected.push_back(5.0 * x / 65535.0); break;
+      case 0:
+        s.expected.push_back(100.0 * (20.0 * (x / 65535.0) - 10.0));
+        break;
+      case 1:
+        s.expected.push_back(5.0 * x / 65535.0);
+        break;
       default: {
         const double dx = x - 30000.0;
         s.expected.push_back(7.0 * (-0.25 + 2e-4 * dx - 1e-10 * dx * dx));
@@ -215,6 +218,5 @@ TEST_P(ComediScanSplits, PipeThroughDeviceReadLoop) {
   expect_matches(got, s.expected);
 }
 
-INSTANTIATE_TEST_SUITE_P(Widths, ComediScanSplits,
-                         ::testing::Values(nd::SampleWidth::k16Bit, nd::SampleWidth::k32Bit),
+INSTANTIATE_TEST_SUITE_P(Widths, ComediScanSplits, ::testing::Values(nd::SampleWidth::k16Bit, nd::SampleWidth::k32Bit),
                          [](const auto& info) { return info.param == nd::SampleWidth::k16Bit ? "16bit" : "32bit"; });

@@ -20,7 +20,9 @@ using namespace comedi_fake;
 namespace {
 
 // Seconds since the acquisition origin of 40 kHz frame k.
-double since_origin(std::int64_t k, std::int64_t origin_us) { return static_cast<double>(k) / 40000.0 - origin_us * 1e-6; }
+double since_origin(std::int64_t k, std::int64_t origin_us) {
+  return static_cast<double>(k) / 40000.0 - origin_us * 1e-6;
+}
 
 double angle_error(double a, double b) { return std::remainder(a - b, 720.0); }
 
@@ -61,7 +63,8 @@ TEST_P(ComediSourcePipes, CardBytesBecomeTheAnalytic40kHzStreams) {
   ASSERT_EQ(h.acquisitions.size(), setup.separate_timestamp ? 4u : 3u);
   const std::size_t edges = h.run_engine(setup);
 
-  for (const auto& t : h.source->thread_status()) EXPECT_NE(t.state, nd::ThreadState::kFailed) << t.name << ": " << t.error;
+  for (const auto& t : h.source->thread_status())
+    EXPECT_NE(t.state, nd::ThreadState::kFailed) << t.name << ": " << t.error;
   EXPECT_EQ(h.counter("comedi.encoder.edges"), static_cast<std::int64_t>(edges));
   EXPECT_EQ(h.counter("comedi.encoder.errors"), 0);
   EXPECT_EQ(h.counter("comedi.encoder.phase_corrections"), 0);
@@ -73,8 +76,10 @@ TEST_P(ComediSourcePipes, CardBytesBecomeTheAnalytic40kHzStreams) {
   const double first_t = since_origin(h.pressure_frames.begin()->first, kEdgeOriginUs);
   EXPECT_LT(first_t, (360.0 + 720.0 + 60.0) / kOmega * 1.05);
   const PressureCheck c = check_pressure(h, false, kEdgeOriginUs, first_t + 0.002, setup.duration_s - 0.005);
-  std::printf("pressure: %zu frames from t = %.1f ms, max |error| %.0f Pa, rms %.0f Pa (peak 6.1e6 Pa); crank max |error| %.2e deg\n",
-              c.frames, 1e3 * first_t, c.max_p_err, c.rms_p_err, c.max_crank_err);
+  std::printf(
+      "pressure: %zu frames from t = %.1f ms, max |error| %.0f Pa, rms %.0f Pa (peak 6.1e6 Pa); crank max |error| %.2e "
+      "deg\n",
+      c.frames, 1e3 * first_t, c.max_p_err, c.rms_p_err, c.max_crank_err);
   EXPECT_GT(c.frames, static_cast<std::size_t>(0.4 * 40000));
   EXPECT_TRUE(c.contiguous);
   // Budget: 16-bit quantisation (+-0.15 mV at the card = +-305 Pa through 50 mV/bar, also in the pegging
@@ -115,7 +120,8 @@ TEST_P(ComediSourcePipes, CardBytesBecomeTheAnalytic40kHzStreams) {
   for (std::size_t c = 0; c < 3; ++c) {
     const double level = 10.0 * std::log10(ms[c] / n / (20e-6 * 20e-6));
     const double expected = 20.0 * std::log10(kTones[c].amplitude_pa / std::sqrt(2.0) / 20e-6);
-    std::printf("mic %zu: %.0f Hz, level %.3f dB (expected %.3f), max |error| %.2e Pa\n", c, kTones[c].hz, level, expected, max_err[c]);
+    std::printf("mic %zu: %.0f Hz, level %.3f dB (expected %.3f), max |error| %.2e Pa\n", c, kTones[c].hz, level,
+                expected, max_err[c]);
     EXPECT_NEAR(level, expected, 0.02);  // the 41-step sine of mic 1 loses 0.010 dB to 16-bit rounding alone
     // +-1 V range: 30.5 uV steps = 0.6..2.4 mPa at these sensitivities, plus the resampler's ~3e-5.
     EXPECT_LT(max_err[c], 3e-3);
@@ -125,10 +131,14 @@ TEST_P(ComediSourcePipes, CardBytesBecomeTheAnalytic40kHzStreams) {
 INSTANTIATE_TEST_SUITE_P(
     Wiring, ComediSourcePipes,
     ::testing::Values(EngineSetup{},  // charge chain pegged, absolute 24-bit timestamps wrapping twice
-                      EngineSetup{.charge_chain = false, .period_timestamps = true, .separate_timestamp = true,
+                      EngineSetup{.charge_chain = false,
+                                  .period_timestamps = true,
+                                  .separate_timestamp = true,
                                   .timestamp_bits = 32}),
-    [](const auto& info) { return info.param.separate_timestamp ? std::string("VoltageChainPeriodTimestamps")
-                                                                 : std::string("ChargeChainPeggedWrappingTimestamps"); });
+    [](const auto& info) {
+      return info.param.separate_timestamp ? std::string("VoltageChainPeriodTimestamps")
+                                           : std::string("ChargeChainPeggedWrappingTimestamps");
+    });
 
 // A charge chain whose offset moves by 1 bar at every gas-exchange TDC (+-0.5 bar about the drift): each cycle is
 // pegged with the offset measured at its own intake BDC, over the whole cycle, so the pressure stays within the
@@ -147,7 +157,8 @@ TEST(ComediSource, PeggingHoldsForTheWholeCycleItWasMeasuredIn) {
   double max_edge_err = 0;
   std::size_t checked = 0;
   for (const auto& [first_index, crank, pa] : h.edges) {
-    if (since_origin(static_cast<std::int64_t>(first_index), kEdgeOriginUs) > setup.duration_s - 720.0 / kOmega) continue;
+    if (since_origin(static_cast<std::int64_t>(first_index), kEdgeOriginUs) > setup.duration_s - 720.0 / kOmega)
+      continue;
     max_edge_err = std::max(max_edge_err, std::abs(pa - pressure_pa(crank)));
     ++checked;
   }
@@ -197,7 +208,8 @@ TEST(ComediSource, MicOverrunRestartsWithBackoffIsCountedAndResumes) {
   EXPECT_EQ(h.counter("comedi.mics.overruns"), 1);
   EXPECT_EQ(h.counter("comedi.mics.restarts"), 1);
   EXPECT_EQ(mic.restarts.load(), 1);
-  for (const auto& t : h.source->thread_status()) EXPECT_NE(t.state, nd::ThreadState::kFailed) << t.name << ": " << t.error;
+  for (const auto& t : h.source->thread_status())
+    EXPECT_NE(t.state, nd::ThreadState::kFailed) << t.name << ": " << t.error;
   // Before the overrun: on the first origin; after: on the new one, after a gap, the tone again in phase with
   // the restarted card's scan 0.
   const std::int64_t restart_frame = (kMicOriginUs + 150'000) / 25;
@@ -263,7 +275,8 @@ TEST(ComediSource, EncoderOverrunRestartsTheWholeEdgeGroup) {
   EXPECT_EQ(pressure.restarts.load(), 1);  // the pressure input was re-armed with the counter
   EXPECT_EQ(encoder.restarts.load(), 1);
   EXPECT_GE(pressure.cancels.load(), 1);
-  for (const auto& t : h.source->thread_status()) EXPECT_NE(t.state, nd::ThreadState::kFailed) << t.name << ": " << t.error;
+  for (const auto& t : h.source->thread_status())
+    EXPECT_NE(t.state, nd::ThreadState::kFailed) << t.name << ": " << t.error;
   // Both stretches match the engine; times after the restart are on the new origin's clock, which is the
   // same clock here (origin shifted by exactly the time the test skipped).
   const PressureCheck c = check_pressure(h, false, kEdgeOriginUs, 0.0, setup.duration_s - 0.005);
@@ -312,7 +325,7 @@ TEST(ComediSource, ConfigurationErrorsNameTheField) {
   const auto a = nd::comedi_acquisitions(source_config(EngineSetup{.cam = true}));
   ASSERT_EQ(a.size(), 3u);
   EXPECT_EQ(a[0].clock, nd::ScanClock::kExternal);
-  ASSERT_EQ(a[0].channels.size(), 2u);  // pressure, cam
+  ASSERT_EQ(a[0].channels.size(), 2u);                                        // pressure, cam
   EXPECT_DOUBLE_EQ(a[0].channels[0].si_per_volt, 1e5 / (10.0 * 5.0 * 1e-3));  // Pa per V of 50 mV/bar
   EXPECT_EQ(a[0].channels[1].channel, 3u);
   EXPECT_EQ(a[1].subdevice, 11);

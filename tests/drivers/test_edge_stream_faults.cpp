@@ -49,9 +49,9 @@ double edge_theta(std::int64_t m) { return kIndexDeg + kResolution * static_cast
 double index_time(std::int64_t r) { return time_at(kIndexDeg + 360.0 * static_cast<double>(r)); }
 
 struct Faults {
-  std::set<std::int64_t> missing;  // edges the counter never counts (no scan either)
-  std::set<std::int64_t> extra;    // a spurious count (and scan) half-way after each of these edges
-  std::set<std::int64_t> lost;     // revolutions whose index does not reset the counter
+  std::set<std::int64_t> missing;                 // edges the counter never counts (no scan either)
+  std::set<std::int64_t> extra;                   // a spurious count (and scan) half-way after each of these edges
+  std::set<std::int64_t> lost;                    // revolutions whose index does not reset the counter
   std::int64_t reverse_from = 0, reverse_to = 0;  // edges [from, to) count down
   double pause_after_s = kInf, pause_s = 0.0;     // the crank stands still this long once past this instant
 };
@@ -81,8 +81,8 @@ struct Frame {
 struct Outcome {
   std::map<std::int64_t, Frame> frames;
   nd::EdgeStreamCounters counters;
-  std::uint64_t reverse_steps = 0;  // down-counts the test's counter made (an index resets instead)
-  std::int64_t last_revolution = 0; // revolution the last edge belongs to
+  std::uint64_t reverse_steps = 0;   // down-counts the test's counter made (an index resets instead)
+  std::int64_t last_revolution = 0;  // revolution the last edge belongs to
 };
 
 // The edges of `duration_s` of crank rotation through the modelled counter into an assembler.
@@ -93,7 +93,8 @@ Outcome simulate(const Faults& f, double duration_s, bool checked = true, std::u
   Outcome out;
   auto drain = [&] {
     while (const nd::SampleBlock* b = ring.front()) {
-      for (std::uint32_t i = 0; i < b->frames; ++i) out.frames[b->first_index + i] = {b->data[2 * i], b->data[2 * i + 1]};
+      for (std::uint32_t i = 0; i < b->frames; ++i)
+        out.frames[b->first_index + i] = {b->data[2 * i], b->data[2 * i + 1]};
       ring.consume(1);
     }
   };
@@ -326,7 +327,8 @@ TEST(EdgeStreamFaults, AStandingCrankLeavesAGapNotAnInterpolation) {
     max_p_err = std::max(max_p_err, std::abs(v.p - pressure_pa(theta)));
     ++after;
   }
-  std::printf("%zu frames in the pause, %zu after it: max error %.2e deg, %.0f Pa\n", in_gap, after, max_err, max_p_err);
+  std::printf("%zu frames in the pause, %zu after it: max error %.2e deg, %.0f Pa\n", in_gap, after, max_err,
+              max_p_err);
   EXPECT_EQ(in_gap, 0u);
   EXPECT_GT(after, 12000u);  // 0.33 s
   // The stream stops shortly before the pause (the resampler's look-ahead) and resumes shortly after it.

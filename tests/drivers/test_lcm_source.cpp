@@ -12,8 +12,8 @@
 #include <vector>
 
 #include "drivers/formats/stream_messages.hpp"
-#include "tests/support/unique_temp.hpp"
 #include "tests/sanitizer.hpp"
+#include "tests/support/unique_temp.hpp"
 
 namespace nd = noisemon::drivers;
 

@@ -145,9 +145,9 @@ TEST_F(Decoder, OperatingPointsBelongToASession) {
 TEST_F(Decoder, PayloadsThatDoNotDecodeAreDamagedNamingTheirType) {
   const std::vector<std::uint8_t> junk(300, 'x');
   session(two_mics());
-  for (const auto& [channel, type] : {std::pair{"NOISEMON_SESSION", "noisemon.session_t"},
-                                      std::pair{"NOISEMON_RAW", "noisemon.raw_block_t"},
-                                      std::pair{"NOISEMON_OP", "noisemon.operating_point_t"}}) {
+  for (const auto& [channel, type] :
+       {std::pair{"NOISEMON_SESSION", "noisemon.session_t"}, std::pair{"NOISEMON_RAW", "noisemon.raw_block_t"},
+        std::pair{"NOISEMON_OP", "noisemon.operating_point_t"}}) {
     const RawEvent& e = decoder.decode(channel, junk.data(), junk.size());
     EXPECT_EQ(e.kind, RawEventKind::kDamaged) << channel;
     EXPECT_EQ(e.reason, std::string("does not decode as ") + type);
@@ -250,7 +250,8 @@ TEST_F(Decoder, SessionsFromBeforeTdcDegDecodeWithItZero) {
   info.tdc_deg = -1.84;
   const noisemon::session_t now = to_message(info, "test", info.epoch_utime, "run");
   noisemon::session_v1_t old;
-  old.utime = now.utime, old.epoch_utime = now.epoch_utime, old.source = now.source, old.sample_rate_hz = now.sample_rate_hz;
+  old.utime = now.utime, old.epoch_utime = now.epoch_utime, old.source = now.source,
+  old.sample_rate_hz = now.sample_rate_hz;
   old.radius_m = now.radius_m, old.acoustic_delay_s = now.acoustic_delay_s, old.nmics = now.nmics;
   old.mic_positions_m = now.mic_positions_m, old.condition = now.condition;
   old.pressure_full_scale_pa = now.pressure_full_scale_pa, old.mic_full_scale_pa = now.mic_full_scale_pa;

@@ -47,7 +47,8 @@ std::string valid_csv(int rows = 200) {
   return s;
 }
 
-void write_wav(const fs::path& p, int channels, int rate, int format, sf_count_t frames = 1000, double amplitude = 0.25) {
+void write_wav(const fs::path& p, int channels, int rate, int format, sf_count_t frames = 1000,
+               double amplitude = 0.25) {
   SF_INFO info{};
   info.channels = channels;
   info.samplerate = rate;
@@ -57,7 +58,8 @@ void write_wav(const fs::path& p, int channels, int rate, int format, sf_count_t
   std::vector<double> d(static_cast<std::size_t>(frames * channels));
   for (sf_count_t i = 0; i < frames; ++i)
     for (int c = 0; c < channels; ++c)
-      d[static_cast<std::size_t>(i * channels + c)] = amplitude * std::sin(2 * std::numbers::pi * 1000.0 * static_cast<double>(i) / rate);
+      d[static_cast<std::size_t>(i * channels + c)] =
+          amplitude * std::sin(2 * std::numbers::pi * 1000.0 * static_cast<double>(i) / rate);
   sf_writef_double(f, d.data(), frames);
   sf_close(f);
 }
@@ -158,9 +160,10 @@ TEST(RunDir, WriteThenReadGivesTheSameNumbers) {
     EXPECT_EQ(back.condition.rail_pressure_bar.value_or(-1), 550.0);
     ASSERT_EQ(back.time_s.size(), run.time_s.size());
     for (std::size_t i = 0; i < run.time_s.size(); ++i) {
-      ASSERT_EQ(back.time_s[i], run.time_s[i]);       // shortest round-trip text: exact
+      ASSERT_EQ(back.time_s[i], run.time_s[i]);  // shortest round-trip text: exact
       ASSERT_EQ(back.crank_deg[i], run.crank_deg[i]);
-      ASSERT_NEAR(back.pressure_pa[i], run.pressure_pa[i], 1e-15 * run.pressure_pa[i] * 4);  // bar scaling: an ulp or two
+      ASSERT_NEAR(back.pressure_pa[i], run.pressure_pa[i],
+                  1e-15 * run.pressure_pa[i] * 4);  // bar scaling: an ulp or two
     }
     EXPECT_EQ(back.mic_pa, run.mic_pa);  // 32-bit float WAV: exact
     EXPECT_EQ(back.mic_rate_hz, 48000);
@@ -175,7 +178,8 @@ namespace {
 // run.json for the valid pressure.csv with the given condition (its other keys as kJson's) and pressure entry.
 std::string run_json_with(const std::string& condition, const std::string& pressure_extra = "") {
   return R"({"condition": {"name": "other_program", )" + condition + R"(},
-             "pressure": {"file": "pressure.csv", "units": "bar")" + pressure_extra + "}}";
+             "pressure": {"file": "pressure.csv", "units": "bar")" +
+         pressure_extra + "}}";
 }
 
 }  // namespace
@@ -198,7 +202,8 @@ TEST(RunDirNulls, NullIsAcceptedForEveryConditionValueAndReadsAsUnknown) {
 
 TEST(RunDirNulls, AMotoredRunWithoutSoiKeepsEverythingElse) {
   const fs::path d = valid_run("motored_soi_null");
-  write_text(d / "run.json", run_json_with(R"("speed_rpm": 3050, "load_nm": 0, "soi_deg_btdc": null, "motored": true)"));
+  write_text(d / "run.json",
+             run_json_with(R"("speed_rpm": 3050, "load_nm": 0, "soi_deg_btdc": null, "motored": true)"));
   const RunDir run = read_run_dir(d);
   EXPECT_EQ(run.condition.speed_rpm, 3050);
   EXPECT_EQ(run.condition.load_nm, 0);
@@ -212,7 +217,8 @@ TEST(RunDirNulls, ANullSpeedIsNotCheckedAgainstTheRowsButAKnownOneStillIs) {
   // the run's, whatever it is (nothing to compare with).
   const fs::path d = valid_run("speed_null");
   std::string ms = "time_s,crank_deg,pressure\n";
-  for (int i = 0; i < 200; ++i) ms += std::to_string(1000.0 * (0.5 * i / 18000.0)) + "," + std::to_string(-360.0 + 0.5 * i) + ",1\n";
+  for (int i = 0; i < 200; ++i)
+    ms += std::to_string(1000.0 * (0.5 * i / 18000.0)) + "," + std::to_string(-360.0 + 0.5 * i) + ",1\n";
   write_text(d / "pressure.csv", ms);
   write_text(d / "run.json", run_json_with(R"("speed_rpm": 3050, "load_nm": 0, "soi_deg_btdc": 12, "motored": false)"));
   EXPECT_HAS(error_of(d), "condition.speed_rpm is 3050");
@@ -278,10 +284,14 @@ TEST(RunDirNoiseFloor, RoundTripsThroughWriteAndRead) {
 TEST(RunDirNoiseFloor, NullAndAbsentAreUnknownBadValuesNameTheKey) {
   const std::string condition = R"("speed_rpm": 3000, "load_nm": 0, "soi_deg_btdc": 12, "motored": false)";
   EXPECT_FALSE(parse_run_json(run_json_with(condition), "r.json").pressure_noise_floor_bar.has_value());
-  EXPECT_FALSE(parse_run_json(run_json_with(condition, R"(, "noise_floor_bar": null)"), "r.json").pressure_noise_floor_bar.has_value());
-  EXPECT_EQ(parse_run_json(run_json_with(condition, R"(, "noise_floor_bar": 0.002)"), "r.json").pressure_noise_floor_bar.value_or(-1), 0.002);
-  EXPECT_HAS(json_error(run_json_with(condition, R"(, "noise_floor_bar": -0.002)")),
-             "r.json: key \"pressure.noise_floor_bar\": expected a noise floor >= 0 bar rms per encoder sample, or null");
+  EXPECT_FALSE(parse_run_json(run_json_with(condition, R"(, "noise_floor_bar": null)"), "r.json")
+                   .pressure_noise_floor_bar.has_value());
+  EXPECT_EQ(parse_run_json(run_json_with(condition, R"(, "noise_floor_bar": 0.002)"), "r.json")
+                .pressure_noise_floor_bar.value_or(-1),
+            0.002);
+  EXPECT_HAS(
+      json_error(run_json_with(condition, R"(, "noise_floor_bar": -0.002)")),
+      "r.json: key \"pressure.noise_floor_bar\": expected a noise floor >= 0 bar rms per encoder sample, or null");
   EXPECT_HAS(json_error(run_json_with(condition, R"(, "noise_floor_bar": "2 mbar")")),
              "r.json: key \"pressure.noise_floor_bar\": expected a number");
   // Through read_run_dir: the run directory's file is named.
@@ -310,7 +320,8 @@ TEST(RunDirBadInput, CsvNonNumericFieldNamesLineAndField) {
 }
 
 TEST(RunDirBadInput, CsvNaNAndInfinityAreRejected) {
-  EXPECT_HAS(csv_error("time_s,crank_deg,pressure\n0,-360,nan\n"), "line 2: field pressure is \"nan\", expected a finite number");
+  EXPECT_HAS(csv_error("time_s,crank_deg,pressure\n0,-360,nan\n"),
+             "line 2: field pressure is \"nan\", expected a finite number");
   EXPECT_HAS(csv_error("time_s,crank_deg,pressure\ninf,-360,1\n"), "line 2: field time_s is \"inf\"");
 }
 
@@ -369,8 +380,10 @@ TEST(RunDirBadInput, CsvTimeJumpWithoutCrankMotionNamesTheLine) {
 }
 
 TEST(RunDirBadInput, CsvEmptyLineInsideTheData) {
-  EXPECT_HAS(csv_error("time_s,crank_deg,pressure\n0,-360,1\n\n0.001,-359.5,1\n"), "line 3: empty line inside the data");
-  EXPECT_EQ(csv_error("time_s,crank_deg,pressure\r\n0,-360,1\r\n0.001,-359.5,1\r\n\r\n"), "(no error)");  // CRLF, trailing blank
+  EXPECT_HAS(csv_error("time_s,crank_deg,pressure\n0,-360,1\n\n0.001,-359.5,1\n"),
+             "line 3: empty line inside the data");
+  EXPECT_EQ(csv_error("time_s,crank_deg,pressure\r\n0,-360,1\r\n0.001,-359.5,1\r\n\r\n"),
+            "(no error)");  // CRLF, trailing blank
 }
 
 TEST(RunDirBadInput, CsvNamedByRunJsonMissing) {
@@ -408,35 +421,54 @@ TEST(RunDirBadInput, RunJsonMissingKeysNameKeyAndFile) {
                                  "pressure": {"file": "pressure.csv", "units": "bar"}})");
   const std::string e = error_of(d);
   EXPECT_HAS(e, (d / "run.json").string() + ": missing key \"condition.speed_rpm\"");
-  EXPECT_HAS(json_error(R"({"condition": {"name": "x", "speed_rpm": 1, "load_nm": 0, "soi_deg_btdc": 0, "motored": false}})"),
-             "r.json: missing key \"pressure\"");
+  EXPECT_HAS(
+      json_error(R"({"condition": {"name": "x", "speed_rpm": 1, "load_nm": 0, "soi_deg_btdc": 0, "motored": false}})"),
+      "r.json: missing key \"pressure\"");
   EXPECT_HAS(json_error(R"({"pressure": {"file": "p.csv", "units": "bar"}})"), "r.json: missing key \"condition\"");
-  EXPECT_HAS(json_error(R"({"condition": {"name": "x", "speed_rpm": 1, "load_nm": 0, "soi_deg_btdc": 0, "motored": false},
+  EXPECT_HAS(
+      json_error(R"({"condition": {"name": "x", "speed_rpm": 1, "load_nm": 0, "soi_deg_btdc": 0, "motored": false},
       "pressure": {"file": "p.csv", "units": "bar"}, "mics": {"file": "m.wav"}})"),
-             "r.json: missing key \"mics.positions_m\"");
+      "r.json: missing key \"mics.positions_m\"");
 }
 
 TEST(RunDirBadInput, RunJsonWrongTypesNameKeyAndExpectedType) {
   const std::string base = R"("pressure": {"file": "p.csv", "units": "bar"})";
-  EXPECT_HAS(json_error(R"({"condition": {"name": "x", "speed_rpm": "fast", "load_nm": 0, "soi_deg_btdc": 0, "motored": false}, )" + base + "}"),
-             "r.json: key \"condition.speed_rpm\": expected a number or null (engine speed, rpm), found a string");
-  EXPECT_HAS(json_error(R"({"condition": {"name": "x", "speed_rpm": 1, "load_nm": 0, "soi_deg_btdc": 0, "motored": "no"}, )" + base + "}"),
-             "key \"condition.motored\": expected true, false or null");
-  EXPECT_HAS(json_error(R"({"condition": {"name": "x", "speed_rpm": 1, "load_nm": 0, "soi_deg_btdc": "n/a", "motored": true}, )" + base + "}"),
-             "r.json: key \"condition.soi_deg_btdc\": expected a number or null (start of injection");
-  EXPECT_HAS(json_error(R"({"condition": {"name": "x", "speed_rpm": 1, "load_nm": [], "soi_deg_btdc": 0, "motored": true}, )" + base + "}"),
-             "r.json: key \"condition.load_nm\": expected a number or null (brake torque, N m), found an array");
-  EXPECT_HAS(json_error(R"({"condition": {"name": 7, "speed_rpm": 1, "load_nm": 0, "soi_deg_btdc": 0, "motored": false}, )" + base + "}"),
-             "key \"condition.name\": expected a string");
+  EXPECT_HAS(
+      json_error(
+          R"({"condition": {"name": "x", "speed_rpm": "fast", "load_nm": 0, "soi_deg_btdc": 0, "motored": false}, )" +
+          base + "}"),
+      "r.json: key \"condition.speed_rpm\": expected a number or null (engine speed, rpm), found a string");
+  EXPECT_HAS(
+      json_error(R"({"condition": {"name": "x", "speed_rpm": 1, "load_nm": 0, "soi_deg_btdc": 0, "motored": "no"}, )" +
+                 base + "}"),
+      "key \"condition.motored\": expected true, false or null");
+  EXPECT_HAS(
+      json_error(
+          R"({"condition": {"name": "x", "speed_rpm": 1, "load_nm": 0, "soi_deg_btdc": "n/a", "motored": true}, )" +
+          base + "}"),
+      "r.json: key \"condition.soi_deg_btdc\": expected a number or null (start of injection");
+  EXPECT_HAS(
+      json_error(R"({"condition": {"name": "x", "speed_rpm": 1, "load_nm": [], "soi_deg_btdc": 0, "motored": true}, )" +
+                 base + "}"),
+      "r.json: key \"condition.load_nm\": expected a number or null (brake torque, N m), found an array");
+  EXPECT_HAS(
+      json_error(R"({"condition": {"name": 7, "speed_rpm": 1, "load_nm": 0, "soi_deg_btdc": 0, "motored": false}, )" +
+                 base + "}"),
+      "key \"condition.name\": expected a string");
   EXPECT_HAS(json_error(R"({"condition": [], )" + base + "}"), "key \"condition\": expected an object, found an array");
-  EXPECT_HAS(json_error(R"({"condition": {"name": "x", "speed_rpm": 1, "load_nm": 0, "soi_deg_btdc": 0, "motored": false},
+  EXPECT_HAS(
+      json_error(R"({"condition": {"name": "x", "speed_rpm": 1, "load_nm": 0, "soi_deg_btdc": 0, "motored": false},
       "pressure": {"file": "p.csv", "units": "psi"}})"),
-             "key \"pressure.units\": \"psi\", expected \"bar\" or \"Pa\"");
-  EXPECT_HAS(json_error(R"({"condition": {"name": "x", "speed_rpm": 1, "load_nm": 0, "soi_deg_btdc": 0, "motored": false}, )" + base +
-                        R"(, "mics": {"file": "m.wav", "positions_m": [[1, 2]]}})"),
-             "key \"mics.positions_m[0]\": expected [x, y, z]");
-  EXPECT_HAS(json_error(R"({"condition": {"name": "x", "speed_rpm": -5, "load_nm": 0, "soi_deg_btdc": 0, "motored": false}, )" + base + "}"),
-             "key \"condition.speed_rpm\": expected a speed above 0 rpm");
+      "key \"pressure.units\": \"psi\", expected \"bar\" or \"Pa\"");
+  EXPECT_HAS(
+      json_error(R"({"condition": {"name": "x", "speed_rpm": 1, "load_nm": 0, "soi_deg_btdc": 0, "motored": false}, )" +
+                 base + R"(, "mics": {"file": "m.wav", "positions_m": [[1, 2]]}})"),
+      "key \"mics.positions_m[0]\": expected [x, y, z]");
+  EXPECT_HAS(
+      json_error(
+          R"({"condition": {"name": "x", "speed_rpm": -5, "load_nm": 0, "soi_deg_btdc": 0, "motored": false}, )" +
+          base + "}"),
+      "key \"condition.speed_rpm\": expected a speed above 0 rpm");
 }
 
 TEST(RunDirBadInput, RunJsonSyntaxErrorNamesFileAndPosition) {
@@ -520,7 +552,8 @@ TEST(RunDirBadInput, NotASoundFileOrTruncatedWav) {
   // A WAV whose data chunk is cut: the header promises more frames than the file holds.
   write_wav(d / "mics.wav", 2, 51200, SF_FORMAT_WAV | SF_FORMAT_FLOAT, 1000);
   fs::resize_file(d / "mics.wav", fs::file_size(d / "mics.wav") - 800);
-  EXPECT_HAS(error_of(d), (d / "mics.wav").string() + ": truncated: the header promises 8000 bytes of samples, the file holds 7200");
+  EXPECT_HAS(error_of(d),
+             (d / "mics.wav").string() + ": truncated: the header promises 8000 bytes of samples, the file holds 7200");
 }
 
 TEST(RunDirBadInput, WavWithNonFiniteSamplesNamesFrameAndChannel) {

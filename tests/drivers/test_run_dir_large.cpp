@@ -29,7 +29,8 @@ constexpr int kRows = 60000;  // about 2.4 MB: two halves
 // Row i of a 0.1 deg encoder at 3000 rpm (18000 deg/s), numbers in their shortest form.
 void append_row(std::string& s, int i, const char* sep = ",", const char* eol = "\n") {
   const double crank = -360.0 + 0.1 * i;
-  const double fields[3] = {(crank + 360.0) / 18000.0 + 0.02, crank, 1.0 + 30.0 * std::exp(-0.001 * (i % 7200 - 3600) * (i % 7200 - 3600) / 36.0)};
+  const double fields[3] = {(crank + 360.0) / 18000.0 + 0.02, crank,
+                            1.0 + 30.0 * std::exp(-0.001 * (i % 7200 - 3600) * (i % 7200 - 3600) / 36.0)};
   char buf[64];
   for (int f = 0; f < 3; ++f) {
     s.append(buf, std::to_chars(buf, buf + sizeof buf, fields[f]).ptr);
@@ -116,7 +117,8 @@ TEST(RunDirLargeCsv, ReadingTheMappedFileGivesTheSameNumbers) {
   const fs::path d = fs::path(noisemon::test::unique_temp_dir()) / "large_run";
   fs::remove_all(d);
   fs::create_directories(d);
-  std::ofstream(d / "run.json") << R"({"condition": {"name": "large", "speed_rpm": 3000, "load_nm": 0, "soi_deg_btdc": 12,
+  std::ofstream(d / "run.json")
+      << R"({"condition": {"name": "large", "speed_rpm": 3000, "load_nm": 0, "soi_deg_btdc": 12,
     "rail_pressure_bar": null, "motored": false}, "pressure": {"file": "pressure.csv", "units": "bar"}})";
   const std::string plain = large_csv();
   std::ofstream(d / "pressure.csv", std::ios::binary) << plain;
@@ -132,8 +134,10 @@ TEST(RunDirLargeCsv, ProblemsInTheSecondHalfNameTheirLine) {
   const int late = kRows - 10;
   EXPECT_HAS(csv_error(with_line(plain, late, "0.5,abc,1")),
              "p.csv: line " + std::to_string(late) + ": field crank_deg is \"abc\", expected a finite number");
-  EXPECT_HAS(csv_error(with_line(plain, late, "0.5,1")), "p.csv: line " + std::to_string(late) + ": 2 field(s), expected 3");
-  EXPECT_HAS(csv_error(with_line(plain, late, "")), "p.csv: line " + std::to_string(late) + ": empty line inside the data");
+  EXPECT_HAS(csv_error(with_line(plain, late, "0.5,1")),
+             "p.csv: line " + std::to_string(late) + ": 2 field(s), expected 3");
+  EXPECT_HAS(csv_error(with_line(plain, late, "")),
+             "p.csv: line " + std::to_string(late) + ": empty line inside the data");
   EXPECT_HAS(csv_error(with_line(plain, late, "1,2,3\r\r")),
              "p.csv: line " + std::to_string(late) + ": field pressure is \"3\r\"");
   // Where the halves meet: the second half's first row repeats the first half's last time (written with leading
@@ -151,7 +155,8 @@ TEST(RunDirLargeCsv, ProblemsInTheSecondHalfNameTheirLine) {
   EXPECT_HAS(csv_error(repeated), "p.csv: line " + std::to_string(second) + ": time_s");
   EXPECT_HAS(csv_error(repeated), "does not increase");
   // The first problem in the file is the one named, though the second half's thread meets its own first.
-  EXPECT_HAS(csv_error(with_line(with_line(plain, late, "x,1,1"), 100, "y,1,1")), "p.csv: line 100: field time_s is \"y\"");
+  EXPECT_HAS(csv_error(with_line(with_line(plain, late, "x,1,1"), 100, "y,1,1")),
+             "p.csv: line 100: field time_s is \"y\"");
 }
 
 TEST(RunDirLargeCsv, ABlankLineInTheFirstHalfWithRowsAfterItIsAnError) {
@@ -210,10 +215,14 @@ TEST(RunDirLargeCsv, EncoderStepIsTheMedianStep) {
       std::uniform_real_distribution<double> jitter(-1e-3, 1e-3);
       for (std::size_t i = 0; i < n; ++i) {
         crank[i] = th;
-        if (kind == 0) th += 0.1 + jitter(rng);                     // noisy steps
-        else if (kind == 1) th += 0.1;                              // rounding: a few distinct steps
-        else if (kind == 2) th += (i % 3 == 0) ? 0.2 : 0.05;       // two steps, ties on both sides
-        else th += (i < n / 2 + 5) ? 0.1 : 0.1 + 1e-9 * static_cast<double>(i);  // sample and median far apart
+        if (kind == 0)
+          th += 0.1 + jitter(rng);  // noisy steps
+        else if (kind == 1)
+          th += 0.1;  // rounding: a few distinct steps
+        else if (kind == 2)
+          th += (i % 3 == 0) ? 0.2 : 0.05;  // two steps, ties on both sides
+        else
+          th += (i < n / 2 + 5) ? 0.1 : 0.1 + 1e-9 * static_cast<double>(i);  // sample and median far apart
       }
       EXPECT_EQ(crank_step_deg(crank), nth_median(crank)) << "n " << n << " kind " << kind;
     }

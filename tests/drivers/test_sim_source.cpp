@@ -16,8 +16,8 @@
 #include <cmath>
 #include <complex>
 #include <cstdio>
-#include <numbers>
 #include <limits>
+#include <numbers>
 #include <numeric>
 #include <thread>
 #include <vector>
@@ -88,7 +88,8 @@ struct Rings {
 double process_cpu_s() {
   rusage u{};
   getrusage(RUSAGE_SELF, &u);
-  return static_cast<double>(u.ru_utime.tv_sec + u.ru_stime.tv_sec) + 1e-6 * static_cast<double>(u.ru_utime.tv_usec + u.ru_stime.tv_usec);
+  return static_cast<double>(u.ru_utime.tv_sec + u.ru_stime.tv_sec) +
+         1e-6 * static_cast<double>(u.ru_utime.tv_usec + u.ru_stime.tv_usec);
 }
 
 // Drains the rings every few ms while the source runs for `seconds`, under a sanitizer until both streams hold
@@ -265,7 +266,9 @@ TEST(SimSource, InfoDescribesTheThesisSetup) {
   EXPECT_DOUBLE_EQ(info.mic_positions_m[9][1], -0.87);  // microphone 10
   for (const auto& q : info.mic_positions_m) EXPECT_NEAR(std::hypot(q[0], q[1], q[2]), 1.75, 0.01);
   EXPECT_DOUBLE_EQ(info.acoustic_delay_s, 1.75 / 343.0);
-  const auto now = std::chrono::duration_cast<std::chrono::microseconds>(std::chrono::system_clock::now().time_since_epoch()).count();
+  const auto now =
+      std::chrono::duration_cast<std::chrono::microseconds>(std::chrono::system_clock::now().time_since_epoch())
+          .count();
   EXPECT_NEAR(static_cast<double>(info.epoch_utime), static_cast<double>(now), 1e6);
   EXPECT_FALSE(src->running());
   nd::SimConfig bad = idle_config();
@@ -275,8 +278,10 @@ TEST(SimSource, InfoDescribesTheThesisSetup) {
 
 TEST(SimSource, StreamsAreContiguousAlignedAndPacedWithoutOverruns) {
   const SimRun& r = fired_run();
-  std::printf("test process: %.2f s wall, %.3f s CPU (%.0f %% of one core; sim at 3050 rpm, 0.1 deg, plus start-up and draining)\n", r.wall_s, r.cpu_s,
-              100.0 * r.cpu_s / r.wall_s);
+  std::printf(
+      "test process: %.2f s wall, %.3f s CPU (%.0f %% of one core; sim at 3050 rpm, 0.1 deg, plus start-up and "
+      "draining)\n",
+      r.wall_s, r.cpu_s, 100.0 * r.cpu_s / r.wall_s);
   EXPECT_EQ(r.overruns, 0u);
   EXPECT_TRUE(r.was_running);
   EXPECT_TRUE(r.pressure.contiguous);
@@ -349,7 +354,8 @@ TEST(SimSource, PressureChannelIsTheEngineCycleAtEachFrame) {
     peak = std::max(peak, expected);
   }
   const double rms_err = std::sqrt(sum_sq / static_cast<double>(r.pressure.frames()));
-  std::printf("pressure channel vs engine model: max error %.1f Pa (%.2e of peak), rms %.2f Pa\n", max_err, max_err / peak, rms_err);
+  std::printf("pressure channel vs engine model: max error %.1f Pa (%.2e of peak), rms %.2f Pa\n", max_err,
+              max_err / peak, rms_err);
   EXPECT_GT(peak, 60e5);
   EXPECT_LT(max_err, 1e-4 * peak);
   EXPECT_LT(rms_err, 1e-5 * peak);
@@ -364,7 +370,8 @@ TEST(SimSource, PressureChannelCarriesTheConfiguredFloorPerEncoderSample) {
   const std::size_t n = r.pressure.frames();
   std::vector<double> e(n);
   for (std::size_t f = 0; f < n; ++f)
-    e[f] = r.pressure.at(f, nd::kPressureChannel) - ref.at(static_cast<double>(r.pressure.first_index + static_cast<std::int64_t>(f)) / kFs);
+    e[f] = r.pressure.at(f, nd::kPressureChannel) -
+           ref.at(static_cast<double>(r.pressure.first_index + static_cast<std::int64_t>(f)) / kFs);
   // Welch (Hann, 4096 frames, half overlap): mean one-sided density over 1-15 kHz.
   const std::size_t seg = 4096;
   double wss = 0.0, sum = 0.0;
@@ -384,8 +391,10 @@ TEST(SimSource, PressureChannelCarriesTheConfiguredFloorPerEncoderSample) {
   const double edge_rate = 6.0 * cfg.speed_rpm / cfg.encoder_resolution_deg;
   const double sigma = 1e5 * cfg.pressure_chain.floor_bar();
   const double expected = 2.0 * sigma * sigma / edge_rate;  // white at rate fe: one-sided density 2 sigma^2 / fe
-  std::printf("pressure channel - true pressure: %.2f Pa^2/Hz over 1-15 kHz, the configured %.4f bar per edge at %.0f "
-              "edges/s gives %.2f\n", sum / bins, cfg.pressure_chain.floor_bar(), edge_rate, expected);
+  std::printf(
+      "pressure channel - true pressure: %.2f Pa^2/Hz over 1-15 kHz, the configured %.4f bar per edge at %.0f "
+      "edges/s gives %.2f\n",
+      sum / bins, cfg.pressure_chain.floor_bar(), edge_rate, expected);
   EXPECT_NEAR(sum / bins / expected, 1.0, 0.05);
   EXPECT_EQ(counter(r, "sim.pressure.adc_clipped"), 0);  // nothing clips at the realistic defaults
   // sim.mics.adc_clipped is not asserted on this live run: once, on a machine loaded by two diagnosis runs, it read
@@ -537,7 +546,7 @@ TEST(SimSource, MicLevelMatchesHarmonicResponseOfThePeriodicCycle) {
   cfg.soi_deg_btdc = 21.0;
   cfg.cycle_variation = 0.0;
   cfg.gas_ringing = nm::GasRingingParams::off();  // its random phase per cycle would break the periodicity
-  cfg.mic_gain_spread_db = 1.0;  // the energy-normalised gains must not move the mean
+  cfg.mic_gain_spread_db = 1.0;                   // the energy-normalised gains must not move the mean
   const SimRun r = run_source(cfg, 1.0);
   ASSERT_TRUE(r.mics.contiguous);
   EXPECT_EQ(r.overruns, 0u);
@@ -608,7 +617,8 @@ TEST(SimSource, StopIsIdempotentAndRestartContinuesTheTimeBase) {
   EXPECT_TRUE(second.pressure.contiguous);
   EXPECT_TRUE(second.mics.contiguous);
   // Same epoch: the second session starts after the first ended, on the same frame for both streams.
-  EXPECT_GE(second.pressure.first_index, first.pressure.first_index + static_cast<std::int64_t>(first.pressure.frames()));
+  EXPECT_GE(second.pressure.first_index,
+            first.pressure.first_index + static_cast<std::int64_t>(first.pressure.frames()));
   EXPECT_EQ(second.pressure.first_index, second.mics.first_index);
   EXPECT_EQ(src->info().epoch_utime, first.info.epoch_utime);
   // A source destroyed while running stops its threads (before its rings go: declared after them).

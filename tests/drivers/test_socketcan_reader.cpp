@@ -4,13 +4,13 @@
 
 #include <gtest/gtest.h>
 
-#include <cstring>
-#include <ctime>
 #include <linux/can.h>
 #include <linux/can/error.h>
 #include <sys/socket.h>
 #include <sys/time.h>
 #include <unistd.h>
+#include <cstring>
+#include <ctime>
 
 namespace noisemon::drivers {
 namespace {
@@ -67,7 +67,7 @@ TEST_F(SocketPair, DecodesDataFramesAndCountsErrorFrames) {
   send_frame(0x0CF00400 | CAN_EFF_FLAG, {0xFF, 0xFF, 0xFF, 0xE0, 0x2E, 0xFF, 0xFF, 0xFF});  // 1500 rpm
   send_frame(CAN_ERR_FLAG | CAN_ERR_BUSOFF, {0, 0, 0, 0, 0, 0, 0, 0});
   send_frame(CAN_ERR_FLAG | CAN_ERR_CRTL, {0, CAN_ERR_CRTL_RX_OVERFLOW, 0, 0, 0, 0, 0, 0});
-  send_frame(0x321, {0xFF, 0x38});  // 0xFF38 = -200 -> -100 Nm
+  send_frame(0x321, {0xFF, 0x38});                   // 0xFF38 = -200 -> -100 Nm
   send_frame(0x0CF00400, {0, 0, 0, 0, 0, 0, 0, 0});  // no CAN_EFF_FLAG: an 11-bit id, 0x400
   send_frame(0x0CF00400 | CAN_EFF_FLAG | CAN_RTR_FLAG, {});
   const std::int64_t after = realtime_us();
@@ -80,7 +80,7 @@ TEST_F(SocketPair, DecodesDataFramesAndCountsErrorFrames) {
   EXPECT_EQ(reader.read_operating_point(1000, map, op), CanReadResult::kErrorFrame);
   ASSERT_EQ(reader.read_operating_point(1000, map, op), CanReadResult::kDataFrame);
   EXPECT_DOUBLE_EQ(op.load_nm, -100.0);
-  EXPECT_DOUBLE_EQ(op.speed_rpm, 1500.0);  // untouched by the load frame
+  EXPECT_DOUBLE_EQ(op.speed_rpm, 1500.0);                                          // untouched by the load frame
   EXPECT_EQ(reader.read_operating_point(1000, map, op), CanReadResult::kIgnored);  // not in the map
   EXPECT_EQ(reader.read_operating_point(1000, map, op), CanReadResult::kIgnored);  // remote frame
   EXPECT_EQ(reader.read_operating_point(20, map, op), CanReadResult::kTimeout);

@@ -9,8 +9,8 @@
 
 #include <atomic>
 #include <cmath>
-#include <limits>
 #include <cstdlib>
+#include <limits>
 #include <new>
 #include <vector>
 
@@ -142,8 +142,7 @@ TEST(StreamMessagesDamaged, SessionWithDamagedStringLengthOrMicCountIsRefused) {
 TEST(StreamMessagesDamaged, TruncatedPaddedOrForeignPayloadsAreRefused) {
   const auto b = encode(raw_block());
   noisemon::raw_block_t r;
-  for (std::size_t n = 0; n < b.size(); ++n)
-    EXPECT_FALSE(decode_message(b.data(), n, r)) << "truncated to " << n;
+  for (std::size_t n = 0; n < b.size(); ++n) EXPECT_FALSE(decode_message(b.data(), n, r)) << "truncated to " << n;
   auto padded = b;
   padded.push_back(0);
   EXPECT_FALSE(decode_message(padded.data(), padded.size(), r));

@@ -201,8 +201,10 @@ TEST(WorkerThread, FifoPriorityTakesEffectOrFailsNamingThreadSettingAndCapabilit
     EXPECT_EQ(priority_seen, priority);
   } else {
     EXPECT_EQ(s.state, nd::ThreadState::kFailed);
-    EXPECT_NE(s.error.find("thread nm-test-fifo: SCHED_FIFO priority 1 refused (EPERM): needs CAP_SYS_NICE or LimitRTPRIO"),
-              std::string::npos) << s.error;
+    EXPECT_NE(
+        s.error.find("thread nm-test-fifo: SCHED_FIFO priority 1 refused (EPERM): needs CAP_SYS_NICE or LimitRTPRIO"),
+        std::string::npos)
+        << s.error;
     EXPECT_EQ(policy_seen, -1);  // the body never ran
   }
 }
@@ -253,7 +255,8 @@ TEST(WorkerThread, CpuAffinityTakesEffectOrFailsNamingTheCpu) {
   w.join();
   s = w.status();
   EXPECT_EQ(s.state, nd::ThreadState::kFailed);
-  EXPECT_NE(s.error.find("CPU affinity to CPU " + std::to_string(CPU_SETSIZE) + " refused: not a CPU index"), std::string::npos)
+  EXPECT_NE(s.error.find("CPU affinity to CPU " + std::to_string(CPU_SETSIZE) + " refused: not a CPU index"),
+            std::string::npos)
       << s.error;
   EXPECT_FALSE(body_ran);
 }

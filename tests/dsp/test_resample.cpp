@@ -148,7 +148,6 @@ void expect_unit_gain_and_phase(const std::vector<double>& y, const std::vector<
   EXPECT_LT(std::abs(phase), 1e-4) << f << " Hz";
 }
 
-
 TEST(RationalResampler, ReducesTheRateRatio) {
   // 51200 / 40000 = 32 / 25: 32 input frames make exactly 25 output frames.
   RationalResampler r(51200.0, 40000.0, 1);
@@ -216,8 +215,8 @@ TEST(RationalResampler, FlatWithExactPhaseUpToThePassbandEdge) {
       }
       expect_unit_gain_and_phase(y, t, f, tone.phase_rad, worst_db, worst_phase);
     }
-    std::printf("rational 51.2k->40k 20 Hz..18 kHz (%s): gain within %.1e dB, phase within %.1e rad\n",
-                name(precision), worst_db, worst_phase);
+    std::printf("rational 51.2k->40k 20 Hz..18 kHz (%s): gain within %.1e dB, phase within %.1e rad\n", name(precision),
+                worst_db, worst_phase);
   }
 }
 
@@ -228,8 +227,7 @@ TEST(RationalResampler, RejectsTonesAboveTheOutputNyquist) {
     for (double f : {20050.0, 20200.0, 21000.0, 24000.0, 25500.0}) {
       RationalResampler r(in_rate, out_rate, 1, precision);
       const auto out = run_rational(r, uniform_input({{{f, 1.0, 0.0}}}, in_rate, 20480), 256);
-      const std::vector<double> steady(out.begin() + static_cast<std::ptrdiff_t>(kRationalSkipS * out_rate),
-                                       out.end());
+      const std::vector<double> steady(out.begin() + static_cast<std::ptrdiff_t>(kRationalSkipS * out_rate), out.end());
       const double level_db = 20.0 * std::log10(rms(steady) / std::sqrt(0.5));
       worst_db = std::max(worst_db, level_db);
       EXPECT_LT(level_db, -80.0) << f << " Hz, " << name(precision);
@@ -296,8 +294,8 @@ TEST(RationalResampler, RandomBlocksAndShortOutputBuffersEqualOnePiece) {
 struct Crank {
   double rpm;
   double ripple;
-  double t_start = 0.0;  // time origin of the rotation (theta = 0 there)
-  double w0() const { return rpm * 6.0; }                 // deg/s
+  double t_start = 0.0;                                     // time origin of the rotation (theta = 0 there)
+  double w0() const { return rpm * 6.0; }                   // deg/s
   double ripple_w() const { return kTwoPi * rpm / 120.0; }  // rad/s, once per cycle
   double angle(double t) const {
     const double s = t - t_start;
@@ -394,7 +392,11 @@ TEST(NonuniformResampler, FastEdgesMatchTheAnalyticSignal) {
   const auto t = edge_times(kIdle, 0.1, 0.0, 183000 * 3 / 10);  // 0.3 s
   // Channel 1 rides on a large mean like absolute cylinder pressure (Pa).
   const std::vector<std::vector<Tone>> tones = {
-      {{20.0, 1.0, 0.1}, {315.0, 0.5, 0.2}, {1000.0, 0.5, 0.3}, {4000.0, 0.3, 0.4}, {10000.0, 0.2, 0.5},
+      {{20.0, 1.0, 0.1},
+       {315.0, 0.5, 0.2},
+       {1000.0, 0.5, 0.3},
+       {4000.0, 0.3, 0.4},
+       {10000.0, 0.2, 0.5},
        {16000.0, 0.2, 0.6}},
       {{50.0, 2000.0, 1.0}, {2500.0, 500.0, 2.0}, {8000.0, 300.0, 3.0}, {12500.0, 200.0, 4.0}, {15000.0, 100.0, 5.0}}};
   const std::vector<double> offsets = {0.0, 1.0e5};
@@ -406,8 +408,10 @@ TEST(NonuniformResampler, FastEdgesMatchTheAnalyticSignal) {
     EXPECT_LT(e0, 1e-3);
     EXPECT_LT(e1, 1e-3);
     EXPECT_DOUBLE_EQ(r.passband_edge_hz(), 18000.0);
-    std::printf("nonuniform 183k edges tone mixes (sized for %.0f kHz edges): relative rms error %.2e, %.2e "
-                "(on a 1e5 mean)\n", 1e-3 * max_edge_rate, e0, e1);
+    std::printf(
+        "nonuniform 183k edges tone mixes (sized for %.0f kHz edges): relative rms error %.2e, %.2e "
+        "(on a 1e5 mean)\n",
+        1e-3 * max_edge_rate, e0, e1);
   }
 }
 
@@ -427,8 +431,10 @@ TEST(NonuniformResampler, FlatWithExactPhaseUpToThePassbandEdge) {
       }
       expect_unit_gain_and_phase(y, tk, f, tone.phase_rad, worst_db, worst_phase);
     }
-    std::printf("nonuniform 183k edges 20 Hz..18 kHz (sized for %.0f kHz edges): gain within %.1e dB, phase "
-                "within %.1e rad\n", 1e-3 * max_edge_rate, worst_db, worst_phase);
+    std::printf(
+        "nonuniform 183k edges 20 Hz..18 kHz (sized for %.0f kHz edges): gain within %.1e dB, phase "
+        "within %.1e rad\n",
+        1e-3 * max_edge_rate, worst_db, worst_phase);
   }
 }
 
@@ -454,8 +460,8 @@ TEST(NonuniformResampler, SlowEdgesAreAccurateUpToTheirOwnPassband) {
   // 1 deg at 1000 rpm: 6 kHz edges, slower than the 40 kHz output.
   const Crank slow{1000.0, 0.01, -50e-6};
   const auto t = edge_times(slow, 1.0, 0.0, 6000 / 2);  // 0.5 s
-  const std::vector<Tone> tones = {{20.0, 1.0, 0.0}, {200.0, 0.7, 1.0}, {1000.0, 0.5, 2.0}, {2000.0, 0.3, 3.0},
-                                   {2400.0, 0.3, 4.0}};
+  const std::vector<Tone> tones = {
+      {20.0, 1.0, 0.0}, {200.0, 0.7, 1.0}, {1000.0, 0.5, 2.0}, {2000.0, 0.3, 3.0}, {2400.0, 0.3, 4.0}};
   NonuniformResampler r(kOutRate, 1);
   const NuResult res = run_nonuniform(r, t, sample_tones({tones}, t), 100);
   // The reported passband follows the edge rate: inside the input's own Nyquist (3 kHz), above 2.4 kHz.

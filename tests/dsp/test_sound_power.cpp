@@ -103,7 +103,7 @@ TEST(SoundPower, WeightedAverageOfEqualWeightsIsTheEnergyMean) {
 
 TEST(SoundPower, ChecksNameWhatIsWrongWithTheSurface) {
   std::vector<Position> p = iso3744_key_positions(1.75);
-  p[3][2] = -0.1;                          // below the floor
+  p[3][2] = -0.1;                                        // below the floor
   p[6] = {p[6][0] * 1.2, p[6][1] * 1.2, p[6][2] * 1.2};  // 20 % outside the surface
   SurfaceCheck check = check_hemisphere(p, 1.75, 1.0);
   EXPECT_FALSE(check.ok());

@@ -142,8 +142,10 @@ TEST(SpscRing, TwoThreadsRetryingProducerDeliversEveryItemOnceInOrder) {
   while (expected < kItems && in_order) {
     if (std::chrono::steady_clock::now() > deadline) break;
     const std::size_t got = ring.read(out.data(), size(rng));
-    if (got == 0) std::this_thread::yield();
-    else deadline = std::chrono::steady_clock::now() + kStallLimit;
+    if (got == 0)
+      std::this_thread::yield();
+    else
+      deadline = std::chrono::steady_clock::now() + kStallLimit;
     for (std::size_t i = 0; i < got; ++i) in_order = in_order && out[i] == expected++;
   }
   give_up = true;

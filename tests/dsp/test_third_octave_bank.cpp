@@ -56,8 +56,12 @@ double bandwidth(const ThirdOctaveBand& b) { return b.upper_edge_hz - b.lower_ed
 class QuadratureTones {
  public:
   QuadratureTones(const std::vector<double>& freqs, double fs)
-      : fs_(fs), bank_(fs, 2 * freqs.size()), ph_(freqs.size(), 1.0), rot_(freqs.size()),
-        buf_(kBlock * 2 * freqs.size()), ms_(2 * freqs.size() * bank_.band_count()) {
+      : fs_(fs),
+        bank_(fs, 2 * freqs.size()),
+        ph_(freqs.size(), 1.0),
+        rot_(freqs.size()),
+        buf_(kBlock * 2 * freqs.size()),
+        ms_(2 * freqs.size() * bank_.band_count()) {
     for (std::size_t i = 0; i < freqs.size(); ++i) rot_[i] = std::polar(1.0, 2 * kPi * freqs[i] / fs);
   }
   const ThirdOctaveBank& bank() const { return bank_; }
@@ -107,8 +111,8 @@ std::vector<double> white_noise(std::size_t n, std::uint64_t seed) {
 
 TEST(ThirdOctaveBank, BandLayoutFollowsIec61260Base10) {
   // Nominal mid-band frequencies, IEC 61260-1 annex E (one-third-octave, 20 Hz .. 20 kHz).
-  const double nominal[] = {20,   25,   31.5, 40,   50,   63,   80,    100,   125,   160,   200,
-                            250,  315,  400,  500,  630,  800,  1000,  1250,  1600,  2000,  2500,
+  const double nominal[] = {20,   25,   31.5, 40,   50,   63,    80,    100,   125,  160,  200,
+                            250,  315,  400,  500,  630,  800,   1000,  1250,  1600, 2000, 2500,
                             3150, 4000, 5000, 6300, 8000, 10000, 12500, 16000, 20000};
   ThirdOctaveBank bank(kFs, 2);
   ASSERT_EQ(bank.band_count(), 31u);
@@ -190,9 +194,10 @@ TEST_P(ThirdOctaveBankClass1, EveryBandMeetsTheLimitsAtEveryBreakpoint) {
         }
     }
   }
-  std::printf("fs %g Hz, class 1 headroom: pass band %.3f dB to the lower limit (%s), %.3f dB to the upper "
-              "limit (%s); stop band %.3f dB (%s)\n",
-              fs, worst[0], where[0].c_str(), worst[1], where[1].c_str(), worst[2], where[2].c_str());
+  std::printf(
+      "fs %g Hz, class 1 headroom: pass band %.3f dB to the lower limit (%s), %.3f dB to the upper "
+      "limit (%s); stop band %.3f dB (%s)\n",
+      fs, worst[0], where[0].c_str(), worst[1], where[1].c_str(), worst[2], where[2].c_str());
 }
 
 INSTANTIATE_TEST_SUITE_P(SampleRates, ThirdOctaveBankClass1, ::testing::Values(40000.0, 44100.0, 48000.0));

@@ -65,10 +65,19 @@ class Chromium {
     dup2(out, 4);
     const int log = open(log_path.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
     if (log >= 0) dup2(log, 2);
-    const std::vector<std::string> args{kChromium, "--headless", "--no-sandbox", "--disable-gpu", "--disable-quic",
-                                        "--no-first-run", "--disable-background-networking",
-                                        "--disable-component-update", "--disable-sync", "--remote-debugging-pipe",
-                                        "--window-size=1400,1900", "--user-data-dir=" + profile, "about:blank"};
+    const std::vector<std::string> args{kChromium,
+                                        "--headless",
+                                        "--no-sandbox",
+                                        "--disable-gpu",
+                                        "--disable-quic",
+                                        "--no-first-run",
+                                        "--disable-background-networking",
+                                        "--disable-component-update",
+                                        "--disable-sync",
+                                        "--remote-debugging-pipe",
+                                        "--window-size=1400,1900",
+                                        "--user-data-dir=" + profile,
+                                        "about:blank"};
     std::vector<char*> argv;
     for (const auto& a : args) argv.push_back(const_cast<char*>(a.c_str()));
     argv.push_back(nullptr);
@@ -80,7 +89,8 @@ class Chromium {
     nlohmann::json m{{"id", ++id_}, {"method", method}, {"params", params}};
     if (!session_.empty()) m["sessionId"] = session_;
     const std::string text = m.dump() + '\0';
-    if (write(out_, text.data(), text.size()) != static_cast<ssize_t>(text.size())) throw std::runtime_error("browser gone");
+    if (write(out_, text.data(), text.size()) != static_cast<ssize_t>(text.size()))
+      throw std::runtime_error("browser gone");
     for (;;) {  // skip events and other replies until ours
       const auto reply = nlohmann::json::parse(read_message());
       if (reply.value("id", 0) != id_) continue;
@@ -98,7 +108,8 @@ class Chromium {
         return message;
       }
       pollfd p{in_, POLLIN, 0};
-      if (std::chrono::steady_clock::now() > deadline || poll(&p, 1, 1000) < 0) throw std::runtime_error("browser silent");
+      if (std::chrono::steady_clock::now() > deadline || poll(&p, 1, 1000) < 0)
+        throw std::runtime_error("browser silent");
       if (!(p.revents & (POLLIN | POLLHUP))) continue;
       char chunk[65536];
       const ssize_t n = read(in_, chunk, sizeof chunk);

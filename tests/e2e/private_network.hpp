@@ -50,17 +50,18 @@ class PrivateNetwork : public ::testing::Environment {
 };
 
 // Skips without the namespace; fails instead under CI (tests/support/required.hpp), where it must be available.
-#define NOISEMON_REQUIRE_NAMESPACE()                                                                 \
-  do {                                                                                               \
-    if (!::noisemon::test::PrivateNetwork::ok) {                                                     \
-      if (::noisemon::test::under_ci()) FAIL() << ::noisemon::test::PrivateNetwork::reason;          \
-      GTEST_SKIP() << ::noisemon::test::PrivateNetwork::reason;                                      \
-    }                                                                                                \
+#define NOISEMON_REQUIRE_NAMESPACE()                                                        \
+  do {                                                                                      \
+    if (!::noisemon::test::PrivateNetwork::ok) {                                            \
+      if (::noisemon::test::under_ci()) FAIL() << ::noisemon::test::PrivateNetwork::reason; \
+      GTEST_SKIP() << ::noisemon::test::PrivateNetwork::reason;                             \
+    }                                                                                       \
   } while (0)
 
 // Starts a program with its standard output in stdout_path and its standard error in stderr_path (empty:
 // inherited).
-inline pid_t spawn(const std::vector<std::string>& args, const std::string& stdout_path, const std::string& stderr_path = "") {
+inline pid_t spawn(const std::vector<std::string>& args, const std::string& stdout_path,
+                   const std::string& stderr_path = "") {
   const pid_t pid = fork();
   if (pid == 0) {
     if (!stdout_path.empty() && !std::freopen(stdout_path.c_str(), "w", stdout)) _exit(126);

@@ -14,28 +14,29 @@
 #include <sstream>
 #include <thread>
 
-#include "tests/support/unique_temp.hpp"
 #include "tests/e2e/chromium_cdp.hpp"
 #include "tests/e2e/dash_bus.hpp"
 #include "tests/e2e/private_network.hpp"
+#include "tests/support/unique_temp.hpp"
 
 namespace {
 
+using nlohmann::json;
 using noisemon::test::allowance;
 using noisemon::test::kLcmUrl;
 using noisemon::test::spawn;
 using noisemon::test::wait_for;
-using nlohmann::json;
 const auto* const kEnv = ::testing::AddGlobalTestEnvironment(new noisemon::test::PrivateNetwork);
 
-// Skips without Chromium; fails instead under CI (tests/support/required.hpp), where scripts/install-deps.sh installs it.
-#define REQUIRE_CHROMIUM()                                                                               \
-  do {                                                                                                   \
-    if (access(noisemon::test::kChromium, X_OK) != 0) {                                                  \
+// Skips without Chromium; fails instead under CI (tests/support/required.hpp), where scripts/install-deps.sh installs
+// it.
+#define REQUIRE_CHROMIUM()                                                                                    \
+  do {                                                                                                        \
+    if (access(noisemon::test::kChromium, X_OK) != 0) {                                                       \
       const std::string why = std::string(noisemon::test::kChromium) + " missing (apt-get install chromium)"; \
-      if (::noisemon::test::under_ci()) FAIL() << why;                                                 \
-      GTEST_SKIP() << why;                                                                               \
-    }                                                                                                    \
+      if (::noisemon::test::under_ci()) FAIL() << why;                                                        \
+      GTEST_SKIP() << why;                                                                                    \
+    }                                                                                                         \
   } while (0)
 
 std::string temp(const std::string& name) { return noisemon::test::unique_temp_dir() + "/" + name; }
@@ -87,7 +88,8 @@ class Process {
 };
 
 Process start_dash(int port, const std::vector<std::string>& extra, const std::string& name) {
-  std::vector<std::string> args{NOISEMON_PATH, "dash", "--lcm", kLcmUrl, "--listen", "127.0.0.1:" + std::to_string(port)};
+  std::vector<std::string> args{NOISEMON_PATH, "dash",     "--lcm",
+                                kLcmUrl,       "--listen", "127.0.0.1:" + std::to_string(port)};
   args.insert(args.end(), extra.begin(), extra.end());
   Process p(spawn(args, temp(name + ".out"), temp(name + ".err")));
   eventually(5, [&] { return !http_get(port, "/api/state").empty(); });
@@ -136,10 +138,12 @@ void expect_page_matches_bus(const json& page, noisemon::test::BusRecorder& bus)
   for (int m = 0; m < r->nmics; ++m) near(page["mics"][m], r->mic_lpa_db[m], 2);
   EXPECT_EQ(page["flags"] == "ok", r->flags == 0) << page["flags"] << " for flags " << r->flags;
   const std::string band_flags = page["band_flags"];
-  const std::pair<int, const char*> names[] = {{1, "nyquist-cut"}, {8, "below-firing"}, {16, "beyond-pressure"}, {32, "beyond-mic"}};
+  const std::pair<int, const char*> names[] = {
+      {1, "nyquist-cut"}, {8, "below-firing"}, {16, "beyond-pressure"}, {32, "beyond-mic"}};
   int any = 0;
   for (int b = 0; b < r->nbands; ++b) any |= r->band_flags[b];
-  for (const auto& [bit, name] : names) EXPECT_EQ(band_flags.find(name) != std::string::npos, (any & bit) != 0) << band_flags;
+  for (const auto& [bit, name] : names)
+    EXPECT_EQ(band_flags.find(name) != std::string::npos, (any & bit) != 0) << band_flags;
   EXPECT_EQ(band_flags == "none", any == 0) << band_flags;
 }
 
@@ -154,15 +158,18 @@ void expect_reference_drawn(const json& page, int port) {
 
 // name{labels} value, per the text format; a line that is neither this nor a comment fails the test.
 std::map<std::string, double> parse_metrics(const std::string& text) {
-  static const std::regex sample(R"(([a-zA-Z_:][a-zA-Z0-9_:]*(?:\{[^}]*\})?) (NaN|[+-]Inf|[-+]?[0-9.]+(?:[eE][-+]?[0-9]+)?))");
+  static const std::regex sample(
+      R"(([a-zA-Z_:][a-zA-Z0-9_:]*(?:\{[^}]*\})?) (NaN|[+-]Inf|[-+]?[0-9.]+(?:[eE][-+]?[0-9]+)?))");
   static const std::regex comment(R"(# (HELP|TYPE) [a-zA-Z_:][a-zA-Z0-9_:]* .*)");
   std::map<std::string, double> out;
   std::istringstream in(text);
   std::string line;
   std::smatch m;
   while (std::getline(in, line)) {
-    if (std::regex_match(line, m, sample)) out[m[1]] = m[2] == "NaN" ? NAN : std::stod(m[2]);
-    else EXPECT_TRUE(std::regex_match(line, comment)) << line;
+    if (std::regex_match(line, m, sample))
+      out[m[1]] = m[2] == "NaN" ? NAN : std::stod(m[2]);
+    else
+      EXPECT_TRUE(std::regex_match(line, comment)) << line;
   }
   return out;
 }
@@ -189,7 +196,8 @@ void expect_metrics_match_bus(int port, noisemon::test::BusRecorder& bus) {
   }
   for (int i = 0; i < s->nthreads; ++i)
     EXPECT_EQ(metrics.at("noisemon_thread_state{cell=\"\",thread=\"" + s->thread_name[i] + "\"}"), s->thread_state[i]);
-  const auto last = bus.newest_with_index("NOISEMON_CYCLE", static_cast<std::int64_t>(metrics.at("noisemon_last_cycle" + cell)));
+  const auto last =
+      bus.newest_with_index("NOISEMON_CYCLE", static_cast<std::int64_t>(metrics.at("noisemon_last_cycle" + cell)));
   ASSERT_TRUE(last);
   EXPECT_DOUBLE_EQ(metrics.at("noisemon_lpa_measured_db" + cell), last->lpa_measured_db);
   EXPECT_DOUBLE_EQ(metrics.at("noisemon_lpa_predicted_db" + cell), last->lpa_predicted_db);
@@ -231,8 +239,9 @@ TEST(Dash, PageShowsTheBusNumbersAndKeepsUpdatingAcrossRestartsOfTheDaemonAndThe
 
   // The daemon restarts: its cycle indices start again, the page goes on with the new run.
   EXPECT_EQ(daemon.stop(), 0);
-  const auto restart_utime = std::chrono::duration_cast<std::chrono::microseconds>(
-                                 std::chrono::system_clock::now().time_since_epoch()).count();
+  const auto restart_utime =
+      std::chrono::duration_cast<std::chrono::microseconds>(std::chrono::system_clock::now().time_since_epoch())
+          .count();
   daemon = start_daemon({}, "daemon2");
   ASSERT_TRUE(eventually(15, [&] {
     page = browser.evaluate(kReadPage);
@@ -261,13 +270,15 @@ TEST(Dash, PageShowsTheBusNumbersAndKeepsUpdatingAcrossRestartsOfTheDaemonAndThe
 TEST(Dash, TwoCellsOnOneGroupAreToldApart) {
   NOISEMON_REQUIRE_NAMESPACE();
   constexpr int port = 18081;
-  noisemon::test::BusRecorder bus(kLcmUrl, {"NOISEMON_CYCLE", "NOISEMON_CYCLE_A", "NOISEMON_CYCLE_B"}, "NOISEMON_STATUS_A");
+  noisemon::test::BusRecorder bus(kLcmUrl, {"NOISEMON_CYCLE", "NOISEMON_CYCLE_A", "NOISEMON_CYCLE_B"},
+                                  "NOISEMON_STATUS_A");
   const std::string config_a = temp("a.toml"), config_b = temp("b.toml"), csv_b = temp("b.csv");
   std::ofstream(config_a) << "[lcm]\ncell = \"A\"\npublish_raw = false\n";
   std::ofstream(config_b) << "[lcm]\ncell = \"B\"\npublish_raw = false\n[sim]\nspeed_rpm = 2000.0\n";
   Process dash = start_dash(port, {"--cell", "A"}, "dash");
-  Process watch(spawn({NOISEMON_PATH, "watch", "--lcm", kLcmUrl, "--cell", "B", "--count", "5", "--timeout", "20",
-                             "--csv", csv_b}, temp("watch.out"), temp("watch.err")));
+  Process watch(spawn(
+      {NOISEMON_PATH, "watch", "--lcm", kLcmUrl, "--cell", "B", "--count", "5", "--timeout", "20", "--csv", csv_b},
+      temp("watch.out"), temp("watch.err")));
   std::this_thread::sleep_for(std::chrono::milliseconds(300));
   Process a = start_daemon({"--config", config_a, "--cycles", "60"}, "daemon-a");
   Process b = start_daemon({"--config", config_b, "--cycles", "40"}, "daemon-b");
@@ -308,8 +319,9 @@ TEST(Dash, GapPanelShowsTheLiveGapWatchsEventAndItsEvidence) {
   const std::string config = temp("turning-bad.toml"), events = temp("events.jsonl");
   std::ofstream(config) << "[lcm]\npublish_raw = false\n[[sim.effects]]\neffect = \"mic_gain=4,mic=7\"\nonset_s = 25\n";
   Process dash = start_dash(port, {}, "dash");
-  Process watch(spawn({NOISEMON_PATH, "gapwatch", "--lcm", kLcmUrl, "--reference-s", "15", "--json", events, "--no-progress"},
-                      temp("gapwatch.out"), temp("gapwatch.err")));
+  Process watch(
+      spawn({NOISEMON_PATH, "gapwatch", "--lcm", kLcmUrl, "--reference-s", "15", "--json", events, "--no-progress"},
+            temp("gapwatch.out"), temp("gapwatch.err")));
   Process daemon = start_daemon({"--config", config}, "daemon");
   noisemon::test::Chromium browser("http://127.0.0.1:" + std::to_string(port) + "/", temp("chromium-profile"),
                                    temp("chromium.log"));

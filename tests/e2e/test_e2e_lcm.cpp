@@ -2,9 +2,9 @@
 // LCM multicast; a separate `noisemon watch` process receives the cycle reports and writes them to CSV.
 #include <gtest/gtest.h>
 #include <sched.h>
+#include <signal.h>
 #include <sys/socket.h>
 #include <sys/un.h>
-#include <signal.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -21,23 +21,23 @@
 #include <thread>
 #include <vector>
 
+#include "drivers/formats/lcm_log_reader.hpp"
 #include "drivers/formats/stream_messages.hpp"
 #include "drivers/lcm/lcm_source.hpp"
 #include "dsp/levels.hpp"
 #include "dsp/third_octave_bank.hpp"
-#include "drivers/formats/lcm_log_reader.hpp"
 #include "dsp/weighting.hpp"
 #include "model/block_model.hpp"
 #include "model/engine/engine_cycle.hpp"
-#include "tests/support/unique_temp.hpp"
 #include "tests/e2e/private_network.hpp"
+#include "tests/support/unique_temp.hpp"
 
 namespace {
 
 using noisemon::test::allowance;
 using noisemon::test::allowance_s;
-using noisemon::test::kStartUp;
 using noisemon::test::kLcmUrl;
+using noisemon::test::kStartUp;
 using noisemon::test::spawn;
 using noisemon::test::wait_for;
 using noisemon::test::wait_until;
@@ -45,9 +45,11 @@ using namespace std::chrono_literals;
 const auto* const kEnv = ::testing::AddGlobalTestEnvironment(new noisemon::test::PrivateNetwork);
 
 // The work each wait below stands for, in the normal build on an idle machine (tests/sanitizer.hpp stretches it).
-constexpr double kCyclesPerSecond = 3050.0 / 120.0;                      // the sim's default speed
-constexpr auto kSubscribed = 75ms;                                        // a subscriber's start, up to its subscription
-std::chrono::duration<double> engine_time(int cycles) { return std::chrono::duration<double>(cycles / kCyclesPerSecond); }
+constexpr double kCyclesPerSecond = 3050.0 / 120.0;  // the sim's default speed
+constexpr auto kSubscribed = 75ms;                   // a subscriber's start, up to its subscription
+std::chrono::duration<double> engine_time(int cycles) {
+  return std::chrono::duration<double>(cycles / kCyclesPerSecond);
+}
 // The time a log's events span, as the recorder stamped them: what lcm-logplayer takes to play it at speed 1.
 std::chrono::duration<double> log_span(const std::string& path) {
   noisemon::drivers::LcmLogReader reader{std::filesystem::path(path)};
@@ -78,8 +80,8 @@ std::vector<Row> read_csv(const std::string& path) {
     std::stringstream s(line);
     std::string f[11];
     for (auto& x : f) std::getline(s, x, ',');
-    rows.push_back({std::stoll(f[0]), std::stod(f[2]), std::stod(f[4]), std::stod(f[6]), std::stod(f[7]), std::stod(f[8]),
-                    std::stod(f[9]), std::stoi(f[10])});
+    rows.push_back({std::stoll(f[0]), std::stod(f[2]), std::stod(f[4]), std::stod(f[6]), std::stod(f[7]),
+                    std::stod(f[8]), std::stod(f[9]), std::stoi(f[10])});
   }
   return rows;
 }
@@ -118,8 +120,8 @@ Session run_session(const std::string& name, const std::string& model, const std
                             noisemon::test::unique_temp_dir() + "/" + name + ".watch.txt");
   std::this_thread::sleep_for(allowance(kSubscribed));  // subscribed before the first report
   const int cycles = reports + 10;
-  const pid_t daemon = spawn({NOISEMOND_PATH, "--config", write_config(name, model, true_block), "--lcm", kLcmUrl, "--cycles",
-                              std::to_string(cycles)},
+  const pid_t daemon = spawn({NOISEMOND_PATH, "--config", write_config(name, model, true_block), "--lcm", kLcmUrl,
+                              "--cycles", std::to_string(cycles)},
                              noisemon::test::unique_temp_dir() + "/" + name + ".daemon.txt");
   Session s;
   s.watch_status = wait_for(watch, allowance(kStartUp + engine_time(reports)));
@@ -159,7 +161,8 @@ double offline_lpa_difference(const std::string& true_block) {
   double sum[2] = {0, 0};
   for (int c = 0; c < 2; ++c)
     for (std::size_t b = 0; b < bank.band_count(); ++b)
-      sum[c] += ms[c * bank.band_count() + b] * std::pow(10.0, noisemon::dsp::a_weighting_db(bank.bands()[b].exact_mid_hz) / 10);
+      sum[c] += ms[c * bank.band_count() + b] *
+                std::pow(10.0, noisemon::dsp::a_weighting_db(bank.bands()[b].exact_mid_hz) / 10);
   return 10 * std::log10(sum[0] / sum[1]);
 }
 
@@ -201,13 +204,15 @@ long long last_printed_cycle(const std::string& log) {
 TEST(EndToEnd, SigintPublishesTheLastCompleteCycleAndExitsCleanly) {
   NOISEMON_REQUIRE_NAMESPACE();
   const std::string csv = noisemon::test::unique_temp_dir() + "/sigint.csv";
-  const pid_t watch = spawn({NOISEMON_PATH, "watch", "--lcm", kLcmUrl, "--timeout", kWatchTimeout, "--csv", csv}, "/dev/null");
+  const pid_t watch =
+      spawn({NOISEMON_PATH, "watch", "--lcm", kLcmUrl, "--timeout", kWatchTimeout, "--csv", csv}, "/dev/null");
   std::this_thread::sleep_for(allowance(kSubscribed));
   const std::string log = noisemon::test::unique_temp_dir() + "/sigint.daemon.txt";
   const pid_t daemon = spawn({NOISEMOND_PATH, "--config", pacing_config("sigint"), "--lcm", kLcmUrl, "--live"}, log);
   // Interrupted in the middle of the run, once the subscriber holds 30 cycles.
   constexpr std::size_t kCycles = 30;
-  const bool reached = wait_until([&] { return read_csv(csv).size() >= kCycles; }, allowance(kStartUp + engine_time(kCycles)));
+  const bool reached =
+      wait_until([&] { return read_csv(csv).size() >= kCycles; }, allowance(kStartUp + engine_time(kCycles)));
   kill(daemon, SIGINT);
   const auto t0 = std::chrono::steady_clock::now();
   EXPECT_EQ(wait_for(daemon, allowance(1s)), 0);
@@ -220,7 +225,8 @@ TEST(EndToEnd, SigintPublishesTheLastCompleteCycleAndExitsCleanly) {
   const long long last_cycle = last_printed_cycle(log);
   ASSERT_GE(last_cycle, 0) << "the live display printed no cycle";
   std::vector<Row> rows;
-  EXPECT_TRUE(wait_until([&] { return !(rows = read_csv(csv)).empty() && rows.back().cycle >= last_cycle; }, allowance(1s)));
+  EXPECT_TRUE(
+      wait_until([&] { return !(rows = read_csv(csv)).empty() && rows.back().cycle >= last_cycle; }, allowance(1s)));
   kill(watch, SIGINT);
   EXPECT_EQ(wait_for(watch, allowance(1s)), 0);
   ASSERT_FALSE(rows.empty());
@@ -263,7 +269,8 @@ TEST_P(ModelMismatch, PredictedMinusMeasuredIsTheOfflineGap) {
   ASSERT_GE(s.rows.size(), 50u);
   double mean = 0;
   for (const Row& r : s.rows) mean += (r.lpa_pred - r.lpa_meas) / static_cast<double>(s.rows.size());
-  std::printf("%s: predicted - measured %.3f dB over %zu cycles, offline %.3f dB\n", true_block, mean, s.rows.size(), expected);
+  std::printf("%s: predicted - measured %.3f dB over %zu cycles, offline %.3f dB\n", true_block, mean, s.rows.size(),
+              expected);
   EXPECT_NEAR(mean, expected, tolerance_db) << true_block;
   for (const Row& r : s.rows) EXPECT_NEAR(r.lpa_pred - r.lpa_meas, expected, 2 * tolerance_db) << "cycle " << r.cycle;
 }
@@ -340,15 +347,17 @@ TEST(EndToEnd, LcmLoggerRecordingReplaysToTheLiveReportsOfflineAndThroughLcmLogp
   constexpr int kCycles = 40;
   const std::string cycles = std::to_string(kCycles);
   const pid_t watch =
-      spawn({NOISEMON_PATH, "watch", "--lcm", kLcmUrl, "--count", cycles, "--timeout", kWatchTimeout, "--csv", live}, "/dev/null");
+      spawn({NOISEMON_PATH, "watch", "--lcm", kLcmUrl, "--count", cycles, "--timeout", kWatchTimeout, "--csv", live},
+            "/dev/null");
   std::this_thread::sleep_for(allowance(kSubscribed));
   // A 0.5 deg encoder: its crank-angle stream (every edge's sample, what the combustion figures are computed on)
   // adds 0.6 MB/s to the bus, where the default 0.1 deg adds 2.9 MB/s and the real lcm-logger, on this 2-core machine
   // beside the rest of the suite, lost blocks of the 6.7 MB/s now and then (docs/sources-and-formats.md, LCM and
   // multicast). The comparison is the same at any resolution.
   const std::string logged = dir + "/logged.toml";
-  std::ofstream(logged) << "[sim]\n" << (noisemon::test::kSanitized ? "paced = false\n" : "")
-                        << "encoder_resolution_deg = 0.5\n" << kRoomyRings;
+  std::ofstream(logged) << "[sim]\n"
+                        << (noisemon::test::kSanitized ? "paced = false\n" : "") << "encoder_resolution_deg = 0.5\n"
+                        << kRoomyRings;
   const pid_t daemon = spawn({NOISEMOND_PATH, "--config", logged, "--lcm", kLcmUrl, "--cycles", cycles}, "/dev/null");
   EXPECT_EQ(wait_for(daemon, allowance(kStartUp + engine_time(kCycles))), 0);
   EXPECT_EQ(wait_for(watch, allowance(1s)), 0);
@@ -373,8 +382,8 @@ TEST(EndToEnd, LcmLoggerRecordingReplaysToTheLiveReportsOfflineAndThroughLcmLogp
   const std::string from_bus_config = dir + "/from_bus.toml";
   std::ofstream(from_bus_config) << kRoomyRings << "[lcm]\nsession_timeout_s = " << allowance_s(7.5) << "\n";
   const pid_t from_bus =
-      spawn({NOISEMOND_PATH, "--config", from_bus_config, "--source", "lcm", "--lcm", kLcmUrl, "--cycles", cycles}, "/dev/null",
-            from_bus_log);
+      spawn({NOISEMOND_PATH, "--config", from_bus_config, "--source", "lcm", "--lcm", kLcmUrl, "--cycles", cycles},
+            "/dev/null", from_bus_log);
   std::this_thread::sleep_for(allowance(2 * kSubscribed));
   // At half speed: the multicast socket's buffer then covers twice as long a stall of the receiving thread when the
   // suite runs these tests several at a time on two cores (a stall longer than that loses packets: a gap, as on a
@@ -389,8 +398,9 @@ TEST(EndToEnd, LcmLoggerRecordingReplaysToTheLiveReportsOfflineAndThroughLcmLogp
   const auto playing = std::chrono::duration<double>(recorded) / speed;
   const std::string play_timeout =
       std::to_string(allowance_s(kStartUp.count()) + playing.count() * noisemon::test::kLoadedMachineSlowdown);
-  const pid_t watch2 = spawn(
-      {NOISEMON_PATH, "watch", "--lcm", kLcmUrl, "--count", cycles, "--timeout", play_timeout, "--csv", played}, "/dev/null");
+  const pid_t watch2 =
+      spawn({NOISEMON_PATH, "watch", "--lcm", kLcmUrl, "--count", cycles, "--timeout", play_timeout, "--csv", played},
+            "/dev/null");
   std::this_thread::sleep_for(allowance(kSubscribed));
   const pid_t player = spawn({"/usr/bin/lcm-logplayer", "--lcm-url", kLcmUrl, "-s", std::to_string(speed), "-e",
                               "NOISEMON_(RAW|OP|SESSION)", log},

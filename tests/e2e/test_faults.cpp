@@ -24,8 +24,8 @@
 #include "noisemon/raw_block_t.hpp"
 #include "noisemon/session_t.hpp"
 #include "noisemon/status_t.hpp"
-#include "tests/support/unique_temp.hpp"
 #include "tests/e2e/private_network.hpp"
+#include "tests/support/unique_temp.hpp"
 
 namespace {
 
@@ -90,7 +90,8 @@ class Listener {
   }
   void on_raw(const lcm::ReceiveBuffer*, const std::string&, const noisemon::raw_block_t* m) {
     std::lock_guard<std::mutex> lock(mutex_);
-    const auto utime = m->epoch_utime + static_cast<std::int64_t>(1e6 * static_cast<double>(m->first_index) / kPipelineRateHz);
+    const auto utime =
+        m->epoch_utime + static_cast<std::int64_t>(1e6 * static_cast<double>(m->first_index) / kPipelineRateHz);
     if (first_frame_utime_ == 0 || utime < first_frame_utime_) first_frame_utime_ = utime;
   }
   lcm::LCM lcm_;
@@ -190,7 +191,8 @@ void expect_contained(const DaemonRun& run, double at, double duration, std::int
       EXPECT_TRUE(valid(c)) << "cycle " << c.cycle << " before the fault, flags " << c.flags;
     }
     if (s > at + kStartSlackS && e < at + duration) {
-      EXPECT_NE(c.flags & expected_flags, 0) << "cycle " << c.cycle << " inside the fault published as valid, flags " << c.flags;
+      EXPECT_NE(c.flags & expected_flags, 0)
+          << "cycle " << c.cycle << " inside the fault published as valid, flags " << c.flags;
     }
     if ((c.flags & expected_flags) != 0) ++flagged;
     if (s >= end && !first_after) first_after = &c;
@@ -224,7 +226,8 @@ TEST_P(EncoderFault, AffectedCyclesAreFlaggedAndTheDecoderResynchronises) {
   }
 }
 
-INSTANTIATE_TEST_SUITE_P(Kinds, EncoderFault, ::testing::Values("missing_edges", "extra_edges", "lost_index", "reverse"));
+INSTANTIATE_TEST_SUITE_P(Kinds, EncoderFault,
+                         ::testing::Values("missing_edges", "extra_edges", "lost_index", "reverse"));
 
 // ---------------------------------------------------------------------------------------------- channels
 
@@ -263,7 +266,8 @@ TEST_P(MicFault, TheMicrophoneIsLeftOutAndTheOthersStillAgreeWithThePrediction) 
   const std::string kind = GetParam();
   constexpr int kMic = 4;  // mic5
   // Overload: the engine is ~110 dB (a few tens of Pa) at the microphones; the card's rails are +-800 Pa.
-  const DaemonRun run = run_daemon("mic_" + kind, fault(kind, "mic5", 3.0, 0.5, kind == "overload" ? "gain = 100\n" : ""), 6.0);
+  const DaemonRun run =
+      run_daemon("mic_" + kind, fault(kind, "mic5", 3.0, 0.5, kind == "overload" ? "gain = 100\n" : ""), 6.0);
   expect_contained(run, 3.0, 0.5, cycle_report_t::CYCLE_MIC_EXCLUDED);
   int checked = 0;
   for (const cycle_report_t& c : run.cycles) {
@@ -294,8 +298,8 @@ INSTANTIATE_TEST_SUITE_P(Kinds, MicFault, ::testing::Values("flat", "overload", 
 
 TEST(StreamFault, StallsOfOneFiveAndThirtySecondsAreDroppedCountedAndSurvived) {
   NOISEMON_REQUIRE_NAMESPACE();
-  const std::string faults = fault("stall", "pressure", 2.0, 1.0) + fault("stall", "mics", 5.0, 5.0) +
-                             fault("stall", "pressure", 12.0, 30.0);
+  const std::string faults =
+      fault("stall", "pressure", 2.0, 1.0) + fault("stall", "mics", 5.0, 5.0) + fault("stall", "pressure", 12.0, 30.0);
   const DaemonRun run = run_daemon("stalls", faults, 45.0);
   ASSERT_EQ(run.exit_status, 0) << run.log;
   const struct { double at, duration; } stalls[] = {{2.0, 1.0}, {5.0, 5.0}, {12.0, 30.0}};
@@ -310,7 +314,8 @@ TEST(StreamFault, StallsOfOneFiveAndThirtySecondsAreDroppedCountedAndSurvived) {
     const auto it = std::find_if(run.cycles.begin(), run.cycles.end(),
                                  [&](const cycle_report_t& c) { return run.start_s(c) >= end && valid(c); });
     ASSERT_NE(it, run.cycles.end()) << "nothing valid after the stall at " << w.at << " s";
-    EXPECT_LE(run.start_s(*it) - end, 2.5 * kCycleS) << "stall at " << w.at << " s: valid again only at cycle " << it->cycle;
+    EXPECT_LE(run.start_s(*it) - end, 2.5 * kCycleS)
+        << "stall at " << w.at << " s: valid again only at cycle " << it->cycle;
   }
   ASSERT_FALSE(run.statuses.empty());
   EXPECT_GE(run.statuses.back().cycles_dropped, spanned) << "each stalled cycle is counted";
@@ -336,8 +341,9 @@ TEST(StreamFault, OverrunBurstsLoseCyclesThatAreCountedNeverPublished) {
   EXPECT_GE(dropped, 10) << "ten bursts";
   EXPECT_LE(between + dropped, static_cast<std::int64_t>(1.0 / kCycleS) + 2);
   EXPECT_GT(run.counter("sim.mics.blocks_lost"), 0);
-  const auto after = std::find_if(run.cycles.begin(), run.cycles.end(),
-                                  [&](const cycle_report_t& c) { return run.start_s(c) >= 4.0 + kStartSlackS && valid(c); });
+  const auto after = std::find_if(run.cycles.begin(), run.cycles.end(), [&](const cycle_report_t& c) {
+    return run.start_s(c) >= 4.0 + kStartSlackS && valid(c);
+  });
   ASSERT_NE(after, run.cycles.end());
   EXPECT_LE(run.start_s(*after) - (4.0 + kStartSlackS), 2.5 * kCycleS);
   std::printf("%d cycles measured between the bursts, %lld dropped\n", between, static_cast<long long>(dropped));

@@ -15,7 +15,8 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   const std::string file = "table.txt";
   noisemon::cli::formats::CycleTable table;
   try {
-    table = noisemon::cli::formats::parse_cycle_table(std::string_view(reinterpret_cast<const char*>(data), size), file);
+    table =
+        noisemon::cli::formats::parse_cycle_table(std::string_view(reinterpret_cast<const char*>(data), size), file);
   } catch (const std::exception& e) {
     noisemon::fuzz::require_names(e.what(), file);
     return 0;

@@ -33,7 +33,8 @@ std::vector<LcmLogEvent> read_all(LcmLogReader& r, const std::uint8_t* base, std
     events.push_back(e);
   }
   if (r.next(e)) fail("an event after the end");
-  if (r.position() != size || event_bytes + r.damaged_bytes() != size) fail("bytes neither in an event nor counted damaged");
+  if (r.position() != size || event_bytes + r.damaged_bytes() != size)
+    fail("bytes neither in an event nor counted damaged");
   if ((r.damaged() > 0) != (r.damaged_bytes() > 0)) fail("damage count and damaged bytes disagree");
   return events;
 }

@@ -38,7 +38,8 @@ void check_accepted(const noisemon::drivers::RunDir& r) {
   if (!all_finite(r.time_s) || !all_finite(r.crank_deg) || !all_finite(r.pressure_pa)) fail("non-finite pressure data");
   for (std::size_t i = 1; i < n; ++i)
     if (!(r.crank_deg[i] > r.crank_deg[i - 1])) fail("crank angle not strictly increasing");
-  if (r.mic_count == 0 ? !r.mic_pa.empty() : r.mic_pa.size() % r.mic_count != 0) fail("microphone samples not whole frames");
+  if (r.mic_count == 0 ? !r.mic_pa.empty() : r.mic_pa.size() % r.mic_count != 0)
+    fail("microphone samples not whole frames");
   if (r.mic_count > 0 && (r.mic_positions_m.size() != r.mic_count || !(r.mic_rate_hz > 0))) fail("microphone layout");
   if (!all_finite(r.mic_pa)) fail("non-finite microphone samples");
 }
@@ -54,7 +55,8 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   } catch (const std::exception& e) {
     // The file at fault is named: the fuzzed one, or for run.json possibly a file it points to.
     const std::string_view what = e.what();
-    if (std::string_view(FUZZ_RUN_DIR_FILE) == "run.json" && what.find(dir.string()) != std::string_view::npos) return 0;
+    if (std::string_view(FUZZ_RUN_DIR_FILE) == "run.json" && what.find(dir.string()) != std::string_view::npos)
+      return 0;
     noisemon::fuzz::require_names(what, FUZZ_RUN_DIR_FILE);
     return 0;
   }

@@ -17,8 +17,8 @@ namespace noisemon::fuzz {
 inline const std::filesystem::path& scratch_dir() {
   static const std::filesystem::path dir = [] {
     const char* tmp = std::getenv("TMPDIR");
-    std::filesystem::path d = std::filesystem::path(tmp && *tmp ? tmp : "/tmp") /
-                              ("noisemon-fuzz-" + std::to_string(getpid()));
+    std::filesystem::path d =
+        std::filesystem::path(tmp && *tmp ? tmp : "/tmp") / ("noisemon-fuzz-" + std::to_string(getpid()));
     std::filesystem::create_directories(d);
     static const std::filesystem::path remove_me = d;
     std::atexit([] {
@@ -45,8 +45,8 @@ inline void write_file(const std::filesystem::path& path, std::string_view text)
 // A rejection must say what it rejected: a message that names `what` (the file, or "line N").
 inline void require_names(std::string_view message, std::string_view what) {
   if (message.find(what) == std::string_view::npos) {
-    std::fprintf(stderr, "fuzz: error message does not name '%.*s': %.*s\n", static_cast<int>(what.size()),
-                 what.data(), static_cast<int>(message.size()), message.data());
+    std::fprintf(stderr, "fuzz: error message does not name '%.*s': %.*s\n", static_cast<int>(what.size()), what.data(),
+                 static_cast<int>(message.size()), message.data());
     std::abort();
   }
 }

@@ -27,8 +27,8 @@ void write_event(lcm::LogFile& log, const std::string& channel, const Message& m
 // A raw log: one session, an operating point, then `cycles` engine cycles of `cycle_frames` frames each on
 // the 40 kHz grid (pressure with a 1 kHz ripple, crank ramping -360..360 per cycle; `mics` microphones hearing
 // the ripple), in blocks of `block_frames`. An unknown channel's event rides along when `foreign` is set.
-inline void write_raw_log(const std::string& path, std::uint32_t mics, int cycles, int cycle_frames,
-                          int block_frames, bool foreign) {
+inline void write_raw_log(const std::string& path, std::uint32_t mics, int cycles, int cycle_frames, int block_frames,
+                          bool foreign) {
   lcm::LogFile log(path, "w");
   drivers::StreamInfo info;
   info.epoch_utime = 1'700'000'000'000'000;
@@ -64,9 +64,11 @@ inline void write_raw_log(const std::string& path, std::uint32_t mics, int cycle
       for (std::uint32_t c = 0; c < mics; ++c) m.data[f * mics + c] = 1e-3 * x * (1 + 0.1 * c);
     }
     const std::int64_t utime = info.epoch_utime + first * 25;
-    write_event(log, "NOISEMON_RAW", drivers::to_message(p, noisemon::raw_block_t::STREAM_PRESSURE, info.epoch_utime), utime);
+    write_event(log, "NOISEMON_RAW", drivers::to_message(p, noisemon::raw_block_t::STREAM_PRESSURE, info.epoch_utime),
+                utime);
     if (mics > 0)
-      write_event(log, "NOISEMON_RAW", drivers::to_message(m, noisemon::raw_block_t::STREAM_MICS, info.epoch_utime), utime);
+      write_event(log, "NOISEMON_RAW", drivers::to_message(m, noisemon::raw_block_t::STREAM_MICS, info.epoch_utime),
+                  utime);
   }
 }
 
@@ -86,7 +88,8 @@ inline std::string pressure_csv() {
   char row[96];
   for (int crank = -360; crank < 720; crank += 6) {
     const double c = std::remainder(crank, 720.0);  // degrees from the nearest firing TDC
-    std::snprintf(row, sizeof row, "%.9f,%d,%.5f\n", (crank + 360) / 18000.0, crank, 1.0 + 60.0 * std::exp(-c * c / 900.0));
+    std::snprintf(row, sizeof row, "%.9f,%d,%.5f\n", (crank + 360) / 18000.0, crank,
+                  1.0 + 60.0 * std::exp(-c * c / 900.0));
     csv += row;
   }
   return csv;
@@ -95,8 +98,13 @@ inline std::string pressure_csv() {
 // A RIFF/WAVE file of 32-bit IEEE floats, frame-major.
 inline std::string float_wav(int channels, int rate_hz, const std::vector<float>& samples) {
   std::string w;
-  const auto u32 = [&w](std::uint32_t v) { for (int i = 0; i < 4; ++i) w += static_cast<char>(v >> (8 * i)); };
-  const auto u16 = [&w](std::uint16_t v) { w += static_cast<char>(v & 0xff); w += static_cast<char>(v >> 8); };
+  const auto u32 = [&w](std::uint32_t v) {
+    for (int i = 0; i < 4; ++i) w += static_cast<char>(v >> (8 * i));
+  };
+  const auto u16 = [&w](std::uint16_t v) {
+    w += static_cast<char>(v & 0xff);
+    w += static_cast<char>(v >> 8);
+  };
   const auto bytes = static_cast<std::uint32_t>(samples.size() * 4);
   w += "RIFF";
   u32(4 + 8 + 16 + 8 + bytes);
@@ -121,7 +129,8 @@ inline std::string float_wav(int channels, int rate_hz, const std::vector<float>
 inline std::string mics_wav(int rate_hz = 40000) {
   const int frames = rate_hz * 60 / 1000;
   std::vector<float> s;
-  for (int f = 0; f < frames; ++f) s.push_back(static_cast<float>(0.2 * std::sin(2 * std::numbers::pi * 1000.0 * f / rate_hz)));
+  for (int f = 0; f < frames; ++f)
+    s.push_back(static_cast<float>(0.2 * std::sin(2 * std::numbers::pi * 1000.0 * f / rate_hz)));
   return float_wav(1, rate_hz, s);
 }
 

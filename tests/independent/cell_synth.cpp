@@ -21,10 +21,10 @@ namespace {
 
 using cd = std::complex<double>;
 constexpr double kPi = std::numbers::pi;
-constexpr double kPref = 20e-6;                 // Pa
+constexpr double kPref = 20e-6;  // Pa
 constexpr double kBarToPa = 1e5;
-constexpr double kDeviationCutoffHz = 1000;     // each cycle's deviation below it is kept whole (the floor is far below)
-constexpr double kMeanCutoffHz = 4000;          // the ensemble mean below it likewise
+constexpr double kDeviationCutoffHz = 1000;  // each cycle's deviation below it is kept whole (the floor is far below)
+constexpr double kMeanCutoffHz = 4000;       // the ensemble mean below it likewise
 
 std::vector<cd> fft_fwd(const std::vector<double>& x) {
   Eigen::FFT<double> fft;
@@ -62,7 +62,8 @@ std::vector<double> parse_numbers(const std::string& line, const std::string& pa
 
 void check_angles(const CycleTable& t, const std::string& path) {
   if (t.crank_deg.size() != static_cast<std::size_t>(kSamplesPerCycle))
-    throw std::runtime_error(path + ": " + std::to_string(t.crank_deg.size()) + " rows, expected 3600 (720 deg in 0.2 deg)");
+    throw std::runtime_error(path + ": " + std::to_string(t.crank_deg.size()) +
+                             " rows, expected 3600 (720 deg in 0.2 deg)");
   for (std::size_t i = 1; i < t.crank_deg.size(); ++i) {
     const double step = t.crank_deg[i] - t.crank_deg[i - 1];
     if (std::abs(step - kRecordStepDeg) > 0.01 * kRecordStepDeg)
@@ -70,7 +71,8 @@ void check_angles(const CycleTable& t, const std::string& path) {
                                " deg, expected 0.2");
   }
   if (std::abs(t.crank_deg.front() + 180.0) > 1e-6)
-    throw std::runtime_error(path + ": the table starts at " + std::to_string(t.crank_deg.front()) + " deg, expected -180");
+    throw std::runtime_error(path + ": the table starts at " + std::to_string(t.crank_deg.front()) +
+                             " deg, expected -180");
 }
 
 // The record's columns laid end to end as `cycles` cycles [720k - 360, 720k + 360): cycle k is column first+k's
@@ -209,14 +211,21 @@ std::complex<double> resonance(double f_hz, double f0_hz, double q) {
 double a_weighting_db(double f_hz) {
   const double f2 = f_hz * f_hz;
   const double num = 12194.0 * 12194.0 * f2 * f2;
-  const double den = (f2 + 20.6 * 20.6) * std::sqrt((f2 + 107.7 * 107.7) * (f2 + 737.9 * 737.9)) * (f2 + 12194.0 * 12194.0);
+  const double den =
+      (f2 + 20.6 * 20.6) * std::sqrt((f2 + 107.7 * 107.7) * (f2 + 737.9 * 737.9)) * (f2 + 12194.0 * 12194.0);
   return 20.0 * std::log10(num / den) + 2.0;
 }
 
 const std::array<std::array<double, 3>, kMics>& mic_positions_m() {
-  static const std::array<std::array<double, 3>, kMics> p{{{-1.35, 0.78, 0.79}, {0.00, 1.73, 0.26}, {0.00, 1.16, 1.31},
-                                                           {1.00, -0.58, 1.31}, {0.00, 0.00, 1.75}, {1.35, 0.78, 0.79},
-                                                           {1.50, -0.87, 0.26}, {0.00, -1.16, 1.31}, {-1.00, -0.58, 1.31},
+  static const std::array<std::array<double, 3>, kMics> p{{{-1.35, 0.78, 0.79},
+                                                           {0.00, 1.73, 0.26},
+                                                           {0.00, 1.16, 1.31},
+                                                           {1.00, -0.58, 1.31},
+                                                           {0.00, 0.00, 1.75},
+                                                           {1.35, 0.78, 0.79},
+                                                           {1.50, -0.87, 0.26},
+                                                           {0.00, -1.16, 1.31},
+                                                           {-1.00, -0.58, 1.31},
                                                            {-1.50, -0.87, 0.26}}};
   return p;
 }
@@ -226,7 +235,8 @@ const std::array<double, kMics>& directivity_db() {
   return g;
 }
 
-std::vector<double> radiate(const std::vector<double>& u, std::size_t n_out, double period_s, const Transfer& transfer) {
+std::vector<double> radiate(const std::vector<double>& u, std::size_t n_out, double period_s,
+                            const Transfer& transfer) {
   const std::size_t n_in = u.size();
   const std::vector<cd> U = fft_fwd(u);
   std::vector<cd> Y(n_out, cd(0.0, 0.0));
@@ -256,7 +266,9 @@ std::complex<double> structural_transfer(double f_hz, double speed_rpm, const St
   return eq41(f_hz, st) * speed_gain(speed_rpm, fx) + panel_transfer(f_hz, speed_rpm, st, fx);
 }
 
-double speed_gain(double speed_rpm, const Effects& fx) { return std::pow(speed_rpm / fx.speed_ref_rpm, fx.speed_exponent); }
+double speed_gain(double speed_rpm, const Effects& fx) {
+  return std::pow(speed_rpm / fx.speed_ref_rpm, fx.speed_exponent);
+}
 
 std::complex<double> panel_transfer(double f_hz, double speed_rpm, const Structure& st, const Effects& fx) {
   if (fx.second_mode_db <= 0 || f_hz <= 0) return 0.0;
@@ -314,7 +326,8 @@ std::vector<std::vector<double>> excess_over_floor_db(const CycleTable& t, doubl
     constexpr int half = 50;  // 10 deg
     std::vector<double> local(kSamplesPerCycle, 0.0);
     for (int j = 0; j < kSamplesPerCycle; ++j)
-      for (int d = -half; d <= half; ++d) local[j] += power[(j + d + kSamplesPerCycle) % kSamplesPerCycle] / (2 * half + 1);
+      for (int d = -half; d <= half; ++d)
+        local[j] += power[(j + d + kSamplesPerCycle) % kSamplesPerCycle] / (2 * half + 1);
     std::vector<double> sorted = local;
     const auto quiet = sorted.begin() + kSamplesPerCycle / 20;  // the floor: the record's level where it is quietest
     std::nth_element(sorted.begin(), quiet, sorted.end());
@@ -339,8 +352,12 @@ int shifted_column(int first, int last_first, std::uint64_t seed) {
 }  // namespace
 
 std::vector<Condition> default_conditions(int cycles, std::uint64_t seed) {
-  struct Fired { double rpm, load; bool unknown; };
-  constexpr Fired fired[] = {{1500, 0.85, false}, {1800, 1.0, true}, {2000, 0.7, false}, {2200, 1.15, false}, {2600, 1.3, false}};
+  struct Fired {
+    double rpm, load;
+    bool unknown;
+  };
+  constexpr Fired fired[] = {
+      {1500, 0.85, false}, {1800, 1.0, true}, {2000, 0.7, false}, {2200, 1.15, false}, {2600, 1.3, false}};
   const int last_first = 59 - cycles;  // 60 columns; cycles + 1 consecutive ones per run
   const auto shift = [&](int first) { return shifted_column(first, last_first, seed); };
   std::vector<Condition> out;
@@ -362,7 +379,9 @@ std::vector<Condition> default_conditions(int cycles, std::uint64_t seed) {
 }
 
 std::vector<Condition> second_cell_conditions(int cycles, std::uint64_t seed) {
-  struct Fired { double rpm, load; };
+  struct Fired {
+    double rpm, load;
+  };
   constexpr Fired fired[] = {{1400, 0.8}, {1400, 1.2}, {2000, 0.75}, {2000, 1.25}, {2400, 0.9}, {2400, 1.1}};
   const int last_first = 59 - cycles;  // 60 columns; cycles + 1 consecutive ones per run
   const auto shift = [&](int first) { return shifted_column(first, last_first, seed); };
@@ -395,8 +414,14 @@ Timing timing(double nominal_rpm, int cycles, double fs_hz) {
   const auto t = static_cast<std::size_t>(std::llround(target));
   std::size_t n = t;
   for (std::size_t d = 0; d < t; ++d) {
-    if (five_smooth(t + d)) { n = t + d; break; }
-    if (five_smooth(t - d)) { n = t - d; break; }
+    if (five_smooth(t + d)) {
+      n = t + d;
+      break;
+    }
+    if (five_smooth(t - d)) {
+      n = t - d;
+      break;
+    }
   }
   const double period = static_cast<double>(n) / fs_hz;
   return {120.0 * cycles / period, period, n};
@@ -444,7 +469,8 @@ std::vector<double> shaped_noise(std::size_t n, double fs_hz, const std::functio
 
 std::mt19937_64 rng_for(const Chain& chain, int condition, int mic, int stream) {
   std::seed_seq seq{static_cast<std::uint32_t>(chain.seed), static_cast<std::uint32_t>(chain.seed >> 32),
-                    static_cast<std::uint32_t>(condition), static_cast<std::uint32_t>(mic), static_cast<std::uint32_t>(stream)};
+                    static_cast<std::uint32_t>(condition), static_cast<std::uint32_t>(mic),
+                    static_cast<std::uint32_t>(stream)};
   return std::mt19937_64(seq);
 }
 
@@ -523,9 +549,11 @@ std::vector<double> structural_sound(const std::vector<double>& u, const BlockMo
   const double rpm = r.time.speed_rpm, period = r.time.period_s;
   const Structure& st = chain.structure;
   if (block.y_pa.empty())
-    return radiate(u, r.time.n_out, period, to_mic(mic, chain, [&](double f) { return structural_transfer(f, rpm, st, fx); }));
+    return radiate(u, r.time.n_out, period,
+                   to_mic(mic, chain, [&](double f) { return structural_transfer(f, rpm, st, fx); }));
   const double gain = speed_gain(rpm, fx);
-  std::vector<double> y = radiate(block.y_pa, r.time.n_out, period, to_mic(mic, chain, [=](double) { return cd(gain); }));
+  std::vector<double> y =
+      radiate(block.y_pa, r.time.n_out, period, to_mic(mic, chain, [=](double) { return cd(gain); }));
   if (fx.second_mode_db > 0) {
     const Transfer panel_path = to_mic(mic, chain, [&](double f) { return panel_transfer(f, rpm, st, fx); });
     const std::vector<double> panel = radiate(u, r.time.n_out, period, panel_path);
@@ -550,10 +578,13 @@ void add_floors(std::vector<double>& y, int condition, int mic, const Chain& cha
     const std::vector<double> v = shaped_noise(n, chain.fs_hz, shape, level, a_weighted, rng);
     for (std::size_t i = 0; i < n; ++i) y[i] += v[i];
   };
-  add(1, [](double) { return 1.0; }, chain.self_noise_dba, true);
-  add(2, [](double f) { return f < 20.0 ? 0.0 : 1.0 / f; }, chain.pink_floor_db, false);
+  add(
+      1, [](double) { return 1.0; }, chain.self_noise_dba, true);
+  add(
+      2, [](double f) { return f < 20.0 ? 0.0 : 1.0 / f; }, chain.pink_floor_db, false);
   if (std::isfinite(fx.background_dba))
-    add(3, [](double f) { return f < 20.0 ? 0.0 : 1.0 / (1.0 + (f / 500.0) * (f / 500.0)); }, fx.background_dba, true);
+    add(
+        3, [](double f) { return f < 20.0 ? 0.0 : 1.0 / (1.0 + (f / 500.0) * (f / 500.0)); }, fx.background_dba, true);
 }
 
 }  // namespace
@@ -575,12 +606,15 @@ Run synthesize(const Sources& src, const Condition& c, int condition_index, cons
   add_pressure_noise(r.pressure.recorded_bar, chain.added_pressure_noise_bar, chain, condition_index, 11);
   add_pressure_noise(r.pressure.recorded_bar, fx.transducer_noise_bar, chain, condition_index, 12);
   if (chain.states_floor)
-    r.stated_floor_bar = std::hypot(record_floor_bar(c.motored ? src.motored : src.fired), chain.added_pressure_noise_bar);
+    r.stated_floor_bar =
+        std::hypot(record_floor_bar(c.motored ? src.motored : src.fired), chain.added_pressure_noise_bar);
   const std::vector<double> u = engine_input_pa(r.pressure.clean_bar);
-  const BlockMotion block = fx.block.any() ? block_motion(u, r.time.period_s, chain.structure, fx.block) : BlockMotion{};
+  const BlockMotion block =
+      fx.block.any() ? block_motion(u, r.time.period_s, chain.structure, fx.block) : BlockMotion{};
   const double delay = chain.radius_m / chain.sound_speed_m_per_s;
-  const double impacts =
-      std::isfinite(fx.mechanical_dba) ? impact_amplitude(r.time, c.cycles, chain.fs_hz, delay, fx.mechanical_dba, fx.mechanical_ref_rpm) : 0.0;
+  const double impacts = std::isfinite(fx.mechanical_dba) ? impact_amplitude(r.time, c.cycles, chain.fs_hz, delay,
+                                                                             fx.mechanical_dba, fx.mechanical_ref_rpm)
+                                                          : 0.0;
   const std::vector<Hit> hits = impact_hits(chain, condition_index, c.cycles, fx);  // heard alike at every microphone
   for (int m = 0; m < kMics; ++m) {
     std::vector<double> y = structural_sound(u, block, m, r, chain, fx);

@@ -117,11 +117,11 @@ constexpr Structure kCellStructure{7.4, 170, 0.24, 3900};
 // The second cell's engine: a louder, lightly damped block resonating higher than either (issue 22's second cell).
 constexpr Structure kSecondCellStructure{14.0, 90, 0.18, 6200};
 std::complex<double> eq41(double f_hz, const Structure& s = Structure{});
-std::complex<double> resonance(double f_hz, double f0_hz, double q);     // unit peak (1 at f0), band-pass
-double a_weighting_db(double f_hz);                                      // IEC 61672-1, 0 dB at 1 kHz
+std::complex<double> resonance(double f_hz, double f0_hz, double q);  // unit peak (1 at f0), band-pass
+double a_weighting_db(double f_hz);                                   // IEC 61672-1, 0 dB at 1 kHz
 
-const std::array<std::array<double, 3>, kMics>& mic_positions_m();       // thesis Table 3.1
-const std::array<double, kMics>& directivity_db();                       // fixed, within +-1 dB
+const std::array<std::array<double, 3>, kMics>& mic_positions_m();  // thesis Table 3.1
+const std::array<double, kMics>& directivity_db();                  // fixed, within +-1 dB
 
 // Periodic band-limited synthesis: u holds one period (period_s) of a real signal sampled uniformly; returns
 // n_out uniform samples over the same period of the signal filtered by `transfer` (a function of f in Hz,
@@ -131,7 +131,8 @@ using Transfer = std::function<std::complex<double>(double)>;
 std::vector<double> radiate(const std::vector<double>& u, std::size_t n_out, double period_s, const Transfer& transfer);
 
 // Zero-phase periodic low-pass: cutoff in cycles per sample, raised-cosine edge from edge_lo to edge_hi times it.
-std::vector<double> lowpass(const std::vector<double>& x, double cutoff_per_sample, double edge_lo = 0.8, double edge_hi = 1.25);
+std::vector<double> lowpass(const std::vector<double>& x, double cutoff_per_sample, double edge_lo = 0.8,
+                            double edge_hi = 1.25);
 
 // Bands in which the record's content above its floor is judged: the base-2 third octaves of IEC 61260-1, edges
 // 1000 * 2^((2k - 1)/6) Hz for k = 1 ... 14 (1.12 ... 22.4 kHz; everything below the first edge in the first
@@ -158,8 +159,8 @@ double level_db(const std::vector<double>& x_pa, double fs_hz, bool a_weighted);
 
 struct Condition {
   std::string name;
-  double speed_rpm = 1800;    // nominal; the run uses a speed within 1 % of it (see Timing)
-  double load_scale = 1.0;    // scale of the fired-minus-motored pressure
+  double speed_rpm = 1800;  // nominal; the run uses a speed within 1 % of it (see Timing)
+  double load_scale = 1.0;  // scale of the fired-minus-motored pressure
   bool motored = false;
   bool load_unknown = false;  // run.json "load_nm": null
   int first_cycle = 0;        // first record column used (0-based)
@@ -186,12 +187,13 @@ struct Nonlinearity {
 };
 
 struct Effects {
-  Nonlinearity block;               // none: the block is eq. 4.1 exactly, synthesised in the frequency domain
-  double transducer_noise_bar = 0;  // white noise per 0.2 deg sample added to pressure.csv (the engine does not hear it)
+  Nonlinearity block;  // none: the block is eq. 4.1 exactly, synthesised in the frequency domain
+  double transducer_noise_bar =
+      0;  // white noise per 0.2 deg sample added to pressure.csv (the engine does not hear it)
   double second_mode_db = 0, second_mode_hz = 1600, second_mode_q = 5;
   double mic_gain_db = 0;
-  int mic_gain_index = 3;           // 0-based: microphone 4
-  double mic_gain_corner_hz = 600;  // the shelf's corner (0: a flat error)
+  int mic_gain_index = 3;                                            // 0-based: microphone 4
+  double mic_gain_corner_hz = 600;                                   // the shelf's corner (0: a flat error)
   double background_dba = std::numeric_limits<double>::quiet_NaN();  // NaN: none
   double speed_exponent = 0, speed_ref_rpm = 1800;
   double mechanical_dba = std::numeric_limits<double>::quiet_NaN(), mechanical_ref_rpm = 1800;
@@ -247,7 +249,7 @@ struct Run {
   Timing time;
   double fs_hz = 0;
   CellPressure pressure;
-  std::vector<std::vector<double>> mics_pa;  // [mic][sample], n_out each
+  std::vector<std::vector<double>> mics_pa;                            // [mic][sample], n_out each
   double stated_floor_bar = std::numeric_limits<double>::quiet_NaN();  // NaN: run.json states none
 };
 
@@ -262,6 +264,7 @@ void write_run_dir(const Run& run, const Chain& chain, const std::filesystem::pa
 
 // Every condition into dir/<name>/; returns the run directories.
 std::vector<std::filesystem::path> write_campaign(const Sources& src, const std::vector<Condition>& conditions,
-                                                  const Chain& chain, const Effects& fx, const std::filesystem::path& dir);
+                                                  const Chain& chain, const Effects& fx,
+                                                  const std::filesystem::path& dir);
 
 }  // namespace indep

@@ -34,7 +34,9 @@ nlohmann::ordered_json run_json(const Run& run, const Chain& chain) {
   return {{"condition", cond},
           {"pressure", pressure},
           {"mics", {{"file", "mics.wav"}, {"units", "Pa"}, {"positions_m", positions}, {"radius_m", chain.radius_m}}},
-          {"source", "tests/independent/cell_synth: real Yanmar L100V pressure record, eq. 4.1 with the cell's own constants in the frequency domain"}};
+          {"source",
+           "tests/independent/cell_synth: real Yanmar L100V pressure record, eq. 4.1 with the cell's own constants in "
+           "the frequency domain"}};
 }
 
 void write_pressure_csv(const Run& run, const std::filesystem::path& file) {
@@ -78,7 +80,8 @@ void write_run_dir(const Run& run, const Chain& chain, const std::filesystem::pa
 }
 
 std::vector<std::filesystem::path> write_campaign(const Sources& src, const std::vector<Condition>& conditions,
-                                                  const Chain& chain, const Effects& fx, const std::filesystem::path& dir) {
+                                                  const Chain& chain, const Effects& fx,
+                                                  const std::filesystem::path& dir) {
   std::vector<std::filesystem::path> out;
   for (std::size_t i = 0; i < conditions.size(); ++i) {
     const Run run = synthesize(src, conditions[i], static_cast<int>(i), chain, fx);

@@ -28,8 +28,8 @@
 
 #include "cell_block.hpp"
 #include "cell_synth.hpp"
-#include "withheld.hpp"
 #include "required.hpp"
+#include "withheld.hpp"
 
 namespace {
 
@@ -58,21 +58,23 @@ const fs::path& scratch_root() {
 // The real records, or a skip (a failure under CI=true) when they are missing.
 const indep::Sources* sources() {
   static const std::string dir = std::string(NOISEMON_SHARED_DIR) + "/data/real";
-  static const bool present = fs::exists(dir + "/yanmar_l100v_fired_18Nm.txt") && fs::exists(dir + "/yanmar_l100v_motored.txt");
+  static const bool present =
+      fs::exists(dir + "/yanmar_l100v_fired_18Nm.txt") && fs::exists(dir + "/yanmar_l100v_motored.txt");
   if (!present) return nullptr;
   static const indep::Sources s = indep::load_sources(dir);
   return &s;
 }
 
-#define REQUIRE_SOURCES()                                                                        \
-  const indep::Sources* src = sources();                                                         \
+#define REQUIRE_SOURCES()                \
+  const indep::Sources* src = sources(); \
   NOISEMON_REQUIRE(src, "the real Yanmar records under " NOISEMON_SHARED_DIR "/data/real")
 
 // Amplitude and phase of the DFT bin k of a record (an exact bin: no leakage).
 std::complex<double> bin(const std::vector<double>& y, std::size_t k) {
   std::complex<double> acc(0.0, 0.0);
   const double n = static_cast<double>(y.size());
-  for (std::size_t i = 0; i < y.size(); ++i) acc += y[i] * std::polar(1.0, -2 * kPi * static_cast<double>(k * i % y.size()) / n);
+  for (std::size_t i = 0; i < y.size(); ++i)
+    acc += y[i] * std::polar(1.0, -2 * kPi * static_cast<double>(k * i % y.size()) / n);
   return 2.0 * acc / n;
 }
 
@@ -113,7 +115,8 @@ TEST(IndependentSynth, Eq41IsTable41sLinearPresetAsAMassSpringDamper) {
     EXPECT_NEAR(20 * std::log10(std::abs(indep::eq41(f)) / std::abs(msd)), 0.0, 0.05) << f << " Hz";
   }
   EXPECT_NEAR(std::abs(indep::resonance(1600, 1600, 5) - 1.0), 0.0, 1e-12);
-  EXPECT_NEAR(std::abs(indep::resonance(1600 * 1.1, 1600, 5)), 1 / std::sqrt(1 + 25 * std::pow(1.1 - 1 / 1.1, 2)), 1e-12);
+  EXPECT_NEAR(std::abs(indep::resonance(1600 * 1.1, 1600, 5)), 1 / std::sqrt(1 + 25 * std::pow(1.1 - 1 / 1.1, 2)),
+              1e-12);
   EXPECT_NEAR(indep::a_weighting_db(1000), 0.0, 0.01);  // IEC 61672-1 Table 3
   EXPECT_NEAR(indep::a_weighting_db(100), -19.1, 0.05);
   EXPECT_NEAR(indep::a_weighting_db(10000), -2.5, 0.05);
@@ -128,8 +131,10 @@ TEST(IndependentSynth, ATonePassesTheSynthesisWithEq41sMagnitudeAndPhaseAndTheDe
   for (const std::size_t n_in : {22500u, 27000u})
     for (const double f : {20.0, 100.0, 1000.0, 1600.0, 5000.0, 12500.0, 20000.0}) {
       std::vector<double> u(n_in);
-      for (std::size_t i = 0; i < n_in; ++i) u[i] = std::cos(2 * kPi * f * period * static_cast<double>(i) / n_in + phi);
-      const auto y = indep::radiate(u, n_out, period, [&](double g) { return indep::eq41(g) * std::polar(1.0, -2 * kPi * g * tau); });
+      for (std::size_t i = 0; i < n_in; ++i)
+        u[i] = std::cos(2 * kPi * f * period * static_cast<double>(i) / n_in + phi);
+      const auto y = indep::radiate(u, n_out, period,
+                                    [&](double g) { return indep::eq41(g) * std::polar(1.0, -2 * kPi * g * tau); });
       const std::complex<double> h = indep::eq41(f);
       const std::complex<double> got = bin(y, static_cast<std::size_t>(std::lround(f * period)));
       const double want_phase = phi + std::arg(h) - 2 * kPi * f * tau;
@@ -137,11 +142,14 @@ TEST(IndependentSynth, ATonePassesTheSynthesisWithEq41sMagnitudeAndPhaseAndTheDe
       worst_rad = std::max(worst_rad, std::abs(std::arg(got * std::polar(1.0, -want_phase))));
       for (std::size_t i = 0; i < n_out; i += 97) {
         const double t = period * static_cast<double>(i) / n_out;
-        worst_sample = std::max(worst_sample, std::abs(y[i] - std::abs(h) * std::cos(2 * kPi * f * t + want_phase)) / std::abs(h));
+        worst_sample =
+            std::max(worst_sample, std::abs(y[i] - std::abs(h) * std::cos(2 * kPi * f * t + want_phase)) / std::abs(h));
       }
     }
-  std::printf("tones 20 Hz ... 20 kHz through the synthesis: |H| within %.2e dB, phase within %.2e rad, waveform within %.2e of |H|\n",
-              worst_db, worst_rad, worst_sample);
+  std::printf(
+      "tones 20 Hz ... 20 kHz through the synthesis: |H| within %.2e dB, phase within %.2e rad, waveform within %.2e "
+      "of |H|\n",
+      worst_db, worst_rad, worst_sample);
   EXPECT_LT(worst_db, 0.05);
   EXPECT_LT(worst_rad, 1e-3);
   EXPECT_LT(worst_sample, 1e-6);
@@ -259,13 +267,16 @@ TEST(IndependentSynth, EffectsHaveTheLevelsTheyAreSpecifiedBy) {
       std::vector<double> d(r.mics_pa[m].size());
       for (std::size_t i = 0; i < d.size(); ++i) d[i] = r.mics_pa[m][i] - null.mics_pa[m][i];
       l.push_back(indep::level_db(d, chain.fs_hz, true));
-      if (ratio) ratio->push_back(indep::level_db(r.mics_pa[m], chain.fs_hz, true) - indep::level_db(null.mics_pa[m], chain.fs_hz, true));
+      if (ratio)
+        ratio->push_back(indep::level_db(r.mics_pa[m], chain.fs_hz, true) -
+                         indep::level_db(null.mics_pa[m], chain.fs_hz, true));
     }
     return l;
   };
   std::vector<double> engine;
   for (const auto& y : null.mics_pa) engine.push_back(indep::level_db(y, chain.fs_hz, true));
-  std::printf("null run %s at %.1f rpm: array Lp(A) %.1f dB\n", c.name.c_str(), null.time.speed_rpm, energy_mean_db(engine));
+  std::printf("null run %s at %.1f rpm: array Lp(A) %.1f dB\n", c.name.c_str(), null.time.speed_rpm,
+              energy_mean_db(engine));
   indep::Effects bg;
   bg.background_dba = 85;
   for (double l : diff_levels(bg)) EXPECT_NEAR(l, 85.0, 1e-6);
@@ -307,7 +318,8 @@ TEST(IndependentSynth, ThePanelRaisesTheStructureBySpecifiedDbAtItsFrequencyAndH
       const double at = std::abs(indep::structural_transfer(f0, 1800, st, fx)) / std::abs(indep::eq41(f0, st));
       EXPECT_NEAR(20 * std::log10(at), db, 1e-9) << f0 << " Hz";
       const double a = std::pow(10.0, db / 20) - 1;
-      const double octave = std::abs(indep::structural_transfer(2 * f0, 1800, st, fx)) / std::abs(indep::eq41(2 * f0, st));
+      const double octave =
+          std::abs(indep::structural_transfer(2 * f0, 1800, st, fx)) / std::abs(indep::eq41(2 * f0, st));
       const double candidate_like = std::abs(1.0 + a * indep::resonance(2 * f0, f0, 8));
       std::printf("panel %.0f Hz +%.0f dB: an octave up %+.2f dB, a band-pass on the block's output %+.2f dB\n", f0, db,
                   20 * std::log10(octave), 20 * std::log10(candidate_like));
@@ -318,16 +330,19 @@ TEST(IndependentSynth, ThePanelRaisesTheStructureBySpecifiedDbAtItsFrequencyAndH
   indep::Effects fx;
   fx.speed_exponent = 6.0 / (20 * std::log10(2600.0 / 1500.0));
   EXPECT_NEAR(20 * std::log10(std::abs(indep::structural_transfer(1000, 2600, st, fx)) /
-                              std::abs(indep::structural_transfer(1000, 1500, st, fx))), 6.0, 1e-9);
+                              std::abs(indep::structural_transfer(1000, 1500, st, fx))),
+              6.0, 1e-9);
 }
 
 // ------------------------------------------------------------------------------------------ the time-domain block
 
 // One period of 0.5 s at 54 kHz (0.2 deg at 1800 rpm): tones at exact bins.
-std::vector<double> tones(const std::vector<std::pair<double, double>>& hz_and_pa, std::size_t n = 27000, double period = 0.5) {
+std::vector<double> tones(const std::vector<std::pair<double, double>>& hz_and_pa, std::size_t n = 27000,
+                          double period = 0.5) {
   std::vector<double> u(n, 0.0);
   for (const auto& [f, a] : hz_and_pa)
-    for (std::size_t i = 0; i < n; ++i) u[i] += a * std::cos(2 * kPi * f * period * static_cast<double>(i) / static_cast<double>(n));
+    for (std::size_t i = 0; i < n; ++i)
+      u[i] += a * std::cos(2 * kPi * f * period * static_cast<double>(i) / static_cast<double>(n));
   return u;
 }
 
@@ -402,7 +417,9 @@ TEST(IndependentBlock, TheCataloguesBlockAndChainCasesHaveTheirSpecifiedSizes) {
       double ss = 0;
       for (std::size_t i = 0; i < with.pressure.recorded_bar.size(); ++i)
         ss += std::pow(with.pressure.recorded_bar[i] - without.pressure.recorded_bar[i], 2);
-      EXPECT_NEAR(std::sqrt(ss / static_cast<double>(with.pressure.recorded_bar.size())), c.fx.transducer_noise_bar, 0.01) << c.label;
+      EXPECT_NEAR(std::sqrt(ss / static_cast<double>(with.pressure.recorded_bar.size())), c.fx.transducer_noise_bar,
+                  0.01)
+          << c.label;
       EXPECT_EQ(with.mics_pa[0], without.mics_pa[0]) << "the engine does not hear the chain's noise";
       noises += c.fx.transducer_noise_bar == 0.2 || c.fx.transducer_noise_bar == 0.4;
     }
@@ -413,7 +430,8 @@ TEST(IndependentBlock, TheCataloguesBlockAndChainCasesHaveTheirSpecifiedSizes) {
   // The stated floor: the data README's (0.25 bar fired, 0.17 motored, from the second differences of early
   // compression), and what run.json says of a run with the floor stated.
   const double fired_floor = indep::record_floor_bar(src->fired);
-  std::printf("the records' floors: %.3f bar fired, %.3f motored\n", fired_floor, indep::record_floor_bar(src->motored));
+  std::printf("the records' floors: %.3f bar fired, %.3f motored\n", fired_floor,
+              indep::record_floor_bar(src->motored));
   EXPECT_NEAR(fired_floor, 0.25, 0.03);
   EXPECT_NEAR(indep::record_floor_bar(src->motored), 0.17, 0.03);
   indep::Chain stating = chain;

@@ -36,7 +36,8 @@ std::string quote(const std::string& s) { return "'" + s + "'"; }
 
 // The runs (clean, then with fx), imported into one log and watched; the events as JSON.
 std::vector<nlohmann::json> watch_campaign(const indep::Effects& fx, const std::string& name) {
-  const fs::path dir = fs::path(::testing::TempDir()) / ("noisemon-indep-gapwatch-" + std::to_string(::getpid())) / name;
+  const fs::path dir =
+      fs::path(::testing::TempDir()) / ("noisemon-indep-gapwatch-" + std::to_string(::getpid())) / name;
   fs::remove_all(dir);
   std::string runs;
   for (int i = 0; i < kCleanRuns + kEffectRuns; ++i) {
@@ -52,9 +53,12 @@ std::vector<nlohmann::json> watch_campaign(const indep::Effects& fx, const std::
   }
   const std::string noisemon = NOISEMON_PATH;
   const fs::path log = dir / "joined.lcmlog", events = dir / "events.jsonl";
-  EXPECT_EQ(std::system((quote(noisemon) + " import" + runs + " -o " + quote(log.string()) + " > /dev/null 2>&1").c_str()), 0);
+  EXPECT_EQ(
+      std::system((quote(noisemon) + " import" + runs + " -o " + quote(log.string()) + " > /dev/null 2>&1").c_str()),
+      0);
   const std::string watch = quote(noisemon) + " gapwatch --no-progress --encoder-step-deg 0.2 --reference-s 25 --log " +
-                            quote(log.string()) + " --json " + quote(events.string()) + " > " + quote((dir / "out.txt").string()) + " 2>&1";
+                            quote(log.string()) + " --json " + quote(events.string()) + " > " +
+                            quote((dir / "out.txt").string()) + " 2>&1";
   EXPECT_EQ(std::system(watch.c_str()), 0);
   std::vector<nlohmann::json> out;
   std::ifstream in(events);

@@ -53,7 +53,9 @@ const json* candidate(const json& report, const std::string& effect) {
 double true_speed_slope(const Effects& fx) { return 20.0 * fx.speed_exponent / std::log(10.0) * 1000.0 / 2000.0; }
 
 // The added transducer noise's one-sided amplitude density at 2000 rpm (0.2 deg samples at 60 kHz), Pa/sqrt(Hz).
-double added_noise_density(const Effects& fx) { return fx.transducer_noise_bar * 1e5 * std::sqrt(2.0 / (30.0 * 2000.0)); }
+double added_noise_density(const Effects& fx) {
+  return fx.transducer_noise_bar * 1e5 * std::sqrt(2.0 / (30.0 * 2000.0));
+}
 
 // The fitted parameters of the expected effect's candidate against the truth (see withheld.hpp).
 void check_params(const Case& c, const json& report, Outcome& o) {
@@ -258,8 +260,9 @@ std::vector<Case> cell_catalogue(const Sources& src, int cell) {
   const ReferenceMotion ref = reference_motion(src, chain);
   std::vector<Case> out = cell == 2 ? second_cell_cases(engine) : withheld_cases(engine);
   const double floor = std::hypot(record_floor_bar(src.fired), chain.added_pressure_noise_bar);
-  const std::vector<Case> more = cell == 2 ? block_and_chain_cases(ref, 2, "cell2_", {1.0}, {3.0}, {0.3}, floor)
-                                           : block_and_chain_cases(ref, 1, "", {0.4, 1.0}, {1.0, 3.0}, {0.2, 0.4}, floor);
+  const std::vector<Case> more = cell == 2
+                                     ? block_and_chain_cases(ref, 2, "cell2_", {1.0}, {3.0}, {0.3}, floor)
+                                     : block_and_chain_cases(ref, 1, "", {0.4, 1.0}, {1.0, 3.0}, {0.2, 0.4}, floor);
   out.insert(out.end(), more.begin(), more.end());
   return out;
 }
@@ -271,8 +274,8 @@ Outcome diagnose_case(const Sources& src, const Case& c, std::uint64_t seed, con
   chain.states_floor = c.states_floor;
   fs::remove_all(dir);
   fs::create_directories(dir);
-  const std::vector<Condition> conditions = c.cell == 2 ? second_cell_conditions(kSecondCellCycles, seed)
-                                                        : default_conditions(kCyclesPerCondition, seed);
+  const std::vector<Condition> conditions =
+      c.cell == 2 ? second_cell_conditions(kSecondCellCycles, seed) : default_conditions(kCyclesPerCondition, seed);
   write_campaign(src, conditions, chain, c.fx, dir / "runs");
   const std::string cmd = quote(noisemon_path) + " diagnose " + quote((dir / "runs").string()) + " -o " +
                           quote((dir / "diag").string()) + " --bootstrap 100 --no-progress --force > " +
@@ -294,12 +297,14 @@ Outcome diagnose_case(const Sources& src, const Case& c, std::uint64_t seed, con
 }
 
 std::string table_header() {
-  return "| case | seed | expected | verdict (also) [below the tolerance] | held-out gap before → after, dB | closed | fitted | runner-up |\n"
+  return "| case | seed | expected | verdict (also) [below the tolerance] | held-out gap before → after, dB | closed | "
+         "fitted | runner-up |\n"
          "|---|---|---|---|---|---|---|---|\n";
 }
 
 std::string table_row(const Case& c, std::uint64_t seed, const Outcome& o) {
-  if (!o.error.empty()) return "| " + c.label + " | " + std::to_string(seed) + " | " + c.expect + " | FAILED TO RUN | | | | |\n";
+  if (!o.error.empty())
+    return "| " + c.label + " | " + std::to_string(seed) + " | " + c.expect + " | FAILED TO RUN | | | | |\n";
   std::string also;
   for (const std::string& a : o.also) also += (also.empty() ? " (" : ", ") + a;
   if (!also.empty()) also += ")";
@@ -307,8 +312,8 @@ std::string table_row(const Case& c, std::uint64_t seed, const Outcome& o) {
   const std::string mark = o.verdict_right ? "✓ " : "✗ ";
   const std::string fitted = !o.params_checked ? "—" : (o.params_right ? "✓ " : "✗ ") + o.params;
   return "| " + c.label + " | " + std::to_string(seed) + " | " + c.expect + " | " + mark + o.effect + also + " | " +
-         fmt("%.2f → %.2f", o.before_db, o.after_db) + " | " + fmt("%.0f %%", 100 * o.closed) + " | " + fitted +
-         " | " + o.runner_up + " |\n";
+         fmt("%.2f → %.2f", o.before_db, o.after_db) + " | " + fmt("%.0f %%", 100 * o.closed) + " | " + fitted + " | " +
+         o.runner_up + " |\n";
 }
 
 }  // namespace indep

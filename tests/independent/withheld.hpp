@@ -18,8 +18,8 @@
 #pragma once
 
 #include <cstdint>
-#include <limits>
 #include <filesystem>
+#include <limits>
 #include <string>
 #include <vector>
 
@@ -31,7 +31,7 @@ struct Case {
   std::string label;
   std::string expect;  // DESIGN.md's effect name, or "none"
   Effects fx;
-  int cell = 1;        // 1: default_conditions on Chain{}; 2: second_cell_conditions on second_cell_chain
+  int cell = 1;               // 1: default_conditions on Chain{}; 2: second_cell_conditions on second_cell_chain
   bool states_floor = false;  // run.json states the chain's commissioned floor (Chain::states_floor)
   // With the floor unstated, the bounds the diagnosis's estimate of the fired runs' floor (bar per 0.2 deg sample)
   // must keep: at least the added white noise's, at most the broadband floor of the whole chain (the record's own by
@@ -70,17 +70,17 @@ std::vector<Case> second_cell_cases(double engine_dba);
 std::vector<Case> cell_catalogue(const Sources& src, int cell);
 
 struct Outcome {
-  std::string effect;               // verdict.effect
-  std::vector<std::string> also;    // verdict.also
-  std::string below_tolerance;      // verdict.below_tolerance: named beside `none`, not scored
+  std::string effect;             // verdict.effect
+  std::vector<std::string> also;  // verdict.also
+  std::string below_tolerance;    // verdict.below_tolerance: named beside `none`, not scored
   double before_db = 0, after_db = 0, closed = 0;
-  bool verdict_right = false;       // the primary verdict is the expected effect
-  bool params_checked = false;      // the effect has parameters to check
+  bool verdict_right = false;   // the primary verdict is the expected effect
+  bool params_checked = false;  // the effect has parameters to check
   bool params_right = false;
-  std::string params;               // what was fitted, against the truth
-  std::string runner_up;            // the best candidate that is not the verdict, with its gap
+  std::string params;     // what was fitted, against the truth
+  std::string runner_up;  // the best candidate that is not the verdict, with its gap
   double seconds = 0;
-  std::string error;                // non-empty: diagnose failed (its log's tail)
+  std::string error;  // non-empty: diagnose failed (its log's tail)
 };
 
 // Writes the case's campaign (its cell's; the chain's seed and the records' cycles: `seed`, see default_conditions)

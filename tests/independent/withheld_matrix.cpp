@@ -62,14 +62,22 @@ Args parse(int argc, char** argv) {
       std::exit(2);
     }
     const std::string v = argv[++i];
-    if (k == "--seeds") a.seeds = parse_seeds(v);
-    else if (k == "--cell" && (v == "1" || v == "2")) a.cell = std::stoi(v);
-    else if (k == "--jobs") a.jobs = static_cast<unsigned>(std::max(1, std::stoi(v)));
-    else if (k == "--only") a.only = v;
-    else if (k == "--out") a.out = v;
-    else if (k == "--dir") a.dir = v;
-    else if (k == "--data") a.data = v;
-    else if (k == "--noisemon") a.noisemon = v;
+    if (k == "--seeds")
+      a.seeds = parse_seeds(v);
+    else if (k == "--cell" && (v == "1" || v == "2"))
+      a.cell = std::stoi(v);
+    else if (k == "--jobs")
+      a.jobs = static_cast<unsigned>(std::max(1, std::stoi(v)));
+    else if (k == "--only")
+      a.only = v;
+    else if (k == "--out")
+      a.out = v;
+    else if (k == "--dir")
+      a.dir = v;
+    else if (k == "--data")
+      a.data = v;
+    else if (k == "--noisemon")
+      a.noisemon = v;
     else {
       std::fprintf(stderr, "indep_withheld_matrix: unknown option %s\n%s", k.c_str(), kUsage);
       std::exit(2);

@@ -15,12 +15,12 @@
 
 namespace gapcell {
 
-inline const std::vector<double> kBandsHz{100, 125, 160, 200, 250, 315, 400, 500, 630, 800, 1000, 1250,
-                                          1600, 2000, 2500, 3150, 4000, 5000, 6300, 8000};
+inline const std::vector<double> kBandsHz{100,  125,  160,  200,  250,  315,  400,  500,  630,  800,
+                                          1000, 1250, 1600, 2000, 2500, 3150, 4000, 5000, 6300, 8000};
 constexpr std::size_t kMics = 10;
 
 struct Effects {
-  int gain_mic = -1;                 // 0-based; -1: none
+  int gain_mic = -1;  // 0-based; -1: none
   double gain_db = 0.0;
   std::vector<double> additive_pa2;  // per band, added to every microphone (A-weighted power, Pa^2); empty: none
   double transducer_pa2_per_hz = 0.0;

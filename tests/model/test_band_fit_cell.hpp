@@ -27,12 +27,12 @@ inline std::complex<double> block_response(const BlockParams& p, double f_hz) {
 
 struct CellCondition {
   std::string name = "c";
-  double rpm = 3000.0;         // 4.8e6 / rpm frames per cycle: must be whole
-  std::size_t cycles = 8;      // complete cycles in the recording
+  double rpm = 3000.0;     // 4.8e6 / rpm frames per cycle: must be whole
+  std::size_t cycles = 8;  // complete cycles in the recording
   double corner_hz = 500.0;
-  double amplitude_pa = 2e5;   // of the first harmonic
+  double amplitude_pa = 2e5;  // of the first harmonic
   double mean_pa = 1e5;
-  double max_hz = 18000.0;     // highest harmonic
+  double max_hz = 18000.0;  // highest harmonic
   unsigned seed = 1;
   double mic_gain = 1.0;
   std::function<std::complex<double>(double)> extra;  // extra factor on the microphone path (f in Hz); none: 1
@@ -94,8 +94,8 @@ inline std::vector<std::vector<char>> scored_bands(const BandDataset& data, doub
   std::vector<std::vector<char>> scored(data.conditions.size(), std::vector<char>(data.band_count(), 0));
   for (std::size_t k = 0; k < data.conditions.size(); ++k)
     for (std::size_t b = 0; b < data.band_count(); ++b)
-      scored[k][b] = data.bands[b].exact_mid_hz >= lo_hz && data.bands[b].exact_mid_hz <= hi_hz &&
-                     !data.band_line_free(k, b);
+      scored[k][b] =
+          data.bands[b].exact_mid_hz >= lo_hz && data.bands[b].exact_mid_hz <= hi_hz && !data.band_line_free(k, b);
   return scored;
 }
 

@@ -25,8 +25,8 @@ ConditionData small_condition() {
     for (std::size_t w = 0; w < kW; ++w)
       d.win_frames.push_back(100.0 + 10.0 * static_cast<double>(w) + 50.0 * static_cast<double>(c));
   // mic_ms [(c * mics + m) * bands + b]
-  d.mic_ms = {1.0, 2.0, 3.0, 4.0,    // cycle 0: mic 0 (bands 0, 1), mic 1
-              5.0, 6.0, 7.0, 8.0};   // cycle 1
+  d.mic_ms = {1.0, 2.0, 3.0, 4.0,   // cycle 0: mic 0 (bands 0, 1), mic 1
+              5.0, 6.0, 7.0, 8.0};  // cycle 1
   return d;
 }
 
@@ -38,8 +38,8 @@ TEST(BandFitFactors, ApplyMultipliesSubtractsAndAddsByWindowLength) {
   f.add.assign(2, 0.0);
   f.add_win.assign(2 * kW, 0.0);
   for (std::size_t w = 0; w < kW; ++w) f.add_win[1 * kW + w] = static_cast<double>(w);  // band 1 only
-  std::vector<double> cycle = {10.0, 20.0, 30.0, 40.0};  // [c * bands + b]
-  std::vector<double> win(2 * kW * 2, 1.0);              // [(c * W + w) * bands + b]
+  std::vector<double> cycle = {10.0, 20.0, 30.0, 40.0};                                 // [c * bands + b]
+  std::vector<double> win(2 * kW * 2, 1.0);                                             // [(c * W + w) * bands + b]
   std::vector<char> upper, upper_win;
   apply_factors(f, d, cycle, &win, &upper, &upper_win);
   for (std::size_t c = 0; c < 2; ++c) {

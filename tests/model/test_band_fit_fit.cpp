@@ -164,10 +164,11 @@ TEST(BandFitFit, FindsAndRecoversASecondModeWithItsPhase) {
     start.block = truth();
     const FitOutcome o = fit_model(s, start);
     const ExtensionParams& e = o.model.ext;
-    std::printf("mode: %.3f dB at %.1f Hz, Q %.3f, %.1f deg (truth %.0f dB, %.0f Hz, Q %.0f, %.0f deg), "
-                "train RMS %.4f dB, %d anchors\n",
-                e.mode_db, e.mode_hz, e.mode_q, e.mode_phase_deg, mode_db, mode_hz, mode_q, phase_deg, o.train_rms_db,
-                o.anchors);
+    std::printf(
+        "mode: %.3f dB at %.1f Hz, Q %.3f, %.1f deg (truth %.0f dB, %.0f Hz, Q %.0f, %.0f deg), "
+        "train RMS %.4f dB, %d anchors\n",
+        e.mode_db, e.mode_hz, e.mode_q, e.mode_phase_deg, mode_db, mode_hz, mode_q, phase_deg, o.train_rms_db,
+        o.anchors);
     // What third-octave bands determine: f2, Q and the level change at f2 (by hand: |1 + a e^(j phi)|). Out of phase,
     // coupling and phase trade along a curve of the same rise (8.9 dB at 133 deg draws 8 dB at 120 deg within
     // 0.002 dB rms, the block's four parameters taking up the rest), so the phase is held to its side only.
@@ -221,9 +222,10 @@ TEST(BandFitFit, RecoversACubicDamperStartingFromZero) {
   const double linear_rms = refit_on_anchor(s, at_start, start).train_rms_db;
   s.evaluate_only = false;
   const FitOutcome o = fit_model(s, start);
-  std::printf("cubic damper: linear start %.3f dB; b3 %.2f (truth 2000), b1 %.1f (truth 7000), train RMS %.4f dB, "
-              "%d anchors\n",
-              linear_rms, o.model.block.b3, o.model.block.b1, o.train_rms_db, o.anchors);
+  std::printf(
+      "cubic damper: linear start %.3f dB; b3 %.2f (truth 2000), b1 %.1f (truth 7000), train RMS %.4f dB, "
+      "%d anchors\n",
+      linear_rms, o.model.block.b3, o.model.block.b1, o.train_rms_db, o.anchors);
   EXPECT_GT(linear_rms, 1.0);
   EXPECT_NEAR(o.model.block.b3 / damper.b3, 1.0, 0.005);
   expect_block_near(o.model.block, damper, 0.002);

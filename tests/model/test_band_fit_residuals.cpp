@@ -128,11 +128,16 @@ TEST(BandFitResiduals, JetDerivativesAgreeWithCentralDifferences) {
     double* value;
     int index;
   };
-  const Var vars[] = {{"k1", &p.v.lin[0], bfi::kSK1},           {"b1", &p.v.lin[1], bfi::kSB1},
-                      {"c0", &p.v.lin[2], bfi::kSC0},           {"c1", &p.v.lin[3], bfi::kSC1},
-                      {"mode dB", &p.v.mode[0], bfi::kSModeDb}, {"mode f", &p.v.mode[1], bfi::kSModeLogF},
-                      {"mode Q", &p.v.mode[2], bfi::kSModeLogQ}, {"speed gain", &p.v.speed[0], bfi::kSSpeedGain},
-                      {"speed shift", &p.v.speed[1], bfi::kSSpeedShift}, {"locked exp", &p.v.lexp[0], bfi::kSLockExp}};
+  const Var vars[] = {{"k1", &p.v.lin[0], bfi::kSK1},
+                      {"b1", &p.v.lin[1], bfi::kSB1},
+                      {"c0", &p.v.lin[2], bfi::kSC0},
+                      {"c1", &p.v.lin[3], bfi::kSC1},
+                      {"mode dB", &p.v.mode[0], bfi::kSModeDb},
+                      {"mode f", &p.v.mode[1], bfi::kSModeLogF},
+                      {"mode Q", &p.v.mode[2], bfi::kSModeLogQ},
+                      {"speed gain", &p.v.speed[0], bfi::kSSpeedGain},
+                      {"speed shift", &p.v.speed[1], bfi::kSSpeedShift},
+                      {"locked exp", &p.v.lexp[0], bfi::kSLockExp}};
   int windowed = 0;
   for (const bfi::CondSetup& c : p.conds) {
     windowed += static_cast<int>(c.wbands.size());

@@ -65,8 +65,8 @@ TEST(BandFitShortcut, MovesTheAnchorLikeATimeDomainReSimulationOfALinearBlock) {
     const char* what;
     double k1, b1, c0, c1;
   };
-  const Step steps[] = {{"k1 x 1.3", 1.3, 1, 1, 1}, {"k1 x 0.7", 0.7, 1, 1, 1}, {"b1 x 0.5", 1, 0.5, 1, 1},
-                        {"b1 x 2", 1, 2, 1, 1},     {"c0 x 2", 1, 1, 2, 1},     {"c1 x 0.6", 1, 1, 1, 0.6},
+  const Step steps[] = {{"k1 x 1.3", 1.3, 1, 1, 1},      {"k1 x 0.7", 0.7, 1, 1, 1}, {"b1 x 0.5", 1, 0.5, 1, 1},
+                        {"b1 x 2", 1, 2, 1, 1},          {"c0 x 2", 1, 1, 2, 1},     {"c1 x 0.6", 1, 1, 1, 0.6},
                         {"all four", 1.2, 0.7, 1.5, 0.8}};
   for (const Step& s : steps) {
     ExtendedModel m;
@@ -118,8 +118,8 @@ TEST(BandFitShortcut, SecondModeFactorMatchesTheTimeDomainModeFilter) {
     const ConditionPrediction time_domain = predict_condition(cell().data, 0, m, false, kCycles);
     const double err = worst_db(shortcut(anchor, m), time_domain.cycle_ms);
     const double moved = worst_db(time_domain.cycle_ms, resimulated(anchor));
-    std::printf("mode %+.0f dB at %+.0f deg: moves the bands by up to %.2f dB; shortcut vs time domain %.4f dB\n", mode_db,
-                phase_deg, moved, err);
+    std::printf("mode %+.0f dB at %+.0f deg: moves the bands by up to %.2f dB; shortcut vs time domain %.4f dB\n",
+                mode_db, phase_deg, moved, err);
     EXPECT_GT(moved, 3.0);
     EXPECT_LT(err, 0.1);
   }

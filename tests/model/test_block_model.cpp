@@ -58,8 +58,8 @@ cd eq41(double f) {
 
 // Complex gain of the steady-state response y to u = sin(2 pi f t), by least squares over samples
 // [i0, i1) on a * sin + b * cos + c; output sample i is the model at t = (i - latency) / fs.
-cd fitted_gain(const std::vector<double>& y, double fs, double f, std::size_t latency, std::size_t i0,
-               std::size_t i1, double amplitude) {
+cd fitted_gain(const std::vector<double>& y, double fs, double f, std::size_t latency, std::size_t i0, std::size_t i1,
+               double amplitude) {
   Eigen::MatrixXd a(static_cast<Eigen::Index>(i1 - i0), 3);
   Eigen::VectorXd b(static_cast<Eigen::Index>(i1 - i0));
   for (std::size_t i = i0; i < i1; ++i) {
@@ -106,16 +106,16 @@ GainError linear_gain_error(double fs, double f_lo, double f_hi, int points) {
 
 TEST(BlockModel, LinearPresetFollowsEq41At40kHz) {
   const GainError e = linear_gain_error(40000, 20, 16000, 40);
-  std::printf("linear preset at 40 kHz vs eq. 4.1, 20 Hz..16 kHz: max %.4f dB (at %.0f Hz), max %.3f deg\n",
-              e.max_db, e.worst_f, e.max_deg);
+  std::printf("linear preset at 40 kHz vs eq. 4.1, 20 Hz..16 kHz: max %.4f dB (at %.0f Hz), max %.3f deg\n", e.max_db,
+              e.worst_f, e.max_deg);
   EXPECT_LT(e.max_db, 0.1);
   EXPECT_LT(e.max_deg, 1.0);  // one sample of latency error would be 144 deg at 16 kHz
 }
 
 TEST(BlockModel, LinearPresetFollowsEq41At100kHz) {
   const GainError e = linear_gain_error(100000, 20, 40000, 30);
-  std::printf("linear preset at 100 kHz vs eq. 4.1, 20 Hz..40 kHz: max %.4f dB (at %.0f Hz), max %.3f deg\n",
-              e.max_db, e.worst_f, e.max_deg);
+  std::printf("linear preset at 100 kHz vs eq. 4.1, 20 Hz..40 kHz: max %.4f dB (at %.0f Hz), max %.3f deg\n", e.max_db,
+              e.worst_f, e.max_deg);
   EXPECT_LT(e.max_db, 0.1);
   EXPECT_LT(e.max_deg, 1.0);
 }
@@ -171,9 +171,8 @@ std::vector<double> reference_solution(const BlockParams& p, const std::function
   constexpr double c2 = 1. / 5, c3 = 3. / 10, c4 = 4. / 5, c5 = 8. / 9;
   constexpr double a21 = 1. / 5, a31 = 3. / 40, a32 = 9. / 40, a41 = 44. / 45, a42 = -56. / 15, a43 = 32. / 9,
                    a51 = 19372. / 6561, a52 = -25360. / 2187, a53 = 64448. / 6561, a54 = -212. / 729,
-                   a61 = 9017. / 3168, a62 = -355. / 33, a63 = 46732. / 5247, a64 = 49. / 176,
-                   a65 = -5103. / 18656, b1 = 35. / 384, b3 = 500. / 1113, b4 = 125. / 192, b5 = -2187. / 6784,
-                   b6 = 11. / 84;
+                   a61 = 9017. / 3168, a62 = -355. / 33, a63 = 46732. / 5247, a64 = 49. / 176, a65 = -5103. / 18656,
+                   b1 = 35. / 384, b3 = 500. / 1113, b4 = 125. / 192, b5 = -2187. / 6784, b6 = 11. / 84;
   constexpr double e1 = 71. / 57600, e3 = -71. / 16695, e4 = 71. / 1920, e5 = -17253. / 339200, e6 = 22. / 525,
                    e7 = -1. / 40;
   constexpr double rtol = 1e-10, max_step = 0.25e-6;
@@ -233,9 +232,9 @@ double pressure_like(double t, double scale) {
 // IEC 61672-1 A-weighting (dB), used only to pick the audible bands.
 double a_weighting_db(double f) {
   const double f2 = f * f;
-  const double ra = 12194.0 * 12194.0 * f2 * f2 /
-                    ((f2 + 20.6 * 20.6) * std::sqrt((f2 + 107.7 * 107.7) * (f2 + 737.9 * 737.9)) *
-                     (f2 + 12194.0 * 12194.0));
+  const double ra =
+      12194.0 * 12194.0 * f2 * f2 /
+      ((f2 + 20.6 * 20.6) * std::sqrt((f2 + 107.7 * 107.7) * (f2 + 737.9 * 737.9)) * (f2 + 12194.0 * 12194.0));
   return 20 * std::log10(ra) + 2.0;
 }
 
@@ -264,9 +263,9 @@ Bands band_powers(const double* x, std::size_t n, double fs) {
 }
 
 struct Comparison {
-  double rel_rms = 0;         // rms(model - reference) / rms(reference - its mean), over one period
-  double max_band_db = 0;     // worst audible band level difference
-  double nonlinearity = 0;    // rms(reference - linear part's response) / rms(reference AC)
+  double rel_rms = 0;       // rms(model - reference) / rms(reference - its mean), over one period
+  double max_band_db = 0;   // worst audible band level difference
+  double nonlinearity = 0;  // rms(reference - linear part's response) / rms(reference AC)
 };
 
 Comparison compare_with_reference(const std::string& name, double scale, double fs) {
@@ -314,7 +313,7 @@ Comparison compare_with_reference(const std::string& name, double scale, double 
 
 struct NonlinearCase {
   const char* preset;
-  double scale;      // pressure-trace peak is about 9e6 Pa x scale
+  double scale;  // pressure-trace peak is about 9e6 Pa x scale
   double max_rel_rms;
 };
 
@@ -323,26 +322,26 @@ class BlockModelVsReference : public ::testing::TestWithParam<NonlinearCase> {};
 TEST_P(BlockModelVsReference, MatchesHighAccuracySolution) {
   const NonlinearCase& tc = GetParam();
   const Comparison c = compare_with_reference(tc.preset, tc.scale, 40000);
-  std::printf("%-21s peak %.0e Pa: rel rms error %.2e, worst audible band %.4f dB (nonlinear part %.0f%%)\n",
-              tc.preset, 9e6 * tc.scale, c.rel_rms, c.max_band_db, 100 * c.nonlinearity);
+  std::printf("%-21s peak %.0e Pa: rel rms error %.2e, worst audible band %.4f dB (nonlinear part %.0f%%)\n", tc.preset,
+              9e6 * tc.scale, c.rel_rms, c.max_band_db, 100 * c.nonlinearity);
   EXPECT_LT(c.rel_rms, tc.max_rel_rms);
   EXPECT_LT(c.max_band_db, 0.1);
   // The case really exercises the nonlinearity (otherwise it would only retest the linear model).
   EXPECT_GT(c.nonlinearity, 0.05);
 }
 
-INSTANTIATE_TEST_SUITE_P(
-    Presets, BlockModelVsReference,
-    ::testing::Values(NonlinearCase{"nl_damper", 1, 1e-3}, NonlinearCase{"nl_damper", 100, 2e-3},
-                      NonlinearCase{"nl_spring_damper", 1, 1e-3}, NonlinearCase{"nl_spring_damper", 100, 2e-3},
-                      NonlinearCase{"nl_spring_damper_opt", 0.1, 1e-3},
-                      NonlinearCase{"nl_spring_damper_opt", 1, 1e-3},
-                      NonlinearCase{"nl_spring_damper_opt", 10, 1e-3},
-                      NonlinearCase{"nl_spring_damper_opt", 100, 2e-3}),
-    [](const ::testing::TestParamInfo<NonlinearCase>& info) {
-      return std::string(info.param.preset) + "_x" + std::to_string(static_cast<int>(info.param.scale * 10)) +
-             "_tenths";
-    });
+INSTANTIATE_TEST_SUITE_P(Presets, BlockModelVsReference,
+                         ::testing::Values(NonlinearCase{"nl_damper", 1, 1e-3}, NonlinearCase{"nl_damper", 100, 2e-3},
+                                           NonlinearCase{"nl_spring_damper", 1, 1e-3},
+                                           NonlinearCase{"nl_spring_damper", 100, 2e-3},
+                                           NonlinearCase{"nl_spring_damper_opt", 0.1, 1e-3},
+                                           NonlinearCase{"nl_spring_damper_opt", 1, 1e-3},
+                                           NonlinearCase{"nl_spring_damper_opt", 10, 1e-3},
+                                           NonlinearCase{"nl_spring_damper_opt", 100, 2e-3}),
+                         [](const ::testing::TestParamInfo<NonlinearCase>& info) {
+                           return std::string(info.param.preset) + "_x" +
+                                  std::to_string(static_cast<int>(info.param.scale * 10)) + "_tenths";
+                         });
 
 // The simulator runs the model at 100 kHz.
 TEST(BlockModel, NonlinearAt100kHzMatchesHighAccuracySolution) {

@@ -17,9 +17,9 @@ constexpr double kPi = std::numbers::pi;
 
 // Eq. 4.1 constants as printed in the thesis (sec. 4.3.1).
 constexpr double kKa = 11.885;
-constexpr double kWb = 628.319;     // 2 pi 100 rad/s
+constexpr double kWb = 628.319;  // 2 pi 100 rad/s
 constexpr double kZeta = 0.35;
-constexpr double kWn = 31415.927;   // 2 pi 5000 rad/s
+constexpr double kWn = 31415.927;  // 2 pi 5000 rad/s
 
 // |eq. 4.1| and its phase written out in real arithmetic (not through the library's complex form).
 double eq41_magnitude(double f) {

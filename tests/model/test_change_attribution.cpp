@@ -25,8 +25,8 @@ nm::GapChange change_of(const gapcell::Effects& effects, unsigned seed = 9) {
   g.band_used.assign(nb, 1);
   g.speed_rpm = 3050.0;
   g.pressure_edge_rate_hz = 3600.0 * 3050.0 / 60.0;
-  auto average = [&](const gapcell::Effects& e, std::vector<double>& meas, std::vector<double>& pred, std::vector<double>& cpl,
-                     std::vector<double>& mic, std::vector<double>* gap_sd) {
+  auto average = [&](const gapcell::Effects& e, std::vector<double>& meas, std::vector<double>& pred,
+                     std::vector<double>& cpl, std::vector<double>& mic, std::vector<double>* gap_sd) {
     meas.assign(nb, 0.0), pred.assign(nb, 0.0), cpl.assign(nb, 0.0), mic.assign(nm_, 0.0);
     std::vector<double> ss(nb, 0.0);
     for (int i = 0; i < kCycles; ++i) {
@@ -38,7 +38,8 @@ nm::GapChange change_of(const gapcell::Effects& effects, unsigned seed = 9) {
       for (std::size_t m = 0; m < nm_; ++m) mic[m] += c.mic_db[m] / kCycles;
     }
     if (gap_sd)
-      for (std::size_t b = 0; b < nb; ++b) gap_sd->push_back(std::sqrt(std::max(0.0, ss[b] - std::pow(meas[b] - pred[b], 2))));
+      for (std::size_t b = 0; b < nb; ++b)
+        gap_sd->push_back(std::sqrt(std::max(0.0, ss[b] - std::pow(meas[b] - pred[b], 2))));
   };
   std::vector<double> sd;
   average({}, g.measured_before, g.predicted_before, g.cpl_before, g.mic_before, &sd);

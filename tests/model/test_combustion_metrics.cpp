@@ -58,7 +58,8 @@ std::vector<double> first_law(const std::function<double(double, double)>& dp, d
   for (std::size_t i = 0; i < kSamples; ++i) {
     if (angle(i) < from_deg || angle(i) > 180.0) continue;
     while (t < angle(i) - 1e-9) {
-      const double k1 = dp(t, pc), k2 = dp(t + h / 2, pc + h / 2 * k1), k3 = dp(t + h / 2, pc + h / 2 * k2), k4 = dp(t + h, pc + h * k3);
+      const double k1 = dp(t, pc), k2 = dp(t + h / 2, pc + h / 2 * k1), k3 = dp(t + h / 2, pc + h / 2 * k2),
+                   k4 = dp(t + h, pc + h * k3);
       pc += h / 6 * (k1 + 2 * k2 + 2 * k3 + k4);
       t += h;
     }
@@ -105,7 +106,9 @@ TEST(CombustionMetrics, MaximumRiseIsTheCombustionWindowsNotTheTailBeforeIt) {
   const auto dbump = [](double t, double at, double a, double w) {
     return -2.0 * a * (t - at) / (w * w) * std::exp(-std::pow((t - at) / w, 2));
   };
-  const auto pressure = [&](double t) { return 1e5 + bump(t, 0, 30e5, 30) + bump(t, -12, 12e5, 3) + bump(t, 6, 15e5, 5); };
+  const auto pressure = [&](double t) {
+    return 1e5 + bump(t, 0, 30e5, 30) + bump(t, -12, 12e5, 3) + bump(t, 6, 15e5, 5);
+  };
   const auto slope = [&](double t) { return dbump(t, 0, 30e5, 30) + dbump(t, -12, 12e5, 3) + dbump(t, 6, 15e5, 5); };
   const auto max_slope_in = [&](double from, double to) {
     double best = -1e300, at = 0;
@@ -117,7 +120,7 @@ TEST(CombustionMetrics, MaximumRiseIsTheCombustionWindowsNotTheTailBeforeIt) {
   nm::MetricsOptions o;
   o.soi_deg_btdc = 13.5;  // the window opens 0.6 deg after the early burn's steepest point
   ASSERT_GT(slope(-13.5), max_slope_in(-5, 60).first);  // so the window's first sample is its largest slope
-  ASSERT_LT(slope(-13.4), slope(-13.5));                 // on the way down
+  ASSERT_LT(slope(-13.4), slope(-13.5));                // on the way down
   const nm::CombustionMetrics m = nm::combustion_metrics(p, kFirst, kStep, e, 1800.0, o);
   const auto [injected, injected_at] = max_slope_in(-5, 60);
   // The +-0.5 deg least-squares slope flattens a bump's steepest slope by about h^2/10 times the third derivative,
@@ -183,7 +186,8 @@ TEST(CombustionMetrics, PeggingRestoresTheOffsetOfTheWholeCycle) {
   // The cycle's own polytropic exponents, compression and expansion: 1.33 where it is true; the 0.7 bar lost bends
   // them (the health check they are for: an offset, a thermal shock, a wrong TDC show there first).
   // Without a burn, the motored-equivalent slope (the compression's polytropic carried on) is the slope itself.
-  EXPECT_NEAR(reference.max_rise_motored_pa_per_deg, reference.max_rise_pa_per_deg, 0.005 * reference.max_rise_pa_per_deg);
+  EXPECT_NEAR(reference.max_rise_motored_pa_per_deg, reference.max_rise_pa_per_deg,
+              0.005 * reference.max_rise_pa_per_deg);
   EXPECT_NEAR(reference.n_compression, n, 0.002);
   EXPECT_NEAR(reference.n_expansion, n, 0.002);
   EXPECT_NEAR(fitted.n_compression, n, 0.01);
@@ -207,8 +211,9 @@ TEST(CombustionMetrics, BurnAnglesOfAWiebeHeatRelease) {
   o.gamma = g;
   const nm::CombustionMetrics m = nm::combustion_metrics(p, kFirst, kStep, e, 1800.0, o);
   auto ca = [&](double f) { return theta0 + duration * std::pow(-std::log(1 - f) / a, 1 / (mw + 1)); };
-  std::printf("Wiebe: CA10 %.2f (%.2f), CA50 %.2f (%.2f), CA90 %.2f (%.2f) deg; heat release %.1f J (%.1f)\n", m.ca10_deg,
-              ca(0.1), m.ca50_deg, ca(0.5), m.ca90_deg, ca(0.9), m.heat_release_j, q0 * (1 - std::exp(-a * std::pow(1.5, mw + 1))));
+  std::printf("Wiebe: CA10 %.2f (%.2f), CA50 %.2f (%.2f), CA90 %.2f (%.2f) deg; heat release %.1f J (%.1f)\n",
+              m.ca10_deg, ca(0.1), m.ca50_deg, ca(0.5), m.ca90_deg, ca(0.9), m.heat_release_j,
+              q0 * (1 - std::exp(-a * std::pow(1.5, mw + 1))));
   EXPECT_NEAR(m.ca10_deg, ca(0.1), 0.2);
   EXPECT_NEAR(m.ca50_deg, ca(0.5), 0.2);
   EXPECT_NEAR(m.ca90_deg, ca(0.9), 0.2);
@@ -272,8 +277,8 @@ TEST(CombustionMetrics, RingingIntensityScalesWithTheSquareOfTheRateOfRise) {
     return nm::combustion_metrics(p, kFirst, kStep, e, 1800.0);
   };
   const nm::CombustionMetrics small = ringing(3e5), large = ringing(6e5);
-  std::printf("ringing intensity: ripple 3 bar %.3g MW/m^2, 6 bar %.3g MW/m^2\n", small.ringing_intensity_w_per_m2 / 1e6,
-              large.ringing_intensity_w_per_m2 / 1e6);
+  std::printf("ringing intensity: ripple 3 bar %.3g MW/m^2, 6 bar %.3g MW/m^2\n",
+              small.ringing_intensity_w_per_m2 / 1e6, large.ringing_intensity_w_per_m2 / 1e6);
   EXPECT_GT(small.ringing_intensity_w_per_m2, 0.0);
   // RI ~ (dp/dt)max^2 / pmax: the rise rate nearly doubles, the peak grows a little.
   EXPECT_NEAR(large.ringing_intensity_w_per_m2 / small.ringing_intensity_w_per_m2, 4.0 * std::pow(0.9, 2), 0.8);
@@ -290,7 +295,8 @@ TEST(CombustionMetrics, MapoIsTheAmplitudeOfTheKnockBandsOscillation) {
   const auto with_knock = [&](double hz) {
     const std::vector<double> p = sampled([&](double theta) {
       const double t = (theta - 12.0) / (6.0 * kRpm) - 1.5e-3;  // s from the envelope's crest, 1.5 ms after 12 deg
-      const double knock = kAmplitude * std::exp(-0.5 * std::pow(t / 0.5e-3, 2)) * std::sin(2 * std::numbers::pi * hz * t);
+      const double knock =
+          kAmplitude * std::exp(-0.5 * std::pow(t / 0.5e-3, 2)) * std::sin(2 * std::numbers::pi * hz * t);
       return 30e5 + 40e5 * std::exp(-std::pow((theta - 8.0) / 12.0, 2)) + (hz > 0 ? knock : 0.0);
     });
     return nm::combustion_metrics(p, kFirst, kStep, e, kRpm).mapo_pa;
@@ -390,30 +396,34 @@ TEST(CombustionMetrics, RealYanmarCycles) {
   const auto net = [](const nm::CombustionMetrics& m) { return m.imep_net_pa; };
   const double imep_g = mean(fired, first, gross), imep_n = mean(fired, first, net);
   const double ca50 = mean(fired, first, [](const nm::CombustionMetrics& m) { return m.ca50_deg; });
-  const double rise = mean(fired, first, [](const nm::CombustionMetrics& m) { return m.max_rise_pa_per_deg; }, fired_options);
-  const double rise_at = mean(fired, first, [](const nm::CombustionMetrics& m) { return m.max_rise_angle_deg; }, fired_options);
+  const double rise = mean(
+      fired, first, [](const nm::CombustionMetrics& m) { return m.max_rise_pa_per_deg; }, fired_options);
+  const double rise_at = mean(
+      fired, first, [](const nm::CombustionMetrics& m) { return m.max_rise_angle_deg; }, fired_options);
   const double imep_motored = mean(motored, first, gross);
   // Brake mean effective pressure of the recorded 18 N m: 4 pi T / Vd (four-stroke).
   const double bmep = 4 * std::numbers::pi * 18.0 / e.displacement_m3();
-  std::printf("Yanmar L100V, 60 fired cycles (means): peak %.1f bar at %.1f deg as recorded; TDC corrected by %+.2f deg: "
-              "max dp/dtheta %.2f bar/deg at %.1f deg, IMEP gross %.2f net %.2f bar (BMEP %.2f; COV %.2f / %.2f %%), "
-              "CA50 %.1f deg; motored IMEP gross %.2f bar\n",
-              peak / 1e5, peak_angle, first + 360.0, rise / 1e5, rise_at, imep_g / 1e5, imep_n / 1e5, bmep / 1e5,
-              100 * cov(fired, first, gross), 100 * cov(fired, first, net), ca50, imep_motored / 1e5);
+  std::printf(
+      "Yanmar L100V, 60 fired cycles (means): peak %.1f bar at %.1f deg as recorded; TDC corrected by %+.2f deg: "
+      "max dp/dtheta %.2f bar/deg at %.1f deg, IMEP gross %.2f net %.2f bar (BMEP %.2f; COV %.2f / %.2f %%), "
+      "CA50 %.1f deg; motored IMEP gross %.2f bar\n",
+      peak / 1e5, peak_angle, first + 360.0, rise / 1e5, rise_at, imep_g / 1e5, imep_n / 1e5, bmep / 1e5,
+      100 * cov(fired, first, gross), 100 * cov(fired, first, net), ca50, imep_motored / 1e5);
   EXPECT_NEAR(peak, 65.6e5, 1.5e5);  // data README
   EXPECT_NEAR(peak_angle, 9.6, 3.0);
-  EXPECT_GT(imep_n, bmep);           // friction is positive
-  EXPECT_LT(imep_n, bmep + 3.0e5);   // and a few bar at most for a small diesel at 1800 rpm
-  EXPECT_GT(imep_g, imep_n);         // a naturally aspirated engine pumps
+  EXPECT_GT(imep_n, bmep);          // friction is positive
+  EXPECT_LT(imep_n, bmep + 3.0e5);  // and a few bar at most for a small diesel at 1800 rpm
+  EXPECT_GT(imep_g, imep_n);        // a naturally aspirated engine pumps
   // One recording per cycle: net IMEP scatters like gross (stitched columns made it 8 % against 1.6).
   EXPECT_LT(cov(fired, first, net), cov(fired, first, gross) + 0.005);
-  EXPECT_GT(rise_at, -9.6);          // the injected fuel's rise, after its injection
+  EXPECT_GT(rise_at, -9.6);  // the injected fuel's rise, after its injection
   EXPECT_LT(rise_at, 20.0);
-  EXPECT_GT(ca50, 0.0);              // injection 9.6 deg BTDC, about a millisecond of ignition delay
+  EXPECT_GT(ca50, 0.0);  // injection 9.6 deg BTDC, about a millisecond of ignition delay
   EXPECT_LT(ca50, 25.0);
   // Motored: the engine works on the gas (IMEP gross below zero), and no cycle shows a burn.
   EXPECT_LT(imep_motored, 0.0);
   int with_burn = 0;
-  for (const auto& c : motored) with_burn += std::isfinite(nm::combustion_metrics(c, first, 0.2, e, 1800.0).ca50_deg) ? 1 : 0;
+  for (const auto& c : motored)
+    with_burn += std::isfinite(nm::combustion_metrics(c, first, 0.2, e, 1800.0).ca50_deg) ? 1 : 0;
   EXPECT_EQ(with_burn, 0);
 }

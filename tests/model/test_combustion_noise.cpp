@@ -50,9 +50,7 @@ nm::StructureAttenuation ramp_curve() {
   return sa;
 }
 
-std::vector<double> nominal_bands() {
-  return {nm::kSaNominalBandsHz.begin(), nm::kSaNominalBandsHz.end()};
-}
+std::vector<double> nominal_bands() { return {nm::kSaNominalBandsHz.begin(), nm::kSaNominalBandsHz.end()}; }
 
 double energy_sum(const std::vector<double>& levels) {
   double e = 0.0;
@@ -84,11 +82,11 @@ TEST(CombustionNoise, Cao2015CurveIsEq41AtEveryBand) {
 TEST(CombustionNoise, Cao2015CurveMatchesValuesComputedIndependently) {
   // Python, from the thesis constants, at the exact mid-band frequencies.
   const auto& sa = nm::cao2015_eq_4_1_attenuation();
-  EXPECT_NEAR(sa.db[0], 102.2528, 1e-3);   // 20 Hz
-  EXPECT_NEAR(sa.db[7], 99.4095, 1e-3);    // 100 Hz
-  EXPECT_NEAR(sa.db[17], 82.1160, 1e-3);   // 1 kHz
-  EXPECT_NEAR(sa.db[24], 65.3434, 1e-3);   // 5 kHz
-  EXPECT_NEAR(sa.db[30], 80.0497, 1e-3);   // 20 kHz
+  EXPECT_NEAR(sa.db[0], 102.2528, 1e-3);  // 20 Hz
+  EXPECT_NEAR(sa.db[7], 99.4095, 1e-3);   // 100 Hz
+  EXPECT_NEAR(sa.db[17], 82.1160, 1e-3);  // 1 kHz
+  EXPECT_NEAR(sa.db[24], 65.3434, 1e-3);  // 5 kHz
+  EXPECT_NEAR(sa.db[30], 80.0497, 1e-3);  // 20 kHz
   // Below the 100 Hz break the curve flattens towards -20 lg(ka wb / wn^2) = 102.42 dB.
   EXPECT_NEAR(eq_4_1_attenuation_db(1.0), 102.4224, 1e-3);
   // Least attenuation in the 5 kHz band (thesis sec. 4.2: "least around 5,000 Hz").
@@ -109,9 +107,9 @@ TEST(CombustionNoise, InterpolatesLinearlyInLogFrequency) {
 
 TEST(CombustionNoise, EndBandsHoldToTheirOuterEdgesAndNoFurther) {
   const auto sa = ramp_curve();
-  EXPECT_DOUBLE_EQ(nm::structure_attenuation_db(sa, 18.0), 0.0);       // inside the 20 Hz band (edge 17.8 Hz)
-  EXPECT_DOUBLE_EQ(nm::structure_attenuation_db(sa, 20000.0), 30.0);   // nominal 20 kHz lies above its mid
-  EXPECT_DOUBLE_EQ(nm::structure_attenuation_db(sa, 22000.0), 30.0);   // edge 22.4 kHz
+  EXPECT_DOUBLE_EQ(nm::structure_attenuation_db(sa, 18.0), 0.0);      // inside the 20 Hz band (edge 17.8 Hz)
+  EXPECT_DOUBLE_EQ(nm::structure_attenuation_db(sa, 20000.0), 30.0);  // nominal 20 kHz lies above its mid
+  EXPECT_DOUBLE_EQ(nm::structure_attenuation_db(sa, 22000.0), 30.0);  // edge 22.4 kHz
   EXPECT_TRUE(std::isnan(nm::structure_attenuation_db(sa, 17.0)));
   EXPECT_TRUE(std::isnan(nm::structure_attenuation_db(sa, 23000.0)));
   EXPECT_TRUE(std::isnan(nm::structure_attenuation_db(sa, 0.0)));
@@ -132,14 +130,12 @@ TEST(CombustionNoise, SingleBandToneIsCplMinusSaPlusA) {
   const auto sa = flat_curve(60.0);
   const std::vector<double> f{100.0};
   EXPECT_NEAR(nm::combustion_noise_level_db(std::vector<double>{150.0}, f, sa), 150.0 - 60.0 - 19.1, 0.06);
-  EXPECT_NEAR(nm::combustion_noise_level_db(std::vector<double>{150.0}, std::vector<double>{1000.0}, sa), 90.0,
-              0.01);
-  EXPECT_NEAR(nm::combustion_noise_level_db(std::vector<double>{150.0}, std::vector<double>{4000.0}, sa), 91.0,
-              0.06);
+  EXPECT_NEAR(nm::combustion_noise_level_db(std::vector<double>{150.0}, std::vector<double>{1000.0}, sa), 90.0, 0.01);
+  EXPECT_NEAR(nm::combustion_noise_level_db(std::vector<double>{150.0}, std::vector<double>{4000.0}, sa), 91.0, 0.06);
   // Through the thesis curve at the 5 kHz band: 150 - 65.3434 + 0.549 (A at 5011.87 Hz), by hand.
   const std::vector<double> f5{nm::sa_band_exact_mid_hz(24)};
-  EXPECT_NEAR(nm::combustion_noise_level_db(std::vector<double>{150.0}, f5, nm::cao2015_eq_4_1_attenuation()),
-              85.2056, 2e-3);
+  EXPECT_NEAR(nm::combustion_noise_level_db(std::vector<double>{150.0}, f5, nm::cao2015_eq_4_1_attenuation()), 85.2056,
+              2e-3);
 }
 
 TEST(CombustionNoise, FlatSpectrumSumsByHand) {
@@ -204,8 +200,8 @@ TEST(CombustionNoise, RejectsMismatchedSpansAndBandsTheCurveDoesNotCover) {
   EXPECT_THROW(nm::combustion_noise_level_db(std::vector<double>{150.0}, std::vector<double>{63.0}, gap),
                std::invalid_argument);
   // ...but a band the caller leaves out (NaN level) is never looked up.
-  EXPECT_NO_THROW(nm::combustion_noise_level_db(std::vector<double>{kNaN, 150.0}, std::vector<double>{63.0, 1000.0},
-                                                gap));
+  EXPECT_NO_THROW(
+      nm::combustion_noise_level_db(std::vector<double>{kNaN, 150.0}, std::vector<double>{63.0, 1000.0}, gap));
   // Out-of-range frequency of a skipped band is the caller's business too.
   EXPECT_NO_THROW(nm::combustion_noise_level_db(std::vector<double>{kNaN}, std::vector<double>{25000.0}, sa));
 }

@@ -17,10 +17,10 @@ const std::vector<double> kFlat(4, 0.0);
 
 BandDataset dataset(double heldout_offset_db) {
   const BlockParams truth = preset("linear");
-  return make_dataset({testdata::build(testdata::fired("a_1", 3000, 1.0, truth, kFlat, 1)),
-                       testdata::build(testdata::fired("a_2", 2400, 0.7, truth, kFlat, 2)),
-                       testdata::build(testdata::fired("b_1", 2700, 0.85, truth,
-                                                       std::vector<double>(4, heldout_offset_db), 3))});
+  return make_dataset(
+      {testdata::build(testdata::fired("a_1", 3000, 1.0, truth, kFlat, 1)),
+       testdata::build(testdata::fired("a_2", 2400, 0.7, truth, kFlat, 2)),
+       testdata::build(testdata::fired("b_1", 2700, 0.85, truth, std::vector<double>(4, heldout_offset_db), 3))});
 }
 
 struct Baseline {

@@ -137,9 +137,8 @@ TEST(ScoreCondition, CycleWeightsEqualTheCyclesRepeated) {
   std::vector<std::size_t> repeated;
   for (std::size_t c = 0; c < counts.size(); ++c)
     for (int i = 0; i < counts[c]; ++i) repeated.push_back(c);
-  const ConditionData r = condition(repeated.size(), [&](std::size_t c, std::size_t b) {
-    return level[repeated[c] * kBands + b];
-  });
+  const ConditionData r =
+      condition(repeated.size(), [&](std::size_t c, std::size_t b) { return level[repeated[c] * kBands + b]; });
   // The same prediction per cycle in both (a fixed shape, 1 dB low).
   const auto shape = [](std::size_t, std::size_t b) { return 1e-3 * (b + 1); };
   const ConditionPrediction pd = lower_by(condition(5, shape), 1.0);

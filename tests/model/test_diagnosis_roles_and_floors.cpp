@@ -125,7 +125,7 @@ TEST(AssignRoles, ImpossibleSplitsAreErrors) {
   EXPECT_THROW(roles(data, same), std::invalid_argument);
   BandDataset one = named_conditions();
   one.conditions.erase(one.conditions.begin() + 1, one.conditions.begin() + 4);  // idle_mi12 the only fired one
-  EXPECT_THROW(roles(one, DiagnosisOptions{}), std::invalid_argument);  // leave-one-out needs two
+  EXPECT_THROW(roles(one, DiagnosisOptions{}), std::invalid_argument);           // leave-one-out needs two
 }
 
 TEST(ConditionMatches, GlobsAgreeWithFnmatchAndAPlainPatternIsANameOrAPrefixBeforeAnUnderscore) {

@@ -20,9 +20,9 @@ const std::vector<double> kMicAmplitude{1.0, 1.0, 2.0, 1.0};  // microphone 3 he
 // IEC 61672-1 A-weighting, dB.
 double a_weighting(double f) {
   const double f2 = f * f;
-  const double ra = 12194.0 * 12194.0 * f2 * f2 /
-                    ((f2 + 20.6 * 20.6) * std::sqrt((f2 + 107.7 * 107.7) * (f2 + 737.9 * 737.9)) *
-                     (f2 + 12194.0 * 12194.0));
+  const double ra =
+      12194.0 * 12194.0 * f2 * f2 /
+      ((f2 + 20.6 * 20.6) * std::sqrt((f2 + 107.7 * 107.7) * (f2 + 737.9 * 737.9)) * (f2 + 12194.0 * 12194.0));
   return 20.0 * std::log10(ra) + 2.0;
 }
 
@@ -165,9 +165,9 @@ TEST_F(WhereStage, MeasuredAttenuationOfAPureGainIsTheGainAndTheAWeighting) {
 TEST_F(WhereStage, SlopesOfTheGapAgainstTheInputLevelAndTheInjectionTiming) {
   const noisemon::model::Where& wh = res_.where;
   EXPECT_NEAR(wh.amplitude_slope_db_per_db, 1.0 / (20.0 * std::log10(2.0)), 1e-6);  // 1 dB more gap at +6.02 dB
-  EXPECT_NEAR(wh.soi_slope_db_per_deg, 1.0 / 6.0, 1e-12);                            // 1 dB more gap at 6 deg more
-  EXPECT_TRUE(std::isnan(wh.speed_slope_db_per_krpm));  // both at one speed
-  EXPECT_TRUE(std::isnan(wh.load_slope_db_per_nm));     // and one load
+  EXPECT_NEAR(wh.soi_slope_db_per_deg, 1.0 / 6.0, 1e-12);                           // 1 dB more gap at 6 deg more
+  EXPECT_TRUE(std::isnan(wh.speed_slope_db_per_krpm));                              // both at one speed
+  EXPECT_TRUE(std::isnan(wh.load_slope_db_per_nm));                                 // and one load
   // Every cycle's gap the same (0): no slope within a condition (NaN where the levels do not spread either).
   EXPECT_FALSE(std::abs(wh.cycle_amplitude_slope_db_per_db) > 1e-9);
 }
@@ -220,8 +220,8 @@ TEST_F(WhereStage, TheFloorSummaryHasOneLinePerGroupOfConditions) {
     for (std::size_t b = 0; b < nb_; ++b) cells += cx_.fast[b] && cx_.base_mask[k][b] ? 8 : 0;
   EXPECT_GT(cells, 0);
   const std::string bands = " of " + std::to_string(nb_) + " bands floor-limited";
-  EXPECT_EQ(wh.floor_summary[1], "h (2 runs): 0" + bands + "; 0 of " + std::to_string(cells) +
-                                     " crank-window cells at the pressure floor");
+  EXPECT_EQ(wh.floor_summary[1],
+            "h (2 runs): 0" + bands + "; 0 of " + std::to_string(cells) + " crank-window cells at the pressure floor");
   // The background run is its own floor: every informative band is floor-limited, from the lowest one up.
   int informative = 0;
   double lowest = 0.0;

@@ -10,7 +10,8 @@
 //  - transducer_noise: sample rms on top of the configured floor (in quadrature), whiteness; mic_gain,
 //    speed_dependence, foreign gain: exact ratios;
 //  - magnitude 0 changes nothing (bit for bit); seeds and chunking;
-//  - the realistic test cell (model/engine/pressure_chain, model/engine/mic_chain): the pressure floor's rms and flat spectrum, the
+//  - the realistic test cell (model/engine/pressure_chain, model/engine/mic_chain): the pressure floor's rms and flat
+//  spectrum, the
 //    1/f part's slope, the ADCs' step and counted clipping, the microphones' self-noise A-weighted (IEC 61672-1
 //    written out here) and white, the directivity's spread per band and its unbiased array energy mean, measured
 //    from rendered samples; counter-based noise independent of chunking.
@@ -248,7 +249,8 @@ TEST(Effects, ParsingTakesNameMagnitudeAndQualifiersAndRejectsBadInputWithClearE
   };
   const std::string unknown = message({"cubic_dampign=3"});
   EXPECT_NE(unknown.find("cubic_dampign"), std::string::npos) << unknown;
-  for (const auto& info : nm::effect_catalog()) EXPECT_NE(unknown.find(std::string(info.name)), std::string::npos) << unknown;
+  for (const auto& info : nm::effect_catalog())
+    EXPECT_NE(unknown.find(std::string(info.name)), std::string::npos) << unknown;
   EXPECT_NE(message({"cubic_damping=abc"}).find("not a finite number"), std::string::npos);
   EXPECT_NE(message({"cubic_damping=1e3x"}).find("not a finite number"), std::string::npos);
   EXPECT_NE(message({"cubic_damping=-5"}).find("outside"), std::string::npos);
@@ -265,10 +267,10 @@ TEST(Effects, MagnitudeZeroChangesNothingAtAll) {
   nm::VirtualEngineConfig base = quiet_config(4);
   base.floor_db = 40.0;
   base.mic_gain_spread_db = 0.5;
-  base.mic_chain = {};       // the realistic cell: magnitude 0 must not disturb it either
+  base.mic_chain = {};  // the realistic cell: magnitude 0 must not disturb it either
   base.pressure_chain = {};
-  base.speed_rpm = 3450.0;  // away from speed_dependence's reference
-  base.soi_deg_btdc = 24.0; // away from the foreign effect's reference
+  base.speed_rpm = 3450.0;   // away from speed_dependence's reference
+  base.soi_deg_btdc = 24.0;  // away from the foreign effect's reference
   const std::size_t frames = 12000;
   FnFeed feed0(3450.0, pulse_pressure);
   const auto ref = render(base, feed0, frames);
@@ -316,11 +318,13 @@ TEST(Effects, CubicStiffnessRaisesTheResonanceWithDeflectionAsTheTangentStiffnes
     double best_f = 0.0, best = 0.0;
     for (double f = 500.0; f < 16000.0; f += 1.0)
       if (std::abs(block_response(b, kt, f)) > best) best = std::abs(block_response(b, kt, f)), best_f = f;
-    std::printf("p0 %.0f bar: tangent stiffness %.3g N/m, peak measured %.0f Hz, analytic %.0f Hz\n", p0 / 1e5, kt, t.f[imax], best_f);
+    std::printf("p0 %.0f bar: tangent stiffness %.3g N/m, peak measured %.0f Hz, analytic %.0f Hz\n", p0 / 1e5, kt,
+                t.f[imax], best_f);
     EXPECT_NEAR(t.f[imax], best_f, 0.03 * best_f);
     peak_hz.push_back(best_f);
   }
-  std::printf("cubic_stiffness: measured transfer vs tangent-stiffness linearisation, worst %.3f dB (0.5-16 kHz)\n", worst);
+  std::printf("cubic_stiffness: measured transfer vs tangent-stiffness linearisation, worst %.3f dB (0.5-16 kHz)\n",
+              worst);
   EXPECT_LT(worst, 0.05);
   EXPECT_GT(peak_hz[2], 1.2 * peak_hz[0]);  // the resonance rises with deflection
   EXPECT_GT(peak_hz[1], peak_hz[0]);
@@ -365,8 +369,10 @@ TEST(Effects, CubicDampingMatchesAnIndependentRungeKuttaIntegrationAtLargeAmplit
     const double fund = harmonic(y, 50), fund_ref = harmonic(ref, 50);
     const double third = harmonic(y, 150), third_ref = harmonic(ref, 150);
     const double linear = amp * std::abs(block_response(b, b.k1, f0));
-    std::printf("cubic_damping, %.0f Pa at 5 kHz: fundamental %.4g Pa (RK4 %.4g, linear model %.4g: %+.2f dB), third harmonic %.3g Pa (RK4 %.3g)\n",
-                amp, fund, fund_ref, linear, 20 * std::log10(fund / linear), third, third_ref);
+    std::printf(
+        "cubic_damping, %.0f Pa at 5 kHz: fundamental %.4g Pa (RK4 %.4g, linear model %.4g: %+.2f dB), third harmonic "
+        "%.3g Pa (RK4 %.3g)\n",
+        amp, fund, fund_ref, linear, 20 * std::log10(fund / linear), third, third_ref);
     EXPECT_NEAR(20 * std::log10(fund / fund_ref), 0.0, 0.02);
     if (amp > 1e5) {
       EXPECT_LT(20 * std::log10(fund / linear), -2.0);  // the damper takes the peak down
@@ -405,15 +411,18 @@ TEST(Effects, SecondModeAddsTheDocumentedPeakAtItsFrequencyAndNothingFarFromIt) 
       // The documented path: block (eq. 4.13), (1 + the mode), the 2 Hz AC coupling (first-order high-pass, 1.1 deg
       // of phase lead at 100 Hz) and the r/c delay.
       const cd ac = s / (s + 2.0 * kPi * c.ac_coupling_hz);
-      const cd expected = block_response(c.true_block, c.true_block.k1, t.f[i]) * (1.0 + mode_added(c.effects, t.f[i])) *
-                          ac * std::polar(1.0, -w * d);
+      const cd expected = block_response(c.true_block, c.true_block.k1, t.f[i]) *
+                          (1.0 + mode_added(c.effects, t.f[i])) * ac * std::polar(1.0, -w * d);
       if (std::abs(t.h[i] / expected - 1.0) > worst) worst_f = t.f[i], worst_ratio = t.h[i] / expected;
       worst = std::max(worst, std::abs(t.h[i] / expected - 1.0));
       if (std::abs(t.f[i] - f2) < 1e-6)
         at_f2 = 20.0 * std::log10(std::abs(t.h[i]) / std::abs(block_response(c.true_block, c.true_block.k1, f2)));
     }
-    std::printf("%s: response at f2 %.3f dB above the main path (documented %.2f); worst complex deviation %.2e at %.0f Hz (%.3f dB, %.2f deg)\n",
-                text, at_f2, documented_rise, worst, worst_f, 20 * std::log10(std::abs(worst_ratio)), std::arg(worst_ratio) * 180 / kPi);
+    std::printf(
+        "%s: response at f2 %.3f dB above the main path (documented %.2f); worst complex deviation %.2e at %.0f Hz "
+        "(%.3f dB, %.2f deg)\n",
+        text, at_f2, documented_rise, worst, worst_f, 20 * std::log10(std::abs(worst_ratio)),
+        std::arg(worst_ratio) * 180 / kPi);
     EXPECT_NEAR(at_f2, documented_rise, 0.02);
     EXPECT_LT(worst, 0.01);  // magnitude within 0.09 dB and phase (with the r/c delay) within 0.6 deg everywhere
     // What the mode itself adds far below f2: with/without the effect cancels the block, the AC coupling and the
@@ -427,8 +436,9 @@ TEST(Effects, SecondModeAddsTheDocumentedPeakAtItsFrequencyAndNothingFarFromIt) 
       const cd added = mode_added(c.effects, t.f[i]);
       worst_ratio_dev = std::max(worst_ratio_dev, std::abs(t.h[i] / t0.h[i] - 1.0 - added));
       if (i == 0)
-        std::printf("  at %.0f Hz the mode adds %.4f at %.1f deg (analytic), measured %.4f at %.1f deg\n", t.f[i], std::abs(added),
-                    std::arg(added) * 180 / kPi, std::abs(t.h[i] / t0.h[i] - 1.0), std::arg(t.h[i] / t0.h[i] - 1.0) * 180 / kPi);
+        std::printf("  at %.0f Hz the mode adds %.4f at %.1f deg (analytic), measured %.4f at %.1f deg\n", t.f[i],
+                    std::abs(added), std::arg(added) * 180 / kPi, std::abs(t.h[i] / t0.h[i] - 1.0),
+                    std::arg(t.h[i] / t0.h[i] - 1.0) * 180 / kPi);
     }
     EXPECT_LT(worst_ratio_dev, 0.005) << text;
   }
@@ -451,7 +461,8 @@ TEST(Effects, MechanicalNoiseHasTheDocumentedLevelSpeedLawAndCrankAngles) {
     const double d = delay_s(c.mic_positions_m[0]);
     const auto from = static_cast<std::size_t>(std::llround((cycle_s + d) * kFsOut));
     const auto len = static_cast<std::size_t>(std::llround(40 * cycle_s * kFsOut));
-    const std::vector<double> seg(y.begin() + static_cast<std::ptrdiff_t>(from), y.begin() + static_cast<std::ptrdiff_t>(from + len));
+    const std::vector<double> seg(y.begin() + static_cast<std::ptrdiff_t>(from),
+                                  y.begin() + static_cast<std::ptrdiff_t>(from + len));
     leq.push_back(db(a_weighted_mean_square(seg, kFsOut)));
     std::printf("mechanical_noise=%.0f at %.0f rpm: measured Leq(A) %.2f dB\n", level, rpm, leq.back());
     if (rpm != 3050.0) continue;
@@ -514,13 +525,16 @@ TEST(Effects, MechanicalNoiseHasTheDocumentedLevelSpeedLawAndCrankAngles) {
         for (double x = a0; x < a1; x += 1.0) e += bfold[bin(x)];
         return e;
       };
-      const double guard = std::ceil(3.0 / (2.0 * kPi * sigma_f) * 6.0 * rpm / std::sqrt(2.0));  // 3 sigma of the energy
+      const double guard =
+          std::ceil(3.0 / (2.0 * kPi * sigma_f) * 6.0 * rpm / std::sqrt(2.0));  // 3 sigma of the energy
       const double a = std::floor(ev.at_soi ? ev.angle_deg - soi : ev.angle_deg);
       const double after = bwindow(a, a + 3.0), before = bwindow(a - guard - 3.0, a - guard);
       const double share = window(a - 1.0, a + 3.0 * ev.decay_s * 6.0 * rpm) / total;
-      std::printf("  %-26s at %7.1f deg (heard %.1f deg later): energy in its %5.0f Hz band rises %.0fx (guard %.0f deg), "
-                  "%.1f %% of the total\n",
-                  std::string(ev.name).c_str(), a, delay_deg, ev.ring_hz, after / std::max(before, 1e-300), guard, 100.0 * share);
+      std::printf(
+          "  %-26s at %7.1f deg (heard %.1f deg later): energy in its %5.0f Hz band rises %.0fx (guard %.0f deg), "
+          "%.1f %% of the total\n",
+          std::string(ev.name).c_str(), a, delay_deg, ev.ring_hz, after / std::max(before, 1e-300), guard,
+          100.0 * share);
       EXPECT_GT(after, 10.0 * before) << ev.name << ": no impact onset at its documented angle";
       EXPECT_GT(share, 0.01) << ev.name;
     }
@@ -580,7 +594,8 @@ TEST(Effects, BackgroundNoiseHasTheDocumentedLevelAndSpectrumAndNoCrankLocking) 
     double s = 0.0;
     for (std::size_t k = 1; k < frames / 2; ++k) {
       const double f = kFsOut * static_cast<double>(k) / static_cast<double>(frames);
-      if (f >= lo && f < hi) s += measured ? psd[k] : 1.0 / (1.0 + (f / nm::kVentilationCornerHz) * (f / nm::kVentilationCornerHz));
+      if (f >= lo && f < hi)
+        s += measured ? psd[k] : 1.0 / (1.0 + (f / nm::kVentilationCornerHz) * (f / nm::kVentilationCornerHz));
     }
     return s;
   };
@@ -595,7 +610,8 @@ TEST(Effects, BackgroundNoiseHasTheDocumentedLevelAndSpectrumAndNoCrankLocking) 
   for (std::size_t f = 0; f < frames; ++f) {
     const double theta = -360.0 + 6.0 * 3050.0 * static_cast<double>(f) / kFsOut;
     const double a = theta - 720.0 * std::floor((theta + 360.0) / 720.0);
-    for (std::size_t ch = 0; ch < mics; ++ch) fold[static_cast<std::size_t>((a + 360.0) / 20.0) % 36] += y[f * mics + ch] * y[f * mics + ch];
+    for (std::size_t ch = 0; ch < mics; ++ch)
+      fold[static_cast<std::size_t>((a + 360.0) / 20.0) % 36] += y[f * mics + ch] * y[f * mics + ch];
   }
   const double mean = std::accumulate(fold.begin(), fold.end(), 0.0) / 36.0;
   for (double v : fold) EXPECT_NEAR(10 * std::log10(v / mean), 0.0, 1.0);
@@ -630,15 +646,16 @@ TEST(Effects, TransducerNoiseAddsInQuadratureOnTopOfTheConfiguredFloorAndOnlyToT
     if (i > 0) lag1 += extra[i] * extra[i - 1] / n;
   }
   const double quadrature = 1e5 * std::hypot(floor_bar, m_bar);
-  std::printf("transducer_noise=%.2f bar on a %.2f bar floor: measured %.4f bar rms (quadrature %.4f), effect alone %.4f bar, "
-              "floor alone %.4f bar, correlation %.4f, lag-1 %.4f\n", m_bar, floor_bar, 1e-5 * std::sqrt(ms_both),
-              1e-5 * quadrature, 1e-5 * std::sqrt(ms_extra), 1e-5 * std::sqrt(ms_floor), cross / std::sqrt(ms_extra * ms_floor),
-              lag1 / ms_extra);
+  std::printf(
+      "transducer_noise=%.2f bar on a %.2f bar floor: measured %.4f bar rms (quadrature %.4f), effect alone %.4f bar, "
+      "floor alone %.4f bar, correlation %.4f, lag-1 %.4f\n",
+      m_bar, floor_bar, 1e-5 * std::sqrt(ms_both), 1e-5 * quadrature, 1e-5 * std::sqrt(ms_extra),
+      1e-5 * std::sqrt(ms_floor), cross / std::sqrt(ms_extra * ms_floor), lag1 / ms_extra);
   EXPECT_NEAR(std::sqrt(ms_both) / quadrature, 1.0, 0.01);
   EXPECT_NEAR(std::sqrt(ms_extra) / (1e5 * m_bar), 1.0, 0.01);
   EXPECT_NEAR(std::sqrt(ms_floor) / (1e5 * floor_bar), 1.0, 0.01);
   EXPECT_LT(std::abs(cross) / std::sqrt(ms_extra * ms_floor), 0.01);  // independent of the floor
-  EXPECT_LT(std::abs(lag1) / ms_extra, 0.01);                          // white
+  EXPECT_LT(std::abs(lag1) / ms_extra, 0.01);                         // white
   // Per encoder sample, whatever the rate: the same at another input rate.
   nm::VirtualEngineConfig slow = c;
   slow.input_rate_hz = kFsOut;
@@ -684,7 +701,8 @@ TEST(Effects, SpeedDependenceAndTheForeignGainScaleOnlyTheStructuralPathAsDocume
   const auto ratio_of = [](nm::VirtualEngineConfig c, const std::vector<std::string>& eff, bool silent_engine) {
     nm::VirtualEngineConfig w = c;
     w.effects = effects(eff);
-    const auto p = silent_engine ? std::function<double(double, double)>([](double, double) { return 0.0; }) : pulse_pressure;
+    const auto p =
+        silent_engine ? std::function<double(double, double)>([](double, double) { return 0.0; }) : pulse_pressure;
     FnFeed f1(c.speed_rpm, p), f2(c.speed_rpm, p);
     const auto a = render(c, f1, 20000), b = render(w, f2, 20000);
     double num = 0.0, den = 0.0, worst = 0.0;
@@ -830,8 +848,8 @@ TEST(PressureChain, AdcQuantisesToItsStepAndCountsEveryClippedSample) {
     worst = std::max(worst, std::abs(y[i] - x[i]));
     off_grid = std::max(off_grid, std::abs(y[i] / step - std::round(y[i] / step)));
   }
-  std::printf("pressure ADC: step %.1f Pa, error rms %.2f Pa (step/sqrt 12 = %.2f), worst %.1f Pa\n", step, std::sqrt(ms),
-              step / std::sqrt(12.0), worst);
+  std::printf("pressure ADC: step %.1f Pa, error rms %.2f Pa (step/sqrt 12 = %.2f), worst %.1f Pa\n", step,
+              std::sqrt(ms), step / std::sqrt(12.0), worst);
   EXPECT_LT(off_grid, 1e-6);
   EXPECT_LE(worst, 0.5 * step + 1e-6);
   EXPECT_NEAR(std::sqrt(ms) / (step / std::sqrt(12.0)), 1.0, 0.02);
@@ -921,9 +939,10 @@ TEST(MicChain, SelfNoiseHasTheConfiguredAWeightedLevelAndIsWhiteAndIndependent) 
   double c01 = 0.0, e0 = 0.0, e1 = 0.0;
   for (std::size_t f = 0; f < frames; ++f)
     c01 += y[f * mics] * y[f * mics + 1], e0 += y[f * mics] * y[f * mics], e1 += y[f * mics + 1] * y[f * mics + 1];
-  std::printf("self-noise: measured %.2f dB(A) (configured %.1f), 15-17 kHz vs 0.5-2.5 kHz density %+.2f dB, "
-              "correlation of two microphones %.4f\n", db(ms_a), c.mic_chain.self_noise_dba, 10.0 * std::log10(high / low),
-              c01 / std::sqrt(e0 * e1));
+  std::printf(
+      "self-noise: measured %.2f dB(A) (configured %.1f), 15-17 kHz vs 0.5-2.5 kHz density %+.2f dB, "
+      "correlation of two microphones %.4f\n",
+      db(ms_a), c.mic_chain.self_noise_dba, 10.0 * std::log10(high / low), c01 / std::sqrt(e0 * e1));
   EXPECT_NEAR(db(ms_a), c.mic_chain.self_noise_dba, 0.2);
   EXPECT_NEAR(10.0 * std::log10(high / low), 0.0, 0.3);  // white
   EXPECT_LT(std::abs(c01) / std::sqrt(e0 * e1), 0.02);
@@ -950,7 +969,8 @@ TEST(MicChain, DirectivitySpreadsAboutOneDbPerBandTowardsHighFrequenciesWithAnUn
     fft(fa[ch]);
     fft(fb[ch]);
   }
-  std::printf("directivity (1/3-octave bands): centre Hz, array energy mean dB, spread (std over %zu microphones) dB\n", mics);
+  std::printf("directivity (1/3-octave bands): centre Hz, array energy mean dB, spread (std over %zu microphones) dB\n",
+              mics);
   double worst_mean = 0.0, high_sd = 0.0, low_sd = 0.0, worst_step = 0.0, step_ss = 0.0;
   int high_n = 0, low_n = 0, steps = 0;
   std::vector<double> prev(mics, 0.0);
@@ -984,13 +1004,15 @@ TEST(MicChain, DirectivitySpreadsAboutOneDbPerBandTowardsHighFrequenciesWithAnUn
   high_sd /= high_n;
   low_sd /= low_n;
   const double rms_step = std::sqrt(step_ss / steps);
-  std::printf("directivity: worst array energy mean %.3f dB, spread %.2f dB at 3-16 kHz, %.2f dB at 50-160 Hz, "
-              "step between neighbouring bands %.2f dB rms, %.2f dB at most\n", worst_mean, high_sd, low_sd, rms_step, worst_step);
-  EXPECT_LT(worst_mean, 0.1);             // the array average stays unbiased
-  EXPECT_GT(high_sd, 0.6);                // about +-1 dB at high frequencies
+  std::printf(
+      "directivity: worst array energy mean %.3f dB, spread %.2f dB at 3-16 kHz, %.2f dB at 50-160 Hz, "
+      "step between neighbouring bands %.2f dB rms, %.2f dB at most\n",
+      worst_mean, high_sd, low_sd, rms_step, worst_step);
+  EXPECT_LT(worst_mean, 0.1);  // the array average stays unbiased
+  EXPECT_GT(high_sd, 0.6);     // about +-1 dB at high frequencies
   EXPECT_LT(high_sd, 1.4);
-  EXPECT_LT(low_sd, 0.4);                 // and much less at low ones
-  EXPECT_LT(rms_step, 0.5 * high_sd);     // smooth: neighbouring 1/3-octave bands move together
+  EXPECT_LT(low_sd, 0.4);              // and much less at low ones
+  EXPECT_LT(rms_step, 0.5 * high_sd);  // smooth: neighbouring 1/3-octave bands move together
   EXPECT_LT(worst_step, 1.5);
   // A property of the installation: the run's seed does not move it, the setup seed does.
   nm::VirtualEngineConfig other_run = with, other_setup = with;

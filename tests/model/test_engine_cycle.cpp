@@ -12,8 +12,8 @@
 
 #include <algorithm>
 #include <cmath>
-#include <cstdio>
 #include <complex>
+#include <cstdio>
 #include <cstdlib>
 #include <fstream>
 #include <numbers>
@@ -58,7 +58,8 @@ PeakAndRise peak_and_rise(const nm::EngineCycle& ec) {
   const double d = 0.02;
   for (double th = -60.0; th <= 60.0; th += d) {
     r.peak_pa = std::max(r.peak_pa, ec.pressure_pa(th));
-    r.max_rise_pa_per_deg = std::max(r.max_rise_pa_per_deg, (ec.pressure_pa(th + d) - ec.pressure_pa(th - d)) / (2 * d));
+    r.max_rise_pa_per_deg =
+        std::max(r.max_rise_pa_per_deg, (ec.pressure_pa(th + d) - ec.pressure_pa(th - d)) / (2 * d));
   }
   return r;
 }
@@ -111,7 +112,8 @@ TEST(EngineCycle, AdiabaticConstantGammaFollowsIsentrope) {
     ASSERT_NEAR(ec.pressure_pa(t), expected, 1e-7 * expected) << t;
   }
   // Compression ratio from IVC (30 deg after BDC) to TDC of the L100V: ~20.2; p_max = 1 bar * 20.2^1.35.
-  EXPECT_NEAR(ec.summary().peak_pressure_pa, p.intake_pressure_pa * std::pow(v_ivc / p.geometry.clearance_volume_m3(), gamma),
+  EXPECT_NEAR(ec.summary().peak_pressure_pa,
+              p.intake_pressure_pa * std::pow(v_ivc / p.geometry.clearance_volume_m3(), gamma),
               1e-6 * ec.summary().peak_pressure_pa);
   EXPECT_NEAR(ec.summary().peak_pressure_deg, 0.0, 1e-9);
 }
@@ -125,7 +127,8 @@ TEST(EngineCycle, AdiabaticVariableGammaKeepsEntropy) {
   const auto th = ec.closed_angle_deg();
   const auto temp = ec.closed_temperature_k();
   auto entropy = [&](std::size_t i) {
-    return p.cv0_j_kg_k * std::log(temp[i]) + p.cv1_j_kg_k2 * temp[i] + p.gas_constant_j_kg_k * std::log(p.geometry.volume_m3(th[i]));
+    return p.cv0_j_kg_k * std::log(temp[i]) + p.cv1_j_kg_k2 * temp[i] +
+           p.gas_constant_j_kg_k * std::log(p.geometry.volume_m3(th[i]));
   };
   const double s0 = entropy(0);
   for (std::size_t i = 0; i < th.size(); i += 11) ASSERT_NEAR(entropy(i), s0, 1e-9 * p.cv0_j_kg_k) << th[i];
@@ -475,20 +478,24 @@ TEST(GasRinging, EachModeRingsAtDrapersFrequencyOfTheSimulatedGasTemperature) {
     for (std::size_t j = 0; j + 1 < zeros.size(); ++j) {
       double cycles = 0.0;  // integral of f dt over the half period (midpoint rule on 50 steps)
       const double h = (zeros[j + 1] - zeros[j]) / 50.0;
-      for (int i = 0; i < 50; ++i) cycles += draper_hz(p, alpha[mode], temperature_at(ring.with, zeros[j] + (i + 0.5) * h)) * h / deg_per_s;
+      for (int i = 0; i < 50; ++i)
+        cycles += draper_hz(p, alpha[mode], temperature_at(ring.with, zeros[j] + (i + 0.5) * h)) * h / deg_per_s;
       worst = std::max(worst, std::abs(cycles / 0.5 - 1.0));
     }
     const double f_first = 0.5 * deg_per_s / (zeros[1] - zeros[0]);
     const double f_late = 0.5 * deg_per_s / (zeros.back() - zeros[zeros.size() - 2]);
-    std::printf("mode %d: %zu half periods over 80 deg after SOC; measured %.0f Hz at SOC (T %.0f K), %.0f Hz at %.0f deg "
-                "(T %.0f K); worst deviation from Draper %.2e\n", mode, zeros.size() - 1, f_first,
-                temperature_at(ring.with, zeros[0]), f_late, zeros.back(), temperature_at(ring.with, zeros.back()), worst);
+    std::printf(
+        "mode %d: %zu half periods over 80 deg after SOC; measured %.0f Hz at SOC (T %.0f K), %.0f Hz at %.0f deg "
+        "(T %.0f K); worst deviation from Draper %.2e\n",
+        mode, zeros.size() - 1, f_first, temperature_at(ring.with, zeros[0]), f_late, zeros.back(),
+        temperature_at(ring.with, zeros.back()), worst);
     EXPECT_LT(worst, 0.005) << "mode " << mode;
     // It follows sqrt(T): the frequency ratio of two moments is the ratio of the sound speeds.
     EXPECT_NEAR(f_late / f_first,
                 draper_hz(p, 1.0, temperature_at(ring.with, 0.5 * (zeros[zeros.size() - 2] + zeros.back()))) /
                     draper_hz(p, 1.0, temperature_at(ring.with, 0.5 * (zeros[0] + zeros[1]))),
-                0.01) << "mode " << mode;
+                0.01)
+        << "mode " << mode;
   }
 }
 
@@ -503,7 +510,7 @@ TEST(GasRinging, NoneInMotoredCyclesNorBeforeCombustion) {
   const double soc = f.with.summary().soc_deg;
   for (double th = -360.0; th < soc - 0.05; th += 0.013) ASSERT_EQ(f.at(th), 0.0) << th;
   const double evo = f.with.params().evo_deg;
-  for (double th = evo; th <= 360.0; th += 0.013) ASSERT_EQ(f.at(th), 0.0) << th;  // tapered out by EVO
+  for (double th = evo; th <= 360.0; th += 0.013) ASSERT_EQ(f.at(th), 0.0) << th;      // tapered out by EVO
   EXPECT_LT(std::abs(f.at(evo - 0.5)), 1e-3 * f.with.summary().ringing_amplitude_pa);  // smoothly
   EXPECT_GT(f.with.summary().ringing_amplitude_pa, 1e4);
 }
@@ -525,7 +532,8 @@ TEST(GasRinging, AmplitudeFollowsThePremixedPressureRiseRateAsDocumented) {
     const Ringing one(first_mode, c.op, v), all(nm::GasRingingParams{}, c.op, v);
     const auto& s = one.with.summary();
     const auto& p = one.with.params();
-    const double qp = s.premixed_fraction * s.fuel_energy_j, a = p.wiebe_a, m = p.premixed_shape, dur = p.premixed_duration_deg;
+    const double qp = s.premixed_fraction * s.fuel_energy_j, a = p.wiebe_a, m = p.premixed_shape,
+                 dur = p.premixed_duration_deg;
     double best = 0.0, best_th = 0.0;
     for (double x = 1e-4; x < 1.0; x += 1e-5) {
       const double rate = qp * a * (m + 1.0) / dur * std::pow(x, m) * std::exp(-a * std::pow(x, m + 1.0));
@@ -533,14 +541,16 @@ TEST(GasRinging, AmplitudeFollowsThePremixedPressureRiseRateAsDocumented) {
     }
     const double t = temperature_at(one.with, best_th);
     const double cv = p.cv0_j_kg_k + p.cv1_j_kg_k2 * t;
-    const double expected = 6e-6 * (p.gas_constant_j_kg_k / cv) / p.geometry.volume_m3(best_th) * best * 6.0 * c.op.speed_rpm;
+    const double expected =
+        6e-6 * (p.gas_constant_j_kg_k / cv) / p.geometry.volume_m3(best_th) * best * 6.0 * c.op.speed_rpm;
     double peak_one = 0.0, peak_all = 0.0;
     for (double th = s.soc_deg; th < s.soc_deg + 90.0; th += 0.005) {
       peak_one = std::max(peak_one, std::abs(one.at(th)));
       peak_all = std::max(peak_all, std::abs(all.at(th)));
     }
-    std::printf("%s: ringing amplitude %.3f bar (documented law %.3f bar), mode (1,0) peak %.3f bar, all modes %.3f bar\n",
-                c.name, 1e-5 * s.ringing_amplitude_pa, 1e-5 * expected, 1e-5 * peak_one, 1e-5 * peak_all);
+    std::printf(
+        "%s: ringing amplitude %.3f bar (documented law %.3f bar), mode (1,0) peak %.3f bar, all modes %.3f bar\n",
+        c.name, 1e-5 * s.ringing_amplitude_pa, 1e-5 * expected, 1e-5 * peak_one, 1e-5 * peak_all);
     EXPECT_NEAR(s.ringing_amplitude_pa / expected, 1.0, 0.005) << c.name;
     EXPECT_NEAR(peak_one / s.ringing_amplitude_pa, 1.0, 0.05) << c.name;
     EXPECT_GT(1e-5 * peak_all, c.min_bar) << c.name;
@@ -597,7 +607,8 @@ TEST(GasRinging, FirstModeAgreesWithTheRingingOfTheRealFiredYanmarRecord) {
   for (double f = 3000.0; f <= 8000.0; f += 50.0) freqs.push_back(f);
   // Real: the excess of the 20 deg after TDC over 20 deg of compression before injection (its noise floor, which
   // is far from white: the ratio removes it).
-  const auto after = window_spectrum(real, 0.0, 20.0, fs, freqs), before = window_spectrum(real, -45.0, -25.0, fs, freqs);
+  const auto after = window_spectrum(real, 0.0, 20.0, fs, freqs),
+             before = window_spectrum(real, -45.0, -25.0, fs, freqs);
   // Sim: the ringing alone at the record's condition, sampled alike, 60 cycles.
   const nm::OperatingCondition op{.speed_rpm = rpm, .load_nm = 18.0, .soi_deg_btdc = 9.6, .motored = false};
   std::vector<std::vector<double>> sim;
@@ -614,8 +625,10 @@ TEST(GasRinging, FirstModeAgreesWithTheRingingOfTheRealFiredYanmarRecord) {
     if (after[j] / before[j] > after[jr] / before[jr] || freqs[jr] < 4000.0) jr = j;
     if (sim_after[j] > sim_after[js] || freqs[js] < 4000.0) js = j;
   }
-  std::printf("first gas mode 0-20 deg after TDC: real Yanmar record %.0f Hz (+%.1f dB over compression), sim %.0f Hz "
-              "(ratio %.3f)\n", freqs[jr], 10.0 * std::log10(after[jr] / before[jr]), freqs[js], freqs[jr] / freqs[js]);
+  std::printf(
+      "first gas mode 0-20 deg after TDC: real Yanmar record %.0f Hz (+%.1f dB over compression), sim %.0f Hz "
+      "(ratio %.3f)\n",
+      freqs[jr], 10.0 * std::log10(after[jr] / before[jr]), freqs[js], freqs[jr] / freqs[js]);
   EXPECT_GT(after[jr] / before[jr], 3.0);  // the record does ring there
   EXPECT_NEAR(freqs[jr] / freqs[js], 1.0, 0.10);
 }

@@ -42,7 +42,8 @@ TEST(GapWatch, FalseAlarmRateIsAtMostTheOneSet) {
   const double watched_h = 2.0 - static_cast<double>(events.size() + 1) * o.reference_s / 3600.0;
   const double expected = watched_h / o.false_alarm_hours;
   std::printf("%zu false alarms in %.2f h watched, %.1f at the rate set\n", events.size(), watched_h, expected);
-  EXPECT_LE(static_cast<double>(events.size()), 1.5 * expected) << events.size() << " alarms, " << expected << " expected at most";
+  EXPECT_LE(static_cast<double>(events.size()), 1.5 * expected)
+      << events.size() << " alarms, " << expected << " expected at most";
   EXPECT_GE(static_cast<double>(events.size()), 0.25 * expected) << events.size() << " alarms";
 }
 
@@ -69,7 +70,8 @@ TEST(GapWatch, StepIsFoundItsOnsetLocatedAndNamed) {
   EXPECT_GT(events[0].confidence, 0.9);
   // The overall gap moves by what one microphone of ten 2 dB louder adds to their energy mean (its offset and
   // directivity spread its share about a tenth).
-  EXPECT_NEAR(events[0].gap_after_db - events[0].gap_before_db, 10.0 * std::log10(1.0 + (std::pow(10.0, 0.2) - 1.0) / 10.0), 0.08);
+  EXPECT_NEAR(events[0].gap_after_db - events[0].gap_before_db,
+              10.0 * std::log10(1.0 + (std::pow(10.0, 0.2) - 1.0) / 10.0), 0.08);
 }
 
 // The engine ramps between two operating points (3050 rpm / 0 N m and 3450 rpm / 20 N m) over 5 s, twelve times,
@@ -109,7 +111,9 @@ TEST(GapWatch, CyclesOfAChangeOfOperatingPointAreNotWatched) {
 // The gate's decision: the operating points from before_s before a cycle to after_s after it within the band.
 TEST(SteadyStateGate, ACycleIsSteadyWhenThePointHeldAroundIt) {
   nm::SteadyStateGate gate(nm::SteadyStateOptions{});  // 5 s before, 2 s after; 30 rpm, 1 N m, 0.5 deg
-  const auto at = [](double t, double rpm, double load) { return nm::OperatingSample{.time_s = t, .speed_rpm = rpm, .load_nm = load}; };
+  const auto at = [](double t, double rpm, double load) {
+    return nm::OperatingSample{.time_s = t, .speed_rpm = rpm, .load_nm = load};
+  };
   for (int i = 0; i <= 200; ++i) {  // 10 s steady, then the load steps up by 1.5 N m at 10 s
     const double t = 0.05 * i;
     gate.add(at(t, 3050.0 + (i % 2 ? 10.0 : -10.0), t < 10.0 ? 0.0 : 1.5));
@@ -122,7 +126,7 @@ TEST(SteadyStateGate, ACycleIsSteadyWhenThePointHeldAroundIt) {
   gate.flush();
   EXPECT_TRUE(gate.decided(9.9));
   EXPECT_FALSE(gate.steady(at(9.9, 3050.0, 1.5)));  // the point before it differs
-  gate.add(at(1.0, 2000.0, 0.0));                    // a clock that runs back: another run
+  gate.add(at(1.0, 2000.0, 0.0));                   // a clock that runs back: another run
   EXPECT_TRUE(gate.steady(at(1.0, 2000.0, 0.0)));
   EXPECT_FALSE(gate.decided(1.0));
 }

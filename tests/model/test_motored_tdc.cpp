@@ -81,30 +81,32 @@ const Gas kLossyGas{2500.0, 1.0e-10, 420.0};
 
 TEST(MotoredTdc, FindsTheTdcOfAnEnergyBalanceRecordedOnAnEarlyScale) {
   for (const Gas& gas : {kGas, kLossyGas}) {
-  const double step = 0.2, early = 1.9;  // the record's 0 lies 1.9 deg before the true TDC
-  const std::vector<double> clean = motored_cycle(gas, step);
-  std::mt19937 rng(7);
-  std::normal_distribution<double> sample_noise(0.0, 0.15), pegging(0.0, 0.15);
-  std::vector<std::vector<double>> cycles(60, clean);
-  for (std::vector<double>& c : cycles) {
-    const double offset = pegging(rng);
-    for (double& p : c) p += offset + sample_noise(rng);
-  }
-  // Recorded angle = true angle - early: the grid starts at -150 - early on the record's scale.
-  const double peak_true = true_peak_deg(gas), loss = -peak_true;
-  std::printf("energy balance: peak %.3f deg before TDC (the loss angle it makes)\n", loss);
-  ASSERT_GT(loss, 0.2);
-  ASSERT_LT(loss, 2.0);
-  const MotoredTdc r = motored_tdc(cycles, -150.0 - early, step, EngineGeometry{}, loss);
-  std::printf("peak %.3f deg (truth %.3f), TDC by loss angle %.3f, by polytropic fit %.3f (truth %.3f), n %.3f, "
-              "rms %.4f\n", r.peak_deg, peak_true - early, r.tdc_by_loss_angle_deg, r.tdc_by_polytropic_deg, -early,
-              r.polytropic_exponent, r.fit_rms);
-  EXPECT_EQ(r.cycles, 60);
-  EXPECT_NEAR(r.peak_deg, peak_true - early, 0.05);
-  EXPECT_NEAR(r.tdc_by_loss_angle_deg, -early, 0.05);
-  EXPECT_NEAR(r.tdc_by_polytropic_deg, -early, 0.25);
-  EXPECT_GT(r.polytropic_exponent, 1.25);
-  EXPECT_LT(r.polytropic_exponent, 1.41);  // air's gamma (cv 718) bounds it
+    const double step = 0.2, early = 1.9;  // the record's 0 lies 1.9 deg before the true TDC
+    const std::vector<double> clean = motored_cycle(gas, step);
+    std::mt19937 rng(7);
+    std::normal_distribution<double> sample_noise(0.0, 0.15), pegging(0.0, 0.15);
+    std::vector<std::vector<double>> cycles(60, clean);
+    for (std::vector<double>& c : cycles) {
+      const double offset = pegging(rng);
+      for (double& p : c) p += offset + sample_noise(rng);
+    }
+    // Recorded angle = true angle - early: the grid starts at -150 - early on the record's scale.
+    const double peak_true = true_peak_deg(gas), loss = -peak_true;
+    std::printf("energy balance: peak %.3f deg before TDC (the loss angle it makes)\n", loss);
+    ASSERT_GT(loss, 0.2);
+    ASSERT_LT(loss, 2.0);
+    const MotoredTdc r = motored_tdc(cycles, -150.0 - early, step, EngineGeometry{}, loss);
+    std::printf(
+        "peak %.3f deg (truth %.3f), TDC by loss angle %.3f, by polytropic fit %.3f (truth %.3f), n %.3f, "
+        "rms %.4f\n",
+        r.peak_deg, peak_true - early, r.tdc_by_loss_angle_deg, r.tdc_by_polytropic_deg, -early, r.polytropic_exponent,
+        r.fit_rms);
+    EXPECT_EQ(r.cycles, 60);
+    EXPECT_NEAR(r.peak_deg, peak_true - early, 0.05);
+    EXPECT_NEAR(r.tdc_by_loss_angle_deg, -early, 0.05);
+    EXPECT_NEAR(r.tdc_by_polytropic_deg, -early, 0.25);
+    EXPECT_GT(r.polytropic_exponent, 1.25);
+    EXPECT_LT(r.polytropic_exponent, 1.41);  // air's gamma (cv 718) bounds it
   }
 }
 
@@ -119,7 +121,8 @@ TEST(MotoredTdc, ClearErrorsForWhatCannotGiveATdc) {
     }
     return std::string("(no error)");
   };
-  EXPECT_NE(message([&] { motored_tdc({}, -150, 0.5, EngineGeometry{}); }).find("no motored cycles"), std::string::npos);
+  EXPECT_NE(message([&] { motored_tdc({}, -150, 0.5, EngineGeometry{}); }).find("no motored cycles"),
+            std::string::npos);
   EXPECT_NE(message([&] { motored_tdc(one, -150, 0.5, EngineGeometry{}, 5.0); }).find("loss angle 5"),
             std::string::npos);
   // A fired cycle: a combustion bump that puts the peak 12 deg after TDC.

@@ -114,8 +114,10 @@ TEST(Silverbox, DiagnosisNamesCubicStiffnessAndTheCubicModelBeatsThePublishedBas
   const TestErrors lin = test_errors(d.baseline.model, sim, s);
   const TestErrors cub = test_errors(d.best_model, sim, s);
   std::printf("free-run RMS error, mV      multisine  arrow(full)  arrow(no extrap)\n");
-  std::printf("  noisemon linear             %8.3f  %11.3f  %16.3f\n", lin.multisine, lin.arrow_full, lin.arrow_noextrap);
-  std::printf("  noisemon cubic_stiffness    %8.3f  %11.3f  %16.3f\n", cub.multisine, cub.arrow_full, cub.arrow_noextrap);
+  std::printf("  noisemon linear             %8.3f  %11.3f  %16.3f\n", lin.multisine, lin.arrow_full,
+              lin.arrow_noextrap);
+  std::printf("  noisemon cubic_stiffness    %8.3f  %11.3f  %16.3f\n", cub.multisine, cub.arrow_full,
+              cub.arrow_noextrap);
   for (const Published& p : kPublished)
     std::printf("  %-26s  %8.3f  %11.3f  %16.3f  (published)\n", p.model, p.multisine, p.arrow_full, p.arrow_noextrap);
 

@@ -14,9 +14,9 @@
 
 #include <algorithm>
 #include <cmath>
-#include <cstdlib>
 #include <complex>
 #include <cstdio>
+#include <cstdlib>
 #include <functional>
 #include <numbers>
 #include <random>
@@ -158,7 +158,7 @@ BlockParams with_cubic(BlockParams p, double k3_ratio, double b3_ratio, const Mu
 
 TEST(WaveformFit, LinearEngineModelFromAPresetAFactorTwoAwayAt40kHz) {
   BlockParams truth = preset("linear");
-  truth.k1 *= 2.0;    // resonance 7.1 kHz instead of 5 kHz
+  truth.k1 *= 2.0;  // resonance 7.1 kHz instead of 5 kHz
   truth.b1 *= 0.5;
   truth.c0 *= 1.6;
   truth.c1 *= 0.6;
@@ -186,7 +186,7 @@ TEST(WaveformFit, LinearEngineModelFromAPresetAFactorTwoAwayAt40kHz) {
   WaveformModel tm;
   tm.block = truth;
   expect_within_sigma(r, tm, 4.0);
-  EXPECT_GT(r.start_train_rms, 20.0 * noise);  // the start really is far off
+  EXPECT_GT(r.start_train_rms, 20.0 * noise);     // the start really is far off
   EXPECT_NEAR(r.heldout_rms / noise, 1.0, 0.05);  // what is left is the noise
   EXPECT_NEAR(r.train_rms / noise, 1.0, 0.05);
   EXPECT_GE(progress_calls, r.iterations);

@@ -33,10 +33,10 @@ namespace noisemon::test {
 }  // namespace noisemon::test
 
 // Unless `present`: skips the test, or fails it under CI; `what` says what is missing.
-#define NOISEMON_REQUIRE(present, what)                                         \
-  do {                                                                          \
-    if (!(present)) {                                                           \
-      if (::noisemon::test::under_ci()) FAIL() << "missing: " << (what);        \
-      GTEST_SKIP() << "missing: " << (what);                                    \
-    }                                                                           \
+#define NOISEMON_REQUIRE(present, what)                                  \
+  do {                                                                   \
+    if (!(present)) {                                                    \
+      if (::noisemon::test::under_ci()) FAIL() << "missing: " << (what); \
+      GTEST_SKIP() << "missing: " << (what);                             \
+    }                                                                    \
   } while (0)
