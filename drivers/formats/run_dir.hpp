@@ -87,6 +87,8 @@ RunManifest read_run_manifest(const std::filesystem::path& dir);
 
 // The pieces of read_run_dir, callable on bytes (`file` is the name used in messages):
 RunManifest parse_run_json(std::string_view text, const std::string& file);
+// The run.json text write_run_dir writes for run (pressure in pressure_units).
+std::string run_json_text(const RunDir& run, const std::string& pressure_units);
 // Fills run.time_s, crank_deg, pressure_pa (pressure column times to_pa). Over 1 MiB of plain rows (three numbers,
 // no blanks or '+') is parsed in two halves on two threads; anything else is read line by line. The numbers
 // and every error (its line) are those of the line-by-line reading.
