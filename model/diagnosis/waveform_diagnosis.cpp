@@ -1,7 +1,5 @@
 #include "model/diagnosis/waveform_diagnosis.hpp"
 
-#include <unsupported/Eigen/FFT>
-
 #include <Eigen/Dense>
 
 #include <algorithm>
@@ -14,6 +12,8 @@
 #include <numbers>
 #include <random>
 #include <stdexcept>
+
+#include "dsp/welch.hpp"
 
 namespace noisemon::model {
 namespace {
@@ -70,62 +70,15 @@ std::vector<std::vector<double>> squared_difference(const std::vector<std::vecto
 
 // ------------------------------------------------------------------------------------------- spectra
 
-// Welch cross spectrum of a and b (Hann, 50 % overlap) on nfft bins, summed over segments (unnormalised:
-// callers use ratios or normalise themselves). Returns the number of averaged windows.
-std::size_t welch(const std::vector<std::vector<double>>& a, const std::vector<std::vector<double>>& b,
-                  std::size_t nfft, std::vector<std::complex<double>>& sab, std::vector<double>& saa) {
-  Eigen::FFT<double> fft;
-  sab.assign(nfft / 2 + 1, 0.0);
-  saa.assign(nfft / 2 + 1, 0.0);
-  std::vector<double> wa(nfft), wb(nfft), win(nfft);
-  for (std::size_t i = 0; i < nfft; ++i)
-    win[i] = 0.5 - 0.5 * std::cos(2.0 * std::numbers::pi * static_cast<double>(i) / static_cast<double>(nfft));
-  std::vector<std::complex<double>> fa, fb;
-  std::size_t windows = 0;
-  for (std::size_t s = 0; s < a.size(); ++s) {
-    const auto& xa = a[s];
-    const auto& xb = b[s];
-    for (std::size_t start = 0; start + nfft <= xa.size(); start += nfft / 2) {
-      double ma = 0.0, mb = 0.0;
-      for (std::size_t i = 0; i < nfft; ++i) {
-        ma += xa[start + i];
-        mb += xb[start + i];
-      }
-      ma /= static_cast<double>(nfft);
-      mb /= static_cast<double>(nfft);
-      for (std::size_t i = 0; i < nfft; ++i) {
-        wa[i] = (xa[start + i] - ma) * win[i];
-        wb[i] = (xb[start + i] - mb) * win[i];
-      }
-      fft.fwd(fa, wa);
-      fft.fwd(fb, wb);
-      for (std::size_t k = 0; k <= nfft / 2; ++k) {
-        sab[k] += std::conj(fa[k]) * fb[k];
-        saa[k] += std::norm(fa[k]);
-      }
-      ++windows;
-    }
-  }
-  return windows;
-}
-
-std::size_t nfft_for(const std::vector<std::vector<double>>& x) {
-  std::size_t longest = 0;
-  for (const auto& v : x) longest = std::max(longest, v.size());
-  std::size_t n = 64;
-  while (n * 2 <= std::min<std::size_t>(longest / 4, 4096)) n *= 2;
-  return n;
-}
-
 // Frequency where most of the residual's power is coherent with the input, |S_ue|^2 / S_uu (the power the
 // residual's transfer function from the input explains), between a few bins and 0.45 fs: where a missing
 // mode shows. (The transfer function alone peaks wherever the input has little power.)
 double residual_peak_hz(const std::vector<std::vector<double>>& u, const std::vector<std::vector<double>>& e,
                         double fs) {
-  const std::size_t nfft = nfft_for(u);
+  const std::size_t nfft = dsp::welch_nfft(u);
   std::vector<std::complex<double>> sue;
   std::vector<double> suu;
-  if (welch(u, e, nfft, sue, suu) == 0) return 0.1 * fs;
+  if (dsp::welch(u, e, nfft, sue, suu) == 0) return 0.1 * fs;
   double best = -1.0, f_best = 0.1 * fs;
   double suu_max = 0.0;
   for (double v : suu) suu_max = std::max(suu_max, v);
@@ -532,9 +485,9 @@ std::vector<std::vector<double>> choose_best(WaveformDiagnosis& d, const std::ve
 std::vector<BandGap> band_gaps(const std::vector<std::vector<double>>& y_held,
                                const std::vector<std::vector<double>>& base_held,
                                const std::vector<std::vector<double>>& best_held, double fs_hz) {
-  const auto out_bands = third_octave_rms(y_held, fs_hz);
-  const auto before_bands = third_octave_rms(base_held, fs_hz);
-  const auto after_bands = third_octave_rms(best_held, fs_hz);
+  const auto out_bands = dsp::third_octave_rms(y_held, fs_hz);
+  const auto before_bands = dsp::third_octave_rms(base_held, fs_hz);
+  const auto after_bands = dsp::third_octave_rms(best_held, fs_hz);
   std::vector<BandGap> bands;
   for (std::size_t b = 0; b < out_bands.size() && b < before_bands.size() && b < after_bands.size(); ++b)
     bands.push_back({out_bands[b].f_center_hz, out_bands[b].f_lo_hz, out_bands[b].f_hi_hz, out_bands[b].rms,
@@ -588,93 +541,6 @@ std::vector<AmplitudeGap> amplitude_gaps(const WaveformModel& baseline, const st
 }  // namespace
 
 // ------------------------------------------------------------------------------------------ public API
-
-SignificanceTest block_bootstrap_test(const std::vector<std::vector<double>>& d, std::size_t block_samples,
-                                      int resamples, std::uint64_t seed) {
-  SignificanceTest t;
-  std::size_t n = 0;
-  double sum = 0.0;
-  for (const auto& v : d)
-    for (double x : v) {
-      sum += x;
-      ++n;
-    }
-  if (n == 0) return t;
-  t.mean_reduction = sum / static_cast<double>(n);
-  std::size_t len = block_samples;
-  if (len == 0) {
-    // Correlation length: first lag where the autocorrelation (pooled over segments) falls below 0.05.
-    const std::size_t max_lag = std::max<std::size_t>(1, n / 20);
-    double var = 0.0;
-    for (const auto& v : d)
-      for (double x : v) var += (x - t.mean_reduction) * (x - t.mean_reduction);
-    std::size_t tau = max_lag;
-    for (std::size_t lag = 1; lag < max_lag && var > 0; ++lag) {
-      double c = 0.0;
-      for (const auto& v : d)
-        for (std::size_t i = lag; i < v.size(); ++i) c += (v[i] - t.mean_reduction) * (v[i - lag] - t.mean_reduction);
-      if (c / var < 0.05) {
-        tau = lag;
-        break;
-      }
-    }
-    len = std::clamp<std::size_t>(4 * tau, 16, std::max<std::size_t>(16, n / 20));
-  }
-  std::vector<std::pair<double, std::size_t>> blocks;
-  for (const auto& v : d)
-    for (std::size_t b = 0; b < v.size(); b += len) {
-      const std::size_t e = std::min(v.size(), b + len);
-      double s = 0.0;
-      for (std::size_t i = b; i < e; ++i) s += v[i];
-      blocks.emplace_back(s, e - b);
-    }
-  t.block_samples = len;
-  t.blocks = blocks.size();
-  std::mt19937_64 gen(seed);
-  int exceed = 0;
-  for (int r = 0; r < resamples; ++r) {
-    double s = 0.0;
-    std::size_t c = 0;
-    for (std::size_t k = 0; k < blocks.size(); ++k) {
-      const auto& b = blocks[gen() % blocks.size()];
-      s += b.first;
-      c += b.second;
-    }
-    // Under "no improvement" the bootstrap distribution is shifted to mean zero.
-    if (s / static_cast<double>(c) - t.mean_reduction >= t.mean_reduction) ++exceed;
-  }
-  t.p_value = (1.0 + exceed) / (1.0 + resamples);
-  return t;
-}
-
-std::vector<BandRms> third_octave_rms(const std::vector<std::vector<double>>& segments, double fs_hz) {
-  const std::size_t nfft = nfft_for(segments);
-  std::vector<std::complex<double>> sxx_c;
-  std::vector<double> sxx;
-  const std::size_t windows = welch(segments, segments, nfft, sxx_c, sxx);
-  std::vector<BandRms> out;
-  if (windows == 0) return out;
-  // Hann window power: sum w^2 = 3 nfft / 8. One-sided mean square per bin: 2 |X|^2 / (sum w^2 nfft).
-  const double norm =
-      2.0 / (static_cast<double>(windows) * 0.375 * static_cast<double>(nfft) * static_cast<double>(nfft));
-  const double df = fs_hz / static_cast<double>(nfft);
-  for (int band = -20; band <= 43; ++band) {  // 10 mHz .. 20 kHz
-    const double fc = std::pow(10.0, band / 10.0);
-    const double lo = fc * std::pow(10.0, -0.05), hi = fc * std::pow(10.0, 0.05);
-    if (lo < df || hi > fs_hz / 2.0 * 1.0001) continue;
-    double ms = 0.0;
-    std::size_t bins = 0;
-    for (std::size_t k = 1; k <= nfft / 2; ++k) {
-      const double f = df * static_cast<double>(k);
-      if (f >= lo && f < hi) {
-        ms += sxx[k] * norm;
-        ++bins;
-      }
-    }
-    if (bins > 0) out.push_back({fc, lo, hi, std::sqrt(ms)});
-  }
-  return out;
-}
 
 WaveformDiagnosis diagnose_waveform(std::span<const double> u, std::span<const double> y,
                                     const WaveformDiagnosisOptions& opt) {

@@ -37,6 +37,7 @@
 #include <utility>
 #include <vector>
 
+#include "model/diagnosis/block_bootstrap.hpp"
 #include "model/fit/waveform_fit.hpp"
 
 namespace noisemon::model {
@@ -60,13 +61,6 @@ struct WaveformDiagnosisOptions {
   bool second_round = true;
   std::function<void(const std::string&)> log;  // one line per step (nothing printed otherwise)
   std::function<void(const WaveformFitProgress&)> fit_progress;
-};
-
-struct SignificanceTest {
-  double mean_reduction = 0.0;  // mean over held-out samples of e_before^2 - e_after^2
-  double p_value = 1.0;
-  std::size_t block_samples = 0;
-  std::size_t blocks = 0;
 };
 
 struct CandidateResult {
@@ -156,17 +150,5 @@ struct WaveformReport {
   std::vector<AmplitudeGap> amplitude;  // "where": against the output level
 };
 WaveformReport waveform_report(const WaveformDiagnosis& d);
-
-// One-sided block-bootstrap test that the mean of d (pooled over segments) is positive. Blocks of
-// `block_samples` neighbouring values never cross a segment; 0 chooses the length from d's correlation.
-SignificanceTest block_bootstrap_test(const std::vector<std::vector<double>>& d, std::size_t block_samples,
-                                      int resamples, std::uint64_t seed);
-
-// Welch power spectrum integrated over base-10 1/3-octave bands (IEC 61260-1 centres) between the
-// frequency resolution and fs/2: the rms of x per band. Bands with no frequency bin are left out.
-struct BandRms {
-  double f_center_hz, f_lo_hz, f_hi_hz, rms;
-};
-std::vector<BandRms> third_octave_rms(const std::vector<std::vector<double>>& segments, double fs_hz);
 
 }  // namespace noisemon::model
