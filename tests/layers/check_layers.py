@@ -5,7 +5,8 @@ is declared to depend on, below it; noisemond links neither Ceres nor fitting, d
   check_layers.py SOURCE_DIR [BUILD_DIR]
 
 SOURCE_DIR: every #include "<folder>/<file>" of the project's own code (dsp, model, drivers, daemon, cli and their
-subfolders; tests are not a layer) must name a folder in ALLOWED[its own folder]. Generated message headers
+subfolders; tests are not a layer) must name its own folder or one whose library its folder's library links,
+directly or through another (read from the CMakeLists.txt files: the layers are what CMake builds). Generated message headers
 ("noisemon/<type>.hpp") belong to msgs. BUILD_DIR (a Ninja tree): noisemond's link command must not name the
 libraries in FORBIDDEN_IN_NOISEMOND. Exit 0 when clean, 1 with one line per violation.
 """
@@ -14,26 +15,41 @@ import re
 import subprocess
 import sys
 
-# Mirrors the target_link_libraries of each folder's CMakeLists.txt: a folder may include itself and these.
-BASE = {"dsp": []}
-BASE["model"] = ["dsp"]
-BASE["model/engine"] = ["model", "dsp"]
-BASE["model/fit"] = ["model/engine", "model", "dsp"]
-BASE["model/diagnosis"] = ["model/fit", "model/engine", "model", "dsp"]
-BASE["drivers"] = ["dsp"]
-BASE["drivers/formats"] = ["drivers", "dsp", "msgs"]
-BASE["drivers/comedi"] = ["drivers", "model", "dsp"]
-BASE["drivers/can"] = ["drivers/formats", "drivers", "dsp"]
-BASE["drivers/lcm"] = ["drivers/formats", "drivers", "dsp", "msgs"]
-BASE["drivers/log"] = ["drivers/formats", "drivers", "dsp", "msgs"]
-BASE["drivers/sim"] = ["drivers/comedi", "drivers/formats", "drivers", "model/engine", "model", "dsp"]
-BASE["daemon"] = ["drivers/sim", "drivers/comedi", "drivers/can", "drivers/lcm", "drivers/log", "drivers/formats",
-                  "drivers",
-                  "model/engine", "model", "dsp", "msgs"]
-BASE["cli/report"] = ["model/diagnosis", "model/fit", "model/engine", "model", "dsp"]
-BASE["cli/formats"] = ["drivers/formats", "drivers", "dsp", "msgs"]
-BASE["cli"] = ["cli/report", "cli/formats", "daemon"] + BASE["daemon"] + ["model/diagnosis", "model/fit"]
-ALLOWED = {folder: set(deps) | {folder} for folder, deps in BASE.items()}
+ROOTS = ("dsp", "model", "drivers", "daemon", "cli")
+ADD_LIBRARY = re.compile(r"add_library\(\s*(noisemon_\w+)")
+LINKS = re.compile(r"target_link_libraries\(\s*(noisemon_\w+)([^)]*)\)", re.S)
+
+
+def layer_links(src):
+    """What each layer may use, read from the CMake files: a folder's library links (target_link_libraries)
+    other noisemon libraries, each of one folder; the folder may include from those folders and from everything
+    they link in turn (PUBLIC links reach through). noisemon_msgs is the generated message headers (msgs)."""
+    folder_of = {"noisemon_msgs": "msgs"}
+    links = {}
+    for root in ROOTS:
+        for dirpath, _, files in os.walk(os.path.join(src, root)):
+            if "CMakeLists.txt" not in files:
+                continue
+            with open(os.path.join(dirpath, "CMakeLists.txt"), encoding="utf-8") as f:
+                text = re.sub(r"#.*", "", f.read())
+            folder = os.path.relpath(dirpath, src)
+            for target in ADD_LIBRARY.findall(text):
+                folder_of[target] = folder
+            for target, args in LINKS.findall(text):
+                links.setdefault(target, set()).update(re.findall(r"\bnoisemon_\w+", args))
+    allowed = {}
+    for target, folder in folder_of.items():
+        if folder == "msgs":
+            continue
+        reach, todo = set(), [target]
+        while todo:
+            for dep in links.get(todo.pop(), ()):
+                if dep not in reach and dep in folder_of:
+                    reach.add(dep)
+                    todo.append(dep)
+        allowed[folder] = {folder_of[d] for d in reach} | {folder}
+    return allowed
+
 
 FORBIDDEN_IN_NOISEMOND = ["libceres", "libnoisemon_fit.", "libnoisemon_diagnosis.", "libnoisemon_report.",
                           "libnoisemon_cli."]
@@ -50,6 +66,7 @@ def folder_of_header(include):
 
 def include_violations(src):
     out = []
+    ALLOWED = layer_links(src)
     for layer in sorted(ALLOWED):
         directory = os.path.join(src, layer)
         if not os.path.isdir(directory):
@@ -66,11 +83,11 @@ def include_violations(src):
                 if target and target not in ALLOWED[layer]:
                     out.append(f"{layer}/{name}: includes \"{include}\" from {target}, which {layer} may not use")
     # A new folder of code must be given its place before it can hold code.
-    for root in ("dsp", "model", "drivers", "daemon", "cli"):
+    for root in ROOTS:
         for dirpath, _, files in os.walk(os.path.join(src, root)):
             rel = os.path.relpath(dirpath, src)
             if any(f.endswith((".cpp", ".hpp")) for f in files) and rel not in ALLOWED:
-                out.append(f"{rel}: a folder of code that is not a declared layer (add it to tests/layers)")
+                out.append(f"{rel}: a folder of code that is not a layer (no add_library in its CMakeLists.txt)")
     return out
 
 

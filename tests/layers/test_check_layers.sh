@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # The layer check can fail: on a copy of the source tree it passes, then fails naming the file for a model file
 # that includes the daemon, a dsp file that includes a message type, a daemon file that includes the
-# command-line tool, and a folder of code that is no layer.
+# command-line tool, a drivers file whose library no longer links what it includes, and a folder of code that is
+# no layer.
 set -euo pipefail
 src="$(cd "$(dirname "${BASH_SOURCE[0]}")/../.." && pwd)"
 check="$src/tests/layers/check_layers.py"
@@ -23,6 +24,10 @@ cp "$src/dsp/levels.hpp" "$tmp/dsp/levels.hpp"
 echo '#include "cli/watch.hpp"' >>"$tmp/daemon/pipeline.cpp"
 expect_violation 'daemon/pipeline.cpp: includes "cli/watch.hpp" from cli'
 cp "$src/daemon/pipeline.cpp" "$tmp/daemon/pipeline.cpp"
+# The rule is CMake's: a library that no longer links the formats may no longer include them.
+sed -i 's/noisemon_can PUBLIC noisemon_formats /noisemon_can PUBLIC /' "$tmp/drivers/can/CMakeLists.txt"
+expect_violation 'drivers/can/can_source.cpp: includes "drivers/formats/'
+cp "$src/drivers/can/CMakeLists.txt" "$tmp/drivers/can/CMakeLists.txt"
 mkdir "$tmp/model/extra" && echo '' >"$tmp/model/extra/x.cpp"
-expect_violation 'model/extra: a folder of code that is not a declared layer'
-echo "layer check: passes the tree, fails each of four violations"
+expect_violation 'model/extra: a folder of code that is not a layer'
+echo "layer check: passes the tree, fails each of five violations"
