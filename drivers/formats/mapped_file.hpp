@@ -17,12 +17,18 @@ namespace noisemon::drivers {
 
 // Asks for huge pages for the storage a vector has reserved: filling a large one then takes a few page faults
 // instead of one per 4 KiB (where the kernel offers them only on request; elsewhere this changes nothing).
+// The whole pages of size `page` inside [first, last), as advice to the kernel (addresses stay pointers: the
+// alignment is an offset from `first`).
+inline void advise_pages(char* first, char* last, std::uintptr_t page, int advice) {
+  const auto a = reinterpret_cast<std::uintptr_t>(first), b = reinterpret_cast<std::uintptr_t>(last);
+  const std::uintptr_t from = (a + page - 1) / page * page, to = b / page * page;
+  if (to > from) ::madvise(first + (from - a), to - from, advice);
+}
+
 template <class T>
 inline void prefer_huge_pages(const std::vector<T>& v) {
-  constexpr std::uintptr_t kHugePage = std::uintptr_t{2} << 20;
-  const auto from = (reinterpret_cast<std::uintptr_t>(v.data()) + kHugePage - 1) / kHugePage * kHugePage;
-  const auto to = reinterpret_cast<std::uintptr_t>(v.data() + v.capacity()) / kHugePage * kHugePage;
-  if (to > from) ::madvise(reinterpret_cast<void*>(from), to - from, MADV_HUGEPAGE);
+  auto* first = reinterpret_cast<char*>(const_cast<T*>(v.data()));
+  advise_pages(first, first + v.capacity() * sizeof(T), std::uintptr_t{2} << 20, MADV_HUGEPAGE);
 }
 
 // A regular file mapped read-only (no copy of its bytes); empty when it cannot be mapped, the caller then reads
@@ -53,10 +59,8 @@ class MappedFile {
   // Drops the whole pages of [from, to) from this process (they stay in the page cache: reading them again is
   // still correct, only slower).
   void release(const char* from, const char* to) const {
-    const auto page = static_cast<std::uintptr_t>(::sysconf(_SC_PAGESIZE));
-    const std::uintptr_t a = (reinterpret_cast<std::uintptr_t>(from) + page - 1) / page * page;
-    const std::uintptr_t b = reinterpret_cast<std::uintptr_t>(to) / page * page;
-    if (b > a) ::madvise(reinterpret_cast<void*>(a), b - a, MADV_DONTNEED);
+    advise_pages(const_cast<char*>(from), const_cast<char*>(to), static_cast<std::uintptr_t>(::sysconf(_SC_PAGESIZE)),
+                 MADV_DONTNEED);
   }
 
  private:
