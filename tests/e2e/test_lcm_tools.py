@@ -89,7 +89,7 @@ def main():
         check_python_reader(a, work, rows, failures)
         if shutil.which("java") and os.path.exists(a.jar):
             check_java(a, work, rows, failures)
-        elif os.environ.get("CI") == "true":
+        elif os.environ.get("CI", "") not in ("", "0", "false"):  # the suite's one rule for CI
             failures.append("java or the message jar missing (default-jdk-headless, liblcm-java)")
         else:
             print("SKIPPED the Java checks: java or the message jar missing")

@@ -31,10 +31,12 @@ done
 mkdir -p "$build"
 build="$(cd "$build" && pwd)"
 
+source "$(dirname "${BASH_SOURCE[0]}")/../support/under_ci.sh"
+
 # clang with libFuzzer's runtime (Debian: clang, libclang-rt-14-dev).
 missing_clang() {
   echo "fuzz: $1 (install clang and libclang-rt-14-dev: scripts/install-deps.sh)" >&2
-  if [ "${CI:-}" = true ]; then exit 1; fi
+  if under_ci; then exit 1; fi
   exit 77
 }
 cxx="${NOISEMON_FUZZ_CXX:-}"

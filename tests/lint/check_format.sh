@@ -6,10 +6,10 @@
 #   check_format.sh SOURCE_DIR
 set -euo pipefail
 src="$(cd "$1" && pwd)"
-ci() { [ -n "${CI:-}" ] && [ "${CI}" != 0 ] && [ "${CI}" != false ]; }
+source "$(dirname "${BASH_SOURCE[0]}")/../support/under_ci.sh"
 if ! command -v clang-format >/dev/null || ! git -C "$src" rev-parse --git-dir >/dev/null 2>&1; then
   echo "format: clang-format or git missing, not checked"
-  if ci; then exit 1; fi
+  if under_ci; then exit 1; fi
   exit 77
 fi
 cd "$src"

@@ -14,11 +14,11 @@ src="$(cd "$1" && pwd)"
 build="$2"
 base="${3:-HEAD~10}"
 max="${4:-16}"
-ci() { [ -n "${CI:-}" ] && [ "${CI}" != 0 ] && [ "${CI}" != false ]; }
+source "$(dirname "${BASH_SOURCE[0]}")/../support/under_ci.sh"
 
 if ! command -v clang-tidy >/dev/null; then
   echo "clang-tidy: not installed"
-  if ci; then exit 1; fi
+  if under_ci; then exit 1; fi
   exit 77
 fi
 [ -f "$build/compile_commands.json" ] || { echo "clang-tidy: $build/compile_commands.json missing"; exit 1; }
