@@ -482,12 +482,34 @@ void GapWatch::complete_event() {
   event_.load_nm = r.load_nm;
   event_.soi_deg_btdc = r.soi_deg_btdc;
   event_.motored = r.motored;
+  add_speed_law(event_);
   open_ = false;
   points_[p] = PointState{};
   const std::int64_t back = event_.onset_cycle - history_.front().cycle;  // the watch's count to the report's number
   if (back >= 0 && back < static_cast<std::int64_t>(report_cycles_.size()))
     event_.onset_cycle = report_cycles_[static_cast<std::size_t>(back)];
   if (on_event) on_event(event_);
+}
+
+// At one operating point a structural gain that follows speed is a gain (gain_db, at speed_rpm); the same change met
+// again at another speed (another point's reference, learnt before it) gives its law: the slope between the two
+// gains, dB per 1000 rpm, and the speed where it is nil. The previous speed_dependence event at least
+// kSpeedLawSpanRpm away is taken.
+void GapWatch::add_speed_law(GapEvent& event) {
+  constexpr double kSpeedLawSpanRpm = 200.0;
+  if (event.effect != "speed_dependence" || event.params.empty()) return;
+  const double gain = event.params.front().second;
+  event.params.emplace_back("speed_rpm", event.speed_rpm);
+  for (auto it = structural_gains_.rbegin(); it != structural_gains_.rend(); ++it) {
+    const double span_rpm = event.speed_rpm - it->first;
+    if (std::abs(span_rpm) < kSpeedLawSpanRpm) continue;
+    const double db_per_krpm = (gain - it->second) / span_rpm * 1000.0;
+    event.params.emplace_back("db_per_krpm", db_per_krpm);
+    if (std::abs(db_per_krpm) > 1e-9)
+      event.params.emplace_back("nil_rpm", event.speed_rpm - gain / db_per_krpm * 1000.0);
+    break;
+  }
+  structural_gains_.emplace_back(event.speed_rpm, gain);
 }
 
 void GapWatch::finish_learning() {

@@ -174,6 +174,7 @@ class GapWatch {
   void open_event(std::size_t point, std::int64_t onset_block, std::size_t feature, int side);
   void refine_onset();
   void complete_event();
+  void add_speed_law(GapEvent& event);
   std::string feature_name(std::size_t f, int side) const;
   double watched_sigma(const FeatureReference& feature) const;
   std::vector<double> features_of(const CycleGap& cycle) const;
@@ -198,6 +199,7 @@ class GapWatch {
   std::vector<double> watched_from_s_;      // and its time
   std::int64_t cycles_ = 0, blocks_ = 0;
   // The open event.
+  std::vector<std::pair<double, double>> structural_gains_;  // speed (rpm) and gain (dB) of speed_dependence events
   bool open_ = false;
   std::size_t event_point_ = 0, event_blocks_left_ = 0, event_blocks_seen_ = 0, event_feature_ = 0;
   GapEvent event_;

@@ -189,3 +189,41 @@ TEST(GapWatch, DaemonRestartNumberingAgainFromZeroIsNoChange) {
   EXPECT_GE(events[0].detected_cycle, 1500);
   EXPECT_LT(events[0].detected_cycle, 1600);
 }
+
+// A structural gain that follows speed (3 dB per 1000 rpm, nil at 2000 rpm, fixed here, not the sim's law) switches
+// on while the engine runs at 2500 rpm, then the engine moves to 3500 rpm, whose reference was learnt clean: two
+// speed_dependence events, 1.5 dB and 4.5 dB; the second gives the law from both.
+TEST(GapWatch, StructuralGainMetAtTwoSpeedsGivesItsLaw) {
+  gapcell::Cell cell(9);
+  nm::GapWatch watch(nm::GapWatchOptions{});
+  std::vector<nm::GapEvent> events;
+  watch.on_event = [&](const nm::GapEvent& e) { events.push_back(e); };
+  auto run = [&](double rpm, double seconds, bool effect) {
+    cell.set_speed(rpm);
+    gapcell::Effects e;
+    if (effect) e.structure_db.assign(gapcell::kBandsHz.size(), 3.0 * (rpm - 2000.0) / 1000.0);
+    for (auto i = static_cast<std::int64_t>(seconds * rpm / 120.0); i > 0; --i) watch.add(cell.next(e));
+  };
+  run(2500.0, 150.0, false);
+  run(3500.0, 150.0, false);
+  run(2500.0, 60.0, false);
+  run(2500.0, 60.0, true);
+  run(3500.0, 60.0, true);
+  watch.flush();
+  ASSERT_EQ(events.size(), 2u);
+  auto param = [](const nm::GapEvent& e, const char* key) {
+    for (const auto& [k, v] : e.params)
+      if (k == key) return v;
+    return std::nan("");
+  };
+  for (const auto& e : events) EXPECT_EQ(e.effect, "speed_dependence");
+  std::printf("gains %.2f dB at 2500 rpm, %.2f dB at 3500 rpm: %.2f dB/krpm, nil at %.0f rpm\n",
+              param(events[0], "gain_db"), param(events[1], "gain_db"), param(events[1], "db_per_krpm"),
+              param(events[1], "nil_rpm"));
+  EXPECT_NEAR(param(events[0], "gain_db"), 1.5, 0.1);
+  EXPECT_EQ(param(events[0], "speed_rpm"), 2500.0);
+  EXPECT_TRUE(std::isnan(param(events[0], "db_per_krpm")));  // one speed: no law yet
+  EXPECT_NEAR(param(events[1], "gain_db"), 4.5, 0.1);
+  EXPECT_NEAR(param(events[1], "db_per_krpm"), 3.0, 0.15);
+  EXPECT_NEAR(param(events[1], "nil_rpm"), 2000.0, 100.0);
+}
