@@ -12,9 +12,18 @@
 
 #include "dsp/fir_design.hpp"
 #include "dsp/kernel_clones.hpp"
+#include "dsp/output_queue.hpp"
+#include "dsp/simd_vectors.hpp"
+#include "dsp/sinc_kernel.hpp"
 
 namespace noisemon::dsp {
 namespace {
+
+using simd::dot;
+using simd::dot4;
+using simd::kVd;
+using simd::load;
+using simd::Vd;
 
 // Anti-alias / anti-image low-pass of both resamplers: flat to 0.45 * rate, >= 80 dB from 0.5 * rate
 // (designed for 85 dB so Kaiser's length estimate has margin; the tests measure it).
@@ -28,111 +37,6 @@ constexpr std::size_t kPendingFrames = 8192;
 
 // Input frames copied into a FIR's history per pass.
 constexpr std::size_t kChunkFrames = 1024;
-
-// 32 bytes of samples as one vector (GCC vector extension: one AVX register in the x86-64-v3 clone, two SSE
-// ones in the default): 4 doubles or 8 floats. Only used inside always-inline helpers, never across a call, so
-// the ABI note is moot.
-#pragma GCC diagnostic ignored "-Wpsabi"
-template <class T>
-struct Simd {
-  typedef T V __attribute__((vector_size(32)));
-  static constexpr std::size_t kLanes = 32 / sizeof(T);
-};
-using Vd = Simd<double>::V;
-constexpr std::size_t kVd = Simd<double>::kLanes;
-
-template <class T>
-NOISEMON_INLINE typename Simd<T>::V load(const T* p) {
-  typename Simd<T>::V v;
-  std::memcpy(&v, p, sizeof v);
-  return v;
-}
-
-template <class V>
-NOISEMON_INLINE auto lane_sum(V v) {
-  auto sum = v[0];
-  for (std::size_t l = 1; l < sizeof(V) / sizeof(v[0]); ++l) sum += v[l];
-  return sum;
-}
-
-// Two vector accumulators so consecutive multiply-adds do not wait on each other.
-template <class T>
-NOISEMON_INLINE T dot(const T* a, const T* b, std::size_t n) {
-  constexpr std::size_t kL = Simd<T>::kLanes;
-  typename Simd<T>::V acc0 = {}, acc1 = {};
-  std::size_t i = 0;
-  for (; i + 2 * kL <= n; i += 2 * kL) {
-    acc0 += load(a + i) * load(b + i);
-    acc1 += load(a + i + kL) * load(b + i + kL);
-  }
-  T sum = lane_sum(acc0 + acc1);
-  for (; i < n; ++i) sum += a[i] * b[i];
-  return sum;
-}
-
-// Delivers output frames into the caller's buffer; what does not fit is kept for the next call.
-class OutputQueue {
- public:
-  OutputQueue(std::size_t channels, std::size_t capacity_frames)
-      : channels_(channels), capacity_(capacity_frames), ring_(channels * capacity_frames) {}
-
-  // Starts a call: pending frames go out first.
-  void begin(double* out, std::size_t max_out) {
-    out_ = out;
-    max_out_ = max_out;
-    written_ = 0;
-    while (count_ > 0 && written_ < max_out_) {
-      std::memcpy(out_ + written_ * channels_, &ring_[head_ * channels_], channels_ * sizeof(double));
-      head_ = (head_ + 1) % capacity_;
-      --count_;
-      ++written_;
-    }
-  }
-  // Where the next frame goes (channels values).
-  double* next_slot() {
-    if (count_ == 0 && written_ < max_out_) return out_ + (written_++) * channels_;
-    if (count_ == capacity_)
-      throw std::length_error("resampler: more than " + std::to_string(capacity_) +
-                              " output frames pending; call process() with more room in out");
-    double* slot = &ring_[((head_ + count_) % capacity_) * channels_];
-    ++count_;
-    return slot;
-  }
-  // Appends `frames` frames of channels values each.
-  void push(const double* frames, std::size_t count) {
-    for (std::size_t i = 0; i < count; ++i)
-      std::memcpy(next_slot(), frames + i * channels_, channels_ * sizeof(double));
-  }
-  std::size_t written() const { return written_; }
-  std::size_t pending() const { return count_; }
-
- private:
-  std::size_t channels_;
-  std::size_t capacity_;
-  std::vector<double> ring_;
-  std::size_t head_ = 0;
-  std::size_t count_ = 0;
-  double* out_ = nullptr;
-  std::size_t max_out_ = 0;
-  std::size_t written_ = 0;
-};
-
-// Four dot products sharing `a` (one load of a per four multiply-adds: the loads, not the arithmetic, bound a
-// single dot product). b[c] + i is channel c's history.
-template <class T>
-NOISEMON_INLINE void dot4(const T* a, const T* const b[4], std::size_t n, T sums[4]) {
-  constexpr std::size_t kL = Simd<T>::kLanes;
-  typename Simd<T>::V acc[4] = {};
-  std::size_t i = 0;
-  for (; i + kL <= n; i += kL) {
-    const auto av = load(a + i);
-    for (int c = 0; c < 4; ++c) acc[c] += av * load(b[c] + i);
-  }
-  for (int c = 0; c < 4; ++c) {
-    sums[c] = lane_sum(acc[c]);
-    for (std::size_t k = i; k < n; ++k) sums[c] += a[k] * b[c][k];
-  }
-}
 
 // Where a FIR's outputs go: channel c of output j lands at base[c * channel_stride + j * frame_stride] (frames
 // interleaved: 1, channels; channel-major rows: row length, 1).
@@ -421,40 +325,8 @@ constexpr std::int64_t kMidFactor = 2;  // the decimation's intermediate rate, i
 // The first decimation step is short (about 30 taps), so it is designed far below the second's ripple: the
 // pair then passes tones as flat as the single filter did.
 constexpr double kFirstStepAttenuationDb = 110.0;
-constexpr std::size_t kKernelHalfWidth = 16;  // taps each side of the interpolation instant
-constexpr std::size_t kKernelTaps = 2 * kKernelHalfWidth;
-constexpr std::size_t kKernelPhases = 1024;  // kernel table resolution (linear interpolation between rows)
-constexpr double kKernelAttenuationDb = 90.0;
+using namespace sinc_kernel;
 constexpr std::size_t kPlanFrames = 256;  // fine-grid instants planned per pass
-// Transition of the windowed sinc is centred on 0.5 cycles/sample with width (A - 8) / (2.285 * 2 pi * 2W);
-// the passband ends half a width below (0.41 for W = 16, A = 90 dB; the tests measure it).
-constexpr double kIndexPassband =
-    0.5 - 0.5 * (kKernelAttenuationDb - 8.0) / (2.285 * 2.0 * 3.141592653589793 * 2.0 * kKernelHalfWidth);
-
-// The kernel table: row r, tap k is the windowed sinc at offset r / R + W - 1 - k (tap k is sample
-// cursor - W + 1 + k).
-std::vector<double> interpolation_table() {
-  std::vector<double> table((kKernelPhases + 1) * kKernelTaps);
-  const double beta = fir::kaiser_beta(kKernelAttenuationDb);
-  const auto w = static_cast<double>(kKernelHalfWidth);
-  for (std::size_t r = 0; r <= kKernelPhases; ++r) {
-    double* row = &table[r * kKernelTaps];
-    for (std::size_t k = 0; k < kKernelTaps; ++k) {
-      const double d = static_cast<double>(r) / kKernelPhases + w - 1.0 - static_cast<double>(k);
-      row[k] = fir::sinc(d) * fir::kaiser_window(d / w, beta);
-    }
-    // Rows sum to 1, so do blends of neighbouring rows: DC passes exactly (pressure rides on a large mean).
-    const double sum = std::accumulate(row, row + kKernelTaps, 0.0);
-    for (std::size_t k = 0; k < kKernelTaps; ++k) row[k] /= sum;
-  }
-  return table;
-}
-
-// Built once per process (a restarted stream reuses it).
-const std::vector<double>& shared_interpolation_table() {
-  static const std::vector<double> table = interpolation_table();
-  return table;
-}
 
 // Where each planned fine-grid instant reads: the first of its kKernelTaps samples in the history, and its
 // position between kernel rows (row + fraction); a negative position holds the first sample's value.

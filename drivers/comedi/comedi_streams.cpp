@@ -17,7 +17,6 @@ constexpr std::size_t kHistory = 1 << 15;  // recent edges kept for the crank-an
 constexpr double kTdcWindowDeg = 30.0;     // pressure rise measured over TDC +- this
 constexpr double kFiringRiseRatio = 3.0;   // firing TDC's rise must exceed the other TDC's by this factor
 constexpr int kMismatchesToCorrect = 2;    // consecutive contrary phase votes before re-phasing
-constexpr std::size_t kCardBatch = 1024;   // card scans per resampler call
 // Encoder checks only (index_resets_counter):
 constexpr double kMaxEdgeGapS = 0.05;   // no edge for this long: the resampler starts afresh (a gap)
 constexpr double kMaxBatchSpanS = 0.1;  // a batch spanning this long is resampled at once (slow edges)
@@ -566,65 +565,6 @@ void EdgeStreamAssembler::deliver(BlockRing& ring, bool all) {
     // The edges go out with the 40 kHz frames made from them (the processing waits for both streams).
     if (angle_ring_) angle_writer_.flush(*angle_ring_);
   }
-}
-
-// ---------------------------------------------------------------------------------------------- timed
-
-namespace {
-double whole_rate(double hz) {
-  const double r = std::round(hz);
-  if (!(r >= 1.0) || std::abs(hz - r) > 1e-6 * r)
-    throw std::invalid_argument(
-        "card scan rate " + std::to_string(hz) +
-        " Hz is not a whole number of Hz (choose a rate whose period the card's timer hits exactly, e.g. 50000)");
-  return r;
-}
-}  // namespace
-
-TimedStreamAssembler::TimedStreamAssembler(std::uint32_t channels, double card_rate_hz, std::int64_t epoch_utime)
-    : channels_(channels),
-      card_rate_hz_(whole_rate(card_rate_hz)),
-      epoch_utime_(epoch_utime),
-      resampler_(card_rate_hz_, kPipelineRateHz, channels),
-      in_(kCardBatch * channels),
-      out_((resampler_.max_output_frames(kCardBatch) + 1) * channels),
-      writer_(channels) {
-  if (channels == 0 || channels > SampleBlock::kMaxChannels)
-    throw std::invalid_argument("timed stream needs 1.." + std::to_string(SampleBlock::kMaxChannels) + " channels");
-}
-
-TimedStreamAssembler::~TimedStreamAssembler() = default;
-
-void TimedStreamAssembler::restart(std::int64_t origin_utime) {
-  // 40 kHz frames are 25 us apart.
-  first_index_ = std::llround(static_cast<double>(origin_utime - epoch_utime_) / 25.0);
-  resampler_ =
-      dsp::RationalResampler(card_rate_hz_, kPipelineRateHz, channels_, dsp::SamplePrecision::kSingle);  // ADC words
-  batch_ = 0;
-}
-
-void TimedStreamAssembler::add_scan(const double* values, BlockRing& ring) {
-  std::copy_n(values, channels_, &in_[batch_ * channels_]);
-  if (++batch_ == kCardBatch) run_batch(ring);
-}
-
-void TimedStreamAssembler::run_batch(BlockRing& ring) {
-  if (batch_ == 0) return;
-  const std::size_t room = out_.size() / channels_;
-  const std::size_t n = resampler_.process(in_.data(), batch_, out_.data(), room);
-  batch_ = 0;
-  std::int64_t local = resampler_.next_output_index() - static_cast<std::int64_t>(n);
-  for (std::size_t f = 0; f < n; ++f, ++local) {
-    if (local < kSettleFrames) continue;
-    double* slot = writer_.frame(first_index_ + local, ring);
-    std::copy_n(&out_[f * channels_], channels_, slot);
-    ++frames_;
-  }
-}
-
-void TimedStreamAssembler::deliver(BlockRing& ring, bool all) {
-  run_batch(ring);
-  if (all || writer_.pending_frames() >= SampleBlock::kMaxFrames / 2) writer_.flush(ring);
 }
 
 }  // namespace noisemon::drivers
