@@ -86,8 +86,8 @@ std::vector<LoadedRecording> load_recordings(const std::vector<std::string>& pat
   return out;
 }
 
-model::ConditionInfo condition_info(const formats::Recording& rec, const std::string& fallback_name) {
-  model::ConditionInfo info;
+model::fit::ConditionInfo condition_info(const formats::Recording& rec, const std::string& fallback_name) {
+  model::fit::ConditionInfo info;
   info.name = rec.condition.empty() ? fallback_name : rec.condition;
   if (!rec.operating_points.empty()) {
     const drivers::OperatingPoint& op = rec.operating_points.front();
@@ -101,15 +101,15 @@ model::ConditionInfo condition_info(const formats::Recording& rec, const std::st
   return info;
 }
 
-model::ConditionInfo condition_info(const LoadedRecording& r) {
-  model::ConditionInfo info = condition_info(r.recording, r.origin);
+model::fit::ConditionInfo condition_info(const LoadedRecording& r) {
+  model::fit::ConditionInfo info = condition_info(r.recording, r.origin);
   info.pressure_floor_pa = r.pressure_floor_pa;
   info.encoder_rate_hz = r.encoder_rate_hz;
   return info;
 }
 
-model::BandDataset make_band_dataset(const std::vector<LoadedRecording>& recordings,
-                                     const model::DatasetOptions& options) {
+model::fit::BandDataset make_band_dataset(const std::vector<LoadedRecording>& recordings,
+                                          const model::fit::DatasetOptions& options) {
   std::vector<std::string> order;
   std::map<std::string, std::vector<const LoadedRecording*>> groups;
   for (const LoadedRecording& r : recordings) {
@@ -117,42 +117,42 @@ model::BandDataset make_band_dataset(const std::vector<LoadedRecording>& recordi
     if (!groups.count(name)) order.push_back(name);
     groups[name].push_back(&r);
   }
-  std::vector<model::ConditionData> conds;
+  std::vector<model::fit::ConditionData> conds;
   for (const std::string& name : order) {
     const auto& group = groups[name];
-    std::vector<model::ConditionRecording> parts;
+    std::vector<model::fit::ConditionRecording> parts;
     for (const LoadedRecording* r : group) {
       const formats::Recording& rec = r->recording;
       if (rec.info.mic_count == 0) throw std::runtime_error(r->origin + ": condition " + name + " has no microphones");
-      model::ConditionRecording cr;
+      model::fit::ConditionRecording cr;
       cr.pressure_pa = rec.pressure_pa;
       cr.crank_deg = rec.crank_deg;
       cr.mics_pa = rec.mics_pa;
       cr.mic_count = rec.info.mic_count;
-      cr.delay_frames = std::llround(rec.info.acoustic_delay_s * model::kDatasetRateHz);
+      cr.delay_frames = std::llround(rec.info.acoustic_delay_s * model::fit::kDatasetRateHz);
       parts.push_back(std::move(cr));
     }
     try {
-      model::ConditionInfo info = condition_info(*group.front());  // the first recording's floor and encoder
+      model::fit::ConditionInfo info = condition_info(*group.front());  // the first recording's floor and encoder
       info.name = name;
-      conds.push_back(model::build_condition(info, parts, options));
+      conds.push_back(model::fit::build_condition(info, parts, options));
     } catch (const std::invalid_argument& e) {
       throw std::runtime_error(group.front()->origin + ": " + e.what());
     }
   }
-  return model::make_dataset(std::move(conds));
+  return model::fit::make_dataset(std::move(conds));
 }
 
-model::BandDataset load_band_dataset(const std::vector<std::string>& paths, std::FILE* out, ProgressLine& line) {
+model::fit::BandDataset load_band_dataset(const std::vector<std::string>& paths, std::FILE* out, ProgressLine& line) {
   const std::vector<LoadedRecording> recs =
       load_recordings(paths, [&](const std::string& note) { std::fprintf(out, "%s\n", note.c_str()); });
   line.show("measuring band spectra ...");
-  model::BandDataset data = make_band_dataset(recs);
+  model::fit::BandDataset data = make_band_dataset(recs);
   line.done();
   return data;
 }
 
-std::string condition_names(const model::BandDataset& data) {
+std::string condition_names(const model::fit::BandDataset& data) {
   std::string names;
   for (const auto& c : data.conditions) names += (names.empty() ? "" : ", ") + c.info.name;
   return names;

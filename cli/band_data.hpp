@@ -42,18 +42,18 @@ std::vector<LoadedRecording> load_recordings(const std::vector<std::string>& pat
 
 // Groups recordings by condition and measures them (bank, cycles, coherence). Conditions keep the order of
 // their first recording.
-model::BandDataset make_band_dataset(const std::vector<LoadedRecording>& recordings,
-                                     const model::DatasetOptions& options = {});
+model::fit::BandDataset make_band_dataset(const std::vector<LoadedRecording>& recordings,
+                                          const model::fit::DatasetOptions& options = {});
 
 // Both steps for `fit` and `diagnose`: load_recordings' notes go to `out`, the bank pass shows on `line`.
-model::BandDataset load_band_dataset(const std::vector<std::string>& paths, std::FILE* out, ProgressLine& line);
+model::fit::BandDataset load_band_dataset(const std::vector<std::string>& paths, std::FILE* out, ProgressLine& line);
 
 // "a, b, c": the dataset's condition names, for messages.
-std::string condition_names(const model::BandDataset& data);
+std::string condition_names(const model::fit::BandDataset& data);
 
 // The condition of a recording as the dataset sees it (unknown load and SOI: NaN).
-model::ConditionInfo condition_info(const formats::Recording& rec, const std::string& fallback_name);
+model::fit::ConditionInfo condition_info(const formats::Recording& rec, const std::string& fallback_name);
 // The same with what the run directory told (pressure floor, encoder rate); the origin is the fallback name.
-model::ConditionInfo condition_info(const LoadedRecording& r);
+model::fit::ConditionInfo condition_info(const LoadedRecording& r);
 
 }  // namespace noisemon::cli

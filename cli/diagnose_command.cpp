@@ -54,7 +54,7 @@ void check_out_dir(const DiagnoseOptions& o) {
     throw std::runtime_error((dir / "report.json").string() + " already exists; use --force to replace it");
 }
 
-void print_band_summary(std::FILE* out, const model::DiagnosisResult& r) {
+void print_band_summary(std::FILE* out, const model::diagnosis::DiagnosisResult& r) {
   std::fprintf(out, "baseline %s (tuned): train %.2f dB, held-out gap %.2f dB (thesis metric %.2f dB)%s\n",
                r.model_name.c_str(), r.baseline.train_rms_db, r.baseline.heldout_gap_db,
                r.baseline.heldout_thesis_rms_db,
@@ -67,7 +67,7 @@ void print_band_summary(std::FILE* out, const model::DiagnosisResult& r) {
   // information criterion over the baseline's (negative: the closed gap pays for the parameters).
   std::fprintf(out, "%-18s %10s %10s %10s %8s %12s %11s %8s\n", "candidate", "gap dB", "thesis dB", "group dB",
                "closed", "significant", "parameters", "dIC");
-  auto row = [&](const model::ModelScore& c) {
+  auto row = [&](const model::diagnosis::ModelScore& c) {
     const char* significant = c.significant ? "yes" : c.refuted ? "refuted" : "no";
     const std::string group = std::isfinite(c.heldout_group_gap_db) ? fmt("%.2f", c.heldout_group_gap_db) : "-";
     std::fprintf(out, "%-18s %10.2f %10.2f %10s %7.0f%% %12s %11d %8.0f\n", c.name.c_str(), c.heldout_gap_db,
@@ -76,7 +76,7 @@ void print_band_summary(std::FILE* out, const model::DiagnosisResult& r) {
   };
   for (const auto& c : r.candidates) row(c);
   for (const auto& c : r.combinations) row(c);
-  const model::Verdict& v = r.verdict;
+  const model::diagnosis::Verdict& v = r.verdict;
   std::string also;
   for (const auto& a : v.also) also += " + " + a;
   std::fprintf(out,
@@ -90,7 +90,7 @@ void print_band_summary(std::FILE* out, const model::DiagnosisResult& r) {
 }
 
 // Which pressure-chain floor each run is judged by, and the cells at a floor.
-void print_floors(std::FILE* out, const model::BandDataset& data, const model::Where& w) {
+void print_floors(std::FILE* out, const model::fit::BandDataset& data, const model::diagnosis::Where& w) {
   for (std::size_t k = 0; k < data.conditions.size() && k < w.pressure_floor_judged_by.size(); ++k) {
     const std::string stated = std::isfinite(w.pressure_floor_stated_bar[k])
                                    ? fmt("%.4g bar", w.pressure_floor_stated_bar[k])
@@ -107,7 +107,7 @@ void print_floors(std::FILE* out, const model::BandDataset& data, const model::W
 }
 
 // --pressure-floor: the stated floor of every run replaced (bar) or ignored ("estimate").
-void override_pressure_floor(const std::string& text, model::BandDataset& data) {
+void override_pressure_floor(const std::string& text, model::fit::BandDataset& data) {
   if (text.empty()) return;
   double bar = std::numeric_limits<double>::quiet_NaN();
   if (text != "estimate") {
@@ -117,14 +117,14 @@ void override_pressure_floor(const std::string& text, model::BandDataset& data) 
       throw std::runtime_error("--pressure-floor " + text +
                                ": expected bar rms per encoder sample (>= 0) or 'estimate'");
   }
-  for (model::ConditionData& d : data.conditions) d.info.pressure_floor_pa = bar * 1e5;
-  model::judge_pressure_floors(data);
+  for (model::fit::ConditionData& d : data.conditions) d.info.pressure_floor_pa = bar * 1e5;
+  model::fit::judge_pressure_floors(data);
 }
 
 nlohmann::json diagnose_band(const DiagnoseOptions& o, const report::ReportContext& ctx, std::FILE* out) {
   if (o.fs_hz > 0.0) throw std::runtime_error("--fs applies to waveform mode only");
   if (!o.tests.empty()) throw std::runtime_error("--test applies to waveform mode only");
-  model::DiagnosisOptions opt;
+  model::diagnosis::DiagnosisOptions opt;
   opt.train = flatten_lists(o.train);
   opt.holdout = flatten_lists(o.holdout);
   opt.fit_cycles = o.fit_cycles;
@@ -133,7 +133,7 @@ nlohmann::json diagnose_band(const DiagnoseOptions& o, const report::ReportConte
   opt.tolerance_db = o.tolerance_db;
   if (!o.candidates.empty()) {
     opt.candidates = split_list(o.candidates);
-    const auto& known = model::candidate_effects();
+    const auto& known = model::diagnosis::candidate_effects();
     for (const auto& c : opt.candidates)
       if (std::find(known.begin(), known.end(), c) == known.end()) {
         std::string list;
@@ -146,14 +146,14 @@ nlohmann::json diagnose_band(const DiagnoseOptions& o, const report::ReportConte
   const model::BlockParams start = daemon::resolve_model(model_name, &model_name);
 
   ProgressLine line(o.progress);
-  model::BandDataset data = load_band_dataset(o.data, out, line);
+  model::fit::BandDataset data = load_band_dataset(o.data, out, line);
   override_pressure_floor(o.pressure_floor, data);
   std::fprintf(out, "%zu condition(s), %zu bands\n", data.conditions.size(), data.band_count());
   opt.progress = [&](const std::string& stage) { line.show("diagnose: " + stage); };
 
-  model::DiagnosisResult r;
+  model::diagnosis::DiagnosisResult r;
   try {
-    r = model::diagnose(data, start, model_name, opt);
+    r = model::diagnosis::diagnose(data, start, model_name, opt);
   } catch (const std::invalid_argument& e) {
     throw std::runtime_error(std::string(e.what()) + " (the data hold " + condition_names(data) + ")");
   }
@@ -177,7 +177,7 @@ nlohmann::json diagnose_waveform(const DiagnoseOptions& o, const report::ReportC
   std::vector<report::WaveformTestSet> tests;
   for (const auto& [name, range] : test_specs) tests.push_back({name, parse_range(range, data, "--test"), 0.0, 0.0});
 
-  model::WaveformDiagnosisOptions opt;
+  model::diagnosis::WaveformDiagnosisOptions opt;
   opt.fs_hz = o.fs_hz;
   opt.train = data.train;
   opt.heldout = data.heldout;
@@ -187,35 +187,35 @@ nlohmann::json diagnose_waveform(const DiagnoseOptions& o, const report::ReportC
   if (!o.free.empty()) opt.baseline_free = split_list(o.free);
   if (!o.candidates.empty()) opt.candidates = split_list(o.candidates);
   if (!o.model.empty()) {
-    model::WaveformModel m;
+    model::fit::WaveformModel m;
     m.block = daemon::resolve_model(o.model, &opt.start_name);
     opt.start = m;
   }
   ProgressLine line(o.progress);
   opt.log = [&](const std::string& s) { line.show("diagnose: " + s); };
-  opt.fit_progress = [&](const model::WaveformFitProgress& p) {
+  opt.fit_progress = [&](const model::fit::WaveformFitProgress& p) {
     line.show("diagnose: fit iteration " + std::to_string(p.iteration) + ", train RMS " + fmt("%.4g", p.train_rms));
   };
-  model::WaveformDiagnosis d;
+  model::diagnosis::WaveformDiagnosis d;
   try {
-    d = model::diagnose_waveform(data.u, data.y, opt);
+    d = model::diagnosis::diagnose_waveform(data.u, data.y, opt);
   } catch (const std::invalid_argument& e) {
     throw std::runtime_error(e.what());
   }
   line.done();
   for (report::WaveformTestSet& t : tests) {
-    const std::vector<model::SampleRange> one = {t.range};
-    model::WaveformSimOptions sb = opt.sim, sa = opt.sim;
+    const std::vector<model::fit::SampleRange> one = {t.range};
+    model::fit::WaveformSimOptions sb = opt.sim, sa = opt.sim;
     sb.steps_per_sample = d.baseline.steps_per_sample;
     sa.steps_per_sample = d.best_steps_per_sample;
-    t.baseline_rms = model::free_run_errors(d.baseline.model, o.fs_hz, sb, data.u, data.y, one).front().rms();
-    t.best_rms = model::free_run_errors(d.best_model, o.fs_hz, sa, data.u, data.y, one).front().rms();
+    t.baseline_rms = model::fit::free_run_errors(d.baseline.model, o.fs_hz, sb, data.u, data.y, one).front().rms();
+    t.best_rms = model::fit::free_run_errors(d.best_model, o.fs_hz, sa, data.u, data.y, one).front().rms();
   }
 
   std::fprintf(out, "baseline (%s, tuned): train RMS %.4g, held-out RMS %.4g\n", d.baseline.start_name.c_str(),
                d.baseline.train_rms, d.baseline.heldout_rms);
   std::fprintf(out, "%-18s %12s %8s %10s %12s\n", "candidate", "held-out", "closed", "p", "significant");
-  auto row = [&](const model::CandidateResult& c, const char* note) {
+  auto row = [&](const model::diagnosis::CandidateResult& c, const char* note) {
     std::fprintf(out, "%-18s %12.4g %7.0f%% %10.4f %12s%s\n", c.effect.c_str(), c.heldout_rms,
                  100.0 * c.gap_closed_fraction, c.test.p_value, c.significant ? "yes" : "no", note);
   };

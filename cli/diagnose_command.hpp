@@ -1,7 +1,7 @@
 // `noisemon diagnose`: the sim-to-real gap. Where the tuned block model and the measurements disagree, which
 // unmodelled effect of DESIGN.md's list explains it, and how much of the held-out gap that effect closes.
 //   band mode      DATA = run directories or raw LCM logs (cli/band_data): model/diagnosis on 1/3-octave
-//                  spectra; --train / --holdout take condition patterns (model::condition_matches); without
+//                  spectra; --train / --holdout take condition patterns (model::diagnosis::condition_matches); without
 //                  --holdout every fired condition is held out in turn (leave-one-condition-out).
 //   waveform mode  DATA = CSV files of `u,y` at --fs (as `noisemon fit`): model/diagnosis/waveform_diagnosis on the
 //   free-run

@@ -71,14 +71,15 @@ void print_table(std::FILE* out, const FitCommandResult& r) {
 
 // ------------------------------------------------------------------------------------------ waveform mode
 
-std::string range_text(model::SampleRange r) { return std::to_string(r.begin) + ":" + std::to_string(r.end); }
+std::string range_text(model::fit::SampleRange r) { return std::to_string(r.begin) + ":" + std::to_string(r.end); }
 
 // Training ranges = the complement of the held-out ones within each file.
-std::vector<model::SampleRange> complement(const std::vector<model::SampleRange>& held, const WaveformData& data) {
-  std::vector<model::SampleRange> out;
-  for (const model::SampleRange& f : data.file_ranges) {
+std::vector<model::fit::SampleRange> complement(const std::vector<model::fit::SampleRange>& held,
+                                                const WaveformData& data) {
+  std::vector<model::fit::SampleRange> out;
+  for (const model::fit::SampleRange& f : data.file_ranges) {
     std::size_t pos = f.begin;
-    std::vector<model::SampleRange> inside;
+    std::vector<model::fit::SampleRange> inside;
     for (const auto& h : held)
       if (h.end > f.begin && h.begin < f.end) inside.push_back({std::max(h.begin, f.begin), std::min(h.end, f.end)});
     std::sort(inside.begin(), inside.end(), [](auto a, auto b) { return a.begin < b.begin; });
@@ -93,7 +94,7 @@ std::vector<model::SampleRange> complement(const std::vector<model::SampleRange>
 
 }  // namespace
 
-model::SampleRange parse_range(const std::string& text, const WaveformData& data, const char* option) {
+model::fit::SampleRange parse_range(const std::string& text, const WaveformData& data, const char* option) {
   for (std::size_t f = 0; f < data.file_ranges.size(); ++f)
     if (text == data.files[f] || text == std::filesystem::path(data.files[f]).filename().string())
       return data.file_ranges[f];
@@ -151,7 +152,7 @@ FitCommandResult fit_waveform_mode(const FitCommandOptions& o, std::FILE* out) {
     throw std::runtime_error("--fs: the sample rate of the waveform (Hz) is required in waveform mode");
   const WaveformData data = load_waveform_data(o.data, o.train, o.holdout, o.settle, out);
 
-  model::WaveformFitOptions fo;
+  model::fit::WaveformFitOptions fo;
   fo.fs_hz = o.fs_hz;
   fo.sim.settle_samples = o.settle;
   fo.max_iterations = o.max_iterations;
@@ -159,7 +160,7 @@ FitCommandResult fit_waveform_mode(const FitCommandOptions& o, std::FILE* out) {
   fo.heldout = data.heldout;
 
   if (!o.model.empty()) {
-    model::WaveformModel start;
+    model::fit::WaveformModel start;
     std::string name;
     start.block = daemon::resolve_model(o.model, &name);
     fo.start = start;
@@ -168,7 +169,7 @@ FitCommandResult fit_waveform_mode(const FitCommandOptions& o, std::FILE* out) {
   if (!o.free.empty()) {
     fo.free_params = split_list(o.free);
     for (const std::string& p : fo.free_params) {
-      const auto& names = model::waveform_parameter_names();
+      const auto& names = model::fit::waveform_parameter_names();
       if (std::find(names.begin(), names.end(), p) == names.end()) {
         std::string list;
         for (const auto& n : names) list += (list.empty() ? "" : ", ") + n;
@@ -183,11 +184,11 @@ FitCommandResult fit_waveform_mode(const FitCommandOptions& o, std::FILE* out) {
   }
 
   ProgressLine line(o.progress);
-  fo.progress = [&](const model::WaveformFitProgress& p) {
+  fo.progress = [&](const model::fit::WaveformFitProgress& p) {
     line.show("fit: iteration " + std::to_string(p.iteration) + "  train RMS " + format_g(p.train_rms, 5) + "  " +
               format_g(p.seconds, 3) + " s");
   };
-  const model::WaveformFitResult r = model::fit_waveform(data.u, data.y, fo);
+  const model::fit::WaveformFitResult r = model::fit::fit_waveform(data.u, data.y, fo);
   line.done();
   std::fprintf(out, "Ceres: %d iterations, %s (%.2f s, %d integration steps per sample)\n", r.iterations,
                r.solver_message.c_str(), r.seconds, r.steps_per_sample);
@@ -198,7 +199,7 @@ FitCommandResult fit_waveform_mode(const FitCommandOptions& o, std::FILE* out) {
   res.params = r.model.block;
   res.free = r.free_params;
   for (std::size_t k = 0; k < r.free_params.size(); ++k) {
-    res.values.push_back(model::get_parameter(r.model, r.free_params[k]));
+    res.values.push_back(model::fit::get_parameter(r.model, r.free_params[k]));
     res.sigma.push_back(r.sigma[k]);
     if (k < r.sigma_blocks.size()) res.sigma_blocks.push_back(r.sigma_blocks[k]);
   }
@@ -221,14 +222,14 @@ FitCommandResult fit_waveform_mode(const FitCommandOptions& o, std::FILE* out) {
 
 // ------------------------------------------------------------------------------------------ band mode
 
-double condition_rms(const model::BandDataset& data, std::size_t k, const model::ExtendedModel& m,
+double condition_rms(const model::fit::BandDataset& data, std::size_t k, const model::fit::ExtendedModel& m,
                      const std::vector<char>& scored) {
-  const model::ConditionPrediction p = model::predict_condition(data, k, m, false);
-  return model::rms_db(model::condition_gaps(data.conditions[k], p.cycle_ms, scored, m));
+  const model::fit::ConditionPrediction p = model::fit::predict_condition(data, k, m, false);
+  return model::fit::rms_db(model::fit::condition_gaps(data.conditions[k], p.cycle_ms, scored, m));
 }
 
-double mean_rms(const model::BandDataset& data, const std::vector<std::size_t>& conds, const model::ExtendedModel& m,
-                const std::vector<std::vector<char>>& scored) {
+double mean_rms(const model::fit::BandDataset& data, const std::vector<std::size_t>& conds,
+                const model::fit::ExtendedModel& m, const std::vector<std::vector<char>>& scored) {
   if (conds.empty()) return kNaN;
   double s = 0.0;
   for (std::size_t k : conds) s += condition_rms(data, k, m, scored[k]);
@@ -237,17 +238,17 @@ double mean_rms(const model::BandDataset& data, const std::vector<std::size_t>& 
 
 bool matches_any(const std::vector<std::string>& patterns, const std::string& name) {
   for (const std::string& p : patterns)
-    if (model::condition_matches(p, name)) return true;
+    if (model::diagnosis::condition_matches(p, name)) return true;
   return false;
 }
 
 // Every --holdout / --train pattern must name at least one condition.
-void check_patterns(const model::BandDataset& data, const std::vector<std::string>& held,
+void check_patterns(const model::fit::BandDataset& data, const std::vector<std::string>& held,
                     const std::vector<std::string>& trn) {
   for (const auto* list : {&held, &trn})
     for (const std::string& p : *list) {
       bool any = false;
-      for (const auto& c : data.conditions) any = any || model::condition_matches(p, c.info.name);
+      for (const auto& c : data.conditions) any = any || model::diagnosis::condition_matches(p, c.info.name);
       if (!any)
         throw std::runtime_error(std::string(list == &held ? "--holdout " : "--train ") + p +
                                  ": matches no condition (the data hold " + condition_names(data) + ")");
@@ -261,13 +262,13 @@ struct BandSplit {
   std::vector<std::vector<char>> scored;
 };
 
-BandSplit split_conditions(const model::BandDataset& data, const std::vector<std::string>& held,
+BandSplit split_conditions(const model::fit::BandDataset& data, const std::vector<std::string>& held,
                            const std::vector<std::string>& trn, FitCommandResult& res) {
   BandSplit split;
   split.scored.assign(data.conditions.size(), std::vector<char>(data.band_count(), 0));
-  const std::vector<std::vector<char>> at_floor = model::floor_limited_bands(data);
+  const std::vector<std::vector<char>> at_floor = model::fit::floor_limited_bands(data);
   for (std::size_t k = 0; k < data.conditions.size(); ++k) {
-    const model::ConditionInfo& info = data.conditions[k].info;
+    const model::fit::ConditionInfo& info = data.conditions[k].info;
     if (info.motored || info.background) continue;  // reference runs: never scored
     for (std::size_t b = 0; b < data.band_count(); ++b)
       split.scored[k][b] = !data.bands[b].nyquist_cut && !data.band_line_free(k, b) && !at_floor[k][b];
@@ -284,22 +285,22 @@ BandSplit split_conditions(const model::BandDataset& data, const std::vector<std
 }
 
 // The start: the given model, or the Table 4.1 preset with the lowest training gap (each one's gap printed).
-model::ExtendedModel start_model(const FitCommandOptions& o, const model::FitSetup& setup, ProgressLine& line,
-                                 std::FILE* out, std::string& start_name) {
-  model::ExtendedModel start;
+model::fit::ExtendedModel start_model(const FitCommandOptions& o, const model::fit::FitSetup& setup, ProgressLine& line,
+                                      std::FILE* out, std::string& start_name) {
+  model::fit::ExtendedModel start;
   if (!o.model.empty()) {
     start.block = daemon::resolve_model(o.model, &start_name);
     return start;
   }
   double best = std::numeric_limits<double>::infinity();
-  model::FitSetup ev = setup;
+  model::fit::FitSetup ev = setup;
   ev.evaluate_only = true;
   for (const std::string& name : model::preset_names()) {
-    model::ExtendedModel m;
+    model::fit::ExtendedModel m;
     m.block = model::preset(name);
     line.show("start: trying preset " + name);
-    const model::Anchor an = model::make_anchor(*setup.data, m.block, setup.train, o.fit_cycles, false);
-    const double rms = model::refit_on_anchor(ev, an, m).train_rms_db;
+    const model::fit::Anchor an = model::fit::make_anchor(*setup.data, m.block, setup.train, o.fit_cycles, false);
+    const double rms = model::fit::refit_on_anchor(ev, an, m).train_rms_db;
     line.done();
     std::fprintf(out, "preset %-22s train RMS %.3f dB\n", name.c_str(), rms);
     if (rms < best) {
@@ -313,36 +314,36 @@ model::ExtendedModel start_model(const FitCommandOptions& o, const model::FitSet
 
 FitCommandResult fit_band_mode(const FitCommandOptions& o, std::FILE* out) {
   const auto t0 = std::chrono::steady_clock::now();
-  const std::vector<model::BlockParam> free = parse_free_option(o.free);  // checked before the slow work
+  const std::vector<model::fit::BlockParam> free = parse_free_option(o.free);  // checked before the slow work
   ProgressLine line(o.progress);
-  const model::BandDataset data = load_band_dataset(o.data, out, line);
+  const model::fit::BandDataset data = load_band_dataset(o.data, out, line);
   const std::vector<std::string> held = flatten_lists(o.holdout), trn = flatten_lists(o.train);
   check_patterns(data, held, trn);
 
   FitCommandResult res;
   res.mode = "band";
   const BandSplit split = split_conditions(data, held, trn, res);
-  model::FitSetup setup;
+  model::fit::FitSetup setup;
   setup.data = &data;
   setup.train = split.train;
   setup.scored = split.scored;
   setup.fit_cycles = o.fit_cycles;
-  const model::ExtendedModel start = start_model(o, setup, line, out, res.start_name);
-  setup.free = free.empty() ? model::default_free_params(start.block) : free;
-  setup.progress = [&](const model::FitProgress& p) {
+  const model::fit::ExtendedModel start = start_model(o, setup, line, out, res.start_name);
+  setup.free = free.empty() ? model::fit::default_free_params(start.block) : free;
+  setup.progress = [&](const model::fit::FitProgress& p) {
     line.show("fit: anchor " + std::to_string(p.anchor) + " iteration " + std::to_string(p.iteration) + "  train gap " +
               format_g(p.rms_db, 4) + " dB  " + p.note);
   };
   res.start_train_rms = mean_rms(data, split.train, start, split.scored);
-  const model::FitOutcome fit = model::fit_model(setup, start);
+  const model::fit::FitOutcome fit = model::fit::fit_model(setup, start);
   line.done();
   std::fprintf(out, "Ceres: %d iterations over %d time-domain anchors, %s\n", fit.iterations, fit.anchors,
                fit.converged ? "converged" : "not converged (the result is the last anchor's)");
 
   res.params = fit.model.block;
   for (std::size_t k = 0; k < fit.free.size(); ++k) {
-    res.free.emplace_back(model::param_name(fit.free[k]));
-    res.values.push_back(model::param_value(fit.model.block, fit.free[k]));
+    res.free.emplace_back(model::fit::param_name(fit.free[k]));
+    res.values.push_back(model::fit::param_value(fit.model.block, fit.free[k]));
     res.sigma.push_back(k < fit.sigma.size() ? fit.sigma[k] : kNaN);
   }
   res.units = "dB";
@@ -356,10 +357,10 @@ FitCommandResult fit_band_mode(const FitCommandOptions& o, std::FILE* out) {
 
 }  // namespace
 
-std::vector<model::BlockParam> parse_free_option(const std::string& text) {
+std::vector<model::fit::BlockParam> parse_free_option(const std::string& text) {
   if (text.empty()) return {};
   try {
-    return model::parse_free_params(text);
+    return model::fit::parse_free_params(text);
   } catch (const std::invalid_argument& e) {
     const std::string what = e.what();
     throw std::runtime_error(what.rfind("--free", 0) == 0 ? what : "--free: " + what);

@@ -2,7 +2,8 @@
 // (daemon/params_file.hpp).
 //   band mode      DATA = run directories or raw LCM logs (cli/band_data); the thesis metric: RMS over the
 //                  scored 1/3-octave bands of the cycle-averaged attenuation-curve gap, averaged over
-//                  conditions (model/fit/band_fit). --holdout takes condition patterns (model::condition_matches).
+//                  conditions (model/fit/band_fit). --holdout takes condition patterns
+//                  (model::diagnosis::condition_matches).
 //   waveform mode  DATA = CSV files of `u,y` sampled at --fs (drivers/formats/waveform_csv); free-run simulation error
 //                  (model/fit/waveform_fit). --train / --holdout take sample ranges `A:B` (0-based, half-open, over
 //                  the DATA files concatenated) or DATA file names; without them the last DATA file is held out,
@@ -62,18 +63,18 @@ struct FitCommandResult {
 struct WaveformData {
   std::vector<double> u, y;
   std::vector<std::string> files;
-  std::vector<model::SampleRange> file_ranges;  // where each file lies in u, y
-  std::vector<model::SampleRange> train, heldout;
+  std::vector<model::fit::SampleRange> file_ranges;  // where each file lies in u, y
+  std::vector<model::fit::SampleRange> train, heldout;
 };
 WaveformData load_waveform_data(const std::vector<std::string>& paths, const std::vector<std::string>& train,
                                 const std::vector<std::string>& holdout, std::size_t settle_samples,
                                 std::FILE* note = nullptr);
 
 // Band mode's --free: "k1,b1,c0" -> parameters ("" -> none: the mode's default); throws naming --free.
-std::vector<model::BlockParam> parse_free_option(const std::string& text);
+std::vector<model::fit::BlockParam> parse_free_option(const std::string& text);
 
 // "A:B" (0-based, end excluded) or a DATA file name -> a range of `data`; throws naming `option` and the text.
-model::SampleRange parse_range(const std::string& text, const WaveformData& data, const char* option);
+model::fit::SampleRange parse_range(const std::string& text, const WaveformData& data, const char* option);
 
 // Runs the fit, prints the summary to `out`, writes options.out. Throws std::exception with a message that
 // names the file, option, parameter or condition at fault; nothing is written when the fit fails.

@@ -62,7 +62,7 @@ std::int64_t read_log(const std::string& path, const daemon::Config& config, boo
   return reports;
 }
 
-std::string event_line(const model::GapEvent& e) {
+std::string event_line(const model::diagnosis::GapEvent& e) {
   char head[256];
   std::snprintf(head, sizeof head, "gap event at %.1f s (cycle %lld; %s from %.1f s, cycle %lld): %s", e.detected_s,
                 static_cast<long long>(e.detected_cycle), e.kind.c_str(), e.onset_s,
@@ -137,10 +137,10 @@ GapwatchCommand::GapwatchCommand(CLI::App& app) {
 namespace {
 
 // The reference a log's every cycle makes (each operating point's, however long it ran).
-model::GapReference learn_reference(const std::string& path, const daemon::Config& config,
-                                    model::GapWatchOptions options, bool progress) {
+model::diagnosis::GapReference learn_reference(const std::string& path, const daemon::Config& config,
+                                               model::diagnosis::GapWatchOptions options, bool progress) {
   options.reference_s = 1e12;
-  model::GapWatch learner(options);
+  model::diagnosis::GapWatch learner(options);
   const std::int64_t reports = read_log(
       path, config, progress, [](const auto&) {},
       [&](const noisemon::cycle_report_t& r) { learner.add(cycle_gap(r)); });
@@ -168,7 +168,7 @@ int GapwatchCommand::run() {
     if (gapwatch_->count("--lcm") > 0) config.lcm.url = lcm_url_;
     options_.attribution.model_block = config.model;
     options_.pressure_edge_rate_per_rev = 360.0 / encoder_step_deg_;
-    model::GapWatch watch(options_);
+    model::diagnosis::GapWatch watch(options_);
     if (!reference_.empty()) {
       watch.set_reference(fs::path(reference_).extension() == ".json"
                               ? load_reference(reference_)
@@ -191,7 +191,7 @@ int GapwatchCommand::run() {
             "': the network needs a multicast route (docs/sources-and-formats.md, 'LCM and multicast')");
     }
     std::int64_t utime = 0, events = 0;
-    watch.on_event = [&](const model::GapEvent& e) {
+    watch.on_event = [&](const model::diagnosis::GapEvent& e) {
       ++events;
       std::printf("%s\n", event_line(e).c_str());
       std::fflush(stdout);

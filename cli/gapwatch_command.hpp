@@ -22,7 +22,7 @@ class GapwatchCommand {
   std::string lcm_url_, log_, json_, reference_, save_reference_, config_path_, cell_, model_;
   bool publish_ = false, progress_ = true;
   double encoder_step_deg_ = 0.1;
-  model::GapWatchOptions options_;
+  model::diagnosis::GapWatchOptions options_;
 };
 
 }  // namespace noisemon::cli

@@ -21,7 +21,7 @@ nlohmann::json number(double x) { return std::isfinite(x) ? nlohmann::json(x) : 
 
 std::vector<double> numbers(const nlohmann::json& j) {
   std::vector<double> out;
-  for (const auto& v : j) out.push_back(v.is_null() ? model::kNoValue : v.get<double>());
+  for (const auto& v : j) out.push_back(v.is_null() ? model::diagnosis::kNoValue : v.get<double>());
   return out;
 }
 
@@ -33,8 +33,8 @@ nlohmann::json array(const std::vector<double>& values) {
 
 }  // namespace
 
-model::CycleGap cycle_gap(const Report& r) {
-  model::CycleGap c;
+model::diagnosis::CycleGap cycle_gap(const Report& r) {
+  model::diagnosis::CycleGap c;
   c.cycle = r.cycle;
   c.time_s = static_cast<double>(r.utime) * 1e-6;
   c.speed_rpm = r.speed_rpm;
@@ -45,11 +45,12 @@ model::CycleGap cycle_gap(const Report& r) {
   for (int b = 0; b < r.nbands; ++b) {
     const bool silent = daemon::band_says_nothing(r.band_flags[b]);
     c.band_hz.push_back(r.band_hz[b]);
-    c.measured_db.push_back(silent ? model::kNoValue : r.spl_a_measured_db[b]);
-    c.predicted_db.push_back(silent ? model::kNoValue : r.spl_a_predicted_db[b]);
-    c.cpl_db.push_back(silent ? model::kNoValue : r.cpl_db[b]);
+    c.measured_db.push_back(silent ? model::diagnosis::kNoValue : r.spl_a_measured_db[b]);
+    c.predicted_db.push_back(silent ? model::diagnosis::kNoValue : r.spl_a_predicted_db[b]);
+    c.cpl_db.push_back(silent ? model::diagnosis::kNoValue : r.cpl_db[b]);
   }
-  for (int m = 0; m < r.nmics; ++m) c.mic_db.push_back((r.mic_flags[m] & kBadMic) ? model::kNoValue : r.mic_lpa_db[m]);
+  for (int m = 0; m < r.nmics; ++m)
+    c.mic_db.push_back((r.mic_flags[m] & kBadMic) ? model::diagnosis::kNoValue : r.mic_lpa_db[m]);
   c.overall_measured_db = r.lpa_measured_db;
   c.overall_predicted_db = r.lpa_predicted_db;
   c.window_measured_db.assign(r.window_lpa_measured_db.begin(), r.window_lpa_measured_db.end());
@@ -57,7 +58,7 @@ model::CycleGap cycle_gap(const Report& r) {
   return c;
 }
 
-noisemon::gap_event_t gap_event_message(const model::GapEvent& e, std::int64_t utime) {
+noisemon::gap_event_t gap_event_message(const model::diagnosis::GapEvent& e, std::int64_t utime) {
   noisemon::gap_event_t m;
   m.utime = utime;
   m.effect = e.effect;
@@ -83,7 +84,7 @@ noisemon::gap_event_t gap_event_message(const model::GapEvent& e, std::int64_t u
   m.features = e.features;
   m.nfeatures = static_cast<std::int16_t>(m.features.size());
   m.explanation = e.attribution.explanation;
-  const model::GapChange& g = e.change;
+  const model::diagnosis::GapChange& g = e.change;
   for (std::size_t b = 0; b < g.band_hz.size(); ++b) {
     m.band_hz.push_back(static_cast<float>(g.band_hz[b]));
     const double gap = (g.measured_after[b] - g.predicted_after[b]) - (g.measured_before[b] - g.predicted_before[b]);
@@ -102,7 +103,8 @@ noisemon::gap_event_t gap_event_message(const model::GapEvent& e, std::int64_t u
   return m;
 }
 
-noisemon::gap_status_t gap_status_message(const model::GapWatch& watch, std::int64_t utime, std::int32_t events) {
+noisemon::gap_status_t gap_status_message(const model::diagnosis::GapWatch& watch, std::int64_t utime,
+                                          std::int32_t events) {
   noisemon::gap_status_t m;
   m.utime = utime;
   m.cycles = watch.cycles();
@@ -115,7 +117,7 @@ noisemon::gap_status_t gap_status_message(const model::GapWatch& watch, std::int
   return m;
 }
 
-nlohmann::json gap_event_json(const model::GapEvent& e) {
+nlohmann::json gap_event_json(const model::diagnosis::GapEvent& e) {
   nlohmann::json params = nlohmann::json::object();
   for (const auto& [key, value] : e.params) params[key] = number(value);
   nlohmann::json candidates = nlohmann::json::array();
@@ -146,7 +148,7 @@ nlohmann::json gap_event_json(const model::GapEvent& e) {
           {"candidates", candidates}};
 }
 
-nlohmann::json reference_json(const model::GapReference& r) {
+nlohmann::json reference_json(const model::diagnosis::GapReference& r) {
   nlohmann::json points = nlohmann::json::array();
   for (const auto& p : r.points) {
     if (p.features.empty()) continue;  // still learning
@@ -172,10 +174,10 @@ nlohmann::json reference_json(const model::GapReference& r) {
           {"points", points}};
 }
 
-model::GapReference load_reference(const std::string& path) {
+model::diagnosis::GapReference load_reference(const std::string& path) {
   std::ifstream in(path);
   if (!in) throw std::runtime_error(path + ": cannot open the reference file");
-  model::GapReference r;
+  model::diagnosis::GapReference r;
   try {
     const nlohmann::json j = nlohmann::json::parse(in);
     if (j.value("format", "") != "noisemon gapwatch reference 1")
@@ -184,15 +186,15 @@ model::GapReference load_reference(const std::string& path) {
     r.mics = j.at("mics").get<std::size_t>();
     r.windows = j.at("windows").get<std::size_t>();
     for (const auto& p : j.at("points")) {
-      model::OperatingPointReference o;
+      model::diagnosis::OperatingPointReference o;
       o.speed_rpm = p.at("speed_rpm").get<double>();
       o.load_nm = p.at("load_nm").get<double>();
       o.soi_deg_btdc = p.at("soi_deg_btdc").get<double>();
       o.motored = p.at("motored").get<bool>();
       o.cycles = p.at("cycles").get<std::size_t>();
       for (const auto& f : p.at("features"))
-        o.features.push_back({f.at("mean").is_null() ? model::kNoValue : f.at("mean").get<double>(),
-                              f.at("sigma").is_null() ? model::kNoValue : f.at("sigma").get<double>(),
+        o.features.push_back({f.at("mean").is_null() ? model::diagnosis::kNoValue : f.at("mean").get<double>(),
+                              f.at("sigma").is_null() ? model::diagnosis::kNoValue : f.at("sigma").get<double>(),
                               f.at("blocks").get<std::size_t>()});
       o.measured_db = numbers(p.at("measured_db"));
       o.predicted_db = numbers(p.at("predicted_db"));

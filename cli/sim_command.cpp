@@ -39,10 +39,10 @@ json block_json(const model::BlockParams& b) {
   return {{"m", b.m}, {"k1", b.k1}, {"k3", b.k3}, {"b1", b.b1}, {"b3", b.b3}, {"c0", b.c0}, {"c1", b.c1}};
 }
 
-json effects_json(const model::Effects& effects) {
+json effects_json(const model::engine::Effects& effects) {
   json out = json::array();
   for (const auto& s : effects.settings) {
-    const model::EffectInfo* info = model::find_effect(s.name);
+    const model::engine::EffectInfo* info = model::engine::find_effect(s.name);
     json q = json::object();
     for (const auto& qi : info->qualifiers) {
       double v = qi.default_value;
@@ -105,7 +105,7 @@ drivers::SimConfig campaign_engine(const SimOptions& o) {
     throw std::invalid_argument("--pressure-floor must be in [0, 10] bar");
   if (o.ideal_cell) return drivers::with_ideal_cell(e);
   if (o.pressure_floor_bar == 0.0)
-    e.pressure_chain = model::PressureChainConfig::ideal();
+    e.pressure_chain = model::engine::PressureChainConfig::ideal();
   else
     e.pressure_chain.noise_bar = o.pressure_floor_bar;
   return e;
@@ -173,7 +173,7 @@ json test_cell_json(const drivers::SimConfig& e, bool ideal) {
            {{"gain_us", 1e6 * g.gain_s},
             {"decay_ms", 1e3 * g.decay_s},
             {"mode_weights", g.mode_weights},
-            {"draper_alpha", model::kDraperAlpha}}}};
+            {"draper_alpha", model::engine::kDraperAlpha}}}};
 }
 
 // One run: generated (or driven by a given pressure) and its clipping noted.
@@ -210,7 +210,7 @@ SimSummary run_sim(const SimOptions& o) {
   if (o.conditions.empty() == o.pressure_dirs.empty())
     throw std::invalid_argument("give either --condition NAME|all or --pressure RUN_DIR (one of them)");
   if (o.cycles < 1 || o.cycles > 100000) throw std::invalid_argument("--cycles must be in [1, 100000]");
-  const model::Effects effects = model::parse_effects(o.effects);
+  const model::engine::Effects effects = model::engine::parse_effects(o.effects);
   std::string model_name;
   const model::BlockParams true_block = true_model(o, model_name);
   if (effects.mic_gain_db != 0.0 && o.pressure_dirs.empty() &&
@@ -267,7 +267,7 @@ SimSummary run_sim(const SimOptions& o) {
        "what was injected into the true engine: for checking by hand only; noisemon diagnose never reads this file"},
       {"seed", o.seed},
       {"true_model", {{"name", model_name}, {"params", block_json(true_block)}}},
-      {"true_block_with_effects", block_json(model::with_structural_effects(true_block, effects))},
+      {"true_block_with_effects", block_json(model::engine::with_structural_effects(true_block, effects))},
       {"effects", effects_json(effects)},
       {"test_cell", test_cell_json(base.engine, o.ideal_cell)},
       {"adc_clipped", {{"pressure_samples", sum.pressure_clipped}, {"mic_samples", sum.mic_clipped}}},
@@ -329,7 +329,7 @@ SimCommand::SimCommand(CLI::App& app) {
                  "print every effect (unit, meaning, default, realistic range) and exit");
   sim_->add_flag("!--no-progress", options_.progress, "no progress display");
   sim_->footer(
-      model::effect_help_text() +
+      model::engine::effect_help_text() +
       "\nExamples:\n"
       "  noisemon sim --condition all -o runs/null\n"
       "  noisemon sim --condition all --effect cubic_stiffness -o runs/k3\n"
@@ -347,7 +347,7 @@ SimCommand::SimCommand(CLI::App& app) {
 int SimCommand::run() {
   if (!sim_->parsed()) return -1;
   if (list_effects_) {
-    std::fputs(model::effect_help_text().c_str(), stdout);
+    std::fputs(model::engine::effect_help_text().c_str(), stdout);
     return 0;
   }
   return exit_status_of("sim", [&] {

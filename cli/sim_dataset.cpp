@@ -5,7 +5,7 @@
 
 namespace noisemon::cli {
 
-model::BandDataset simulate_band_dataset(const SimCampaign& campaign) {
+model::fit::BandDataset simulate_band_dataset(const SimCampaign& campaign) {
   std::vector<LoadedRecording> recordings;
   std::int64_t epoch = 0;
   std::vector<cli::SimCondition> conditions = campaign.conditions;

@@ -19,7 +19,7 @@ namespace noisemon::cli {
 struct SimCampaign {
   std::vector<cli::SimCondition> conditions;  // e.g. cli::thesis_conditions()
   int cycles = 12;
-  model::Effects effects;  // injected into the true engine of every condition
+  model::engine::Effects effects;  // injected into the true engine of every condition
   model::BlockParams true_block = model::preset("linear");
   std::uint64_t seed = 1;  // per condition: cli::condition_seed(seed, name)
   std::uint64_t setup_seed = 1;
@@ -32,10 +32,10 @@ struct SimCampaign {
   bool background_run = false;
   // Applied to each run after the sim, before conversion (a test's own effect outside the library).
   std::function<void(drivers::RunDir&)> modify;
-  model::DatasetOptions dataset;
+  model::fit::DatasetOptions dataset;
 };
 
 // Throws what simulate_run / to_recording / make_band_dataset throw.
-model::BandDataset simulate_band_dataset(const SimCampaign& campaign);
+model::fit::BandDataset simulate_band_dataset(const SimCampaign& campaign);
 
 }  // namespace noisemon::cli

@@ -41,8 +41,8 @@ drivers::SimConfig run_config(const SimRunSpec& spec) {
 }
 
 // Renders `frames` microphone frames after skipping `skip` (the pre-roll) into run.mic_pa.
-void render_mics(model::VirtualEngine& engine, model::PressureFeed& feed, std::int64_t skip, std::int64_t frames,
-                 drivers::RunDir& run) {
+void render_mics(model::engine::VirtualEngine& engine, model::engine::PressureFeed& feed, std::int64_t skip,
+                 std::int64_t frames, drivers::RunDir& run) {
   const std::size_t m = engine.mic_count();
   std::vector<double> buf(kRenderBatch * m);
   while (skip > 0) {
@@ -62,7 +62,7 @@ void render_mics(model::VirtualEngine& engine, model::PressureFeed& feed, std::i
 
 // The engine model as the virtual engine's feed, emitting the encoder samples of [-360, 720 cycles - 360) on the
 // way: both walk forward in crank angle, so one engine-cycle cache serves both (each cycle is computed once).
-class RunFeed final : public model::PressureFeed {
+class RunFeed final : public model::engine::PressureFeed {
  public:
   RunFeed(const drivers::SimConfig& config, double t0_s, double rate_hz, int cycles, drivers::RunDir& run)
       : kin_(drivers::sim::crank_kinematics(config)), cache_(config), t0_(t0_s), rate_(rate_hz), run_(run) {
@@ -111,7 +111,7 @@ class RunFeed final : public model::PressureFeed {
 
 // A given pressure run on the virtual engine's uniform grid (resampled beforehand): fine sample k at
 // t = t_first + k / rate. Past the end it holds the last value (only the look-ahead of the filters sees it).
-class ArrayFeed final : public model::PressureFeed {
+class ArrayFeed final : public model::engine::PressureFeed {
  public:
   ArrayFeed(std::vector<double> p, std::vector<double> crank) : p_(std::move(p)), crank_(std::move(crank)) {}
   void fill(std::int64_t first, double* pressure_pa, double* crank_deg, std::size_t n) override {
@@ -191,7 +191,7 @@ std::vector<SimCondition> resolve_conditions(const std::vector<std::string>& nam
 std::uint64_t condition_seed(std::uint64_t seed, std::string_view condition_name) {
   std::uint64_t h = 0xCBF29CE484222325ULL;  // FNV-1a
   for (char ch : condition_name) h = (h ^ static_cast<unsigned char>(ch)) * 0x100000001B3ULL;
-  return model::rnd::key(seed, h, 0);
+  return model::engine::rnd::key(seed, h, 0);
 }
 
 namespace {
@@ -199,9 +199,10 @@ namespace {
 // The microphone layout and the measured pressure of a generated run: the pressure chain on every encoder sample
 // (counter-based on the sample index), the configured floor recorded (without the transducer_noise effect: the
 // unknown a diagnosis must find).
-void finish_run(const SimRunSpec& spec, const drivers::SimConfig& config, const model::VirtualEngineConfig& vcfg,
-                const model::VirtualEngine& engine, drivers::RunDir& run, SimRunStats* stats) {
-  model::PressureChain chain(config.pressure_chain, spec.effects, spec.seed);
+void finish_run(const SimRunSpec& spec, const drivers::SimConfig& config,
+                const model::engine::VirtualEngineConfig& vcfg, const model::engine::VirtualEngine& engine,
+                drivers::RunDir& run, SimRunStats* stats) {
+  model::engine::PressureChain chain(config.pressure_chain, spec.effects, spec.seed);
   chain.measure(0, run.pressure_pa.data(), run.pressure_pa.size());
   run.pressure_noise_floor_bar = config.pressure_chain.floor_bar();
   run.mic_rate_hz = config.mic_rate_hz;
@@ -213,7 +214,7 @@ void finish_run(const SimRunSpec& spec, const drivers::SimConfig& config, const 
 }
 
 // The engine off as the virtual engine's feed: no pressure reaches the structure; the crank angle only clocks.
-class SilentFeed final : public model::PressureFeed {
+class SilentFeed final : public model::engine::PressureFeed {
  public:
   SilentFeed(const drivers::SimConfig& config, double t0_s, double rate_hz)
       : kin_(drivers::sim::crank_kinematics(config)), t0_(t0_s), rate_(rate_hz) {}
@@ -238,9 +239,9 @@ drivers::RunDir simulate_run(const SimRunSpec& spec, SimRunStats* stats) {
   drivers::RunDir run;
   run.condition = {spec.condition.name, spec.condition.speed_rpm, spec.condition.load_nm, spec.condition.soi_deg_btdc,
                    std::nullopt,        spec.condition.motored};
-  model::VirtualEngineConfig vcfg = drivers::sim::virtual_engine_config(config, fine_rate);
+  model::engine::VirtualEngineConfig vcfg = drivers::sim::virtual_engine_config(config, fine_rate);
   vcfg.setup_seed = spec.setup_seed;
-  model::VirtualEngine engine(vcfg);
+  model::engine::VirtualEngine engine(vcfg);
   RunFeed feed(config, -kPreRollS, fine_rate, spec.cycles, run);
   // Microphone frames for t in [0, last encoder sample].
   const auto skip = static_cast<std::int64_t>(std::llround(kPreRollS * config.mic_rate_hz));
@@ -272,10 +273,10 @@ drivers::RunDir simulate_background_run(const SimRunSpec& given, SimRunStats* st
     run.crank_deg.push_back(a);
     run.pressure_pa.push_back(ambient);
   }
-  model::VirtualEngineConfig vcfg = drivers::sim::virtual_engine_config(config, fine_rate);
+  model::engine::VirtualEngineConfig vcfg = drivers::sim::virtual_engine_config(config, fine_rate);
   vcfg.setup_seed = spec.setup_seed;
   vcfg.mean_pressure_pa = 0.0;
-  model::VirtualEngine engine(vcfg);
+  model::engine::VirtualEngine engine(vcfg);
   SilentFeed feed(config, -kPreRollS, fine_rate);
   const auto skip = static_cast<std::int64_t>(std::llround(kPreRollS * config.mic_rate_hz));
   const auto frames = static_cast<std::int64_t>(std::floor(run.time_s.back() * config.mic_rate_hz)) + 1;
@@ -472,10 +473,10 @@ drivers::RunDir acoustics(const drivers::RunDir& pressure_run, const SimRunSpec&
   for (std::size_t i = 0; i < ext.first_end; ++i) mean += tr.p[i];
   mean /= static_cast<double>(std::max<std::size_t>(ext.first_end, 1));
 
-  model::VirtualEngineConfig vcfg = drivers::sim::virtual_engine_config(config, fine_rate);
+  model::engine::VirtualEngineConfig vcfg = drivers::sim::virtual_engine_config(config, fine_rate);
   vcfg.setup_seed = spec.setup_seed;
   vcfg.mean_pressure_pa = mean;
-  model::VirtualEngine engine(vcfg);
+  model::engine::VirtualEngine engine(vcfg);
   ArrayFeed feed(std::move(fine.p), std::move(fine.th));
 
   drivers::RunDir run = pressure_run;
@@ -486,7 +487,7 @@ drivers::RunDir acoustics(const drivers::RunDir& pressure_run, const SimRunSpec&
   if (frames < 1) throw std::invalid_argument(what + ": the pressure ends before t = 0");
   render_mics(engine, feed, skip, frames, run);
   // The given pressure went through its own chain already: only the injected extra floor is added.
-  model::add_transducer_noise(spec.effects, spec.seed, 0, run.pressure_pa.data(), pressure_run.time_s.size());
+  model::engine::add_transducer_noise(spec.effects, spec.seed, 0, run.pressure_pa.data(), pressure_run.time_s.size());
   run.mic_rate_hz = config.mic_rate_hz;
   run.mic_count = static_cast<std::uint32_t>(engine.mic_count());
   run.mic_positions_m = vcfg.mic_positions_m;

@@ -49,7 +49,7 @@ std::vector<SimCondition> resolve_conditions(const std::vector<std::string>& nam
 struct SimRunSpec {
   SimCondition condition;
   int cycles = 40;  // whole engine cycles recorded (simulate_run)
-  model::Effects effects;
+  model::engine::Effects effects;
   model::BlockParams true_block = model::preset("linear");
   std::uint64_t seed = 1;        // this run's realisation: cycle-to-cycle variation, noise, impacts
   std::uint64_t setup_seed = 1;  // the installation: per-microphone spread (same for every run of a campaign)

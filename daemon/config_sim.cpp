@@ -82,8 +82,9 @@ void read_effects(TableReader& sr, const std::string& origin, drivers::SimConfig
     r.number("ramp_s", e.ramp_s, 0, 1e9);
     r.reject_unknown();
     try {
-      e.setting = model::parse_effect(text);
-      model::Effects all = drivers::cumulative_effects(s.effects, s.scheduled_effects, s.scheduled_effects.size());
+      e.setting = model::engine::parse_effect(text);
+      model::engine::Effects all =
+          drivers::cumulative_effects(s.effects, s.scheduled_effects, s.scheduled_effects.size());
       all.add(e.setting);  // validates magnitude and qualifiers, and an effect given twice
       if (e.setting.name == "mic_gain" && (all.mic_gain_mic < 1 || all.mic_gain_mic > static_cast<int>(s.mic_count)))
         throw std::invalid_argument("microphone " + std::to_string(all.mic_gain_mic) +
@@ -105,7 +106,7 @@ void read_schedule(TableReader& sr, const std::string& origin, drivers::SimConfi
   if (!n) return;
   const toml::array* list = n->as_array();
   if (!list || !list->is_array_of_tables()) sr.fail("schedule", "expected an array of tables ([[sim.schedule]])");
-  model::OperatingCondition previous{
+  model::engine::OperatingCondition previous{
       .speed_rpm = s.speed_rpm, .load_nm = s.load_nm, .soi_deg_btdc = s.soi_deg_btdc, .motored = s.motored};
   for (std::size_t i = 0; i < list->size(); ++i) {
     TableReader r((*list)[i].as_table(), "sim.schedule[" + std::to_string(i) + "]", origin);

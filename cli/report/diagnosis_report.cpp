@@ -36,7 +36,7 @@ json flags(const std::vector<std::vector<char>>& v) {
 }
 
 // Every fitted quantity of a model: the block, then the extensions that are on (units in the names).
-json model_params(const model::ExtendedModel& m) {
+json model_params(const model::fit::ExtendedModel& m) {
   json p = json::object();
   p["k1_n_per_m"] = m.block.k1;
   p["b1_n_s_per_m"] = m.block.b1;
@@ -44,13 +44,13 @@ json model_params(const model::ExtendedModel& m) {
   p["b3_n_s3_per_m3"] = m.block.b3;
   p["c0"] = m.block.c0;
   p["c1"] = m.block.c1;
-  const model::ExtensionParams& e = m.ext;
+  const model::fit::ExtensionParams& e = m.ext;
   if (m.on.second_mode) {
     p["mode_db"] = e.mode_db;
     p["mode_hz"] = e.mode_hz;
     p["mode_q"] = e.mode_q;
     p["mode_phase_deg"] = e.mode_phase_deg;
-    p["mode_rise_db"] = model::mode_rise_db(e);  // the level change at mode_hz the mode makes
+    p["mode_rise_db"] = model::fit::mode_rise_db(e);  // the level change at mode_hz the mode makes
   }
   if (m.on.speed) {
     p["speed_gain_db_per_krpm"] = e.speed_gain_db_per_krpm;
@@ -77,7 +77,7 @@ json model_params(const model::ExtendedModel& m) {
   return p;
 }
 
-json score_json(const model::ModelScore& s) {
+json score_json(const model::diagnosis::ModelScore& s) {
   json c;
   c["effect"] = s.name;
   c["effects"] = s.effects;
@@ -124,7 +124,7 @@ json score_json(const model::ModelScore& s) {
 
 // The model the verdict selected (a combination or a candidate), else the best candidate: what the report's
 // "best candidate" curves show.
-const model::ModelScore* best_model(const model::DiagnosisResult& r) {
+const model::diagnosis::ModelScore* best_model(const model::diagnosis::DiagnosisResult& r) {
   const std::string& v = r.verdict.effect;
   if (!r.verdict.also.empty()) {
     for (const auto& c : r.combinations)
@@ -147,13 +147,14 @@ json report_head(const char* mode, const std::string& units, const ReportContext
   return j;
 }
 
-std::vector<std::string> condition_names(const model::BandDataset& data, const std::vector<std::size_t>& which) {
+std::vector<std::string> condition_names(const model::fit::BandDataset& data, const std::vector<std::size_t>& which) {
   std::vector<std::string> names;
   for (std::size_t k : which) names.push_back(data.conditions[k].info.name);
   return names;
 }
 
-json band_protocol(const model::BandDataset& data, const model::DiagnosisResult& r, const model::DiagnosisOptions& o) {
+json band_protocol(const model::fit::BandDataset& data, const model::diagnosis::DiagnosisResult& r,
+                   const model::diagnosis::DiagnosisOptions& o) {
   return {{"train", condition_names(data, r.train)},
           {"heldout", condition_names(data, r.heldout)},
           {"reference", condition_names(data, r.reference)},
@@ -163,14 +164,14 @@ json band_protocol(const model::BandDataset& data, const model::DiagnosisResult&
           {"tolerance_db", o.tolerance_db},
           {"min_closed_fraction", o.min_closed_fraction},
           {"floor_margin_db", o.floor_margin_db},
-          {"pressure_floor_margin_db", model::kFloorMarginDb},
+          {"pressure_floor_margin_db", model::fit::kFloorMarginDb},
           {"fit_cycles", o.fit_cycles}};
 }
 
-json band_conditions(const model::BandDataset& data, const model::Where& w) {
+json band_conditions(const model::fit::BandDataset& data, const model::diagnosis::Where& w) {
   json conds = json::array();
   for (std::size_t k = 0; k < data.conditions.size(); ++k) {
-    const model::ConditionData& d = data.conditions[k];
+    const model::fit::ConditionData& d = data.conditions[k];
     conds.push_back({{"name", d.info.name},
                      {"role", k < w.roles.size() ? w.roles[k] : ""},
                      {"speed_rpm", number(d.mean_speed_rpm())},
@@ -184,7 +185,7 @@ json band_conditions(const model::BandDataset& data, const model::Where& w) {
   return conds;
 }
 
-json band_floors(const model::Where& w) {
+json band_floors(const model::diagnosis::Where& w) {
   return {{"pressure_judged_by", w.pressure_floor_judged_by},
           {"pressure_stated_bar", numbers(w.pressure_floor_stated_bar)},
           {"pressure_estimated_bar", numbers(w.pressure_floor_estimated_bar)},
@@ -198,8 +199,8 @@ json band_floors(const model::Where& w) {
 }
 
 // The per-band, per-condition, per-microphone and per-window figures of where the gap is.
-json band_where(const model::BandDataset& data, const model::DiagnosisResult& r) {
-  const model::Where& w = r.where;
+json band_where(const model::fit::BandDataset& data, const model::diagnosis::DiagnosisResult& r) {
+  const model::diagnosis::Where& w = r.where;
   json where;
   where["bands_hz"] = numbers(w.band_hz);
   where["band_notes"] = w.band_notes;
@@ -233,7 +234,7 @@ json band_where(const model::BandDataset& data, const model::DiagnosisResult& r)
   where["cpl_db"] = rows(w.cpl_db);
   where["att_meas_db"] = rows(w.att_meas);
   where["att_baseline_db"] = rows(w.att_base);
-  if (const model::ModelScore* best = best_model(r)) {
+  if (const model::diagnosis::ModelScore* best = best_model(r)) {
     where["att_best_db"] = rows(best->att_pred);
     where["best_model"] = best->name;
     where["mic_residual_best_db"] = rows(best->mic_resid);
@@ -242,14 +243,14 @@ json band_where(const model::BandDataset& data, const model::DiagnosisResult& r)
   return where;
 }
 
-json scores_json(const std::vector<model::ModelScore>& scores) {
+json scores_json(const std::vector<model::diagnosis::ModelScore>& scores) {
   json a = json::array();
   for (const auto& c : scores) a.push_back(score_json(c));
   return a;
 }
 
 // What the verdict leaves: the selected model's gap, where it lies and how it scales across held-out conditions.
-json remaining_json(const model::RemainingGap& r) {
+json remaining_json(const model::diagnosis::RemainingGap& r) {
   return {{"model", r.model},
           {"heldout_gap_db", number(r.gap_db)},
           {"largest_part", r.part},
@@ -263,7 +264,7 @@ json remaining_json(const model::RemainingGap& r) {
           {"summary", r.summary}};
 }
 
-json band_verdict(const model::Verdict& v) {
+json band_verdict(const model::diagnosis::Verdict& v) {
   return {{"effect", v.effect},
           {"also", v.also},
           {"heldout_rms_before_db", number(v.heldout_rms_before_db)},
@@ -289,7 +290,7 @@ json named_params(const std::vector<std::pair<std::string, double>>& p) {
   return o;
 }
 
-json waveform_candidates(const model::WaveformReport& rep) {
+json waveform_candidates(const model::diagnosis::WaveformReport& rep) {
   json cands = json::array();
   for (const auto& c : rep.candidates) {
     json x = {{"effect", c.effect},
@@ -305,7 +306,7 @@ json waveform_candidates(const model::WaveformReport& rep) {
   return cands;
 }
 
-json waveform_where(const model::WaveformDiagnosis& d, const model::WaveformReport& rep) {
+json waveform_where(const model::diagnosis::WaveformDiagnosis& d, const model::diagnosis::WaveformReport& rep) {
   json where;
   std::vector<double> hz, before, after, out;
   for (const auto& b : rep.bands) {
@@ -349,8 +350,8 @@ json test_sets_json(const std::vector<WaveformTestSet>& tests) {
 
 }  // namespace
 
-json band_report_json(const model::BandDataset& data, const model::DiagnosisResult& r, const model::DiagnosisOptions& o,
-                      const ReportContext& ctx) {
+json band_report_json(const model::fit::BandDataset& data, const model::diagnosis::DiagnosisResult& r,
+                      const model::diagnosis::DiagnosisOptions& o, const ReportContext& ctx) {
   json j = report_head(
       "band", "dB", ctx,
       "heldout_rms_db: the ranking gap, sqrt(thesis band gap^2 + microphone-calibration residual^2 + crank-window "
@@ -374,9 +375,9 @@ json band_report_json(const model::BandDataset& data, const model::DiagnosisResu
   return j;
 }
 
-json waveform_report_json(const model::WaveformDiagnosis& d, const std::string& units,
+json waveform_report_json(const model::diagnosis::WaveformDiagnosis& d, const std::string& units,
                           const std::vector<WaveformTestSet>& tests, const ReportContext& ctx) {
-  const model::WaveformReport rep = model::waveform_report(d);
+  const model::diagnosis::WaveformReport rep = model::diagnosis::waveform_report(d);
   json j = report_head("waveform", units, ctx,
                        "free-run simulation RMS error of the output on the held-out sample ranges, in " + units +
                            " (the *_rms_db keys carry it in waveform mode)");

@@ -27,18 +27,18 @@ struct ReportContext {
   std::string command;            // the command line, for the record
 };
 
-nlohmann::json band_report_json(const model::BandDataset& data, const model::DiagnosisResult& result,
-                                const model::DiagnosisOptions& options, const ReportContext& context);
+nlohmann::json band_report_json(const model::fit::BandDataset& data, const model::diagnosis::DiagnosisResult& result,
+                                const model::diagnosis::DiagnosisOptions& options, const ReportContext& context);
 
 // Free-run RMS of a model on a named test range (waveform mode --test).
 struct WaveformTestSet {
   std::string name;
-  model::SampleRange range;
+  model::fit::SampleRange range;
   double baseline_rms = 0.0;
   double best_rms = 0.0;
 };
 
-nlohmann::json waveform_report_json(const model::WaveformDiagnosis& diagnosis, const std::string& units,
+nlohmann::json waveform_report_json(const model::diagnosis::WaveformDiagnosis& diagnosis, const std::string& units,
                                     const std::vector<WaveformTestSet>& tests, const ReportContext& context);
 
 }  // namespace noisemon::cli::report

@@ -11,9 +11,9 @@ double effect_weight(const ScheduledEffect& effect, double since_start_s) {
   return std::min(1.0, after / effect.ramp_s);
 }
 
-model::Effects cumulative_effects(const model::Effects& fixed, const std::vector<ScheduledEffect>& schedule,
-                                  std::size_t k) {
-  model::Effects effects = fixed;
+model::engine::Effects cumulative_effects(const model::engine::Effects& fixed,
+                                          const std::vector<ScheduledEffect>& schedule, std::size_t k) {
+  model::engine::Effects effects = fixed;
   for (std::size_t i = 0; i < k && i < schedule.size(); ++i) effects.add(schedule[i].setting);
   return effects;
 }

@@ -18,9 +18,9 @@
 namespace noisemon::drivers {
 
 struct ScheduledEffect {
-  model::EffectSetting setting;  // the spelling of `noisemon sim --effect`
-  double onset_s = 0.0;          // source seconds after the first frame
-  double ramp_s = 0.0;           // 0: a step; otherwise a linear rise to full size over ramp_s
+  model::engine::EffectSetting setting;  // the spelling of `noisemon sim --effect`
+  double onset_s = 0.0;                  // source seconds after the first frame
+  double ramp_s = 0.0;                   // 0: a step; otherwise a linear rise to full size over ramp_s
 };
 
 // The k-th effect's weight at `since_start_s` seconds after the first frame: 0 ... 1.
@@ -28,7 +28,7 @@ struct ScheduledEffect {
 
 // The effects of engine k (0 ... schedule.size()): the static ones plus the first k scheduled. Throws
 // std::invalid_argument (Effects::add's message) for an effect given twice.
-[[nodiscard]] model::Effects cumulative_effects(const model::Effects& fixed,
-                                                const std::vector<ScheduledEffect>& schedule, std::size_t k);
+[[nodiscard]] model::engine::Effects cumulative_effects(const model::engine::Effects& fixed,
+                                                        const std::vector<ScheduledEffect>& schedule, std::size_t k);
 
 }  // namespace noisemon::drivers

@@ -20,13 +20,13 @@ std::int64_t to_index(double t_s, double rate_hz) { return std::llround(t_s * ra
 
 }  // namespace
 
-model::EngineCycleParams engine_params(const SimConfig& config) {
-  model::EngineCycleParams p;
+model::engine::EngineCycleParams engine_params(const SimConfig& config) {
+  model::engine::EngineCycleParams p;
   p.ringing = config.gas_ringing;
   return p;
 }
 
-model::OperatingCondition operating_condition(const SimConfig& config) {
+model::engine::OperatingCondition operating_condition(const SimConfig& config) {
   // Fuelling saturates at full load: loads above full_load_nm get the full-load fuel.
   return {.speed_rpm = config.speed_rpm,
           .load_nm = std::min(config.load_nm, config.full_load_nm),
@@ -35,10 +35,10 @@ model::OperatingCondition operating_condition(const SimConfig& config) {
 }
 
 OperatingProfile operating_profile(const SimConfig& config, double t_first_s) {
-  const model::OperatingCondition initial{.speed_rpm = config.speed_rpm,
-                                          .load_nm = config.load_nm,
-                                          .soi_deg_btdc = config.soi_deg_btdc,
-                                          .motored = config.motored};
+  const model::engine::OperatingCondition initial{.speed_rpm = config.speed_rpm,
+                                                  .load_nm = config.load_nm,
+                                                  .soi_deg_btdc = config.soi_deg_btdc,
+                                                  .motored = config.motored};
   return OperatingProfile(initial, config.operating_schedule, config.speed_fluctuation, t_first_s);
 }
 
@@ -59,9 +59,9 @@ EngineCycleCache::EngineCycleCache(const SimConfig& config, std::shared_ptr<cons
 double EngineCycleCache::pressure_pa(double theta_deg) {
   const std::int64_t k = model::CrankKinematics::cycle_index(theta_deg);
   if (!valid_ || k != index_) {
-    model::OperatingCondition op = profile_->condition(k);
+    model::engine::OperatingCondition op = profile_->condition(k);
     op.load_nm = std::min(op.load_nm, full_load_nm_);  // the fuelling saturates at full load
-    cycle_.compute(op, model::draw_cycle_variation(seed_, k, sigma_));
+    cycle_.compute(op, model::engine::draw_cycle_variation(seed_, k, sigma_));
     index_ = k;
     valid_ = true;
   }
@@ -158,14 +158,15 @@ void PressureGenerator::advance(double t_end_s, BlockRing& ring) {
 // so it is independent of the chain's floor), added to the true pressure before the chain, as the effect acts.
 void PressureGenerator::add_scheduled_transducer_noise(std::size_t n) {
   for (std::size_t k = 0; k < schedule_.size(); ++k) {
-    model::Effects alone;
+    model::engine::Effects alone;
     alone.add(schedule_[k].setting);
-    const double sigma = model::transducer_noise_rms_pa(alone);
+    const double sigma = model::engine::transducer_noise_rms_pa(alone);
     for (std::size_t i = 0; i < n; ++i) {
       const double w = effect_weight(schedule_[k], t_[i] - t_first_);
       if (w > 0.0)
         x_[i] += w * sigma *
-                 model::rnd::normal_at(model::rnd::key(seed_, 0x5c4ed, k), 0, static_cast<std::uint64_t>(edge_[i]));
+                 model::engine::rnd::normal_at(model::engine::rnd::key(seed_, 0x5c4ed, k), 0,
+                                               static_cast<std::uint64_t>(edge_[i]));
     }
   }
 }
@@ -261,8 +262,8 @@ void PressureGenerator::forward(BlockRing& ring) {
 
 // ---------------------------------------------------------------------------------------------- microphones
 
-model::VirtualEngineConfig virtual_engine_config(const SimConfig& config, double input_rate_hz) {
-  model::VirtualEngineConfig v;
+model::engine::VirtualEngineConfig virtual_engine_config(const SimConfig& config, double input_rate_hz) {
+  model::engine::VirtualEngineConfig v;
   v.input_rate_hz = input_rate_hz;
   v.output_rate_hz = config.mic_rate_hz;
   v.true_block = config.true_block;
@@ -277,7 +278,7 @@ model::VirtualEngineConfig virtual_engine_config(const SimConfig& config, double
   v.mic_chain = config.mic_chain;
   v.pressure_chain = config.pressure_chain;
   // Cycle-mean pressure of the nominal cycle: the AC coupling starts settled on its static response.
-  model::EngineCycle cycle(engine_params(config));
+  model::engine::EngineCycle cycle(engine_params(config));
   cycle.compute(operating_condition(config));
   double mean = 0.0;
   const int n = 1440;
@@ -388,7 +389,7 @@ void MicGenerator::apply_channel_faults(std::size_t n) {
         x = std::clamp(x * f->gain, -adc_range_pa_, adc_range_pa_);
       if (active_fault(faults_, SimFaultKind::kUnplugged, target, since))
         x = kOpenInputNoisePa *
-            model::rnd::normal_at(seed_, kOpenInputStream + m, static_cast<std::uint64_t>(card_frame));
+            model::engine::rnd::normal_at(seed_, kOpenInputStream + m, static_cast<std::uint64_t>(card_frame));
       if (active_fault(faults_, SimFaultKind::kFlat, target, since)) x = held_[m];
       held_[m] = x;
       if (active_fault(faults_, SimFaultKind::kNan, target, since)) x = std::numeric_limits<double>::quiet_NaN();

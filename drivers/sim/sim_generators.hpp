@@ -30,8 +30,8 @@ inline constexpr double kPreRollS = 0.2;
 inline constexpr double kGridAlignS = 1.0 / 1600.0;
 
 // Engine parameters and operating condition of the virtual engine for a configuration.
-model::EngineCycleParams engine_params(const SimConfig& config);
-model::OperatingCondition operating_condition(const SimConfig& config);
+model::engine::EngineCycleParams engine_params(const SimConfig& config);
+model::engine::OperatingCondition operating_condition(const SimConfig& config);
 // The operating point over the run (config.operating_schedule) for a source whose first frame is at t_first_s.
 OperatingProfile operating_profile(const SimConfig& config, double t_first_s);
 model::CrankKinematics crank_kinematics(const SimConfig& config);  // the run started at source time 0
@@ -50,7 +50,7 @@ class EngineCycleCache {
   double full_load_nm_;
   std::uint64_t seed_;
   double sigma_;
-  model::EngineCycle cycle_;
+  model::engine::EngineCycle cycle_;
   std::int64_t index_ = 0;
   bool valid_ = false;
 };
@@ -92,7 +92,7 @@ class PressureGenerator {
   std::shared_ptr<const OperatingProfile> profile_;
   model::CrankKinematics kin_;
   EngineCycleCache cache_;
-  model::PressureChain chain_;
+  model::engine::PressureChain chain_;
   std::vector<SimFault> faults_;
   std::vector<ScheduledEffect> schedule_;  // those with transducer_noise: on the measured pressure
   std::uint64_t seed_;
@@ -121,10 +121,10 @@ class PressureGenerator {
 // true block, spread, floor, microphone and pressure chains and effects, the mean pressure of the nominal cycle
 // (so the AC coupling starts settled). input_rate_hz: rate of the pressure feed; the microphones come out at
 // config.mic_rate_hz.
-model::VirtualEngineConfig virtual_engine_config(const SimConfig& config, double input_rate_hz);
+model::engine::VirtualEngineConfig virtual_engine_config(const SimConfig& config, double input_rate_hz);
 
-// The true engine as a model::PressureFeed: cylinder pressure and unwrapped crank angle at t0 + i / rate.
-class EngineFeed final : public model::PressureFeed {
+// The true engine as a model::engine::PressureFeed: cylinder pressure and unwrapped crank angle at t0 + i / rate.
+class EngineFeed final : public model::engine::PressureFeed {
  public:
   EngineFeed(const SimConfig& config, std::shared_ptr<const OperatingProfile> profile, double t0_s, double rate_hz);
   void fill(std::int64_t first, double* pressure_pa, double* crank_deg, std::size_t n) override;
@@ -135,7 +135,7 @@ class EngineFeed final : public model::PressureFeed {
   double t0_, rate_;
 };
 
-// Microphones: model::VirtualEngine fed with the true pressure at twice the card rate renders the card-rate
+// Microphones: model::engine::VirtualEngine fed with the true pressure at twice the card rate renders the card-rate
 // microphone frames (true block, effects, acoustic delay, per-microphone spread and directivity, floor,
 // self-noise, ADC); the card stream is resampled to 40 kHz.
 class MicGenerator {
@@ -161,7 +161,7 @@ class MicGenerator {
   // One engine per step of the effect schedule (sim_effect_schedule.hpp), each with its own feed: engine 0 the
   // configured effects, engine k the first k scheduled ones on top.
   std::vector<EngineFeed> feeds_;
-  std::vector<model::VirtualEngine> engines_;
+  std::vector<model::engine::VirtualEngine> engines_;
   std::vector<ScheduledEffect> schedule_;
   std::vector<double> layer_card_;  // engine k's frames while mixing
   dsp::RationalResampler to_pipeline_;

@@ -11,7 +11,8 @@ namespace {
 
 constexpr double kCycleDeg = 720.0;  // one four-stroke cycle
 
-model::OperatingCondition between(const model::OperatingCondition& a, const model::OperatingCondition& b, double w) {
+model::engine::OperatingCondition between(const model::engine::OperatingCondition& a,
+                                          const model::engine::OperatingCondition& b, double w) {
   return {.speed_rpm = a.speed_rpm + w * (b.speed_rpm - a.speed_rpm),
           .load_nm = a.load_nm + w * (b.load_nm - a.load_nm),
           .soi_deg_btdc = a.soi_deg_btdc + w * (b.soi_deg_btdc - a.soi_deg_btdc),
@@ -36,8 +37,9 @@ void validate_operating_schedule(const std::vector<OperatingStep>& schedule) {
   }
 }
 
-OperatingProfile::OperatingProfile(const model::OperatingCondition& initial, const std::vector<OperatingStep>& schedule,
-                                   double speed_fluctuation, double t_first_s)
+OperatingProfile::OperatingProfile(const model::engine::OperatingCondition& initial,
+                                   const std::vector<OperatingStep>& schedule, double speed_fluctuation,
+                                   double t_first_s)
     : spans_{{0, 0.0, initial}},
       min_rpm_(initial.speed_rpm),
       max_rpm_(initial.speed_rpm),
@@ -64,7 +66,7 @@ void OperatingProfile::add_step(const OperatingStep& step, double t_first_s) {
            between(last.condition, step.condition, static_cast<double>(j) / static_cast<double>(ramp_cycles)));
 }
 
-void OperatingProfile::append(std::int64_t cycle, const model::OperatingCondition& condition) {
+void OperatingProfile::append(std::int64_t cycle, const model::engine::OperatingCondition& condition) {
   const Span& last = spans_.back();
   const double t_s = last.t_s + static_cast<double>(cycle - last.first_cycle) * 120.0 / last.condition.speed_rpm;
   spans_.push_back({cycle, t_s, condition});
@@ -72,7 +74,7 @@ void OperatingProfile::append(std::int64_t cycle, const model::OperatingConditio
   max_rpm_ = std::max(max_rpm_, condition.speed_rpm);
 }
 
-const model::OperatingCondition& OperatingProfile::condition(std::int64_t cycle) const {
+const model::engine::OperatingCondition& OperatingProfile::condition(std::int64_t cycle) const {
   auto after = std::upper_bound(spans_.begin() + 1, spans_.end(), cycle,
                                 [](std::int64_t k, const Span& s) { return k < s.first_cycle; });
   return (after - 1)->condition;

@@ -19,9 +19,9 @@
 namespace noisemon::drivers {
 
 SimConfig with_ideal_cell(SimConfig config) {
-  config.pressure_chain = model::PressureChainConfig::ideal();
-  config.mic_chain = model::MicChainConfig::ideal();
-  config.gas_ringing = model::GasRingingParams::off();
+  config.pressure_chain = model::engine::PressureChainConfig::ideal();
+  config.mic_chain = model::engine::MicChainConfig::ideal();
+  config.gas_ringing = model::engine::GasRingingParams::off();
   return config;
 }
 
@@ -253,7 +253,8 @@ class SimSource final : public Source {
       // Speed as a tachometer measures it: mean over the last window from the crank angle.
       op.speed_rpm = (kin.theta_deg(t) - kin.theta_deg(t - window)) / (6.0 * window);
       // Load and injection timing as the test bed's controller reports them: the cycle's setting.
-      const model::OperatingCondition& now = profile.condition(model::CrankKinematics::cycle_index(kin.theta_deg(t)));
+      const model::engine::OperatingCondition& now =
+          profile.condition(model::CrankKinematics::cycle_index(kin.theta_deg(t)));
       op.load_nm = now.load_nm;
       op.soi_deg_btdc = now.soi_deg_btdc;
       op.rail_pressure_bar = std::numeric_limits<double>::quiet_NaN();

@@ -8,7 +8,7 @@
 //  - microphones: the "true" block model driven by the true pressure, acoustic delay, small per-microphone
 //    differences and directivity, the test cell's background floor and each microphone's self-noise and ADC,
 //    sampled at the card rate (51.2 kHz) and resampled (RationalResampler) to 40 kHz -> Streams::mics. The
-//    acoustic side is model::VirtualEngine, with the configured effects.
+//    acoustic side is model::engine::VirtualEngine, with the configured effects.
 //  The measurement chains are realistic by default (DESIGN.md "Measurement chains are not ideal"); ADC clipping
 //  is counted in counters() ("sim.pressure.adc_clipped", "sim.mics.adc_clipped").
 //  - operating point: speed, load, injection timing at 10 Hz -> Streams::operating_point.
@@ -55,12 +55,12 @@ struct SimConfig {
   double mic_gain_spread_db = 0.3;    // per-microphone gain differences (deterministic from seed)
   double background_noise_db = 40.0;  // per-microphone pink floor, unweighted Lp up to 20 kHz, dB re 20 uPa
   model::BlockParams true_block = model::preset("linear");  // the engine's "true" structural response
-  model::Effects effects;  // effects injected into the true engine (model/engine/effects.hpp); none by default
+  model::engine::Effects effects;  // effects injected into the true engine (model/engine/effects.hpp); none by default
   std::vector<ScheduledEffect> scheduled_effects;  // effects that switch on mid-run (sim_effect_schedule.hpp): none
   // The realistic test cell (each part documented and cited in its header; each switchable off):
-  model::PressureChainConfig pressure_chain;  // floor 0.02 bar, flicker off, 16-bit ADC over 0..250 bar
-  model::MicChainConfig mic_chain;            // self-noise 20 dB(A), directivity +-1 dB, 24-bit ADC +-800 Pa
-  model::GasRingingParams gas_ringing;        // combustion-excited gas ringing in the true pressure
+  model::engine::PressureChainConfig pressure_chain;  // floor 0.02 bar, flicker off, 16-bit ADC over 0..250 bar
+  model::engine::MicChainConfig mic_chain;            // self-noise 20 dB(A), directivity +-1 dB, 24-bit ADC +-800 Pa
+  model::engine::GasRingingParams gas_ringing;        // combustion-excited gas ringing in the true pressure
   std::uint64_t seed = 1;
   std::vector<SimFault> faults;  // injected faults (drivers/sim/sim_faults.hpp): none by default
   // true: the driver threads keep to the wall clock, as hardware does. false: as fast as the processing takes the

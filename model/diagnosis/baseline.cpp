@@ -8,8 +8,8 @@
 
 namespace noisemon::model::diagnosis {
 
-Evaluated tune_baseline(const Context& cx, const BlockParams& start, const std::vector<BlockParam>& base_free) {
-  ExtendedModel start_model;
+Evaluated tune_baseline(const Context& cx, const BlockParams& start, const std::vector<fit::BlockParam>& base_free) {
+  fit::ExtendedModel start_model;
   start_model.block = start;
   return evaluate(cx, CandidateSpec{}, start_model, base_free, true);
 }

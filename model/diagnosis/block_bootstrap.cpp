@@ -4,7 +4,7 @@
 #include <random>
 #include <utility>
 
-namespace noisemon::model {
+namespace noisemon::model::diagnosis {
 
 SignificanceTest block_bootstrap_test(const std::vector<std::vector<double>>& d, std::size_t block_samples,
                                       int resamples, std::uint64_t seed) {
@@ -64,4 +64,4 @@ SignificanceTest block_bootstrap_test(const std::vector<std::vector<double>>& d,
   return t;
 }
 
-}  // namespace noisemon::model
+}  // namespace noisemon::model::diagnosis

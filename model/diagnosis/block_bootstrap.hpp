@@ -6,7 +6,7 @@
 #include <cstdint>
 #include <vector>
 
-namespace noisemon::model {
+namespace noisemon::model::diagnosis {
 
 struct SignificanceTest {
   double mean_reduction = 0.0;  // mean over held-out samples of e_before^2 - e_after^2
@@ -20,4 +20,4 @@ struct SignificanceTest {
 SignificanceTest block_bootstrap_test(const std::vector<std::vector<double>>& d, std::size_t block_samples,
                                       int resamples, std::uint64_t seed);
 
-}  // namespace noisemon::model
+}  // namespace noisemon::model::diagnosis

@@ -19,7 +19,7 @@ constexpr double kThesisWorseDb = 0.05;  // a model this much worse on the thesi
 // The pairs of `first` with every ranked candidate but itself and those in `skip`, appended to *combinations;
 // best_pair follows the smallest gap.
 void pairs_from(const Context& cx, const CandidateRound& round, std::size_t first, const std::vector<std::size_t>& skip,
-                const std::vector<BlockParam>& base_free, const ModelScore& baseline,
+                const std::vector<fit::BlockParam>& base_free, const ModelScore& baseline,
                 std::vector<ModelScore>* combinations, std::optional<std::size_t>& best_pair, const StageLog& log) {
   for (std::size_t i : round.order) {
     if (i == first || std::find(skip.begin(), skip.end(), i) != skip.end()) continue;
@@ -41,9 +41,9 @@ CandidateSpec spec_for(const std::string& name) {
   s.name = name;
   s.effects = {name};
   if (name == "cubic_damping")
-    s.extra_free = {BlockParam::kB3};
+    s.extra_free = {fit::BlockParam::kB3};
   else if (name == "cubic_stiffness")
-    s.extra_free = {BlockParam::kK3};
+    s.extra_free = {fit::BlockParam::kK3};
   else if (name == "second_mode")
     s.ext.second_mode = true;
   else if (name == "mechanical_noise")
@@ -71,7 +71,7 @@ CandidateSpec combine(const CandidateSpec& a, const CandidateSpec& b) {
   s.ext.stationary |= b.ext.stationary;
   s.ext.locked |= b.ext.locked;
   s.ext.mic_gain |= b.ext.mic_gain;
-  for (BlockParam p : b.extra_free)
+  for (fit::BlockParam p : b.extra_free)
     if (std::find(s.extra_free.begin(), s.extra_free.end(), p) == s.extra_free.end()) s.extra_free.push_back(p);
   return s;
 }
@@ -109,9 +109,9 @@ double beats(const ModelScore& a, const ModelScore& b) {
 }
 
 CandidateRound evaluate_candidates(const Context& cx, const BlockParams& start, const Evaluated& base,
-                                   const std::vector<BlockParam>& base_free, StageLog& log) {
+                                   const std::vector<fit::BlockParam>& base_free, StageLog& log) {
   const DiagnosisOptions& opt = *cx.opt;
-  ExtendedModel start_model;
+  fit::ExtendedModel start_model;
   start_model.block = start;
   CandidateRound round;
   for (const std::string& n : opt.candidates.empty() ? candidate_effects() : opt.candidates) {
@@ -149,7 +149,7 @@ std::vector<std::size_t> rank_candidates(const std::vector<Evaluated>& evals, do
 }
 
 std::optional<std::size_t> try_pairs(const Context& cx, const CandidateRound& round,
-                                     const std::vector<std::size_t>& sig, const std::vector<BlockParam>& base_free,
+                                     const std::vector<std::size_t>& sig, const std::vector<fit::BlockParam>& base_free,
                                      const ModelScore& baseline, std::vector<ModelScore>* combinations,
                                      const StageLog& log) {
   std::optional<std::size_t> best_pair;
@@ -163,7 +163,7 @@ std::optional<std::size_t> try_pairs(const Context& cx, const CandidateRound& ro
 
 }  // namespace noisemon::model::diagnosis
 
-namespace noisemon::model {
+namespace noisemon::model::diagnosis {
 
 const std::vector<std::string>& candidate_effects() {
   static const std::vector<std::string> names{"cubic_damping",    "cubic_stiffness",  "second_mode",
@@ -172,4 +172,4 @@ const std::vector<std::string>& candidate_effects() {
   return names;
 }
 
-}  // namespace noisemon::model
+}  // namespace noisemon::model::diagnosis

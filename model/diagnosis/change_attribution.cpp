@@ -7,7 +7,7 @@
 #include <limits>
 #include <numbers>
 
-namespace noisemon::model {
+namespace noisemon::model::diagnosis {
 
 namespace {
 
@@ -395,4 +395,4 @@ Attribution attribute_change(const GapChange& change, const AttributionOptions& 
   return a;
 }
 
-}  // namespace noisemon::model
+}  // namespace noisemon::model::diagnosis

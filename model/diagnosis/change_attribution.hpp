@@ -31,7 +31,7 @@
 
 #include "model/block_params.hpp"
 
-namespace noisemon::model {
+namespace noisemon::model::diagnosis {
 
 struct GapChange {
   std::vector<double> band_hz;                            // nominal centres
@@ -75,4 +75,4 @@ struct Attribution {
 
 [[nodiscard]] Attribution attribute_change(const GapChange& change, const AttributionOptions& options = {});
 
-}  // namespace noisemon::model
+}  // namespace noisemon::model::diagnosis

@@ -5,8 +5,7 @@
 
 #include "model/diagnosis/stages.hpp"
 
-namespace noisemon::model {
-namespace diagnosis {
+namespace noisemon::model::diagnosis {
 
 StageLog::StageLog(const DiagnosisOptions& opt, DiagnosisResult& res)
     : opt_(&opt), res_(&res), start_(clock::now()), last_(start_) {}
@@ -23,9 +22,7 @@ void StageLog::stage(const std::string& name) {
 
 double StageLog::seconds() const { return std::chrono::duration<double>(clock::now() - start_).count(); }
 
-}  // namespace diagnosis
-
-DiagnosisResult diagnose(const BandDataset& data, const BlockParams& start, const std::string& model_name,
+DiagnosisResult diagnose(const fit::BandDataset& data, const BlockParams& start, const std::string& model_name,
                          const DiagnosisOptions& opt) {
   using namespace diagnosis;
   DiagnosisResult res;
@@ -40,7 +37,7 @@ DiagnosisResult diagnose(const BandDataset& data, const BlockParams& start, cons
   res.train = cx.train_fired;
   res.reference = cx.refs;
   res.leave_one_out = cx.loo;
-  const std::vector<BlockParam> base_free = opt.free.empty() ? default_free_params(start) : opt.free;
+  const std::vector<fit::BlockParam> base_free = opt.free.empty() ? fit::default_free_params(start) : opt.free;
 
   log.say("bands and floors");
   mark_bands_and_floors(cx, start);
@@ -76,4 +73,4 @@ DiagnosisResult diagnose(const BandDataset& data, const BlockParams& start, cons
   return res;
 }
 
-}  // namespace noisemon::model
+}  // namespace noisemon::model::diagnosis

@@ -59,7 +59,7 @@
 #include "model/fit/band_dataset.hpp"
 #include "model/fit/band_fit.hpp"
 
-namespace noisemon::model {
+namespace noisemon::model::diagnosis {
 
 // The candidate effects, DESIGN.md's names in its order.
 const std::vector<std::string>& candidate_effects();
@@ -67,7 +67,7 @@ const std::vector<std::string>& candidate_effects();
 struct DiagnosisOptions {
   std::vector<std::string> train;       // condition patterns for training (empty: every fired condition not held out)
   std::vector<std::string> holdout;     // condition patterns held out (empty: leave-one-condition-out)
-  std::vector<BlockParam> free;         // baseline free parameters (empty: default_free_params)
+  std::vector<fit::BlockParam> free;    // baseline free parameters (empty: default_free_params)
   std::vector<std::string> candidates;  // subset of candidate_effects() (empty: all)
   std::size_t fit_cycles = 8;
   int bootstrap = 200;
@@ -86,9 +86,9 @@ bool condition_matches(const std::string& pattern, const std::string& name);
 struct ModelScore {
   std::string name;  // "baseline" or the effect (or "a+b" for a combination)
   std::vector<std::string> effects;
-  ExtendedModel model;                     // fitted on all training conditions
-  std::vector<ExtendedModel> fold_models;  // per held-out condition
-  int parameters = 0;                      // fitted parameters (complexity): every free level counted
+  fit::ExtendedModel model;                     // fitted on all training conditions
+  std::vector<fit::ExtendedModel> fold_models;  // per held-out condition
+  int parameters = 0;                           // fitted parameters (complexity): every free level counted
   // Parsimony: the held-out cells scored (band cells, crank-window cells, microphones, over the held-out
   // conditions) and a Bayesian information criterion on them, n ln(gap^2) + parameters ln(n) (gap.cpp): the
   // held-out gap already costs a model whatever it fitted to noise; this also charges it for every free level.
@@ -233,7 +233,7 @@ struct DiagnosisResult {
   std::vector<std::pair<std::string, double>> timing;  // stage, seconds
 };
 
-DiagnosisResult diagnose(const BandDataset& data, const BlockParams& start, const std::string& model_name,
+DiagnosisResult diagnose(const fit::BandDataset& data, const BlockParams& start, const std::string& model_name,
                          const DiagnosisOptions& options);
 
-}  // namespace noisemon::model
+}  // namespace noisemon::model::diagnosis

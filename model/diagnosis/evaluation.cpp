@@ -22,22 +22,23 @@ bool contains(const std::vector<std::size_t>& v, std::size_t k) { return std::fi
 
 // The model refitted without the held-out conditions `left_out` (indices into cx.heldout; leave-one-out folds only):
 // the fired training conditions but those, and the references, in a surrogate solve on the all-training anchor.
-ExtendedModel refit_without(const Context& cx, const CandidateSpec& spec, const FitSetup& setup, const FitOutcome& all,
-                            const std::vector<std::size_t>& left_out) {
-  FitSetup f = setup;
+fit::ExtendedModel refit_without(const Context& cx, const CandidateSpec& spec, const fit::FitSetup& setup,
+                                 const fit::FitOutcome& all, const std::vector<std::size_t>& left_out) {
+  fit::FitSetup f = setup;
   f.train.clear();
   for (std::size_t k : cx.train_fired)
     if (std::none_of(left_out.begin(), left_out.end(), [&](std::size_t h) { return cx.heldout[h] == k; }))
       f.train.push_back(k);
   f.train.insert(f.train.end(), cx.refs.begin(), cx.refs.end());
-  ExtendedModel start = all.model;
+  fit::ExtendedModel start = all.model;
   if (spec.ext.mic_gain) start.ext.mic_gain_db = estimate_mic_gains(cx, f.train);
-  return refit_on_anchor(f, *all.anchor, start).model;
+  return fit::refit_on_anchor(f, *all.anchor, start).model;
 }
 
 // The fit on all training conditions: the spec's extensions and free parameters on the baseline's.
-FitSetup candidate_setup(const Context& cx, const CandidateSpec& spec, const std::vector<BlockParam>& base_free) {
-  FitSetup s;
+fit::FitSetup candidate_setup(const Context& cx, const CandidateSpec& spec,
+                              const std::vector<fit::BlockParam>& base_free) {
+  fit::FitSetup s;
   s.data = cx.data;
   s.train = cx.train_fired;
   s.train.insert(s.train.end(), cx.refs.begin(), cx.refs.end());
@@ -50,26 +51,26 @@ FitSetup candidate_setup(const Context& cx, const CandidateSpec& spec, const std
   s.scored = spec.effects.empty() ? cx.tune_mask : cx.base_mask;
   s.extensions = spec.ext;
   s.extensions.mic_gain = false;
-  for (BlockParam p : spec.extra_free)
+  for (fit::BlockParam p : spec.extra_free)
     if (std::find(s.free.begin(), s.free.end(), p) == s.free.end()) s.free.push_back(p);
   return s;
 }
 
-ExtendedModel candidate_start(const Context& cx, const CandidateSpec& spec, const ExtendedModel& start,
-                              const std::vector<std::size_t>& train) {
-  ExtendedModel st = start;
+fit::ExtendedModel candidate_start(const Context& cx, const CandidateSpec& spec, const fit::ExtendedModel& start,
+                                   const std::vector<std::size_t>& train) {
+  fit::ExtendedModel st = start;
   if (spec.ext.mic_gain) {
     st.on.mic_gain = true;
     st.ext.mic_gain_db = estimate_mic_gains(cx, train);
   }
-  for (BlockParam p : spec.extra_free)
+  for (fit::BlockParam p : spec.extra_free)
     if (!(param_value(st.block, p) > 0)) set_param(st.block, p, 0.0);
   return st;
 }
 
-std::vector<ExtendedModel> fold_models(const Context& cx, const CandidateSpec& spec, const FitSetup& setup,
-                                       const FitOutcome& all) {
-  std::vector<ExtendedModel> folds;
+std::vector<fit::ExtendedModel> fold_models(const Context& cx, const CandidateSpec& spec, const fit::FitSetup& setup,
+                                            const fit::FitOutcome& all) {
+  std::vector<fit::ExtendedModel> folds;
   for (std::size_t h = 0; h < cx.heldout.size(); ++h) {
     folds.push_back(cx.loo ? refit_without(cx, spec, setup, all, {h}) : all.model);
   }
@@ -77,18 +78,19 @@ std::vector<ExtendedModel> fold_models(const Context& cx, const CandidateSpec& s
 }
 
 // Thesis metric over the fired training conditions: the all-training fit on its fit cycles.
-double training_rms(const Context& cx, const FitOutcome& all) {
-  const BandDataset& data = *cx.data;
+double training_rms(const Context& cx, const fit::FitOutcome& all) {
+  const fit::BandDataset& data = *cx.data;
   const std::size_t nb = data.band_count();
   double s = 0.0;
   int n = 0;
   for (std::size_t i = 0; i < all.anchor->conditions.size(); ++i) {
     const std::size_t k = all.anchor->conditions[i];
     if (!contains(cx.train_fired, k)) continue;
-    const ConditionData& d = data.conditions[k];
+    const fit::ConditionData& d = data.conditions[k];
     // The anchor sits at (or within the step tolerance of) the result: predicted = anchor with the factors.
     std::vector<double> pred = all.anchor->cycle_ms[i];
-    apply_factors(extension_factors(data, k, all.anchor->spectra[i], all.anchor->block, all.model), d, pred, nullptr);
+    fit::apply_factors(fit::extension_factors(data, k, all.anchor->spectra[i], all.anchor->block, all.model), d, pred,
+                       nullptr);
     const std::size_t nc = pred.size() / nb;
     double ms = 0.0;
     int nbands = 0;
@@ -96,7 +98,7 @@ double training_rms(const Context& cx, const FitOutcome& all) {
       if (!cx.base_mask[k][b]) continue;
       double m = 0.0, p = 0.0;
       for (std::size_t c = 0; c < nc; ++c) {
-        m += measured_ms(d, c, b, all.model);
+        m += fit::measured_ms(d, c, b, all.model);
         p += pred[c * nb + b];
       }
       if (m > 0 && p > 0) {
@@ -113,8 +115,8 @@ double training_rms(const Context& cx, const FitOutcome& all) {
 }
 
 // Predicted attenuation CPL - SPL_A per band of a condition, dB.
-std::vector<double> predicted_attenuation(const BandDataset& data, const ConditionData& d,
-                                          const ConditionPrediction& pred) {
+std::vector<double> predicted_attenuation(const fit::BandDataset& data, const fit::ConditionData& d,
+                                          const fit::ConditionPrediction& pred) {
   const std::size_t nb = data.band_count(), nc = d.cycle_count();
   std::vector<double> att(nb, kNaN);
   for (std::size_t b = 0; b < nb; ++b) {
@@ -131,13 +133,13 @@ std::vector<double> predicted_attenuation(const BandDataset& data, const Conditi
 // Every held-out condition re-simulated at its fold's model and scored; the sums of the parts over them and of
 // the thesis metric in *thesis.
 Parts score_heldout(const Context& cx, Evaluated& ev, double* thesis) {
-  const BandDataset& data = *cx.data;
+  const fit::BandDataset& data = *cx.data;
   ModelScore& sc = ev.score;
   Parts sum;
   for (std::size_t h = 0; h < cx.heldout.size(); ++h) {
     const std::size_t k = cx.heldout[h];
-    const ConditionData& d = data.conditions[k];
-    ev.preds.push_back(predict_condition(data, k, sc.fold_models[h], true));
+    const fit::ConditionData& d = data.conditions[k];
+    ev.preds.push_back(fit::predict_condition(data, k, sc.fold_models[h], true));
     ev.measured.push_back(measured_side(d, sc.fold_models[h]));
     ScoreDetail det;
     const Parts p =
@@ -157,7 +159,7 @@ Parts score_heldout(const Context& cx, Evaluated& ev, double* thesis) {
 
 // The held-out gap of every bootstrap replicate (the cycles each draw picked, the same predictions).
 std::vector<double> replicate_gaps(const Context& cx, const Evaluated& ev) {
-  const BandDataset& data = *cx.data;
+  const fit::BandDataset& data = *cx.data;
   const double H = static_cast<double>(cx.heldout.size());
   std::vector<double> gaps;
   for (const auto& rep : cx.counts) {
@@ -177,19 +179,19 @@ std::vector<double> replicate_gaps(const Context& cx, const Evaluated& ev) {
 // (like the condition folds), each of them re-simulated and scored;
 // the gap over all of them, NaN without groups. A flexible candidate that fits what is peculiar to one operating
 // point cannot carry it to another.
-double group_gap(const Context& cx, const CandidateSpec& spec, const FitSetup& setup, const FitOutcome& all,
+double group_gap(const Context& cx, const CandidateSpec& spec, const fit::FitSetup& setup, const fit::FitOutcome& all,
                  const Evaluated& ev) {
   if (cx.groups.empty()) return kNaN;
-  const BandDataset& data = *cx.data;
+  const fit::BandDataset& data = *cx.data;
   double total = 0.0;
   int scored = 0;
   for (const std::vector<std::size_t>& group : cx.groups) {
-    const ExtendedModel model = refit_without(cx, spec, setup, all, group);
+    const fit::ExtendedModel model = refit_without(cx, spec, setup, all, group);
     for (std::size_t h : group) {
       const std::size_t k = cx.heldout[h];
-      const ConditionData& d = data.conditions[k];
-      total += score_condition(d, measured_side(d, model), predict_condition(data, k, model, true), cx.base_mask[k],
-                               cx.fast, ev.floors[h], nullptr, nullptr)
+      const fit::ConditionData& d = data.conditions[k];
+      total += score_condition(d, measured_side(d, model), fit::predict_condition(data, k, model, true),
+                               cx.base_mask[k], cx.fast, ev.floors[h], nullptr, nullptr)
                    .total();
       ++scored;
     }
@@ -200,13 +202,13 @@ double group_gap(const Context& cx, const CandidateSpec& spec, const FitSetup& s
 }  // namespace
 
 std::vector<double> estimate_mic_gains(const Context& cx, const std::vector<std::size_t>& conds) {
-  const BandDataset& data = *cx.data;
+  const fit::BandDataset& data = *cx.data;
   const std::size_t M = data.conditions.front().mics;
   std::vector<double> mean(M, 0.0);
-  ExtendedModel none;
+  fit::ExtendedModel none;
   int n = 0;
   for (std::size_t k : conds) {
-    const ConditionData& d = data.conditions[k];
+    const fit::ConditionData& d = data.conditions[k];
     if (d.mics != M) continue;
     const std::vector<double> off = mic_offsets(d, measured_side(d, none), cx.base_mask[k], nullptr);
     for (std::size_t m = 0; m < M; ++m) mean[m] += off[m];
@@ -221,8 +223,8 @@ std::vector<double> estimate_mic_gains(const Context& cx, const std::vector<std:
   return g;
 }
 
-std::vector<std::vector<double>> stationary_floors(const Context& cx, const ExtendedModel& model) {
-  const BandDataset& data = *cx.data;
+std::vector<std::vector<double>> stationary_floors(const Context& cx, const fit::ExtendedModel& model) {
+  const fit::BandDataset& data = *cx.data;
   const std::size_t nb = data.band_count();
   std::vector<std::size_t> all = cx.train_fired;
   all.insert(all.end(), cx.refs.begin(), cx.refs.end());
@@ -231,9 +233,9 @@ std::vector<std::vector<double>> stationary_floors(const Context& cx, const Exte
   std::vector<std::vector<double>> excess(all.size(), std::vector<double>(nb * kW, 0.0));
   std::vector<std::vector<double>> predicted(all.size(), std::vector<double>(nb * kW, 0.0));
   for (std::size_t i = 0; i < all.size(); ++i) {
-    const ConditionData& d = data.conditions[all[i]];
+    const fit::ConditionData& d = data.conditions[all[i]];
     const Measured ms = measured_side(d, model);
-    const ConditionPrediction pr = predict_condition(data, all[i], model, true, cx.opt->fit_cycles);
+    const fit::ConditionPrediction pr = predict_condition(data, all[i], model, true, cx.opt->fit_cycles);
     const std::size_t nc = pr.cycle_ms.size() / nb;
     for (std::size_t c = 0; c < nc; ++c)
       for (std::size_t b = 0; b < nb; ++b)
@@ -267,16 +269,16 @@ std::vector<std::vector<double>> stationary_floors(const Context& cx, const Exte
   return out;
 }
 
-Evaluated evaluate(const Context& cx, const CandidateSpec& spec, const ExtendedModel& start,
-                   const std::vector<BlockParam>& base_free, bool is_baseline) {
+Evaluated evaluate(const Context& cx, const CandidateSpec& spec, const fit::ExtendedModel& start,
+                   const std::vector<fit::BlockParam>& base_free, bool is_baseline) {
   Evaluated ev;
   ModelScore& sc = ev.score;
   sc.name = is_baseline ? "baseline" : spec.name;
   sc.effects = spec.effects;
-  const FitSetup setup = candidate_setup(cx, spec, base_free);
-  const ExtendedModel st = candidate_start(cx, spec, start, setup.train);
+  const fit::FitSetup setup = candidate_setup(cx, spec, base_free);
+  const fit::ExtendedModel st = candidate_start(cx, spec, start, setup.train);
   auto clk = std::chrono::steady_clock::now();
-  const FitOutcome all = fit_model(setup, st);
+  const fit::FitOutcome all = fit_model(setup, st);
   cx.t_fit += since(clk);
   sc.model = all.model;
   sc.parameters = all.parameters;

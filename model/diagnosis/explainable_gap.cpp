@@ -9,7 +9,7 @@
 #include <cmath>
 #include <limits>
 
-namespace noisemon::model {
+namespace noisemon::model::diagnosis {
 
 double rms_of(const std::vector<std::vector<double>>& e) {
   double s = 0.0;
@@ -55,7 +55,7 @@ struct RangeSignals {
 };
 
 // Response of the linear part of m's primary mode to x, aligned with x: position (velocity when `velocity`).
-std::vector<double> linear_response(const WaveformModel& m, double fs, int steps, const std::vector<double>& x,
+std::vector<double> linear_response(const fit::WaveformModel& m, double fs, int steps, const std::vector<double>& x,
                                     bool velocity) {
   BlockParams p = m.block;
   p.k3 = p.b3 = 0.0;
@@ -80,8 +80,9 @@ struct Standardisation {
   std::size_t n = 0;
 };
 
-Standardisation standardisation(const std::vector<WaveformTrace>& train_tr, std::span<const SampleRange> ranges,
-                                std::size_t settle, std::span<const double> u) {
+Standardisation standardisation(const std::vector<fit::WaveformTrace>& train_tr,
+                                std::span<const fit::SampleRange> ranges, std::size_t settle,
+                                std::span<const double> u) {
   double su = 0, su2 = 0, sz2 = 0, sv2 = 0;
   std::size_t n = 0;
   for (std::size_t s = 0; s < train_tr.size(); ++s)
@@ -105,12 +106,13 @@ Standardisation standardisation(const std::vector<WaveformTrace>& train_tr, std:
 
 // Per range: the standardised input, the error and the responses of the model's linear dynamics to the force
 // basis along the model's trajectory.
-std::vector<RangeSignals> range_signals(const WaveformModel& m, double fs, int steps, const Standardisation& st,
-                                        const std::vector<WaveformTrace>& traces, std::span<const SampleRange> ranges,
-                                        std::span<const double> u, std::span<const double> y) {
+std::vector<RangeSignals> range_signals(const fit::WaveformModel& m, double fs, int steps, const Standardisation& st,
+                                        const std::vector<fit::WaveformTrace>& traces,
+                                        std::span<const fit::SampleRange> ranges, std::span<const double> u,
+                                        std::span<const double> y) {
   std::vector<RangeSignals> out;
   for (std::size_t s = 0; s < traces.size(); ++s) {
-    const WaveformTrace& t = traces[s];
+    const fit::WaveformTrace& t = traces[s];
     const std::size_t len = t.y.size();
     RangeSignals rs;
     rs.u.resize(len);
@@ -166,14 +168,15 @@ Eigen::VectorXd regress_error(const std::vector<RangeSignals>& train, std::size_
 
 }  // namespace
 
-ExplainableGap explainable_gap(const WaveformModel& m, double fs, const WaveformDiagnosisOptions& opt,
-                               const WaveformSimOptions& sim, std::span<const double> u, std::span<const double> y) {
+ExplainableGap explainable_gap(const fit::WaveformModel& m, double fs, const WaveformDiagnosisOptions& opt,
+                               const fit::WaveformSimOptions& sim, std::span<const double> u,
+                               std::span<const double> y) {
   const std::size_t settle = sim.settle_samples;
-  std::vector<WaveformTrace> train_tr, held_tr;
-  for (const SampleRange& r : opt.train) train_tr.push_back(simulate_waveform_trace(m, fs, sim, u, y, r));
-  for (const SampleRange& r : opt.heldout) held_tr.push_back(simulate_waveform_trace(m, fs, sim, u, y, r));
+  std::vector<fit::WaveformTrace> train_tr, held_tr;
+  for (const fit::SampleRange& r : opt.train) train_tr.push_back(simulate_waveform_trace(m, fs, sim, u, y, r));
+  for (const fit::SampleRange& r : opt.heldout) held_tr.push_back(simulate_waveform_trace(m, fs, sim, u, y, r));
   const Standardisation st = standardisation(train_tr, opt.train, settle, u);
-  const int steps = sim.steps_per_sample > 0 ? sim.steps_per_sample : choose_steps_per_sample(m, fs);
+  const int steps = sim.steps_per_sample > 0 ? sim.steps_per_sample : fit::choose_steps_per_sample(m, fs);
   const auto train = range_signals(m, fs, steps, st, train_tr, opt.train, u, y);
   const auto held = range_signals(m, fs, steps, st, held_tr, opt.heldout, u, y);
 
@@ -205,4 +208,4 @@ ExplainableGap explainable_gap(const WaveformModel& m, double fs, const Waveform
   return g;
 }
 
-}  // namespace noisemon::model
+}  // namespace noisemon::model::diagnosis

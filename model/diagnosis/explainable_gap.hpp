@@ -7,7 +7,7 @@
 
 #include "model/diagnosis/waveform_diagnosis.hpp"
 
-namespace noisemon::model {
+namespace noisemon::model::diagnosis {
 
 // The rms over every range's errors (NaN without any).
 double rms_of(const std::vector<std::vector<double>>& e);
@@ -17,7 +17,8 @@ std::vector<std::vector<double>> squared_difference(const std::vector<std::vecto
 
 // The share of m's held-out error (opt.heldout) that a missing force of the state, or a short-memory linear misfit,
 // explains when regressed on the training ranges' error (opt.train), and whether that is significant.
-ExplainableGap explainable_gap(const WaveformModel& m, double fs, const WaveformDiagnosisOptions& opt,
-                               const WaveformSimOptions& sim, std::span<const double> u, std::span<const double> y);
+ExplainableGap explainable_gap(const fit::WaveformModel& m, double fs, const WaveformDiagnosisOptions& opt,
+                               const fit::WaveformSimOptions& sim, std::span<const double> u,
+                               std::span<const double> y);
 
-}  // namespace noisemon::model
+}  // namespace noisemon::model::diagnosis

@@ -20,7 +20,7 @@ struct CycleSums {
   double n = 0.0;
 };
 
-CycleSums cycle_sums(const ConditionData& d, const Measured& ms, const ConditionPrediction& p,
+CycleSums cycle_sums(const fit::ConditionData& d, const Measured& ms, const fit::ConditionPrediction& p,
                      const std::vector<char>& fast, const std::vector<int>* counts) {
   const std::size_t nb = d.bands, nc = d.cycle_count();
   CycleSums s;
@@ -72,8 +72,9 @@ bool band_counts(const CycleSums& s, const std::vector<char>& scored, std::size_
 
 // Part 1, the thesis band gap: sum of squared cycle-averaged band gaps less their sampling variance (upper-bound
 // bands: only a measurement above the bound counts). Returns the number of bands counted.
-int band_part(const ConditionData& d, const Measured& ms, const ConditionPrediction& p, const std::vector<char>& scored,
-              const CycleSums& s, const std::vector<int>* counts, Parts& parts, ScoreDetail* detail) {
+int band_part(const fit::ConditionData& d, const Measured& ms, const fit::ConditionPrediction& p,
+              const std::vector<char>& scored, const CycleSums& s, const std::vector<int>* counts, Parts& parts,
+              ScoreDetail* detail) {
   const std::size_t nb = d.bands, nc = d.cycle_count();
   int nbands = 0;
   for (std::size_t b = 0; b < nb; ++b) {
@@ -93,7 +94,7 @@ int band_part(const ConditionData& d, const Measured& ms, const ConditionPredict
 
 // Part 3, the crank-window gap in the fast counted bands, against the prediction plus the stationary floor.
 // Returns the number of cells counted; wsum / wcount: per window, the sum and number of its cells' gaps.
-int window_part(const ConditionData& d, const Measured& ms, const ConditionPrediction& p,
+int window_part(const fit::ConditionData& d, const Measured& ms, const fit::ConditionPrediction& p,
                 const std::vector<char>& scored, const std::vector<char>& fast, const std::vector<double>& floor,
                 const CycleSums& s, const std::vector<int>* counts, Parts& parts, ScoreDetail* detail,
                 std::vector<double>& wsum, std::vector<int>& wcount) {
@@ -131,7 +132,7 @@ double median(std::vector<double> v) {
   return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
 }
 
-Measured measured_side(const ConditionData& d, const ExtendedModel& m) {
+Measured measured_side(const fit::ConditionData& d, const fit::ExtendedModel& m) {
   const std::size_t nb = d.bands, M = d.mics, nc = d.cycle_count();
   Measured r;
   r.meas.resize(nc * nb);
@@ -154,7 +155,7 @@ Measured measured_side(const ConditionData& d, const ExtendedModel& m) {
   return r;
 }
 
-std::vector<double> mic_offsets(const ConditionData& d, const Measured& ms, const std::vector<char>& scored,
+std::vector<double> mic_offsets(const fit::ConditionData& d, const Measured& ms, const std::vector<char>& scored,
                                 const std::vector<int>* counts) {
   const std::size_t nb = d.bands, M = d.mics, nc = d.cycle_count();
   std::vector<double> mic_sum(M * nb, 0.0), avg(nb, 0.0), off(M, 0.0);
@@ -188,7 +189,7 @@ std::vector<double> mic_outliers(const std::vector<double>& off) {
   return t;
 }
 
-Parts score_condition(const ConditionData& d, const Measured& ms, const ConditionPrediction& p,
+Parts score_condition(const fit::ConditionData& d, const Measured& ms, const fit::ConditionPrediction& p,
                       const std::vector<char>& scored, const std::vector<char>& fast, const std::vector<double>& floor,
                       const std::vector<int>* counts, ScoreDetail* detail) {
   const std::size_t nb = d.bands;
@@ -216,7 +217,7 @@ Parts score_condition(const ConditionData& d, const Measured& ms, const Conditio
 }
 
 void draw_bootstrap(Context& cx) {
-  const BandDataset& data = *cx.data;
+  const fit::BandDataset& data = *cx.data;
   std::mt19937_64 rng(cx.opt->seed);
   cx.counts.resize(static_cast<std::size_t>(std::max(0, cx.opt->bootstrap)));
   for (auto& rep : cx.counts) {

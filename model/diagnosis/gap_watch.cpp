@@ -4,7 +4,7 @@
 #include <cmath>
 #include <stdexcept>
 
-namespace noisemon::model {
+namespace noisemon::model::diagnosis {
 
 namespace {
 
@@ -531,4 +531,4 @@ void GapWatch::set_reference(const GapReference& reference) {
   }
 }
 
-}  // namespace noisemon::model
+}  // namespace noisemon::model::diagnosis

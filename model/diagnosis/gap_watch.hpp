@@ -34,7 +34,7 @@
 #include "model/diagnosis/change_attribution.hpp"
 #include "model/diagnosis/steady_state.hpp"
 
-namespace noisemon::model {
+namespace noisemon::model::diagnosis {
 
 inline constexpr double kNoValue = std::numeric_limits<double>::quiet_NaN();
 
@@ -205,4 +205,4 @@ class GapWatch {
   GapEvent event_;
 };
 
-}  // namespace noisemon::model
+}  // namespace noisemon::model::diagnosis

@@ -36,9 +36,9 @@ struct MotoredPrediction {
   std::vector<char> upper;
 };
 
-MotoredPrediction predict_motored(const BandDataset& data, std::size_t k, const ExtendedModel& model) {
+MotoredPrediction predict_motored(const fit::BandDataset& data, std::size_t k, const fit::ExtendedModel& model) {
   const std::size_t nb = data.band_count();
-  const ConditionPrediction with = predict_condition(data, k, model, false);
+  const fit::ConditionPrediction with = predict_condition(data, k, model, false);
   MotoredPrediction p{cycle_mean(with.cycle_ms, nb), {}, with.upper};
   p.bare = p.full;  // the additive sources add to the structure's prediction, which they do not change
   for (std::size_t b = 0; b < nb && b < with.additive_ms.size(); ++b) p.bare[b] -= with.additive_ms[b];
@@ -47,11 +47,11 @@ MotoredPrediction predict_motored(const BandDataset& data, std::size_t k, const 
 }
 
 // The measured cycle-mean level of band b and its standard error in dB (spread of the cycles' levels / sqrt(n)).
-std::pair<double, double> measured_level(const ConditionData& d, std::size_t b, const ExtendedModel& model) {
+std::pair<double, double> measured_level(const fit::ConditionData& d, std::size_t b, const fit::ExtendedModel& model) {
   const std::size_t nc = d.cycle_count();
   double mean = 0.0, s = 0.0, s2 = 0.0;
   for (std::size_t c = 0; c < nc; ++c) {
-    const double ms = measured_ms(d, c, b, model);
+    const double ms = fit::measured_ms(d, c, b, model);
     mean += ms / static_cast<double>(nc);
     const double l = db(std::max(ms, 1e-30));
     s += l;
@@ -62,9 +62,9 @@ std::pair<double, double> measured_level(const ConditionData& d, std::size_t b, 
   return {mean, std::sqrt(var / std::max(1.0, n))};
 }
 
-std::vector<double> cycle_mean_prediction(const BandDataset& data, std::size_t k, const ExtendedModel& model,
+std::vector<double> cycle_mean_prediction(const fit::BandDataset& data, std::size_t k, const fit::ExtendedModel& model,
                                           std::vector<char>& upper) {
-  const ConditionPrediction p = predict_condition(data, k, model, false);
+  const fit::ConditionPrediction p = predict_condition(data, k, model, false);
   for (std::size_t b = 0; b < p.upper.size() && b < upper.size(); ++b) upper[b] = upper[b] || p.upper[b];
   return cycle_mean(p.cycle_ms, data.band_count());
 }
@@ -73,13 +73,13 @@ std::vector<double> cycle_mean_prediction(const BandDataset& data, std::size_t k
 // each model's error against the measurement (its own microphone gains applied), less the measurement's error.
 // Judged: the bands the baseline is tuned on (`judged`: the structure's sound, not the combustion-independent noise
 // that any added prediction would seem to explain), with the pressure above its floor. NaN when none.
-double motored_worse_db(const BandDataset& data, std::size_t k, const std::vector<char>& judged,
-                        const ExtendedModel& candidate, const ExtendedModel& baseline) {
+double motored_worse_db(const fit::BandDataset& data, std::size_t k, const std::vector<char>& judged,
+                        const fit::ExtendedModel& candidate, const fit::ExtendedModel& baseline) {
   const std::size_t nb = data.band_count();
   std::vector<char> upper(nb, 0);
   const std::vector<double> pc = cycle_mean_prediction(data, k, candidate, upper);
   const std::vector<double> pb = cycle_mean_prediction(data, k, baseline, upper);
-  const ConditionData& d = data.conditions[k];
+  const fit::ConditionData& d = data.conditions[k];
   double ss_c = 0.0, ss_b = 0.0, ss_se = 0.0;
   std::size_t n = 0;
   for (std::size_t b = 0; b < nb; ++b) {
@@ -115,11 +115,11 @@ void judge_pressure_law(const Context& cx, const ModelScore& baseline, ModelScor
 
 void judge_motored_law(const Context& cx, ModelScore& m) {
   if (!(m.model.on.stationary || m.model.on.locked) || cx.refs.empty()) return;
-  const BandDataset& data = *cx.data;
+  const fit::BandDataset& data = *cx.data;
   m.motored_law_checked = true;
   m.motored_overshoot_db = -std::numeric_limits<double>::infinity();
   for (std::size_t k : cx.refs) {
-    const ConditionData& d = data.conditions[k];
+    const fit::ConditionData& d = data.conditions[k];
     const MotoredPrediction p = predict_motored(data, k, m.model);
     for (std::size_t b = 0; b < data.band_count(); ++b) {
       if (data.bands[b].nyquist_cut || data.band_line_free(k, b) || p.upper[b]) continue;

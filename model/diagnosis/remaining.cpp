@@ -46,7 +46,7 @@ void band_range(const Context& cx, const std::vector<double>& band_rms, Remainin
 void trends(const Context& cx, const ModelScore& m, RemainingGap& r) {
   std::vector<double> speed, load, level, mean;
   for (std::size_t h = 0; h < cx.heldout.size() && h < m.gaps.size(); ++h) {
-    const ConditionData& d = cx.data->conditions[cx.heldout[h]];
+    const fit::ConditionData& d = cx.data->conditions[cx.heldout[h]];
     speed.push_back(d.mean_speed_rpm() / 1000.0);
     load.push_back(d.info.load_nm);
     level.push_back(overall_cpl_db(*cx.data, d));

@@ -18,7 +18,7 @@ bool matches_any(const std::vector<std::string>& patterns, const std::string& na
                      [&](const std::string& p) { return condition_matches(p, name); });
 }
 
-void check_patterns_match(const BandDataset& data, const DiagnosisOptions& opt) {
+void check_patterns_match(const fit::BandDataset& data, const DiagnosisOptions& opt) {
   for (const auto& pats : {opt.train, opt.holdout})
     for (const std::string& p : pats) {
       bool any = false;
@@ -29,15 +29,15 @@ void check_patterns_match(const BandDataset& data, const DiagnosisOptions& opt) 
 }
 
 // Cycle-mean microphone-average mean square of a condition in a band.
-double mean_meas(const BandDataset& data, std::size_t k, std::size_t b) {
-  const ConditionData& d = data.conditions[k];
+double mean_meas(const fit::BandDataset& data, std::size_t k, std::size_t b) {
+  const fit::ConditionData& d = data.conditions[k];
   double s = 0.0;
   for (std::size_t c = 0; c < d.cycle_count(); ++c) s += d.mic_avg_ms(c, b);
   return s / static_cast<double>(d.cycle_count());
 }
 
 // Per band: the background runs' mean level (0 without background runs).
-std::vector<double> background_levels(const BandDataset& data, const std::vector<std::size_t>& backgrounds) {
+std::vector<double> background_levels(const fit::BandDataset& data, const std::vector<std::size_t>& backgrounds) {
   std::vector<double> bg(data.band_count(), 0.0);
   for (std::size_t k : backgrounds)
     for (std::size_t b = 0; b < bg.size(); ++b)
@@ -46,14 +46,14 @@ std::vector<double> background_levels(const BandDataset& data, const std::vector
 }
 
 // Combustion-independent excess of each motored run over the start model (empty for the other conditions).
-std::vector<std::vector<double>> motored_excess(const BandDataset& data, const std::vector<std::size_t>& refs,
+std::vector<std::vector<double>> motored_excess(const fit::BandDataset& data, const std::vector<std::size_t>& refs,
                                                 const BlockParams& start) {
   const std::size_t nb = data.band_count();
   std::vector<std::vector<double>> excess(data.conditions.size());
-  ExtendedModel sm;
+  fit::ExtendedModel sm;
   sm.block = start;
   for (std::size_t k : refs) {
-    const ConditionPrediction p = predict_condition(data, k, sm, false);
+    const fit::ConditionPrediction p = predict_condition(data, k, sm, false);
     const std::size_t nc = data.conditions[k].cycle_count();
     excess[k].assign(nb, 0.0);
     for (std::size_t b = 0; b < nb; ++b) {
@@ -66,7 +66,7 @@ std::vector<std::vector<double>> motored_excess(const BandDataset& data, const s
 }
 
 // The motored run nearest in speed to condition k (the number of conditions when there is none).
-std::size_t nearest_ref(const BandDataset& data, const std::vector<std::size_t>& refs, std::size_t k) {
+std::size_t nearest_ref(const fit::BandDataset& data, const std::vector<std::size_t>& refs, std::size_t k) {
   std::size_t best = data.conditions.size();
   double bd = std::numeric_limits<double>::infinity();
   for (std::size_t r : refs) {
@@ -89,7 +89,7 @@ void mark_noise_dominated(Context& cx, std::size_t k, std::size_t b, std::size_t
 
 // The masks of condition k, and its contribution to the band notes.
 void mark_condition(Context& cx, std::size_t k, double margin) {
-  const BandDataset& data = *cx.data;
+  const fit::BandDataset& data = *cx.data;
   const std::size_t nb = data.band_count();
   const std::size_t r = nearest_ref(data, cx.refs, k);
   for (std::size_t b = 0; b < nb; ++b) {
@@ -129,10 +129,10 @@ std::vector<std::vector<std::size_t>> speed_groups(const Context& cx) {
 }  // namespace
 
 void assign_roles(Context& cx) {
-  const BandDataset& data = *cx.data;
+  const fit::BandDataset& data = *cx.data;
   const DiagnosisOptions& opt = *cx.opt;
   for (std::size_t k = 0; k < data.conditions.size(); ++k) {
-    const ConditionInfo& i = data.conditions[k].info;
+    const fit::ConditionInfo& i = data.conditions[k].info;
     if (i.background)
       cx.backgrounds.push_back(k);
     else if (i.motored)
@@ -159,17 +159,17 @@ void assign_roles(Context& cx) {
 }
 
 void mark_bands_and_floors(Context& cx, const BlockParams& start) {
-  const BandDataset& data = *cx.data;
+  const fit::BandDataset& data = *cx.data;
   const std::size_t K = data.conditions.size(), nb = data.band_count();
   const double margin = std::pow(10.0, cx.opt->floor_margin_db / 10.0);
   cx.background_ms = background_levels(data, cx.backgrounds);
   cx.motored_excess = motored_excess(data, cx.refs, start);
   std::vector<std::size_t> scored = cx.train_fired;
   scored.insert(scored.end(), cx.heldout.begin(), cx.heldout.end());
-  cx.fast = window_capable_bands(data, scored);
+  cx.fast = fit::window_capable_bands(data, scored);
   cx.pressure_floors.clear();
-  for (std::size_t k = 0; k < K; ++k) cx.pressure_floors.push_back(pressure_floor(data, k));
-  cx.pfloor_band = floor_limited_bands(data, &cx.pfloor_win);
+  for (std::size_t k = 0; k < K; ++k) cx.pressure_floors.push_back(fit::pressure_floor(data, k));
+  cx.pfloor_band = fit::floor_limited_bands(data, &cx.pfloor_win);
   cx.base_mask.assign(K, std::vector<char>(nb, 0));
   cx.tune_mask.assign(K, std::vector<char>(nb, 0));
   cx.floor_limited.assign(K, std::vector<char>(nb, 0));
@@ -181,7 +181,7 @@ void mark_bands_and_floors(Context& cx, const BlockParams& start) {
 }
 
 bool remark_noise_dominated(Context& cx, const BlockParams& tuned) {
-  const BandDataset& data = *cx.data;
+  const fit::BandDataset& data = *cx.data;
   const double margin = std::pow(10.0, cx.opt->floor_margin_db / 10.0);
   const std::vector<std::vector<char>> before = cx.tune_mask;
   cx.motored_excess = motored_excess(data, cx.refs, tuned);
@@ -195,7 +195,7 @@ bool remark_noise_dominated(Context& cx, const BlockParams& tuned) {
 
 }  // namespace noisemon::model::diagnosis
 
-namespace noisemon::model {
+namespace noisemon::model::diagnosis {
 
 bool condition_matches(const std::string& pattern, const std::string& name) {
   if (pattern == name) return true;
@@ -220,4 +220,4 @@ bool condition_matches(const std::string& pattern, const std::string& name) {
   return p == pattern.size();
 }
 
-}  // namespace noisemon::model
+}  // namespace noisemon::model::diagnosis

@@ -28,7 +28,7 @@
 
 namespace noisemon::model::diagnosis {
 
-inline constexpr std::size_t kW = kCrankWindows;
+inline constexpr std::size_t kW = fit::kCrankWindows;
 inline constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 
 double db(double ratio);               // 10 log10(ratio)
@@ -36,7 +36,7 @@ double median(std::vector<double> v);  // NaN when empty
 
 // Everything computed once per diagnosis by the first stages, for the others.
 struct Context {
-  const BandDataset* data = nullptr;
+  const fit::BandDataset* data = nullptr;
   const DiagnosisOptions* opt = nullptr;
   // Roles (assign_roles), condition indices in dataset order.
   std::vector<std::size_t> fired, refs, backgrounds;  // fired, motored (references), engine off (floors)
@@ -53,7 +53,7 @@ struct Context {
   std::vector<std::string> band_notes;  // per band: "nyquist_cut", "line_free" or ""
   std::vector<char> fast;               // per band: fast enough for a crank window
   // The pressure chain's floor per condition, and the cells it limits (see pressure_floor.hpp).
-  std::vector<PressureFloor> pressure_floors;
+  std::vector<fit::PressureFloor> pressure_floors;
   std::vector<std::vector<char>> pfloor_band;         // per condition, per band: cycle-mean pressure within the margin
   std::vector<std::vector<char>> pfloor_win;          // per condition, per band * W: the window's pressure likewise
   std::vector<std::vector<std::vector<int>>> counts;  // bootstrap draws (draw_bootstrap): [replicate][heldout][cycle]
@@ -97,11 +97,11 @@ struct Measured {
   std::vector<double> mic;   // [(c * M + m) * nb + b]
   std::vector<double> win;   // [(c * W + w) * nb + b] microphone average per window
 };
-Measured measured_side(const ConditionData& d, const ExtendedModel& m);
+Measured measured_side(const fit::ConditionData& d, const fit::ExtendedModel& m);
 
 // Per-microphone offsets from the array (mean over the scored bands of 10 log10(mic / array mean)), cycles
 // weighted by counts (nullptr: every cycle once).
-std::vector<double> mic_offsets(const ConditionData& d, const Measured& ms, const std::vector<char>& scored,
+std::vector<double> mic_offsets(const fit::ConditionData& d, const Measured& ms, const std::vector<char>& scored,
                                 const std::vector<int>* counts);
 // The part of each offset beyond the array's own robust spread (soft threshold at 3 sigma).
 std::vector<double> mic_outliers(const std::vector<double>& off);
@@ -122,7 +122,7 @@ struct ScoreDetail {
 
 // The three parts of the held-out gap of one condition (see diagnosis.hpp); floor: per band, the stationary
 // floor the model leaves in the windows; counts: the bootstrap's cycle weights (nullptr: every cycle once).
-Parts score_condition(const ConditionData& d, const Measured& ms, const ConditionPrediction& p,
+Parts score_condition(const fit::ConditionData& d, const Measured& ms, const fit::ConditionPrediction& p,
                       const std::vector<char>& scored, const std::vector<char>& fast, const std::vector<double>& floor,
                       const std::vector<int>* counts, ScoreDetail* detail);
 
@@ -140,25 +140,25 @@ void draw_bootstrap(Context& cx);
 struct CandidateSpec {
   std::string name;
   std::vector<std::string> effects;
-  ExtensionSet ext;
-  std::vector<BlockParam> extra_free;
+  fit::ExtensionSet ext;
+  std::vector<fit::BlockParam> extra_free;
 };
 
 struct Evaluated {
   ModelScore score;
-  std::vector<ConditionPrediction> preds;   // per held-out condition
-  std::vector<Measured> measured;           // per held-out condition
-  std::vector<std::vector<double>> floors;  // per held-out condition: stationary floor per band
+  std::vector<fit::ConditionPrediction> preds;  // per held-out condition
+  std::vector<Measured> measured;               // per held-out condition
+  std::vector<std::vector<double>> floors;      // per held-out condition: stationary floor per band
 };
 
 // Microphone gains from the conditions: the channels standing out of the array's spread.
 std::vector<double> estimate_mic_gains(const Context& cx, const std::vector<std::size_t>& conds);
 // Stationary floor the model leaves on the training data, per band (per held-out fold: without that condition).
-std::vector<std::vector<double>> stationary_floors(const Context& cx, const ExtendedModel& model);
+std::vector<std::vector<double>> stationary_floors(const Context& cx, const fit::ExtendedModel& model);
 // The spec's model fitted on the training conditions (and on every fold), its training figure, its held-out gap
 // and the gap's bootstrap replicates.
-Evaluated evaluate(const Context& cx, const CandidateSpec& spec, const ExtendedModel& start,
-                   const std::vector<BlockParam>& base_free, bool is_baseline);
+Evaluated evaluate(const Context& cx, const CandidateSpec& spec, const fit::ExtendedModel& start,
+                   const std::vector<fit::BlockParam>& base_free, bool is_baseline);
 
 // Additive candidates (background, impacts): the fitted source alone against all the sound the motored runs measure,
 // band by band; m.refuted when it claims more than they hear (ModelScore::motored_*).
@@ -169,7 +169,7 @@ void judge_pressure_law(const Context& cx, const ModelScore& baseline, ModelScor
 
 // ---------------------------------------------------------------------------------------- baseline
 
-Evaluated tune_baseline(const Context& cx, const BlockParams& start, const std::vector<BlockParam>& base_free);
+Evaluated tune_baseline(const Context& cx, const BlockParams& start, const std::vector<fit::BlockParam>& base_free);
 // The bootstrap spread (standard deviation over the replicates) of a model's held-out gap.
 double bootstrap_noise_db(const ModelScore& m);
 
@@ -190,7 +190,7 @@ struct CandidateRound {
 // Every candidate effect (DiagnosisOptions::candidates) evaluated on top of the baseline, judged against it and
 // ranked.
 CandidateRound evaluate_candidates(const Context& cx, const BlockParams& start, const Evaluated& base,
-                                   const std::vector<BlockParam>& base_free, StageLog& log);
+                                   const std::vector<fit::BlockParam>& base_free, StageLog& log);
 // Ranking: held-out gap; a simpler significant candidate first when the better one does not beat it in 95 % of
 // the replicates by at least min_improvement_db, or does not have the lower information criterion.
 std::vector<std::size_t> rank_candidates(const std::vector<Evaluated>& evals, double min_improvement_db);
@@ -198,7 +198,7 @@ std::vector<std::size_t> rank_candidates(const std::vector<Evaluated>& evals, do
 // close and no pair with the best reaches the tolerance. Appends to *combinations; returns the index there of
 // the pair with the smallest gap (the first of equals; nullopt when none was tried).
 std::optional<std::size_t> try_pairs(const Context& cx, const CandidateRound& round,
-                                     const std::vector<std::size_t>& sig, const std::vector<BlockParam>& base_free,
+                                     const std::vector<std::size_t>& sig, const std::vector<fit::BlockParam>& base_free,
                                      const ModelScore& baseline, std::vector<ModelScore>* combinations,
                                      const StageLog& log);
 
@@ -206,7 +206,7 @@ std::optional<std::size_t> try_pairs(const Context& cx, const CandidateRound& ro
 
 // res.verdict from the baseline and the ranked candidates (pairs tried into res.combinations, the verdict's
 // partner marked in res.candidates).
-void judge(const Context& cx, const CandidateRound& round, const std::vector<BlockParam>& base_free,
+void judge(const Context& cx, const CandidateRound& round, const std::vector<fit::BlockParam>& base_free,
            DiagnosisResult& res, StageLog& log);
 
 // What the model `after` leaves (remaining.cpp); band_rms: its per-band RMS over the held-out conditions.
@@ -215,7 +215,7 @@ RemainingGap describe_remaining(const Context& cx, const ModelScore& after, cons
 // ---------------------------------------------------------------------------------------- where
 
 // A condition's overall cylinder pressure level, dB re 20 uPa: the cycle-mean band powers below the Nyquist cut.
-double overall_cpl_db(const BandDataset& data, const ConditionData& d);
+double overall_cpl_db(const fit::BandDataset& data, const fit::ConditionData& d);
 // The mean of the finite values (NaN when there is none).
 double mean_finite(const std::vector<double>& v);
 // Least-squares slope of y over x; pairs with an unknown (NaN) member are left out; NaN with fewer than two.

@@ -2,7 +2,7 @@
 
 #include <cmath>
 
-namespace noisemon::model {
+namespace noisemon::model::diagnosis {
 
 void SteadyStateGate::add(const OperatingSample& sample) {
   if (sample.time_s < latest_s_) samples_.clear();  // another run's clock
@@ -25,4 +25,4 @@ bool SteadyStateGate::steady(const OperatingSample& cycle) const {
   return true;
 }
 
-}  // namespace noisemon::model
+}  // namespace noisemon::model::diagnosis

@@ -11,7 +11,7 @@
 
 #include <deque>
 
-namespace noisemon::model {
+namespace noisemon::model::diagnosis {
 
 struct SteadyStateOptions {
   double before_s = 5.0;         // the engine held the point this long before the cycle ...
@@ -47,4 +47,4 @@ class SteadyStateGate {
   bool flushed_ = false;
 };
 
-}  // namespace noisemon::model
+}  // namespace noisemon::model::diagnosis

@@ -41,7 +41,7 @@ double gap_alone(const CandidateRound& round, const std::string& name) {
 // The best significant candidate, or the best pair with it when that is clearly better: v.effect (and v.also,
 // *partner) name it; returns the selected model.
 const ModelScore* select_model(const Context& cx, const CandidateRound& round, const std::vector<std::size_t>& sig,
-                               const std::vector<BlockParam>& base_free, DiagnosisResult& res, StageLog& log,
+                               const std::vector<fit::BlockParam>& base_free, DiagnosisResult& res, StageLog& log,
                                std::string* partner) {
   const DiagnosisOptions& opt = *cx.opt;
   Verdict& v = res.verdict;
@@ -105,7 +105,7 @@ void note_below_tolerance(const ModelScore& best, Verdict& v) {
 
 }  // namespace
 
-void judge(const Context& cx, const CandidateRound& round, const std::vector<BlockParam>& base_free,
+void judge(const Context& cx, const CandidateRound& round, const std::vector<fit::BlockParam>& base_free,
            DiagnosisResult& res, StageLog& log) {
   const DiagnosisOptions& opt = *cx.opt;
   Verdict& v = res.verdict;

@@ -16,7 +16,7 @@
 #include "dsp/welch.hpp"
 #include "model/diagnosis/explainable_gap.hpp"
 
-namespace noisemon::model {
+namespace noisemon::model::diagnosis {
 namespace {
 
 constexpr double kInf = std::numeric_limits<double>::infinity();
@@ -27,17 +27,17 @@ std::string fmt(const char* f, double a, double b = 0.0, double c = 0.0) {
   return buf;
 }
 
-WaveformSimOptions with_steps(WaveformSimOptions sim, int steps) {
+fit::WaveformSimOptions with_steps(fit::WaveformSimOptions sim, int steps) {
   sim.steps_per_sample = steps;
   return sim;
 }
 
 // Scored errors (model - measured) of each range.
-std::vector<std::vector<double>> errors_of(const WaveformModel& m, double fs, const WaveformSimOptions& sim,
+std::vector<std::vector<double>> errors_of(const fit::WaveformModel& m, double fs, const fit::WaveformSimOptions& sim,
                                            std::span<const double> u, std::span<const double> y,
-                                           std::span<const SampleRange> ranges) {
+                                           std::span<const fit::SampleRange> ranges) {
   std::vector<std::vector<double>> out;
-  for (const SampleRange& r : ranges) {
+  for (const fit::SampleRange& r : ranges) {
     const auto s = simulate_waveform(m, fs, sim, u, y, r);
     std::vector<double> e;
     e.reserve(s.size() - sim.settle_samples);
@@ -78,7 +78,7 @@ double residual_peak_hz(const std::vector<std::vector<double>>& u, const std::ve
 
 struct CandidateSpec {
   std::string effect;
-  WaveformModel start;
+  fit::WaveformModel start;
   std::vector<std::string> added;
   std::string start_note;
 };
@@ -89,7 +89,7 @@ bool has(const std::vector<std::string>& v, const std::string& s) {
 
 // The candidate `effect` on top of `base` (fitted with free parameters `base_free`); nullopt when the base
 // already contains it.
-std::optional<CandidateSpec> make_candidate(const std::string& effect, const WaveformFitResult& base,
+std::optional<CandidateSpec> make_candidate(const std::string& effect, const fit::WaveformFitResult& base,
                                             const std::vector<std::string>& base_free,
                                             const std::vector<std::vector<double>>& train_u,
                                             const std::vector<std::vector<double>>& train_e, double fs) {
@@ -139,7 +139,7 @@ void rank(std::vector<CandidateResult>& c, double tie) {
   }
 }
 
-std::vector<CandidateResult> run_round(const WaveformFitResult& base, const std::vector<std::string>& base_free,
+std::vector<CandidateResult> run_round(const fit::WaveformFitResult& base, const std::vector<std::string>& base_free,
                                        const std::vector<std::string>& effects,
                                        const std::vector<std::vector<double>>& base_held_errors,
                                        std::span<const double> u, std::span<const double> y,
@@ -148,7 +148,7 @@ std::vector<CandidateResult> run_round(const WaveformFitResult& base, const std:
   std::vector<std::vector<double>> train_u, train_e;
   if (has(effects, "second_mode")) {
     train_e = errors_of(base.model, opt.fs_hz, with_steps(opt.sim, base.steps_per_sample), u, y, opt.train);
-    for (const SampleRange& r : opt.train)
+    for (const fit::SampleRange& r : opt.train)
       train_u.emplace_back(u.begin() + static_cast<std::ptrdiff_t>(r.begin + opt.sim.settle_samples),
                            u.begin() + static_cast<std::ptrdiff_t>(r.end));
   }
@@ -160,7 +160,7 @@ std::vector<CandidateResult> run_round(const WaveformFitResult& base, const std:
     CandidateResult c;
     c.effect = effect;
     c.added_params = spec->added;
-    WaveformFitOptions fo;
+    fit::WaveformFitOptions fo;
     fo.fs_hz = opt.fs_hz;
     fo.train = opt.train;
     fo.heldout = opt.heldout;
@@ -176,7 +176,7 @@ std::vector<CandidateResult> run_round(const WaveformFitResult& base, const std:
       if (!spec->start_note.empty()) opt.log(spec->start_note);
     }
     try {
-      c.fit = fit_waveform(u, y, fo);
+      c.fit = fit::fit_waveform(u, y, fo);
       const auto held =
           errors_of(c.fit.model, opt.fs_hz, with_steps(opt.sim, c.fit.steps_per_sample), u, y, opt.heldout);
       c.heldout_rms = rms_of(held);
@@ -225,9 +225,9 @@ std::vector<NotApplicable> not_applicable_effects() {
   };
 }
 
-WaveformFitResult fit_baseline(std::span<const double> u, std::span<const double> y,
-                               const WaveformDiagnosisOptions& opt) {
-  WaveformFitOptions fo;
+fit::WaveformFitResult fit_baseline(std::span<const double> u, std::span<const double> y,
+                                    const WaveformDiagnosisOptions& opt) {
+  fit::WaveformFitOptions fo;
   fo.fs_hz = opt.fs_hz;
   fo.train = opt.train;
   fo.heldout = opt.heldout;
@@ -238,13 +238,13 @@ WaveformFitResult fit_baseline(std::span<const double> u, std::span<const double
   fo.max_iterations = opt.max_iterations;
   fo.progress = opt.fit_progress;
   if (opt.log) opt.log("fitting the baseline (" + std::to_string(opt.baseline_free.size()) + " parameters)");
-  return fit_waveform(u, y, fo);
+  return fit::fit_waveform(u, y, fo);
 }
 
 // The second round on top of the verdict's candidate `best`: the best model becomes the verdict's effect plus the
 // best significant one fitted on top of it. Updates best_held and best_sim with it.
 void second_round_on_top(WaveformDiagnosis& d, const CandidateResult& best, std::vector<std::vector<double>>& best_held,
-                         WaveformSimOptions& best_sim, std::span<const double> u, std::span<const double> y,
+                         fit::WaveformSimOptions& best_sim, std::span<const double> u, std::span<const double> y,
                          const WaveformDiagnosisOptions& opt) {
   std::vector<std::string> rest;
   for (const std::string& c : opt.candidates)
@@ -282,7 +282,7 @@ std::vector<std::vector<double>> choose_best(WaveformDiagnosis& d, const std::ve
   d.verdict = best->effect;
   d.best_model = best->fit.model;
   d.best_steps_per_sample = best->fit.steps_per_sample;
-  WaveformSimOptions best_sim = with_steps(opt.sim, best->fit.steps_per_sample);
+  fit::WaveformSimOptions best_sim = with_steps(opt.sim, best->fit.steps_per_sample);
   std::vector<std::vector<double>> best_held = errors_of(d.best_model, opt.fs_hz, best_sim, u, y, opt.heldout);
   d.heldout_rms_after = best->heldout_rms;
   if (opt.second_round) second_round_on_top(d, *best, best_held, best_sim, u, y, opt);
@@ -306,7 +306,8 @@ std::vector<BandGap> band_gaps(const std::vector<std::vector<double>>& y_held,
 
 // The errors against the local output level: rms over two periods of the primary mode, in five equally
 // populated bins.
-std::vector<AmplitudeGap> amplitude_gaps(const WaveformModel& baseline, const std::vector<std::vector<double>>& y_held,
+std::vector<AmplitudeGap> amplitude_gaps(const fit::WaveformModel& baseline,
+                                         const std::vector<std::vector<double>>& y_held,
                                          const std::vector<std::vector<double>>& base_held,
                                          const std::vector<std::vector<double>>& best_held, double fs_hz) {
   const double fn = std::sqrt(baseline.block.k1 / baseline.block.m) / (2.0 * std::numbers::pi);
@@ -359,7 +360,7 @@ WaveformDiagnosis diagnose_waveform(std::span<const double> u, std::span<const d
   d.not_applicable = not_applicable_effects();
 
   d.baseline = fit_baseline(u, y, opt);
-  const WaveformSimOptions base_sim = with_steps(opt.sim, d.baseline.steps_per_sample);
+  const fit::WaveformSimOptions base_sim = with_steps(opt.sim, d.baseline.steps_per_sample);
   const auto base_held = errors_of(d.baseline.model, opt.fs_hz, base_sim, u, y, opt.heldout);
   d.heldout_rms_before = rms_of(base_held);
   if (opt.log) opt.log(fmt("baseline: train rms %.6g, held-out rms %.6g", d.baseline.train_rms, d.heldout_rms_before));
@@ -378,7 +379,7 @@ WaveformDiagnosis diagnose_waveform(std::span<const double> u, std::span<const d
     d.segment_rms_after.push_back(rms_of({best_held[s]}));
   }
   std::vector<std::vector<double>> y_held;
-  for (const SampleRange& r : opt.heldout)
+  for (const fit::SampleRange& r : opt.heldout)
     y_held.emplace_back(y.begin() + static_cast<std::ptrdiff_t>(r.begin + opt.sim.settle_samples),
                         y.begin() + static_cast<std::ptrdiff_t>(r.end));
   d.bands = band_gaps(y_held, base_held, best_held, opt.fs_hz);
@@ -388,9 +389,10 @@ WaveformDiagnosis diagnose_waveform(std::span<const double> u, std::span<const d
 }
 
 namespace {
-std::vector<std::pair<std::string, double>> model_params(const WaveformModel& m, const std::vector<std::string>& free) {
+std::vector<std::pair<std::string, double>> model_params(const fit::WaveformModel& m,
+                                                         const std::vector<std::string>& free) {
   std::vector<std::pair<std::string, double>> out;
-  for (const std::string& name : free) out.emplace_back(name, get_parameter(m, name));
+  for (const std::string& name : free) out.emplace_back(name, fit::get_parameter(m, name));
   return out;
 }
 
@@ -426,4 +428,4 @@ WaveformReport waveform_report(const WaveformDiagnosis& d) {
   return r;
 }
 
-}  // namespace noisemon::model
+}  // namespace noisemon::model::diagnosis

@@ -40,16 +40,16 @@
 #include "model/diagnosis/block_bootstrap.hpp"
 #include "model/fit/waveform_fit.hpp"
 
-namespace noisemon::model {
+namespace noisemon::model::diagnosis {
 
 struct WaveformDiagnosisOptions {
   double fs_hz = 0.0;
-  std::vector<SampleRange> train;
-  std::vector<SampleRange> heldout;
+  std::vector<fit::SampleRange> train;
+  std::vector<fit::SampleRange> heldout;
   std::vector<std::string> baseline_free = {"k1", "b1", "c0", "c1", "y_offset"};
-  std::optional<WaveformModel> start;  // nullopt: nearest preset or the data's linear estimate
+  std::optional<fit::WaveformModel> start;  // nullopt: nearest preset or the data's linear estimate
   std::string start_name;
-  WaveformSimOptions sim;
+  fit::WaveformSimOptions sim;
   std::vector<std::string> candidates = {"cubic_stiffness", "cubic_damping", "second_mode"};
   int max_iterations = 40;
   double alpha = 0.05;
@@ -60,13 +60,13 @@ struct WaveformDiagnosisOptions {
   std::uint64_t seed = 1;
   bool second_round = true;
   std::function<void(const std::string&)> log;  // one line per step (nothing printed otherwise)
-  std::function<void(const WaveformFitProgress&)> fit_progress;
+  std::function<void(const fit::WaveformFitProgress&)> fit_progress;
 };
 
 struct CandidateResult {
   std::string effect;
   std::vector<std::string> added_params;
-  WaveformFitResult fit;
+  fit::WaveformFitResult fit;
   double heldout_rms = 0.0;
   std::vector<double> heldout_segment_rms;
   double gap_closed_fraction = 0.0;  // 1 - rms_after / rms_before on the held-out ranges
@@ -102,7 +102,7 @@ struct NotApplicable {
 };
 
 struct WaveformDiagnosis {
-  WaveformFitResult baseline;
+  fit::WaveformFitResult baseline;
   std::vector<CandidateResult> candidates;    // ranked, best first
   std::vector<CandidateResult> second_round;  // on top of the best significant candidate, ranked
   std::vector<NotApplicable> not_applicable;
@@ -115,7 +115,7 @@ struct WaveformDiagnosis {
   std::vector<std::string> also_significant;  // second-round effects that are significant on top
   double heldout_rms_before = 0.0;
   double heldout_rms_after = 0.0;  // best model (the verdict's, plus the significant second-round one)
-  WaveformModel best_model;
+  fit::WaveformModel best_model;
   int best_steps_per_sample = 1;
   double seconds = 0.0;
 };
@@ -151,4 +151,4 @@ struct WaveformReport {
 };
 WaveformReport waveform_report(const WaveformDiagnosis& d);
 
-}  // namespace noisemon::model
+}  // namespace noisemon::model::diagnosis

@@ -29,9 +29,9 @@ struct FloorGroup {
 // Condition k's pressure floor: how it is judged, stated and estimated, and its level per band.
 void report_pressure_floor(const Context& cx, std::size_t k, Where& wh) {
   constexpr double kBar = 1e5;
-  const BandDataset& data = *cx.data;
-  const ConditionData& d = data.conditions[k];
-  const PressureFloor& f = cx.pressure_floors[k];
+  const fit::BandDataset& data = *cx.data;
+  const fit::ConditionData& d = data.conditions[k];
+  const fit::PressureFloor& f = cx.pressure_floors[k];
   const std::size_t nb = data.band_count();
   wh.pressure_floor_judged_by.push_back(f.density.empty() ? "none" : f.stated ? "stated" : "estimated");
   wh.pressure_floor_stated_bar.push_back(f.stated ? d.info.pressure_floor_pa / kBar : kNaN);
@@ -44,7 +44,7 @@ void report_pressure_floor(const Context& cx, std::size_t k, Where& wh) {
 
 // Condition k's cells at a floor, counted into wh and its group.
 void count_floor_cells(const Context& cx, std::size_t k, Where& wh, std::vector<FloorGroup>& groups) {
-  const BandDataset& data = *cx.data;
+  const fit::BandDataset& data = *cx.data;
   const std::size_t nb = data.band_count();
   int bands = 0, windows = 0;
   double from = kNaN;
@@ -87,14 +87,14 @@ std::string summary_line(const FloorGroup& g, std::size_t nb) {
 // The microphones' floor per band: the background runs' level, else the median quiet-window level of the fired
 // training conditions.
 void report_mic_floor(const Context& cx, Where& wh) {
-  const BandDataset& data = *cx.data;
+  const fit::BandDataset& data = *cx.data;
   const std::size_t nb = data.band_count();
   wh.mic_floor_db.assign(nb, kNaN);
   const bool has_bg = std::any_of(cx.background_ms.begin(), cx.background_ms.end(), [](double x) { return x > 0; });
   wh.mic_floor_source = has_bg ? "background runs" : "quiet crank windows";
   std::vector<std::vector<double>> quiet;
   if (!has_bg)
-    for (std::size_t k : cx.train_fired) quiet.push_back(quiet_window_mic_ms(data, k));
+    for (std::size_t k : cx.train_fired) quiet.push_back(fit::quiet_window_mic_ms(data, k));
   for (std::size_t b = 0; b < nb; ++b) {
     std::vector<double> v;
     for (const auto& q : quiet)
@@ -105,12 +105,12 @@ void report_mic_floor(const Context& cx, Where& wh) {
 
 // Per condition its name and role; per band its notes, the motored runs' and the background runs' level.
 void roles_and_levels(const Context& cx, Where& wh) {
-  const BandDataset& data = *cx.data;
+  const fit::BandDataset& data = *cx.data;
   const std::size_t nb = data.band_count();
   for (std::size_t b = 0; b < nb; ++b) wh.band_hz.push_back(data.bands[b].nominal_hz);
   wh.band_notes = cx.band_notes;
   for (std::size_t k = 0; k < data.conditions.size(); ++k) {
-    const ConditionData& d = data.conditions[k];
+    const fit::ConditionData& d = data.conditions[k];
     wh.conditions.push_back(d.info.name);
     const bool t = contains(cx.train_fired, k), h = contains(cx.heldout, k);
     wh.roles.push_back(d.info.background ? "floor"
@@ -140,7 +140,7 @@ void roles_and_levels(const Context& cx, Where& wh) {
 }
 
 // Condition d's measured attenuation and CPL per band, and its overall CPL.
-void input_levels(const BandDataset& data, const ConditionData& d, Where& wh) {
+void input_levels(const fit::BandDataset& data, const fit::ConditionData& d, Where& wh) {
   const std::size_t nb = data.band_count(), nc = d.cycle_count();
   std::vector<double> att_m(nb, kNaN), cpl_b(nb, kNaN);
   for (std::size_t b = 0; b < nb; ++b) {
@@ -159,10 +159,10 @@ void input_levels(const BandDataset& data, const ConditionData& d, Where& wh) {
 
 // Per cycle of condition k: the mean gap over the scored bands against the cycle's overall CPL, each as its
 // deviation from the condition's mean, appended to xs, ys.
-void cycle_gap_vs_level(const Context& cx, std::size_t k, const ConditionPrediction& p, std::vector<double>& cycle_x,
-                        std::vector<double>& cycle_y) {
-  const BandDataset& data = *cx.data;
-  const ConditionData& d = data.conditions[k];
+void cycle_gap_vs_level(const Context& cx, std::size_t k, const fit::ConditionPrediction& p,
+                        std::vector<double>& cycle_x, std::vector<double>& cycle_y) {
+  const fit::BandDataset& data = *cx.data;
+  const fit::ConditionData& d = data.conditions[k];
   const std::size_t nb = data.band_count(), nc = d.cycle_count();
   std::vector<double> xs, ys;
   for (std::size_t cy = 0; cy < nc; ++cy) {
@@ -191,12 +191,12 @@ void cycle_gap_vs_level(const Context& cx, std::size_t k, const ConditionPredict
 
 // The baseline's gap per held-out condition, against its input level, speed, injection timing and load.
 void gap_against_conditions(const Context& cx, const Evaluated& base, Where& wh) {
-  const BandDataset& data = *cx.data;
+  const fit::BandDataset& data = *cx.data;
   std::vector<double> speeds, sois, loads, cycle_x, cycle_y;
   for (std::size_t h = 0; h < cx.heldout.size(); ++h) {
-    const ConditionData& d = data.conditions[cx.heldout[h]];
+    const fit::ConditionData& d = data.conditions[cx.heldout[h]];
     const std::vector<double>& gaps = base.score.gaps[h];
-    wh.gap_per_condition_rms.push_back(rms_db(gaps));
+    wh.gap_per_condition_rms.push_back(fit::rms_db(gaps));
     wh.mean_gap_db.push_back(mean_finite(gaps));
     input_levels(data, d, wh);
     speeds.push_back(d.mean_speed_rpm() / 1000.0);
@@ -213,15 +213,15 @@ void gap_against_conditions(const Context& cx, const Evaluated& base, Where& wh)
 
 // Per microphone: its offset from the array and the thesis metric of its own curve, over the held-out conditions.
 void gap_per_microphone(const Context& cx, const Evaluated& base, Where& wh) {
-  const BandDataset& data = *cx.data;
+  const fit::BandDataset& data = *cx.data;
   const std::size_t nb = data.band_count(), M = data.conditions[cx.heldout.front()].mics;
   wh.mic_offset_db.assign(M, 0.0);
   wh.mic_gap_rms_db.assign(M, 0.0);
   for (std::size_t m = 0; m < M; ++m) wh.mics.push_back("mic" + std::to_string(m + 1));
-  const ExtendedModel none;
+  const fit::ExtendedModel none;
   for (std::size_t h = 0; h < cx.heldout.size(); ++h) {
     const std::size_t k = cx.heldout[h];
-    const ConditionData& d = data.conditions[k];
+    const fit::ConditionData& d = data.conditions[k];
     const std::vector<double> off = mic_offsets(d, measured_side(d, none), cx.base_mask[k], nullptr);
     const std::size_t nc = d.cycle_count();
     for (std::size_t m = 0; m < M && m < d.mics; ++m) {
@@ -236,7 +236,7 @@ void gap_per_microphone(const Context& cx, const Evaluated& base, Where& wh) {
         }
         if (a > 0 && q > 0) g[b] = db(a / q);
       }
-      wh.mic_gap_rms_db[m] += rms_db(g) / static_cast<double>(cx.heldout.size());
+      wh.mic_gap_rms_db[m] += fit::rms_db(g) / static_cast<double>(cx.heldout.size());
     }
   }
 }
@@ -268,7 +268,7 @@ void gap_per_window(const ModelScore& baseline, std::size_t nb, Where& wh) {
 
 // Per band, the mean over the fired conditions of the coherent fraction, fluctuation coherence and periodic share.
 void coherence(const Context& cx, Where& wh) {
-  const BandDataset& data = *cx.data;
+  const fit::BandDataset& data = *cx.data;
   const std::size_t nb = data.band_count();
   wh.coherent_fraction.assign(nb, 0.0);
   wh.fluct_coherence.assign(nb, 0.0);
@@ -277,7 +277,7 @@ void coherence(const Context& cx, Where& wh) {
     double a = 0.0, f = 0.0, p = 0.0;
     int n = 0;
     for (std::size_t k : cx.fired) {
-      const ConditionData& d = data.conditions[k];
+      const fit::ConditionData& d = data.conditions[k];
       if (!std::isfinite(d.coherent_fraction[b])) continue;
       a += d.coherent_fraction[b];
       f += d.fluct_coherence[b];
@@ -292,7 +292,7 @@ void coherence(const Context& cx, Where& wh) {
 
 }  // namespace
 
-double overall_cpl_db(const BandDataset& data, const ConditionData& d) {
+double overall_cpl_db(const fit::BandDataset& data, const fit::ConditionData& d) {
   const std::size_t nb = data.band_count(), nc = d.cycle_count();
   double cpl = 0.0;
   for (std::size_t b = 0; b < nb; ++b) {

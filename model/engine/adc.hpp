@@ -7,7 +7,7 @@
 #include <cstdint>
 #include <stdexcept>
 
-namespace noisemon::model {
+namespace noisemon::model::engine {
 
 class Adc {
  public:
@@ -45,4 +45,4 @@ class Adc {
   std::uint64_t clipped_ = 0;
 };
 
-}  // namespace noisemon::model
+}  // namespace noisemon::model::engine

@@ -14,7 +14,7 @@
 #include "dsp/levels.hpp"
 #include "dsp/weighting.hpp"
 
-namespace noisemon::model {
+namespace noisemon::model::engine {
 
 namespace {
 
@@ -573,4 +573,4 @@ double mic_gain_factor(const Effects& effects, std::size_t mic) {
   return std::pow(10.0, effects.mic_gain_db / 20.0);
 }
 
-}  // namespace noisemon::model
+}  // namespace noisemon::model::engine

@@ -45,7 +45,7 @@
 #include "model/block_params.hpp"
 #include "model/engine/random.hpp"
 
-namespace noisemon::model {
+namespace noisemon::model::engine {
 
 // Reference values the effects are defined against.
 inline constexpr double kEffectReferenceSpeedRpm = 3050.0;  // thesis idle: speed-scaled effects are exact here
@@ -221,4 +221,4 @@ void add_transducer_noise(const Effects& effects, std::uint64_t seed, std::int64
 // mic_gain: the linear factor of microphone `mic` (0-based) — 10^(M/20) for the chosen one, 1 otherwise.
 double mic_gain_factor(const Effects& effects, std::size_t mic);
 
-}  // namespace noisemon::model
+}  // namespace noisemon::model::engine

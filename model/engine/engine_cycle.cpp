@@ -6,7 +6,7 @@
 #include <numbers>
 #include <stdexcept>
 
-namespace noisemon::model {
+namespace noisemon::model::engine {
 
 namespace {
 
@@ -394,4 +394,4 @@ double EngineCycle::pressure_pa(double theta_deg) const {
          (s3 - s2) * h_ * dpt_[i + 1];
 }
 
-}  // namespace noisemon::model
+}  // namespace noisemon::model::engine

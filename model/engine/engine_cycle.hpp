@@ -27,7 +27,7 @@
 #include "model/engine/gas_ringing.hpp"
 #include "model/engine_geometry.hpp"
 
-namespace noisemon::model {
+namespace noisemon::model::engine {
 
 struct EngineCycleParams {
   EngineGeometry geometry;
@@ -160,4 +160,4 @@ class EngineCycle {
   CycleSummary summary_;
 };
 
-}  // namespace noisemon::model
+}  // namespace noisemon::model::engine

@@ -5,7 +5,7 @@
 #include <numbers>
 #include <stdexcept>
 
-namespace noisemon::model {
+namespace noisemon::model::engine {
 
 namespace {
 
@@ -90,4 +90,4 @@ double add_gas_ringing(const GasRingingParams& params, const RingingInput& in, s
   return amp;
 }
 
-}  // namespace noisemon::model
+}  // namespace noisemon::model::engine

@@ -32,7 +32,7 @@
 #include <cstddef>
 #include <span>
 
-namespace noisemon::model {
+namespace noisemon::model::engine {
 
 inline constexpr std::size_t kRingingModes = 3;
 // Bessel-function roots alpha_mn of the modes (1,0), (2,0), (0,1) (Draper 1938).
@@ -80,4 +80,4 @@ double premixed_peak_fraction(double wiebe_a, double shape);
 double add_gas_ringing(const GasRingingParams& params, const RingingInput& in, std::span<double> p,
                        std::span<double> dp, std::span<double> scratch);
 
-}  // namespace noisemon::model
+}  // namespace noisemon::model::engine

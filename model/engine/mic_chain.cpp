@@ -10,7 +10,7 @@
 #include "dsp/weighting.hpp"
 #include "model/engine/random.hpp"
 
-namespace noisemon::model {
+namespace noisemon::model::engine {
 
 namespace {
 
@@ -115,4 +115,4 @@ double self_noise_rms_pa(double level_dba, double fs_hz) {
   return std::sqrt(dsp::mean_square_from_level(level_dba) * fs_hz / (2.0 * gain));
 }
 
-}  // namespace noisemon::model
+}  // namespace noisemon::model::engine

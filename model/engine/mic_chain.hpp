@@ -27,7 +27,7 @@
 #include <limits>
 #include <vector>
 
-namespace noisemon::model {
+namespace noisemon::model::engine {
 
 inline constexpr std::size_t kDirectivityBands = 8;
 inline constexpr std::array<double, kDirectivityBands> kDirectivityBandsHz{125,  250,  500,  1000,
@@ -76,4 +76,4 @@ class DirectivityFilter {
 // rms (Pa) of white noise sampled at fs whose A-weighted level over 20 Hz - min(20 kHz, fs / 2) is level_dba.
 double self_noise_rms_pa(double level_dba, double fs_hz);
 
-}  // namespace noisemon::model
+}  // namespace noisemon::model::engine

@@ -7,7 +7,7 @@
 
 #include "model/engine/random.hpp"
 
-namespace noisemon::model {
+namespace noisemon::model::engine {
 
 namespace {
 
@@ -91,4 +91,4 @@ void PressureChain::measure(std::int64_t first_index, double* pressure_pa, std::
   adc_.convert(pressure_pa, n);
 }
 
-}  // namespace noisemon::model
+}  // namespace noisemon::model::engine

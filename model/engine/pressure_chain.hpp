@@ -27,7 +27,7 @@
 #include "model/engine/adc.hpp"
 #include "model/engine/effects.hpp"
 
-namespace noisemon::model {
+namespace noisemon::model::engine {
 
 inline constexpr int kFlickerRows = 16;
 
@@ -72,4 +72,4 @@ class PressureChain {
   std::int64_t row_offset_[kFlickerRows];
 };
 
-}  // namespace noisemon::model
+}  // namespace noisemon::model::engine

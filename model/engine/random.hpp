@@ -14,7 +14,7 @@
 #include <cstdint>
 #include <numbers>
 
-namespace noisemon::model::rnd {
+namespace noisemon::model::engine::rnd {
 
 inline std::uint64_t splitmix64(std::uint64_t& state) {
   std::uint64_t z = (state += 0x9E3779B97F4A7C15ULL);
@@ -78,4 +78,4 @@ class Normal {
   bool has_spare_ = false;
 };
 
-}  // namespace noisemon::model::rnd
+}  // namespace noisemon::model::engine::rnd

@@ -15,7 +15,7 @@
 #include "model/engine/adc.hpp"
 #include "model/engine/random.hpp"
 
-namespace noisemon::model {
+namespace noisemon::model::engine {
 
 namespace {
 
@@ -270,4 +270,4 @@ std::vector<double> VirtualEngine::delays_s() const {
   return d;
 }
 
-}  // namespace noisemon::model
+}  // namespace noisemon::model::engine

@@ -33,7 +33,7 @@
 #include "model/engine/mic_chain.hpp"
 #include "model/engine/pressure_chain.hpp"
 
-namespace noisemon::model {
+namespace noisemon::model::engine {
 
 struct VirtualEngineConfig {
   double input_rate_hz = 102400.0;                     // pressure / crank grid
@@ -101,4 +101,4 @@ class VirtualEngine {
   std::unique_ptr<Impl> impl_;
 };
 
-}  // namespace noisemon::model
+}  // namespace noisemon::model::engine

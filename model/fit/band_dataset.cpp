@@ -9,7 +9,7 @@
 #include <numeric>
 #include <stdexcept>
 
-namespace noisemon::model {
+namespace noisemon::model::fit {
 namespace {
 
 constexpr std::size_t kW = kCrankWindows;
@@ -356,4 +356,4 @@ BandDataset make_dataset(std::vector<ConditionData> conditions) {
   return ds;
 }
 
-}  // namespace noisemon::model
+}  // namespace noisemon::model::fit

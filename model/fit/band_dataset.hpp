@@ -25,7 +25,7 @@
 
 #include "dsp/third_octave_bank.hpp"
 
-namespace noisemon::model {
+namespace noisemon::model::fit {
 
 inline constexpr double kDatasetRateHz = 40000.0;
 inline constexpr std::size_t kCrankWindows = 8;  // 90-degree crank-angle windows per 720-degree cycle
@@ -133,4 +133,4 @@ void segment_band_powers(const PreparedSegment& segment, const double* signal, s
 std::size_t segment_frames(const PreparedSegment& segment, std::size_t cycles = 0);
 std::size_t segment_cycles(const PreparedSegment& segment);
 
-}  // namespace noisemon::model
+}  // namespace noisemon::model::fit

@@ -10,7 +10,7 @@
 
 #include "model/fit/band_fit_internal.hpp"
 
-namespace noisemon::model {
+namespace noisemon::model::fit {
 namespace {
 
 using namespace band_fit_internal;
@@ -315,4 +315,4 @@ FitOutcome fit_model(const FitSetup& setup, const ExtendedModel& start) {
   return out;
 }
 
-}  // namespace noisemon::model
+}  // namespace noisemon::model::fit

@@ -32,7 +32,7 @@
 #include "model/block_params.hpp"
 #include "model/fit/band_dataset.hpp"
 
-namespace noisemon::model {
+namespace noisemon::model::fit {
 
 // ------------------------------------------------------------------------------------------ parameters
 
@@ -205,4 +205,4 @@ struct ConditionPrediction {
 ConditionPrediction predict_condition(const BandDataset& data, std::size_t condition, const ExtendedModel& model,
                                       bool windows, std::size_t cycles = 0);
 
-}  // namespace noisemon::model
+}  // namespace noisemon::model::fit

@@ -8,7 +8,7 @@
 #include "model/fit/band_fit.hpp"
 #include "model/fit/band_fit_internal.hpp"
 
-namespace noisemon::model {
+namespace noisemon::model::fit {
 namespace band_fit_internal {
 namespace {
 
@@ -46,12 +46,12 @@ void simulate_condition(const ConditionData& cond, const BlockParams& params, st
     mean /= static_cast<double>(nmean);
     for (std::size_t i = 0; i < frames; ++i) y[i] = y[i + lat] - mean;
     if (mode) {
-      Effects e;
+      engine::Effects e;
       e.second_mode_db = mode->mode_db;
       e.second_mode_hz = mode->mode_hz;
       e.second_mode_q = mode->mode_q;
       e.second_mode_phase_deg = mode->mode_phase_deg;
-      SecondModeFilter(e, kDatasetRateHz).process(y.data(), frames);
+      engine::SecondModeFilter(e, kDatasetRateHz).process(y.data(), frames);
     }
     segment_band_powers(seg, y.data(), 1, nc, part, win_ms ? &wpart : nullptr);
     cycle_ms.insert(cycle_ms.end(), part.begin(), part.end());
@@ -100,4 +100,4 @@ Anchor make_anchor(const BandDataset& data, const BlockParams& block, const std:
   return a;
 }
 
-}  // namespace noisemon::model
+}  // namespace noisemon::model::fit

@@ -7,7 +7,7 @@
 #include "model/fit/band_fit.hpp"
 #include "model/fit/band_fit_internal.hpp"
 
-namespace noisemon::model {
+namespace noisemon::model::fit {
 namespace {
 
 using namespace band_fit_internal;
@@ -176,4 +176,4 @@ ConditionPrediction predict_condition(const BandDataset& data, std::size_t k, co
   return p;
 }
 
-}  // namespace noisemon::model
+}  // namespace noisemon::model::fit

@@ -4,7 +4,7 @@
 
 #include "model/fit/band_fit.hpp"
 
-namespace noisemon::model {
+namespace noisemon::model::fit {
 
 double measured_ms(const ConditionData& c, std::size_t cycle, std::size_t b, const ExtendedModel& model) {
   if (!model.on.mic_gain || model.ext.mic_gain_db.size() != c.mics) return c.mic_avg_ms(cycle, b);
@@ -41,4 +41,4 @@ double rms_db(const std::vector<double>& gaps) {
   return n > 0 ? std::sqrt(s / n) : std::numeric_limits<double>::quiet_NaN();
 }
 
-}  // namespace noisemon::model
+}  // namespace noisemon::model::fit

@@ -24,7 +24,7 @@
 #include "model/fit/band_fit.hpp"
 #include "model/fit/pressure_floor.hpp"
 
-namespace noisemon::model::band_fit_internal {
+namespace noisemon::model::fit::band_fit_internal {
 
 inline constexpr double kPi = std::numbers::pi;
 inline constexpr double kDbPerNeper = 10.0 / std::numbers::ln10;  // d(10 log10 x) / d(ln x)
@@ -171,4 +171,4 @@ CondSetup make_cond_setup(const BandDataset& data, const Anchor& anchor, std::si
 Values initial_values(const Layout& L, const ExtendedModel& start, const std::vector<CondSetup>& conds);
 ExtendedModel model_from_values(const Layout& L, const Values& v, const ExtendedModel& start);
 
-}  // namespace noisemon::model::band_fit_internal
+}  // namespace noisemon::model::fit::band_fit_internal

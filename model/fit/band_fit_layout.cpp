@@ -6,7 +6,7 @@
 
 #include "model/fit/band_fit_internal.hpp"
 
-namespace noisemon::model::band_fit_internal {
+namespace noisemon::model::fit::band_fit_internal {
 namespace {
 
 // The crank-window part of a condition's view (locked noise): per window band the measured (gain-corrected) and
@@ -224,4 +224,4 @@ ExtendedModel model_from_values(const Layout& L, const Values& v, const Extended
   return m;
 }
 
-}  // namespace noisemon::model::band_fit_internal
+}  // namespace noisemon::model::fit::band_fit_internal

@@ -9,7 +9,7 @@
 #include "model/fit/band_fit.hpp"
 #include "model/fit/band_fit_internal.hpp"
 
-namespace noisemon::model {
+namespace noisemon::model::fit {
 
 double mode_phase_rad(const ExtensionParams& e) { return e.mode_phase_deg * std::numbers::pi / 180.0; }
 
@@ -152,4 +152,4 @@ BlockParam param_of_struct(int idx) {
 bool is_cubic(BlockParam p) { return p == BlockParam::kK3 || p == BlockParam::kB3; }
 
 }  // namespace band_fit_internal
-}  // namespace noisemon::model
+}  // namespace noisemon::model::fit

@@ -10,7 +10,7 @@
 #include "model/fit/band_fit.hpp"
 #include "model/fit/band_fit_internal.hpp"
 
-namespace noisemon::model {
+namespace noisemon::model::fit {
 namespace {
 
 using namespace band_fit_internal;
@@ -365,4 +365,4 @@ FitOutcome refit_on_anchor(const FitSetup& setup, const Anchor& anchor, const Ex
   return out;
 }
 
-}  // namespace noisemon::model
+}  // namespace noisemon::model::fit

@@ -7,7 +7,7 @@
 
 #include "model/fit/band_fit_internal.hpp"
 
-namespace noisemon::model::band_fit_internal {
+namespace noisemon::model::fit::band_fit_internal {
 namespace {
 
 // F_b of the condition's scored bands at the structural variables s, and its noise-driven part. Taylor mode: the
@@ -140,4 +140,4 @@ void condition_residuals(const Layout& L, const Values& v, const CondSetup& c, b
   }
 }
 
-}  // namespace noisemon::model::band_fit_internal
+}  // namespace noisemon::model::fit::band_fit_internal

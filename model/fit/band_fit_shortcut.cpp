@@ -5,7 +5,7 @@
 
 #include "model/fit/band_fit_internal.hpp"
 
-namespace noisemon::model::band_fit_internal {
+namespace noisemon::model::fit::band_fit_internal {
 namespace {
 
 template <typename T>
@@ -141,4 +141,4 @@ template void band_sums<double>(const Layout&, const CondSetup&, const double*, 
 template void band_sums<Jet>(const Layout&, const CondSetup&, const Jet*, const std::vector<std::size_t>&,
                              std::vector<Jet>&, std::vector<Jet>*);
 
-}  // namespace noisemon::model::band_fit_internal
+}  // namespace noisemon::model::fit::band_fit_internal

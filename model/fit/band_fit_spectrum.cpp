@@ -8,7 +8,7 @@
 #include "model/fit/band_fit.hpp"
 #include "model/fit/band_fit_internal.hpp"
 
-namespace noisemon::model::band_fit_internal {
+namespace noisemon::model::fit::band_fit_internal {
 namespace {
 
 constexpr double kCompressFromHz = 400.0;  // spectrum bins merged into 1/48-octave bins above this
@@ -128,4 +128,4 @@ ConditionSpectrum condition_spectrum(const BandDataset& data, std::size_t k, std
   return sp;
 }
 
-}  // namespace noisemon::model::band_fit_internal
+}  // namespace noisemon::model::fit::band_fit_internal

@@ -6,7 +6,7 @@
 
 #include "model/fit/band_fit_internal.hpp"
 
-namespace noisemon::model {
+namespace noisemon::model::fit {
 namespace {
 
 constexpr std::size_t kW = kCrankWindows;
@@ -199,4 +199,4 @@ std::vector<std::vector<char>> floor_limited_bands(const BandDataset& data, std:
   return bands;
 }
 
-}  // namespace noisemon::model
+}  // namespace noisemon::model::fit

@@ -26,7 +26,7 @@
 
 #include "model/fit/band_dataset.hpp"
 
-namespace noisemon::model {
+namespace noisemon::model::fit {
 
 // The margin above a floor below which a cell is floor-limited (ISO 3744's 6 dB for background noise): the floor
 // then makes more than a quarter of the measured (or of the predicted) power.
@@ -77,4 +77,4 @@ std::vector<double> quiet_window_mic_ms(const BandDataset& data, std::size_t con
 // Bands whose filter settles within the shortest crank window of the conditions (window levels mean something).
 std::vector<char> window_capable_bands(const BandDataset& data, const std::vector<std::size_t>& conditions);
 
-}  // namespace noisemon::model
+}  // namespace noisemon::model::fit

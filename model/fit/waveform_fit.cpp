@@ -16,7 +16,7 @@
 
 #include "model/fit/waveform_sim.hpp"
 
-namespace noisemon::model {
+namespace noisemon::model::fit {
 namespace {
 
 constexpr double kFiniteDifference = 1e-5;       // in the O(1) fitting coordinates
@@ -456,4 +456,4 @@ WaveformFitResult fit_waveform(std::span<const double> u, std::span<const double
   return res;
 }
 
-}  // namespace noisemon::model
+}  // namespace noisemon::model::fit

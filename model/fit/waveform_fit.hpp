@@ -39,7 +39,7 @@
 #include "model/block_params.hpp"
 #include "model/second_mode_model.hpp"
 
-namespace noisemon::model {
+namespace noisemon::model::fit {
 
 // Half-open sample-index range [begin, end).
 struct SampleRange {
@@ -151,4 +151,4 @@ struct WaveformFitResult {
 // model cannot be simulated on the data.
 WaveformFitResult fit_waveform(std::span<const double> u, std::span<const double> y, const WaveformFitOptions& opt);
 
-}  // namespace noisemon::model
+}  // namespace noisemon::model::fit

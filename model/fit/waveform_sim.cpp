@@ -12,7 +12,7 @@
 #include <numbers>
 #include <stdexcept>
 
-namespace noisemon::model {
+namespace noisemon::model::fit {
 namespace {
 
 constexpr double kStepOmega = 0.3;  // h * omega of the fixed integration step
@@ -466,4 +466,4 @@ std::optional<WaveformModel> linear_estimate_from_data(std::span<const double> u
   return m;
 }
 
-}  // namespace noisemon::model
+}  // namespace noisemon::model::fit

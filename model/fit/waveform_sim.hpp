@@ -11,7 +11,7 @@
 
 #include "model/fit/waveform_fit.hpp"
 
-namespace noisemon::model::detail {
+namespace noisemon::model::fit::detail {
 
 using State = std::array<double, 4>;  // z, z', and the second mode's w, w'
 
@@ -45,4 +45,4 @@ void least_squares_gains(WaveformModel& m, double fs_hz, const WaveformSimOption
                          std::span<const double> u, std::span<const double> y, std::span<const SampleRange> ranges,
                          const std::vector<std::string>& free);
 
-}  // namespace noisemon::model::detail
+}  // namespace noisemon::model::fit::detail

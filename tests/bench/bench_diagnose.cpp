@@ -14,8 +14,8 @@
 
 namespace {
 
-const noisemon::model::BandDataset& campaign() {
-  static const noisemon::model::BandDataset data = [] {
+const noisemon::model::fit::BandDataset& campaign() {
+  static const noisemon::model::fit::BandDataset data = [] {
     const auto t0 = std::chrono::steady_clock::now();
     noisemon::cli::SimCampaign c;
     c.conditions = noisemon::cli::thesis_conditions();
@@ -23,7 +23,7 @@ const noisemon::model::BandDataset& campaign() {
     // NOISEMON_BENCH_EFFECT=NAME[=MAGNITUDE] (or "none") swaps the withheld effect, for a quick look at a verdict.
     const char* env = std::getenv("NOISEMON_BENCH_EFFECT");
     const std::string effect = env ? env : "second_mode";
-    if (effect != "none") c.effects = noisemon::model::parse_effects({effect});
+    if (effect != "none") c.effects = noisemon::model::engine::parse_effects({effect});
     auto d = noisemon::cli::simulate_band_dataset(c);
     std::printf("generating 12 conditions x 40 cycles (sim + 40 kHz conversion + bank): %.1f s\n",
                 std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
@@ -34,10 +34,10 @@ const noisemon::model::BandDataset& campaign() {
 
 void BM_DiagnoseBand12x40(benchmark::State& state) {
   const auto& data = campaign();
-  noisemon::model::DiagnosisResult last;
+  noisemon::model::diagnosis::DiagnosisResult last;
   for (auto _ : state) {
-    noisemon::model::DiagnosisOptions opt;
-    last = noisemon::model::diagnose(data, noisemon::model::preset("linear"), "linear", opt);
+    noisemon::model::diagnosis::DiagnosisOptions opt;
+    last = noisemon::model::diagnosis::diagnose(data, noisemon::model::preset("linear"), "linear", opt);
     benchmark::DoNotOptimize(last.verdict.effect);
   }
   std::printf("\nfull diagnosis: %.2f s total, verdict %s (held-out gap %.2f -> %.2f dB)\n", last.seconds,

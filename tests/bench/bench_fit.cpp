@@ -23,8 +23,8 @@ namespace {
 using namespace noisemon;
 constexpr double kFs = 1000.0;
 
-model::WaveformModel duffing() {
-  model::WaveformModel m;
+model::fit::WaveformModel duffing() {
+  model::fit::WaveformModel m;
   const double w = 2.0 * std::numbers::pi * 40.0;
   m.block.m = 1.0;
   m.block.k1 = w * w;
@@ -50,8 +50,8 @@ const Data& data() {
     double x = 0.0;
     for (double& u : d.u) u = x = 0.7 * x + 0.7 * g(gen);  // coloured noise around the resonance
     d.y.assign(n, 0.0);
-    model::WaveformSimOptions sim;
-    d.y = model::simulate_waveform(duffing(), kFs, sim, d.u, d.y, {0, n});
+    model::fit::WaveformSimOptions sim;
+    d.y = model::fit::simulate_waveform(duffing(), kFs, sim, d.u, d.y, {0, n});
     for (double& y : d.y) y += 0.01 * g(gen);
     return d;
   }();
@@ -60,10 +60,10 @@ const Data& data() {
 
 void BM_FreeRunSimulation(benchmark::State& state) {
   const Data& d = data();
-  model::WaveformSimOptions sim;
+  model::fit::WaveformSimOptions sim;
   sim.settle_samples = 0;
   for (auto _ : state) {
-    auto y = model::simulate_waveform(duffing(), kFs, sim, d.u, d.y, {0, d.u.size()});
+    auto y = model::fit::simulate_waveform(duffing(), kFs, sim, d.u, d.y, {0, d.u.size()});
     benchmark::DoNotOptimize(y.data());
   }
   state.counters["x_realtime"] =
@@ -73,12 +73,12 @@ BENCHMARK(BM_FreeRunSimulation)->Unit(benchmark::kMillisecond);
 
 void BM_WaveformFitDuffing60s(benchmark::State& state) {
   const Data& d = data();
-  model::WaveformFitOptions o;
+  model::fit::WaveformFitOptions o;
   o.fs_hz = kFs;
   o.train = {{0, 45000}};
   o.heldout = {{45000, 60000}};
   o.free_params = {"k1", "b1", "k3", "c0", "c1"};
-  model::WaveformModel start = duffing();
+  model::fit::WaveformModel start = duffing();
   start.block.k1 *= 0.8;
   start.block.b1 *= 1.4;
   start.block.c0 *= 1.2;
@@ -87,7 +87,7 @@ void BM_WaveformFitDuffing60s(benchmark::State& state) {
   int iterations = 0;
   double rms = 0.0;
   for (auto _ : state) {
-    const model::WaveformFitResult r = model::fit_waveform(d.u, d.y, o);
+    const model::fit::WaveformFitResult r = model::fit::fit_waveform(d.u, d.y, o);
     iterations = r.iterations;
     rms = r.heldout_rms;
   }

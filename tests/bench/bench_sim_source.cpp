@@ -44,8 +44,8 @@ void BM_PressureStream(benchmark::State& state) { run_stream<nd::sim::PressureGe
 void BM_MicStream(benchmark::State& state) { run_stream<nd::sim::MicGenerator>(state); }
 
 void BM_EngineCycleCompute(benchmark::State& state) {
-  noisemon::model::EngineCycle cycle;
-  const noisemon::model::OperatingCondition op{
+  noisemon::model::engine::EngineCycle cycle;
+  const noisemon::model::engine::OperatingCondition op{
       .speed_rpm = 3450.0, .load_nm = 20.0, .soi_deg_btdc = 18.0, .motored = false};
   for (auto _ : state) {
     cycle.compute(op);

@@ -52,25 +52,26 @@ struct Cell {
   bool background_run = false;
 };
 
-model::BandDataset campaign(const std::vector<std::string>& effects, const Cell& cell = {}) {
+model::fit::BandDataset campaign(const std::vector<std::string>& effects, const Cell& cell = {}) {
   cli::SimCampaign c;
   for (const cli::SimCondition& k : cli::thesis_conditions())
     if (cell.motored || !k.motored) c.conditions.push_back(k);
   c.cycles = kCycles;
-  c.effects = model::parse_effects(effects);
+  c.effects = model::engine::parse_effects(effects);
   if (cell.floor_bar > 0.0)
     c.engine.pressure_chain.noise_bar = cell.floor_bar;
   else
-    c.engine.pressure_chain = model::PressureChainConfig::ideal();
+    c.engine.pressure_chain = model::engine::PressureChainConfig::ideal();
   c.background_run = cell.background_run;
   return cli::simulate_band_dataset(c);
 }
 
-model::DiagnosisResult run(const model::BandDataset& data, const model::DiagnosisOptions& opt = {}) {
-  return model::diagnose(data, model::preset("linear"), "linear", opt);
+model::diagnosis::DiagnosisResult run(const model::fit::BandDataset& data,
+                                      const model::diagnosis::DiagnosisOptions& opt = {}) {
+  return model::diagnosis::diagnose(data, model::preset("linear"), "linear", opt);
 }
 
-void print(const std::string& title, const model::DiagnosisResult& r) {
+void print(const std::string& title, const model::diagnosis::DiagnosisResult& r) {
   std::printf(
       "%s: verdict %s%s, held-out gap %.2f -> %.2f dB (%.0f %% closed), thesis metric %.2f -> %.2f dB, %.1f s\n",
       title.c_str(), r.verdict.effect.c_str(), r.verdict.also.empty() ? "" : (" + " + r.verdict.also[0]).c_str(),
@@ -92,8 +93,8 @@ class WithheldEffect : public ::testing::TestWithParam<Withheld> {};
 
 TEST_P(WithheldEffect, VerdictNamesItAndTheHeldOutGapShrinksByAtLeast60Percent) {
   const Withheld w = GetParam();
-  const model::BandDataset data = campaign({w.effect});
-  const model::DiagnosisResult r = run(data);
+  const model::fit::BandDataset data = campaign({w.effect});
+  const model::diagnosis::DiagnosisResult r = run(data);
   print(w.effect, r);
   EXPECT_EQ(r.verdict.effect, w.name);
   EXPECT_GE(r.verdict.gap_closed_fraction, 0.6);
@@ -138,7 +139,7 @@ TEST_P(WithheldEffectAtTheRealFloor, VerdictNamesItAndTheHeldOutGapShrinksByAtLe
   const Withheld w = GetParam();
   Cell cell;
   cell.floor_bar = 0.2;
-  const model::DiagnosisResult r = run(campaign({w.effect}, cell));
+  const model::diagnosis::DiagnosisResult r = run(campaign({w.effect}, cell));
   print(std::string(w.effect) + " at 0.2 bar", r);
   EXPECT_EQ(r.verdict.effect, w.name);
   EXPECT_GE(r.verdict.gap_closed_fraction, 0.6);
@@ -165,10 +166,10 @@ class NullDataset : public ::testing::TestWithParam<NullCase> {};
 
 TEST_P(NullDataset, GivesNone) {
   const NullCase c = GetParam();
-  model::DiagnosisOptions opt;
+  model::diagnosis::DiagnosisOptions opt;
   opt.candidates = {"mic_gain"};
-  const model::BandDataset data = campaign({}, c.cell);
-  const model::DiagnosisResult r = run(data, opt);
+  const model::fit::BandDataset data = campaign({}, c.cell);
+  const model::diagnosis::DiagnosisResult r = run(data, opt);
   print("no effect, " + c.name, r);
   EXPECT_EQ(r.verdict.effect, "none");
   EXPECT_LT(r.verdict.heldout_rms_before_db, 0.5);
@@ -200,10 +201,10 @@ TEST(Diagnose, TheStatedFloorIsTheOneJudgedAndTheEstimateAgreesWithIt) {
   // from the quiet crank windows. Independent reference: the configured 0.05 bar (white, per encoder sample).
   Cell cell;
   cell.floor_bar = 0.05;
-  model::DiagnosisOptions opt;
+  model::diagnosis::DiagnosisOptions opt;
   opt.candidates = {"mic_gain"};
-  const model::BandDataset data = campaign({}, cell);
-  const model::DiagnosisResult r = run(data, opt);
+  const model::fit::BandDataset data = campaign({}, cell);
+  const model::diagnosis::DiagnosisResult r = run(data, opt);
   for (std::size_t k = 0; k < data.conditions.size(); ++k) {
     EXPECT_EQ(r.where.pressure_floor_judged_by[k], "stated") << data.conditions[k].info.name;
     EXPECT_NEAR(r.where.pressure_floor_stated_bar[k], 0.05, 0.001);
@@ -222,7 +223,7 @@ TEST(Diagnose, TheStatedFloorIsTheOneJudgedAndTheEstimateAgreesWithIt) {
 TEST(Diagnose, AnEffectNoCandidateCanExpressIsUnexplained) {
   // foreign_soi_gain: fired cycles louder by 0.5 dB per degree of injection advance over 18 deg BTDC, on the
   // structural path. No candidate depends on the injection timing, so none may take the credit.
-  const model::DiagnosisResult r = run(campaign({"foreign_soi_gain=0.5"}));
+  const model::diagnosis::DiagnosisResult r = run(campaign({"foreign_soi_gain=0.5"}));
   print("foreign_soi_gain=0.5", r);
   EXPECT_EQ(r.verdict.effect, "unexplained");
   EXPECT_GT(r.verdict.heldout_rms_before_db, 0.5);
@@ -234,7 +235,7 @@ TEST(Diagnose, AnEffectNoCandidateCanExpressIsUnexplained) {
 
 TEST(Diagnose, TwoEffectsNameTheStrongerFirstAndTheOtherIsSignificant) {
   // second_mode at 10 dB is much the larger gap; a 2 dB miscalibrated microphone the smaller.
-  const model::DiagnosisResult r = run(campaign({"second_mode=10", "mic_gain=2,mic=4"}));
+  const model::diagnosis::DiagnosisResult r = run(campaign({"second_mode=10", "mic_gain=2,mic=4"}));
   print("second_mode=10 + mic_gain=2", r);
   EXPECT_EQ(r.verdict.effect, "second_mode");
   bool other_significant = false, on_top = false;
@@ -256,11 +257,11 @@ TEST(Diagnose, ThesisProtocolTrainsAtIdleAndValidatesAtFullLoad) {
   // The thesis tuned at idle and validated at full load; with an amplitude-dependent damper in the engine the
   // tuned linear model extrapolates badly to the louder full-load cycles, and the cubic damper, fitted at idle
   // only, carries over.
-  model::DiagnosisOptions opt;
+  model::diagnosis::DiagnosisOptions opt;
   opt.train = {"idle"};
   opt.holdout = {"full"};
-  const model::BandDataset data = campaign({"cubic_damping"});
-  const model::DiagnosisResult r = run(data, opt);
+  const model::fit::BandDataset data = campaign({"cubic_damping"});
+  const model::diagnosis::DiagnosisResult r = run(data, opt);
   print("thesis protocol, cubic_damping", r);
   EXPECT_FALSE(r.leave_one_out);
   ASSERT_EQ(r.train.size(), 5u);
@@ -284,11 +285,11 @@ TEST(Diagnose, ThesisProtocolOnTheThesisNonlinearSpringDamperNamesBothCubicTerms
   c.cycles = kCycles;
   c.engine = drivers::with_ideal_cell(c.engine);
   c.true_block = model::preset("nl_spring_damper");
-  const model::BandDataset data = cli::simulate_band_dataset(c);
-  model::DiagnosisOptions opt;
+  const model::fit::BandDataset data = cli::simulate_band_dataset(c);
+  model::diagnosis::DiagnosisOptions opt;
   opt.train = {"idle"};
   opt.holdout = {"full"};
-  const model::DiagnosisResult r = run(data, opt);
+  const model::diagnosis::DiagnosisResult r = run(data, opt);
   print("thesis protocol, true nl_spring_damper", r);
   EXPECT_EQ(r.verdict.effect, "cubic_damping");
   ASSERT_EQ(r.verdict.also.size(), 1u);

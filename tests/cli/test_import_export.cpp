@@ -801,7 +801,7 @@ TEST(ImportNulls, TheDiagnosisLoaderPassesUnknownSoiAndLoadAndTheNoiseFloor) {
                   R"(, "noise_floor_bar": 0.0025)");
   const std::vector<cli::LoadedRecording> recs = cli::load_recordings({dir.string()});
   ASSERT_EQ(recs.size(), 1u);
-  const model::ConditionInfo info = cli::condition_info(recs[0]);
+  const model::fit::ConditionInfo info = cli::condition_info(recs[0]);
   EXPECT_EQ(info.name, "loader_nulls");
   EXPECT_TRUE(std::isnan(info.soi_deg_btdc));
   EXPECT_TRUE(std::isnan(info.load_nm));
@@ -814,7 +814,7 @@ TEST(ImportNulls, TheDiagnosisLoaderPassesUnknownSoiAndLoadAndTheNoiseFloor) {
   import_dir(dir, log);
   const std::vector<cli::LoadedRecording> from_log = cli::load_recordings({log.string()});
   ASSERT_EQ(from_log.size(), 1u);
-  const model::ConditionInfo log_info = cli::condition_info(from_log[0]);
+  const model::fit::ConditionInfo log_info = cli::condition_info(from_log[0]);
   EXPECT_TRUE(std::isnan(log_info.pressure_floor_pa));
   EXPECT_TRUE(std::isnan(log_info.encoder_rate_hz));
   EXPECT_TRUE(std::isnan(log_info.soi_deg_btdc));

@@ -11,7 +11,7 @@ TEST(SimRun, TheSameSpecGivesTheSameBitsAndAnotherSeedOthers) {
   cli::SimRunSpec spec;
   spec.condition = cli::resolve_conditions({"full_mi21"}).front();
   spec.cycles = 2;
-  spec.effects = model::parse_effects({"transducer_noise", "mechanical_noise"});
+  spec.effects = model::engine::parse_effects({"transducer_noise", "mechanical_noise"});
   const drivers::RunDir a = cli::simulate_run(spec), b = cli::simulate_run(spec);
   EXPECT_EQ(a.pressure_pa, b.pressure_pa);
   EXPECT_EQ(a.mic_pa, b.mic_pa);

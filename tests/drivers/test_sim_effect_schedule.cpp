@@ -41,21 +41,22 @@ std::vector<double> generate(const nd::SimConfig& cfg, double t_end, bool every_
 nd::SimConfig scheduled(const char* effect, double onset_s, double ramp_s) {
   nd::SimConfig c;
   c.seed = 5;
-  c.scheduled_effects.push_back({nm::parse_effect(effect), onset_s, ramp_s});
+  c.scheduled_effects.push_back({nm::engine::parse_effect(effect), onset_s, ramp_s});
   return c;
 }
 
 }  // namespace
 
 TEST(SimEffectSchedule, WeightIsZeroBeforeOnsetLinearOverTheRampAndOneAfter) {
-  const nd::ScheduledEffect step{nm::parse_effect("mic_gain=3"), 90.0, 0.0};
+  const nd::ScheduledEffect step{nm::engine::parse_effect("mic_gain=3"), 90.0, 0.0};
   EXPECT_EQ(nd::effect_weight(step, 89.999), 0.0);
   EXPECT_EQ(nd::effect_weight(step, 90.0), 1.0);
-  const nd::ScheduledEffect ramp{nm::parse_effect("mic_gain=1"), 10.0, 600.0};
+  const nd::ScheduledEffect ramp{nm::engine::parse_effect("mic_gain=1"), 10.0, 600.0};
   EXPECT_EQ(nd::effect_weight(ramp, 5.0), 0.0);
   EXPECT_DOUBLE_EQ(nd::effect_weight(ramp, 310.0), 0.5);
   EXPECT_EQ(nd::effect_weight(ramp, 700.0), 1.0);
-  EXPECT_THROW((void)nd::cumulative_effects(nm::parse_effects({"mic_gain=2"}), {step}, 1), std::invalid_argument);
+  EXPECT_THROW((void)nd::cumulative_effects(nm::engine::parse_effects({"mic_gain=2"}), {step}, 1),
+               std::invalid_argument);
 }
 
 // A step of mic_gain on microphone 4: every other microphone bit-identical to the clean engine throughout,
@@ -113,7 +114,7 @@ TEST(SimEffectSchedule, TransducerNoiseStepAddsWhatTheSameFloorAdds) {
   nd::SimConfig floor = quiet;
   floor.pressure_chain.noise_bar = 0.5;
   nd::SimConfig noisy = quiet;
-  noisy.scheduled_effects.push_back({nm::parse_effect("transducer_noise=0.5"), onset, 0.0});
+  noisy.scheduled_effects.push_back({nm::engine::parse_effect("transducer_noise=0.5"), onset, 0.0});
   const auto clean = generate<nd::sim::PressureGenerator>(quiet, 0.3);
   const auto with_floor = generate<nd::sim::PressureGenerator>(floor, 0.3);
   const auto stepped = generate<nd::sim::PressureGenerator>(noisy, 0.3);

@@ -17,7 +17,7 @@ namespace nm = noisemon::model;
 
 namespace {
 
-nm::OperatingCondition at(double rpm, double load = 0.0, double soi = 18.0) {
+nm::engine::OperatingCondition at(double rpm, double load = 0.0, double soi = 18.0) {
   return {.speed_rpm = rpm, .load_nm = load, .soi_deg_btdc = soi, .motored = false};
 }
 

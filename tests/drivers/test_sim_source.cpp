@@ -165,12 +165,12 @@ double wrap_deg(double theta) {
 
 // Engine pressure at time t with the source's seeded cycle-to-cycle variation (and its gas ringing).
 struct PressureReference {
-  nm::EngineCycle cycle;
+  nm::engine::EngineCycle cycle;
   nd::SimConfig config;
   std::int64_t index = std::numeric_limits<std::int64_t>::min();
   explicit PressureReference(const nd::SimConfig& c) : cycle(params(c)), config(c) {}
-  static nm::EngineCycleParams params(const nd::SimConfig& c) {
-    nm::EngineCycleParams p;
+  static nm::engine::EngineCycleParams params(const nd::SimConfig& c) {
+    nm::engine::EngineCycleParams p;
     p.ringing = c.gas_ringing;
     return p;
   }
@@ -179,7 +179,7 @@ struct PressureReference {
     const auto k = static_cast<std::int64_t>(std::floor((theta + 360.0) / 720.0));
     if (k != index) {
       cycle.compute({config.speed_rpm, config.load_nm, config.soi_deg_btdc, config.motored},
-                    nm::draw_cycle_variation(config.seed, k, config.cycle_variation));
+                    nm::engine::draw_cycle_variation(config.seed, k, config.cycle_variation));
       index = k;
     }
     return cycle.pressure_pa(theta - 720.0 * static_cast<double>(k));
@@ -341,7 +341,7 @@ TEST(SimSource, TheCrankAngleStreamHoldsEveryEdgeFromTheStart) {
 TEST(SimSource, PressureChannelIsTheEngineCycleAtEachFrame) {
   // An explicitly ideal pressure chain: the channel is the true pressure (gas ringing included), resampled.
   nd::SimConfig cfg = idle_config();
-  cfg.pressure_chain = nm::PressureChainConfig::ideal();
+  cfg.pressure_chain = nm::engine::PressureChainConfig::ideal();
   const SimRun r = run_source(cfg, 0.8);
   PressureReference ref(cfg);
   double max_err = 0.0, sum_sq = 0.0, peak = 0.0;
@@ -545,8 +545,8 @@ TEST(SimSource, MicLevelMatchesHarmonicResponseOfThePeriodicCycle) {
   cfg.load_nm = 20.0;
   cfg.soi_deg_btdc = 21.0;
   cfg.cycle_variation = 0.0;
-  cfg.gas_ringing = nm::GasRingingParams::off();  // its random phase per cycle would break the periodicity
-  cfg.mic_gain_spread_db = 1.0;                   // the energy-normalised gains must not move the mean
+  cfg.gas_ringing = nm::engine::GasRingingParams::off();  // its random phase per cycle would break the periodicity
+  cfg.mic_gain_spread_db = 1.0;                           // the energy-normalised gains must not move the mean
   const SimRun r = run_source(cfg, 1.0);
   ASSERT_TRUE(r.mics.contiguous);
   EXPECT_EQ(r.overruns, 0u);
@@ -582,7 +582,7 @@ TEST(SimSource, BackgroundNoiseMotoredAndFired) {
   // independent between microphones.
   nd::SimConfig loud = motored;
   loud.background_noise_db = lm + 30.0;
-  loud.mic_chain = nm::MicChainConfig::ideal();  // explicitly ideal: a ~147 dB floor would clip the card's ADC
+  loud.mic_chain = nm::engine::MicChainConfig::ideal();  // explicitly ideal: a ~147 dB floor would clip the card's ADC
   const SimRun rb = run_source(loud, 0.8);
   const std::size_t from = 2000, to = rb.mics.frames();
   EXPECT_NEAR(level_db(mic_mean_square(rb.mics, from, to)), loud.background_noise_db, 0.25);

@@ -136,8 +136,8 @@ Session run_session(const std::string& name, const std::string& model, const std
 // predicted - measured when the engine's true block is `true_block` and the daemon's model is linear.
 double offline_lpa_difference(const std::string& true_block) {
   constexpr double fs = 40000.0, rpm = 3050.0;
-  noisemon::model::EngineCycle cycle;
-  cycle.compute(noisemon::model::OperatingCondition{});
+  noisemon::model::engine::EngineCycle cycle;
+  cycle.compute(noisemon::model::engine::OperatingCondition{});
   noisemon::model::BlockModel linear(noisemon::model::preset("linear"), fs);
   noisemon::model::BlockModel truth(noisemon::model::preset(true_block), fs);
   noisemon::dsp::ThirdOctaveBank bank(fs, 2);

@@ -44,9 +44,9 @@ class Cell {
   static double cpl_db(std::size_t b) { return 150.0 - 1.5 * static_cast<double>(b); }
   static double attenuation_db(std::size_t b) { return 50.0 + 0.5 * static_cast<double>(b); }
 
-  noisemon::model::CycleGap next(const Effects& e = {}) {
+  noisemon::model::diagnosis::CycleGap next(const Effects& e = {}) {
     std::normal_distribution<double> common(0.0, 0.5), scatter(0.0, 0.6);
-    noisemon::model::CycleGap c;
+    noisemon::model::diagnosis::CycleGap c;
     c.cycle = cycle_++;
     c.time_s = time_s_;
     time_s_ += 120.0 / speed_;

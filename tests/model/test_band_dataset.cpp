@@ -15,17 +15,17 @@
 namespace noisemon::model {
 namespace {
 
-constexpr std::size_t kW = kCrankWindows;
+constexpr std::size_t kW = fit::kCrankWindows;
 
 // A sine of amplitude a at f Hz on the pressure (around 1 bar) and, times g, on `mics` microphones; the crank angle
 // of an engine at rpm; `cycles` + 2 cycles of frames.
-ConditionRecording sine_recording(double a, double f, double g, std::size_t mics, double rpm, std::size_t cycles) {
+fit::ConditionRecording sine_recording(double a, double f, double g, std::size_t mics, double rpm, std::size_t cycles) {
   const std::size_t n = test_cell::cycle_frames(rpm);
-  ConditionRecording r;
+  fit::ConditionRecording r;
   r.mic_count = mics;
   const std::size_t frames = (cycles + 2) * n;
   for (std::size_t i = 0; i < frames; ++i) {
-    const double x = a * std::sin(2.0 * std::numbers::pi * f * static_cast<double>(i) / kDatasetRateHz);
+    const double x = a * std::sin(2.0 * std::numbers::pi * f * static_cast<double>(i) / fit::kDatasetRateHz);
     r.pressure_pa.push_back(1e5 + x);
     r.crank_deg.push_back(-360.0 + 720.0 * static_cast<double>(i % n) / static_cast<double>(n));
   }
@@ -35,7 +35,7 @@ ConditionRecording sine_recording(double a, double f, double g, std::size_t mics
   return r;
 }
 
-ConditionInfo info(const std::string& name, double rpm) {
+fit::ConditionInfo info(const std::string& name, double rpm) {
   test_cell::CellCondition c;
   c.name = name;
   c.rpm = rpm;
@@ -49,11 +49,11 @@ std::size_t band_at(const std::vector<dsp::ThirdOctaveBand>& bands, double nomin
 }
 
 TEST(BandDataset, SineAtABandCentreReadsHalfItsSquaredAmplitudeThere) {
-  const dsp::ThirdOctaveBank bank(kDatasetRateHz, 1);
+  const dsp::ThirdOctaveBank bank(fit::kDatasetRateHz, 1);
   const std::size_t b1k = band_at(bank.bands(), 1000.0);
   ASSERT_LT(b1k, bank.band_count());
   const double f = bank.bands()[b1k].exact_mid_hz, a = 200.0, g = 0.01;
-  const ConditionData d = build_condition(info("sine", 3000.0), {sine_recording(a, f, g, 2, 3000.0, 6)});
+  const fit::ConditionData d = build_condition(info("sine", 3000.0), {sine_recording(a, f, g, 2, 3000.0, 6)});
   ASSERT_EQ(d.cycle_count(), 6u);
   for (std::size_t c = 0; c < d.cycle_count(); ++c) {
     EXPECT_NEAR(test_cell::db(d.cpl_ms[c * d.bands + b1k] / (a * a / 2)), 0.0, 0.05) << "cycle " << c;
@@ -72,14 +72,14 @@ TEST(BandDataset, SineAtABandCentreReadsHalfItsSquaredAmplitudeThere) {
 
 TEST(BandDataset, CyclesAreCutAtTheCrankWrapAndSplitIntoNinetyDegreeWindows) {
   const double rpm = 2400.0;  // 2000 frames per cycle
-  const ConditionData d = build_condition(info("cut", rpm), {sine_recording(10.0, 1000.0, 1.0, 1, rpm, 5)});
+  const fit::ConditionData d = build_condition(info("cut", rpm), {sine_recording(10.0, 1000.0, 1.0, 1, rpm, 5)});
   ASSERT_EQ(d.cycle_count(), 5u);
   ASSERT_EQ(d.segments.size(), 1u);
-  const PreparedSegment& s = d.segments[0];
-  EXPECT_EQ(segment_cycles(s), 5u);
+  const fit::PreparedSegment& s = d.segments[0];
+  EXPECT_EQ(fit::segment_cycles(s), 5u);
   EXPECT_EQ(s.data_start, 4u * 2000u);  // four cycles of pre-roll
-  EXPECT_EQ(segment_frames(s), s.data_start + 5u * 2000u);
-  EXPECT_EQ(segment_frames(s, 2), s.data_start + 2u * 2000u);
+  EXPECT_EQ(fit::segment_frames(s), s.data_start + 5u * 2000u);
+  EXPECT_EQ(fit::segment_frames(s, 2), s.data_start + 2u * 2000u);
   EXPECT_NEAR(d.mean_speed_rpm(), rpm, 1e-9);
   for (std::size_t c = 0; c < d.cycle_count(); ++c) {
     EXPECT_NEAR(d.cycles[c].duration_s, 0.05, 1e-15);
@@ -95,11 +95,11 @@ TEST(BandDataset, CyclesAreCutAtTheCrankWrapAndSplitIntoNinetyDegreeWindows) {
 
 TEST(BandDataset, MicrophonesArePairedWithThePressureAcrossTheAcousticDelay) {
   // Microphone = the pressure delayed by 37 frames: paired across the delay, both channels see the same samples.
-  ConditionRecording r = sine_recording(50.0, 630.0, 1.0, 1, 3000.0, 4);
+  fit::ConditionRecording r = sine_recording(50.0, 630.0, 1.0, 1, 3000.0, 4);
   r.delay_frames = 37;
   r.mics_pa.assign(37, 0.0);
   r.mics_pa.insert(r.mics_pa.end(), r.pressure_pa.begin(), r.pressure_pa.end());
-  const ConditionData d = build_condition(info("delay", 3000.0), {r});
+  const fit::ConditionData d = build_condition(info("delay", 3000.0), {r});
   ASSERT_EQ(d.cycle_count(), 4u);
   for (std::size_t i = 0; i < d.cpl_ms.size(); ++i) EXPECT_DOUBLE_EQ(d.mic_ms[i], d.cpl_ms[i]) << i;
 }
@@ -109,15 +109,15 @@ TEST(BandDatasetMake, BandsWithoutACycleHarmonicAreFlaggedAndAPeriodicSignalIsFu
   test_cell::CellCondition c;
   c.rpm = 1500.0;
   c.cycles = 6;
-  const BandDataset data = test_cell::block_dataset(preset("linear"), {c});
+  const fit::BandDataset data = test_cell::block_dataset(preset("linear"), {c});
   const double f0 = 12.5;
   for (std::size_t b = 0; b < data.band_count(); ++b) {
     const dsp::ThirdOctaveBand& band = data.bands[b];
-    const double hi = std::min(band.upper_edge_hz, kDatasetRateHz / 2);
+    const double hi = std::min(band.upper_edge_hz, fit::kDatasetRateHz / 2);
     const bool harmonic_inside = std::ceil(band.lower_edge_hz / f0) * f0 < hi;
     EXPECT_EQ(data.band_line_free(0, b), !harmonic_inside) << band.nominal_hz;
   }
-  const ConditionData& d = data.conditions[0];
+  const fit::ConditionData& d = data.conditions[0];
   for (std::size_t b = 0; b < data.band_count(); ++b) {
     const double mid = data.bands[b].exact_mid_hz;
     if (data.band_line_free(0, b) || mid < 50.0 || mid > 12000.0) continue;
@@ -128,30 +128,30 @@ TEST(BandDatasetMake, BandsWithoutACycleHarmonicAreFlaggedAndAPeriodicSignalIsFu
 }
 
 TEST(BandDataset, BackgroundRunsAreCutIntoBlocksOfACycleAt3000Rpm) {
-  ConditionInfo background = info("background", 0.0);
+  fit::ConditionInfo background = info("background", 0.0);
   background.background = true;
-  ConditionRecording r = sine_recording(1.0, 1000.0, 1.0, 1, 3000.0, 3);
+  fit::ConditionRecording r = sine_recording(1.0, 1000.0, 1.0, 1, 3000.0, 3);
   for (double& x : r.crank_deg) x = 0.0;  // no crank signal
-  const ConditionData d = build_condition(background, {r});
+  const fit::ConditionData d = build_condition(background, {r});
   EXPECT_EQ(d.cycle_count(), 3u);  // 5 blocks of 1600 frames: complete between the wraps into blocks 2 to 5
   EXPECT_NEAR(d.mean_speed_rpm(), 3000.0, 1e-9);
 }
 
 TEST(BandDataset, RecordingsThatCannotBeUsedAreErrorsNamingTheCondition) {
-  ConditionRecording no_mics = sine_recording(1.0, 1000.0, 1.0, 1, 3000.0, 3);
+  fit::ConditionRecording no_mics = sine_recording(1.0, 1000.0, 1.0, 1, 3000.0, 3);
   no_mics.mic_count = 0;
   no_mics.mics_pa.clear();
   try {
-    build_condition(info("quiet", 3000.0), {no_mics});
+    fit::build_condition(info("quiet", 3000.0), {no_mics});
     FAIL();
   } catch (const std::invalid_argument& e) {
     EXPECT_NE(std::string(e.what()).find("quiet"), std::string::npos) << e.what();
   }
-  EXPECT_THROW(build_condition(info("none", 3000.0), {}), std::invalid_argument);
-  ConditionRecording short_one = sine_recording(1.0, 1000.0, 1.0, 1, 3000.0, 0);
-  EXPECT_THROW(build_condition(info("short", 3000.0), {short_one}), std::invalid_argument);
-  ConditionRecording two = sine_recording(1.0, 1000.0, 1.0, 2, 3000.0, 3);
-  EXPECT_THROW(build_condition(info("mixed", 3000.0), {sine_recording(1.0, 1000.0, 1.0, 1, 3000.0, 3), two}),
+  EXPECT_THROW(fit::build_condition(info("none", 3000.0), {}), std::invalid_argument);
+  fit::ConditionRecording short_one = sine_recording(1.0, 1000.0, 1.0, 1, 3000.0, 0);
+  EXPECT_THROW(fit::build_condition(info("short", 3000.0), {short_one}), std::invalid_argument);
+  fit::ConditionRecording two = sine_recording(1.0, 1000.0, 1.0, 2, 3000.0, 3);
+  EXPECT_THROW(fit::build_condition(info("mixed", 3000.0), {sine_recording(1.0, 1000.0, 1.0, 1, 3000.0, 3), two}),
                std::invalid_argument);
 }
 

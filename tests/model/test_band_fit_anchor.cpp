@@ -16,10 +16,10 @@ using test_cell::db;
 
 TEST(BandFitAnchor, ReSimulationOfTheTrueBlockMatchesTheAnalyticResponseInEveryScoredBand) {
   const BlockParams truth = preset("linear");
-  const BandDataset data = test_cell::block_dataset(truth, {test_cell::CellCondition{}});
-  const ConditionData& cond = data.conditions[0];
+  const fit::BandDataset data = test_cell::block_dataset(truth, {test_cell::CellCondition{}});
+  const fit::ConditionData& cond = data.conditions[0];
   std::vector<double> sim;
-  band_fit_internal::simulate_condition(cond, truth, 0, sim);
+  fit::band_fit_internal::simulate_condition(cond, truth, 0, sim);
   ASSERT_EQ(sim.size(), cond.cycle_count() * data.band_count());
   const auto scored = test_cell::scored_bands(data);
   const std::vector<double> pred = test_cell::cycle_mean(sim, data.band_count());
@@ -40,16 +40,17 @@ TEST(BandFitAnchor, ReSimulationOfTheTrueBlockMatchesTheAnalyticResponseInEveryS
 TEST(BandFitAnchor, JacobianMatchesTheAnalyticBandPowers) {
   const BlockParams block = preset("linear");
   const test_cell::CellCondition cell;
-  const BandDataset data = test_cell::block_dataset(block, {cell});
-  const std::vector<BlockParam> params = {BlockParam::kK1, BlockParam::kB1, BlockParam::kC0, BlockParam::kC1};
-  const Anchor anchor = make_anchor(data, block, {0}, 8, false, params);
+  const fit::BandDataset data = test_cell::block_dataset(block, {cell});
+  const std::vector<fit::BlockParam> params = {fit::BlockParam::kK1, fit::BlockParam::kB1, fit::BlockParam::kC0,
+                                               fit::BlockParam::kC1};
+  const fit::Anchor anchor = make_anchor(data, block, {0}, 8, false, params);
   ASSERT_EQ(anchor.jac.size(), 1u);
   const auto analytic_power = [&](const BlockParams& p, std::size_t b) {
     double sum = 0.0;
     const double f0 = cell.rpm / 120.0;
     for (std::size_t h = 1; h * f0 <= cell.max_hz; ++h) {
       const double f = static_cast<double>(h) * f0, a = cell.amplitude_pa / (1.0 + f / cell.corner_hz);
-      sum += band_fit_internal::band_power_response(data.bands[b], f) * a * a / 2 *
+      sum += fit::band_fit_internal::band_power_response(data.bands[b], f) * a * a / 2 *
              std::norm(test_cell::block_response(p, f));
     }
     return sum;
@@ -60,10 +61,10 @@ TEST(BandFitAnchor, JacobianMatchesTheAnalyticBandPowers) {
     if (!scored[0][b]) continue;
     for (std::size_t i = 0; i < params.size(); ++i) {
       BlockParams stepped = block;
-      set_param(stepped, params[i], param_value(block, params[i]) * 1.03);
+      fit::set_param(stepped, params[i], fit::param_value(block, params[i]) * 1.03);
       const double want = std::log(analytic_power(stepped, b) / analytic_power(block, b)) / h;
       EXPECT_NEAR(anchor.jac[0][b * params.size() + i], want, 0.01)
-          << param_name(params[i]) << " at " << data.bands[b].nominal_hz << " Hz";
+          << fit::param_name(params[i]) << " at " << data.bands[b].nominal_hz << " Hz";
     }
   }
 }

@@ -40,11 +40,11 @@ struct CellCondition {
 };
 
 inline std::size_t cycle_frames(double rpm) {
-  return static_cast<std::size_t>(std::lround(kDatasetRateHz * 120.0 / rpm));
+  return static_cast<std::size_t>(std::lround(fit::kDatasetRateHz * 120.0 / rpm));
 }
 
 // One microphone, no acoustic delay; cycles + 2 cycles of frames (the first and the last are cut as incomplete).
-inline ConditionRecording block_recording(const BlockParams& block, const CellCondition& c) {
+inline fit::ConditionRecording block_recording(const BlockParams& block, const CellCondition& c) {
   const std::size_t n = cycle_frames(c.rpm);
   const double f0 = c.rpm / 120.0;
   std::mt19937 rng(c.seed);
@@ -60,7 +60,7 @@ inline ConditionRecording block_recording(const BlockParams& block, const CellCo
       y[i] += a * std::abs(g) * std::cos(x + std::arg(g));
     }
   }
-  ConditionRecording r;
+  fit::ConditionRecording r;
   r.mic_count = 1;
   const std::size_t total = (c.cycles + 2) * n;
   for (std::size_t i = 0; i < total; ++i) {
@@ -72,24 +72,24 @@ inline ConditionRecording block_recording(const BlockParams& block, const CellCo
 }
 
 // No pressure-chain floor (a stated floor of 0): the predictions subtract nothing.
-inline ConditionInfo cell_info(const CellCondition& c) {
-  ConditionInfo info;
+inline fit::ConditionInfo cell_info(const CellCondition& c) {
+  fit::ConditionInfo info;
   info.name = c.name;
   info.speed_rpm = c.rpm;
   info.motored = c.motored;
   info.pressure_floor_pa = 0.0;
-  info.encoder_rate_hz = kDatasetRateHz;
+  info.encoder_rate_hz = fit::kDatasetRateHz;
   return info;
 }
 
-inline BandDataset block_dataset(const BlockParams& block, const std::vector<CellCondition>& conditions) {
-  std::vector<ConditionData> out;
+inline fit::BandDataset block_dataset(const BlockParams& block, const std::vector<CellCondition>& conditions) {
+  std::vector<fit::ConditionData> out;
   for (const CellCondition& c : conditions) out.push_back(build_condition(cell_info(c), {block_recording(block, c)}));
-  return make_dataset(std::move(out));
+  return fit::make_dataset(std::move(out));
 }
 
 // Per condition, the bands scored: inside [lo_hz, hi_hz] and holding a harmonic.
-inline std::vector<std::vector<char>> scored_bands(const BandDataset& data, double lo_hz = 40.0,
+inline std::vector<std::vector<char>> scored_bands(const fit::BandDataset& data, double lo_hz = 40.0,
                                                    double hi_hz = 12500.0) {
   std::vector<std::vector<char>> scored(data.conditions.size(), std::vector<char>(data.band_count(), 0));
   for (std::size_t k = 0; k < data.conditions.size(); ++k)

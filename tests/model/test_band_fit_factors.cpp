@@ -13,11 +13,11 @@
 namespace noisemon::model {
 namespace {
 
-constexpr std::size_t kW = kCrankWindows;
+constexpr std::size_t kW = fit::kCrankWindows;
 
 // Two bands, two cycles of unequal window lengths, two microphones.
-ConditionData small_condition() {
-  ConditionData d;
+fit::ConditionData small_condition() {
+  fit::ConditionData d;
   d.bands = 2;
   d.mics = 2;
   d.cycles.resize(2);
@@ -31,8 +31,8 @@ ConditionData small_condition() {
 }
 
 TEST(BandFitFactors, ApplyMultipliesSubtractsAndAddsByWindowLength) {
-  const ConditionData d = small_condition();
-  ConditionFactors f;
+  const fit::ConditionData d = small_condition();
+  fit::ConditionFactors f;
   f.mult = {2.0, 0.5};
   f.sub = {0.0, 0.1};  // band 1: 0.1 of noise-driven power, far below kFloorShare of its prediction
   f.add.assign(2, 0.0);
@@ -41,7 +41,7 @@ TEST(BandFitFactors, ApplyMultipliesSubtractsAndAddsByWindowLength) {
   std::vector<double> cycle = {10.0, 20.0, 30.0, 40.0};                                 // [c * bands + b]
   std::vector<double> win(2 * kW * 2, 1.0);                                             // [(c * W + w) * bands + b]
   std::vector<char> upper, upper_win;
-  apply_factors(f, d, cycle, &win, &upper, &upper_win);
+  fit::apply_factors(f, d, cycle, &win, &upper, &upper_win);
   for (std::size_t c = 0; c < 2; ++c) {
     double add = 0.0, frames = 0.0;
     for (std::size_t w = 0; w < kW; ++w) {
@@ -62,8 +62,8 @@ TEST(BandFitFactors, ApplyMultipliesSubtractsAndAddsByWindowLength) {
 }
 
 TEST(BandFitFactors, NearTheFloorThePredictionBecomesAnUpperBound) {
-  const ConditionData d = small_condition();
-  ConditionFactors f;
+  const fit::ConditionData d = small_condition();
+  fit::ConditionFactors f;
   f.mult = {1.0, 1.0};
   // Band 0: the noise drove 30 % of the prediction (more than kFloorShare, a floor 6 dB down); band 1: 10 %.
   f.sub = {0.3 * 15.0, 0.1 * 30.0};
@@ -71,7 +71,7 @@ TEST(BandFitFactors, NearTheFloorThePredictionBecomesAnUpperBound) {
   f.add_win.assign(2 * kW, 0.0);
   std::vector<double> cycle = {10.0, 20.0, 20.0, 40.0};  // means 15 and 30
   std::vector<char> upper;
-  apply_factors(f, d, cycle, nullptr, &upper);
+  fit::apply_factors(f, d, cycle, nullptr, &upper);
   EXPECT_EQ(upper, (std::vector<char>{1, 0}));
   // Censored: the prediction less the noise-driven part, plus 30 % of that part.
   EXPECT_NEAR(cycle[0], 10.0 - 4.5 + 0.3 * 4.5, 1e-12);
@@ -81,10 +81,10 @@ TEST(BandFitFactors, NearTheFloorThePredictionBecomesAnUpperBound) {
 }
 
 TEST(BandFitFactors, StationaryAndLockedNoiseAddTheirMeanSquaresScaledBySpeed) {
-  const BandDataset data = test_cell::block_dataset(preset("linear"), {test_cell::CellCondition{}});  // 3000 rpm
-  const ConditionSpectrum spec = band_fit_internal::condition_spectrum(data, 0, 8);
+  const fit::BandDataset data = test_cell::block_dataset(preset("linear"), {test_cell::CellCondition{}});  // 3000 rpm
+  const fit::ConditionSpectrum spec = fit::band_fit_internal::condition_spectrum(data, 0, 8);
   const std::size_t nb = data.band_count();
-  ExtendedModel m;
+  fit::ExtendedModel m;
   m.block = preset("linear");
   m.on.stationary = m.on.locked = true;
   m.ext.speed_ref_rpm = 2000.0;
@@ -93,8 +93,8 @@ TEST(BandFitFactors, StationaryAndLockedNoiseAddTheirMeanSquaresScaledBySpeed) {
   m.ext.locked_ms.assign(nb * kW, 0.0);
   m.ext.stationary_ms[20] = 1.5;
   for (std::size_t w = 0; w < kW; ++w) m.ext.locked_ms[20 * kW + w] = static_cast<double>(w + 1);
-  const ConditionFactors f = extension_factors(data, 0, spec, m.block, m);
-  const ConditionData& cond = data.conditions[0];
+  const fit::ConditionFactors f = extension_factors(data, 0, spec, m.block, m);
+  const fit::ConditionData& cond = data.conditions[0];
   double frames = 0.0, locked = 0.0;
   std::vector<double> share(kW, 0.0);
   for (std::size_t c = 0; c < cond.cycle_count(); ++c)
@@ -117,21 +117,21 @@ TEST(BandFitFactors, StationaryAndLockedNoiseAddTheirMeanSquaresScaledBySpeed) {
 }
 
 TEST(BandFitFactors, MicrophoneGainsCorrectTheMeasurementAndTheGapIsItsDbRatio) {
-  const ConditionData d = small_condition();
-  ExtendedModel m;
-  EXPECT_DOUBLE_EQ(measured_ms(d, 1, 0, m), (5.0 + 7.0) / 2);
+  const fit::ConditionData d = small_condition();
+  fit::ExtendedModel m;
+  EXPECT_DOUBLE_EQ(fit::measured_ms(d, 1, 0, m), (5.0 + 7.0) / 2);
   m.on.mic_gain = true;
   m.ext.mic_gain_db = {10.0, -10.0};  // mic 0 reads 10 dB high, mic 1 10 dB low
-  EXPECT_NEAR(measured_ms(d, 1, 0, m), (5.0 / 10.0 + 7.0 * 10.0) / 2, 1e-12);
+  EXPECT_NEAR(fit::measured_ms(d, 1, 0, m), (5.0 / 10.0 + 7.0 * 10.0) / 2, 1e-12);
   m.ext.mic_gain_db = {10.0};  // not one per microphone: ignored
-  EXPECT_DOUBLE_EQ(measured_ms(d, 1, 0, m), (5.0 + 7.0) / 2);
-  const ExtendedModel plain;
+  EXPECT_DOUBLE_EQ(fit::measured_ms(d, 1, 0, m), (5.0 + 7.0) / 2);
+  const fit::ExtendedModel plain;
   const std::vector<double> pred = {1.0, 2.0, 3.0, 4.0};  // [c * bands + b]
-  const std::vector<double> gaps = condition_gaps(d, pred, {1, 0}, plain);
+  const std::vector<double> gaps = fit::condition_gaps(d, pred, {1, 0}, plain);
   EXPECT_NEAR(gaps[0], 10.0 * std::log10((2.0 + 6.0) / (1.0 + 3.0)), 1e-12);
   EXPECT_TRUE(std::isnan(gaps[1]));  // not scored
-  EXPECT_NEAR(rms_db({3.0, std::numeric_limits<double>::quiet_NaN(), -4.0}), std::sqrt(12.5), 1e-12);
-  EXPECT_TRUE(std::isnan(rms_db({std::numeric_limits<double>::quiet_NaN()})));
+  EXPECT_NEAR(fit::rms_db({3.0, std::numeric_limits<double>::quiet_NaN(), -4.0}), std::sqrt(12.5), 1e-12);
+  EXPECT_TRUE(std::isnan(fit::rms_db({std::numeric_limits<double>::quiet_NaN()})));
 }
 
 }  // namespace

@@ -41,28 +41,28 @@ std::vector<test_cell::CellCondition> three_speeds() {
   return out;
 }
 
-FitSetup setup_for(const BandDataset& data) {
-  FitSetup s;
+fit::FitSetup setup_for(const fit::BandDataset& data) {
+  fit::FitSetup s;
   s.data = &data;
   s.train = {0, 1, 2};
   s.scored = test_cell::scored_bands(data);
-  s.free = {BlockParam::kK1, BlockParam::kB1, BlockParam::kC0, BlockParam::kC1};
+  s.free = {fit::BlockParam::kK1, fit::BlockParam::kB1, fit::BlockParam::kC0, fit::BlockParam::kC1};
   return s;
 }
 
 void expect_block_near(const BlockParams& got, const BlockParams& want, double rel) {
-  for (BlockParam p : {BlockParam::kK1, BlockParam::kB1, BlockParam::kC0, BlockParam::kC1}) {
-    std::printf("  %s %.6g (truth %.6g, %+.3f %%)\n", std::string(param_name(p)).c_str(), param_value(got, p),
+  for (fit::BlockParam p : {fit::BlockParam::kK1, fit::BlockParam::kB1, fit::BlockParam::kC0, fit::BlockParam::kC1}) {
+    std::printf("  %s %.6g (truth %.6g, %+.3f %%)\n", std::string(fit::param_name(p)).c_str(), fit::param_value(got, p),
                 param_value(want, p), 100.0 * (param_value(got, p) / param_value(want, p) - 1.0));
     EXPECT_NEAR(param_value(got, p) / param_value(want, p), 1.0, rel) << param_name(p);
   }
 }
 
 TEST(BandFitFit, RecoversALinearBlockFromAStartAFactorAway) {
-  const BandDataset data = test_cell::block_dataset(truth(), three_speeds());
-  ExtendedModel start;
+  const fit::BandDataset data = test_cell::block_dataset(truth(), three_speeds());
+  fit::ExtendedModel start;
   start.block = preset("linear");  // k1 0.76x, b1 0.63x, c0 0.83x, c1 1.3x the truth
-  const FitOutcome o = fit_model(setup_for(data), start);
+  const fit::FitOutcome o = fit_model(setup_for(data), start);
   std::printf("linear: %d anchors, %d iterations, train RMS %.4f dB, converged %d\n", o.anchors, o.iterations,
               o.train_rms_db, o.converged);
   expect_block_near(o.model.block, truth(), 0.002);
@@ -76,12 +76,12 @@ TEST(BandFitFit, RecoversALinearBlockFromAStartAFactorAway) {
 // One surrogate solve (refit_on_anchor: no re-simulation) from an anchor a factor away already lands near the truth:
 // the shortcut is exact for a linear block up to the spectrum's resolution.
 TEST(BandFitFit, OneSurrogateSolveOnAnAnchorElsewhereLandsNearTheTruth) {
-  const BandDataset data = test_cell::block_dataset(truth(), three_speeds());
-  const FitSetup s = setup_for(data);
-  ExtendedModel start;
+  const fit::BandDataset data = test_cell::block_dataset(truth(), three_speeds());
+  const fit::FitSetup s = setup_for(data);
+  fit::ExtendedModel start;
   start.block = preset("linear");
-  const Anchor anchor = make_anchor(data, start.block, s.train, s.fit_cycles, false);
-  const FitOutcome o = refit_on_anchor(s, anchor, start);
+  const fit::Anchor anchor = make_anchor(data, start.block, s.train, s.fit_cycles, false);
+  const fit::FitOutcome o = refit_on_anchor(s, anchor, start);
   std::printf("one solve: %d iterations, surrogate train RMS %.4f dB\n", o.iterations, o.train_rms_db);
   expect_block_near(o.model.block, truth(), 0.01);
   EXPECT_EQ(o.parameters, 4);
@@ -97,13 +97,13 @@ double mean_speed(const std::vector<test_cell::CellCondition>& conds) {
 }
 
 // The speed candidate fitted to the cell's conditions from the true block.
-FitOutcome fit_speed(const std::vector<test_cell::CellCondition>& conds) {
-  const BandDataset data = test_cell::block_dataset(truth(), conds);
-  FitSetup s = setup_for(data);
+fit::FitOutcome fit_speed(const std::vector<test_cell::CellCondition>& conds) {
+  const fit::BandDataset data = test_cell::block_dataset(truth(), conds);
+  fit::FitSetup s = setup_for(data);
   s.extensions.speed = true;
-  ExtendedModel start;
+  fit::ExtendedModel start;
   start.block = truth();
-  return fit_model(s, start);
+  return fit::fit_model(s, start);
 }
 
 TEST(BandFitFit, RecoversASpeedDependentGain) {
@@ -112,7 +112,7 @@ TEST(BandFitFit, RecoversASpeedDependentGain) {
   const double ref_rpm = mean_speed(conds);
   for (test_cell::CellCondition& c : conds)
     c.mic_gain = std::pow(10.0, gain_db_per_krpm * (c.rpm - ref_rpm) / 1000.0 / 20.0);
-  const FitOutcome o = fit_speed(conds);
+  const fit::FitOutcome o = fit_speed(conds);
   std::printf("speed: gain %.4f dB/krpm (truth %.1f), shift %.5f, train RMS %.4f dB\n",
               o.model.ext.speed_gain_db_per_krpm, gain_db_per_krpm, o.model.ext.speed_shift_per_krpm, o.train_rms_db);
   EXPECT_NEAR(o.model.ext.speed_gain_db_per_krpm, gain_db_per_krpm, 0.02);
@@ -134,7 +134,7 @@ TEST(BandFitFit, RecoversASpeedScaledStructureFromNoShift) {
         return test_cell::block_response(truth(), f / sigma) / test_cell::block_response(truth(), f);
       };
     }
-    const FitOutcome o = fit_speed(conds);
+    const fit::FitOutcome o = fit_speed(conds);
     std::printf("speed scaling: shift %.4f per krpm (truth %.2f), gain %.4f dB/krpm, train RMS %.4f dB\n",
                 o.model.ext.speed_shift_per_krpm, shift_per_krpm, o.model.ext.speed_gain_db_per_krpm, o.train_rms_db);
     EXPECT_NEAR(o.model.ext.speed_shift_per_krpm, shift_per_krpm, 0.01) << shift_per_krpm;
@@ -157,13 +157,13 @@ TEST(BandFitFit, FindsAndRecoversASecondModeWithItsPhase) {
         const std::complex<double> den = s * s + (w2 / mode_q) * s + w2 * w2;
         return 1.0 + a * (std::cos(phi) * (w2 / mode_q) * s - std::sin(phi) * (w2 * w2 / mode_q)) / den;
       };
-    const BandDataset data = test_cell::block_dataset(truth(), conds);
-    FitSetup s = setup_for(data);
+    const fit::BandDataset data = test_cell::block_dataset(truth(), conds);
+    fit::FitSetup s = setup_for(data);
     s.extensions.second_mode = true;
-    ExtendedModel start;
+    fit::ExtendedModel start;
     start.block = truth();
-    const FitOutcome o = fit_model(s, start);
-    const ExtensionParams& e = o.model.ext;
+    const fit::FitOutcome o = fit_model(s, start);
+    const fit::ExtensionParams& e = o.model.ext;
     std::printf(
         "mode: %.3f dB at %.1f Hz, Q %.3f, %.1f deg (truth %.0f dB, %.0f Hz, Q %.0f, %.0f deg), "
         "train RMS %.4f dB, %d anchors\n",
@@ -174,7 +174,7 @@ TEST(BandFitFit, FindsAndRecoversASecondModeWithItsPhase) {
     // 0.002 dB rms, the block's four parameters taking up the rest), so the phase is held to its side only.
     EXPECT_NEAR(e.mode_hz / mode_hz, 1.0, 0.005) << phase_deg;
     EXPECT_NEAR(e.mode_q / mode_q, 1.0, 0.03) << phase_deg;
-    EXPECT_NEAR(mode_rise_db(e), 20.0 * std::log10(std::abs(1.0 + a * std::polar(1.0, phi))), 0.1) << phase_deg;
+    EXPECT_NEAR(fit::mode_rise_db(e), 20.0 * std::log10(std::abs(1.0 + a * std::polar(1.0, phi))), 0.1) << phase_deg;
     EXPECT_NEAR(e.mode_phase_deg, phase_deg, 20.0);
     if (phase_deg == 0.0) {
       EXPECT_NEAR(e.mode_db, mode_db, 0.1);
@@ -185,16 +185,16 @@ TEST(BandFitFit, FindsAndRecoversASecondModeWithItsPhase) {
 
 // The cell's condition with its microphone replaced by the block model integrated over the periodic pressure,
 // started two cycles early (its transient decays within a millisecond).
-ConditionData integrated_condition(const BlockParams& block, const test_cell::CellCondition& c) {
+fit::ConditionData integrated_condition(const BlockParams& block, const test_cell::CellCondition& c) {
   test_cell::CellCondition longer = c;
   longer.cycles += 2;
-  const ConditionRecording full = test_cell::block_recording(block, longer);
-  BlockModel model(block, kDatasetRateHz);
+  const fit::ConditionRecording full = test_cell::block_recording(block, longer);
+  BlockModel model(block, fit::kDatasetRateHz);
   const std::size_t lat = model.latency_samples(), n = test_cell::cycle_frames(c.rpm);
   std::vector<double> u = full.pressure_pa, y(u.size() + lat);
   u.resize(u.size() + lat, u.back());
   model.process(u.data(), y.data(), u.size());
-  ConditionRecording r;
+  fit::ConditionRecording r;
   r.mic_count = 1;
   r.pressure_pa.assign(full.pressure_pa.begin() + 2 * n, full.pressure_pa.end());
   r.crank_deg.assign(full.crank_deg.begin() + 2 * n, full.crank_deg.end());
@@ -207,21 +207,21 @@ TEST(BandFitFit, RecoversACubicDamperStartingFromZero) {
   BlockParams damper = truth();
   damper.b1 = 7000.0;
   damper.b3 = 2000.0;
-  std::vector<ConditionData> conds;
+  std::vector<fit::ConditionData> conds;
   for (const test_cell::CellCondition& c : three_speeds()) conds.push_back(integrated_condition(damper, c));
-  const BandDataset data = make_dataset(std::move(conds));
-  FitSetup s = setup_for(data);
-  s.free.push_back(BlockParam::kB3);
-  ExtendedModel start;
+  const fit::BandDataset data = make_dataset(std::move(conds));
+  fit::FitSetup s = setup_for(data);
+  s.free.push_back(fit::BlockParam::kB3);
+  fit::ExtendedModel start;
   start.block = damper;
   start.block.b3 = 0.0;
   start.block.b1 *= 1.5;
   // The cubic term matters: the linear start misses the data by decibels.
   s.evaluate_only = true;
-  const Anchor at_start = make_anchor(data, start.block, s.train, s.fit_cycles, false);
-  const double linear_rms = refit_on_anchor(s, at_start, start).train_rms_db;
+  const fit::Anchor at_start = make_anchor(data, start.block, s.train, s.fit_cycles, false);
+  const double linear_rms = fit::refit_on_anchor(s, at_start, start).train_rms_db;
   s.evaluate_only = false;
-  const FitOutcome o = fit_model(s, start);
+  const fit::FitOutcome o = fit_model(s, start);
   std::printf(
       "cubic damper: linear start %.3f dB; b3 %.2f (truth 2000), b1 %.1f (truth 7000), train RMS %.4f dB, "
       "%d anchors\n",

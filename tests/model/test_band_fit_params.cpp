@@ -18,16 +18,16 @@ TEST(BandFitParams, EveryNameRoundTripsAndReadsAndWritesItsOwnField) {
   q.b3 = 4.0;
   q.c0 = 5.0;
   q.c1 = 6.0;
-  const std::vector<BlockParam> all = parse_free_params("k1,b1,k3,b3,c0,c1");
+  const std::vector<fit::BlockParam> all = fit::parse_free_params("k1,b1,k3,b3,c0,c1");
   ASSERT_EQ(all.size(), 6u);
   const double expected[] = {1.0, 2.0, 3.0, 4.0, 5.0, 6.0};
   for (std::size_t i = 0; i < all.size(); ++i) {
-    EXPECT_EQ(parse_free_params(param_name(all[i])), std::vector<BlockParam>{all[i]});
-    EXPECT_EQ(param_value(q, all[i]), expected[i]) << param_name(all[i]);
+    EXPECT_EQ(fit::parse_free_params(fit::param_name(all[i])), std::vector<fit::BlockParam>{all[i]});
+    EXPECT_EQ(fit::param_value(q, all[i]), expected[i]) << fit::param_name(all[i]);
     BlockParams w = q;
-    set_param(w, all[i], -1.0);
-    EXPECT_EQ(param_value(w, all[i]), -1.0);
-    for (BlockParam other : all) {
+    fit::set_param(w, all[i], -1.0);
+    EXPECT_EQ(fit::param_value(w, all[i]), -1.0);
+    for (fit::BlockParam other : all) {
       if (other != all[i]) {
         EXPECT_EQ(param_value(w, other), param_value(q, other));
       }
@@ -37,32 +37,33 @@ TEST(BandFitParams, EveryNameRoundTripsAndReadsAndWritesItsOwnField) {
 }
 
 TEST(BandFitParams, ParsingTrimsSpacesDropsRepeatsAndKeepsTheOrderGiven) {
-  EXPECT_EQ(parse_free_params(" c0 , k1,c0,,b1 "),
-            (std::vector<BlockParam>{BlockParam::kC0, BlockParam::kK1, BlockParam::kB1}));
+  EXPECT_EQ(fit::parse_free_params(" c0 , k1,c0,,b1 "),
+            (std::vector<fit::BlockParam>{fit::BlockParam::kC0, fit::BlockParam::kK1, fit::BlockParam::kB1}));
 }
 
 TEST(BandFitParams, UnknownOrMissingNamesAreErrorsNamingThem) {
   try {
-    parse_free_params("k1,m");
+    fit::parse_free_params("k1,m");
     FAIL() << "m is fixed";
   } catch (const std::invalid_argument& e) {
     EXPECT_NE(std::string(e.what()).find("'m'"), std::string::npos) << e.what();
   }
-  EXPECT_THROW(parse_free_params(""), std::invalid_argument);
-  EXPECT_THROW(parse_free_params(" , "), std::invalid_argument);
+  EXPECT_THROW(fit::parse_free_params(""), std::invalid_argument);
+  EXPECT_THROW(fit::parse_free_params(" , "), std::invalid_argument);
 }
 
 TEST(BandFitParams, DefaultFreeSetAddsTheCubicTermsTheStartHas) {
   BlockParams linear;
-  const std::vector<BlockParam> base{BlockParam::kK1, BlockParam::kB1, BlockParam::kC0, BlockParam::kC1};
-  EXPECT_EQ(default_free_params(linear), base);
+  const std::vector<fit::BlockParam> base{fit::BlockParam::kK1, fit::BlockParam::kB1, fit::BlockParam::kC0,
+                                          fit::BlockParam::kC1};
+  EXPECT_EQ(fit::default_free_params(linear), base);
   BlockParams cubic = linear;
   cubic.k3 = 1e12;
   cubic.b3 = 100.0;
-  std::vector<BlockParam> both = base;
-  both.push_back(BlockParam::kK3);
-  both.push_back(BlockParam::kB3);
-  EXPECT_EQ(default_free_params(cubic), both);
+  std::vector<fit::BlockParam> both = base;
+  both.push_back(fit::BlockParam::kK3);
+  both.push_back(fit::BlockParam::kB3);
+  EXPECT_EQ(fit::default_free_params(cubic), both);
 }
 
 }  // namespace

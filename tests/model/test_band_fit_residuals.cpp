@@ -14,7 +14,7 @@
 namespace noisemon::model {
 namespace {
 
-namespace bfi = band_fit_internal;
+namespace bfi = fit::band_fit_internal;
 
 const BlockParams& truth() {
   static const BlockParams p = [] {
@@ -26,8 +26,8 @@ const BlockParams& truth() {
   return p;
 }
 
-const BandDataset& data() {
-  static const BandDataset d = [] {
+const fit::BandDataset& data() {
+  static const fit::BandDataset d = [] {
     test_cell::CellCondition slow, fast;
     slow.name = "slow";
     slow.rpm = 2400.0;
@@ -40,26 +40,26 @@ const BandDataset& data() {
   return d;
 }
 
-FitSetup setup() {
-  FitSetup s;
+fit::FitSetup setup() {
+  fit::FitSetup s;
   s.data = &data();
   s.train = {0, 1};
   s.scored = test_cell::scored_bands(data());
-  s.free = {BlockParam::kK1, BlockParam::kB1, BlockParam::kC0, BlockParam::kC1};
+  s.free = {fit::BlockParam::kK1, fit::BlockParam::kB1, fit::BlockParam::kC0, fit::BlockParam::kC1};
   s.evaluate_only = true;
   return s;
 }
 
-FitOutcome evaluate(const BlockParams& anchor_block, const BlockParams& at) {
-  const FitSetup s = setup();
-  const Anchor anchor = make_anchor(data(), anchor_block, s.train, s.fit_cycles, false);
-  ExtendedModel m;
+fit::FitOutcome evaluate(const BlockParams& anchor_block, const BlockParams& at) {
+  const fit::FitSetup s = setup();
+  const fit::Anchor anchor = make_anchor(data(), anchor_block, s.train, s.fit_cycles, false);
+  fit::ExtendedModel m;
   m.block = at;
-  return refit_on_anchor(s, anchor, m);
+  return fit::refit_on_anchor(s, anchor, m);
 }
 
 TEST(BandFitResiduals, VanishWhenTheDataIsMadeByTheParametersTheyAreEvaluatedAt) {
-  const FitOutcome o = evaluate(truth(), truth());
+  const fit::FitOutcome o = evaluate(truth(), truth());
   std::printf("at the truth: train RMS %.5f dB, objective %.3g\n", o.train_rms_db, o.objective);
   EXPECT_LT(o.train_rms_db, 0.01);
 }
@@ -69,8 +69,8 @@ TEST(BandFitResiduals, StayNearZeroWhenTheAnchorIsElsewhere) {
   away.k1 *= 0.8;
   away.b1 *= 1.3;
   away.c1 *= 0.8;
-  const FitOutcome there = evaluate(away, away);
-  const FitOutcome moved = evaluate(away, truth());
+  const fit::FitOutcome there = evaluate(away, away);
+  const fit::FitOutcome moved = evaluate(away, truth());
   std::printf("anchor away: %.3f dB at the anchor, %.5f dB moved to the truth by the shortcut\n", there.train_rms_db,
               moved.train_rms_db);
   EXPECT_GT(there.train_rms_db, 1.0);
@@ -79,16 +79,16 @@ TEST(BandFitResiduals, StayNearZeroWhenTheAnchorIsElsewhere) {
 
 // The surrogate problem of the training conditions on an anchor, built by the fit's own layout functions.
 struct Problem {
-  FitSetup s = setup();
-  Anchor anchor;
+  fit::FitSetup s = setup();
+  fit::Anchor anchor;
   bfi::Layout L;
   std::vector<bfi::CondSetup> conds;
   bfi::Values v;
 
-  Problem(const BlockParams& at, const ExtensionSet& on, bool windows) {
+  Problem(const BlockParams& at, const fit::ExtensionSet& on, bool windows) {
     s.extensions = on;
-    anchor = make_anchor(data(), truth(), s.train, s.fit_cycles, windows);
-    ExtendedModel m;
+    anchor = fit::make_anchor(data(), truth(), s.train, s.fit_cycles, windows);
+    fit::ExtendedModel m;
     m.block = at;
     m.on = on;
     L = bfi::make_layout(data(), truth(), at, s.free, false, on, s.train, s.scored);
@@ -102,7 +102,7 @@ TEST(BandFitResiduals, DoubledOutputGainsAreMinusSixDbInEveryBand) {
   BlockParams loud = truth();
   loud.c0 *= 2.0;
   loud.c1 *= 2.0;
-  const Problem p(loud, ExtensionSet{}, false);
+  const Problem p(loud, fit::ExtensionSet{}, false);
   const double expected = -10.0 * std::log10(4.0);
   for (const bfi::CondSetup& c : p.conds) {
     ASSERT_GT(c.bands.size(), 20u);
@@ -115,7 +115,7 @@ TEST(BandFitResiduals, DoubledOutputGainsAreMinusSixDbInEveryBand) {
 }
 
 TEST(BandFitResiduals, JetDerivativesAgreeWithCentralDifferences) {
-  ExtensionSet on;
+  fit::ExtensionSet on;
   on.second_mode = on.speed = on.stationary = on.locked = true;
   Problem p(truth(), on, true);
   p.v.lin = {0.1, -0.2, 0.05, 0.1};

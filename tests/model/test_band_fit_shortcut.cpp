@@ -16,15 +16,15 @@
 namespace noisemon::model {
 namespace {
 
-using band_fit_internal::condition_spectrum;
-using band_fit_internal::simulate_condition;
+using fit::band_fit_internal::condition_spectrum;
+using fit::band_fit_internal::simulate_condition;
 using test_cell::db;
 
 constexpr std::size_t kCycles = 8;
 
 struct Cell {
-  BandDataset data = test_cell::block_dataset(preset("linear"), {test_cell::CellCondition{}});
-  ConditionSpectrum spec = condition_spectrum(data, 0, kCycles);
+  fit::BandDataset data = test_cell::block_dataset(preset("linear"), {test_cell::CellCondition{}});
+  fit::ConditionSpectrum spec = condition_spectrum(data, 0, kCycles);
   std::vector<std::vector<char>> scored = test_cell::scored_bands(data);
 };
 
@@ -45,11 +45,11 @@ double worst_db(const std::vector<double>& a, const std::vector<double>& b) {
 }
 
 // The anchor's re-simulation moved to `model` by the shortcut.
-std::vector<double> shortcut(const BlockParams& anchor, const ExtendedModel& model) {
+std::vector<double> shortcut(const BlockParams& anchor, const fit::ExtendedModel& model) {
   const Cell& c = cell();
   std::vector<double> moved;
   simulate_condition(c.data.conditions[0], anchor, kCycles, moved);
-  apply_factors(extension_factors(c.data, 0, c.spec, anchor, model), c.data.conditions[0], moved, nullptr);
+  fit::apply_factors(fit::extension_factors(c.data, 0, c.spec, anchor, model), c.data.conditions[0], moved, nullptr);
   return moved;
 }
 
@@ -69,7 +69,7 @@ TEST(BandFitShortcut, MovesTheAnchorLikeATimeDomainReSimulationOfALinearBlock) {
                         {"b1 x 2", 1, 2, 1, 1},          {"c0 x 2", 1, 1, 2, 1},     {"c1 x 0.6", 1, 1, 1, 0.6},
                         {"all four", 1.2, 0.7, 1.5, 0.8}};
   for (const Step& s : steps) {
-    ExtendedModel m;
+    fit::ExtendedModel m;
     m.block = anchor;
     m.block.k1 *= s.k1;
     m.block.b1 *= s.b1;
@@ -84,7 +84,7 @@ TEST(BandFitShortcut, MovesTheAnchorLikeATimeDomainReSimulationOfALinearBlock) {
 
 TEST(BandFitShortcut, SpeedExtensionIsARescaledBlockTimesItsGain) {
   const BlockParams anchor = preset("linear");
-  ExtendedModel m;
+  fit::ExtendedModel m;
   m.block = anchor;
   m.on.speed = true;
   m.ext.speed_ref_rpm = 2000.0;  // the cell runs at 3000 rpm: 1 krpm above
@@ -106,7 +106,7 @@ TEST(BandFitShortcut, SpeedExtensionIsARescaledBlockTimesItsGain) {
 TEST(BandFitShortcut, SecondModeFactorMatchesTheTimeDomainModeFilter) {
   const BlockParams anchor = preset("linear");
   for (const auto& [mode_db, phase_deg] : {std::pair{6.0, 0.0}, {-6.0, 0.0}, {6.0, 90.0}, {10.0, -135.0}}) {
-    ExtendedModel m;
+    fit::ExtendedModel m;
     m.block = anchor;
     m.on.second_mode = true;
     m.ext.mode_db = mode_db;
@@ -115,7 +115,7 @@ TEST(BandFitShortcut, SecondModeFactorMatchesTheTimeDomainModeFilter) {
     m.ext.mode_phase_deg = phase_deg;
     // predict_condition runs the mode in the time domain (SecondModeFilter: two biquads); the shortcut as
     // |1 + a (cos(phi) R(f) - sin(phi) D(f))|^2 of the analog responses.
-    const ConditionPrediction time_domain = predict_condition(cell().data, 0, m, false, kCycles);
+    const fit::ConditionPrediction time_domain = predict_condition(cell().data, 0, m, false, kCycles);
     const double err = worst_db(shortcut(anchor, m), time_domain.cycle_ms);
     const double moved = worst_db(time_domain.cycle_ms, resimulated(anchor));
     std::printf("mode %+.0f dB at %+.0f deg: moves the bands by up to %.2f dB; shortcut vs time domain %.4f dB\n",

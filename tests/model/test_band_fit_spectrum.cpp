@@ -13,11 +13,11 @@
 namespace noisemon::model {
 namespace {
 
-using band_fit_internal::band_power_response;
-using band_fit_internal::condition_spectrum;
+using fit::band_fit_internal::band_power_response;
+using fit::band_fit_internal::condition_spectrum;
 
 TEST(BandFitSpectrum, BandResponseIsOneAtTheCentreAndHalfAtTheEdges) {
-  const dsp::ThirdOctaveBank bank(kDatasetRateHz, 1);
+  const dsp::ThirdOctaveBank bank(fit::kDatasetRateHz, 1);
   int cut = 0;
   for (const dsp::ThirdOctaveBand& band : bank.bands()) {
     const double centre = std::sqrt(band.lower_edge_hz * band.upper_edge_hz);
@@ -37,25 +37,25 @@ TEST(BandFitSpectrum, BandResponseIsOneAtTheCentreAndHalfAtTheEdges) {
 }
 
 // A condition whose pressure is a sum of three sines on whole cycles (and a microphone that does not matter here).
-BandDataset three_sines(double a1, double f1, double a2, double f2, double a3, double f3) {
+fit::BandDataset three_sines(double a1, double f1, double a2, double f2, double a3, double f3) {
   const std::size_t n = test_cell::cycle_frames(3000.0), cycles = 10;
-  ConditionRecording r;
+  fit::ConditionRecording r;
   r.mic_count = 1;
   for (std::size_t i = 0; i < (cycles + 2) * n; ++i) {
-    const double t = static_cast<double>(i) / kDatasetRateHz;
+    const double t = static_cast<double>(i) / fit::kDatasetRateHz;
     const double w = 2.0 * std::numbers::pi * t;
     r.pressure_pa.push_back(1e5 + a1 * std::sin(w * f1) + a2 * std::sin(w * f2 + 1.0) + a3 * std::sin(w * f3 + 2.0));
     r.mics_pa.push_back(std::sin(w * 1000.0));
     r.crank_deg.push_back(-360.0 + 720.0 * static_cast<double>(i % n) / static_cast<double>(n));
   }
-  return make_dataset({build_condition(test_cell::cell_info({}), {r})});
+  return fit::make_dataset({build_condition(test_cell::cell_info({}), {r})});
 }
 
 TEST(BandFitSpectrum, PowerOfSinesIsConservedAndLandsInTheBandsThatPassThem) {
   // 250 Hz (below the merging into 1/48-octave bins), 1 kHz and 4 kHz (above it).
   const double a1 = 100.0, a2 = 30.0, a3 = 10.0;
-  const BandDataset data = three_sines(a1, 250.0, a2, 1000.0, a3, 4000.0);
-  const ConditionSpectrum sp = condition_spectrum(data, 0, 8);
+  const fit::BandDataset data = three_sines(a1, 250.0, a2, 1000.0, a3, 4000.0);
+  const fit::ConditionSpectrum sp = condition_spectrum(data, 0, 8);
   ASSERT_EQ(sp.f_hz.size(), sp.s.size());
   ASSERT_EQ(sp.f_hz.size(), sp.df_hz.size());
   EXPECT_TRUE(sp.floor.empty());  // no floor judged
@@ -73,7 +73,7 @@ TEST(BandFitSpectrum, PowerOfSinesIsConservedAndLandsInTheBandsThatPassThem) {
   for (std::size_t b = 0; b < data.band_count(); ++b) {
     const dsp::ThirdOctaveBand& band = data.bands[b];
     double taps = 0.0;
-    for (const ConditionSpectrum::Tap& t : sp.band_taps[b]) taps += t.q;
+    for (const fit::ConditionSpectrum::Tap& t : sp.band_taps[b]) taps += t.q;
     const double w1 = band_power_response(band, 250.0), w2 = band_power_response(band, 1000.0),
                  w3 = band_power_response(band, 4000.0);
     const double want = (w1 * a1 * a1 + w2 * a2 * a2 + w3 * a3 * a3) / 2;
@@ -88,11 +88,11 @@ TEST(BandFitSpectrum, PowerOfSinesIsConservedAndLandsInTheBandsThatPassThem) {
 }
 
 TEST(BandFitSpectrum, JudgedFloorIsInterpolatedInLogFrequencyBetweenBandCentres) {
-  BandDataset data = three_sines(100.0, 250.0, 30.0, 1000.0, 10.0, 4000.0);
+  fit::BandDataset data = three_sines(100.0, 250.0, 30.0, 1000.0, 10.0, 4000.0);
   std::vector<double> density(data.band_count());
   for (std::size_t b = 0; b < density.size(); ++b) density[b] = 1e-6 * static_cast<double>(b + 1);
   data.conditions[0].info.floor_density = density;
-  const ConditionSpectrum sp = condition_spectrum(data, 0, 8);
+  const fit::ConditionSpectrum sp = condition_spectrum(data, 0, 8);
   ASSERT_EQ(sp.floor.size(), sp.f_hz.size());
   for (std::size_t j = 0; j < sp.f_hz.size(); ++j) {
     const double f = sp.f_hz[j];

@@ -16,11 +16,11 @@ namespace nm = noisemon::model;
 namespace {
 
 // Means over 400 cycles before and 400 after, standard errors from the cycles' own spread.
-nm::GapChange change_of(const gapcell::Effects& effects, unsigned seed = 9) {
+nm::diagnosis::GapChange change_of(const gapcell::Effects& effects, unsigned seed = 9) {
   gapcell::Cell cell(seed);
   constexpr int kCycles = 400;
   const std::size_t nb = gapcell::kBandsHz.size(), nm_ = gapcell::kMics;
-  nm::GapChange g;
+  nm::diagnosis::GapChange g;
   g.band_hz = gapcell::kBandsHz;
   g.band_used.assign(nb, 1);
   g.speed_rpm = 3050.0;
@@ -30,7 +30,7 @@ nm::GapChange change_of(const gapcell::Effects& effects, unsigned seed = 9) {
     meas.assign(nb, 0.0), pred.assign(nb, 0.0), cpl.assign(nb, 0.0), mic.assign(nm_, 0.0);
     std::vector<double> ss(nb, 0.0);
     for (int i = 0; i < kCycles; ++i) {
-      const nm::CycleGap c = cell.next(e);
+      const nm::diagnosis::CycleGap c = cell.next(e);
       for (std::size_t b = 0; b < nb; ++b) {
         meas[b] += c.measured_db[b] / kCycles, pred[b] += c.predicted_db[b] / kCycles, cpl[b] += c.cpl_db[b] / kCycles;
         ss[b] += std::pow(c.measured_db[b] - c.predicted_db[b], 2) / kCycles;
@@ -50,7 +50,7 @@ nm::GapChange change_of(const gapcell::Effects& effects, unsigned seed = 9) {
   return g;
 }
 
-double param(const nm::Attribution& a, const std::string& key) {
+double param(const nm::diagnosis::Attribution& a, const std::string& key) {
   for (const auto& [k, v] : a.params)
     if (k == key) return v;
   ADD_FAILURE() << "no parameter " << key << " of " << a.effect;
@@ -65,7 +65,7 @@ TEST(ChangeAttribution, MicrophoneGain) {
   gapcell::Effects e;
   e.gain_mic = 6;
   e.gain_db = 3.0;
-  const nm::Attribution a = nm::attribute_change(change_of(e));
+  const nm::diagnosis::Attribution a = nm::diagnosis::attribute_change(change_of(e));
   EXPECT_EQ(a.effect, "mic_gain") << a.explanation;
   EXPECT_EQ(param(a, "mic"), 7.0);
   EXPECT_NEAR(param(a, "db"), 3.0, 0.2);
@@ -76,7 +76,7 @@ TEST(ChangeAttribution, TransducerNoise) {
   gapcell::Effects e;
   const double edge_rate = 3600.0 * 3050.0 / 60.0, sigma_pa = 0.2e5;
   e.transducer_pa2_per_hz = 2.0 * sigma_pa * sigma_pa / edge_rate;
-  const nm::Attribution a = nm::attribute_change(change_of(e));
+  const nm::diagnosis::Attribution a = nm::diagnosis::attribute_change(change_of(e));
   EXPECT_EQ(a.effect, "transducer_noise") << a.explanation;
   EXPECT_NEAR(param(a, "bar"), 0.2, 0.03);
 }
@@ -95,7 +95,7 @@ TEST(ChangeAttribution, SecondMode) {
     }
     e.structure_db.push_back(10.0 * std::log10(sum));
   }
-  const nm::Attribution a = nm::attribute_change(change_of(e));
+  const nm::diagnosis::Attribution a = nm::diagnosis::attribute_change(change_of(e));
   EXPECT_EQ(a.effect, "second_mode") << a.explanation;
   EXPECT_NEAR(std::log2(param(a, "hz") / f2), 0.0, 1.0 / 6.0);
   EXPECT_NEAR(param(a, "db"), 6.0, 1.5);
@@ -104,7 +104,7 @@ TEST(ChangeAttribution, SecondMode) {
 TEST(ChangeAttribution, UniformStructuralGain) {
   gapcell::Effects e;
   e.structure_db.assign(gapcell::kBandsHz.size(), 1.5);
-  const nm::Attribution a = nm::attribute_change(change_of(e));
+  const nm::diagnosis::Attribution a = nm::diagnosis::attribute_change(change_of(e));
   EXPECT_EQ(a.effect, "speed_dependence") << a.explanation;
   EXPECT_NEAR(param(a, "gain_db"), 1.5, 0.1);
 }
@@ -118,9 +118,9 @@ TEST(ChangeAttribution, AdditiveNoiseLowAndHigh) {
     low.additive_pa2.push_back(hz <= 500.0 ? p0 * std::pow(10.0, 9.2) : 0.0);
     high.additive_pa2.push_back(hz >= 4000.0 ? p0 * std::pow(10.0, 9.5) : 0.0);
   }
-  const nm::Attribution a = nm::attribute_change(change_of(low));
+  const nm::diagnosis::Attribution a = nm::diagnosis::attribute_change(change_of(low));
   EXPECT_EQ(a.effect, "background_noise") << a.explanation;
-  const nm::Attribution b = nm::attribute_change(change_of(high));
+  const nm::diagnosis::Attribution b = nm::diagnosis::attribute_change(change_of(high));
   EXPECT_EQ(b.effect, "mechanical_noise") << b.explanation;
 }
 
@@ -128,7 +128,7 @@ TEST(ChangeAttribution, AdditiveNoiseLowAndHigh) {
 TEST(ChangeAttribution, ACombOutsideTheCatalogueIsUnexplained) {
   gapcell::Effects e;
   for (std::size_t b = 0; b < gapcell::kBandsHz.size(); ++b) e.structure_db.push_back(b % 2 ? 2.0 : -2.0);
-  const nm::Attribution a = nm::attribute_change(change_of(e));
+  const nm::diagnosis::Attribution a = nm::diagnosis::attribute_change(change_of(e));
   EXPECT_EQ(a.effect, "unexplained") << a.explanation;
   EXPECT_EQ(a.confidence, 0.0);
 }

@@ -15,9 +15,9 @@ namespace {
 
 const std::vector<double> kFlat(4, 0.0);
 
-BandDataset dataset(double heldout_offset_db) {
+fit::BandDataset dataset(double heldout_offset_db) {
   const BlockParams truth = preset("linear");
-  return make_dataset(
+  return fit::make_dataset(
       {testdata::build(testdata::fired("a_1", 3000, 1.0, truth, kFlat, 1)),
        testdata::build(testdata::fired("a_2", 2400, 0.7, truth, kFlat, 2)),
        testdata::build(testdata::fired("b_1", 2700, 0.85, truth, std::vector<double>(4, heldout_offset_db), 3))});
@@ -29,7 +29,7 @@ struct Baseline {
   Evaluated base;
 };
 
-void tune(const BandDataset& data, Baseline& b) {
+void tune(const fit::BandDataset& data, Baseline& b) {
   b.opt.train = {"a"};
   b.opt.holdout = {"b"};
   b.opt.bootstrap = 20;
@@ -38,11 +38,11 @@ void tune(const BandDataset& data, Baseline& b) {
   assign_roles(b.cx);
   mark_bands_and_floors(b.cx, preset("linear"));
   draw_bootstrap(b.cx);
-  b.base = tune_baseline(b.cx, preset("linear"), default_free_params(preset("linear")));
+  b.base = tune_baseline(b.cx, preset("linear"), fit::default_free_params(preset("linear")));
 }
 
 TEST(Baseline, WhenTheTrueBlockIsTheModelTheGapIsZeroAndTheFitStaysAtTheTruth) {
-  const BandDataset data = dataset(0.0);
+  const fit::BandDataset data = dataset(0.0);
   Baseline b;
   tune(data, b);
   const ModelScore& s = b.base.score;
@@ -65,7 +65,7 @@ TEST(Baseline, WhenTheTrueBlockIsTheModelTheGapIsZeroAndTheFitStaysAtTheTruth) {
 
 TEST(Baseline, AKnownOffsetOnTheHeldOutConditionIsItsGap) {
   constexpr double x = 1.0;
-  const BandDataset data = dataset(x);
+  const fit::BandDataset data = dataset(x);
   Baseline b;
   tune(data, b);
   const ModelScore& s = b.base.score;
@@ -90,7 +90,7 @@ TEST(Baseline, LeaveOneOutScoresEachConditionWithAFoldThatNeverSawIt) {
   // Only b_1 is off (+1 dB at every microphone): its fold is tuned on the exact a_1 and a_2 alone, so its gap is
   // the whole offset in every band (a fold that saw b_1 would have moved towards it).
   constexpr double x = 1.0;
-  const BandDataset data = dataset(x);
+  const fit::BandDataset data = dataset(x);
   Baseline b;
   b.opt.bootstrap = 20;
   b.cx.data = &data;
@@ -100,7 +100,7 @@ TEST(Baseline, LeaveOneOutScoresEachConditionWithAFoldThatNeverSawIt) {
   ASSERT_EQ(b.cx.heldout, (std::vector<std::size_t>{0, 1, 2}));
   mark_bands_and_floors(b.cx, preset("linear"));
   draw_bootstrap(b.cx);
-  b.base = tune_baseline(b.cx, preset("linear"), default_free_params(preset("linear")));
+  b.base = tune_baseline(b.cx, preset("linear"), fit::default_free_params(preset("linear")));
   ASSERT_EQ(b.base.score.fold_models.size(), 3u);
   int scored = 0;
   for (double g : b.base.score.gaps[2])

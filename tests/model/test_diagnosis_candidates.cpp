@@ -23,9 +23,9 @@ TEST(Candidates, TheEffectsAreDesignMdsListInItsOrder) {
 
 TEST(Candidates, EachEffectIsItsModelExtensionAndAPairIsTheUnionOfBoth) {
   const CandidateSpec damping = spec_for("cubic_damping"), stiffness = spec_for("cubic_stiffness");
-  EXPECT_EQ(damping.extra_free, std::vector<BlockParam>{BlockParam::kB3});
+  EXPECT_EQ(damping.extra_free, std::vector<fit::BlockParam>{fit::BlockParam::kB3});
   EXPECT_FALSE(damping.ext.any());
-  EXPECT_EQ(stiffness.extra_free, std::vector<BlockParam>{BlockParam::kK3});
+  EXPECT_EQ(stiffness.extra_free, std::vector<fit::BlockParam>{fit::BlockParam::kK3});
   EXPECT_TRUE(spec_for("second_mode").ext.second_mode);
   EXPECT_TRUE(spec_for("mechanical_noise").ext.locked);
   EXPECT_TRUE(spec_for("background_noise").ext.stationary);
@@ -37,7 +37,7 @@ TEST(Candidates, EachEffectIsItsModelExtensionAndAPairIsTheUnionOfBoth) {
     EXPECT_EQ(s.name, name);
     EXPECT_EQ(s.effects, std::vector<std::string>{name});
     // Exactly one thing added: one extension or one free cubic term.
-    const ExtensionSet& e = s.ext;
+    const fit::ExtensionSet& e = s.ext;
     const int added = e.second_mode + e.speed + e.transducer + e.stationary + e.locked + e.mic_gain +
                       static_cast<int>(s.extra_free.size());
     EXPECT_EQ(added, 1) << name;
@@ -47,10 +47,10 @@ TEST(Candidates, EachEffectIsItsModelExtensionAndAPairIsTheUnionOfBoth) {
   EXPECT_EQ(pair.name, "second_mode+cubic_damping");
   EXPECT_EQ(pair.effects, (std::vector<std::string>{"second_mode", "cubic_damping"}));
   EXPECT_TRUE(pair.ext.second_mode);
-  EXPECT_EQ(pair.extra_free, std::vector<BlockParam>{BlockParam::kB3});
+  EXPECT_EQ(pair.extra_free, std::vector<fit::BlockParam>{fit::BlockParam::kB3});
   const CandidateSpec both = combine(damping, stiffness);
-  EXPECT_EQ(both.extra_free, (std::vector<BlockParam>{BlockParam::kB3, BlockParam::kK3}));
-  EXPECT_EQ(combine(damping, damping).extra_free, std::vector<BlockParam>{BlockParam::kB3});
+  EXPECT_EQ(both.extra_free, (std::vector<fit::BlockParam>{fit::BlockParam::kB3, fit::BlockParam::kK3}));
+  EXPECT_EQ(combine(damping, damping).extra_free, std::vector<fit::BlockParam>{fit::BlockParam::kB3});
 }
 
 // A model scored on `cells` held-out band cells, every one off by the gap.
@@ -197,9 +197,10 @@ TEST(Candidates, AMiscalibratedMicrophoneIsFoundByTheMicGainCandidate) {
   // gain (3 dB from the others' median) and closes it.
   const BlockParams truth = preset("linear");
   const std::vector<double> gains{0.0, 0.0, 3.0, 0.0};
-  const BandDataset data = make_dataset({testdata::build(testdata::fired("a_1", 3000, 1.0, truth, gains, 1)),
-                                         testdata::build(testdata::fired("a_2", 2400, 0.7, truth, gains, 2)),
-                                         testdata::build(testdata::fired("b_1", 2700, 0.85, truth, gains, 3))});
+  const fit::BandDataset data =
+      fit::make_dataset({testdata::build(testdata::fired("a_1", 3000, 1.0, truth, gains, 1)),
+                         testdata::build(testdata::fired("a_2", 2400, 0.7, truth, gains, 2)),
+                         testdata::build(testdata::fired("b_1", 2700, 0.85, truth, gains, 3))});
   DiagnosisOptions opt;
   opt.train = {"a"};
   opt.holdout = {"b"};
@@ -211,7 +212,7 @@ TEST(Candidates, AMiscalibratedMicrophoneIsFoundByTheMicGainCandidate) {
   assign_roles(cx);
   mark_bands_and_floors(cx, truth);
   draw_bootstrap(cx);
-  const std::vector<BlockParam> free = default_free_params(truth);
+  const std::vector<fit::BlockParam> free = fit::default_free_params(truth);
   const Evaluated base = tune_baseline(cx, truth, free);
   EXPECT_NEAR(std::sqrt(base.score.part_mic), 2.7, 0.05);
   DiagnosisResult res;

@@ -19,7 +19,7 @@
 
 namespace noisemon::model::testdata {
 
-inline constexpr double kFs = kDatasetRateHz;
+inline constexpr double kFs = fit::kDatasetRateHz;
 
 // One cycle of cylinder pressure (Pa) at `rpm`: ambient, a pulse near TDC, a ringing after it and white noise.
 inline std::vector<double> pressure_cycle(double rpm, double scale, std::uint64_t seed) {
@@ -75,7 +75,7 @@ inline std::vector<double> white_noise(std::size_t n, double sigma, std::uint64_
 // A condition made of a repeated pressure cycle, with microphones given per cycle sample (mic_cycles: one period
 // per microphone, repeated like the pressure), plus optional aperiodic additions over the whole recording.
 struct Recipe {
-  ConditionInfo info;
+  fit::ConditionInfo info;
   std::vector<double> pressure_cycle;
   std::vector<std::vector<double>> mic_cycles;  // per microphone, one period
   std::vector<std::vector<double>> mic_extra;   // per microphone, the whole recording (empty: none)
@@ -89,9 +89,9 @@ struct Recipe {
 inline std::size_t recording_frames(const Recipe& r) { return (r.cycles + 1) * r.pressure_cycle.size(); }
 
 // The first complete cycle begins at the first wrap of the crank angle.
-inline ConditionData build(const Recipe& r) {
+inline fit::ConditionData build(const Recipe& r) {
   const std::size_t n = r.pressure_cycle.size(), frames = recording_frames(r), mics = r.mic_cycles.size();
-  ConditionRecording rec;
+  fit::ConditionRecording rec;
   rec.mic_count = mics;
   rec.pressure_pa.resize(frames);
   rec.crank_deg.resize(frames);
@@ -107,8 +107,8 @@ inline ConditionData build(const Recipe& r) {
 }
 
 // A condition's info with an ideal pressure chain (a stated floor of 0: nothing is floor-limited by it).
-inline ConditionInfo ideal_info(const std::string& name, double rpm) {
-  ConditionInfo i;
+inline fit::ConditionInfo ideal_info(const std::string& name, double rpm) {
+  fit::ConditionInfo i;
   i.name = name;
   i.speed_rpm = rpm;
   i.pressure_floor_pa = 0.0;

@@ -16,11 +16,11 @@ constexpr std::size_t kMics = 5;
 
 // A condition of `cycles` cycles whose microphones all read `level(c, b)` (mean square), per window an equal share.
 template <class Level>
-ConditionData condition(std::size_t cycles, Level level) {
-  ConditionData d;
+fit::ConditionData condition(std::size_t cycles, Level level) {
+  fit::ConditionData d;
   d.bands = kBands;
   d.mics = kMics;
-  d.cycles.resize(cycles, CycleInfo{0.04, 3000.0});
+  d.cycles.resize(cycles, fit::CycleInfo{0.04, 3000.0});
   d.mic_ms.resize(cycles * kMics * kBands);
   d.win_ms.resize(cycles * kW * kBands);
   for (std::size_t c = 0; c < cycles; ++c)
@@ -32,9 +32,9 @@ ConditionData condition(std::size_t cycles, Level level) {
 }
 
 // A prediction of the measured condition lower by `gap_db` in every band, cycle and window.
-ConditionPrediction lower_by(const ConditionData& d, double gap_db) {
-  const Measured ms = measured_side(d, ExtendedModel{});
-  ConditionPrediction p;
+fit::ConditionPrediction lower_by(const fit::ConditionData& d, double gap_db) {
+  const Measured ms = measured_side(d, fit::ExtendedModel{});
+  fit::ConditionPrediction p;
   const double f = std::pow(10.0, -gap_db / 10.0);
   for (double x : ms.meas) p.cycle_ms.push_back(x * f);
   for (double x : ms.win) p.win_ms.push_back(x * f);
@@ -45,8 +45,8 @@ const std::vector<char> kAll(kBands, 1);
 const std::vector<double> kNoFloor(kBands, 0.0);
 
 TEST(ScoreCondition, AUniformGapIsTheBandAndTheWindowPartAndNoMicrophoneStandsOut) {
-  const ConditionData d = condition(8, [](std::size_t, std::size_t b) { return 1e-3 * (b + 1); });
-  const Measured ms = measured_side(d, ExtendedModel{});
+  const fit::ConditionData d = condition(8, [](std::size_t, std::size_t b) { return 1e-3 * (b + 1); });
+  const Measured ms = measured_side(d, fit::ExtendedModel{});
   for (double g : {-2.0, 0.5, 3.0}) {
     ScoreDetail det;
     const Parts p = score_condition(d, ms, lower_by(d, g), kAll, kAll, kNoFloor, nullptr, &det);
@@ -59,12 +59,12 @@ TEST(ScoreCondition, AUniformGapIsTheBandAndTheWindowPartAndNoMicrophoneStandsOu
 }
 
 TEST(ScoreCondition, OnlyScoredBandsCountAndOnlyFastBandsHaveWindows) {
-  ConditionData d = condition(4, [](std::size_t, std::size_t) { return 1e-3; });
+  fit::ConditionData d = condition(4, [](std::size_t, std::size_t) { return 1e-3; });
   // Band 0 reads 3 dB more than the rest; the prediction is the rest's level everywhere.
   for (std::size_t c = 0; c < 4; ++c)
     for (std::size_t m = 0; m < kMics; ++m) d.mic_ms[(c * kMics + m) * kBands] *= std::pow(10.0, 0.3);
-  const Measured ms = measured_side(d, ExtendedModel{});
-  ConditionPrediction p = lower_by(condition(4, [](std::size_t, std::size_t) { return 1e-3; }), 0.0);
+  const Measured ms = measured_side(d, fit::ExtendedModel{});
+  fit::ConditionPrediction p = lower_by(condition(4, [](std::size_t, std::size_t) { return 1e-3; }), 0.0);
   std::vector<char> scored(kBands, 1), fast(kBands, 0);
   scored[0] = 0;
   ScoreDetail det;
@@ -78,10 +78,10 @@ TEST(ScoreCondition, OnlyScoredBandsCountAndOnlyFastBandsHaveWindows) {
 }
 
 TEST(ScoreCondition, AnUpperBoundPredictionCountsOnlyTheSoundAboveIt) {
-  const ConditionData d = condition(8, [](std::size_t, std::size_t) { return 2e-3; });
-  const Measured ms = measured_side(d, ExtendedModel{});
+  const fit::ConditionData d = condition(8, [](std::size_t, std::size_t) { return 2e-3; });
+  const Measured ms = measured_side(d, fit::ExtendedModel{});
   for (double g : {-4.0, 2.0}) {
-    ConditionPrediction p = lower_by(d, g);
+    fit::ConditionPrediction p = lower_by(d, g);
     p.upper.assign(kBands, 1);
     p.upper_win.assign(kBands * kW, 1);
     const Parts parts = score_condition(d, ms, p, kAll, kAll, kNoFloor, nullptr, nullptr);
@@ -93,10 +93,11 @@ TEST(ScoreCondition, AnUpperBoundPredictionCountsOnlyTheSoundAboveIt) {
 
 TEST(ScoreCondition, TheStationaryFloorTheModelLeavesIsNotCountedInTheWindows) {
   // Measured = prediction + a stationary floor F per window: no crank-angle-locked gap once F is allowed for.
-  const ConditionData d = condition(8, [](std::size_t c, std::size_t b) { return 1e-3 * (1 + 0.1 * c) * (b + 1); });
-  const Measured ms = measured_side(d, ExtendedModel{});
+  const fit::ConditionData d =
+      condition(8, [](std::size_t c, std::size_t b) { return 1e-3 * (1 + 0.1 * c) * (b + 1); });
+  const Measured ms = measured_side(d, fit::ExtendedModel{});
   const std::vector<double> floor(kBands, 2e-5);
-  ConditionPrediction p = lower_by(d, 0.0);
+  fit::ConditionPrediction p = lower_by(d, 0.0);
   for (std::size_t i = 0; i < p.win_ms.size(); ++i) p.win_ms[i] -= floor[i % kBands];
   EXPECT_NEAR(score_condition(d, ms, p, kAll, kAll, floor, nullptr, nullptr).window_ms, 0.0, 1e-9);
   EXPECT_GT(score_condition(d, ms, p, kAll, kAll, kNoFloor, nullptr, nullptr).window_ms, 0.01);
@@ -106,22 +107,22 @@ TEST(ScoreCondition, AMiscalibratedMicrophoneCountsBeyondThreeTimesTheArraysSpre
   // Four microphones agree, one reads X dB high in every band: its offset from the array's median is X, the
   // array's robust spread is at its floor (0.1 dB), so the residual is X - 0.3 dB.
   for (double x : {1.0, 3.0}) {
-    ConditionData d = condition(6, [](std::size_t, std::size_t) { return 1e-3; });
+    fit::ConditionData d = condition(6, [](std::size_t, std::size_t) { return 1e-3; });
     for (std::size_t c = 0; c < 6; ++c)
       for (std::size_t b = 0; b < kBands; ++b) d.mic_ms[(c * kMics + 2) * kBands + b] *= std::pow(10.0, x / 10.0);
-    const Measured ms = measured_side(d, ExtendedModel{});
+    const Measured ms = measured_side(d, fit::ExtendedModel{});
     ScoreDetail det;
     const Parts p = score_condition(d, ms, lower_by(d, 0.0), kAll, kAll, kNoFloor, nullptr, &det);
     EXPECT_NEAR(p.mic, (x - 0.3) * (x - 0.3), 1e-9);
     EXPECT_NEAR(det.mic_resid[2], x - 0.3, 1e-9);
     EXPECT_EQ(det.mic_resid[0], 0.0);
     // The model's gains correct the measurement: with the channel's gain known, nothing stands out.
-    ExtendedModel gains;
+    fit::ExtendedModel gains;
     gains.on.mic_gain = true;
     gains.ext.mic_gain_db.assign(kMics, 0.0);
     gains.ext.mic_gain_db[2] = x;
     const Measured corrected = measured_side(d, gains);
-    const ConditionPrediction flat = lower_by(condition(6, [](std::size_t, std::size_t) { return 1e-3; }), 0.0);
+    const fit::ConditionPrediction flat = lower_by(condition(6, [](std::size_t, std::size_t) { return 1e-3; }), 0.0);
     EXPECT_NEAR(score_condition(d, corrected, flat, kAll, kAll, kNoFloor, nullptr, nullptr).mic, 0.0, 1e-12);
   }
 }
@@ -132,20 +133,22 @@ TEST(ScoreCondition, CycleWeightsEqualTheCyclesRepeated) {
   std::lognormal_distribution<double> scatter(0.0, 0.3);
   std::vector<double> level(5 * kBands);
   for (double& x : level) x = 1e-3 * scatter(rng);
-  const ConditionData d = condition(5, [&](std::size_t c, std::size_t b) { return level[c * kBands + b]; });
+  const fit::ConditionData d = condition(5, [&](std::size_t c, std::size_t b) { return level[c * kBands + b]; });
   const std::vector<int> counts{2, 0, 1, 0, 2};
   std::vector<std::size_t> repeated;
   for (std::size_t c = 0; c < counts.size(); ++c)
     for (int i = 0; i < counts[c]; ++i) repeated.push_back(c);
-  const ConditionData r =
+  const fit::ConditionData r =
       condition(repeated.size(), [&](std::size_t c, std::size_t b) { return level[repeated[c] * kBands + b]; });
   // The same prediction per cycle in both (a fixed shape, 1 dB low).
   const auto shape = [](std::size_t, std::size_t b) { return 1e-3 * (b + 1); };
-  const ConditionPrediction pd = lower_by(condition(5, shape), 1.0);
-  const ConditionPrediction pr = lower_by(condition(repeated.size(), shape), 1.0);
+  const fit::ConditionPrediction pd = lower_by(condition(5, shape), 1.0);
+  const fit::ConditionPrediction pr = lower_by(condition(repeated.size(), shape), 1.0);
   const std::vector<double> floor(kBands, 1e-6);
-  const Parts weighted = score_condition(d, measured_side(d, ExtendedModel{}), pd, kAll, kAll, floor, &counts, nullptr);
-  const Parts copies = score_condition(r, measured_side(r, ExtendedModel{}), pr, kAll, kAll, floor, nullptr, nullptr);
+  const Parts weighted =
+      score_condition(d, measured_side(d, fit::ExtendedModel{}), pd, kAll, kAll, floor, &counts, nullptr);
+  const Parts copies =
+      score_condition(r, measured_side(r, fit::ExtendedModel{}), pr, kAll, kAll, floor, nullptr, nullptr);
   EXPECT_NEAR(weighted.band_ms, copies.band_ms, 1e-9);
   EXPECT_NEAR(weighted.window_ms, copies.window_ms, 1e-9);
   EXPECT_NEAR(weighted.mic, copies.mic, 1e-9);
@@ -159,16 +162,18 @@ TEST(ScoreCondition, TheCycleScatterDoesNotCountAsGapOnAverage) {
   std::mt19937_64 rng(9);
   const double s = 0.25;  // ln-scale scatter per cycle
   std::normal_distribution<double> z(-0.5 * s * s, s);
-  const ConditionData shape = condition(cycles, [](std::size_t, std::size_t) { return 1e-3; });
-  const ConditionPrediction p = lower_by(shape, 0.0);
+  const fit::ConditionData shape = condition(cycles, [](std::size_t, std::size_t) { return 1e-3; });
+  const fit::ConditionPrediction p = lower_by(shape, 0.0);
   double corrected = 0.0, raw = 0.0;
   constexpr int draws = 1000;
   for (int i = 0; i < draws; ++i) {
     std::vector<double> f(cycles * kBands);
     for (double& x : f) x = std::exp(z(rng)) * std::pow(10.0, g / 10.0);
-    const ConditionData d = condition(cycles, [&](std::size_t c, std::size_t b) { return 1e-3 * f[c * kBands + b]; });
+    const fit::ConditionData d =
+        condition(cycles, [&](std::size_t c, std::size_t b) { return 1e-3 * f[c * kBands + b]; });
     ScoreDetail det;
-    corrected += score_condition(d, measured_side(d, ExtendedModel{}), p, kAll, kAll, kNoFloor, nullptr, &det).band_ms;
+    corrected +=
+        score_condition(d, measured_side(d, fit::ExtendedModel{}), p, kAll, kAll, kNoFloor, nullptr, &det).band_ms;
     for (double x : det.gaps) raw += x * x / kBands;
   }
   corrected /= draws;
@@ -180,7 +185,7 @@ TEST(ScoreCondition, TheCycleScatterDoesNotCountAsGapOnAverage) {
 }
 
 TEST(DrawBootstrap, EachReplicateDrawsEveryHeldOutConditionsCyclesWithReplacementTheSameForASeed) {
-  BandDataset data;
+  fit::BandDataset data;
   data.conditions.push_back(condition(7, [](std::size_t, std::size_t) { return 1.0; }));
   data.conditions.push_back(condition(12, [](std::size_t, std::size_t) { return 1.0; }));
   DiagnosisOptions opt;

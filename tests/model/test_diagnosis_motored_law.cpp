@@ -26,7 +26,7 @@ testdata::Recipe with_noise(testdata::Recipe r, std::uint64_t seed) {
 }
 
 struct Cell {
-  BandDataset data;
+  fit::BandDataset data;
   DiagnosisOptions opt;
   Context cx;
 };
@@ -36,9 +36,9 @@ void make_cell(Cell& c) {
   const std::vector<double> flat(4, 0.0);
   testdata::Recipe motored = testdata::fired("motored_3000", 3000, 0.3, truth, flat, 11);
   motored.info.motored = true;
-  c.data = make_dataset({testdata::build(with_noise(testdata::fired("a_1", 3000, 1.0, truth, flat, 1), 100)),
-                         testdata::build(with_noise(testdata::fired("a_2", 2400, 0.7, truth, flat, 2), 200)),
-                         testdata::build(with_noise(motored, 300))});
+  c.data = fit::make_dataset({testdata::build(with_noise(testdata::fired("a_1", 3000, 1.0, truth, flat, 1), 100)),
+                              testdata::build(with_noise(testdata::fired("a_2", 2400, 0.7, truth, flat, 2), 200)),
+                              testdata::build(with_noise(motored, 300))});
   c.opt.bootstrap = 20;
   c.cx.data = &c.data;
   c.cx.opt = &c.opt;
@@ -47,7 +47,7 @@ void make_cell(Cell& c) {
 }
 
 // The true block with a stationary source of the given mean square in every band (Pa^2 per band, microphone mean).
-ModelScore with_source(const BandDataset& data, const std::vector<double>& ms) {
+ModelScore with_source(const fit::BandDataset& data, const std::vector<double>& ms) {
   ModelScore m;
   m.model.block = preset("linear");
   m.model.on.stationary = true;
@@ -59,10 +59,10 @@ ModelScore with_source(const BandDataset& data, const std::vector<double>& ms) {
 // The white noise's mean square per band as the motored run's microphones measure it beyond the block's sound.
 std::vector<double> noise_per_band(const Cell& c) {
   const std::size_t k = c.cx.refs.front(), nb = c.data.band_count();
-  ExtendedModel bare;
+  fit::ExtendedModel bare;
   bare.block = preset("linear");
-  const ConditionPrediction p = predict_condition(c.data, k, bare, false);
-  const ConditionData& d = c.data.conditions[k];
+  const fit::ConditionPrediction p = predict_condition(c.data, k, bare, false);
+  const fit::ConditionData& d = c.data.conditions[k];
   std::vector<double> out(nb, 0.0);
   for (std::size_t cy = 0; cy < d.cycle_count(); ++cy)
     for (std::size_t b = 0; b < nb; ++b)
@@ -102,13 +102,13 @@ TEST(MotoredLaw, ThePredictionsAdditivePartIsWhatTheSourceAddsToTheBarePredictio
   const std::size_t k = c.cx.refs.front(), nb = c.data.band_count();
   ModelScore m = with_source(c.data, noise_per_band(c));
   m.model.on.locked = true;  // and a crank-locked source of 1 Pa^2 in the first window of every band
-  m.model.ext.locked_ms.assign(nb * kCrankWindows, 0.0);
-  for (std::size_t b = 0; b < nb; ++b) m.model.ext.locked_ms[b * kCrankWindows] = 1.0;
+  m.model.ext.locked_ms.assign(nb * fit::kCrankWindows, 0.0);
+  for (std::size_t b = 0; b < nb; ++b) m.model.ext.locked_ms[b * fit::kCrankWindows] = 1.0;
   m.model.ext.speed_ref_rpm = 3000;
-  ExtendedModel bare;
+  fit::ExtendedModel bare;
   bare.block = preset("linear");
-  const ConditionPrediction with = predict_condition(c.data, k, m.model, false),
-                            without = predict_condition(c.data, k, bare, false);
+  const fit::ConditionPrediction with = predict_condition(c.data, k, m.model, false),
+                                 without = predict_condition(c.data, k, bare, false);
   ASSERT_EQ(with.additive_ms.size(), nb);
   const std::size_t cycles = with.cycle_ms.size() / nb;
   for (std::size_t b = 0; b < nb; ++b) {

@@ -16,7 +16,7 @@ constexpr std::size_t kBands = 6;
 constexpr double kNominal[kBands] = {500, 630, 800, 1000, 1250, 1600};
 
 struct Cell {
-  BandDataset data;
+  fit::BandDataset data;
   DiagnosisOptions opt;
   Context cx;
 
@@ -28,11 +28,11 @@ struct Cell {
       data.bands.push_back(b);
     }
     for (std::size_t k = 0; k < rpm.size(); ++k) {
-      ConditionData d;
+      fit::ConditionData d;
       d.info.name = "fired_" + std::to_string(k);
       d.info.load_nm = 40.0;
       d.bands = kBands;
-      d.cycles = {CycleInfo{120.0 / rpm[k], rpm[k]}, CycleInfo{120.0 / rpm[k], rpm[k]}};
+      d.cycles = {fit::CycleInfo{120.0 / rpm[k], rpm[k]}, fit::CycleInfo{120.0 / rpm[k], rpm[k]}};
       d.cpl_ms.assign(2 * kBands, cpl_ms_per_band[k]);
       data.conditions.push_back(d);
       cx.heldout.push_back(k);

@@ -16,10 +16,10 @@ namespace {
 
 using testdata::Recipe;
 
-BandDataset named_conditions() {
-  BandDataset d;
+fit::BandDataset named_conditions() {
+  fit::BandDataset d;
   auto add = [&](const std::string& name, bool motored = false, bool background = false) {
-    ConditionData c;
+    fit::ConditionData c;
     c.info.name = name;
     c.info.motored = motored;
     c.info.background = background;
@@ -34,7 +34,7 @@ BandDataset named_conditions() {
   return d;
 }
 
-Context roles(const BandDataset& data, const DiagnosisOptions& opt) {
+Context roles(const fit::BandDataset& data, const DiagnosisOptions& opt) {
   Context cx;
   cx.data = &data;
   cx.opt = &opt;
@@ -45,7 +45,7 @@ Context roles(const BandDataset& data, const DiagnosisOptions& opt) {
 using Idx = std::vector<std::size_t>;
 
 TEST(AssignRoles, LeaveOneOutTrainsOnAndScoresEveryFiredConditionMotoredAreReferencesEngineOffIsAFloor) {
-  const BandDataset data = named_conditions();
+  const fit::BandDataset data = named_conditions();
   const DiagnosisOptions opt;
   const Context cx = roles(data, opt);
   EXPECT_TRUE(cx.loo);
@@ -57,15 +57,15 @@ TEST(AssignRoles, LeaveOneOutTrainsOnAndScoresEveryFiredConditionMotoredAreRefer
 }
 
 // Conditions at these speeds (info.speed_rpm: no cycles, so the stated speed is the mean), one motored run.
-BandDataset at_speeds(const std::vector<double>& rpm) {
-  BandDataset d;
+fit::BandDataset at_speeds(const std::vector<double>& rpm) {
+  fit::BandDataset d;
   for (std::size_t k = 0; k < rpm.size(); ++k) {
-    ConditionData c;
+    fit::ConditionData c;
     c.info.name = "fired_" + std::to_string(k);
     c.info.speed_rpm = rpm[k];
     d.conditions.push_back(c);
   }
-  ConditionData m;
+  fit::ConditionData m;
   m.info.name = "motored";
   m.info.motored = true;
   m.info.speed_rpm = rpm.front();
@@ -77,7 +77,7 @@ TEST(AssignRoles, LeaveOneGroupOutGroupsTheHeldOutConditionsByOperatingSpeed) {
   const DiagnosisOptions opt;
   // The thesis's two groups (idle at 3050 rpm, full load at 3450), listed interleaved; 3100 rpm is within 5 % of
   // idle.
-  const BandDataset thesis = at_speeds({3450, 3050, 3450, 3100, 3050});
+  const fit::BandDataset thesis = at_speeds({3450, 3050, 3450, 3100, 3050});
   const Context cx = roles(thesis, opt);
   EXPECT_EQ(cx.groups, (std::vector<Idx>{{1, 3, 4}, {0, 2}}));  // indices into heldout, slowest group first
   // Every speed its own condition: the groups would be the condition folds, so there are none.
@@ -91,7 +91,7 @@ TEST(AssignRoles, LeaveOneGroupOutGroupsTheHeldOutConditionsByOperatingSpeed) {
 }
 
 TEST(AssignRoles, TheThesisProtocolTrainsAtIdleAndHoldsOutFullLoad) {
-  const BandDataset data = named_conditions();
+  const fit::BandDataset data = named_conditions();
   DiagnosisOptions opt;
   opt.train = {"idle"};
   opt.holdout = {"full"};
@@ -103,7 +103,7 @@ TEST(AssignRoles, TheThesisProtocolTrainsAtIdleAndHoldsOutFullLoad) {
 }
 
 TEST(AssignRoles, WithOnlyAHoldOutEveryOtherFiredConditionTrains) {
-  const BandDataset data = named_conditions();
+  const fit::BandDataset data = named_conditions();
   DiagnosisOptions opt;
   opt.holdout = {"*_mi18"};
   const Context cx = roles(data, opt);
@@ -112,7 +112,7 @@ TEST(AssignRoles, WithOnlyAHoldOutEveryOtherFiredConditionTrains) {
 }
 
 TEST(AssignRoles, ImpossibleSplitsAreErrors) {
-  const BandDataset data = named_conditions();
+  const fit::BandDataset data = named_conditions();
   DiagnosisOptions unknown;
   unknown.train = {"part_load"};
   EXPECT_THROW(roles(data, unknown), std::invalid_argument);
@@ -123,7 +123,7 @@ TEST(AssignRoles, ImpossibleSplitsAreErrors) {
   same.train = {"idle"};
   same.holdout = {"idle"};
   EXPECT_THROW(roles(data, same), std::invalid_argument);
-  BandDataset one = named_conditions();
+  fit::BandDataset one = named_conditions();
   one.conditions.erase(one.conditions.begin() + 1, one.conditions.begin() + 4);  // idle_mi12 the only fired one
   EXPECT_THROW(roles(one, DiagnosisOptions{}), std::invalid_argument);           // leave-one-out needs two
 }
@@ -168,14 +168,14 @@ std::vector<std::vector<double>> mic_noise(std::size_t frames, double sigma, std
   return w;
 }
 
-Context marked(const BandDataset& data, const DiagnosisOptions& opt) {
+Context marked(const fit::BandDataset& data, const DiagnosisOptions& opt) {
   Context cx = roles(data, opt);
   mark_bands_and_floors(cx, preset("linear"));
   return cx;
 }
 
 // A band carries information: not cut by the Nyquist frequency, a harmonic of the cycle in it, some sound.
-bool informative(const BandDataset& data, std::size_t k, std::size_t b) {
+bool informative(const fit::BandDataset& data, std::size_t k, std::size_t b) {
   double m = 0.0;
   for (std::size_t c = 0; c < data.conditions[k].cycle_count(); ++c) m += data.conditions[k].mic_avg_ms(c, b);
   return !data.bands[b].nyquist_cut && !data.band_line_free(k, b) && m > 0;
@@ -193,7 +193,7 @@ TEST(MarkBandsAndFloors, MicrophonesWithinTheMarginOfTheBackgroundRunsAreFloorLi
   Recipe bg = noise_run("background", ambient, noise, 0.0);
   bg.info.background = true;
   loud.half_cycle_lead_in = quiet.half_cycle_lead_in = bg.half_cycle_lead_in = false;
-  const BandDataset data = make_dataset({testdata::build(loud), testdata::build(quiet), testdata::build(bg)});
+  const fit::BandDataset data = fit::make_dataset({testdata::build(loud), testdata::build(quiet), testdata::build(bg)});
   ASSERT_EQ(data.conditions[1].cycle_count(), data.conditions[2].cycle_count());
   const DiagnosisOptions opt;  // 6 dB margin
   const Context cx = marked(data, opt);
@@ -227,7 +227,7 @@ TEST(MarkBandsAndFloors, APressureWithinTheMarginOfTheStatedChainFloorIsFloorLim
   above.pressure_extra = at_floor.pressure_extra;
   at_floor.info.pressure_floor_pa = sigma;
   above.info.pressure_floor_pa = sigma / 10.0;
-  const BandDataset data = make_dataset({testdata::build(at_floor), testdata::build(above)});
+  const fit::BandDataset data = fit::make_dataset({testdata::build(at_floor), testdata::build(above)});
   const DiagnosisOptions opt;
   const Context cx = marked(data, opt);
   for (std::size_t b = 0; b < data.band_count(); ++b) {
@@ -253,9 +253,9 @@ TEST(MarkBandsAndFloors, BandsWithinTheMarginOfTheNearestMotoredRunsExcessAreSco
   Recipe far = noise_run("motored_far", ambient_slow, noise_slow, 0.0);
   far.info.speed_rpm = kRpm / 2;
   near.info.motored = far.info.motored = true;
-  const BandDataset data = make_dataset({testdata::build(noise_run("clear_1", ambient, noise, 10.0)),
-                                         testdata::build(noise_run("noisy_1", ambient, noise, 3.0)),
-                                         testdata::build(near), testdata::build(far)});
+  const fit::BandDataset data = fit::make_dataset({testdata::build(noise_run("clear_1", ambient, noise, 10.0)),
+                                                   testdata::build(noise_run("noisy_1", ambient, noise, 3.0)),
+                                                   testdata::build(near), testdata::build(far)});
   ASSERT_NEAR(data.conditions[3].mean_speed_rpm(), 1500.0, 1.0);
   const DiagnosisOptions opt;
   const Context cx = marked(data, opt);
@@ -278,9 +278,9 @@ TEST(MarkBandsAndFloors, NoiseDominanceIsJudgedAgainBeyondTheTunedBlockNotTheSta
   const std::vector<double> gains(kMics, 0.0);
   testdata::Recipe motored = testdata::fired("motored", kRpm, 0.9, truth, gains, 3);  // within 6 dB of the fired
   motored.info.motored = true;
-  const BandDataset data = make_dataset({testdata::build(testdata::fired("fired_1", kRpm, 1.0, truth, gains, 1)),
-                                         testdata::build(testdata::fired("fired_2", kRpm, 0.95, truth, gains, 2)),
-                                         testdata::build(motored)});
+  const fit::BandDataset data = fit::make_dataset(
+      {testdata::build(testdata::fired("fired_1", kRpm, 1.0, truth, gains, 1)),
+       testdata::build(testdata::fired("fired_2", kRpm, 0.95, truth, gains, 2)), testdata::build(motored)});
   const DiagnosisOptions opt;
   Context cx = marked(data, opt);
   int scored = 0, noisy = 0;

@@ -27,7 +27,7 @@ ModelScore scored(const std::string& name, double gap, double thesis, bool signi
 }
 
 struct Case {
-  BandDataset data;
+  fit::BandDataset data;
   DiagnosisOptions opt;  // tolerance 0.5 dB, half the gap closed
   Context cx;
   CandidateRound round;

@@ -50,16 +50,16 @@ testdata::Recipe noise_run(const std::string& name, double sigma, std::uint64_t 
   return r;
 }
 
-BandDataset dataset() {
+fit::BandDataset dataset() {
   testdata::Recipe motored = noise_run("motored_1", 0.01, 100), background = noise_run("background", 1e-6, 200);
   motored.info.motored = true;
   background.info.background = true;
-  return make_dataset({testdata::build(testdata::fired("t_1", 2400, 1.0, preset("linear"), {0, 0, 0, 0}, 5)),
-                       testdata::build(gain_run("h_1", 1.0, 12.0)), testdata::build(gain_run("h_2", 2.0, 18.0)),
-                       testdata::build(motored), testdata::build(background)});
+  return fit::make_dataset({testdata::build(testdata::fired("t_1", 2400, 1.0, preset("linear"), {0, 0, 0, 0}, 5)),
+                            testdata::build(gain_run("h_1", 1.0, 12.0)), testdata::build(gain_run("h_2", 2.0, 18.0)),
+                            testdata::build(motored), testdata::build(background)});
 }
 
-double mean_mic_ms(const ConditionData& d, std::size_t b) {
+double mean_mic_ms(const fit::ConditionData& d, std::size_t b) {
   double s = 0.0;
   for (std::size_t c = 0; c < d.cycle_count(); ++c) s += d.mic_avg_ms(c, b);
   return s / static_cast<double>(d.cycle_count());
@@ -67,7 +67,7 @@ double mean_mic_ms(const ConditionData& d, std::size_t b) {
 
 // The dataset, the first stages, a baseline given by hand and the where stage on it, once for every test.
 struct Described {
-  const BandDataset data = dataset();
+  const fit::BandDataset data = dataset();
   DiagnosisOptions opt;
   Context cx;
   Evaluated base;
@@ -91,8 +91,8 @@ struct Described {
         if (cx.base_mask[k][b]) gaps[b] = h == 0 ? 0.0 : 1.0;
       s.gaps.push_back(gaps);
       s.att_pred.push_back(std::vector<double>(nb, 10.0 + h));
-      ConditionPrediction p;
-      const ConditionData& d = data.conditions[k];
+      fit::ConditionPrediction p;
+      const fit::ConditionData& d = data.conditions[k];
       for (std::size_t c = 0; c < d.cycle_count(); ++c)
         for (std::size_t b = 0; b < nb; ++b) p.cycle_ms.push_back(d.mic_avg_ms(c, b));
       base.preds.push_back(p);
@@ -114,7 +114,7 @@ class WhereStage : public ::testing::Test {
     shared_ = nullptr;
   }
   static Described* shared_;
-  const BandDataset& data_ = shared_->data;
+  const fit::BandDataset& data_ = shared_->data;
   const Context& cx_ = shared_->cx;
   const DiagnosisResult& res_ = shared_->res;
   const std::size_t nb_ = shared_->nb;
@@ -133,7 +133,7 @@ void expect_same(const std::vector<double>& a, const std::vector<double>& b) {
 }
 
 TEST_F(WhereStage, RolesBandsAndTheBaselinesGapAreReported) {
-  const noisemon::model::Where& wh = res_.where;
+  const noisemon::model::diagnosis::Where& wh = res_.where;
   EXPECT_EQ(wh.conditions, (std::vector<std::string>{"t_1", "h_1", "h_2", "motored_1", "background"}));
   EXPECT_EQ(wh.roles, (std::vector<std::string>{"train", "heldout", "heldout", "reference", "floor"}));
   ASSERT_EQ(wh.band_hz.size(), nb_);
@@ -151,7 +151,7 @@ TEST_F(WhereStage, RolesBandsAndTheBaselinesGapAreReported) {
 
 TEST_F(WhereStage, MeasuredAttenuationOfAPureGainIsTheGainAndTheAWeighting) {
   // Microphone mean square = mean(g^2) * pressure mean square in every band: CPL - SPL_A = -10 log10(7/4) - A(f).
-  const noisemon::model::Where& wh = res_.where;
+  const noisemon::model::diagnosis::Where& wh = res_.where;
   ASSERT_EQ(wh.att_meas.size(), 2u);
   for (std::size_t h = 0; h < 2; ++h)
     for (std::size_t b = 0; b < nb_; ++b)
@@ -163,7 +163,7 @@ TEST_F(WhereStage, MeasuredAttenuationOfAPureGainIsTheGainAndTheAWeighting) {
 }
 
 TEST_F(WhereStage, SlopesOfTheGapAgainstTheInputLevelAndTheInjectionTiming) {
-  const noisemon::model::Where& wh = res_.where;
+  const noisemon::model::diagnosis::Where& wh = res_.where;
   EXPECT_NEAR(wh.amplitude_slope_db_per_db, 1.0 / (20.0 * std::log10(2.0)), 1e-6);  // 1 dB more gap at +6.02 dB
   EXPECT_NEAR(wh.soi_slope_db_per_deg, 1.0 / 6.0, 1e-12);                           // 1 dB more gap at 6 deg more
   EXPECT_TRUE(std::isnan(wh.speed_slope_db_per_krpm));                              // both at one speed
@@ -173,7 +173,7 @@ TEST_F(WhereStage, SlopesOfTheGapAgainstTheInputLevelAndTheInjectionTiming) {
 }
 
 TEST_F(WhereStage, MicrophoneOffsetsFromTheArray) {
-  const noisemon::model::Where& wh = res_.where;
+  const noisemon::model::diagnosis::Where& wh = res_.where;
   EXPECT_EQ(wh.mics, (std::vector<std::string>{"mic1", "mic2", "mic3", "mic4"}));
   // Powers 1, 1, 4, 1 against their mean 7/4.
   for (std::size_t m = 0; m < 4; ++m) {
@@ -184,7 +184,7 @@ TEST_F(WhereStage, MicrophoneOffsetsFromTheArray) {
 }
 
 TEST_F(WhereStage, CrankWindowsAreMeansOverTheHeldOutConditionsOfTheFiniteGaps) {
-  const noisemon::model::Where& wh = res_.where;
+  const noisemon::model::diagnosis::Where& wh = res_.where;
   EXPECT_EQ(wh.window_start_deg, (std::vector<double>{-360, -270, -180, -90, 0, 90, 180, 270}));
   EXPECT_NEAR(wh.window_gap_db[0], 0.0, 1e-12);
   for (std::size_t w = 1; w < kW; ++w) EXPECT_NEAR(wh.window_gap_db[w], (0.1 * w + 1.0) / 2, 1e-12) << w;
@@ -193,7 +193,7 @@ TEST_F(WhereStage, CrankWindowsAreMeansOverTheHeldOutConditionsOfTheFiniteGaps) 
 }
 
 TEST_F(WhereStage, FloorsTheMotoredExcessAndTheCoherence) {
-  const noisemon::model::Where& wh = res_.where;
+  const noisemon::model::diagnosis::Where& wh = res_.where;
   for (std::size_t b = 0; b < nb_; ++b) {
     // No block sound in the motored run (constant pressure): its excess is what its microphones hear.
     EXPECT_NEAR(wh.floor_db[b], 10.0 * std::log10(mean_mic_ms(data_.conditions[3], b) / 4e-10), 1e-6);
@@ -212,7 +212,7 @@ TEST_F(WhereStage, FloorsTheMotoredExcessAndTheCoherence) {
 }
 
 TEST_F(WhereStage, TheFloorSummaryHasOneLinePerGroupOfConditions) {
-  const noisemon::model::Where& wh = res_.where;
+  const noisemon::model::diagnosis::Where& wh = res_.where;
   ASSERT_EQ(wh.floor_summary.size(), 4u);  // t, h, motored, background
   // Fast scored bands of the held-out runs, eight crank windows each, none at the (ideal) pressure floor.
   int cells = 0;

@@ -1,5 +1,5 @@
 // Tests of the effect library and the virtual engine's acoustic side. Each effect is driven through
-// model::VirtualEngine and measured here, independently of its implementation:
+// model::engine::VirtualEngine and measured here, independently of its implementation:
 //  - cubic_stiffness: transfer function measured with a multisine around a static preload vs the analytic
 //    tangent-stiffness linearisation of eq. 4.13 (k1 + 3 k3 z0^2);
 //  - cubic_damping: a large sinusoid vs a fourth-order Runge-Kutta integration of eq. 4.13 written here;
@@ -79,7 +79,7 @@ std::size_t pow2_at_least(std::size_t n) {
 }
 
 // Pressure as a function of time; crank angle -360 + 6 n t (constant speed).
-class FnFeed final : public nm::PressureFeed {
+class FnFeed final : public nm::engine::PressureFeed {
  public:
   FnFeed(double rpm, std::function<double(double t, double theta)> p) : rpm_(rpm), p_(std::move(p)) {}
   void fill(std::int64_t first, double* pressure, double* crank, std::size_t n) override {
@@ -102,8 +102,8 @@ double pulse_pressure(double, double theta) {
 }
 
 // One microphone at 1.75 m overhead, no spread, no floor: the engine's sound alone.
-nm::VirtualEngineConfig quiet_config(std::size_t mics = 1) {
-  nm::VirtualEngineConfig c;
+nm::engine::VirtualEngineConfig quiet_config(std::size_t mics = 1) {
+  nm::engine::VirtualEngineConfig c;
   c.input_rate_hz = kFsIn;
   c.output_rate_hz = kFsOut;
   for (std::size_t i = 0; i < mics; ++i) {
@@ -113,13 +113,14 @@ nm::VirtualEngineConfig quiet_config(std::size_t mics = 1) {
   if (mics == 1) c.mic_positions_m = {{0.0, 0.0, 1.75}};
   c.mic_gain_spread_db = 0.0;
   c.floor_db = -std::numeric_limits<double>::infinity();
-  c.mic_chain = nm::MicChainConfig::ideal();
-  c.pressure_chain = nm::PressureChainConfig::ideal();
+  c.mic_chain = nm::engine::MicChainConfig::ideal();
+  c.pressure_chain = nm::engine::PressureChainConfig::ideal();
   return c;
 }
 
-std::vector<double> render(const nm::VirtualEngineConfig& c, nm::PressureFeed& feed, std::size_t frames) {
-  nm::VirtualEngine e(c);
+std::vector<double> render(const nm::engine::VirtualEngineConfig& c, nm::engine::PressureFeed& feed,
+                           std::size_t frames) {
+  nm::engine::VirtualEngine e(c);
   std::vector<double> out(frames * e.mic_count());
   e.render(feed, out.data(), frames);
   return out;
@@ -160,7 +161,7 @@ struct Transfer {
   std::vector<double> f;
   std::vector<cd> h;
 };
-Transfer measure_transfer(nm::VirtualEngineConfig c, double p0, double tone_pa, double f_lo, double f_hi) {
+Transfer measure_transfer(nm::engine::VirtualEngineConfig c, double p0, double tone_pa, double f_lo, double f_hi) {
   constexpr std::size_t kN = 8192;  // output samples per period
   const double df = kFsOut / kN;
   std::vector<std::size_t> bins;
@@ -196,7 +197,7 @@ double delay_s(const std::array<double, 3>& q, double c = 343.0) {
   return std::round(std::sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2]) / c * kFsOut) / kFsOut;
 }
 
-nm::Effects effects(const std::vector<std::string>& texts) { return nm::parse_effects(texts); }
+nm::engine::Effects effects(const std::vector<std::string>& texts) { return nm::engine::parse_effects(texts); }
 
 }  // namespace
 
@@ -206,7 +207,7 @@ TEST(Effects, CatalogHoldsDesignMdsEightEffectsThenOneTestOnlyForeignEffect) {
   // DESIGN.md "Effect names", in its order.
   const std::vector<std::string> design = {"cubic_damping",    "cubic_stiffness",  "second_mode", "mechanical_noise",
                                            "background_noise", "transducer_noise", "mic_gain",    "speed_dependence"};
-  const auto cat = nm::effect_catalog();
+  const auto cat = nm::engine::effect_catalog();
   ASSERT_EQ(cat.size(), design.size() + 1);
   for (std::size_t i = 0; i < design.size(); ++i) {
     EXPECT_EQ(cat[i].name, design[i]);
@@ -221,27 +222,28 @@ TEST(Effects, CatalogHoldsDesignMdsEightEffectsThenOneTestOnlyForeignEffect) {
     EXPECT_LE(e.default_magnitude, e.realistic_max) << e.name;
     EXPECT_GE(e.realistic_min, e.min) << e.name;
     EXPECT_LE(e.realistic_max, e.max) << e.name;
-    EXPECT_NE(nm::effect_help_text().find(std::string(e.name)), std::string::npos);
+    EXPECT_NE(nm::engine::effect_help_text().find(std::string(e.name)), std::string::npos);
   }
 }
 
 TEST(Effects, ParsingTakesNameMagnitudeAndQualifiersAndRejectsBadInputWithClearErrors) {
-  const auto s = nm::parse_effect("second_mode=6,hz=3150,q=4");
+  const auto s = nm::engine::parse_effect("second_mode=6,hz=3150,q=4");
   EXPECT_EQ(s.name, "second_mode");
   EXPECT_EQ(s.magnitude, 6.0);
-  nm::Effects e;
+  nm::engine::Effects e;
   e.add(s);
   EXPECT_EQ(e.second_mode_db, 6.0);
   EXPECT_EQ(e.second_mode_hz, 3150.0);
   EXPECT_EQ(e.second_mode_q, 4.0);
   // NAME alone: the documented default.
-  EXPECT_EQ(nm::parse_effect("cubic_stiffness").magnitude, nm::find_effect("cubic_stiffness")->default_magnitude);
-  EXPECT_EQ(nm::parse_effects({"mic_gain=-2.5,mic=7"}).mic_gain_mic, 7);
-  EXPECT_EQ(*nm::parse_effects({" background_noise = 61 "}).background_noise_dba, 61.0);
+  EXPECT_EQ(nm::engine::parse_effect("cubic_stiffness").magnitude,
+            nm::engine::find_effect("cubic_stiffness")->default_magnitude);
+  EXPECT_EQ(nm::engine::parse_effects({"mic_gain=-2.5,mic=7"}).mic_gain_mic, 7);
+  EXPECT_EQ(*nm::engine::parse_effects({" background_noise = 61 "}).background_noise_dba, 61.0);
 
   const auto message = [](const std::vector<std::string>& texts) {
     try {
-      nm::parse_effects(texts);
+      nm::engine::parse_effects(texts);
     } catch (const std::invalid_argument& e) {
       return std::string(e.what());
     }
@@ -249,7 +251,7 @@ TEST(Effects, ParsingTakesNameMagnitudeAndQualifiersAndRejectsBadInputWithClearE
   };
   const std::string unknown = message({"cubic_dampign=3"});
   EXPECT_NE(unknown.find("cubic_dampign"), std::string::npos) << unknown;
-  for (const auto& info : nm::effect_catalog())
+  for (const auto& info : nm::engine::effect_catalog())
     EXPECT_NE(unknown.find(std::string(info.name)), std::string::npos) << unknown;
   EXPECT_NE(message({"cubic_damping=abc"}).find("not a finite number"), std::string::npos);
   EXPECT_NE(message({"cubic_damping=1e3x"}).find("not a finite number"), std::string::npos);
@@ -264,7 +266,7 @@ TEST(Effects, ParsingTakesNameMagnitudeAndQualifiersAndRejectsBadInputWithClearE
 // ------------------------------------------------------------------------------------------ magnitude 0
 
 TEST(Effects, MagnitudeZeroChangesNothingAtAll) {
-  nm::VirtualEngineConfig base = quiet_config(4);
+  nm::engine::VirtualEngineConfig base = quiet_config(4);
   base.floor_db = 40.0;
   base.mic_gain_spread_db = 0.5;
   base.mic_chain = {};  // the realistic cell: magnitude 0 must not disturb it either
@@ -274,17 +276,17 @@ TEST(Effects, MagnitudeZeroChangesNothingAtAll) {
   const std::size_t frames = 12000;
   FnFeed feed0(3450.0, pulse_pressure);
   const auto ref = render(base, feed0, frames);
-  nm::VirtualEngine ref_engine(base);
+  nm::engine::VirtualEngine ref_engine(base);
   std::vector<double> p_true(5000), p_ref(5000), p_eff(5000);
   for (std::size_t i = 0; i < p_true.size(); ++i) p_true[i] = pulse_pressure(0.0, -360.0 + 0.01 * i);
   ref_engine.measured_pressure(0, p_true.data(), p_ref.data(), p_true.size());
   for (const char* text : {"cubic_damping=0", "cubic_stiffness=0", "second_mode=0", "transducer_noise=0", "mic_gain=0",
                            "speed_dependence=0", "foreign_soi_gain=0"}) {
-    nm::VirtualEngineConfig c = base;
+    nm::engine::VirtualEngineConfig c = base;
     c.effects = effects({text});
     FnFeed feed(3450.0, pulse_pressure);
     EXPECT_EQ(render(c, feed, frames), ref) << text;
-    nm::VirtualEngine engine(c);
+    nm::engine::VirtualEngine engine(c);
     engine.measured_pressure(0, p_true.data(), p_eff.data(), p_true.size());
     EXPECT_EQ(p_eff, p_ref) << text;
   }
@@ -293,8 +295,8 @@ TEST(Effects, MagnitudeZeroChangesNothingAtAll) {
 // ------------------------------------------------------------------------------------------ structural effects
 
 TEST(Effects, CubicStiffnessRaisesTheResonanceWithDeflectionAsTheTangentStiffnessPredicts) {
-  const double k3 = nm::find_effect("cubic_stiffness")->default_magnitude;
-  nm::VirtualEngineConfig c = quiet_config();
+  const double k3 = nm::engine::find_effect("cubic_stiffness")->default_magnitude;
+  nm::engine::VirtualEngineConfig c = quiet_config();
   c.effects = effects({"cubic_stiffness"});
   const nm::BlockParams b = c.true_block;
   double worst = 0.0;
@@ -331,10 +333,10 @@ TEST(Effects, CubicStiffnessRaisesTheResonanceWithDeflectionAsTheTangentStiffnes
 }
 
 TEST(Effects, CubicDampingMatchesAnIndependentRungeKuttaIntegrationAtLargeAmplitude) {
-  nm::VirtualEngineConfig c = quiet_config();
+  nm::engine::VirtualEngineConfig c = quiet_config();
   c.effects = effects({"cubic_damping"});
-  const nm::BlockParams b = nm::with_structural_effects(c.true_block, c.effects);
-  EXPECT_EQ(b.b3, nm::find_effect("cubic_damping")->default_magnitude);
+  const nm::BlockParams b = nm::engine::with_structural_effects(c.true_block, c.effects);
+  EXPECT_EQ(b.b3, nm::engine::find_effect("cubic_damping")->default_magnitude);
   const double f0 = 5000.0;
   for (double amp : {2e3, 2e5}) {  // small (linear) and large (velocity 6 m/s: b3 v^2 > b1)
     FnFeed feed(3050.0, [&](double t, double) { return amp * std::sin(2.0 * kPi * f0 * t); });
@@ -386,7 +388,7 @@ TEST(Effects, CubicDampingMatchesAnIndependentRungeKuttaIntegrationAtLargeAmplit
 
 // The documented mode's contribution, a (cos(phi) R - sin(phi) D): R the analog unit-peak resonance, D its
 // displacement-like partner (-j at f2), a = 10^(M/20) - 1.
-cd mode_added(const nm::Effects& e, double f_hz) {
+cd mode_added(const nm::engine::Effects& e, double f_hz) {
   const cd s(0.0, 2.0 * kPi * f_hz);
   const double w2 = 2.0 * kPi * e.second_mode_hz, q = e.second_mode_q, phi = e.second_mode_phase_deg * kPi / 180.0;
   const cd den = s * s + (w2 / q) * s + w2 * w2;
@@ -396,7 +398,7 @@ cd mode_added(const nm::Effects& e, double f_hz) {
 
 TEST(Effects, SecondModeAddsTheDocumentedPeakAtItsFrequencyAndNothingFarFromIt) {
   for (const char* text : {"second_mode", "second_mode=-6,hz=3150,q=4", "second_mode=6,hz=3150,q=4,phase=120"}) {
-    nm::VirtualEngineConfig c = quiet_config();
+    nm::engine::VirtualEngineConfig c = quiet_config();
     c.effects = effects({text});
     const double m = c.effects.second_mode_db, f2 = c.effects.second_mode_hz;
     const double a = std::pow(10.0, m / 20.0) - 1.0, phi = c.effects.second_mode_phase_deg * kPi / 180.0;
@@ -428,7 +430,7 @@ TEST(Effects, SecondModeAddsTheDocumentedPeakAtItsFrequencyAndNothingFarFromIt) 
     // What the mode itself adds far below f2: with/without the effect cancels the block, the AC coupling and the
     // delay, leaving 1 + the mode. At 100 Hz the in-phase resonance adds a R ~ j a (f / f2) / Q (0.0151 at 90 deg
     // for the default: 0.001 dB, 0.9 deg), which is why a 0.02 deviation there could not be the mode's.
-    nm::VirtualEngineConfig off = c;
+    nm::engine::VirtualEngineConfig off = c;
     off.effects = {};
     const Transfer t0 = measure_transfer(off, 0.0, 2e3, 100.0, 16000.0);
     double worst_ratio_dev = 0.0;
@@ -450,7 +452,7 @@ TEST(Effects, MechanicalNoiseHasTheDocumentedLevelSpeedLawAndCrankAngles) {
   const double level = 75.0, soi = 15.0;
   std::vector<double> leq;
   for (double rpm : {3050.0, 3450.0}) {
-    nm::VirtualEngineConfig c = quiet_config();
+    nm::engine::VirtualEngineConfig c = quiet_config();
     c.effects = effects({"mechanical_noise=75"});
     c.speed_rpm = rpm;
     c.soi_deg_btdc = soi;
@@ -489,7 +491,7 @@ TEST(Effects, MechanicalNoiseHasTheDocumentedLevelSpeedLawAndCrankAngles) {
     };
     // Every documented event, its window as long as six decay times: together they hold all the energy.
     std::vector<bool> mark(720, false);
-    for (const auto& ev : nm::mechanical_events()) {
+    for (const auto& ev : nm::engine::mechanical_events()) {
       const double a = std::floor(ev.at_soi ? ev.angle_deg - soi : ev.angle_deg);
       for (double x = a - 2.0; x < a + std::ceil(6.0 * ev.decay_s * 6.0 * rpm); x += 1.0) mark[bin(x)] = true;
     }
@@ -506,7 +508,7 @@ TEST(Effects, MechanicalNoiseHasTheDocumentedLevelSpeedLawAndCrankAngles) {
     std::vector<cd> spectrum(nfft, 0.0);
     for (std::size_t i = 0; i < seg.size(); ++i) spectrum[i] = seg[i];
     fft(spectrum);
-    for (const auto& ev : nm::mechanical_events()) {
+    for (const auto& ev : nm::engine::mechanical_events()) {
       const double sigma_f = ev.ring_hz / 4.0;
       std::vector<cd> band(nfft, 0.0);
       for (std::size_t k = 1; k < nfft / 2; ++k) {
@@ -544,19 +546,19 @@ TEST(Effects, MechanicalNoiseHasTheDocumentedLevelSpeedLawAndCrankAngles) {
 }
 
 TEST(Effects, MechanicalNoiseIsTheSameInMotoredAndFiredCyclesAndAddsToTheEngineSound) {
-  nm::VirtualEngineConfig c = quiet_config(3);
+  nm::engine::VirtualEngineConfig c = quiet_config(3);
   c.effects = effects({"mechanical_noise=80"});
   const std::size_t frames = 40000;
   FnFeed silent(3050.0, [](double, double) { return 0.0; });
   const auto impacts = render(c, silent, frames);
-  nm::VirtualEngineConfig motored = c;
+  nm::engine::VirtualEngineConfig motored = c;
   motored.motored = true;
   FnFeed silent2(3050.0, [](double, double) { return 0.0; });
   EXPECT_EQ(render(motored, silent2, frames), impacts);
   // On a running engine: (with impacts) - (without) = the impacts alone.
   FnFeed engine1(3050.0, pulse_pressure), engine2(3050.0, pulse_pressure);
   const auto with = render(c, engine1, frames);
-  nm::VirtualEngineConfig none = c;
+  nm::engine::VirtualEngineConfig none = c;
   none.effects = {};
   const auto without = render(none, engine2, frames);
   double err = 0.0, e = 0.0;
@@ -572,7 +574,7 @@ TEST(Effects, MechanicalNoiseIsTheSameInMotoredAndFiredCyclesAndAddsToTheEngineS
 
 TEST(Effects, BackgroundNoiseHasTheDocumentedLevelAndSpectrumAndNoCrankLocking) {
   const std::size_t mics = 10;
-  nm::VirtualEngineConfig c = quiet_config(mics);
+  nm::engine::VirtualEngineConfig c = quiet_config(mics);
   c.effects = effects({"background_noise=65"});
   const std::size_t frames = 2 * 65536;
   FnFeed silent(3050.0, [](double, double) { return 0.0; });
@@ -595,7 +597,8 @@ TEST(Effects, BackgroundNoiseHasTheDocumentedLevelAndSpectrumAndNoCrankLocking) 
     for (std::size_t k = 1; k < frames / 2; ++k) {
       const double f = kFsOut * static_cast<double>(k) / static_cast<double>(frames);
       if (f >= lo && f < hi)
-        s += measured ? psd[k] : 1.0 / (1.0 + (f / nm::kVentilationCornerHz) * (f / nm::kVentilationCornerHz));
+        s += measured ? psd[k]
+                      : 1.0 / (1.0 + (f / nm::engine::kVentilationCornerHz) * (f / nm::engine::kVentilationCornerHz));
     }
     return s;
   };
@@ -627,13 +630,13 @@ TEST(Effects, BackgroundNoiseHasTheDocumentedLevelAndSpectrumAndNoCrankLocking) 
 // transducer_noise is "more floor than configured": its noise, M bar rms per encoder sample whatever the rate, adds
 // in quadrature to the chain's configured floor (independent streams), only to the measured pressure.
 TEST(Effects, TransducerNoiseAddsInQuadratureOnTopOfTheConfiguredFloorAndOnlyToTheMeasuredPressure) {
-  const double m_bar = nm::find_effect("transducer_noise")->default_magnitude, floor_bar = 0.02;
+  const double m_bar = nm::engine::find_effect("transducer_noise")->default_magnitude, floor_bar = 0.02;
   EXPECT_EQ(m_bar, 0.05);
-  nm::VirtualEngineConfig c = quiet_config();
+  nm::engine::VirtualEngineConfig c = quiet_config();
   c.pressure_chain.noise_bar = floor_bar;  // white floor only (no ADC: its step would add step^2 / 12)
-  nm::VirtualEngineConfig without = c;
+  nm::engine::VirtualEngineConfig without = c;
   c.effects = effects({"transducer_noise"});
-  nm::VirtualEngine engine(c), floor_only(without);
+  nm::engine::VirtualEngine engine(c), floor_only(without);
   const std::size_t n = 1 << 17;
   std::vector<double> zero(n, 0.0), both(n), floor(n), extra(n);
   engine.measured_pressure(0, zero.data(), both.data(), n);
@@ -657,10 +660,10 @@ TEST(Effects, TransducerNoiseAddsInQuadratureOnTopOfTheConfiguredFloorAndOnlyToT
   EXPECT_LT(std::abs(cross) / std::sqrt(ms_extra * ms_floor), 0.01);  // independent of the floor
   EXPECT_LT(std::abs(lag1) / ms_extra, 0.01);                         // white
   // Per encoder sample, whatever the rate: the same at another input rate.
-  nm::VirtualEngineConfig slow = c;
+  nm::engine::VirtualEngineConfig slow = c;
   slow.input_rate_hz = kFsOut;
   slow.output_rate_hz = kFsOut;
-  nm::VirtualEngine engine_slow(slow);
+  nm::engine::VirtualEngine engine_slow(slow);
   std::vector<double> both_slow(n);
   engine_slow.measured_pressure(0, zero.data(), both_slow.data(), n);
   EXPECT_EQ(both_slow, both);
@@ -678,10 +681,10 @@ TEST(Effects, TransducerNoiseAddsInQuadratureOnTopOfTheConfiguredFloorAndOnlyToT
 TEST(Effects, MicGainChangesExactlyOneChannelByTheDocumentedDb) {
   for (const char* text : {"mic_gain", "mic_gain=-5,mic=4"}) {
     const std::size_t mics = 5;
-    nm::VirtualEngineConfig c = quiet_config(mics);
+    nm::engine::VirtualEngineConfig c = quiet_config(mics);
     c.floor_db = 45.0;
     c.mic_gain_spread_db = 0.5;
-    nm::VirtualEngineConfig with = c;
+    nm::engine::VirtualEngineConfig with = c;
     with.effects = effects({text, "background_noise=70", "mechanical_noise=80"});
     c.effects = effects({"background_noise=70", "mechanical_noise=80"});
     FnFeed f1(3050.0, pulse_pressure), f2(3050.0, pulse_pressure);
@@ -698,8 +701,8 @@ TEST(Effects, MicGainChangesExactlyOneChannelByTheDocumentedDb) {
 }
 
 TEST(Effects, SpeedDependenceAndTheForeignGainScaleOnlyTheStructuralPathAsDocumented) {
-  const auto ratio_of = [](nm::VirtualEngineConfig c, const std::vector<std::string>& eff, bool silent_engine) {
-    nm::VirtualEngineConfig w = c;
+  const auto ratio_of = [](nm::engine::VirtualEngineConfig c, const std::vector<std::string>& eff, bool silent_engine) {
+    nm::engine::VirtualEngineConfig w = c;
     w.effects = effects(eff);
     const auto p =
         silent_engine ? std::function<double(double, double)>([](double, double) { return 0.0; }) : pulse_pressure;
@@ -711,7 +714,7 @@ TEST(Effects, SpeedDependenceAndTheForeignGainScaleOnlyTheStructuralPathAsDocume
     for (std::size_t i = 0; i < a.size(); ++i) worst = std::max(worst, std::abs(b[i] - r * a[i]));
     return std::pair{r, worst / std::sqrt(den / a.size())};
   };
-  nm::VirtualEngineConfig c = quiet_config();
+  nm::engine::VirtualEngineConfig c = quiet_config();
   for (double rpm : {2050.0, 3050.0, 3450.0}) {
     c.speed_rpm = rpm;
     const auto [r, dev] = ratio_of(c, {"speed_dependence=4"}, false);
@@ -764,7 +767,7 @@ double a_weight_power(double f) {
   return ra * ra * std::pow(10.0, 2.0 / 10.0);
 }
 
-std::vector<double> measured(nm::PressureChain& chain, std::int64_t first, std::size_t n) {
+std::vector<double> measured(nm::engine::PressureChain& chain, std::int64_t first, std::size_t n) {
   std::vector<double> x(n, 0.0);
   chain.measure(first, x.data(), n);
   return x;
@@ -773,10 +776,10 @@ std::vector<double> measured(nm::PressureChain& chain, std::int64_t first, std::
 }  // namespace
 
 TEST(PressureChain, WhiteFloorHasTheConfiguredRmsPerSampleAndAFlatSpectrum) {
-  nm::PressureChainConfig cfg;  // the realistic default floor, without its ADC
+  nm::engine::PressureChainConfig cfg;  // the realistic default floor, without its ADC
   EXPECT_EQ(cfg.noise_bar, 0.02);
   cfg.adc_bits = 0;
-  nm::PressureChain chain(cfg, {}, 7);
+  nm::engine::PressureChain chain(cfg, {}, 7);
   const std::size_t n = 1 << 18;
   const auto x = measured(chain, 0, n);
   double ms = 0.0;
@@ -795,14 +798,15 @@ TEST(PressureChain, WhiteFloorHasTheConfiguredRmsPerSampleAndAFlatSpectrum) {
   EXPECT_LT(worst, 0.2);
   // The configured floor a run records: the white floor and the 16-bit step over 250 bar (step^2 / 12) in quadrature.
   const double step_bar = 250.0 / 65536.0;
-  EXPECT_NEAR(nm::PressureChainConfig{}.floor_bar(), std::sqrt(0.02 * 0.02 + step_bar * step_bar / 12.0), 1e-15);
-  EXPECT_EQ(nm::PressureChainConfig::ideal().floor_bar(), 0.0);
+  EXPECT_NEAR(nm::engine::PressureChainConfig{}.floor_bar(), std::sqrt(0.02 * 0.02 + step_bar * step_bar / 12.0),
+              1e-15);
+  EXPECT_EQ(nm::engine::PressureChainConfig::ideal().floor_bar(), 0.0);
 }
 
 TEST(PressureChain, FlickerPartFallsAsOneOverFrequency) {
-  nm::PressureChainConfig cfg = nm::PressureChainConfig::ideal();
+  nm::engine::PressureChainConfig cfg = nm::engine::PressureChainConfig::ideal();
   cfg.flicker_bar = 0.05;
-  nm::PressureChain chain(cfg, {}, 3);
+  nm::engine::PressureChain chain(cfg, {}, 3);
   const std::size_t n = 1 << 21, seg = 1 << 15;
   const auto x = measured(chain, -12345, n);
   double ms = 0.0;
@@ -831,9 +835,9 @@ TEST(PressureChain, FlickerPartFallsAsOneOverFrequency) {
 
 TEST(PressureChain, AdcQuantisesToItsStepAndCountsEveryClippedSample) {
   // 16 bit over 0 .. 250 bar: step 250 bar / 2^16.
-  nm::PressureChainConfig cfg = nm::PressureChainConfig::ideal();
+  nm::engine::PressureChainConfig cfg = nm::engine::PressureChainConfig::ideal();
   cfg.adc_bits = 16;
-  nm::PressureChain chain(cfg, {}, 1);
+  nm::engine::PressureChain chain(cfg, {}, 1);
   const double step = 250e5 / 65536.0;
   EXPECT_NEAR(cfg.adc_step_bar() * 1e5, step, 1e-9);
   // A slow ramp across the range: every output a whole number of steps, the error uniform in +-step/2.
@@ -863,10 +867,10 @@ TEST(PressureChain, AdcQuantisesToItsStepAndCountsEveryClippedSample) {
   EXPECT_EQ(out[4], 250e5 - step);
   EXPECT_EQ(chain.clipped_samples(), 3u);  // -2 bar, 260 bar, 10 kbar
   // The microphones' ADC in the virtual engine: a loud tone through a +-1 Pa, 12-bit converter clips, counted.
-  nm::VirtualEngineConfig c = quiet_config(2);
+  nm::engine::VirtualEngineConfig c = quiet_config(2);
   c.mic_chain.adc_bits = 12;
   c.mic_chain.adc_range_pa = 1.0;
-  nm::VirtualEngine engine(c);
+  nm::engine::VirtualEngine engine(c);
   FnFeed loud(3050.0, pulse_pressure);
   std::vector<double> mics(2 * 20000);
   engine.render(loud, mics.data(), 20000);
@@ -885,16 +889,16 @@ TEST(PressureChain, AdcQuantisesToItsStepAndCountsEveryClippedSample) {
 }
 
 TEST(PressureChain, CounterBasedSameBitsForAnyChunkingAndSeedDependent) {
-  nm::PressureChainConfig cfg;  // floor and ADC
+  nm::engine::PressureChainConfig cfg;  // floor and ADC
   cfg.flicker_bar = 0.03;
-  const nm::Effects e = effects({"transducer_noise"});
+  const nm::engine::Effects e = effects({"transducer_noise"});
   std::vector<double> truth(50000);
   for (std::size_t i = 0; i < truth.size(); ++i) truth[i] = pulse_pressure(0.0, -3000.0 + 0.1 * static_cast<double>(i));
   const std::int64_t first = -20000;  // encoder indices before 0 (the pre-roll) are as valid as any
-  nm::PressureChain whole_chain(cfg, e, 9);
+  nm::engine::PressureChain whole_chain(cfg, e, 9);
   std::vector<double> whole = truth;
   whole_chain.measure(first, whole.data(), whole.size());
-  nm::PressureChain chunked_chain(cfg, e, 9);
+  nm::engine::PressureChain chunked_chain(cfg, e, 9);
   std::vector<double> chunked = truth;
   std::size_t done = 0;
   for (std::size_t step : {1, 2, 3, 517, 4096, 77, 12000}) {
@@ -905,11 +909,11 @@ TEST(PressureChain, CounterBasedSameBitsForAnyChunkingAndSeedDependent) {
   chunked_chain.measure(first + static_cast<std::int64_t>(done), chunked.data() + done, chunked.size() - done);
   EXPECT_EQ(chunked, whole);
   // Out of order too: a late stretch first.
-  nm::PressureChain late_chain(cfg, e, 9);
+  nm::engine::PressureChain late_chain(cfg, e, 9);
   std::vector<double> late(truth.begin() + 30000, truth.begin() + 31000);
   late_chain.measure(first + 30000, late.data(), late.size());
   EXPECT_TRUE(std::equal(late.begin(), late.end(), whole.begin() + 30000));
-  nm::PressureChain other_chain(cfg, e, 10);
+  nm::engine::PressureChain other_chain(cfg, e, 10);
   std::vector<double> other = truth;
   other_chain.measure(first, other.data(), other.size());
   std::size_t same = 0;
@@ -919,9 +923,9 @@ TEST(PressureChain, CounterBasedSameBitsForAnyChunkingAndSeedDependent) {
 
 TEST(MicChain, SelfNoiseHasTheConfiguredAWeightedLevelAndIsWhiteAndIndependent) {
   const std::size_t mics = 6, frames = 1 << 17;
-  nm::VirtualEngineConfig c = quiet_config(mics);
-  c.mic_chain = nm::MicChainConfig::ideal();
-  c.mic_chain.self_noise_dba = nm::MicChainConfig{}.self_noise_dba;
+  nm::engine::VirtualEngineConfig c = quiet_config(mics);
+  c.mic_chain = nm::engine::MicChainConfig::ideal();
+  c.mic_chain.self_noise_dba = nm::engine::MicChainConfig{}.self_noise_dba;
   EXPECT_EQ(c.mic_chain.self_noise_dba, 20.0);
   FnFeed silent(3050.0, [](double, double) { return 0.0; });
   const auto y = render(c, silent, frames);
@@ -952,12 +956,12 @@ TEST(MicChain, DirectivitySpreadsAboutOneDbPerBandTowardsHighFrequenciesWithAnUn
   // White-noise pressure through the engine; each microphone's band power with its directivity over the same
   // without (same seed): the directivity alone, band by band.
   const std::size_t mics = 10, frames = 1 << 18;
-  nm::VirtualEngineConfig ideal = quiet_config(mics);
-  nm::VirtualEngineConfig with = ideal;
-  with.mic_chain.directivity_db = nm::MicChainConfig{}.directivity_db;
+  nm::engine::VirtualEngineConfig ideal = quiet_config(mics);
+  nm::engine::VirtualEngineConfig with = ideal;
+  with.mic_chain.directivity_db = nm::engine::MicChainConfig{}.directivity_db;
   with.setup_seed = 21;
   const auto white = [](double t, double) {
-    return 1e5 * nm::rnd::normal_at(5, 77, static_cast<std::uint64_t>(std::llround(t * kFsIn)));
+    return 1e5 * nm::engine::rnd::normal_at(5, 77, static_cast<std::uint64_t>(std::llround(t * kFsIn)));
   };
   FnFeed f1(3050.0, white), f2(3050.0, white);
   const auto a = render(ideal, f1, frames), b = render(with, f2, frames);
@@ -1015,10 +1019,10 @@ TEST(MicChain, DirectivitySpreadsAboutOneDbPerBandTowardsHighFrequenciesWithAnUn
   EXPECT_LT(rms_step, 0.5 * high_sd);  // smooth: neighbouring 1/3-octave bands move together
   EXPECT_LT(worst_step, 1.5);
   // A property of the installation: the run's seed does not move it, the setup seed does.
-  nm::VirtualEngineConfig other_run = with, other_setup = with;
+  nm::engine::VirtualEngineConfig other_run = with, other_setup = with;
   other_run.seed = 99;
   other_setup.setup_seed = 22;
-  const nm::VirtualEngine e(with), r(other_run), s(other_setup);
+  const nm::engine::VirtualEngine e(with), r(other_run), s(other_setup);
   EXPECT_EQ(r.directivity_response(3, 6000.0), e.directivity_response(3, 6000.0));
   EXPECT_NE(s.directivity_response(3, 6000.0), e.directivity_response(3, 6000.0));
 }
@@ -1026,7 +1030,7 @@ TEST(MicChain, DirectivitySpreadsAboutOneDbPerBandTowardsHighFrequenciesWithAnUn
 // ------------------------------------------------------------------------------------------ determinism
 
 TEST(VirtualEngine, DeterministicFromTheSeedAndIndependentOfChunking) {
-  nm::VirtualEngineConfig c = quiet_config(4);
+  nm::engine::VirtualEngineConfig c = quiet_config(4);
   c.floor_db = 50.0;
   c.mic_gain_spread_db = 0.5;
   c.mic_chain = {};  // the realistic microphone chain: self-noise, directivity, ADC
@@ -1035,7 +1039,7 @@ TEST(VirtualEngine, DeterministicFromTheSeedAndIndependentOfChunking) {
   const std::size_t frames = 15000;
   FnFeed f1(3050.0, pulse_pressure);
   const auto whole = render(c, f1, frames);
-  nm::VirtualEngine e(c);
+  nm::engine::VirtualEngine e(c);
   FnFeed f2(3050.0, pulse_pressure);
   std::vector<double> chunked(whole.size());
   std::size_t done = 0;
@@ -1048,7 +1052,7 @@ TEST(VirtualEngine, DeterministicFromTheSeedAndIndependentOfChunking) {
   }
   e.render(f2, chunked.data() + done * 4, frames - done);
   EXPECT_EQ(chunked, whole);
-  nm::VirtualEngineConfig other = c;
+  nm::engine::VirtualEngineConfig other = c;
   other.seed = 43;
   FnFeed f3(3050.0, pulse_pressure);
   const auto different = render(other, f3, frames);
@@ -1056,9 +1060,9 @@ TEST(VirtualEngine, DeterministicFromTheSeedAndIndependentOfChunking) {
   for (std::size_t i = 0; i < whole.size(); ++i) same += different[i] == whole[i];
   EXPECT_LT(same, whole.size() / 100);
   // The setup seed moves the per-microphone spread, not the noise; the spread keeps an energy mean of 1.
-  const auto g = nm::mic_spread_gains(10, 1.0, 5);
+  const auto g = nm::engine::mic_spread_gains(10, 1.0, 5);
   double e2 = 0.0;
   for (double v : g) e2 += v * v / 10.0;
   EXPECT_NEAR(e2, 1.0, 1e-12);
-  EXPECT_NE(nm::mic_spread_gains(10, 1.0, 6), g);
+  EXPECT_NE(nm::engine::mic_spread_gains(10, 1.0, 6), g);
 }

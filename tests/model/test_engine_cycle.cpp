@@ -38,7 +38,7 @@ double trapezoid(std::span<const double> x, std::span<const double> y) {
 double bmep_pa(double torque_nm, double vd) { return 4.0 * kPi * torque_nm / vd; }
 
 // Cyclic integral of p dV over the whole cycle, sampled through the public pressure interpolation.
-double net_work_j(const nm::EngineCycle& ec, double step_deg) {
+double net_work_j(const nm::engine::EngineCycle& ec, double step_deg) {
   const auto& g = ec.params().geometry;
   double w = 0.0;
   for (double th = -360.0; th < 360.0 - 1e-9; th += step_deg) {
@@ -53,7 +53,7 @@ struct PeakAndRise {
   double max_rise_pa_per_deg = 0.0;
 };
 // Peak pressure and maximum rate of rise by central differences of the interpolated pressure.
-PeakAndRise peak_and_rise(const nm::EngineCycle& ec) {
+PeakAndRise peak_and_rise(const nm::engine::EngineCycle& ec) {
   PeakAndRise r;
   const double d = 0.02;
   for (double th = -60.0; th <= 60.0; th += d) {
@@ -64,8 +64,9 @@ PeakAndRise peak_and_rise(const nm::EngineCycle& ec) {
   return r;
 }
 
-const nm::OperatingCondition kIdle{.speed_rpm = 3050.0, .load_nm = 0.0, .soi_deg_btdc = 18.0, .motored = false};
-const nm::OperatingCondition kFull{.speed_rpm = 3450.0, .load_nm = 20.0, .soi_deg_btdc = 18.0, .motored = false};
+const nm::engine::OperatingCondition kIdle{.speed_rpm = 3050.0, .load_nm = 0.0, .soi_deg_btdc = 18.0, .motored = false};
+const nm::engine::OperatingCondition kFull{
+    .speed_rpm = 3450.0, .load_nm = 20.0, .soi_deg_btdc = 18.0, .motored = false};
 
 }  // namespace
 
@@ -91,12 +92,12 @@ TEST(EngineGeometry, SliderCrankVolumeMatchesClosedForm) {
 }
 
 TEST(EngineCycle, AdiabaticConstantGammaFollowsIsentrope) {
-  nm::EngineCycleParams p;
+  nm::engine::EngineCycleParams p;
   const double gamma = 1.35;
   p.heat_transfer_scale = 0.0;
   p.cv1_j_kg_k2 = 0.0;
   p.cv0_j_kg_k = p.gas_constant_j_kg_k / (gamma - 1.0);
-  nm::EngineCycle ec(p);
+  nm::engine::EngineCycle ec(p);
   ec.compute({.speed_rpm = 3050.0, .load_nm = 0.0, .soi_deg_btdc = 18.0, .motored = true});
   const auto th = ec.closed_angle_deg();
   const auto pr = ec.closed_pressure_pa();
@@ -120,9 +121,9 @@ TEST(EngineCycle, AdiabaticConstantGammaFollowsIsentrope) {
 
 TEST(EngineCycle, AdiabaticVariableGammaKeepsEntropy) {
   // cv = cv0 + cv1 T, ds = 0: cv0 ln T + cv1 T + R ln V = const.
-  nm::EngineCycleParams p;
+  nm::engine::EngineCycleParams p;
   p.heat_transfer_scale = 0.0;
-  nm::EngineCycle ec(p);
+  nm::engine::EngineCycle ec(p);
   ec.compute({.speed_rpm = 3450.0, .load_nm = 0.0, .soi_deg_btdc = 18.0, .motored = true});
   const auto th = ec.closed_angle_deg();
   const auto temp = ec.closed_temperature_k();
@@ -135,7 +136,7 @@ TEST(EngineCycle, AdiabaticVariableGammaKeepsEntropy) {
 }
 
 TEST(EngineCycle, MotoredPeakIsPhysical) {
-  nm::EngineCycle ec;
+  nm::engine::EngineCycle ec;
   const auto& p = ec.params();
   ec.compute({.speed_rpm = 3050.0, .load_nm = 0.0, .soi_deg_btdc = 18.0, .motored = true});
   const double ratio = p.geometry.volume_m3(p.ivc_deg) / p.geometry.clearance_volume_m3();
@@ -155,7 +156,7 @@ TEST(EngineCycle, MotoredPeakIsPhysical) {
 }
 
 TEST(EngineCycle, IntegratedHeatReleaseEqualsFuelEnergy) {
-  nm::EngineCycle ec;
+  nm::engine::EngineCycle ec;
   const auto& p = ec.params();
   for (const auto& op : {kIdle, kFull}) {
     ec.compute(op);
@@ -167,19 +168,19 @@ TEST(EngineCycle, IntegratedHeatReleaseEqualsFuelEnergy) {
     EXPECT_NEAR(s.heat_release_j, expected, 1e-6 * expected);
   }
   // Fuel follows the load; idle still burns fuel, motored none.
-  const double idle = nm::fuel_mass_per_cycle_kg(p, kIdle);
-  const double full = nm::fuel_mass_per_cycle_kg(p, kFull);
+  const double idle = nm::engine::fuel_mass_per_cycle_kg(p, kIdle);
+  const double full = nm::engine::fuel_mass_per_cycle_kg(p, kFull);
   EXPECT_GT(idle, 1e-6);  // > 1 mg
   EXPECT_GT(full, 3.0 * idle);
   EXPECT_LT(full * p.stoichiometric_afr, ec.summary().trapped_mass_kg);  // lean: phi < 1
   auto motored = kFull;
   motored.motored = true;
-  EXPECT_EQ(nm::fuel_mass_per_cycle_kg(p, motored), 0.0);
+  EXPECT_EQ(nm::engine::fuel_mass_per_cycle_kg(p, motored), 0.0);
 }
 
 TEST(EngineCycle, FirstLawBalancesOverTheClosedPart) {
   // m (u(T_evo) - u(T_ivc)) = Q_released - Q_lost - W, every term integrated here from the traces.
-  nm::EngineCycle ec;
+  nm::engine::EngineCycle ec;
   const auto& p = ec.params();
   for (const auto& op : {kIdle, kFull}) {
     ec.compute(op);
@@ -208,7 +209,7 @@ TEST(EngineCycle, FirstLawBalancesOverTheClosedPart) {
 }
 
 TEST(EngineCycle, FiredCyclesAreSaneForTheLoad) {
-  nm::EngineCycle ec;
+  nm::engine::EngineCycle ec;
   const double vd = ec.params().geometry.displacement_m3();
   for (const auto& op : {kIdle, kFull}) {
     for (double soi : {12.0, 18.0, 24.0}) {
@@ -236,9 +237,9 @@ TEST(EngineCycle, FiredCyclesAreSaneForTheLoad) {
 TEST(EngineCycle, EarlierInjectionIsLouder) {
   // Thesis 3.3: earlier injection -> longer delay -> more premixed burn -> faster pressure rise. The single zone's
   // trend: without the gas ringing, whose random phase would add its own slope to the rise (explicitly off).
-  nm::EngineCycleParams params;
-  params.ringing = nm::GasRingingParams::off();
-  nm::EngineCycle ec(params);
+  nm::engine::EngineCycleParams params;
+  params.ringing = nm::engine::GasRingingParams::off();
+  nm::engine::EngineCycle ec(params);
   for (const auto& op : {kIdle, kFull}) {
     PeakAndRise prev{};
     double prev_delay = 0.0, prev_beta = 0.0;
@@ -259,7 +260,7 @@ TEST(EngineCycle, EarlierInjectionIsLouder) {
 }
 
 TEST(EngineCycle, PressureIsContinuousAcrossValveEventsAndCycles) {
-  nm::EngineCycle ec;
+  nm::engine::EngineCycle ec;
   ec.compute(kFull);
   const auto& p = ec.params();
   EXPECT_DOUBLE_EQ(ec.pressure_pa(-360.0), p.intake_pressure_pa);
@@ -314,7 +315,7 @@ TEST(CycleVariation, DrawStatistics) {
   const int n = 20000;
   std::vector<double> a(n), b(n);
   for (int i = 0; i < n; ++i) {
-    const auto v = nm::draw_cycle_variation(7, i - n / 2, sigma);
+    const auto v = nm::engine::draw_cycle_variation(7, i - n / 2, sigma);
     a[i] = v.heat_release_scale - 1.0;
     b[i] = v.ignition_delay_scale - 1.0;
   }
@@ -341,19 +342,19 @@ TEST(CycleVariation, DrawStatistics) {
   EXPECT_LT(std::abs(cov(a, 0, a, 1)) / var, lim);
   EXPECT_LT(std::abs(cov(b, 0, b, 1)) / var, lim);
   // Deterministic in (seed, cycle), different for another seed.
-  const auto x = nm::draw_cycle_variation(7, 123, sigma), y = nm::draw_cycle_variation(7, 123, sigma);
+  const auto x = nm::engine::draw_cycle_variation(7, 123, sigma), y = nm::engine::draw_cycle_variation(7, 123, sigma);
   EXPECT_EQ(x.heat_release_scale, y.heat_release_scale);
   EXPECT_EQ(x.ignition_delay_scale, y.ignition_delay_scale);
-  EXPECT_NE(nm::draw_cycle_variation(8, 123, sigma).heat_release_scale, x.heat_release_scale);
-  EXPECT_EQ(nm::draw_cycle_variation(7, 123, 0.0).heat_release_scale, 1.0);
+  EXPECT_NE(nm::engine::draw_cycle_variation(8, 123, sigma).heat_release_scale, x.heat_release_scale);
+  EXPECT_EQ(nm::engine::draw_cycle_variation(7, 123, 0.0).heat_release_scale, 1.0);
 }
 
 TEST(CycleVariation, ScalesPeakPressureFromCycleToCycle) {
-  nm::EngineCycle ec;
+  nm::engine::EngineCycle ec;
   const int n = 60;
   double s = 0, s2 = 0;
   for (int i = 0; i < n; ++i) {
-    ec.compute(kIdle, nm::draw_cycle_variation(3, i, 0.03));
+    ec.compute(kIdle, nm::engine::draw_cycle_variation(3, i, 0.03));
     const double pk = ec.summary().peak_pressure_pa;
     s += pk;
     s2 += pk * pk;
@@ -396,7 +397,7 @@ TEST(EngineCycle, MotoredCurveAgreesWithRealYanmarRecord) {
   for (std::size_t i = 0; i < angle.size(); ++i)
     if (mean_bar[i] > mean_bar[ipk]) ipk = i;
 
-  nm::EngineCycle ec;  // the L100V defaults, nominal CR 21.2
+  nm::engine::EngineCycle ec;  // the L100V defaults, nominal CR 21.2
   ec.compute({.speed_rpm = 1800.0, .load_nm = 0.0, .soi_deg_btdc = 0.0, .motored = true});
   // Compression branch (-120 .. -30 deg), where the record is free of the TDC losses: within 15 %.
   for (std::size_t i = 0; i < angle.size(); ++i) {
@@ -420,14 +421,14 @@ TEST(EngineCycle, MotoredCurveAgreesWithRealYanmarRecord) {
 namespace {
 
 // Draper (1938): f = c alpha / (pi B), c = sqrt(gamma R T), gamma = (cv + R) / cv with the model's cv(T) = cv0 + cv1 T.
-double draper_hz(const nm::EngineCycleParams& p, double alpha, double temperature_k) {
+double draper_hz(const nm::engine::EngineCycleParams& p, double alpha, double temperature_k) {
   const double cv = p.cv0_j_kg_k + p.cv1_j_kg_k2 * temperature_k;
   const double c = std::sqrt((cv + p.gas_constant_j_kg_k) / cv * p.gas_constant_j_kg_k * temperature_k);
   return c * alpha / (kPi * p.geometry.bore_m);
 }
 
 // The single zone's temperature at an angle of the closed part (linear between grid nodes).
-double temperature_at(const nm::EngineCycle& ec, double theta) {
+double temperature_at(const nm::engine::EngineCycle& ec, double theta) {
   const auto a = ec.closed_angle_deg();
   const auto t = ec.closed_temperature_k();
   const double u = (theta - a[0]) / (a[1] - a[0]);
@@ -437,14 +438,15 @@ double temperature_at(const nm::EngineCycle& ec, double theta) {
 
 // The ringing alone: the cycle with it minus the same cycle without it.
 struct Ringing {
-  nm::EngineCycle with, without;
-  Ringing(const nm::GasRingingParams& r, const nm::OperatingCondition& op, const nm::CycleVariation& v)
-      : with(params(r)), without(params(nm::GasRingingParams::off())) {
+  nm::engine::EngineCycle with, without;
+  Ringing(const nm::engine::GasRingingParams& r, const nm::engine::OperatingCondition& op,
+          const nm::engine::CycleVariation& v)
+      : with(params(r)), without(params(nm::engine::GasRingingParams::off())) {
     with.compute(op, v);
     without.compute(op, v);
   }
-  static nm::EngineCycleParams params(const nm::GasRingingParams& r) {
-    nm::EngineCycleParams p;
+  static nm::engine::EngineCycleParams params(const nm::engine::GasRingingParams& r) {
+    nm::engine::EngineCycleParams p;
     p.ringing = r;
     return p;
   }
@@ -455,13 +457,13 @@ struct Ringing {
 
 TEST(GasRinging, EachModeRingsAtDrapersFrequencyOfTheSimulatedGasTemperature) {
   const double alpha[3] = {1.841, 3.054, 3.832};  // Bessel roots of the (1,0), (2,0), (0,1) modes
-  const nm::OperatingCondition op = kFull;
+  const nm::engine::OperatingCondition op = kFull;
   for (int mode = 0; mode < 3; ++mode) {
-    nm::GasRingingParams r;
+    nm::engine::GasRingingParams r;
     r.mode_weights = {0.0, 0.0, 0.0};
     r.mode_weights[static_cast<std::size_t>(mode)] = 1.0;
-    const Ringing ring(r, op, nm::draw_cycle_variation(5, 3, 0.03));
-    const nm::EngineCycleParams& p = ring.with.params();
+    const Ringing ring(r, op, nm::engine::draw_cycle_variation(5, 3, 0.03));
+    const nm::engine::EngineCycleParams& p = ring.with.params();
     const double soc = ring.with.summary().soc_deg, deg_per_s = 6.0 * op.speed_rpm;
     // Zero crossings of A e(theta) cos(phi(theta)) are where phi passes a multiple of pi: between two of them the
     // Draper frequency must integrate to exactly half a period.
@@ -500,13 +502,13 @@ TEST(GasRinging, EachModeRingsAtDrapersFrequencyOfTheSimulatedGasTemperature) {
 }
 
 TEST(GasRinging, NoneInMotoredCyclesNorBeforeCombustion) {
-  const nm::GasRingingParams r;  // the realistic default
-  nm::OperatingCondition motored = kIdle;
+  const nm::engine::GasRingingParams r;  // the realistic default
+  nm::engine::OperatingCondition motored = kIdle;
   motored.motored = true;
-  const Ringing m(r, motored, nm::draw_cycle_variation(1, 0, 0.03));
+  const Ringing m(r, motored, nm::engine::draw_cycle_variation(1, 0, 0.03));
   EXPECT_EQ(m.with.summary().ringing_amplitude_pa, 0.0);
   for (double th = -360.0; th < 360.0; th += 0.013) ASSERT_EQ(m.at(th), 0.0) << th;
-  const Ringing f(r, kIdle, nm::draw_cycle_variation(1, 0, 0.03));
+  const Ringing f(r, kIdle, nm::engine::draw_cycle_variation(1, 0, 0.03));
   const double soc = f.with.summary().soc_deg;
   for (double th = -360.0; th < soc - 0.05; th += 0.013) ASSERT_EQ(f.at(th), 0.0) << th;
   const double evo = f.with.params().evo_deg;
@@ -519,17 +521,17 @@ TEST(GasRinging, AmplitudeFollowsThePremixedPressureRiseRateAsDocumented) {
   // A = gain (gamma - 1) / V dQp/dt at the premixed Wiebe peak; found here by scanning the Wiebe rate.
   struct Case {
     const char* name;
-    nm::OperatingCondition op;
+    nm::engine::OperatingCondition op;
     double min_bar, max_bar;  // documented: a few tenths of a bar, about 1 bar for a strong premixed burn
   };
   const Case cases[] = {{"idle_mi12", {3050.0, 0.0, 12.0, false}, 0.2, 0.7},
                         {"idle_mi24", {3050.0, 0.0, 24.0, false}, 0.2, 0.7},
                         {"full_mi24", {3450.0, 20.0, 24.0, false}, 0.7, 1.3}};
   for (const Case& c : cases) {
-    nm::GasRingingParams first_mode;
+    nm::engine::GasRingingParams first_mode;
     first_mode.mode_weights = {1.0, 0.0, 0.0};
-    const nm::CycleVariation v = nm::draw_cycle_variation(2, 1, 0.03);
-    const Ringing one(first_mode, c.op, v), all(nm::GasRingingParams{}, c.op, v);
+    const nm::engine::CycleVariation v = nm::engine::draw_cycle_variation(2, 1, 0.03);
+    const Ringing one(first_mode, c.op, v), all(nm::engine::GasRingingParams{}, c.op, v);
     const auto& s = one.with.summary();
     const auto& p = one.with.params();
     const double qp = s.premixed_fraction * s.fuel_energy_j, a = p.wiebe_a, m = p.premixed_shape,
@@ -610,10 +612,10 @@ TEST(GasRinging, FirstModeAgreesWithTheRingingOfTheRealFiredYanmarRecord) {
   const auto after = window_spectrum(real, 0.0, 20.0, fs, freqs),
              before = window_spectrum(real, -45.0, -25.0, fs, freqs);
   // Sim: the ringing alone at the record's condition, sampled alike, 60 cycles.
-  const nm::OperatingCondition op{.speed_rpm = rpm, .load_nm = 18.0, .soi_deg_btdc = 9.6, .motored = false};
+  const nm::engine::OperatingCondition op{.speed_rpm = rpm, .load_nm = 18.0, .soi_deg_btdc = 9.6, .motored = false};
   std::vector<std::vector<double>> sim;
   for (int k = 0; k < 60; ++k) {
-    const Ringing ring(nm::GasRingingParams{}, op, nm::draw_cycle_variation(4, k, 0.03));
+    const Ringing ring(nm::engine::GasRingingParams{}, op, nm::engine::draw_cycle_variation(4, k, 0.03));
     sim.emplace_back();
     for (int i = 0; i < 3600; ++i) sim.back().push_back(ring.at(-180.0 + 0.2 * i));
   }

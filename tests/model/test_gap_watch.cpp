@@ -15,10 +15,11 @@ namespace nm = noisemon::model;
 
 namespace {
 
-std::vector<nm::GapEvent> watch_cycles(nm::GapWatch& watch, gapcell::Cell& cell, std::int64_t cycles,
-                                       const gapcell::Effects& effects = {}, std::int64_t effect_from = 0) {
-  std::vector<nm::GapEvent> events;
-  watch.on_event = [&](const nm::GapEvent& e) { events.push_back(e); };
+std::vector<nm::diagnosis::GapEvent> watch_cycles(nm::diagnosis::GapWatch& watch, gapcell::Cell& cell,
+                                                  std::int64_t cycles, const gapcell::Effects& effects = {},
+                                                  std::int64_t effect_from = 0) {
+  std::vector<nm::diagnosis::GapEvent> events;
+  watch.on_event = [&](const nm::diagnosis::GapEvent& e) { events.push_back(e); };
   for (std::int64_t i = 0; i < cycles; ++i) watch.add(cell.next(i >= effect_from ? effects : gapcell::Effects{}));
   return events;
 }
@@ -31,12 +32,12 @@ std::vector<nm::GapEvent> watch_cycles(nm::GapWatch& watch, gapcell::Cell& cell,
 // The smallest shift is set near the features' block spread (k about 1), where Siegmund's approximation holds; for
 // a shift many times the spread (k >> 1) the true rate is far below the one set.
 TEST(GapWatch, FalseAlarmRateIsAtMostTheOneSet) {
-  nm::GapWatchOptions o;
+  nm::diagnosis::GapWatchOptions o;
   o.false_alarm_hours = 0.1;
   o.min_shift_db = 0.1;
   o.reference_s = 20.0;
   gapcell::Cell cell(1);
-  nm::GapWatch watch(o);
+  nm::diagnosis::GapWatch watch(o);
   const auto cycles = static_cast<std::int64_t>(2.0 * 3600.0 * 3050.0 / 120.0);
   const auto events = watch_cycles(watch, cell, cycles);
   const double watched_h = 2.0 - static_cast<double>(events.size() + 1) * o.reference_s / 3600.0;
@@ -51,7 +52,7 @@ TEST(GapWatch, FalseAlarmRateIsAtMostTheOneSet) {
 // cycle, named mic_gain of that microphone with its size.
 TEST(GapWatch, StepIsFoundItsOnsetLocatedAndNamed) {
   gapcell::Cell cell(2);
-  nm::GapWatch watch(nm::GapWatchOptions{});
+  nm::diagnosis::GapWatch watch(nm::diagnosis::GapWatchOptions{});
   gapcell::Effects e;
   e.gain_mic = 3;
   e.gain_db = 2.0;
@@ -78,16 +79,16 @@ TEST(GapWatch, StepIsFoundItsOnsetLocatedAndNamed) {
 // in a cell whose gap follows the load steeply (1 dB per N m, as a band dominated by the transducer's floor does):
 // the first and last cycles of every ramp sit within a point's tolerances (2 N m, 60 rpm) while the gap moves by up
 // to 2 dB. Watched, they fire; left out as unsteady (the default), nothing does.
-std::size_t events_over_ramps(const nm::GapWatchOptions& o) {
+std::size_t events_over_ramps(const nm::diagnosis::GapWatchOptions& o) {
   gapcell::Cell cell(8);
-  nm::GapWatch watch(o);
+  nm::diagnosis::GapWatch watch(o);
   std::size_t events = 0;
-  watch.on_event = [&](const nm::GapEvent&) { ++events; };
+  watch.on_event = [&](const nm::diagnosis::GapEvent&) { ++events; };
   auto run = [&](double load, std::int64_t cycles) {
     cell.set_speed(3050.0 + 20.0 * load);
     cell.set_gap_offset(load);
     for (std::int64_t i = 0; i < cycles; ++i) {
-      nm::CycleGap c = cell.next();
+      nm::diagnosis::CycleGap c = cell.next();
       c.load_nm = load;
       watch.add(c);
     }
@@ -102,17 +103,18 @@ std::size_t events_over_ramps(const nm::GapWatchOptions& o) {
 }
 
 TEST(GapWatch, CyclesOfAChangeOfOperatingPointAreNotWatched) {
-  nm::GapWatchOptions unguarded;
+  nm::diagnosis::GapWatchOptions unguarded;
   unguarded.steady.before_s = unguarded.steady.after_s = 0.0;  // a cycle judged on its own operating point alone
   EXPECT_GE(events_over_ramps(unguarded), 1u);
-  EXPECT_EQ(events_over_ramps(nm::GapWatchOptions{}), 0u);
+  EXPECT_EQ(events_over_ramps(nm::diagnosis::GapWatchOptions{}), 0u);
 }
 
 // The gate's decision: the operating points from before_s before a cycle to after_s after it within the band.
 TEST(SteadyStateGate, ACycleIsSteadyWhenThePointHeldAroundIt) {
-  nm::SteadyStateGate gate(nm::SteadyStateOptions{});  // 5 s before, 2 s after; 30 rpm, 1 N m, 0.5 deg
+  nm::diagnosis::SteadyStateGate gate(
+      nm::diagnosis::SteadyStateOptions{});  // 5 s before, 2 s after; 30 rpm, 1 N m, 0.5 deg
   const auto at = [](double t, double rpm, double load) {
-    return nm::OperatingSample{.time_s = t, .speed_rpm = rpm, .load_nm = load};
+    return nm::diagnosis::OperatingSample{.time_s = t, .speed_rpm = rpm, .load_nm = load};
   };
   for (int i = 0; i <= 200; ++i) {  // 10 s steady, then the load steps up by 1.5 N m at 10 s
     const double t = 0.05 * i;
@@ -134,12 +136,12 @@ TEST(SteadyStateGate, ACycleIsSteadyWhenThePointHeldAroundIt) {
 // Two operating points whose gaps differ by 2 dB, the engine switching between them every 3 minutes for 2 hours:
 // each learns its own reference, and no switch is an event (the false-alarm time 80 h: one in 40 runs would fire).
 TEST(GapWatch, OperatingPointChangesAreNotChanges) {
-  nm::GapWatchOptions o;
+  nm::diagnosis::GapWatchOptions o;
   o.false_alarm_hours = 80.0;
   gapcell::Cell cell(3);
-  nm::GapWatch watch(o);
-  std::vector<nm::GapEvent> events;
-  watch.on_event = [&](const nm::GapEvent& e) { events.push_back(e); };
+  nm::diagnosis::GapWatch watch(o);
+  std::vector<nm::diagnosis::GapEvent> events;
+  watch.on_event = [&](const nm::diagnosis::GapEvent& e) { events.push_back(e); };
   for (int stint = 0; stint < 40; ++stint) {
     const bool second = stint % 2 == 1;
     cell.set_speed(second ? 3450.0 : 3050.0);
@@ -155,11 +157,11 @@ TEST(GapWatch, OperatingPointChangesAreNotChanges) {
 // A reference saved from one run and given to the next: watched from its first block, no learning.
 TEST(GapWatch, GivenReferenceIsWatchedFromTheStart) {
   gapcell::Cell first(4);
-  nm::GapWatch learner(nm::GapWatchOptions{});
+  nm::diagnosis::GapWatch learner(nm::diagnosis::GapWatchOptions{});
   (void)watch_cycles(learner, first, 4000);
   ASSERT_FALSE(learner.learning());
   gapcell::Cell second(5);
-  nm::GapWatch watch(nm::GapWatchOptions{});
+  nm::diagnosis::GapWatch watch(nm::diagnosis::GapWatchOptions{});
   watch.set_reference(learner.reference());
   gapcell::Effects e;
   e.gain_mic = 0;
@@ -174,9 +176,9 @@ TEST(GapWatch, GivenReferenceIsWatchedFromTheStart) {
 // same reference), and a step after the restart is found with its onset in the new numbering.
 TEST(GapWatch, DaemonRestartNumberingAgainFromZeroIsNoChange) {
   gapcell::Cell before(6);
-  nm::GapWatch watch(nm::GapWatchOptions{});
-  std::vector<nm::GapEvent> events;
-  watch.on_event = [&](const nm::GapEvent& e) { events.push_back(e); };
+  nm::diagnosis::GapWatch watch(nm::diagnosis::GapWatchOptions{});
+  std::vector<nm::diagnosis::GapEvent> events;
+  watch.on_event = [&](const nm::diagnosis::GapEvent& e) { events.push_back(e); };
   for (int i = 0; i < 6000; ++i) watch.add(before.next());
   gapcell::Cell after(7);  // cycle numbers from 0 again
   gapcell::Effects e;
@@ -195,9 +197,9 @@ TEST(GapWatch, DaemonRestartNumberingAgainFromZeroIsNoChange) {
 // speed_dependence events, 1.5 dB and 4.5 dB; the second gives the law from both.
 TEST(GapWatch, StructuralGainMetAtTwoSpeedsGivesItsLaw) {
   gapcell::Cell cell(9);
-  nm::GapWatch watch(nm::GapWatchOptions{});
-  std::vector<nm::GapEvent> events;
-  watch.on_event = [&](const nm::GapEvent& e) { events.push_back(e); };
+  nm::diagnosis::GapWatch watch(nm::diagnosis::GapWatchOptions{});
+  std::vector<nm::diagnosis::GapEvent> events;
+  watch.on_event = [&](const nm::diagnosis::GapEvent& e) { events.push_back(e); };
   auto run = [&](double rpm, double seconds, bool effect) {
     cell.set_speed(rpm);
     gapcell::Effects e;
@@ -211,7 +213,7 @@ TEST(GapWatch, StructuralGainMetAtTwoSpeedsGivesItsLaw) {
   run(3500.0, 60.0, true);
   watch.flush();
   ASSERT_EQ(events.size(), 2u);
-  auto param = [](const nm::GapEvent& e, const char* key) {
+  auto param = [](const nm::diagnosis::GapEvent& e, const char* key) {
     for (const auto& [k, v] : e.params)
       if (k == key) return v;
     return std::nan("");

@@ -58,10 +58,10 @@ struct Published {
 constexpr Published kPublished[] = {
     {"FIR-MLP", 18.9, 20.2, 15.3}, {"RNN", 1.64, 4.88, 1.73}, {"LSTM", 1.50, 2.68, 0.96}, {"GRU", 1.49, 2.80, 0.95}};
 
-const SampleRange kArrowFull{100, 40575}, kArrowNoExtrap{100, 32100}, kMultisineTest{105712, 127400};
+const fit::SampleRange kArrowFull{100, 40575}, kArrowNoExtrap{100, 32100}, kMultisineTest{105712, 127400};
 
-std::vector<SampleRange> training_chunks(std::size_t chunk, std::size_t stride) {
-  std::vector<SampleRange> out;
+std::vector<fit::SampleRange> training_chunks(std::size_t chunk, std::size_t stride) {
+  std::vector<fit::SampleRange> out;
   for (std::size_t b = 40650; b + chunk <= 105712; b += stride) out.push_back({b, b + chunk});
   return out;
 }
@@ -70,16 +70,16 @@ struct TestErrors {
   double multisine, arrow_full, arrow_noextrap;  // mV
 };
 
-TestErrors test_errors(const WaveformModel& m, const WaveformSimOptions& sim, const Silverbox& s) {
-  const std::vector<SampleRange> sets = {kMultisineTest, kArrowFull, kArrowNoExtrap};
-  const auto e = free_run_errors(m, kFs, sim, s.u, s.y, sets);
+TestErrors test_errors(const fit::WaveformModel& m, const fit::WaveformSimOptions& sim, const Silverbox& s) {
+  const std::vector<fit::SampleRange> sets = {kMultisineTest, kArrowFull, kArrowNoExtrap};
+  const auto e = fit::free_run_errors(m, kFs, sim, s.u, s.y, sets);
   return {1e3 * e[0].rms(), 1e3 * e[1].rms(), 1e3 * e[2].rms()};
 }
 
 TEST(Silverbox, DiagnosisNamesCubicStiffnessAndTheCubicModelBeatsThePublishedBaselines) {
   Silverbox s;
   NOISEMON_REQUIRE(load(s), "the Silverbox data under " NOISEMON_SHARED_DIR "/data/real");
-  WaveformDiagnosisOptions o;
+  diagnosis::WaveformDiagnosisOptions o;
   o.fs_hz = kFs;
   // Train on a subsample of the training multisines, hold out other parts of them (never the test sets).
   o.train = training_chunks(4000, 16000);
@@ -89,7 +89,7 @@ TEST(Silverbox, DiagnosisNamesCubicStiffnessAndTheCubicModelBeatsThePublishedBas
   o.bootstrap_resamples = 500;
   o.max_iterations = 15;  // time: the baseline and the cubic fits converge in < 10; the second mode would go on
   if (std::getenv("SILVERBOX_LOG")) o.log = [](const std::string& line) { std::printf("    %s\n", line.c_str()); };
-  const WaveformDiagnosis d = diagnose_waveform(s.u, s.y, o);
+  const diagnosis::WaveformDiagnosis d = diagnose_waveform(s.u, s.y, o);
 
   std::printf("baseline fit %.1f s, %d iterations\n", d.baseline.seconds, d.baseline.iterations);
   std::printf("diagnosis %.1f s: verdict %s, held-out %.3g -> %.3g mV\n", d.seconds, d.verdict.c_str(),
@@ -100,7 +100,7 @@ TEST(Silverbox, DiagnosisNamesCubicStiffnessAndTheCubicModelBeatsThePublishedBas
                 c.significant ? "significant" : "", c.fit.seconds, c.fit.iterations);
   ASSERT_EQ(d.verdict, "cubic_stiffness");
   // The report-schema view `noisemon diagnose` writes: the same verdict, the cubic spring first, with its k3.
-  const WaveformReport rep = waveform_report(d);
+  const diagnosis::WaveformReport rep = waveform_report(d);
   EXPECT_EQ(rep.verdict, "cubic_stiffness");
   ASSERT_FALSE(rep.candidates.empty());
   EXPECT_EQ(rep.candidates.front().effect, "cubic_stiffness");
@@ -109,7 +109,7 @@ TEST(Silverbox, DiagnosisNamesCubicStiffnessAndTheCubicModelBeatsThePublishedBas
     if (name == "k3") k3 = value;
   EXPECT_GT(k3, 0.0);  // a hardening spring, as the circuit is built
 
-  WaveformSimOptions sim = o.sim;
+  fit::WaveformSimOptions sim = o.sim;
   sim.steps_per_sample = d.best_steps_per_sample;
   const TestErrors lin = test_errors(d.baseline.model, sim, s);
   const TestErrors cub = test_errors(d.best_model, sim, s);

@@ -119,10 +119,10 @@ double rms(const std::vector<double>& x) {
   return std::sqrt(s / static_cast<double>(x.size()));
 }
 
-void expect_within_sigma(const WaveformFitResult& r, const WaveformModel& truth, double k_sigma) {
+void expect_within_sigma(const fit::WaveformFitResult& r, const fit::WaveformModel& truth, double k_sigma) {
   for (std::size_t k = 0; k < r.free_params.size(); ++k) {
     const std::string& name = r.free_params[k];
-    const double est = get_parameter(r.model, name), tru = get_parameter(truth, name);
+    const double est = fit::get_parameter(r.model, name), tru = get_parameter(truth, name);
     std::printf("  %-8s true %-12.6g fitted %-12.6g +- %-10.3g (%+.2f sigma)\n", name.c_str(), tru, est, r.sigma[k],
                 (est - tru) / r.sigma[k]);
     EXPECT_TRUE(std::isfinite(r.sigma[k]) && r.sigma[k] > 0) << name;
@@ -168,22 +168,22 @@ TEST(WaveformFit, LinearEngineModelFromAPresetAFactorTwoAwayAt40kHz) {
   const double noise = 0.01 * rms(clean.y_clean);
   const Data d = add_noise(clean, noise, 3);
 
-  WaveformFitOptions o;
+  fit::WaveformFitOptions o;
   o.fs_hz = fs;
   o.train = {{0, 6000}};
   o.heldout = {{6000, 8000}};
   o.free_params = {"k1", "b1", "c0", "c1", "y_offset"};
-  WaveformModel start;
+  fit::WaveformModel start;
   start.block = preset("linear");
   o.start = start;
   o.start_name = "linear";
   o.refine_start_gains = false;  // the solver alone walks the factor 2 in every parameter
   int progress_calls = 0;
-  o.progress = [&](const WaveformFitProgress&) { ++progress_calls; };
-  const WaveformFitResult r = fit_waveform(d.u, d.y, o);
+  o.progress = [&](const fit::WaveformFitProgress&) { ++progress_calls; };
+  const fit::WaveformFitResult r = fit_waveform(d.u, d.y, o);
   std::printf("start rms %.4g, fitted train rms %.4g held-out %.4g (noise %.4g), %d iterations, %.2f s\n",
               r.start_train_rms, r.train_rms, r.heldout_rms, noise, r.iterations, r.seconds);
-  WaveformModel tm;
+  fit::WaveformModel tm;
   tm.block = truth;
   expect_within_sigma(r, tm, 4.0);
   EXPECT_GT(r.start_train_rms, 20.0 * noise);     // the start really is far off
@@ -199,38 +199,38 @@ TEST(WaveformFit, CubicSpringAndDamperAt1kHz) {
   const double noise = 0.01 * rms(clean.y_clean);
   const Data d = add_noise(clean, noise, 5);
 
-  WaveformFitOptions o;
+  fit::WaveformFitOptions o;
   o.fs_hz = kFsLow;
   o.train = {{0, kTrain}};
   o.heldout = {{kTrain, kTrain + kHeld}};
   o.free_params = {"k1", "b1", "c0", "c1", "k3", "b3"};
-  WaveformModel start;
+  fit::WaveformModel start;
   start.block = oscillator();  // linear, k3 = b3 = 0: the cubic terms start from nothing
   start.block.k1 *= 0.8;
   start.block.b1 *= 1.5;
   o.start = start;
-  const WaveformFitResult r = fit_waveform(d.u, d.y, o);
+  const fit::WaveformFitResult r = fit_waveform(d.u, d.y, o);
   std::printf("train rms %.4g held-out %.4g (noise %.4g), %d iterations, %d steps/sample, %.2f s\n", r.train_rms,
               r.heldout_rms, noise, r.iterations, r.steps_per_sample, r.seconds);
-  WaveformModel tm;
+  fit::WaveformModel tm;
   tm.block = truth;
   expect_within_sigma(r, tm, 4.0);
   EXPECT_NEAR(r.heldout_rms / noise, 1.0, 0.05);
 }
 
-WaveformDiagnosis diagnose(const BlockParams& truth, const Multisine& in, unsigned seed,
-                           const std::function<double(double, double)>& extra = {}) {
+diagnosis::WaveformDiagnosis diagnose(const BlockParams& truth, const Multisine& in, unsigned seed,
+                                      const std::function<double(double, double)>& extra = {}) {
   const Data clean = simulate_truth(truth, in, kFsLow, kTrain + kHeld, 16, 0.3, extra);
   const double noise = 0.01 * rms(clean.y_clean);
   const Data d = add_noise(clean, noise, seed);
-  WaveformDiagnosisOptions o;
+  diagnosis::WaveformDiagnosisOptions o;
   o.fs_hz = kFsLow;
   o.train = {{0, kTrain}};
   o.heldout = {{kTrain, kTrain + kHeld}};
   o.second_round = false;
   o.max_iterations = 20;  // time: the matching candidate converges in < 10; a non-matching second mode crawls
   if (std::getenv("WAVEFORM_TEST_LOG")) o.log = [](const std::string& line) { std::printf("    %s\n", line.c_str()); };
-  const WaveformDiagnosis r = diagnose_waveform(d.u, d.y, o);
+  const diagnosis::WaveformDiagnosis r = diagnose_waveform(d.u, d.y, o);
   std::printf("verdict %s: held-out rms %.4g -> %.4g (noise %.4g), %.1f s\n", r.verdict.c_str(), r.heldout_rms_before,
               r.heldout_rms_after, noise, r.seconds);
   for (const auto& c : r.candidates)
@@ -291,7 +291,7 @@ TEST(WaveformDiagnosis, BlockBootstrapKeepsItsFalseAlarmRateOnCorrelatedNoise) {
       double x = 0.0;
       for (double& v : seg) v = x = 0.95 * x + g(gen);
     }
-    if (block_bootstrap_test(d, 0, 400, t).p_value < 0.05) ++false_alarms;
+    if (diagnosis::block_bootstrap_test(d, 0, 400, t).p_value < 0.05) ++false_alarms;
   }
   std::printf("false alarms at alpha 0.05: %d of %d\n", false_alarms, trials);
   EXPECT_LE(false_alarms, 0.05 * trials * 2.0);
@@ -301,7 +301,7 @@ TEST(WaveformDiagnosis, BlockBootstrapKeepsItsFalseAlarmRateOnCorrelatedNoise) {
   std::vector<std::vector<double>> d(1, std::vector<double>(6000));
   double x = 0.0;
   for (double& v : d[0]) v = (x = 0.95 * x + g(gen)) + 0.8;
-  EXPECT_LT(block_bootstrap_test(d, 0, 2000, 1).p_value, 0.01);
+  EXPECT_LT(diagnosis::block_bootstrap_test(d, 0, 2000, 1).p_value, 0.01);
 }
 
 }  // namespace
