@@ -10,7 +10,7 @@
 
 namespace noisemon::cli {
 
-LoadedRecording loaded_run(const drivers::RunDir& run, std::int64_t epoch_utime, std::string origin) {
+LoadedRecording loaded_run(const drivers::formats::RunDir& run, std::int64_t epoch_utime, std::string origin) {
   LoadedRecording r{formats::to_recording(run, epoch_utime), std::move(origin)};
   if (run.pressure_noise_floor_bar) r.pressure_floor_pa = *run.pressure_noise_floor_bar * 1e5;
   const std::size_t n = run.time_s.size();
@@ -23,7 +23,7 @@ namespace {
 // A run directory for the dataset: its condition must say whether the run is motored (a motored reference is
 // used differently from a fired run); unknown SOI and load are only reported, so they may stay unknown.
 LoadedRecording load_run_dir(const std::string& dir, std::int64_t epoch_utime) {
-  const drivers::RunDir run = drivers::read_run_dir(dir);
+  const drivers::formats::RunDir run = drivers::formats::read_run_dir(dir);
   if (!run.condition.motored_known)
     throw std::runtime_error(dir +
                              ": key \"condition.motored\" is null (unknown) in run.json: the diagnosis must know "

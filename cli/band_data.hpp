@@ -33,7 +33,7 @@ struct LoadedRecording {
 
 // A run directory's contents as a loaded recording (its time base at epoch_utime). Its unknown SOI and load
 // stay NaN; an unknown `motored` is not checked here (load_recordings refuses it).
-LoadedRecording loaded_run(const drivers::RunDir& run, std::int64_t epoch_utime, std::string origin);
+LoadedRecording loaded_run(const drivers::formats::RunDir& run, std::int64_t epoch_utime, std::string origin);
 
 // Reads every DATA path. Throws std::runtime_error naming the path and what is wrong; a run directory whose
 // condition.motored is null (unknown) is refused: the diagnosis must know whether a run is a motored reference.

@@ -28,9 +28,9 @@ std::int64_t read_log(const std::string& path, const daemon::Config& config, boo
                       const std::function<void(const noisemon::cycle_report_t&)>& on_report) {
   std::int64_t reports = 0, raw = 0;
   {
-    drivers::LcmLogReader reader(path);
+    drivers::formats::LcmLogReader reader(path);
     ProgressLine line(progress);
-    drivers::LcmLogEvent e;
+    drivers::formats::LcmLogEvent e;
     noisemon::cycle_report_t report;
     noisemon::session_t session;
     for (std::int64_t n = 0; reader.next(e); ++n) {
@@ -39,7 +39,7 @@ std::int64_t read_log(const std::string& path, const daemon::Config& config, boo
         on_report(report);
         ++reports;
       } else if (e.channel == config.lcm.session_channel &&
-                 drivers::decode_message(e.data, static_cast<std::size_t>(e.datalen), session)) {
+                 drivers::formats::decode_message(e.data, static_cast<std::size_t>(e.datalen), session)) {
         on_session(session);
       } else if (e.channel == config.lcm.raw_channel) {
         ++raw;

@@ -112,7 +112,7 @@ std::string value_text(double v, const char* unit) {
 
 // What became of a run's null values (nothing to say when it has none): unknowns are n/a, a null speed is
 // measured from the encoder, a null `motored` is published as false.
-void note_unknowns(const std::string& dir, const drivers::RunCondition& c, const drivers::OperatingPoint& op,
+void note_unknowns(const std::string& dir, const drivers::formats::RunCondition& c, const drivers::OperatingPoint& op,
                    std::vector<std::string>& notes) {
   const bool speed_null = std::isnan(c.speed_rpm);
   if (!speed_null && !std::isnan(c.load_nm) && !std::isnan(c.soi_deg_btdc) && c.rail_pressure_bar && c.motored_known)
@@ -221,10 +221,10 @@ ImportSummary run_import(const ImportOptions& o) {
     progress.stage(prefix + " reading");
     formats::Recording rec;
     {
-      drivers::RunDir run = drivers::read_run_dir(dir);
+      drivers::formats::RunDir run = drivers::formats::read_run_dir(dir);
       if (sum.tdc)  // firing TDC at the encoder's tdc: the piston's angle is the encoder's less it
         for (double& a : run.crank_deg) a -= sum.tdc->tdc_by_loss_angle_deg;
-      const drivers::RunCondition condition = run.condition;
+      const drivers::formats::RunCondition condition = run.condition;
       progress.stage(prefix + " resampling to 40 kHz");
       rec = formats::to_recording(std::move(run), epoch);  // frees the run's samples as they are resampled
       note_unknowns(dir, condition, rec.operating_points.front(), sum.notes);
@@ -314,7 +314,7 @@ ExportSummary run_export(const ExportOptions& o) {
       throw std::runtime_error((d / "run.json").string() + ": exists; not overwritten (use --force)");
   for (std::size_t i = 0; i < recs.size(); ++i) {
     progress.stage("export " + dirs[i].string() + ": writing");
-    drivers::write_run_dir(dirs[i], formats::to_run_dir(recs[i]), o.pressure_units);
+    drivers::formats::write_run_dir(dirs[i], formats::to_run_dir(recs[i]), o.pressure_units);
     recs[i] = formats::Recording{};
     sum.run_dirs.push_back(dirs[i].string());
   }

@@ -76,7 +76,7 @@ struct ImportSummary {
   std::optional<model::MotoredTdc> tdc;  // a cycle table's thermodynamic TDC, when a motored table was given
 };
 
-// Throw (drivers::RunDirError, std::runtime_error) naming the file and what is wrong; the output log is then
+// Throw (drivers::formats::RunDirError, std::runtime_error) naming the file and what is wrong; the output log is then
 // removed rather than left half-written.
 ImportSummary run_import(const ImportOptions& options);
 ImportSummary run_import_cycle_table(const CycleTableImportOptions& options);

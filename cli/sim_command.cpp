@@ -98,12 +98,12 @@ model::BlockParams true_model(const SimOptions& o, std::string& model_name) {
 }
 
 // The test cell of the campaign: realistic by default, the pressure floor as given.
-drivers::SimConfig campaign_engine(const SimOptions& o) {
-  drivers::SimConfig e = cli::SimRunSpec::default_engine();
+drivers::sim::SimConfig campaign_engine(const SimOptions& o) {
+  drivers::sim::SimConfig e = cli::SimRunSpec::default_engine();
   e.encoder_resolution_deg = o.encoder_deg;
   if (!(o.pressure_floor_bar >= 0.0 && o.pressure_floor_bar <= 10.0))
     throw std::invalid_argument("--pressure-floor must be in [0, 10] bar");
-  if (o.ideal_cell) return drivers::with_ideal_cell(e);
+  if (o.ideal_cell) return drivers::sim::with_ideal_cell(e);
   if (o.pressure_floor_bar == 0.0)
     e.pressure_chain = model::engine::PressureChainConfig::ideal();
   else
@@ -150,7 +150,7 @@ void check_outputs(const SimOptions& o, const std::vector<Job>& jobs) {
 }
 
 // Every setting of the virtual test cell (what the diagnosis has to cope with; for checking by hand).
-json test_cell_json(const drivers::SimConfig& e, bool ideal) {
+json test_cell_json(const drivers::sim::SimConfig& e, bool ideal) {
   const auto& p = e.pressure_chain;
   const auto& m = e.mic_chain;
   const auto& g = e.gas_ringing;
@@ -177,9 +177,9 @@ json test_cell_json(const drivers::SimConfig& e, bool ideal) {
 }
 
 // One run: generated (or driven by a given pressure) and its clipping noted.
-drivers::RunDir generate(const Job& job, cli::SimRunSpec& spec, SimSummary& sum) {
+drivers::formats::RunDir generate(const Job& job, cli::SimRunSpec& spec, SimSummary& sum) {
   cli::SimRunStats stats;
-  drivers::RunDir run;
+  drivers::formats::RunDir run;
   if (job.background) {
     spec.condition = job.condition;
     run = cli::simulate_background_run(spec, &stats);
@@ -187,7 +187,7 @@ drivers::RunDir generate(const Job& job, cli::SimRunSpec& spec, SimSummary& sum)
     spec.condition = job.condition;
     run = cli::simulate_run(spec, &stats);
   } else {
-    const drivers::RunDir given = drivers::read_run_dir(job.pressure_dir);
+    const drivers::formats::RunDir given = drivers::formats::read_run_dir(job.pressure_dir);
     try {
       run = cli::simulate_acoustics(given, spec);
     } catch (const std::exception& e) {
@@ -237,11 +237,11 @@ SimSummary run_sim(const SimOptions& o) {
     spec.seed = cli::condition_seed(o.seed, job.name);
     progress.show(k, jobs.size(), job.name, "generating");
     double t0 = cpu_s();
-    const drivers::RunDir run = generate(job, spec, sum);
+    const drivers::formats::RunDir run = generate(job, spec, sum);
     sum.generate_s += cpu_s() - t0;
     progress.show(k, jobs.size(), job.name, "writing");
     const auto w0 = std::chrono::steady_clock::now();
-    drivers::write_run_dir(out / job.dir, run, "bar");
+    drivers::formats::write_run_dir(out / job.dir, run, "bar");
     sum.write_s += std::chrono::duration<double>(std::chrono::steady_clock::now() - w0).count();
     sum.run_dirs.push_back((out / job.dir).string());
     runs.push_back({{"dir", job.dir},

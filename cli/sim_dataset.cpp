@@ -21,7 +21,7 @@ model::fit::BandDataset simulate_band_dataset(const SimCampaign& campaign) {
     spec.seed = cli::condition_seed(campaign.seed, background ? cli::kBackgroundRunName : c.name);
     spec.setup_seed = campaign.setup_seed;
     spec.engine = campaign.engine;
-    drivers::RunDir run = background ? cli::simulate_background_run(spec) : cli::simulate_run(spec);
+    drivers::formats::RunDir run = background ? cli::simulate_background_run(spec) : cli::simulate_run(spec);
     if (campaign.modify) campaign.modify(run);
     // As load_recordings reads a run directory: the configured pressure floor travels with the recording.
     LoadedRecording r = loaded_run(run, epoch, "sim:" + run.condition.name);

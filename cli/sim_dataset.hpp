@@ -24,14 +24,14 @@ struct SimCampaign {
   std::uint64_t seed = 1;  // per condition: cli::condition_seed(seed, name)
   std::uint64_t setup_seed = 1;
   // The engine and test cell of every run: encoder, pressure and microphone chains, gas ringing (realistic by
-  // default; drivers::with_ideal_cell(engine) for an ideal cell). Its operating point, true block, effects and seed
-  // are set per condition from the fields above.
-  drivers::SimConfig engine = cli::SimRunSpec::default_engine();
+  // default; drivers::sim::with_ideal_cell(engine) for an ideal cell). Its operating point, true block, effects and
+  // seed are set per condition from the fields above.
+  drivers::sim::SimConfig engine = cli::SimRunSpec::default_engine();
   // Adds an engine-off run named "background" (cli::simulate_background_run on the time base of motored_idle),
   // which the diagnosis takes as the irreducible floor of the microphones.
   bool background_run = false;
   // Applied to each run after the sim, before conversion (a test's own effect outside the library).
-  std::function<void(drivers::RunDir&)> modify;
+  std::function<void(drivers::formats::RunDir&)> modify;
   model::fit::DatasetOptions dataset;
 };
 

@@ -28,8 +28,8 @@ std::string fmt(double v) {
 }
 
 // The sim configuration of a spec: its `engine` with the spec's operating point, true block, effects and seed.
-drivers::SimConfig run_config(const SimRunSpec& spec) {
-  drivers::SimConfig c = spec.engine;
+drivers::sim::SimConfig run_config(const SimRunSpec& spec) {
+  drivers::sim::SimConfig c = spec.engine;
   c.speed_rpm = spec.condition.speed_rpm;
   c.load_nm = spec.condition.load_nm;
   c.soi_deg_btdc = spec.condition.soi_deg_btdc;
@@ -42,7 +42,7 @@ drivers::SimConfig run_config(const SimRunSpec& spec) {
 
 // Renders `frames` microphone frames after skipping `skip` (the pre-roll) into run.mic_pa.
 void render_mics(model::engine::VirtualEngine& engine, model::engine::PressureFeed& feed, std::int64_t skip,
-                 std::int64_t frames, drivers::RunDir& run) {
+                 std::int64_t frames, drivers::formats::RunDir& run) {
   const std::size_t m = engine.mic_count();
   std::vector<double> buf(kRenderBatch * m);
   while (skip > 0) {
@@ -64,7 +64,7 @@ void render_mics(model::engine::VirtualEngine& engine, model::engine::PressureFe
 // way: both walk forward in crank angle, so one engine-cycle cache serves both (each cycle is computed once).
 class RunFeed final : public model::engine::PressureFeed {
  public:
-  RunFeed(const drivers::SimConfig& config, double t0_s, double rate_hz, int cycles, drivers::RunDir& run)
+  RunFeed(const drivers::sim::SimConfig& config, double t0_s, double rate_hz, int cycles, drivers::formats::RunDir& run)
       : kin_(drivers::sim::crank_kinematics(config)), cache_(config), t0_(t0_s), rate_(rate_hz), run_(run) {
     // Encoder sample m at -360 + m * resolution; for resolutions 1/k deg, m / k keeps the CSV short.
     const double res = config.encoder_resolution_deg;
@@ -103,7 +103,7 @@ class RunFeed final : public model::engine::PressureFeed {
   model::CrankKinematics kin_;
   drivers::sim::EngineCycleCache cache_;
   double t0_, rate_;
-  drivers::RunDir& run_;
+  drivers::formats::RunDir& run_;
   bool divide_ = false;
   double per_deg_ = 1.0, res_ = 0.1;
   std::int64_t next_ = 0, end_ = 0;
@@ -128,7 +128,7 @@ class ArrayFeed final : public model::engine::PressureFeed {
 };
 
 void check_config(const SimRunSpec& spec) {
-  const drivers::SimConfig& c = spec.engine;
+  const drivers::sim::SimConfig& c = spec.engine;
   if (!(spec.condition.speed_rpm > 0.0 && spec.condition.speed_rpm <= 10000.0))
     throw std::invalid_argument("sim run " + spec.condition.name + ": speed " + fmt(spec.condition.speed_rpm) +
                                 " rpm outside (0, 10000]");
@@ -147,14 +147,14 @@ void check_config(const SimRunSpec& spec) {
 
 }  // namespace
 
-drivers::SimConfig SimRunSpec::default_engine() {
-  drivers::SimConfig c;
+drivers::sim::SimConfig SimRunSpec::default_engine() {
+  drivers::sim::SimConfig c;
   c.encoder_resolution_deg = 0.2;
   return c;
 }
 
 std::vector<SimCondition> thesis_conditions() {
-  const double full_load = drivers::SimConfig{}.full_load_nm;
+  const double full_load = drivers::sim::SimConfig{}.full_load_nm;
   std::vector<SimCondition> out;
   for (const auto& [prefix, rpm, load] : {std::tuple{"idle", 3050.0, 0.0}, std::tuple{"full", 3450.0, full_load}})
     for (int soi : {12, 15, 18, 21, 24})
@@ -199,9 +199,9 @@ namespace {
 // The microphone layout and the measured pressure of a generated run: the pressure chain on every encoder sample
 // (counter-based on the sample index), the configured floor recorded (without the transducer_noise effect: the
 // unknown a diagnosis must find).
-void finish_run(const SimRunSpec& spec, const drivers::SimConfig& config,
+void finish_run(const SimRunSpec& spec, const drivers::sim::SimConfig& config,
                 const model::engine::VirtualEngineConfig& vcfg, const model::engine::VirtualEngine& engine,
-                drivers::RunDir& run, SimRunStats* stats) {
+                drivers::formats::RunDir& run, SimRunStats* stats) {
   model::engine::PressureChain chain(config.pressure_chain, spec.effects, spec.seed);
   chain.measure(0, run.pressure_pa.data(), run.pressure_pa.size());
   run.pressure_noise_floor_bar = config.pressure_chain.floor_bar();
@@ -216,7 +216,7 @@ void finish_run(const SimRunSpec& spec, const drivers::SimConfig& config,
 // The engine off as the virtual engine's feed: no pressure reaches the structure; the crank angle only clocks.
 class SilentFeed final : public model::engine::PressureFeed {
  public:
-  SilentFeed(const drivers::SimConfig& config, double t0_s, double rate_hz)
+  SilentFeed(const drivers::sim::SimConfig& config, double t0_s, double rate_hz)
       : kin_(drivers::sim::crank_kinematics(config)), t0_(t0_s), rate_(rate_hz) {}
   void fill(std::int64_t first, double* pressure_pa, double* crank_deg, std::size_t n) override {
     for (std::size_t i = 0; i < n; ++i) {
@@ -232,11 +232,11 @@ class SilentFeed final : public model::engine::PressureFeed {
 
 }  // namespace
 
-drivers::RunDir simulate_run(const SimRunSpec& spec, SimRunStats* stats) {
+drivers::formats::RunDir simulate_run(const SimRunSpec& spec, SimRunStats* stats) {
   check_config(spec);
-  const drivers::SimConfig config = run_config(spec);
+  const drivers::sim::SimConfig config = run_config(spec);
   const double fine_rate = 2.0 * config.mic_rate_hz;
-  drivers::RunDir run;
+  drivers::formats::RunDir run;
   run.condition = {spec.condition.name, spec.condition.speed_rpm, spec.condition.load_nm, spec.condition.soi_deg_btdc,
                    std::nullopt,        spec.condition.motored};
   model::engine::VirtualEngineConfig vcfg = drivers::sim::virtual_engine_config(config, fine_rate);
@@ -252,16 +252,16 @@ drivers::RunDir simulate_run(const SimRunSpec& spec, SimRunStats* stats) {
   return run;
 }
 
-drivers::RunDir simulate_background_run(const SimRunSpec& given, SimRunStats* stats) {
+drivers::formats::RunDir simulate_background_run(const SimRunSpec& given, SimRunStats* stats) {
   SimRunSpec spec = given;
   spec.condition.name = std::string(kBackgroundRunName);
   spec.condition.load_nm = 0.0;
   spec.condition.motored = true;
   spec.effects.mechanical_noise_dba.reset();  // impacts need a turning engine
   check_config(spec);
-  const drivers::SimConfig config = run_config(spec);
+  const drivers::sim::SimConfig config = run_config(spec);
   const double fine_rate = 2.0 * config.mic_rate_hz;
-  drivers::RunDir run;
+  drivers::formats::RunDir run;
   run.condition = {spec.condition.name, spec.condition.speed_rpm, 0.0, spec.condition.soi_deg_btdc, std::nullopt, true};
   // The clock: encoder samples of spec.cycles cycles; the transducer reads the ambient (intake) pressure.
   const model::CrankKinematics kin = drivers::sim::crank_kinematics(config);
@@ -303,10 +303,10 @@ void fill_encoder_gaps(std::vector<double>& t, std::vector<double>& th, std::vec
   for (std::size_t i = 0; i < t.size(); ++i) {
     if (i > 0) {
       const double gap = (th[i] - th[i - 1]) / step;
-      if (gap > drivers::kMaxCrankGapSteps + 1e-6)
+      if (gap > drivers::formats::kMaxCrankGapSteps + 1e-6)
         throw std::invalid_argument(what + ": crank angle jumps by " + fmt(th[i] - th[i - 1]) +
                                     " deg at pressure sample " + std::to_string(i) + " (more than " +
-                                    fmt(drivers::kMaxCrankGapSteps) + " encoder steps)");
+                                    fmt(drivers::formats::kMaxCrankGapSteps) + " encoder steps)");
       const auto missing = static_cast<int>(std::lround(gap)) - 1;
       for (int k = 1; k <= missing && gap >= 1.5; ++k) {
         const double f = static_cast<double>(k) / (missing + 1);
@@ -331,7 +331,7 @@ struct EncoderTrace {
 
 // The given run's pressure, checked (enough samples, time and crank angle increasing, a whole cycle) and with its
 // missing encoder samples filled.
-EncoderTrace checked_pressure(const drivers::RunDir& run, const std::string& what) {
+EncoderTrace checked_pressure(const drivers::formats::RunDir& run, const std::string& what) {
   const std::size_t n = run.time_s.size();
   if (n < 16 || run.crank_deg.size() != n || run.pressure_pa.size() != n)
     throw std::invalid_argument(what + ": too few or inconsistent pressure samples");
@@ -395,7 +395,8 @@ ExtendedTrace extend_periodically(const EncoderTrace& tr) {
 
 // The spec of the virtual engine that hears a given run: the run's operating point (its speed from the data when it
 // states none) and its microphones, if it has them.
-SimRunSpec acoustics_spec(const drivers::RunDir& pressure_run, const SimRunSpec& spec, const EncoderTrace& tr) {
+SimRunSpec acoustics_spec(const drivers::formats::RunDir& pressure_run, const SimRunSpec& spec,
+                          const EncoderTrace& tr) {
   SimRunSpec s = spec;
   s.condition = {pressure_run.condition.name, pressure_run.condition.speed_rpm, pressure_run.condition.load_nm,
                  pressure_run.condition.soi_deg_btdc, pressure_run.condition.motored};
@@ -461,11 +462,12 @@ FinePressure resample_fine(const EncoderTrace& e, double fine_rate, const std::s
 }
 
 // simulate_acoustics with microphone frames up to t_end_s (at most one cycle past the pressure's end).
-drivers::RunDir acoustics(const drivers::RunDir& pressure_run, const SimRunSpec& spec, double t_end_s) {
+drivers::formats::RunDir acoustics(const drivers::formats::RunDir& pressure_run, const SimRunSpec& spec,
+                                   double t_end_s) {
   const std::string what = "sim acoustics for run \"" + pressure_run.condition.name + "\"";
   const EncoderTrace tr = checked_pressure(pressure_run, what);
   const ExtendedTrace ext = extend_periodically(tr);
-  const drivers::SimConfig config = run_config(acoustics_spec(pressure_run, spec, tr));
+  const drivers::sim::SimConfig config = run_config(acoustics_spec(pressure_run, spec, tr));
   const double fine_rate = 2.0 * config.mic_rate_hz;
   FinePressure fine = resample_fine(ext.x, fine_rate, what);
   // Expected mean input (AC coupling start): the first cycle's mean.
@@ -479,7 +481,7 @@ drivers::RunDir acoustics(const drivers::RunDir& pressure_run, const SimRunSpec&
   model::engine::VirtualEngine engine(vcfg);
   ArrayFeed feed(std::move(fine.p), std::move(fine.th));
 
-  drivers::RunDir run = pressure_run;
+  drivers::formats::RunDir run = pressure_run;
   const auto skip = static_cast<std::int64_t>(std::llround(-fine.t0 * config.mic_rate_hz));
   if (t_end_s > tr.t.back() + 0.9 * ext.last_period)
     throw std::invalid_argument(what + ": internal: microphones past the data");
@@ -498,8 +500,9 @@ drivers::RunDir acoustics(const drivers::RunDir& pressure_run, const SimRunSpec&
 
 }  // namespace
 
-drivers::RunDir simulate_acoustics(const drivers::RunDir& pressure_run, const SimRunSpec& spec) {
-  drivers::RunDir run = acoustics(pressure_run, spec, pressure_run.time_s.empty() ? 0.0 : pressure_run.time_s.back());
+drivers::formats::RunDir simulate_acoustics(const drivers::formats::RunDir& pressure_run, const SimRunSpec& spec) {
+  drivers::formats::RunDir run =
+      acoustics(pressure_run, spec, pressure_run.time_s.empty() ? 0.0 : pressure_run.time_s.back());
   // The virtual engine hears the given pressure as it is (its own noise included): between that engine and this
   // file no chain adds a floor, so the stated floor is 0 (only a transducer_noise effect comes on top, unstated).
   run.pressure_noise_floor_bar = 0.0;
@@ -508,12 +511,12 @@ drivers::RunDir simulate_acoustics(const drivers::RunDir& pressure_run, const Si
 
 void synthesize_recording_mics(formats::Recording& rec, const SimRunSpec& spec) {
   if (rec.frames() < 2) throw std::invalid_argument("sim microphones: the recording has no pressure");
-  drivers::RunDir pressure = formats::to_run_dir(rec);
+  drivers::formats::RunDir pressure = formats::to_run_dir(rec);
   pressure.mic_count = 0;
   pressure.mic_pa.clear();
   pressure.mic_positions_m.clear();
   // Microphones at the card rate a little past the last frame, so the resampler to 40 kHz has its look-ahead.
-  const drivers::RunDir sim = acoustics(pressure, spec, pressure.time_s.back() + 0.005);
+  const drivers::formats::RunDir sim = acoustics(pressure, spec, pressure.time_s.back() + 0.005);
   const std::size_t m = sim.mic_count;
   dsp::RationalResampler to_grid(sim.mic_rate_hz, drivers::kPipelineRateHz, m);
   std::vector<double> in(sim.mic_pa.begin(), sim.mic_pa.end());

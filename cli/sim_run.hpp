@@ -56,10 +56,10 @@ struct SimRunSpec {
   // Everything else (encoder resolution, speed ripple, cycle variation, microphone layout and rate, spread,
   // floor, speed of sound, the pressure and microphone chains, the gas ringing: realistic by default,
   // with_ideal_cell() for none). Its operating point, true block, effects and seed are replaced by the fields above.
-  drivers::SimConfig engine = default_engine();
+  drivers::sim::SimConfig engine = default_engine();
 
   // The sim source's defaults with a 0.2 deg encoder (as the real Yanmar records; 91.5 kHz at 3050 rpm).
-  static drivers::SimConfig default_engine();
+  static drivers::sim::SimConfig default_engine();
 };
 
 // A different but reproducible seed for each condition of a campaign seeded with `seed`.
@@ -71,7 +71,7 @@ struct SimRunStats {
   std::uint64_t mic_clipped = 0;       // card samples, every channel
 };
 
-drivers::RunDir simulate_run(const SimRunSpec& spec, SimRunStats* stats = nullptr);
+drivers::formats::RunDir simulate_run(const SimRunSpec& spec, SimRunStats* stats = nullptr);
 
 // The name of the engine-off run (a name the diagnosis recognises as a background measurement).
 inline constexpr std::string_view kBackgroundRunName = "background";
@@ -80,7 +80,7 @@ inline constexpr std::string_view kBackgroundRunName = "background";
 // pressure is the intake (ambient) pressure through the pressure chain; the microphones hear no engine (no
 // combustion noise, no mechanical impacts), only the floor, background_noise and their self-noise (mic_gain
 // still scales its channel).
-drivers::RunDir simulate_background_run(const SimRunSpec& spec, SimRunStats* stats = nullptr);
+drivers::formats::RunDir simulate_background_run(const SimRunSpec& spec, SimRunStats* stats = nullptr);
 
 // Microphones for the pressure of `pressure_run` (its time_s, crank_deg and pressure_pa are the TRUE pressure for
 // the virtual engine; the result's pressure is the given one plus spec.effects' transducer_noise: a recorded
@@ -89,7 +89,7 @@ drivers::RunDir simulate_background_run(const SimRunSpec& spec, SimRunStats* sta
 // (720 deg); its condition is kept (a speed of 0 is measured from the crank angle); spec.condition and
 // spec.cycles are ignored. Microphone positions: the run's own when it has them, else spec.engine's (thesis).
 // Existing microphone data is replaced. Throws std::invalid_argument naming what is wrong.
-drivers::RunDir simulate_acoustics(const drivers::RunDir& pressure_run, const SimRunSpec& spec);
+drivers::formats::RunDir simulate_acoustics(const drivers::formats::RunDir& pressure_run, const SimRunSpec& spec);
 
 // The same for a recording on the 40 kHz grid (what `noisemon import --mics sim` holds): fills rec.mics_pa
 // (40 kHz, frames() unchanged) and the microphone layout of rec.info; the pressure is left as it is (true).

@@ -49,9 +49,9 @@ std::vector<std::vector<double>> motored_cycles_bar(const std::vector<double>& c
 }
 
 model::MotoredTdc motored_run_tdc(const std::string& path, double loss_angle_deg) {
-  drivers::RunDir run;
+  drivers::formats::RunDir run;
   if (std::filesystem::is_directory(path)) {
-    run = drivers::read_run_dir(path);
+    run = drivers::formats::read_run_dir(path);
   } else {  // a raw log the daemon recorded while motoring: its first run, unwrapped as export writes it
     const std::vector<formats::Recording> recs = formats::read_recordings_log(path);
     if (recs.front().operating_points.front().motored == false &&

@@ -12,12 +12,13 @@
 namespace noisemon::daemon {
 
 std::vector<double> background_from_run_dir(const std::filesystem::path& dir) {
-  const drivers::RunManifest manifest = drivers::read_run_manifest(dir);
+  const drivers::formats::RunManifest manifest = drivers::formats::read_run_manifest(dir);
   if (!manifest.has_mics)
     throw std::runtime_error((dir / "run.json").string() + ": the background run has no microphones");
   const std::filesystem::path wav = dir / manifest.mics_file;  // an absolute mics_file replaces dir
-  drivers::RunDir run;
-  drivers::read_mics_wav(wav, static_cast<std::uint32_t>(manifest.mic_positions_m.size()), manifest.full_scale_pa, run);
+  drivers::formats::RunDir run;
+  drivers::formats::read_mics_wav(wav, static_cast<std::uint32_t>(manifest.mic_positions_m.size()),
+                                  manifest.full_scale_pa, run);
   dsp::ThirdOctaveBank bank(run.mic_rate_hz, run.mic_count);
   std::vector<double> block;
   constexpr std::size_t kFrames = 4096;

@@ -138,7 +138,7 @@ void read_sound_power(TableReader& top, const std::string& origin, SoundPowerCon
 
 // ---- [can] --------------------------------------------------------------------------------------------------
 
-void read_can(TableReader& top, const toml::table& root, const std::string& origin, drivers::CanSourceConfig& c) {
+void read_can(TableReader& top, const toml::table& root, const std::string& origin, drivers::can::CanSourceConfig& c) {
   TableReader r(top.table("can"), "can", origin);
   r.string("interface", c.interface);
   r.string("candump", c.candump_path);
@@ -150,7 +150,7 @@ void read_can(TableReader& top, const toml::table& root, const std::string& orig
   r.node("signal");  // read below, with its own strict checks
   r.reject_unknown();
   try {
-    c.map = drivers::parse_can_signal_map(root, origin);
+    c.map = drivers::formats::parse_can_signal_map(root, origin);
   } catch (const std::invalid_argument& e) {
     throw ConfigError(e.what());
   }

@@ -58,16 +58,16 @@ struct Config {
   double mic_low_db = 20.0;       // a microphone this far below the median of the others is left out (unplugged)
   bool mic_average_time = false;  // [processing] mic_average = "time": the thesis's mean time history, not "energy"
   double ring_seconds = 0.5;      // capacity of each driver ring buffer
-  drivers::SimConfig sim;
-  drivers::ComediSourceConfig comedi;      // [comedi]: the DAQ hardware (source = "comedi")
-  drivers::CanSourceConfig can;            // [can]: operating points from CAN; when configured, they replace the
-                                           // source's own (any source)
-  ThreadsConfig threads;                   // [threads]: handed to the sources and the pipeline
-  model::EngineGeometry engine;            // [engine]: for the combustion metrics (default: the Yanmar L100V)
-  model::MetricsOptions combustion;        // [combustion]: pegging and the combustion window of dp/dtheta max
-  bool tdc_deg_configured = false;         // [combustion] tdc_deg was given (else a replay takes its session's)
-  std::int64_t stats_window_cycles = 100;  // [statistics] window_cycles: the rolling statistics' window; 0: none
-  SoundPowerConfig sound_power;            // [sound_power]: ISO 3744's K1 (background) and K2, the surface check
+  drivers::sim::SimConfig sim;
+  drivers::comedi::ComediSourceConfig comedi;  // [comedi]: the DAQ hardware (source = "comedi")
+  drivers::can::CanSourceConfig can;           // [can]: operating points from CAN; when configured, they replace the
+                                               // source's own (any source)
+  ThreadsConfig threads;                       // [threads]: handed to the sources and the pipeline
+  model::EngineGeometry engine;                // [engine]: for the combustion metrics (default: the Yanmar L100V)
+  model::MetricsOptions combustion;            // [combustion]: pegging and the combustion window of dp/dtheta max
+  bool tdc_deg_configured = false;             // [combustion] tdc_deg was given (else a replay takes its session's)
+  std::int64_t stats_window_cycles = 100;      // [statistics] window_cycles: the rolling statistics' window; 0: none
+  SoundPowerConfig sound_power;                // [sound_power]: ISO 3744's K1 (background) and K2, the surface check
 };
 
 // A configuration error; what() names the file and the field.

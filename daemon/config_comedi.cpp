@@ -66,7 +66,7 @@ std::vector<T> per_channel(TableReader& r, const char* key, std::size_t n, T fal
 }
 
 // [comedi.pressure]: the pressure (and cam) channel.
-void read_comedi_pressure(TableReader& r, const std::string& origin, drivers::ComediSourceConfig::Pressure& p) {
+void read_comedi_pressure(TableReader& r, const std::string& origin, drivers::comedi::ComediSourceConfig::Pressure& p) {
   TableReader pr(r.table("pressure"), "comedi.pressure", origin);
   pr.string("device", p.device);
   read_int(pr, "subdevice", p.subdevice, -1, 255);
@@ -89,7 +89,7 @@ void read_comedi_pressure(TableReader& r, const std::string& origin, drivers::Co
 }
 
 // [comedi.encoder]: the crank encoder's counters.
-void read_comedi_encoder(TableReader& r, const std::string& origin, drivers::ComediSourceConfig::Encoder& e) {
+void read_comedi_encoder(TableReader& r, const std::string& origin, drivers::comedi::ComediSourceConfig::Encoder& e) {
   TableReader er(r.table("encoder"), "comedi.encoder", origin);
   er.string("device", e.device);
   read_int(er, "subdevice", e.subdevice, -1, 255);
@@ -104,9 +104,9 @@ void read_comedi_encoder(TableReader& r, const std::string& origin, drivers::Com
   if (er.node("timestamp_mode")) {
     std::string mode;
     er.string("timestamp_mode", mode);
-    e.timestamp_mode = pick<drivers::TimestampMode>(
+    e.timestamp_mode = pick<drivers::comedi::TimestampMode>(
         er, "timestamp_mode", mode,
-        {{"absolute", drivers::TimestampMode::kAbsolute}, {"period", drivers::TimestampMode::kPeriod}});
+        {{"absolute", drivers::comedi::TimestampMode::kAbsolute}, {"period", drivers::comedi::TimestampMode::kPeriod}});
   }
   er.number("timebase_hz", e.timebase_hz, 1, 1e10);
   std::int64_t bits = e.timestamp_bits, cpr = e.counts_per_rev;
@@ -125,7 +125,7 @@ void read_comedi_encoder(TableReader& r, const std::string& origin, drivers::Com
 }
 
 // comedi.mics.channels, and the per-channel range and aref (one value for all or one per channel).
-void read_mic_channels(TableReader& mr, drivers::ComediSourceConfig::Mics& m) {
+void read_mic_channels(TableReader& mr, drivers::comedi::ComediSourceConfig::Mics& m) {
   if (const toml::node* n = mr.node("channels")) {
     const toml::array* a = n->as_array();
     if (!a || a->empty() || a->size() > drivers::SampleBlock::kMaxChannels)
@@ -157,7 +157,7 @@ void read_mic_channels(TableReader& mr, drivers::ComediSourceConfig::Mics& m) {
 }
 
 // [comedi.mics]: the microphone channels, their sensitivities and positions.
-void read_comedi_mics(TableReader& r, const std::string& origin, drivers::ComediSourceConfig::Mics& m) {
+void read_comedi_mics(TableReader& r, const std::string& origin, drivers::comedi::ComediSourceConfig::Mics& m) {
   TableReader mr(r.table("mics"), "comedi.mics", origin);
   mr.string("device", m.device);
   read_int(mr, "subdevice", m.subdevice, -1, 255);
@@ -182,13 +182,14 @@ void read_comedi_mics(TableReader& r, const std::string& origin, drivers::Comedi
 
 }  // namespace
 
-void read_comedi(TableReader& top, const std::string& origin, drivers::ComediSourceConfig& c) {
+void read_comedi(TableReader& top, const std::string& origin, drivers::comedi::ComediSourceConfig& c) {
   TableReader r(top.table("comedi"), "comedi", origin);
   if (r.node("phase")) {
     std::string phase;
     r.string("phase", phase);
-    c.phase = pick<drivers::PhaseSource>(
-        r, "phase", phase, {{"pressure", drivers::PhaseSource::kPressure}, {"cam", drivers::PhaseSource::kCam}});
+    c.phase = pick<drivers::comedi::PhaseSource>(
+        r, "phase", phase,
+        {{"pressure", drivers::comedi::PhaseSource::kPressure}, {"cam", drivers::comedi::PhaseSource::kCam}});
   }
   r.number("cam_threshold_v", c.cam_threshold_v, -100, 100);
   r.number("cam_edge_deg", c.cam_edge_deg, -360, 360);

@@ -113,7 +113,7 @@ void read_block(TableReader& r, std::string& preset_name, model::BlockParams& p)
 void read_positions(TableReader& r, const char* key, double radius_m, std::vector<std::array<double, 3>>& out);
 
 // [sim] (config_sim.cpp) and [comedi] (config_comedi.cpp).
-void read_sim(TableReader& top, const std::string& origin, drivers::SimConfig& s);
-void read_comedi(TableReader& top, const std::string& origin, drivers::ComediSourceConfig& c);
+void read_sim(TableReader& top, const std::string& origin, drivers::sim::SimConfig& s);
+void read_comedi(TableReader& top, const std::string& origin, drivers::comedi::ComediSourceConfig& c);
 
 }  // namespace noisemon::daemon::config_detail

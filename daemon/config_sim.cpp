@@ -9,7 +9,7 @@ namespace {
 
 // The realistic test cell of [sim]: pressure chain, microphone chain, gas ringing (every key documented in
 // systemd/noisemond.toml; each part has a value that switches it off).
-void read_sim_cell(TableReader& sr, drivers::SimConfig& s) {
+void read_sim_cell(TableReader& sr, drivers::sim::SimConfig& s) {
   constexpr double kInf = std::numeric_limits<double>::infinity();
   auto& p = s.pressure_chain;
   sr.number("pressure_noise_bar", p.noise_bar, 0, 100);
@@ -33,7 +33,7 @@ void read_sim_cell(TableReader& sr, drivers::SimConfig& s) {
 }
 
 // [[sim.faults]]: faults the virtual engine injects (drivers/sim/sim_faults.hpp; documented in systemd/noisemond.toml).
-void read_faults(TableReader& sr, const std::string& origin, drivers::SimConfig& s) {
+void read_faults(TableReader& sr, const std::string& origin, drivers::sim::SimConfig& s) {
   const toml::node* n = sr.node("faults");
   if (!n) return;
   const toml::array* list = n->as_array();
@@ -42,16 +42,16 @@ void read_faults(TableReader& sr, const std::string& origin, drivers::SimConfig&
     TableReader r((*list)[i].as_table(), "sim.faults[" + std::to_string(i) + "]", origin);
     std::string kind_name, channel;
     r.string("kind", kind_name);
-    const std::optional<drivers::SimFaultKind> kind = drivers::parse_fault_kind(kind_name);
+    const std::optional<drivers::sim::SimFaultKind> kind = drivers::sim::parse_fault_kind(kind_name);
     if (!kind)
       r.fail("kind", "unknown fault '" + kind_name +
                          "' (expected missing_edges, extra_edges, lost_index, reverse, flat, overload, nan, unplugged, "
                          "stall, overrun, fail)");
-    drivers::SimFault f;
+    drivers::sim::SimFault f;
     f.kind = *kind;
     r.string("channel", channel);
     try {
-      f.target = drivers::parse_fault_target(f.kind, channel, s.mic_count);
+      f.target = drivers::sim::parse_fault_target(f.kind, channel, s.mic_count);
     } catch (const std::invalid_argument& e) {
       r.fail("channel", e.what());
     }
@@ -66,7 +66,7 @@ void read_faults(TableReader& sr, const std::string& origin, drivers::SimConfig&
 
 // [[sim.effects]]: effects of the virtual engine (model/engine/effects.hpp), each from onset_s on, as a step or a ramp
 // (drivers/sim/sim_effect_schedule.hpp). One on from the start with no ramp is simply part of the engine.
-void read_effects(TableReader& sr, const std::string& origin, drivers::SimConfig& s) {
+void read_effects(TableReader& sr, const std::string& origin, drivers::sim::SimConfig& s) {
   const toml::node* n = sr.node("effects");
   if (!n) return;
   const toml::array* list = n->as_array();
@@ -77,14 +77,14 @@ void read_effects(TableReader& sr, const std::string& origin, drivers::SimConfig
     r.string("effect", text);
     if (text.empty())
       r.fail("effect", "missing: the effect as `noisemon sim --effect` spells it, e.g. \"mic_gain=3,mic=4\"");
-    drivers::ScheduledEffect e;
+    drivers::sim::ScheduledEffect e;
     r.number("onset_s", e.onset_s, 0, 1e9);
     r.number("ramp_s", e.ramp_s, 0, 1e9);
     r.reject_unknown();
     try {
       e.setting = model::engine::parse_effect(text);
       model::engine::Effects all =
-          drivers::cumulative_effects(s.effects, s.scheduled_effects, s.scheduled_effects.size());
+          drivers::sim::cumulative_effects(s.effects, s.scheduled_effects, s.scheduled_effects.size());
       all.add(e.setting);  // validates magnitude and qualifiers, and an effect given twice
       if (e.setting.name == "mic_gain" && (all.mic_gain_mic < 1 || all.mic_gain_mic > static_cast<int>(s.mic_count)))
         throw std::invalid_argument("microphone " + std::to_string(all.mic_gain_mic) +
@@ -101,7 +101,7 @@ void read_effects(TableReader& sr, const std::string& origin, drivers::SimConfig
 
 // [[sim.schedule]]: the operating point's changes over the run (drivers/sim/sim_operating_schedule.hpp); a key not
 // given keeps the previous step's value.
-void read_schedule(TableReader& sr, const std::string& origin, drivers::SimConfig& s) {
+void read_schedule(TableReader& sr, const std::string& origin, drivers::sim::SimConfig& s) {
   const toml::node* n = sr.node("schedule");
   if (!n) return;
   const toml::array* list = n->as_array();
@@ -110,7 +110,7 @@ void read_schedule(TableReader& sr, const std::string& origin, drivers::SimConfi
       .speed_rpm = s.speed_rpm, .load_nm = s.load_nm, .soi_deg_btdc = s.soi_deg_btdc, .motored = s.motored};
   for (std::size_t i = 0; i < list->size(); ++i) {
     TableReader r((*list)[i].as_table(), "sim.schedule[" + std::to_string(i) + "]", origin);
-    drivers::OperatingStep step;
+    drivers::sim::OperatingStep step;
     step.condition = previous;
     if (!r.node("at_s")) r.fail("at_s", "missing: the step's instant, engine seconds after the start");
     r.number("at_s", step.at_s, 0, 1e9);
@@ -125,8 +125,8 @@ void read_schedule(TableReader& sr, const std::string& origin, drivers::SimConfi
     s.operating_schedule.push_back(step);
     previous = step.condition;
   }
-  if (drivers::sized_by_operating_point(
-          drivers::cumulative_effects(s.effects, s.scheduled_effects, s.scheduled_effects.size())))
+  if (drivers::sim::sized_by_operating_point(
+          drivers::sim::cumulative_effects(s.effects, s.scheduled_effects, s.scheduled_effects.size())))
     sr.fail("schedule",
             "cannot be combined with effects that depend on the operating point (speed_dependence, "
             "mechanical_noise): they would keep the first operating point's size");
@@ -135,7 +135,7 @@ void read_schedule(TableReader& sr, const std::string& origin, drivers::SimConfi
 }  // namespace
 
 // [sim]: the virtual engine, its cell, faults, effects and operating-point schedule.
-void read_sim(TableReader& top, const std::string& origin, drivers::SimConfig& s) {
+void read_sim(TableReader& top, const std::string& origin, drivers::sim::SimConfig& s) {
   TableReader sr(top.table("sim"), "sim", origin);
   sr.boolean("paced", s.paced);
   sr.number("speed_rpm", s.speed_rpm, 100, 10000);

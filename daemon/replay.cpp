@@ -71,7 +71,7 @@ std::shared_ptr<FanoutPublisher> open_outputs(const ReplayOptions& o) {
 
 // One run of the log through the daemon's pipeline, until its source has delivered the whole session.
 void replay_session(const ReplayOptions& o, const Config& config, std::unique_ptr<drivers::Source> source,
-                    const std::shared_ptr<FanoutPublisher>& outputs, const drivers::LogSessions& log,
+                    const std::shared_ptr<FanoutPublisher>& outputs, const drivers::log::LogSessions& log,
                     Progress& progress, ReplaySummary& sum) {
   const std::string condition = log.condition();
   outputs->begin_run(condition);
@@ -96,15 +96,15 @@ void replay_session(const ReplayOptions& o, const Config& config, std::unique_pt
 
 ReplaySummary run_replay(const ReplayOptions& o) {
   const LcmConfig& ch = o.config.lcm;
-  drivers::LogSourceConfig lc;
+  drivers::log::LogSourceConfig lc;
   lc.path = o.log_path;
   lc.channels = {ch.raw_channel, ch.operating_point_channel, ch.session_channel};
   lc.realtime = o.realtime;
   std::int64_t warned = 0;
-  lc.on_damaged = [&](const drivers::LogDamage& d) {
+  lc.on_damaged = [&](const drivers::log::LogDamage& d) {
     if (warned++ < 10) spdlog::warn("{}: event {} on {}: {}: skipped", o.log_path, d.eventnum, d.channel, d.reason);
   };
-  drivers::LogSessions log(lc);
+  drivers::log::LogSessions log(lc);
   const std::shared_ptr<FanoutPublisher> outputs = open_outputs(o);
   const Config config = replay_config(o.config);
   Progress progress(o.progress);
@@ -114,14 +114,14 @@ ReplaySummary run_replay(const ReplayOptions& o) {
   while (std::unique_ptr<drivers::Source> source = log.next_session())
     replay_session(o, config, std::move(source), outputs, log, progress, sum);
   progress.finish(log.fraction_read(), sum.reports);
-  const drivers::LcmLogReader& framing = log.reader();
+  const drivers::formats::LcmLogReader& framing = log.reader();
   if (framing.damaged() > 0) {
     // Stretches of the file that were no event at all (damaged framing, a log cut short): one each.
     spdlog::warn("{}: {} damaged stretch(es) of {} bytes skipped, the first at byte {}{}", o.log_path,
                  framing.damaged(), framing.damaged_bytes(), framing.first_damage_offset(),
                  framing.truncated() ? " (the log ends inside an event)" : "");
   }
-  const drivers::LogCounts counts = log.counts();
+  const drivers::log::LogCounts counts = log.counts();
   if (counts.sessions == 0)
     throw std::runtime_error(o.log_path + ": no " + ch.session_channel + " message: nothing to replay");
   sum.events = counts.events + framing.damaged();

@@ -12,8 +12,8 @@
 namespace noisemon::daemon {
 
 noisemon::cycle_report_t to_message(const CycleReport& r);
-using drivers::from_message;
-using drivers::to_message;
+using drivers::formats::from_message;
+using drivers::formats::to_message;
 
 // CSV form of cycle reports (noisemon watch --csv, noisemon replay --csv). The last column is the run's
 // condition name (session_t::condition; empty for a live daemon). Levels that were not measured (no

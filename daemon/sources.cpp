@@ -13,12 +13,12 @@ namespace {
 
 std::unique_ptr<drivers::Source> make_stream_source(const Config& c) {
   if (c.source == "sim") {
-    drivers::SimConfig sim = c.sim;
+    drivers::sim::SimConfig sim = c.sim;
     sim.threads = {c.threads.pressure, c.threads.mics, c.threads.operating_point};
-    return drivers::make_sim_source(sim);
+    return drivers::sim::make_sim_source(sim);
   }
   if (c.source == "lcm") {
-    drivers::LcmSourceConfig l;
+    drivers::lcm::LcmSourceConfig l;
     l.url = c.lcm.url;
     l.raw_channel = c.lcm.raw_channel;
     l.operating_point_channel = c.lcm.operating_point_channel;
@@ -27,14 +27,14 @@ std::unique_ptr<drivers::Source> make_stream_source(const Config& c) {
     l.thread = c.threads.lcm_receive;
     spdlog::info("lcm source: waiting up to {} s for {} (start lcm-logplayer now)", l.session_timeout_s,
                  l.session_channel);
-    return drivers::make_lcm_source(l);
+    return drivers::lcm::make_lcm_source(l);
   }
   if (c.source == "comedi") {
-    drivers::ComediSourceConfig comedi = c.comedi;
+    drivers::comedi::ComediSourceConfig comedi = c.comedi;
     comedi.threads = {c.threads.pressure, c.threads.mics};
     comedi.log_info = [](const std::string& m) { spdlog::info("{}", m); };
     try {
-      return drivers::make_comedi_source(comedi);
+      return drivers::comedi::make_comedi_source(comedi);
     } catch (const std::invalid_argument& e) {
       throw ConfigError(std::string("comedi source: ") + e.what());
     }
@@ -47,9 +47,9 @@ std::unique_ptr<drivers::Source> make_stream_source(const Config& c) {
 std::unique_ptr<drivers::Source> make_source(const Config& config) {
   auto streams = make_stream_source(config);
   if (!config.can.configured()) return streams;
-  drivers::CanSourceConfig can_config = config.can;
+  drivers::can::CanSourceConfig can_config = config.can;
   can_config.thread = config.threads.can;
-  auto can = drivers::make_can_source(can_config);
+  auto can = drivers::can::make_can_source(can_config);
   spdlog::info(
       "operating points from {} ({} signals)",
       config.can.candump_path.empty() ? "CAN interface " + config.can.interface : "candump log " + config.can.candump_path,

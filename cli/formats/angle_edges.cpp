@@ -28,8 +28,8 @@ bool next_edge_block(std::span<const double> edges, std::size_t& next, double un
   while (end < n && end - next < most && instant(edges, end) < until) ++end;
   if (end == next) return false;
   const auto first = static_cast<std::int64_t>(std::floor(instant(edges, next)));
-  drivers::set_raw_block(block, first, end - next, drivers::kAngleStreamChannels,
-                         noisemon::raw_block_t::STREAM_PRESSURE_ANGLE, epoch_utime);
+  drivers::formats::set_raw_block(block, first, end - next, drivers::kAngleStreamChannels,
+                                  noisemon::raw_block_t::STREAM_PRESSURE_ANGLE, epoch_utime);
   for (std::size_t i = next; i < end; ++i) {
     double* e = &block.data[(i - next) * drivers::kAngleStreamChannels];
     e[drivers::kAngleCrankChannel] = edges[i * kEdgeValues + kEdgeCrank];

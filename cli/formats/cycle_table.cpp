@@ -78,7 +78,8 @@ std::string fmt(double v) {
 
 CycleTable read_cycle_table(const std::filesystem::path& file) {
   std::ifstream in(file, std::ios::binary);
-  if (!in) throw drivers::RunDirError(file.string() + ": cannot open cycle table (" + std::strerror(errno) + ")");
+  if (!in)
+    throw drivers::formats::RunDirError(file.string() + ": cannot open cycle table (" + std::strerror(errno) + ")");
   std::ostringstream s;
   s << in.rdbuf();
   return parse_cycle_table(s.str(), file.string());
@@ -91,7 +92,7 @@ CycleTable parse_cycle_table(std::string_view text, const std::string& file) {
   std::size_t line_no = 0, blank_line = 0;
   std::size_t header_lines = 0;
   const auto at = [&](std::size_t line) { return file + ": line " + std::to_string(line) + ": "; };
-  drivers::TextLines lines(text);
+  drivers::formats::TextLines lines(text);
   for (std::string_view line; lines.next(line);) {
     line_no = lines.number();
     bool decimal_comma = false;
@@ -101,60 +102,62 @@ CycleTable parse_cycle_table(std::string_view text, const std::string& file) {
       continue;
     }
     if (!fields[0].empty() && fields[0].front() == '#') continue;
-    if (blank_line != 0) throw drivers::RunDirError(at(blank_line) + "empty line inside the table");
+    if (blank_line != 0) throw drivers::formats::RunDirError(at(blank_line) + "empty line inside the table");
     double crank;
     if (!parse_number(fields[0], crank, decimal_comma)) {
       if (columns == 0 && header_lines < kMaxHeaderLines) {  // header lines: names, units, a title
         ++header_lines;
         continue;
       }
-      throw drivers::RunDirError(at(line_no) + "column 1 (crank angle) is \"" + std::string(fields[0]) +
-                                 "\", expected a number");
+      throw drivers::formats::RunDirError(at(line_no) + "column 1 (crank angle) is \"" + std::string(fields[0]) +
+                                          "\", expected a number");
     }
     if (std::abs(crank) > kMaxAbsCrankDeg)
-      throw drivers::RunDirError(at(line_no) + "crank angle " + fmt(crank) + " deg, expected a crank angle within +-" +
-                                 fmt(kMaxAbsCrankDeg) + " deg");
+      throw drivers::formats::RunDirError(at(line_no) + "crank angle " + fmt(crank) +
+                                          " deg, expected a crank angle within +-" + fmt(kMaxAbsCrankDeg) + " deg");
     if (columns == 0) {
       columns = fields.size();
       if (columns < 2)
-        throw drivers::RunDirError(at(line_no) +
-                                   "1 column, expected the crank angle followed by one pressure column per cycle");
+        throw drivers::formats::RunDirError(
+            at(line_no) + "1 column, expected the crank angle followed by one pressure column per cycle");
       t.cycles_bar.assign(columns - 1, {});
       t.first_data_line = line_no;
     } else if (fields.size() != columns) {
-      throw drivers::RunDirError(at(line_no) + std::to_string(fields.size()) + " columns, expected " +
-                                 std::to_string(columns) + " like line " + std::to_string(t.first_data_line));
+      throw drivers::formats::RunDirError(at(line_no) + std::to_string(fields.size()) + " columns, expected " +
+                                          std::to_string(columns) + " like line " + std::to_string(t.first_data_line));
     }
     if (!t.crank_deg.empty() && !(crank > t.crank_deg.back()))
-      throw drivers::RunDirError(at(line_no) + "crank angle " + fmt(crank) + " does not increase (previous row " +
-                                 fmt(t.crank_deg.back()) + ")");
+      throw drivers::formats::RunDirError(at(line_no) + "crank angle " + fmt(crank) +
+                                          " does not increase (previous row " + fmt(t.crank_deg.back()) + ")");
     t.crank_deg.push_back(crank);
     for (std::size_t c = 1; c < columns; ++c) {
       double p;
       if (!parse_number(fields[c], p, decimal_comma) || std::abs(p) > kMaxAbsPressureBar)
-        throw drivers::RunDirError(at(line_no) + "column " + std::to_string(c + 1) + " is \"" + std::string(fields[c]) +
-                                   "\", expected a pressure in bar (within +-" + fmt(kMaxAbsPressureBar) + ")");
+        throw drivers::formats::RunDirError(at(line_no) + "column " + std::to_string(c + 1) + " is \"" +
+                                            std::string(fields[c]) + "\", expected a pressure in bar (within +-" +
+                                            fmt(kMaxAbsPressureBar) + ")");
       t.cycles_bar[c - 1].push_back(p);
     }
   }
   const std::size_t n = t.crank_deg.size();
   if (n < 8)
-    throw drivers::RunDirError(file + ": " + std::to_string(n) +
-                               " rows of data, expected a table over one 720-degree cycle");
+    throw drivers::formats::RunDirError(file + ": " + std::to_string(n) +
+                                        " rows of data, expected a table over one 720-degree cycle");
   // A uniform step over exactly one four-stroke cycle: the columns then join end to end.
   const double step = (t.crank_deg.back() - t.crank_deg.front()) / static_cast<double>(n - 1);
   for (std::size_t i = 1; i < n; ++i) {
     const double d = t.crank_deg[i] - t.crank_deg[i - 1];
     if (std::abs(d - step) > 0.01 * step)
-      throw drivers::RunDirError(at(t.first_data_line + i) + "crank angle " + fmt(t.crank_deg[i]) + " after " +
-                                 fmt(t.crank_deg[i - 1]) + ", expected a uniform step of " + fmt(step) +
-                                 " deg (line numbers count data rows from line " + std::to_string(t.first_data_line) +
-                                 ")");
+      throw drivers::formats::RunDirError(at(t.first_data_line + i) + "crank angle " + fmt(t.crank_deg[i]) + " after " +
+                                          fmt(t.crank_deg[i - 1]) + ", expected a uniform step of " + fmt(step) +
+                                          " deg (line numbers count data rows from line " +
+                                          std::to_string(t.first_data_line) + ")");
   }
   const double span = step * static_cast<double>(n);
   if (std::abs(span - 720.0) > 0.5 * step)
-    throw drivers::RunDirError(file + ": the crank column covers " + fmt(span) + " deg (" + std::to_string(n) +
-                               " rows of " + fmt(step) + " deg), expected 720 deg: one four-stroke cycle per column");
+    throw drivers::formats::RunDirError(file + ": the crank column covers " + fmt(span) + " deg (" + std::to_string(n) +
+                                        " rows of " + fmt(step) +
+                                        " deg), expected 720 deg: one four-stroke cycle per column");
   return t;
 }
 
@@ -167,14 +170,15 @@ bool drops_pegging_row(const CycleTable& table, PeggingRow pegging) {
 
 CycleTableConversion cycle_table_to_run(const CycleTable& table, const CycleTableOptions& o, const std::string& file) {
   if (!(o.speed_rpm > 0) || !std::isfinite(o.speed_rpm))
-    throw drivers::RunDirError(file + ": the engine speed must be given (rpm > 0): a cycle table holds no time");
+    throw drivers::formats::RunDirError(file +
+                                        ": the engine speed must be given (rpm > 0): a cycle table holds no time");
   const std::size_t rows = table.crank_deg.size(), cycles = table.cycles_bar.size();
-  if (rows < 2 || cycles == 0) throw drivers::RunDirError(file + ": empty cycle table");
+  if (rows < 2 || cycles == 0) throw drivers::formats::RunDirError(file + ": empty cycle table");
   CycleTableConversion out;
   out.cycles = cycles;
   const bool drop = drops_pegging_row(table, o.pegging);
   out.pegging_row_dropped = drop;
-  drivers::RunDir& run = out.run;
+  drivers::formats::RunDir& run = out.run;
   run.condition = o.condition;
   run.condition.speed_rpm = o.speed_rpm;
   const std::size_t first_row = drop ? 1 : 0;

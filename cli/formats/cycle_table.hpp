@@ -60,11 +60,11 @@ struct CycleTableOptions {
   double speed_rpm = 0.0;  // required: the speed the cycles were recorded at
   double tdc_deg = 0.0;    // table crank angle of firing TDC (0 for the Yanmar tables, 360 for 0..720 tables)
   PeggingRow pegging = PeggingRow::kAuto;
-  drivers::RunCondition condition;  // name, load, SOI, rail pressure, motored (speed_rpm is taken from above)
+  drivers::formats::RunCondition condition;  // name, load, SOI, rail pressure, motored (speed_rpm is taken from above)
 };
 
 struct CycleTableConversion {
-  drivers::RunDir run;
+  drivers::formats::RunDir run;
   bool pegging_row_dropped = false;
   std::size_t cycles = 0;
 };

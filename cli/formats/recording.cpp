@@ -54,7 +54,7 @@ struct EncoderSamples {
   std::int64_t shift = 0;  // grid index of the resampler's t = 0
 };
 
-void fill_missing_samples(const drivers::RunDir& run, double step, EncoderSamples& s) {
+void fill_missing_samples(const drivers::formats::RunDir& run, double step, EncoderSamples& s) {
   const std::size_t n = run.time_s.size();
   s.t_own.reserve(n);
   s.th_own.reserve(n);
@@ -79,7 +79,7 @@ void fill_missing_samples(const drivers::RunDir& run, double step, EncoderSample
   s.p = s.p_own;
 }
 
-void encoder_samples(const drivers::RunDir& run, double step, EncoderSamples& s) {
+void encoder_samples(const drivers::formats::RunDir& run, double step, EncoderSamples& s) {
   s.t = run.time_s;
   s.th = run.crank_deg;
   s.p = run.pressure_pa;
@@ -147,8 +147,9 @@ std::vector<double> angle_edges_of(const EncoderSamples& s) {
 
 // Encoder samples -> 40 kHz pressure and crank (the unwrapped angle interpolated linearly in time, then wrapped);
 // the samples themselves into `edges` when their step is an encoder's. Returns the encoder step, degrees.
-double resample_pressure(const drivers::RunDir& run, Stream& pressure, Stream& crank, std::vector<double>& edges) {
-  const double step = drivers::crank_step_deg(run.crank_deg);
+double resample_pressure(const drivers::formats::RunDir& run, Stream& pressure, Stream& crank,
+                         std::vector<double>& edges) {
+  const double step = drivers::formats::crank_step_deg(run.crank_deg);
   EncoderSamples s;
   encoder_samples(run, step, s);
   if (drivers::angle_step_deg(360.0 / step) > 0) edges = angle_edges_of(s);
@@ -168,7 +169,7 @@ double resample_pressure(const drivers::RunDir& run, Stream& pressure, Stream& c
   return step;
 }
 
-void resample_mics(const drivers::RunDir& run, Stream& mics) {
+void resample_mics(const drivers::formats::RunDir& run, Stream& mics) {
   const std::size_t ch = run.mic_count;
   const std::size_t frames = run.mic_pa.size() / ch;
   mics.channels = ch;
@@ -211,20 +212,22 @@ std::vector<double> take_frames(Stream& s, std::int64_t from, std::size_t frames
 
 namespace {
 
-void check_run(const drivers::RunDir& run) {
+void check_run(const drivers::formats::RunDir& run) {
   const std::size_t n = run.time_s.size();
   if (n < 2 || run.crank_deg.size() != n || run.pressure_pa.size() != n)
-    throw drivers::RunDirError("run '" + run.condition.name +
-                               "': time, crank and pressure columns must have the same length >= 2");
+    throw drivers::formats::RunDirError("run '" + run.condition.name +
+                                        "': time, crank and pressure columns must have the same length >= 2");
   if (run.mic_count > drivers::SampleBlock::kMaxChannels ||
       (run.mic_count > 0 && (run.mic_positions_m.size() != run.mic_count || run.mic_pa.size() % run.mic_count != 0)))
-    throw drivers::RunDirError("run '" + run.condition.name + "': microphone data does not match its positions");
+    throw drivers::formats::RunDirError("run '" + run.condition.name +
+                                        "': microphone data does not match its positions");
   // Before any frame count is computed from times: absurd times would overflow it (and memory).
   const double span_s = run.time_s.back() - run.time_s.front();
   if (!(std::abs(run.time_s.front()) <= kMaxRecordingSeconds && span_s <= kMaxRecordingSeconds))
-    throw drivers::RunDirError("run '" + run.condition.name + "': time_s " + std::to_string(run.time_s.front()) +
-                               " .. " + std::to_string(run.time_s.back()) + " s, expected a run within " +
-                               std::to_string(static_cast<int>(kMaxRecordingSeconds)) + " s of time 0");
+    throw drivers::formats::RunDirError("run '" + run.condition.name + "': time_s " +
+                                        std::to_string(run.time_s.front()) + " .. " +
+                                        std::to_string(run.time_s.back()) + " s, expected a run within " +
+                                        std::to_string(static_cast<int>(kMaxRecordingSeconds)) + " s of time 0");
 }
 
 template <class T>
@@ -233,8 +236,8 @@ void free_vector(std::vector<T>& v) {
 }
 
 // The pressure and crank streams; frees the run's columns when `release` is the run.
-void pressure_streams(const drivers::RunDir& run, drivers::RunDir* release, Recording& rec, Stream& pressure,
-                      Stream& crank) {
+void pressure_streams(const drivers::formats::RunDir& run, drivers::formats::RunDir* release, Recording& rec,
+                      Stream& pressure, Stream& crank) {
   std::int64_t first = 0;
   if (on_pipeline_grid(run.time_s, first)) {
     rec.info.pressure_edges_per_rev = run.pressure_edges_per_rev.value_or(0.0);
@@ -262,7 +265,7 @@ void pressure_streams(const drivers::RunDir& run, drivers::RunDir* release, Reco
 }
 
 // Run directory -> recording; `release`: the run itself when its sample columns may be freed once resampled.
-Recording convert(const drivers::RunDir& run, drivers::RunDir* release, std::int64_t epoch_utime) {
+Recording convert(const drivers::formats::RunDir& run, drivers::formats::RunDir* release, std::int64_t epoch_utime) {
   check_run(run);
   Recording rec;
   rec.condition = run.condition.name;
@@ -278,12 +281,12 @@ Recording convert(const drivers::RunDir& run, drivers::RunDir* release, std::int
 
   // The two resamplers on two threads; errors as when the pressure is resampled first.
   Stream pressure, crank, mics;
-  drivers::run_both([&] { pressure_streams(run, release, rec, pressure, crank); },
-                    [&] {
-                      if (run.mic_count == 0) return;
-                      resample_mics(run, mics);
-                      if (release) free_vector(release->mic_pa);
-                    });
+  drivers::formats::run_both([&] { pressure_streams(run, release, rec, pressure, crank); },
+                             [&] {
+                               if (run.mic_count == 0) return;
+                               resample_mics(run, mics);
+                               if (release) free_vector(release->mic_pa);
+                             });
   std::int64_t from = pressure.first, to = pressure.end();
   if (run.mic_count > 0) {
     rec.info.mic_passband_hz =
@@ -292,10 +295,10 @@ Recording convert(const drivers::RunDir& run, drivers::RunDir* release, std::int
     to = std::min(to, mics.end());
   }
   if (to <= from)
-    throw drivers::RunDirError("run '" + run.condition.name + "': " +
-                               (run.mic_count > 0
-                                    ? std::string("the pressure and the microphones do not overlap in time")
-                                    : std::string("too short to resample")));
+    throw drivers::formats::RunDirError("run '" + run.condition.name + "': " +
+                                        (run.mic_count > 0
+                                             ? std::string("the pressure and the microphones do not overlap in time")
+                                             : std::string("too short to resample")));
   const auto frames = static_cast<std::size_t>(to - from);
   rec.first_index = from;
   rec.pressure_pa = take_frames(pressure, from, frames);
@@ -309,17 +312,19 @@ Recording convert(const drivers::RunDir& run, drivers::RunDir* release, std::int
 
 }  // namespace
 
-Recording to_recording(const drivers::RunDir& run, std::int64_t epoch_utime) {
+Recording to_recording(const drivers::formats::RunDir& run, std::int64_t epoch_utime) {
   return convert(run, nullptr, epoch_utime);
 }
 
-Recording to_recording(drivers::RunDir&& run, std::int64_t epoch_utime) { return convert(run, &run, epoch_utime); }
+Recording to_recording(drivers::formats::RunDir&& run, std::int64_t epoch_utime) {
+  return convert(run, &run, epoch_utime);
+}
 
-drivers::OperatingPoint operating_point_of(const drivers::RunDir& run, std::int64_t utime) {
-  const drivers::RunCondition& c = run.condition;
+drivers::OperatingPoint operating_point_of(const drivers::formats::RunDir& run, std::int64_t utime) {
+  const drivers::formats::RunCondition& c = run.condition;
   drivers::OperatingPoint op;
   op.utime = utime;
-  op.speed_rpm = std::isnan(c.speed_rpm) ? drivers::encoder_speed_rpm(run) : c.speed_rpm;
+  op.speed_rpm = std::isnan(c.speed_rpm) ? drivers::formats::encoder_speed_rpm(run) : c.speed_rpm;
   op.load_nm = c.load_nm;  // NaN when unknown: travels as NaN
   op.soi_deg_btdc = c.soi_deg_btdc;
   op.rail_pressure_bar = c.rail_pressure_bar.value_or(std::numeric_limits<double>::quiet_NaN());
@@ -327,11 +332,11 @@ drivers::OperatingPoint operating_point_of(const drivers::RunDir& run, std::int6
   return op;
 }
 
-drivers::RunDir to_run_dir(const Recording& rec) {
+drivers::formats::RunDir to_run_dir(const Recording& rec) {
   const std::size_t n = rec.frames();
   if (rec.crank_deg.size() != n || rec.mics_pa.size() != n * rec.info.mic_count)
     throw std::invalid_argument("to_run_dir: recording '" + rec.condition + "' has streams of different lengths");
-  drivers::RunDir run;
+  drivers::formats::RunDir run;
   run.condition.name = rec.condition;
   if (!rec.operating_points.empty()) {
     const drivers::OperatingPoint& op = rec.operating_points.front();

@@ -45,21 +45,21 @@ struct Recording {
 // - Both streams are cut to the stretch where both exist and the resamplers have full support (the first and
 //   last few hundred microseconds of the pressure are lost); operating_points holds one point from the
 //   run's condition (operating_point_of). Throws RunDirError when nothing is left or the run is inconsistent.
-Recording to_recording(const drivers::RunDir& run, std::int64_t epoch_utime);
+Recording to_recording(const drivers::formats::RunDir& run, std::int64_t epoch_utime);
 // The same, freeing the run's sample columns (time_s, crank_deg, pressure_pa, mic_pa) as soon as they are
 // resampled: the run keeps its condition and microphone layout, its columns are left empty.
-Recording to_recording(drivers::RunDir&& run, std::int64_t epoch_utime);
+Recording to_recording(drivers::formats::RunDir&& run, std::int64_t epoch_utime);
 // The operating point of a run's condition: unknown load, SOI and rail pressure stay NaN; an unknown speed
 // (NaN) is measured from the encoder (encoder_speed_rpm: the mean over the run); an unknown `motored` is
 // published as false (the message's field is a boolean; RunCondition::motored_known keeps the difference).
-drivers::OperatingPoint operating_point_of(const drivers::RunDir& run, std::int64_t utime);
+drivers::OperatingPoint operating_point_of(const drivers::formats::RunDir& run, std::int64_t utime);
 // 40 kHz -> run directory: one pressure row per frame, time_s = 0 at the recording's first frame (mics.wav's
 // t = 0), crank unwrapped from the first frame's cycle (cycle 0); mics.wav at 40 kHz. The condition's numbers
 // come from the first operating point (a run directory has one condition); unknown ones (NaN) stay unknown
 // and are written as null.
-drivers::RunDir to_run_dir(const Recording& rec);
+drivers::formats::RunDir to_run_dir(const Recording& rec);
 
-using LogChannels = drivers::StreamChannels;
+using LogChannels = drivers::formats::StreamChannels;
 
 // Progress of long conversions: fraction done, 0..1.
 using ProgressFn = std::function<void(double fraction)>;

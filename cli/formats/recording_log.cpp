@@ -130,39 +130,40 @@ class LogAssembler {
       : name_(std::move(name)),
         ch_(channels),
         stats_(stats),
-        decoder_({channels, drivers::SessionChanges::kFollow, drivers::BlockCheck::kFinite}) {}
+        decoder_({channels, drivers::formats::SessionChanges::kFollow, drivers::formats::BlockCheck::kFinite}) {}
 
-  void event(const drivers::LcmLogEvent& e) {
+  void event(const drivers::formats::LcmLogEvent& e) {
     ++stats_.events;
-    const drivers::RawEvent& ev = decoder_.decode(e.channel, e.data, static_cast<std::size_t>(e.datalen));
+    const drivers::formats::RawEvent& ev = decoder_.decode(e.channel, e.data, static_cast<std::size_t>(e.datalen));
     switch (ev.kind) {
-      case drivers::RawEventKind::kSession:
+      case drivers::formats::RawEventKind::kSession:
         if (!ev.session_started) return;  // the same session, repeated
         sessions_.push_back({decoder_.info(), decoder_.condition(), decoder_.source(), {}, {}, {}, {}});
         ++stats_.sessions;
         return;
-      case drivers::RawEventKind::kBlock:
+      case drivers::formats::RawEventKind::kBlock:
         if (ev.block.frames > 0) add_block(ev);
         return;
-      case drivers::RawEventKind::kOperatingPoint:
+      case drivers::formats::RawEventKind::kOperatingPoint:
         sessions_.back().ops.push_back(ev.operating_point);
         return;
-      case drivers::RawEventKind::kDamaged:
+      case drivers::formats::RawEventKind::kDamaged:
         return damage(e, ev.reason);
-      case drivers::RawEventKind::kBadBlock:
-      case drivers::RawEventKind::kOtherSessionBlock:
+      case drivers::formats::RawEventKind::kBadBlock:
+      case drivers::formats::RawEventKind::kOtherSessionBlock:
         return damage(e, "raw " + ev.reason);
-      case drivers::RawEventKind::kBeforeSession:
+      case drivers::formats::RawEventKind::kBeforeSession:
         // An operating point before any session has nothing to attach it to; a raw block there is damage.
-        if (ev.channel == drivers::RawChannel::kRaw) damage(e, "raw block before any " + ch_.session + " message");
+        if (ev.channel == drivers::formats::RawChannel::kRaw)
+          damage(e, "raw block before any " + ch_.session + " message");
         return;
-      case drivers::RawEventKind::kOtherChannel:
+      case drivers::formats::RawEventKind::kOtherChannel:
         ++stats_.other_channels;
         return;
     }
   }
 
-  void framing(const drivers::LcmLogReader& r) {
+  void framing(const drivers::formats::LcmLogReader& r) {
     if (r.damaged() == 0) return;
     stats_.damaged += r.damaged();
     note(std::to_string(r.damaged()) + " damaged stretch(es) of the file (" + std::to_string(r.damaged_bytes()) +
@@ -225,7 +226,7 @@ class LogAssembler {
   }
 
  private:
-  void add_block(const drivers::RawEvent& ev) {
+  void add_block(const drivers::formats::RawEvent& ev) {
     const drivers::SampleBlock& b = ev.block;
     RawBlock rb{b.first_index, b.frames, std::vector<double>(b.data, b.data + std::size_t{b.frames} * b.channels)};
     SessionData& s = sessions_.back();
@@ -234,7 +235,7 @@ class LogAssembler {
     else
       (ev.stream == noisemon::raw_block_t::STREAM_PRESSURE ? s.pressure : s.mics).push_back(std::move(rb));
   }
-  void damage(const drivers::LcmLogEvent& e, const std::string& what) {
+  void damage(const drivers::formats::LcmLogEvent& e, const std::string& what) {
     ++stats_.damaged;
     note("event " + std::to_string(e.eventnum) + " at byte " + std::to_string(e.offset) + " on " +
          std::string(e.channel) + ": " + what);
@@ -246,17 +247,18 @@ class LogAssembler {
   std::string name_;
   const LogChannels& ch_;
   LogReadStats& stats_;
-  drivers::RawStreamDecoder decoder_;
+  drivers::formats::RawStreamDecoder decoder_;
   std::vector<SessionData> sessions_;
 };
 
-std::vector<Recording> read_log(drivers::LcmLogReader& reader, const std::string& name, const LogChannels& channels,
-                                std::int64_t* skipped, LogReadStats* stats, const ProgressFn& progress) {
+std::vector<Recording> read_log(drivers::formats::LcmLogReader& reader, const std::string& name,
+                                const LogChannels& channels, std::int64_t* skipped, LogReadStats* stats,
+                                const ProgressFn& progress) {
   LogReadStats local;
   LogReadStats& st = stats ? *stats : local;
   st = LogReadStats{};
   LogAssembler assembler(name, channels, st);
-  drivers::LcmLogEvent e;
+  drivers::formats::LcmLogEvent e;
   std::int64_t n = 0;
   while (reader.next(e)) {
     assembler.event(e);
@@ -316,29 +318,29 @@ void RecordingLogWriter::write(const Recording& rec, const ProgressFn& progress)
     const std::int64_t utime = utime_of_index(epoch, k);
     const bool repeat = f % kRepeatFrames < kBlockFrames;  // first block of each second
     if (repeat)
-      write_event(w.log, w.path, w.channels.session, drivers::to_message(rec.info, rec.source, utime, rec.condition),
-                  utime, w.buf);
+      write_event(w.log, w.path, w.channels.session,
+                  drivers::formats::to_message(rec.info, rec.source, utime, rec.condition), utime, w.buf);
     // Each operating point when its time comes; the first one at the start in any case.
     bool op_written = false;
     while (next_op < rec.operating_points.size() &&
            (rec.operating_points[next_op].utime <= utime || (f == 0 && next_op == 0))) {
       current = &rec.operating_points[next_op++];
-      write_event(w.log, w.path, w.channels.operating_point, drivers::to_message(*current), utime, w.buf);
+      write_event(w.log, w.path, w.channels.operating_point, drivers::formats::to_message(*current), utime, w.buf);
       op_written = true;
     }
     if (repeat && !op_written && current)
-      write_event(w.log, w.path, w.channels.operating_point, drivers::to_message(*current), utime, w.buf);
+      write_event(w.log, w.path, w.channels.operating_point, drivers::formats::to_message(*current), utime, w.buf);
     const std::size_t frames = std::min(kBlockFrames, rec.frames() - f);
     noisemon::raw_block_t& p = w.pressure_block;
-    drivers::set_raw_block(p, k, frames, drivers::kPressureStreamChannels, noisemon::raw_block_t::STREAM_PRESSURE,
-                           epoch);
+    drivers::formats::set_raw_block(p, k, frames, drivers::kPressureStreamChannels,
+                                    noisemon::raw_block_t::STREAM_PRESSURE, epoch);
     for (std::size_t i = 0; i < frames; ++i) {
       p.data[i * drivers::kPressureStreamChannels + drivers::kPressureChannel] = rec.pressure_pa[f + i];
       p.data[i * drivers::kPressureStreamChannels + drivers::kCrankChannel] = rec.crank_deg[f + i];
     }
     write_event(w.log, w.path, w.channels.raw, p, utime, w.buf);
     if (mics > 0) {
-      drivers::set_raw_block(w.mic_block, k, frames, mics, noisemon::raw_block_t::STREAM_MICS, epoch);
+      drivers::formats::set_raw_block(w.mic_block, k, frames, mics, noisemon::raw_block_t::STREAM_MICS, epoch);
       std::copy_n(&rec.mics_pa[f * mics], frames * mics, w.mic_block.data.begin());
       write_event(w.log, w.path, w.channels.raw, w.mic_block, utime, w.buf);
     }
@@ -372,13 +374,13 @@ void write_recordings_log(const std::filesystem::path& path, const std::vector<R
 
 std::vector<Recording> read_recordings_log(const std::filesystem::path& log, const LogChannels& channels,
                                            std::int64_t* skipped, LogReadStats* stats, const ProgressFn& progress) {
-  drivers::LcmLogReader reader(log);
+  drivers::formats::LcmLogReader reader(log);
   return read_log(reader, log.string(), channels, skipped, stats, progress);
 }
 
 std::vector<Recording> read_recordings_log(const std::uint8_t* data, std::size_t size, const std::string& name,
                                            const LogChannels& channels, std::int64_t* skipped, LogReadStats* stats) {
-  drivers::LcmLogReader reader(data, size);
+  drivers::formats::LcmLogReader reader(data, size);
   return read_log(reader, name, channels, skipped, stats, {});
 }
 

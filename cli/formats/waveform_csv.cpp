@@ -74,7 +74,7 @@ Waveform parse_waveform_csv(std::string_view text, const std::string& file) {
   Waveform w;
   Separator sep = Separator::unknown;
   bool first_content = true;
-  drivers::TextLines lines(text);
+  drivers::formats::TextLines lines(text);
   for (std::string_view raw; lines.next(raw);) {
     const std::size_t line_no = lines.number();
     const std::string_view line = trim(raw);

@@ -12,7 +12,7 @@
 #include "drivers/can/socketcan_reader.hpp"
 #include "drivers/formats/candump.hpp"
 
-namespace noisemon::drivers {
+namespace noisemon::drivers::can {
 namespace {
 
 constexpr int kPollMs = 100;  // how often the threads look at the stop flag
@@ -20,14 +20,14 @@ constexpr int kPollMs = 100;  // how often the threads look at the stop flag
 // Tracks which mapped fields have been received, so operating points go out only once all are known.
 class OperatingPointAssembler {
  public:
-  explicit OperatingPointAssembler(const CanSignalMap& map) : map_(map) {
-    for (const CanSignal& s : map.signals()) wanted_ |= bit(s.field);
+  explicit OperatingPointAssembler(const formats::CanSignalMap& map) : map_(map) {
+    for (const formats::CanSignal& s : map.signals()) wanted_ |= bit(s.field);
     op_.rail_pressure_bar = std::numeric_limits<double>::quiet_NaN();
   }
   // True when the frame changed the operating point and it is complete.
-  bool decode(const CanFrame& frame, std::int64_t utime) {
+  bool decode(const formats::CanFrame& frame, std::int64_t utime) {
     int set = 0;
-    for (const CanSignal& s : map_.signals()) {
+    for (const formats::CanSignal& s : map_.signals()) {
       if (s.id != frame.id || s.extended != frame.extended || frame.dlc < can_signal_min_dlc(s)) continue;
       seen_ |= bit(s.field);
       ++set;
@@ -40,8 +40,8 @@ class OperatingPointAssembler {
   const OperatingPoint& op() const { return op_; }
 
  private:
-  static unsigned bit(OperatingPointField f) { return 1u << static_cast<unsigned>(f); }
-  const CanSignalMap& map_;
+  static unsigned bit(formats::OperatingPointField f) { return 1u << static_cast<unsigned>(f); }
+  const formats::CanSignalMap& map_;
   unsigned wanted_ = 0, seen_ = 0;
   OperatingPoint op_;
 };
@@ -49,7 +49,7 @@ class OperatingPointAssembler {
 // What the CAN threads share with the rest of the source.
 class CanSourceBase : public OperatingPointSource {
  public:
-  CanSourceBase(std::string name, std::string thread_name, CanSignalMap map, const ThreadPolicy& policy)
+  CanSourceBase(std::string name, std::string thread_name, formats::CanSignalMap map, const ThreadPolicy& policy)
       : name_(std::move(name)), map_(std::move(map)), policy_(policy), worker_(std::move(thread_name)) {}
   std::string name() const override { return name_; }
   void start(OperatingPointRing& ring) override {
@@ -80,7 +80,7 @@ class CanSourceBase : public OperatingPointSource {
   }
 
   std::string name_;
-  CanSignalMap map_;
+  formats::CanSignalMap map_;
 
  private:
   ThreadPolicy policy_;
@@ -89,7 +89,7 @@ class CanSourceBase : public OperatingPointSource {
 
 class SocketCanSource final : public CanSourceBase {
  public:
-  SocketCanSource(int fd, bool owns_fd, const CanSignalMap& map, std::string label, const ThreadPolicy& policy)
+  SocketCanSource(int fd, bool owns_fd, const formats::CanSignalMap& map, std::string label, const ThreadPolicy& policy)
       : CanSourceBase("socketcan", "socketcan." + label, map, policy),
         fd_(fd),
         owns_fd_(owns_fd),
@@ -150,7 +150,7 @@ class CandumpSource final : public CanSourceBase {
         path_(c.candump_path),
         interface_(c.interface),
         paced_(c.paced),
-        reader_(std::make_unique<CandumpReader>(c.candump_path)) {}
+        reader_(std::make_unique<formats::CandumpReader>(c.candump_path)) {}
   ~CandumpSource() override { stop(); }
   std::vector<DriverCounter> counters() const override {
     return {{"candump.records", count(records_)},
@@ -162,7 +162,7 @@ class CandumpSource final : public CanSourceBase {
  private:
   void run(OperatingPointRing& ring) override {
     OperatingPointAssembler assembler(map_);
-    CandumpRecord rec;
+    formats::CandumpRecord rec;
     bool first = true;
     std::int64_t rec0 = 0, wall0 = 0;
     while (!stop_requested() && reader_->next(rec)) {
@@ -198,7 +198,7 @@ class CandumpSource final : public CanSourceBase {
 
   std::string path_, interface_;
   bool paced_;
-  std::unique_ptr<CandumpReader> reader_;
+  std::unique_ptr<formats::CandumpReader> reader_;
   std::atomic<std::uint64_t> records_{0}, decoded_{0}, other_interface_{0}, malformed_{0};
 };
 
@@ -214,10 +214,10 @@ std::unique_ptr<OperatingPointSource> make_can_source(const CanSourceConfig& con
   return std::make_unique<SocketCanSource>(fd, true, config.map, config.interface, config.thread);
 }
 
-std::unique_ptr<OperatingPointSource> make_socketcan_source_on_fd(int fd, const CanSignalMap& map,
+std::unique_ptr<OperatingPointSource> make_socketcan_source_on_fd(int fd, const formats::CanSignalMap& map,
                                                                   const std::string& label,
                                                                   const ThreadPolicy& policy) {
   return std::make_unique<SocketCanSource>(fd, false, map, label, policy);
 }
 
-}  // namespace noisemon::drivers
+}  // namespace noisemon::drivers::can

@@ -15,14 +15,14 @@
 #include "drivers/source.hpp"
 #include "drivers/worker_thread.hpp"
 
-namespace noisemon::drivers {
+namespace noisemon::drivers::can {
 
 struct CanSourceConfig {
   std::string interface;     // live: the SocketCAN interface (e.g. "can0"); with a candump file: only its frames
                              // from this interface are used ("" = all)
   std::string candump_path;  // non-empty: replay this candump -l log instead of a live bus
   bool paced = true;         // candump: at the recorded pace (re-timed to now); false: as fast as taken, recorded times
-  CanSignalMap map;
+  formats::CanSignalMap map;
   ThreadPolicy thread;  // scheduling of the thread nm-can (the daemon's [threads.can])
 
   bool configured() const { return !interface.empty() || !candump_path.empty(); }
@@ -34,8 +34,8 @@ std::unique_ptr<OperatingPointSource> make_can_source(const CanSourceConfig& con
 
 // The live path on a descriptor the caller owns and keeps open (tests: one end of a socketpair carrying struct
 // can_frame records). `label` names it in messages.
-std::unique_ptr<OperatingPointSource> make_socketcan_source_on_fd(int fd, const CanSignalMap& map,
+std::unique_ptr<OperatingPointSource> make_socketcan_source_on_fd(int fd, const formats::CanSignalMap& map,
                                                                   const std::string& label,
                                                                   const ThreadPolicy& policy = {});
 
-}  // namespace noisemon::drivers
+}  // namespace noisemon::drivers::can

@@ -15,7 +15,7 @@
 #include <stdexcept>
 #include <system_error>
 
-namespace noisemon::drivers {
+namespace noisemon::drivers::can {
 namespace {}  // namespace
 
 bool parse_can_ancillary(const msghdr& msg, std::int64_t& utime, bool& have_drops, std::uint32_t& drops) {
@@ -106,7 +106,8 @@ CanReadResult SocketCanReader::read(int timeout_ms, ReceivedCanFrame& out) {
   return CanReadResult::kDataFrame;
 }
 
-CanReadResult SocketCanReader::read_operating_point(int timeout_ms, const CanSignalMap& map, OperatingPoint& op) {
+CanReadResult SocketCanReader::read_operating_point(int timeout_ms, const formats::CanSignalMap& map,
+                                                    OperatingPoint& op) {
   ReceivedCanFrame rx;
   const CanReadResult r = read(timeout_ms, rx);
   if (r != CanReadResult::kDataFrame) return r;
@@ -115,7 +116,7 @@ CanReadResult SocketCanReader::read_operating_point(int timeout_ms, const CanSig
   return CanReadResult::kDataFrame;
 }
 
-int open_socketcan(const std::string& interface, const CanSignalMap& map) {
+int open_socketcan(const std::string& interface, const formats::CanSignalMap& map) {
   const std::string where = "CAN interface '" + interface + "': ";
   if (interface.empty() || interface.size() >= IFNAMSIZ)
     throw std::runtime_error(where + "invalid interface name (1.." + std::to_string(IFNAMSIZ - 1) + " characters)");
@@ -138,7 +139,7 @@ int open_socketcan(const std::string& interface, const CanSignalMap& map) {
   };
 
   std::vector<can_filter> filters;
-  for (const CanSignal& s : map.signals()) {
+  for (const formats::CanSignal& s : map.signals()) {
     can_filter f{};
     f.can_id = s.extended ? (s.id | CAN_EFF_FLAG) : s.id;
     f.can_mask = CAN_EFF_FLAG | CAN_RTR_FLAG | (s.extended ? CAN_EFF_MASK : CAN_SFF_MASK);
@@ -164,4 +165,4 @@ int open_socketcan(const std::string& interface, const CanSignalMap& map) {
   return fd;
 }
 
-}  // namespace noisemon::drivers
+}  // namespace noisemon::drivers::can

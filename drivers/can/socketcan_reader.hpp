@@ -10,7 +10,7 @@
 
 #include "drivers/formats/can_signal_map.hpp"
 
-namespace noisemon::drivers {
+namespace noisemon::drivers::can {
 
 struct SocketCanStats {
   std::uint64_t data_frames = 0;
@@ -25,7 +25,7 @@ struct SocketCanStats {
 };
 
 struct ReceivedCanFrame {
-  CanFrame frame;
+  formats::CanFrame frame;
   std::int64_t utime = 0;
   std::uint32_t error_class = 0;  // CAN_ERR_* bits of an error frame, 0 for data
 };
@@ -45,7 +45,7 @@ class SocketCanReader {
 
   // Reads one frame; a data frame is decoded into op (utime set to the frame's receive time when any field
   // changed). Returns kDataFrame only when op was updated; data frames the map ignores give kIgnored.
-  CanReadResult read_operating_point(int timeout_ms, const CanSignalMap& map, OperatingPoint& op);
+  CanReadResult read_operating_point(int timeout_ms, const formats::CanSignalMap& map, OperatingPoint& op);
 
   const SocketCanStats& stats() const { return stats_; }
 
@@ -58,6 +58,6 @@ class SocketCanReader {
 // plus bus-off / controller / restart error frames, with SO_TIMESTAMP and SO_RXQ_OVFL enabled. Throws
 // std::runtime_error naming the interface when it does not exist, the kernel lacks CAN support, or it is
 // not a CAN device. The caller closes the returned fd.
-int open_socketcan(const std::string& interface, const CanSignalMap& map);
+int open_socketcan(const std::string& interface, const formats::CanSignalMap& map);
 
-}  // namespace noisemon::drivers
+}  // namespace noisemon::drivers::can

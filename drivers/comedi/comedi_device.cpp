@@ -11,7 +11,7 @@
 #include <stdexcept>
 #include <thread>
 
-namespace noisemon::drivers {
+namespace noisemon::drivers::comedi {
 
 namespace {
 
@@ -371,4 +371,4 @@ bool ComediDevice::restart() {
 
 void ComediDevice::cancel() { comedi_cancel(dev_, subdevice_); }
 
-}  // namespace noisemon::drivers
+}  // namespace noisemon::drivers::comedi

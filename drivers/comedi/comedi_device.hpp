@@ -19,7 +19,7 @@
 
 #include "drivers/comedi/comedi_scan.hpp"
 
-namespace noisemon::drivers {
+namespace noisemon::drivers::comedi {
 
 // ---- read loop -------------------------------------------------------------------------------------------
 
@@ -172,4 +172,4 @@ class ComediDevice {
   unsigned buffer_bytes_ = 0;
 };
 
-}  // namespace noisemon::drivers
+}  // namespace noisemon::drivers::comedi

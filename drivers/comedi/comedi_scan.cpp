@@ -3,7 +3,7 @@
 #include <stdexcept>
 #include <string>
 
-namespace noisemon::drivers {
+namespace noisemon::drivers::comedi {
 
 namespace {
 void require_positive(double value, const char* what) {
@@ -74,4 +74,4 @@ void ScanDecoder::decode_scan(const std::byte* scan) {
   }
 }
 
-}  // namespace noisemon::drivers
+}  // namespace noisemon::drivers::comedi

@@ -16,7 +16,7 @@
 
 #include "drivers/source.hpp"
 
-namespace noisemon::drivers {
+namespace noisemon::drivers::comedi {
 
 enum class SampleWidth : std::uint8_t { k16Bit = 2, k32Bit = 4 };
 
@@ -105,4 +105,4 @@ class ScanDecoder {
   std::array<double, kMaxChannels> values_{};
 };
 
-}  // namespace noisemon::drivers
+}  // namespace noisemon::drivers::comedi

@@ -9,7 +9,7 @@
 #include "drivers/mic_positions.hpp"
 #include "dsp/resample.hpp"
 
-namespace noisemon::drivers {
+namespace noisemon::drivers::comedi {
 namespace {
 
 constexpr std::size_t kReadBufferBytes = 1 << 16;
@@ -502,4 +502,4 @@ std::unique_ptr<Source> make_comedi_source(const ComediSourceConfig& config, Acq
   return std::make_unique<ComediSource>(config, factory, epoch_utime);
 }
 
-}  // namespace noisemon::drivers
+}  // namespace noisemon::drivers::comedi

@@ -32,7 +32,7 @@
 #include "drivers/source.hpp"
 #include "drivers/worker_thread.hpp"
 
-namespace noisemon::drivers {
+namespace noisemon::drivers::comedi {
 
 struct ComediSourceConfig {
   struct Pressure {
@@ -148,4 +148,4 @@ std::vector<ComediAcquisitionConfig> comedi_acquisitions(const ComediSourceConfi
 std::unique_ptr<Source> make_comedi_source(const ComediSourceConfig& config, AcquisitionFactory factory = {},
                                            std::int64_t epoch_utime = 0);
 
-}  // namespace noisemon::drivers
+}  // namespace noisemon::drivers::comedi

@@ -8,7 +8,7 @@
 
 #include "model/engine_geometry.hpp"
 
-namespace noisemon::drivers {
+namespace noisemon::drivers::comedi {
 namespace {
 
 constexpr std::size_t kEdgeBatch = 1024;   // edges per resampler call
@@ -567,4 +567,4 @@ void EdgeStreamAssembler::deliver(BlockRing& ring, bool all) {
   }
 }
 
-}  // namespace noisemon::drivers
+}  // namespace noisemon::drivers::comedi

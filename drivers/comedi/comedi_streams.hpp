@@ -39,7 +39,7 @@
 #include "drivers/source.hpp"
 #include "dsp/resample.hpp"
 
-namespace noisemon::drivers {
+namespace noisemon::drivers::comedi {
 
 enum class PhaseSource : std::uint8_t {
   kPressure,  // firing TDC is the TDC whose pressure rises more (compression vs gas exchange)
@@ -266,4 +266,4 @@ class TimedStreamAssembler {
   std::uint64_t frames_ = 0;
 };
 
-}  // namespace noisemon::drivers
+}  // namespace noisemon::drivers::comedi

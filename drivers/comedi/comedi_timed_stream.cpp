@@ -7,7 +7,7 @@
 
 #include "drivers/comedi/comedi_streams.hpp"
 
-namespace noisemon::drivers {
+namespace noisemon::drivers::comedi {
 namespace {
 
 constexpr std::size_t kCardBatch = 1024;  // card scans per resampler call
@@ -68,4 +68,4 @@ void TimedStreamAssembler::deliver(BlockRing& ring, bool all) {
   if (all || writer_.pending_frames() >= SampleBlock::kMaxFrames / 2) writer_.flush(ring);
 }
 
-}  // namespace noisemon::drivers
+}  // namespace noisemon::drivers::comedi

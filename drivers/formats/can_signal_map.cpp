@@ -5,7 +5,7 @@
 #include <set>
 #include <stdexcept>
 
-namespace noisemon::drivers {
+namespace noisemon::drivers::formats {
 namespace {
 
 constexpr std::uint32_t kMaxStandardId = 0x7FF;
@@ -240,4 +240,4 @@ CanSignalMap parse_can_signal_map(const toml::table& root, const std::string& or
   return CanSignalMap(std::move(signals));
 }
 
-}  // namespace noisemon::drivers
+}  // namespace noisemon::drivers::formats

@@ -10,7 +10,7 @@
 
 #include "drivers/source.hpp"
 
-namespace noisemon::drivers {
+namespace noisemon::drivers::formats {
 
 // One classic CAN frame as received (id without flag bits).
 struct CanFrame {
@@ -81,4 +81,4 @@ CanSignalMap parse_can_signal_map(const toml::table& root, const std::string& or
 
 const char* to_string(OperatingPointField f);
 
-}  // namespace noisemon::drivers
+}  // namespace noisemon::drivers::formats

@@ -2,7 +2,7 @@
 
 #include <stdexcept>
 
-namespace noisemon::drivers {
+namespace noisemon::drivers::formats {
 namespace {
 
 int hex_value(char c) {
@@ -157,4 +157,4 @@ bool CandumpReader::next(CandumpRecord& out) {
   return false;
 }
 
-}  // namespace noisemon::drivers
+}  // namespace noisemon::drivers::formats

@@ -10,7 +10,7 @@
 
 #include "drivers/formats/can_signal_map.hpp"
 
-namespace noisemon::drivers {
+namespace noisemon::drivers::formats {
 
 struct CandumpRecord {
   std::int64_t utime = 0;  // microseconds since the Unix epoch
@@ -44,4 +44,4 @@ class CandumpReader {
   std::string last_error_;
 };
 
-}  // namespace noisemon::drivers
+}  // namespace noisemon::drivers::formats

@@ -9,7 +9,7 @@
 #include <cstring>
 #include <stdexcept>
 
-namespace noisemon::drivers {
+namespace noisemon::drivers::formats {
 namespace {
 
 constexpr std::uint8_t kSync[4] = {0xED, 0xA1, 0xDA, 0x01};
@@ -139,4 +139,4 @@ bool LcmLogReader::next(LcmLogEvent& e) {
   return false;
 }
 
-}  // namespace noisemon::drivers
+}  // namespace noisemon::drivers::formats

@@ -15,7 +15,7 @@
 #include <string>
 #include <string_view>
 
-namespace noisemon::drivers {
+namespace noisemon::drivers::formats {
 
 struct LcmLogEvent {
   std::int64_t eventnum = 0;
@@ -61,4 +61,4 @@ class LcmLogReader {
   std::size_t first_damage_ = 0;
 };
 
-}  // namespace noisemon::drivers
+}  // namespace noisemon::drivers::formats

@@ -13,7 +13,7 @@
 #include <string_view>
 #include <vector>
 
-namespace noisemon::drivers {
+namespace noisemon::drivers::formats {
 
 // Asks for huge pages for the storage a vector has reserved: filling a large one then takes a few page faults
 // instead of one per 4 KiB (where the kernel offers them only on request; elsewhere this changes nothing).
@@ -68,4 +68,4 @@ class MappedFile {
   std::size_t size_ = 0;
 };
 
-}  // namespace noisemon::drivers
+}  // namespace noisemon::drivers::formats

@@ -13,7 +13,7 @@
 #include "drivers/source.hpp"
 #include "dsp/resample.hpp"
 
-namespace noisemon::drivers {
+namespace noisemon::drivers::formats {
 namespace {
 
 constexpr double kMinMicRateHz = 40000.0;
@@ -198,4 +198,4 @@ void write_mics_wav(const std::filesystem::path& path, const RunDir& run) {
   if (written != frames || close_err != 0) throw RunDirError(path.string() + ": cannot write (disk full?)");
 }
 
-}  // namespace noisemon::drivers
+}  // namespace noisemon::drivers::formats

@@ -7,9 +7,9 @@
 
 #include "drivers/formats/run_dir.hpp"
 
-namespace noisemon::drivers {
+namespace noisemon::drivers::formats {
 
 // run's microphones as a float WAV at `path` (RF64 past 4 GiB). Throws RunDirError.
 void write_mics_wav(const std::filesystem::path& path, const RunDir& run);
 
-}  // namespace noisemon::drivers
+}  // namespace noisemon::drivers::formats

@@ -11,7 +11,7 @@
 #include "drivers/formats/run_both.hpp"
 #include "drivers/formats/text_lines.hpp"
 
-namespace noisemon::drivers {
+namespace noisemon::drivers::formats {
 namespace {
 
 // One field of a CSV row as a finite number; blanks around it are allowed, nothing else.
@@ -365,4 +365,4 @@ void write_pressure_csv(const std::filesystem::path& path, const RunDir& run, do
   if (!out) throw RunDirError(path.string() + ": cannot write");
 }
 
-}  // namespace noisemon::drivers
+}  // namespace noisemon::drivers::formats

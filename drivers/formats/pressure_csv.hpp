@@ -10,7 +10,7 @@
 #include "drivers/formats/mapped_file.hpp"
 #include "drivers/formats/run_dir.hpp"
 
-namespace noisemon::drivers {
+namespace noisemon::drivers::formats {
 
 inline constexpr const char* kPressureCsvHeader = "time_s,crank_deg,pressure";
 
@@ -22,4 +22,4 @@ void parse_pressure_text(std::string_view text, const std::string& file, double 
 // run's columns as the pressure file at `path`, the pressure times from_pa (1e-5: bar). Throws RunDirError.
 void write_pressure_csv(const std::filesystem::path& path, const RunDir& run, double from_pa);
 
-}  // namespace noisemon::drivers
+}  // namespace noisemon::drivers::formats

@@ -6,7 +6,7 @@
 
 #include "drivers/formats/stream_messages.hpp"
 
-namespace noisemon::drivers {
+namespace noisemon::drivers::formats {
 
 BlockRing* ring_of(const Streams& streams, std::int8_t stream) {
   if (stream == noisemon::raw_block_t::STREAM_PRESSURE) return streams.pressure;
@@ -97,4 +97,4 @@ const RawEvent& RawStreamDecoder::damaged(std::string reason) {
   return event_;
 }
 
-}  // namespace noisemon::drivers
+}  // namespace noisemon::drivers::formats

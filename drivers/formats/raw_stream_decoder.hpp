@@ -20,7 +20,7 @@
 #include "noisemon/raw_block_t.hpp"
 #include "noisemon/session_t.hpp"
 
-namespace noisemon::drivers {
+namespace noisemon::drivers::formats {
 
 struct StreamChannels {
   std::string raw = "NOISEMON_RAW";
@@ -101,4 +101,4 @@ class RawStreamDecoder {
   RawEvent event_;
 };
 
-}  // namespace noisemon::drivers
+}  // namespace noisemon::drivers::formats

@@ -4,7 +4,7 @@
 #include <exception>
 #include <thread>
 
-namespace noisemon::drivers {
+namespace noisemon::drivers::formats {
 
 // Runs a on this thread and b on another, each to its end; then rethrows a's exception, else b's: what running a
 // and then b would have thrown.
@@ -24,4 +24,4 @@ void run_both(A&& a, B&& b) {
   if (b_error) std::rethrow_exception(b_error);
 }
 
-}  // namespace noisemon::drivers
+}  // namespace noisemon::drivers::formats

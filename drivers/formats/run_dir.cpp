@@ -12,7 +12,7 @@
 #include "drivers/formats/pressure_csv.hpp"
 #include "drivers/formats/run_both.hpp"
 
-namespace noisemon::drivers {
+namespace noisemon::drivers::formats {
 namespace {
 
 std::string read_text_file(const std::filesystem::path& file, const char* what) {
@@ -119,4 +119,4 @@ void write_run_dir(const std::filesystem::path& dir, const RunDir& run, const st
   if (run.mic_count > 0) write_mics_wav(dir / "mics.wav", run);
 }
 
-}  // namespace noisemon::drivers
+}  // namespace noisemon::drivers::formats

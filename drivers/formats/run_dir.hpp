@@ -20,7 +20,7 @@
 #include <string_view>
 #include <vector>
 
-namespace noisemon::drivers {
+namespace noisemon::drivers::formats {
 
 // A run's operating point. A value that is unknown or not applicable (null in run.json) is NaN, never a
 // made-up number: a motored run's SOI (no injection), a load that was not recorded, a speed that is to be
@@ -119,4 +119,4 @@ inline constexpr double kSpeedTolerance = 0.25;
 // null, pressure.noise_floor_bar only when known. Creates DIR; throws RunDirError naming the file on failure.
 void write_run_dir(const std::filesystem::path& dir, const RunDir& run, const std::string& pressure_units = "bar");
 
-}  // namespace noisemon::drivers
+}  // namespace noisemon::drivers::formats

@@ -7,7 +7,7 @@
 #include "drivers/formats/run_dir.hpp"
 #include "drivers/source.hpp"
 
-namespace noisemon::drivers {
+namespace noisemon::drivers::formats {
 namespace {
 
 using nlohmann::json;
@@ -222,4 +222,4 @@ std::string run_json_text(const RunDir& run, const std::string& pressure_units) 
   return run_json(run, pressure_units).dump(2) + "\n";
 }
 
-}  // namespace noisemon::drivers
+}  // namespace noisemon::drivers::formats

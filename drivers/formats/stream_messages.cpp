@@ -8,7 +8,7 @@
 
 #include "noisemon/session_v1_t.hpp"
 
-namespace noisemon::drivers {
+namespace noisemon::drivers::formats {
 namespace {
 
 // Every unknown value (NaN) as the one positive quiet NaN: printf writes a NaN with its sign bit set (what
@@ -286,4 +286,4 @@ std::string raw_block_problem_for_recording(const noisemon::raw_block_t& m, cons
   return "";
 }
 
-}  // namespace noisemon::drivers
+}  // namespace noisemon::drivers::formats

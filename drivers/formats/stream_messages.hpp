@@ -10,7 +10,7 @@
 #include "noisemon/raw_block_t.hpp"
 #include "noisemon/session_t.hpp"
 
-namespace noisemon::drivers {
+namespace noisemon::drivers::formats {
 
 noisemon::operating_point_t to_message(const OperatingPoint& op);
 noisemon::raw_block_t to_message(const SampleBlock& b, std::int8_t stream, std::int64_t epoch_utime);
@@ -47,4 +47,4 @@ SampleBlock from_message(const noisemon::raw_block_t& m);
 // Operating points: an unknown value is NaN both ways (always the positive quiet NaN, so text says "nan").
 OperatingPoint from_message(const noisemon::operating_point_t& m);
 
-}  // namespace noisemon::drivers
+}  // namespace noisemon::drivers::formats

@@ -5,7 +5,7 @@
 #include <cstddef>
 #include <string_view>
 
-namespace noisemon::drivers {
+namespace noisemon::drivers::formats {
 
 class TextLines {
  public:
@@ -31,4 +31,4 @@ class TextLines {
   std::size_t number_ = 0;
 };
 
-}  // namespace noisemon::drivers
+}  // namespace noisemon::drivers::formats

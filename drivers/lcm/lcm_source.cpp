@@ -6,7 +6,7 @@
 
 #include "drivers/formats/raw_stream_decoder.hpp"
 
-namespace noisemon::drivers {
+namespace noisemon::drivers::lcm {
 namespace {
 
 // Messages LCM holds for a subscription until they are handled; beyond it drops the newest. LCM's default (30, under
@@ -20,7 +20,7 @@ class LcmSource final : public Source {
   explicit LcmSource(const LcmSourceConfig& c)
       : config_(c),
         lcm_(c.url),
-        decoder_({{c.raw_channel, c.operating_point_channel, c.session_channel}, SessionChanges::kKeepFirst}) {
+        decoder_({{c.raw_channel, c.operating_point_channel, c.session_channel}, formats::SessionChanges::kKeepFirst}) {
     const std::string where =
         "'" + c.session_channel + "' at " + (c.url.empty() ? std::string("LCM's default URL") : c.url);
     if (!lcm_.good())
@@ -58,38 +58,39 @@ class LcmSource final : public Source {
   std::vector<DriverThreadStatus> thread_status() const override { return {worker_.status()}; }
 
  private:
-  void on_message(const lcm::ReceiveBuffer* rbuf, const std::string& channel) {
-    const RawEvent& e = decoder_.decode(channel, rbuf->data, rbuf->data_size);
+  void on_message(const ::lcm::ReceiveBuffer* rbuf, const std::string& channel) {
+    const formats::RawEvent& e = decoder_.decode(channel, rbuf->data, rbuf->data_size);
     switch (e.kind) {
-      case RawEventKind::kBlock:
+      case formats::RawEventKind::kBlock:
         if (!streams_.pressure) return;  // before start(): nothing to feed yet
-        if (BlockRing* ring = ring_of(streams_, e.stream)) (void)ring->write(&e.block, 1);  // full: counted there
-        worker_.add_blocks_written();  // a full ring counts the overrun itself
+        if (BlockRing* ring = formats::ring_of(streams_, e.stream))
+          (void)ring->write(&e.block, 1);  // full: counted there
+        worker_.add_blocks_written();      // a full ring counts the overrun itself
         return;
-      case RawEventKind::kOperatingPoint:
+      case formats::RawEventKind::kOperatingPoint:
         if (streams_.operating_point) (void)streams_.operating_point->push(e.operating_point);
         return;
-      case RawEventKind::kOtherSessionBlock:
+      case formats::RawEventKind::kOtherSessionBlock:
         // Another session (the next run of a multi-run log): its frame indices restart on another time base, which
         // this daemon's processing cannot continue. Counted, never mixed in (`noisemon replay` handles such logs).
         ++other_session_;
         return;
-      case RawEventKind::kBadBlock:  // never reaches the processing, which would fail on it
+      case formats::RawEventKind::kBadBlock:  // never reaches the processing, which would fail on it
         ++damaged_blocks_;
         return;
-      case RawEventKind::kDamaged:
-        ++(e.channel == RawChannel::kRaw ? damaged_blocks_ : damaged_messages_);
+      case formats::RawEventKind::kDamaged:
+        ++(e.channel == formats::RawChannel::kRaw ? damaged_blocks_ : damaged_messages_);
         return;
-      case RawEventKind::kSession:  // repeats, and other runs' sessions: the first one stays
-      case RawEventKind::kBeforeSession:
-      case RawEventKind::kOtherChannel:
+      case formats::RawEventKind::kSession:  // repeats, and other runs' sessions: the first one stays
+      case formats::RawEventKind::kBeforeSession:
+      case formats::RawEventKind::kOtherChannel:
         return;
     }
   }
 
   LcmSourceConfig config_;
-  lcm::LCM lcm_;
-  RawStreamDecoder decoder_;  // used by one thread at a time: the constructor's, then the worker
+  ::lcm::LCM lcm_;
+  formats::RawStreamDecoder decoder_;  // used by one thread at a time: the constructor's, then the worker
   StreamInfo info_;
   Streams streams_;
   std::atomic<std::uint64_t> damaged_blocks_{0}, other_session_{0}, damaged_messages_{0};
@@ -101,4 +102,4 @@ class LcmSource final : public Source {
 
 std::unique_ptr<Source> make_lcm_source(const LcmSourceConfig& config) { return std::make_unique<LcmSource>(config); }
 
-}  // namespace noisemon::drivers
+}  // namespace noisemon::drivers::lcm

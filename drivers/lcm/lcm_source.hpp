@@ -12,7 +12,7 @@
 #include "drivers/source.hpp"
 #include "drivers/worker_thread.hpp"
 
-namespace noisemon::drivers {
+namespace noisemon::drivers::lcm {
 
 struct LcmSourceConfig {
   std::string url;  // empty: LCM's default
@@ -27,4 +27,4 @@ struct LcmSourceConfig {
 // naming the channel and URL when LCM cannot start or none arrives in time.
 std::unique_ptr<Source> make_lcm_source(const LcmSourceConfig& config);
 
-}  // namespace noisemon::drivers
+}  // namespace noisemon::drivers::lcm

@@ -8,20 +8,20 @@
 #include <stdexcept>
 #include <thread>
 
-namespace noisemon::drivers {
+namespace noisemon::drivers::log {
 
 struct LogSessions::State {
   explicit State(LogSourceConfig c)
-      : config(std::move(c)), reader(config.path), decoder({config.channels, SessionChanges::kFollow}) {}
+      : config(std::move(c)), reader(config.path), decoder({config.channels, formats::SessionChanges::kFollow}) {}
 
   // The next event, counted (and paced when realtime); nullptr at the end of the log, or when *stop turns true
   // while pacing.
-  const RawEvent* next(LcmLogEvent& e, const std::atomic<bool>* stop);
+  const formats::RawEvent* next(formats::LcmLogEvent& e, const std::atomic<bool>* stop);
   void pace(std::int64_t timestamp, const std::atomic<bool>* stop);
 
   LogSourceConfig config;
-  LcmLogReader reader;
-  RawStreamDecoder decoder;
+  formats::LcmLogReader reader;
+  formats::RawStreamDecoder decoder;
   LogCounts counts;
   bool session_pending = false;  // the decoder holds a session that no source has been made for yet
   std::string condition;
@@ -34,26 +34,26 @@ struct LogSessions::State {
   std::int64_t first_timestamp = 0;
 };
 
-const RawEvent* LogSessions::State::next(LcmLogEvent& e, const std::atomic<bool>* stop) {
+const formats::RawEvent* LogSessions::State::next(formats::LcmLogEvent& e, const std::atomic<bool>* stop) {
   if (!reader.next(e)) return nullptr;
   if (++counts.events == 1) first_timestamp = e.timestamp;
   if (config.realtime) {
     pace(e.timestamp, stop);
     if (stop && stop->load(std::memory_order_relaxed)) return nullptr;
   }
-  const RawEvent& ev = decoder.decode(e.channel, e.data, static_cast<std::size_t>(e.datalen));
+  const formats::RawEvent& ev = decoder.decode(e.channel, e.data, static_cast<std::size_t>(e.datalen));
   position.store(reader.position(), std::memory_order_relaxed);
   switch (ev.kind) {
-    case RawEventKind::kSession:
+    case formats::RawEventKind::kSession:
       if (ev.session_started) ++counts.sessions;
       break;
-    case RawEventKind::kDamaged:
-    case RawEventKind::kBadBlock:
-    case RawEventKind::kOtherSessionBlock:
+    case formats::RawEventKind::kDamaged:
+    case formats::RawEventKind::kBadBlock:
+    case formats::RawEventKind::kOtherSessionBlock:
       ++counts.damaged;
       if (config.on_damaged) config.on_damaged({e.eventnum, e.channel, ev.reason});
       break;
-    case RawEventKind::kOtherChannel:
+    case formats::RawEventKind::kOtherChannel:
       ++counts.other_channels;
       break;
     default:
@@ -124,20 +124,20 @@ class LogSource final : public Source {
  private:
   void run(const Streams& streams, const std::atomic<bool>& stop) {
     LogSessions::State& s = *state_;
-    LcmLogEvent e;
+    formats::LcmLogEvent e;
     while (!stop.load(std::memory_order_relaxed)) {
-      const RawEvent* ev = s.next(e, &stop);
+      const formats::RawEvent* ev = s.next(e, &stop);
       if (!ev) break;
-      if (ev->kind == RawEventKind::kSession && ev->session_started) {
+      if (ev->kind == formats::RawEventKind::kSession && ev->session_started) {
         s.session_pending = true;  // the next run: the next source's
         break;
       }
-      if (ev->kind == RawEventKind::kBlock) {
-        BlockRing* ring = ring_of(streams, ev->stream);
+      if (ev->kind == formats::RawEventKind::kBlock) {
+        BlockRing* ring = formats::ring_of(streams, ev->stream);
         if (ring && !push_waiting(*ring, ev->block, stop)) break;
         ++s.counts.raw_blocks;
         worker_.add_blocks_written();
-      } else if (ev->kind == RawEventKind::kOperatingPoint) {
+      } else if (ev->kind == formats::RawEventKind::kOperatingPoint) {
         if (!deliver(streams, ev->operating_point, stop)) break;
       }
     }
@@ -180,15 +180,15 @@ LogSessions::~LogSessions() = default;
 
 std::unique_ptr<Source> LogSessions::next_session() {
   State& s = *state_;
-  LcmLogEvent e;
+  formats::LcmLogEvent e;
   while (!s.session_pending) {
-    const RawEvent* ev = s.next(e, nullptr);
+    const formats::RawEvent* ev = s.next(e, nullptr);
     if (!ev) return nullptr;
-    if (ev->kind == RawEventKind::kBeforeSession && ev->channel == RawChannel::kRaw)
+    if (ev->kind == formats::RawEventKind::kBeforeSession && ev->channel == formats::RawChannel::kRaw)
       throw std::runtime_error(s.config.path + ": event " + std::to_string(e.eventnum) + ": raw block before any " +
                                s.config.channels.session +
                                " message (was the log started with the daemon's channels?)");
-    if (ev->kind == RawEventKind::kSession && ev->session_started) s.session_pending = true;
+    if (ev->kind == formats::RawEventKind::kSession && ev->session_started) s.session_pending = true;
   }
   s.session_pending = false;
   s.condition = s.decoder.condition();
@@ -215,6 +215,6 @@ double LogSessions::fraction_read() const {
 
 LogCounts LogSessions::counts() const { return state_->counts; }
 
-const LcmLogReader& LogSessions::reader() const { return state_->reader; }
+const formats::LcmLogReader& LogSessions::reader() const { return state_->reader; }
 
-}  // namespace noisemon::drivers
+}  // namespace noisemon::drivers::log

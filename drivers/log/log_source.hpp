@@ -21,7 +21,7 @@
 #include "drivers/source.hpp"
 #include "drivers/worker_thread.hpp"
 
-namespace noisemon::drivers {
+namespace noisemon::drivers::log {
 
 // An event that is not used: it does not decode, or contradicts its session or itself (raw_stream_decoder.hpp).
 struct LogDamage {
@@ -32,7 +32,7 @@ struct LogDamage {
 
 struct LogSourceConfig {
   std::string path;
-  StreamChannels channels;
+  formats::StreamChannels channels;
   bool realtime = false;  // at the recorded pace (the events' timestamps); false: as fast as the pipeline takes it
   ThreadPolicy thread;    // scheduling of the reading thread nm-log-in
   // Called for every damaged event, on the thread that reads it.
@@ -69,7 +69,7 @@ class LogSessions {
   // Complete once no source of this log runs.
   LogCounts counts() const;
   // The file's framing: damaged stretches (they are no event) and a log cut short.
-  const LcmLogReader& reader() const;
+  const formats::LcmLogReader& reader() const;
 
   struct State;
 
@@ -77,4 +77,4 @@ class LogSessions {
   std::shared_ptr<State> state_;
 };
 
-}  // namespace noisemon::drivers
+}  // namespace noisemon::drivers::log

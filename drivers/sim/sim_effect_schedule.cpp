@@ -2,7 +2,7 @@
 
 #include <algorithm>
 
-namespace noisemon::drivers {
+namespace noisemon::drivers::sim {
 
 double effect_weight(const ScheduledEffect& effect, double since_start_s) {
   const double after = since_start_s - effect.onset_s;
@@ -18,4 +18,4 @@ model::engine::Effects cumulative_effects(const model::engine::Effects& fixed,
   return effects;
 }
 
-}  // namespace noisemon::drivers
+}  // namespace noisemon::drivers::sim

@@ -15,7 +15,7 @@
 
 #include "model/engine/effects.hpp"
 
-namespace noisemon::drivers {
+namespace noisemon::drivers::sim {
 
 struct ScheduledEffect {
   model::engine::EffectSetting setting;  // the spelling of `noisemon sim --effect`
@@ -31,4 +31,4 @@ struct ScheduledEffect {
 [[nodiscard]] model::engine::Effects cumulative_effects(const model::engine::Effects& fixed,
                                                         const std::vector<ScheduledEffect>& schedule, std::size_t k);
 
-}  // namespace noisemon::drivers
+}  // namespace noisemon::drivers::sim

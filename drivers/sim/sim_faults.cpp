@@ -6,7 +6,7 @@
 #include <stdexcept>
 #include <utility>
 
-namespace noisemon::drivers {
+namespace noisemon::drivers::sim {
 namespace {
 
 constexpr std::array<std::pair<SimFaultKind, std::string_view>, 11> kNames{{
@@ -101,4 +101,4 @@ bool stream_delivers(const std::vector<SimFault>& faults, int stream_target, dou
   return true;
 }
 
-}  // namespace noisemon::drivers
+}  // namespace noisemon::drivers::sim

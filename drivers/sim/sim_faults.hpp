@@ -25,7 +25,7 @@
 #include <string_view>
 #include <vector>
 
-namespace noisemon::drivers {
+namespace noisemon::drivers::sim {
 
 enum class SimFaultKind : std::uint8_t {
   kMissingEdges,
@@ -73,4 +73,4 @@ const SimFault* active_fault(const std::vector<SimFault>& faults, SimFaultKind k
 // Whether a stream delivers what it produced at t: false inside a stall, and in the lost part of an overrun burst.
 bool stream_delivers(const std::vector<SimFault>& faults, int stream_target, double t_since_start_s);
 
-}  // namespace noisemon::drivers
+}  // namespace noisemon::drivers::sim

@@ -74,8 +74,8 @@ namespace {
 
 // The decoder of the sim's encoder-clocked scans: one subdevice scanning pressure, position and timestamp.
 // The highest speed is the operating point's with room for the speed ripple and a cycle's variation.
-EdgeStreamConfig encoder_decoder_config(std::int64_t counts_per_rev, double index_angle_deg, double speed_rpm) {
-  EdgeStreamConfig c;
+comedi::EdgeStreamConfig encoder_decoder_config(std::int64_t counts_per_rev, double index_angle_deg, double speed_rpm) {
+  comedi::EdgeStreamConfig c;
   c.max_rpm = 1.25 * speed_rpm;
   c.stream_channels = {3};
   c.pressure = {0, 0};
@@ -85,8 +85,8 @@ EdgeStreamConfig encoder_decoder_config(std::int64_t counts_per_rev, double inde
   c.index_angle_deg = index_angle_deg;
   c.timebase_hz = PressureGenerator::kTimebaseHz;
   c.timestamp_bits = 32;
-  c.timestamp_mode = TimestampMode::kAbsolute;
-  c.phase = PhaseSource::kPressure;
+  c.timestamp_mode = comedi::TimestampMode::kAbsolute;
+  c.phase = comedi::PhaseSource::kPressure;
   c.max_scan_skew = 1;  // one subdevice: nothing to pair
   return c;
 }
@@ -117,7 +117,7 @@ PressureGenerator::PressureGenerator(const SimConfig& config, double t_first_s)
       first_index_(to_index(t_first_s, kPipelineRateHz)),
       t_first_(t_first_s),
       origin_s_(1e-6 * static_cast<double>(std::llround((t_first_s - kPreRollS) * 1e6))),
-      decoder_(std::make_unique<EdgeStreamAssembler>(
+      decoder_(std::make_unique<comedi::EdgeStreamAssembler>(
           encoder_decoder_config(counts_per_rev_, static_cast<double>(index_edge_) * config.encoder_resolution_deg,
                                  profile_->max_speed_rpm()),
           0)),
@@ -136,7 +136,7 @@ PressureGenerator::PressureGenerator(const SimConfig& config, double t_first_s)
 
 PressureGenerator::~PressureGenerator() = default;
 
-const EdgeStreamCounters& PressureGenerator::encoder_counters() const { return decoder_->counters(); }
+const comedi::EdgeStreamCounters& PressureGenerator::encoder_counters() const { return decoder_->counters(); }
 
 void PressureGenerator::advance(double t_end_s, BlockRing& ring) {
   for (;;) {

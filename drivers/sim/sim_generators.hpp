@@ -78,7 +78,7 @@ class PressureGenerator {
   std::uint64_t blocks_written() const { return forwarded_; }
   std::int64_t first_index() const { return first_index_; }
   std::uint64_t clipped_samples() const { return chain_.clipped_samples(); }  // encoder samples the ADC clipped
-  const EdgeStreamCounters& encoder_counters() const;
+  const comedi::EdgeStreamCounters& encoder_counters() const;
 
  private:
   void fill_batch(double t_end_s, std::size_t& n);
@@ -106,7 +106,7 @@ class PressureGenerator {
   double origin_s_;             // the counters' start, s on the source clock (whole microseconds)
   std::uint32_t counter_ = 0;   // the card's position counter
   double held_pressure_ = 0.0;  // last converter sample (a stuck converter repeats it)
-  std::unique_ptr<EdgeStreamAssembler> decoder_;
+  std::unique_ptr<comedi::EdgeStreamAssembler> decoder_;
   BlockRing staging_;  // the decoder's output, passed on from first_index_ (pre-roll frames trimmed)
   SampleBlock trimmed_;
   BlockRing* angle_out_ = nullptr;  // the crank-angle stream's ring

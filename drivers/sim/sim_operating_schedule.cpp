@@ -5,7 +5,7 @@
 #include <stdexcept>
 #include <string>
 
-namespace noisemon::drivers {
+namespace noisemon::drivers::sim {
 
 namespace {
 
@@ -80,4 +80,4 @@ const model::engine::OperatingCondition& OperatingProfile::condition(std::int64_
   return (after - 1)->condition;
 }
 
-}  // namespace noisemon::drivers
+}  // namespace noisemon::drivers::sim

@@ -15,7 +15,7 @@
 #include "model/engine/engine_cycle.hpp"
 #include "model/engine_geometry.hpp"
 
-namespace noisemon::drivers {
+namespace noisemon::drivers::sim {
 
 struct OperatingStep {
   double at_s = 0.0;    // source seconds after the first frame
@@ -61,4 +61,4 @@ class OperatingProfile {
   model::CrankKinematics kinematics_;
 };
 
-}  // namespace noisemon::drivers
+}  // namespace noisemon::drivers::sim

@@ -16,7 +16,7 @@
 #include "drivers/sim/sim_generators.hpp"
 #include "dsp/resample.hpp"
 
-namespace noisemon::drivers {
+namespace noisemon::drivers::sim {
 
 SimConfig with_ideal_cell(SimConfig config) {
   config.pressure_chain = model::engine::PressureChainConfig::ideal();
@@ -228,7 +228,7 @@ class SimSource final : public Source {
     return !stop.load(std::memory_order_relaxed);
   }
 
-  void publish_encoder(const EdgeStreamCounters& c) {
+  void publish_encoder(const comedi::EdgeStreamCounters& c) {
     const std::uint64_t values[] = {c.edges,
                                     c.edges_before_lock,
                                     c.encoder_errors,
@@ -292,4 +292,4 @@ class SimSource final : public Source {
 
 std::unique_ptr<Source> make_sim_source(const SimConfig& config) { return std::make_unique<SimSource>(config); }
 
-}  // namespace noisemon::drivers
+}  // namespace noisemon::drivers::sim

@@ -31,7 +31,7 @@
 #include "model/engine/mic_chain.hpp"
 #include "model/engine/pressure_chain.hpp"
 
-namespace noisemon::drivers {
+namespace noisemon::drivers::sim {
 
 struct SimConfig {
   // Operating point (thesis conditions: idle 3050 rpm / 0 N m, full load 3450 rpm; SOI 12..24 deg BTDC).
@@ -79,4 +79,4 @@ SimConfig with_ideal_cell(SimConfig config);
 
 std::unique_ptr<Source> make_sim_source(const SimConfig& config);
 
-}  // namespace noisemon::drivers
+}  // namespace noisemon::drivers::sim

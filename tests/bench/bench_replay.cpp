@@ -36,7 +36,7 @@ std::string make_log(double seconds) {
   info.mic_count = 10;
   info.mic_positions_m.assign(10, {0, 0, 1.75});
   info.acoustic_delay_s = 1.75 / 343.0;
-  write(log, "NOISEMON_SESSION", drivers::to_message(info, "bench", 0));
+  write(log, "NOISEMON_SESSION", drivers::formats::to_message(info, "bench", 0));
   const int cycle = 1574;
   std::mt19937 rng(1);
   std::normal_distribution<double> noise(0.0, 0.5);
@@ -53,8 +53,8 @@ std::string make_log(double seconds) {
       p.data[2 * f + 1] = 720.0 * x;
       for (int c = 0; c < 10; ++c) m.data[f * 10 + c] = noise(rng);
     }
-    write(log, "NOISEMON_RAW", drivers::to_message(p, 0, 0));
-    write(log, "NOISEMON_RAW", drivers::to_message(m, 1, 0));
+    write(log, "NOISEMON_RAW", drivers::formats::to_message(p, 0, 0));
+    write(log, "NOISEMON_RAW", drivers::formats::to_message(m, 1, 0));
   }
   return path;
 }

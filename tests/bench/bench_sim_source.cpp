@@ -9,8 +9,8 @@ namespace nd = noisemon::drivers;
 
 namespace {
 
-nd::SimConfig config(const benchmark::State& state) {
-  nd::SimConfig c;
+nd::sim::SimConfig config(const benchmark::State& state) {
+  nd::sim::SimConfig c;
   c.speed_rpm = static_cast<double>(state.range(0));
   c.load_nm = c.speed_rpm > 3200 ? 20.0 : 0.0;
   c.encoder_resolution_deg = 0.1 * static_cast<double>(state.range(1));
@@ -22,7 +22,7 @@ nd::SimConfig config(const benchmark::State& state) {
 // iteration in ms is the thread's load in thousandths of a core.
 template <class Generator>
 void run_stream(benchmark::State& state) {
-  const nd::SimConfig c = config(state);
+  const nd::sim::SimConfig c = config(state);
   nd::BlockRing ring(64);
   nd::SampleBlock block;
   Generator gen(c, 0.0);

@@ -41,7 +41,7 @@ double cell(int j, double a) { return 1.0 + j + a / 1000.0; }
 std::string table_error(const std::string& text) {
   try {
     parse_cycle_table(text, "t.txt");
-  } catch (const RunDirError& e) {
+  } catch (const formats::RunDirError& e) {
     return e.what();
   }
   return "(no error)";
@@ -65,7 +65,7 @@ TEST(CycleTable, EachColumnBecomesOneWholeCycleAboutItsFiringTdc) {
   o.condition.load_nm = 5;
   const CycleTableConversion c = cycle_table_to_run(t, o, "t.txt");
   EXPECT_TRUE(c.pegging_row_dropped);
-  const RunDir& run = c.run;
+  const formats::RunDir& run = c.run;
   ASSERT_EQ(run.crank_deg.size(), 3u * 1439u);
   EXPECT_EQ(run.condition.speed_rpm, 1200.0);
   EXPECT_EQ(run.condition.load_nm, 5);
@@ -122,7 +122,7 @@ TEST(CycleTable, PeggingRowChoice) {
   try {
     cycle_table_to_run(t, o, "t.txt");
     ADD_FAILURE() << "no error without a speed";
-  } catch (const RunDirError& e) {
+  } catch (const formats::RunDirError& e) {
     EXPECT_HAS(std::string(e.what()), "t.txt: the engine speed must be given");
   }
 }

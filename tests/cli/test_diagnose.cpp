@@ -283,7 +283,7 @@ TEST(Diagnose, ThesisProtocolOnTheThesisNonlinearSpringDamperNamesBothCubicTerms
   cli::SimCampaign c;
   c.conditions = cli::thesis_conditions();
   c.cycles = kCycles;
-  c.engine = drivers::with_ideal_cell(c.engine);
+  c.engine = drivers::sim::with_ideal_cell(c.engine);
   c.true_block = model::preset("nl_spring_damper");
   const model::fit::BandDataset data = cli::simulate_band_dataset(c);
   model::diagnosis::DiagnosisOptions opt;

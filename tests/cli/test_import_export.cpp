@@ -595,7 +595,7 @@ TEST(ImportExport, BadRunDirectoryFailsNamingTheFileAndLeavesNoLog) {
   try {
     cli::run_import(i);
     ADD_FAILURE() << "no error";
-  } catch (const drivers::RunDirError& e) {
+  } catch (const drivers::formats::RunDirError& e) {
     EXPECT_NE(std::string(e.what()).find((dir / "pressure.csv").string() + ": line 3: field pressure is \"oops\""),
               std::string::npos)
         << e.what();
@@ -788,7 +788,7 @@ TEST(ImportNulls, NullMotoredImportsButTheDiagnosisLoaderRefusesTheRun) {
   try {
     import_dir(dir, temp("motored_missing.lcmlog"));
     ADD_FAILURE() << "no error";
-  } catch (const drivers::RunDirError& e) {
+  } catch (const drivers::formats::RunDirError& e) {
     EXPECT_NE(std::string(e.what()).find((dir / "run.json").string() + ": missing key \"condition.motored\""),
               std::string::npos)
         << e.what();
@@ -835,7 +835,7 @@ TEST(ImportNulls, ImportThenExportKeepsNullsAsNull) {
   for (const char* key : {"load_nm", "soi_deg_btdc", "rail_pressure_bar"})
     EXPECT_NE(text.find("\"" + std::string(key) + "\": null"), std::string::npos) << key << " in " << text;
   EXPECT_NE(text.find("\"motored\": true"), std::string::npos) << text;
-  const drivers::RunDir back = drivers::read_run_dir(out);
+  const drivers::formats::RunDir back = drivers::formats::read_run_dir(out);
   EXPECT_TRUE(std::isnan(back.condition.load_nm));
   EXPECT_TRUE(std::isnan(back.condition.soi_deg_btdc));
   EXPECT_FALSE(back.condition.rail_pressure_bar.has_value());

@@ -62,8 +62,8 @@ double mic_at(int ch, double t) {
 }
 double wrap(double th) { return th - 720.0 * std::floor((th + 360.0) / 720.0); }
 
-RunDir analytic_run(double seconds) {
-  RunDir run;
+formats::RunDir analytic_run(double seconds) {
+  formats::RunDir run;
   run.condition = {"analytic", 2000.0, 12.5, 15.0, 800.0, false};
   for (int m = 0;; ++m) {
     const double th = kTheta0 + 0.2 * m;
@@ -189,7 +189,7 @@ fs::path good_log(const std::string& name, const Recording& rec) {
 }  // namespace
 
 TEST(Recording, RunDirToLogAndBackMatchesTheAnalyticSignals) {
-  const RunDir run = analytic_run(0.5);
+  const formats::RunDir run = analytic_run(0.5);
   const Recording rec = to_recording(run, 1'000'000'000'000);
   ASSERT_GT(rec.frames(), 19000u);  // 0.5 s less the resamplers' edges
   Errors e = compare(rec.first_index, rec.pressure_pa, rec.crank_deg, rec.mics_pa);
@@ -260,7 +260,7 @@ TEST(Recording, RunDirToLogAndBackMatchesTheAnalyticSignals) {
   const fs::path dir = temp("analytic_dir");
   fs::remove_all(dir);
   write_run_dir(dir, to_run_dir(back[0]));
-  const RunDir out = read_run_dir(dir);
+  const formats::RunDir out = formats::read_run_dir(dir);
   EXPECT_EQ(out.condition.name, "analytic");
   EXPECT_EQ(out.condition.speed_rpm, 2000.0);
   EXPECT_EQ(out.condition.load_nm, 12.5);
@@ -295,12 +295,12 @@ TEST(Recording, RunDirToLogAndBackMatchesTheAnalyticSignals) {
 }
 
 TEST(Recording, MissingEncoderSamplesAreFilledNotWarped) {
-  RunDir run = analytic_run(0.2);
+  formats::RunDir run = analytic_run(0.2);
   run.mic_count = 0;
   run.mic_pa.clear();
   run.mic_positions_m.clear();
   // Drop every 500th encoder sample (a missing edge every 100 deg).
-  RunDir holes = run;
+  formats::RunDir holes = run;
   holes.time_s.clear();
   holes.crank_deg.clear();
   holes.pressure_pa.clear();
@@ -321,25 +321,25 @@ TEST(Recording, MissingEncoderSamplesAreFilledNotWarped) {
 }
 
 TEST(Recording, PressureAndMicsThatDoNotOverlapAreAnError) {
-  RunDir run = analytic_run(0.1);
+  formats::RunDir run = analytic_run(0.1);
   for (double& t : run.time_s) t += 5.0;  // pressure 5 s after the WAV ends
   try {
     to_recording(run, 0);
     ADD_FAILURE() << "no error";
-  } catch (const RunDirError& e) {
+  } catch (const formats::RunDirError& e) {
     EXPECT_NE(std::string(e.what()).find("do not overlap in time"), std::string::npos) << e.what();
   }
 }
 
 TEST(RecordingUnknowns, ANullSpeedIsMeasuredFromTheEncoder) {
-  RunDir run = analytic_run(0.5);  // 2000 rpm with a 1 % ripple once per cycle
+  formats::RunDir run = analytic_run(0.5);  // 2000 rpm with a 1 % ripple once per cycle
   run.condition.speed_rpm = std::nan("");
   const Recording rec = to_recording(run, 0);
   ASSERT_EQ(rec.operating_points.size(), 1u);
   const double rpm = rec.operating_points[0].speed_rpm;
   std::printf("speed from the encoder: %.4f rpm (true mean 2000)\n", rpm);
   EXPECT_NEAR(rpm, 2000.0, 0.005 * 2000.0);
-  EXPECT_NEAR(encoder_speed_rpm(run), rpm, 1e-9);
+  EXPECT_NEAR(formats::encoder_speed_rpm(run), rpm, 1e-9);
 }
 
 namespace {
@@ -367,7 +367,7 @@ std::string read_text(const fs::path& p) {
 }  // namespace
 
 TEST(RecordingUnknowns, UnknownValuesTravelAsNaNThroughTheLogAndAreWrittenAsNull) {
-  RunDir run = analytic_run(0.2);
+  formats::RunDir run = analytic_run(0.2);
   run.condition = {"nulls", 2000.0, std::nan(""), std::nan(""), std::nullopt, false, false};
   const Recording rec = to_recording(run, 5'000'000);
   ASSERT_EQ(rec.operating_points.size(), 1u);
@@ -397,7 +397,7 @@ TEST(RecordingUnknowns, UnknownValuesTravelAsNaNThroughTheLogAndAreWrittenAsNull
   const std::string text = read_text(dir / "run.json");
   for (const char* key : {"load_nm", "soi_deg_btdc", "rail_pressure_bar"})
     EXPECT_NE(text.find("\"" + std::string(key) + "\": null"), std::string::npos) << key << " in " << text;
-  const RunDir again = read_run_dir(dir);
+  const formats::RunDir again = formats::read_run_dir(dir);
   EXPECT_TRUE(std::isnan(again.condition.load_nm));
   EXPECT_TRUE(std::isnan(again.condition.soi_deg_btdc));
   EXPECT_EQ(again.condition.speed_rpm, 3000.0);
@@ -421,8 +421,8 @@ TEST(RecordingUnknowns, ALogWithoutOperatingPointsHasAMeasuredSpeedAndNothingMad
 TEST(LcmLogReader, ReadsWhatLcmsOwnReaderReads) {
   const fs::path p = good_log("reference", small_recording("a", 5'000'000));
   lcm::LogFile ref(p.string(), "r");
-  LcmLogReader mine(p);
-  LcmLogEvent e;
+  formats::LcmLogReader mine(p);
+  formats::LcmLogEvent e;
   int n = 0;
   while (const lcm::LogEvent* r = ref.readNextEvent()) {
     ASSERT_TRUE(mine.next(e));

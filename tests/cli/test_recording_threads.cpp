@@ -20,8 +20,8 @@ namespace fs = std::filesystem;
 namespace {
 
 // 0.2 s of a 0.5 deg encoder at 3000 rpm (a pressure peak every cycle) and two 51.2 kHz microphones.
-RunDir small_run(bool mics = true) {
-  RunDir run;
+formats::RunDir small_run(bool mics = true) {
+  formats::RunDir run;
   run.condition = {"threads", 3000.0, 10.0, 12.0, 900.0, false};
   for (int i = 0;; ++i) {
     const double crank = -360.0 + 0.5 * i, t = (crank + 360.0) / 18000.0 + 0.001;
@@ -46,7 +46,7 @@ bool same_bits(const std::vector<double>& a, const std::vector<double>& b) {
   return a.size() == b.size() && (a.empty() || std::memcmp(a.data(), b.data(), a.size() * sizeof(double)) == 0);
 }
 
-std::string error_of(RunDir run) {
+std::string error_of(formats::RunDir run) {
   try {
     to_recording(run, 0);
   } catch (const std::exception& e) {
@@ -59,9 +59,9 @@ std::string error_of(RunDir run) {
 
 TEST(RecordingThreads, AMovedRunGivesTheSameRecordingAndIsFreed) {
   for (const bool mics : {true, false}) {
-    const RunDir run = small_run(mics);
+    const formats::RunDir run = small_run(mics);
     const Recording a = to_recording(run, 1'000'000);
-    RunDir moved = run;
+    formats::RunDir moved = run;
     const Recording b = to_recording(std::move(moved), 1'000'000);
     EXPECT_EQ(a.first_index, b.first_index);
     EXPECT_GT(a.frames(), 7000u);
@@ -82,20 +82,20 @@ TEST(RecordingThreads, AMovedRunGivesTheSameRecordingAndIsFreed) {
 }
 
 TEST(RecordingThreads, AnUnknownSpeedIsMeasuredBeforeTheColumnsAreFreed) {
-  RunDir run = small_run();
+  formats::RunDir run = small_run();
   run.condition.speed_rpm = std::nan("");
   const Recording rec = to_recording(std::move(run), 0);
   EXPECT_NEAR(rec.operating_points.at(0).speed_rpm, 3000.0, 1e-6);
 }
 
 TEST(RecordingThreads, EitherThreadsErrorReachesTheCallerThePressuresFirst) {
-  RunDir bad_mics = small_run();
+  formats::RunDir bad_mics = small_run();
   bad_mics.mic_rate_hz = 44100.5;
   EXPECT_NE(error_of(bad_mics).find("RationalResampler"), std::string::npos) << error_of(bad_mics);
-  RunDir bad_pressure = small_run();
+  formats::RunDir bad_pressure = small_run();
   std::swap(bad_pressure.time_s[100], bad_pressure.time_s[101]);
   EXPECT_NE(error_of(bad_pressure).find("strictly increasing"), std::string::npos) << error_of(bad_pressure);
-  RunDir both = bad_pressure;
+  formats::RunDir both = bad_pressure;
   both.mic_rate_hz = 44100.5;
   EXPECT_NE(error_of(both).find("strictly increasing"), std::string::npos) << error_of(both);
 }

@@ -334,18 +334,18 @@ std::vector<Stamped> processed_in_log_order(const std::string& path, const daemo
       const auto keep = [&](const daemon::CycleReport& r) {
         out.push_back(stamped(daemon::to_message(r), r.window_end_utime));
       };
-      processor = std::make_unique<daemon::CycleProcessor>(pc, drivers::from_message(s), keep);
+      processor = std::make_unique<daemon::CycleProcessor>(pc, drivers::formats::from_message(s), keep);
     } else if (e->channel == "NOISEMON_OP") {
       noisemon::operating_point_t m;
       EXPECT_EQ(m.decode(e->data, 0, e->datalen), e->datalen);
-      processor->set_operating_point(drivers::from_message(m));
+      processor->set_operating_point(drivers::formats::from_message(m));
     } else if (e->channel == "NOISEMON_RAW") {
       noisemon::raw_block_t m;
       EXPECT_EQ(m.decode(e->data, 0, e->datalen), e->datalen);
       if (m.stream == noisemon::raw_block_t::STREAM_PRESSURE)
-        processor->add_pressure(drivers::from_message(m));
+        processor->add_pressure(drivers::formats::from_message(m));
       else
-        processor->add_mics(drivers::from_message(m));
+        processor->add_mics(drivers::formats::from_message(m));
       processor->process();
     }
   }

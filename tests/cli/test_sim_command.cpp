@@ -32,8 +32,8 @@
 #include "tests/support/unique_temp.hpp"
 
 namespace fs = std::filesystem;
-using noisemon::drivers::read_run_dir;
-using noisemon::drivers::RunDir;
+using noisemon::drivers::formats::read_run_dir;
+using noisemon::drivers::formats::RunDir;
 using cd = std::complex<double>;
 
 namespace {

@@ -119,7 +119,7 @@ TEST(Config, HardwareExampleFileIsAValidComediAndCanConfiguration) {
   EXPECT_EQ(c.can.interface, "can0");
   ASSERT_EQ(c.can.map.signals().size(), 5u);
   // The acquisitions the source would open from it: pressure in Pa per volt through 16.2 pC/bar x 5 mV/pC.
-  const auto a = noisemon::drivers::comedi_acquisitions(c.comedi);
+  const auto a = noisemon::drivers::comedi::comedi_acquisitions(c.comedi);
   ASSERT_EQ(a.size(), 3u);
   EXPECT_NEAR(a[0].channels[0].si_per_volt, 1e5 / (16.2 * 5.0 * 1e-3), 1e-6);
   EXPECT_NEAR(a[2].channels[3].si_per_volt, 1.0 / 48.8e-3, 1e-9);
@@ -182,7 +182,7 @@ wake_every_scan = true
   hw.comedi.encoder.subdevice = 0;
   hw.comedi.encoder.timestamp_subdevice = 1;
   hw.comedi.mics.wake_every_scan = true;
-  const auto a = noisemon::drivers::comedi_acquisitions(hw.comedi);
+  const auto a = noisemon::drivers::comedi::comedi_acquisitions(hw.comedi);
   ASSERT_EQ(a.size(), 4u);
   EXPECT_EQ(a[0].buffer_bytes, 1048576u);
   EXPECT_FALSE(a[0].wake_every_scan);
@@ -456,14 +456,14 @@ duration_s = 30
 )",
                                 "f.toml");
   ASSERT_EQ(c.sim.faults.size(), 3u);
-  EXPECT_EQ(c.sim.faults[0].kind, noisemon::drivers::SimFaultKind::kMissingEdges);
+  EXPECT_EQ(c.sim.faults[0].kind, noisemon::drivers::sim::SimFaultKind::kMissingEdges);
   EXPECT_DOUBLE_EQ(c.sim.faults[0].at_s, 2.5);
   EXPECT_DOUBLE_EQ(c.sim.faults[0].duration_s, 0.5);
   EXPECT_DOUBLE_EQ(c.sim.faults[0].per_rev, 7.0);
-  EXPECT_EQ(c.sim.faults[1].kind, noisemon::drivers::SimFaultKind::kOverload);
+  EXPECT_EQ(c.sim.faults[1].kind, noisemon::drivers::sim::SimFaultKind::kOverload);
   EXPECT_EQ(c.sim.faults[1].target, 9);  // mic10, 0-based
   EXPECT_DOUBLE_EQ(c.sim.faults[1].gain, 8.0);
-  EXPECT_EQ(c.sim.faults[2].target, noisemon::drivers::kMicsTarget);
+  EXPECT_EQ(c.sim.faults[2].target, noisemon::drivers::sim::kMicsTarget);
   EXPECT_DOUBLE_EQ(c.sim.faults[2].duration_s, 30.0);
   EXPECT_TRUE(Config().sim.faults.empty());  // none by default
 

@@ -85,7 +85,7 @@ TEST(RealTimePath, TheCountersSeeAllocationsAndLocks) {
 }
 
 TEST(RealTimePath, DriverGeneratorsAndTheEncoderDecoderNeitherAllocateNorLockOnceRunning) {
-  nd::SimConfig config;
+  nd::sim::SimConfig config;
   nd::sim::PressureGenerator pressure(config, 0.0);
   nd::sim::MicGenerator mics(config, 0.0);
   nd::BlockRing pressure_ring(4096), mic_ring(4096), angle_ring(8192);

@@ -309,7 +309,7 @@ TEST(SoundPowerSetup, NamesTheMicrophoneOffTheHemisphereAndTheSurfaceTooSmall) {
 }
 
 TEST(SoundPowerSetup, BackgroundRunGivesTheWhiteNoiseBandLevels) {
-  drivers::RunDir run;
+  drivers::formats::RunDir run;
   run.condition.name = "background";
   run.condition.speed_rpm = NAN;  // the engine is off: null in run.json
   for (int i = 0; i < 20; ++i) {  // a few rows of a resting engine: the background ignores them
@@ -325,7 +325,7 @@ TEST(SoundPowerSetup, BackgroundRunGivesTheWhiteNoiseBandLevels) {
   std::normal_distribution<double> noise(0.0, sigma);
   for (int k = 0; k < 2 * 8 * static_cast<int>(fs); ++k) run.mic_pa.push_back(static_cast<float>(noise(rng)));
   const std::filesystem::path dir = test::unique_temp("background");
-  drivers::write_run_dir(dir, run);
+  drivers::formats::write_run_dir(dir, run);
   const std::vector<double> levels = daemon::background_from_run_dir(dir);
   ASSERT_EQ(levels.size(), static_cast<std::size_t>(daemon::kBackgroundBands));
   for (int i = 0; i < daemon::kBackgroundBands; ++i) {
@@ -339,7 +339,7 @@ TEST(SoundPowerSetup, BackgroundRunGivesTheWhiteNoiseBandLevels) {
 }
 
 TEST(SoundPowerSetup, BackgroundRunWithoutMicrophonesIsRefusedNamingTheFile) {
-  drivers::RunDir run;
+  drivers::formats::RunDir run;
   run.condition.name = "no mics";
   run.condition.speed_rpm = NAN;
   for (int i = 0; i < 20; ++i) {
@@ -348,7 +348,7 @@ TEST(SoundPowerSetup, BackgroundRunWithoutMicrophonesIsRefusedNamingTheFile) {
     run.pressure_pa.push_back(1e5);
   }
   const std::filesystem::path dir = test::unique_temp("nomics");
-  drivers::write_run_dir(dir, run);
+  drivers::formats::write_run_dir(dir, run);
   try {
     daemon::background_from_run_dir(dir);
     FAIL() << "no error";

@@ -236,7 +236,7 @@ TEST(LcmSource, BlocksOfAnotherSessionAreCountedNotMixedIn) {
     if (!pub.good()) _exit(124);
     noisemon::drivers::StreamInfo a;
     a.epoch_utime = 1'700'000'000'000'000;
-    const noisemon::session_t session = noisemon::drivers::to_message(a, "test", a.epoch_utime, "run_a");
+    const noisemon::session_t session = noisemon::drivers::formats::to_message(a, "test", a.epoch_utime, "run_a");
     std::atomic<bool> constructed{false};
     std::thread announcer([&] {  // the source's constructor waits for the session
       while (!constructed) {
@@ -244,12 +244,12 @@ TEST(LcmSource, BlocksOfAnotherSessionAreCountedNotMixedIn) {
         std::this_thread::sleep_for(std::chrono::milliseconds(20));
       }
     });
-    noisemon::drivers::LcmSourceConfig lc;
+    noisemon::drivers::lcm::LcmSourceConfig lc;
     lc.url = url;
     lc.session_timeout_s = allowance_s(1.25);
     std::unique_ptr<noisemon::drivers::Source> src;
     try {
-      src = noisemon::drivers::make_lcm_source(lc);
+      src = noisemon::drivers::lcm::make_lcm_source(lc);
     } catch (...) {
       constructed = true;
       announcer.join();
@@ -270,7 +270,8 @@ TEST(LcmSource, BlocksOfAnotherSessionAreCountedNotMixedIn) {
     for (int k = 0; k < 5; ++k) {
       b.first_index = 4 * (k % 2);
       const std::int64_t epoch = k < 2 ? a.epoch_utime : a.epoch_utime + 60'000'000;  // blocks 2..4: the next run
-      const noisemon::raw_block_t m = noisemon::drivers::to_message(b, noisemon::raw_block_t::STREAM_PRESSURE, epoch);
+      const noisemon::raw_block_t m =
+          noisemon::drivers::formats::to_message(b, noisemon::raw_block_t::STREAM_PRESSURE, epoch);
       pub.publish("NOISEMON_RAW", &m);
     }
     std::int64_t blocks = -1, other = -1;

@@ -52,19 +52,19 @@ void append(std::vector<std::byte>& out, T value) {
 
 // A pipe standing in for a subdevice's descriptor; conversions as a hard-calibrated 16-bit card (or raw 32-bit
 // counters) computes them.
-class PipeAcquisition final : public nd::Acquisition {
+class PipeAcquisition final : public nd::comedi::Acquisition {
  public:
-  PipeAcquisition(const nd::ComediAcquisitionConfig& cfg, std::int64_t origin) : cfg_(cfg), origin_(origin) {
+  PipeAcquisition(const nd::comedi::ComediAcquisitionConfig& cfg, std::int64_t origin) : cfg_(cfg), origin_(origin) {
     if (pipe2(fds_, O_CLOEXEC) != 0) throw std::runtime_error("pipe");
     fcntl(fds_[1], F_SETPIPE_SZ, 1 << 20);
     bool counters = false;
     for (const auto& ch : cfg.channels) {
       counters = counters || ch.raw_counts;
       conversions_.push_back(
-          ch.raw_counts ? nd::linear_conversion(0.0, 4294967295.0, 4294967295u, 1.0)
-                        : nd::linear_conversion(kRangeLo[ch.range], kRangeHi[ch.range], 65535, ch.si_per_volt));
+          ch.raw_counts ? nd::comedi::linear_conversion(0.0, 4294967295.0, 4294967295u, 1.0)
+                        : nd::comedi::linear_conversion(kRangeLo[ch.range], kRangeHi[ch.range], 65535, ch.si_per_volt));
     }
-    width_ = counters ? nd::SampleWidth::k32Bit : nd::SampleWidth::k16Bit;
+    width_ = counters ? nd::comedi::SampleWidth::k32Bit : nd::comedi::SampleWidth::k16Bit;
   }
   ~PipeAcquisition() override {
     if (writer_.joinable()) writer_.join();
@@ -73,9 +73,11 @@ class PipeAcquisition final : public nd::Acquisition {
   }
   std::string where() const override { return cfg_.device_path + " subdevice " + std::to_string(cfg_.subdevice); }
   int fd() const override { return fds_[0]; }
-  nd::SampleWidth sample_width() const override { return width_; }
-  const std::vector<nd::ChannelConversion>& conversions() const override { return conversions_; }
-  double scan_period_s() const override { return cfg_.clock == nd::ScanClock::kTimed ? 1.0 / cfg_.scan_rate_hz : 0.0; }
+  nd::comedi::SampleWidth sample_width() const override { return width_; }
+  const std::vector<nd::comedi::ChannelConversion>& conversions() const override { return conversions_; }
+  double scan_period_s() const override {
+    return cfg_.clock == nd::comedi::ScanClock::kTimed ? 1.0 / cfg_.scan_rate_hz : 0.0;
+  }
   void start() override { ++starts; }
   bool restart() override {
     ++restarts;
@@ -84,7 +86,7 @@ class PipeAcquisition final : public nd::Acquisition {
   }
   void cancel() override { ++cancels; }
   std::int64_t origin_utime() const override { return origin_; }
-  nd::ReadFunction read_function() const override {
+  nd::comedi::ReadFunction read_function() const override {
     return [this](int fd, void* buf, std::size_t size) -> ssize_t {
       auto* self = const_cast<PipeAcquisition*>(this);
       std::size_t n = size;
@@ -120,7 +122,7 @@ class PipeAcquisition final : public nd::Acquisition {
     });
   }
 
-  nd::ComediAcquisitionConfig cfg_;
+  nd::comedi::ComediAcquisitionConfig cfg_;
   std::atomic<int> starts{0}, restarts{0}, cancels{0};
   std::atomic<std::size_t> delivered{0};
   std::size_t total = 0;
@@ -132,8 +134,8 @@ class PipeAcquisition final : public nd::Acquisition {
  private:
   int fds_[2];
   std::int64_t origin_;
-  nd::SampleWidth width_;
-  std::vector<nd::ChannelConversion> conversions_;
+  nd::comedi::SampleWidth width_;
+  std::vector<nd::comedi::ChannelConversion> conversions_;
   std::thread writer_;
 };
 
@@ -256,8 +258,8 @@ inline std::vector<std::byte> mic_bytes(double duration_s, std::size_t from_scan
 
 // ---- the source under test ---------------------------------------------------------------------------------
 
-inline nd::ComediSourceConfig source_config(const EngineSetup& s) {
-  nd::ComediSourceConfig c;
+inline nd::comedi::ComediSourceConfig source_config(const EngineSetup& s) {
+  nd::comedi::ComediSourceConfig c;
   c.pressure.device = "/dev/test-pressure";
   c.pressure.subdevice = 0;
   if (s.charge_chain) {
@@ -269,13 +271,14 @@ inline nd::ComediSourceConfig source_config(const EngineSetup& s) {
   }
   if (s.cam) {
     c.pressure.cam_channel = 3;
-    c.phase = nd::PhaseSource::kCam;
+    c.phase = nd::comedi::PhaseSource::kCam;
     c.cam_edge_deg = -100.0;
   }
   c.encoder.device = "/dev/test-counter";
   c.encoder.subdevice = 11;
   if (s.separate_timestamp) c.encoder.timestamp_subdevice = 12;
-  c.encoder.timestamp_mode = s.period_timestamps ? nd::TimestampMode::kPeriod : nd::TimestampMode::kAbsolute;
+  c.encoder.timestamp_mode =
+      s.period_timestamps ? nd::comedi::TimestampMode::kPeriod : nd::comedi::TimestampMode::kAbsolute;
   c.encoder.timestamp_bits = s.timestamp_bits;
   c.encoder.timebase_hz = kTimebase;
   c.encoder.counts_per_rev = kCountsPerRev;
@@ -298,11 +301,12 @@ struct Harness {
   nd::BlockRing pressure{1024}, mics{1024}, angle{4096};
   nd::OperatingPointRing op{16};
 
-  explicit Harness(const nd::ComediSourceConfig& config) {
-    source = nd::make_comedi_source(
+  explicit Harness(const nd::comedi::ComediSourceConfig& config) {
+    source = nd::comedi::make_comedi_source(
         config,
-        [this](const nd::ComediAcquisitionConfig& a) {
-          const std::int64_t origin = kEpoch + (a.clock == nd::ScanClock::kTimed ? kMicOriginUs : kEdgeOriginUs);
+        [this](const nd::comedi::ComediAcquisitionConfig& a) {
+          const std::int64_t origin =
+              kEpoch + (a.clock == nd::comedi::ScanClock::kTimed ? kMicOriginUs : kEdgeOriginUs);
           auto p = std::make_unique<PipeAcquisition>(a, origin);
           acquisitions.push_back(p.get());
           return p;

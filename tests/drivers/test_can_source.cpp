@@ -76,7 +76,7 @@ length = 1
 byte_order = "intel"
 )";
 
-nd::CanSignalMap example_map() { return nd::parse_can_signal_map(toml::parse(kMap), "test map"); }
+nd::formats::CanSignalMap example_map() { return nd::formats::parse_can_signal_map(toml::parse(kMap), "test map"); }
 
 // A recorded bus. Expected values by hand:
 //  EEC1 data "FF FF FF 40 5F FF FF FF": bytes 3-4 little-endian 0x5F40 = 24384 * 0.125 = 3048 rpm;
@@ -138,12 +138,12 @@ void wait_until_stopped(const nd::SourceBase& s) {
 }  // namespace
 
 TEST(CandumpSource, FixtureDecodesToTheHandComputedOperatingPoints) {
-  nd::CanSourceConfig c;
+  nd::can::CanSourceConfig c;
   c.candump_path = write_log();
   c.interface = "can0";
   c.paced = false;
   c.map = example_map();
-  auto source = nd::make_can_source(c);
+  auto source = nd::can::make_can_source(c);
   nd::OperatingPointRing ring(64);
   source->start(ring);
   wait_until_stopped(*source);
@@ -167,11 +167,11 @@ TEST(CandumpSource, FixtureDecodesToTheHandComputedOperatingPoints) {
 }
 
 TEST(CandumpSource, PacedReplayKeepsTheRecordedSpacing) {
-  nd::CanSourceConfig c;
+  nd::can::CanSourceConfig c;
   c.candump_path = write_log();
   c.paced = true;  // all interfaces: the can1 frame counts too
   c.map = example_map();
-  auto source = nd::make_can_source(c);
+  auto source = nd::can::make_can_source(c);
   nd::OperatingPointRing ring(64);
   const std::int64_t t0 = nd::wall_utime();
   source->start(ring);
@@ -199,25 +199,25 @@ TEST(CandumpSource, PacedReplayKeepsTheRecordedSpacing) {
 }
 
 TEST(CandumpSource, MissingFileAndEmptyMapAreErrorsNamingThem) {
-  nd::CanSourceConfig c;
+  nd::can::CanSourceConfig c;
   c.candump_path = "/nonexistent/bus.log";
   c.map = example_map();
   try {
-    nd::make_can_source(c);
+    nd::can::make_can_source(c);
     FAIL();
   } catch (const std::runtime_error& e) {
     EXPECT_NE(std::string(e.what()).find("/nonexistent/bus.log"), std::string::npos) << e.what();
   }
   c.map = {};
-  EXPECT_THROW(nd::make_can_source(c), std::invalid_argument);
+  EXPECT_THROW(nd::can::make_can_source(c), std::invalid_argument);
 }
 
 TEST(SocketCanSource, MissingInterfaceIsAnErrorNamingIt) {
-  nd::CanSourceConfig c;
+  nd::can::CanSourceConfig c;
   c.interface = "nmcan7";
   c.map = example_map();
   try {
-    nd::make_can_source(c);
+    nd::can::make_can_source(c);
     FAIL() << "opened a CAN interface that does not exist";
   } catch (const std::runtime_error& e) {
     EXPECT_NE(std::string(e.what()).find("'nmcan7'"), std::string::npos) << e.what();
@@ -225,7 +225,7 @@ TEST(SocketCanSource, MissingInterfaceIsAnErrorNamingIt) {
   // An interface that exists but is no CAN device (or a kernel without CAN): still named.
   c.interface = "lo";
   try {
-    nd::make_can_source(c);
+    nd::can::make_can_source(c);
     FAIL() << "opened loopback as a CAN interface";
   } catch (const std::runtime_error& e) {
     EXPECT_NE(std::string(e.what()).find("'lo'"), std::string::npos) << e.what();
@@ -251,7 +251,7 @@ class SocketCanPair : public ::testing::Test {
 };
 
 TEST_F(SocketCanPair, FramesBecomeOperatingPointsAndErrorsAreCounted) {
-  auto source = nd::make_socketcan_source_on_fd(fds_[1], example_map(), "pair");
+  auto source = nd::can::make_socketcan_source_on_fd(fds_[1], example_map(), "pair");
   nd::OperatingPointRing ring(64);
   source->start(ring);
   send_frame(0x0CF00400 | CAN_EFF_FLAG, {0xFF, 0xFF, 0xFF, 0x40, 0x5F, 0xFF, 0xFF, 0xFF});  // 3048 rpm
@@ -311,7 +311,8 @@ class StubStreams final : public nd::Source {
 TEST_F(SocketCanPair, CombinedSourceTakesStreamsFromOneAndOperatingPointsFromTheOther) {
   auto stub = std::make_unique<StubStreams>();
   StubStreams* stub_ptr = stub.get();
-  auto combined = nd::combine_sources(std::move(stub), nd::make_socketcan_source_on_fd(fds_[1], example_map(), "pair"));
+  auto combined =
+      nd::combine_sources(std::move(stub), nd::can::make_socketcan_source_on_fd(fds_[1], example_map(), "pair"));
   EXPECT_EQ(combined->name(), "stub+socketcan");
   EXPECT_EQ(combined->info().mic_count, 3u);
   nd::BlockRing pressure(4), mics(4);

@@ -10,22 +10,22 @@
 namespace noisemon::drivers {
 namespace {
 
-CandumpRecord parse_ok(const std::string& line) {
-  CandumpRecord r;
+formats::CandumpRecord parse_ok(const std::string& line) {
+  formats::CandumpRecord r;
   std::string error;
-  EXPECT_TRUE(parse_candump_line(line, 1, r, error)) << line << ": " << error;
+  EXPECT_TRUE(formats::parse_candump_line(line, 1, r, error)) << line << ": " << error;
   return r;
 }
 
 std::string parse_err(const std::string& line, std::size_t line_number = 7) {
-  CandumpRecord r;
+  formats::CandumpRecord r;
   std::string error;
-  EXPECT_FALSE(parse_candump_line(line, line_number, r, error)) << line;
+  EXPECT_FALSE(formats::parse_candump_line(line, line_number, r, error)) << line;
   return error;
 }
 
 TEST(Candump, StandardDataFrame) {
-  const CandumpRecord r = parse_ok("(1700000000.123456) can0 123#DEADBEEF");
+  const formats::CandumpRecord r = parse_ok("(1700000000.123456) can0 123#DEADBEEF");
   EXPECT_EQ(r.utime, 1700000000LL * 1000000 + 123456);
   EXPECT_EQ(r.interface, "can0");
   EXPECT_EQ(r.frame.id, 0x123U);
@@ -39,34 +39,34 @@ TEST(Candump, StandardDataFrame) {
 }
 
 TEST(Candump, ExtendedFrameDecodesThroughSignalMap) {
-  const CandumpRecord r = parse_ok("(1700000001.000001) vcan1 0CF00400#ffffffe02effffff\r");
+  const formats::CandumpRecord r = parse_ok("(1700000001.000001) vcan1 0CF00400#ffffffe02effffff\r");
   EXPECT_EQ(r.utime, 1700000001000001LL);
   EXPECT_EQ(r.frame.id, 0x0CF00400U);
   EXPECT_TRUE(r.frame.extended);
   EXPECT_EQ(r.frame.dlc, 8);
   // J1939 EEC1 engine speed, bytes 4-5 at 0.125 rpm/bit: 0x2EE0 = 12000 -> 1500 rpm.
-  CanSignal s;
+  formats::CanSignal s;
   s.id = 0x0CF00400;
   s.extended = true;
   s.start_bit = 24;
   s.length = 16;
   s.factor = 0.125;
   OperatingPoint op;
-  EXPECT_EQ(CanSignalMap({s}).decode(r.frame, op), 1);
+  EXPECT_EQ(formats::CanSignalMap({s}).decode(r.frame, op), 1);
   EXPECT_DOUBLE_EQ(op.speed_rpm, 1500.0);
 }
 
 TEST(Candump, EmptyRemoteAndShortFraction) {
-  const CandumpRecord e = parse_ok("(1.5) can0 7FF#");
+  const formats::CandumpRecord e = parse_ok("(1.5) can0 7FF#");
   EXPECT_EQ(e.utime, 1500000);
   EXPECT_EQ(e.frame.dlc, 0);
-  const CandumpRecord r = parse_ok("(2.000000) can0 123#R");
+  const formats::CandumpRecord r = parse_ok("(2.000000) can0 123#R");
   EXPECT_TRUE(r.remote);
   EXPECT_EQ(r.frame.dlc, 0);
-  const CandumpRecord r3 = parse_ok("(2.000000) can0 123#R3");
+  const formats::CandumpRecord r3 = parse_ok("(2.000000) can0 123#R3");
   EXPECT_TRUE(r3.remote);
   EXPECT_EQ(r3.frame.dlc, 3);
-  const CandumpRecord dotted = parse_ok("(3.1234567) can0 001#11.22.33");
+  const formats::CandumpRecord dotted = parse_ok("(3.1234567) can0 001#11.22.33");
   EXPECT_EQ(dotted.utime, 3123456);  // sub-microsecond digits truncated
   EXPECT_EQ(dotted.frame.dlc, 3);
   EXPECT_EQ(dotted.frame.data[2], 0x33);
@@ -105,8 +105,8 @@ TEST(CandumpReader, SkipsAndCountsBadLines) {
          "garbage\n"
          "(1700000000.000400) can1 321#R\n";
   }
-  CandumpReader reader(path);
-  CandumpRecord r;
+  formats::CandumpReader reader(path);
+  formats::CandumpRecord r;
   std::vector<std::int64_t> times;
   while (reader.next(r)) times.push_back(r.utime);
   std::remove(path);
@@ -118,7 +118,7 @@ TEST(CandumpReader, SkipsAndCountsBadLines) {
 
 TEST(CandumpReader, MissingFileNamesPath) {
   try {
-    CandumpReader reader("/nonexistent/noisemon.log");
+    formats::CandumpReader reader("/nonexistent/noisemon.log");
     FAIL() << "expected an error";
   } catch (const std::runtime_error& e) {
     EXPECT_NE(std::string(e.what()).find("/nonexistent/noisemon.log"), std::string::npos);

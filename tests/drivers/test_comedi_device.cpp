@@ -28,7 +28,7 @@ struct Step {
   int err = 0;
 };
 
-nd::ReadFunction scripted(std::deque<Step>& steps) {
+nd::comedi::ReadFunction scripted(std::deque<Step>& steps) {
   return [&steps](int, void* buf, std::size_t size) -> ssize_t {
     if (steps.empty()) return 0;
     const Step s = steps.front();
@@ -43,8 +43,8 @@ nd::ReadFunction scripted(std::deque<Step>& steps) {
   };
 }
 
-nd::ReadLoopConfig test_config() {
-  nd::ReadLoopConfig c;
+nd::comedi::ReadLoopConfig test_config() {
+  nd::comedi::ReadLoopConfig c;
   c.device_path = "/dev/comedi7";
   c.subdevice = 3;
   c.initial_backoff = std::chrono::microseconds(1000);
@@ -59,11 +59,11 @@ TEST(ComediDevice, MissingDeviceErrorNamesPath) {
   const std::string path = "/dev/comedi0";
   struct stat st {};
   if (stat(path.c_str(), &st) == 0) GTEST_SKIP() << path << " exists on this machine";
-  nd::ComediAcquisitionConfig cfg;
+  nd::comedi::ComediAcquisitionConfig cfg;
   cfg.device_path = path;
   cfg.channels = {{.channel = 0, .range = 0, .aref = AREF_GROUND, .si_per_volt = 1.0}};
   try {
-    nd::ComediDevice dev(cfg);
+    nd::comedi::ComediDevice dev(cfg);
     FAIL() << "opening a missing device succeeded";
   } catch (const std::runtime_error& e) {
     EXPECT_NE(std::string(e.what()).find(path), std::string::npos) << e.what();
@@ -76,7 +76,7 @@ TEST(ComediReadLoop, OverrunRestartsAndCounts) {
   int restarts = 0;
   std::array<std::byte, 256> buffer{};
   std::atomic<bool> stop{false};
-  const auto r = nd::run_read_loop(
+  const auto r = nd::comedi::run_read_loop(
       -1, buffer, [&](const std::byte*, std::size_t n) { chunks.push_back(n); }, [&] { return ++restarts, true; }, stop,
       test_config(), scripted(steps));
   EXPECT_FALSE(r.failed) << r.message;
@@ -93,7 +93,7 @@ TEST(ComediReadLoop, ConsecutiveOverrunsBackOffThenGiveUp) {
   std::array<std::byte, 64> buffer{};
   std::atomic<bool> stop{false};
   const auto t0 = std::chrono::steady_clock::now();
-  const auto r = nd::run_read_loop(
+  const auto r = nd::comedi::run_read_loop(
       -1, buffer, [](const std::byte*, std::size_t) {}, [&] { return ++restarts, true; }, stop, test_config(),
       scripted(steps));
   const auto elapsed = std::chrono::steady_clock::now() - t0;
@@ -108,7 +108,7 @@ TEST(ComediReadLoop, FailedRestartEndsWithError) {
   std::deque<Step> steps{{-1, EPIPE}};
   std::array<std::byte, 64> buffer{};
   std::atomic<bool> stop{false};
-  const auto r = nd::run_read_loop(
+  const auto r = nd::comedi::run_read_loop(
       -1, buffer, [](const std::byte*, std::size_t) {}, [] { return false; }, stop, test_config(), scripted(steps));
   EXPECT_TRUE(r.failed);
   EXPECT_EQ(r.overruns, 1u);
@@ -122,7 +122,7 @@ TEST(ComediReadLoop, ReadErrorOnRealDescriptorNamesDevice) {
   std::array<std::byte, 64> buffer{};
   std::atomic<bool> stop{false};
   int restarts = 0;
-  const auto r = nd::run_read_loop(
+  const auto r = nd::comedi::run_read_loop(
       fds[1], buffer, [](const std::byte*, std::size_t) {}, [&] { return ++restarts, true; }, stop, test_config());
   close(fds[0]);
   close(fds[1]);
@@ -138,7 +138,7 @@ TEST(ComediReadLoop, EofOfClosedPipeEndsCleanly) {
   close(fds[1]);
   std::array<std::byte, 64> buffer{};
   std::atomic<bool> stop{false};
-  const auto r = nd::run_read_loop(
+  const auto r = nd::comedi::run_read_loop(
       fds[0], buffer, [](const std::byte*, std::size_t) {}, [] { return true; }, stop, test_config());
   close(fds[0]);
   EXPECT_FALSE(r.failed);
@@ -150,14 +150,14 @@ TEST(ComediReadLoop, StopRequestedEndsBeforeReading) {
   std::deque<Step> steps{{10}};
   std::array<std::byte, 64> buffer{};
   std::atomic<bool> stop{true};
-  const auto r = nd::run_read_loop(
+  const auto r = nd::comedi::run_read_loop(
       -1, buffer, [](const std::byte*, std::size_t) {}, [] { return true; }, stop, test_config(), scripted(steps));
   EXPECT_FALSE(r.failed);
   EXPECT_EQ(steps.size(), 1u);
 }
 
 TEST(ComediCommand, ChannelListUsesCrPackLayout) {
-  const auto list = nd::pack_channel_list(
+  const auto list = nd::comedi::pack_channel_list(
       {{.channel = 5, .range = 2, .aref = AREF_DIFF}, {.channel = 0, .range = 0, .aref = AREF_GROUND}});
   ASSERT_EQ(list.size(), 2u);
   EXPECT_EQ(list[0], 5u | (2u << 16) | (static_cast<unsigned>(AREF_DIFF) << 24));
@@ -166,7 +166,7 @@ TEST(ComediCommand, ChannelListUsesCrPackLayout) {
 
 TEST(ComediCommand, ExternalScanClock) {
   unsigned chanlist[2] = {1, 2};
-  const comedi_cmd cmd = nd::external_scan_command(4, 1, chanlist, 2);
+  const comedi_cmd cmd = nd::comedi::external_scan_command(4, 1, chanlist, 2);
   EXPECT_EQ(cmd.subdev, 4u);
   EXPECT_EQ(cmd.start_src, static_cast<unsigned>(TRIG_NOW));
   EXPECT_EQ(cmd.scan_begin_src, static_cast<unsigned>(TRIG_EXT));
@@ -180,10 +180,10 @@ TEST(ComediCommand, ExternalScanClock) {
 
 TEST(ComediCommand, SettlesAdjustedArguments) {
   unsigned chanlist[1] = {0};
-  comedi_cmd cmd = nd::external_scan_command(0, 0, chanlist, 1);
+  comedi_cmd cmd = nd::comedi::external_scan_command(0, 0, chanlist, 1);
   int calls = 0;
   // Like a driver: raise convert_arg to its 2000 ns minimum (return 3), then accept.
-  nd::settle_command(
+  nd::comedi::settle_command(
       cmd,
       [&](comedi_cmd& c) {
         ++calls;
@@ -200,7 +200,7 @@ TEST(ComediCommand, SettlesAdjustedArguments) {
 
 TEST(ComediCommand, UnsettledFieldIsNamed) {
   unsigned chanlist[1] = {0};
-  comedi_cmd cmd = nd::external_scan_command(0, 0, chanlist, 1);
+  comedi_cmd cmd = nd::comedi::external_scan_command(0, 0, chanlist, 1);
   int calls = 0;
   auto oscillating = [&](comedi_cmd& c) {
     ++calls;
@@ -208,7 +208,7 @@ TEST(ComediCommand, UnsettledFieldIsNamed) {
     return 4;
   };
   try {
-    nd::settle_command(cmd, oscillating, "/dev/comedi7", 3);
+    nd::comedi::settle_command(cmd, oscillating, "/dev/comedi7", 3);
     FAIL() << "an oscillating command settled";
   } catch (const std::runtime_error& e) {
     const std::string what = e.what();
@@ -220,14 +220,14 @@ TEST(ComediCommand, UnsettledFieldIsNamed) {
 
   // An unsupported source the driver cannot fix names the stage.
   try {
-    nd::settle_command(
+    nd::comedi::settle_command(
         cmd, [](comedi_cmd&) { return 1; }, "/dev/comedi7", 3);
     FAIL();
   } catch (const std::runtime_error& e) {
     EXPECT_NE(std::string(e.what()).find("trigger sources"), std::string::npos) << e.what();
   }
   // A failing test reports errno.
-  EXPECT_THROW(nd::settle_command(
+  EXPECT_THROW(nd::comedi::settle_command(
                    cmd,
                    [](comedi_cmd&) {
                      errno = EINVAL;
@@ -239,14 +239,14 @@ TEST(ComediCommand, UnsettledFieldIsNamed) {
 
 TEST(ComediCommand, WakeEveryScanSetsOnlyCmdfWakeEos) {
   unsigned chanlist[1] = {0};
-  comedi_cmd cmd = nd::external_scan_command(0, 0, chanlist, 1);
+  comedi_cmd cmd = nd::comedi::external_scan_command(0, 0, chanlist, 1);
   EXPECT_EQ(cmd.flags & CMDF_WAKE_EOS, 0u);  // default: the kernel wakes the reader per block
   cmd.flags = CMDF_PRIORITY;
-  nd::apply_wake_flag(cmd, true);
+  nd::comedi::apply_wake_flag(cmd, true);
   EXPECT_EQ(cmd.flags, static_cast<unsigned>(CMDF_PRIORITY | CMDF_WAKE_EOS));
-  nd::apply_wake_flag(cmd, true);  // idempotent
+  nd::comedi::apply_wake_flag(cmd, true);  // idempotent
   EXPECT_EQ(cmd.flags, static_cast<unsigned>(CMDF_PRIORITY | CMDF_WAKE_EOS));
-  nd::apply_wake_flag(cmd, false);
+  nd::comedi::apply_wake_flag(cmd, false);
   EXPECT_EQ(cmd.flags, static_cast<unsigned>(CMDF_PRIORITY));
   EXPECT_EQ(CMDF_WAKE_EOS, TRIG_WAKE_EOS);  // the older name of the same bit
 }
@@ -261,7 +261,7 @@ struct FakeKernelBuffer {
   int set_calls = 0, set_max_calls = 0;
   std::string order;
   static int pages(unsigned n) { return static_cast<int>((n + 4095) / 4096 * 4096); }
-  nd::KernelBufferCalls calls() {
+  nd::comedi::KernelBufferCalls calls() {
     return {.get_size = [this] { return size; },
             .get_max_size = [this] { return max; },
             .set_size =
@@ -294,19 +294,19 @@ std::string error_of(const std::function<void()>& f) {
 
 TEST(ComediBuffer, ZeroLeavesTheDriversBuffer) {
   FakeKernelBuffer k;
-  EXPECT_EQ(nd::size_kernel_buffer(0, k.calls(), "/dev/comedi7", 3), 65536u);
+  EXPECT_EQ(nd::comedi::size_kernel_buffer(0, k.calls(), "/dev/comedi7", 3), 65536u);
   EXPECT_EQ(k.set_calls + k.set_max_calls, 0);
 }
 
 TEST(ComediBuffer, WithinTheLimitSetsTheSizeAndReportsWhatTheKernelGave) {
   FakeKernelBuffer k;
-  EXPECT_EQ(nd::size_kernel_buffer(500000, k.calls(), "/dev/comedi7", 3), 503808u);  // 123 pages
+  EXPECT_EQ(nd::comedi::size_kernel_buffer(500000, k.calls(), "/dev/comedi7", 3), 503808u);  // 123 pages
   EXPECT_EQ(k.order, "s");
 }
 
 TEST(ComediBuffer, AboveTheLimitRaisesTheLimitFirst) {
   FakeKernelBuffer k;
-  EXPECT_EQ(nd::size_kernel_buffer(4 << 20, k.calls(), "/dev/comedi7", 3), 4u << 20);
+  EXPECT_EQ(nd::comedi::size_kernel_buffer(4 << 20, k.calls(), "/dev/comedi7", 3), 4u << 20);
   EXPECT_EQ(k.order, "ms");
   EXPECT_EQ(k.max, 4 << 20);
 }
@@ -314,7 +314,7 @@ TEST(ComediBuffer, AboveTheLimitRaisesTheLimitFirst) {
 TEST(ComediBuffer, RefusedLimitNamesDeviceSubdeviceSizeAndRoot) {
   FakeKernelBuffer k;
   k.may_raise_max = false;
-  const std::string what = error_of([&] { nd::size_kernel_buffer(4 << 20, k.calls(), "/dev/comedi7", 3); });
+  const std::string what = error_of([&] { nd::comedi::size_kernel_buffer(4 << 20, k.calls(), "/dev/comedi7", 3); });
   EXPECT_NE(what.find("/dev/comedi7 subdevice 3"), std::string::npos) << what;
   EXPECT_NE(what.find("4194304 bytes"), std::string::npos) << what;
   EXPECT_NE(what.find("buffer_bytes"), std::string::npos) << what;
@@ -328,7 +328,7 @@ TEST(ComediBuffer, RefusedSizeNamesDeviceSubdeviceAndSize) {
   auto calls = k.calls();
   calls.set_size = [](unsigned) { return errno = EBUSY, -1; };  // e.g. a command running on the subdevice
   calls.error = [] { return std::string(std::strerror(EBUSY)); };
-  const std::string what = error_of([&] { nd::size_kernel_buffer(1 << 20, calls, "/dev/comedi7", 3); });
+  const std::string what = error_of([&] { nd::comedi::size_kernel_buffer(1 << 20, calls, "/dev/comedi7", 3); });
   EXPECT_NE(what.find("cannot set the kernel buffer of /dev/comedi7 subdevice 3 to 1048576 bytes"), std::string::npos)
       << what;
   EXPECT_NE(what.find(std::strerror(EBUSY)), std::string::npos) << what;
@@ -336,29 +336,29 @@ TEST(ComediBuffer, RefusedSizeNamesDeviceSubdeviceAndSize) {
 
 TEST(ComediBuffer, SecondsHeldAtTheScanRate) {
   // 1 MiB of ten 16-bit microphone channels at 50 kHz: 1048576 / (20 x 50000) s.
-  EXPECT_DOUBLE_EQ(nd::buffer_seconds(1 << 20, 20, 50000.0), 1.048576);
-  EXPECT_EQ(nd::buffer_seconds(1 << 20, 20, 0.0), 0.0);
-  EXPECT_EQ(nd::buffer_seconds(1 << 20, 0, 50000.0), 0.0);
+  EXPECT_DOUBLE_EQ(nd::comedi::buffer_seconds(1 << 20, 20, 50000.0), 1.048576);
+  EXPECT_EQ(nd::comedi::buffer_seconds(1 << 20, 20, 0.0), 0.0);
+  EXPECT_EQ(nd::comedi::buffer_seconds(1 << 20, 0, 50000.0), 0.0);
   // Edge-clocked: the edge rate at max_rpm, else the most the resampler accepts.
-  nd::ComediSourceConfig::Encoder e;
+  nd::comedi::ComediSourceConfig::Encoder e;
   e.counts_per_rev = 3600;
   e.max_rpm = 4000;
-  EXPECT_DOUBLE_EQ(nd::edge_scan_rate_hz(e), 240000.0);
+  EXPECT_DOUBLE_EQ(nd::comedi::edge_scan_rate_hz(e), 240000.0);
   e.counts_per_edge = 4;
-  EXPECT_DOUBLE_EQ(nd::edge_scan_rate_hz(e), 60000.0);
+  EXPECT_DOUBLE_EQ(nd::comedi::edge_scan_rate_hz(e), 60000.0);
   e.max_rpm = 0;
-  EXPECT_DOUBLE_EQ(nd::edge_scan_rate_hz(e), 600000.0);
+  EXPECT_DOUBLE_EQ(nd::comedi::edge_scan_rate_hz(e), 600000.0);
 }
 
 namespace {
 
 // Only what buffer_note reads: where, sample width, channel count and the kernel buffer's size.
-class NoteAcquisition final : public nd::Acquisition {
+class NoteAcquisition final : public nd::comedi::Acquisition {
  public:
   std::string where() const override { return "/dev/comedi7 subdevice 3"; }
   int fd() const override { return -1; }
-  nd::SampleWidth sample_width() const override { return nd::SampleWidth::k16Bit; }
-  const std::vector<nd::ChannelConversion>& conversions() const override { return conversions_; }
+  nd::comedi::SampleWidth sample_width() const override { return nd::comedi::SampleWidth::k16Bit; }
+  const std::vector<nd::comedi::ChannelConversion>& conversions() const override { return conversions_; }
   double scan_period_s() const override { return 2e-5; }
   void start() override {}
   bool restart() override { return true; }
@@ -367,23 +367,23 @@ class NoteAcquisition final : public nd::Acquisition {
   unsigned buffer_bytes() const override { return 1 << 20; }
 
  private:
-  std::vector<nd::ChannelConversion> conversions_ = std::vector<nd::ChannelConversion>(10);
+  std::vector<nd::comedi::ChannelConversion> conversions_ = std::vector<nd::comedi::ChannelConversion>(10);
 };
 
 }  // namespace
 
 TEST(ComediBuffer, StartUpNoteStatesSizeRateAndSeconds) {
   const NoteAcquisition a;
-  nd::ComediAcquisitionConfig c;
+  nd::comedi::ComediAcquisitionConfig c;
   c.buffer_bytes = 1000000;
   c.wake_every_scan = true;
-  const std::string note = nd::buffer_note(a, c, 50000.0, "the card's settled scan rate");
+  const std::string note = nd::comedi::buffer_note(a, c, 50000.0, "the card's settled scan rate");
   for (const char* part : {"/dev/comedi7 subdevice 3", "kernel buffer 1048576 bytes", "buffer_bytes = 1000000",
                            "holds 1.05 s", "20-byte scans", "50000 scans/s", "every scan"})
     EXPECT_NE(note.find(part), std::string::npos) << part << " in: " << note;
   c.buffer_bytes = 0;
   c.wake_every_scan = false;
-  const std::string driver = nd::buffer_note(a, c, 50000.0, "x");
+  const std::string driver = nd::comedi::buffer_note(a, c, 50000.0, "x");
   EXPECT_NE(driver.find("the driver's"), std::string::npos) << driver;
   EXPECT_NE(driver.find("per block"), std::string::npos) << driver;
 }

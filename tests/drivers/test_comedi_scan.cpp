@@ -27,7 +27,7 @@ std::vector<std::byte> bytes_of(const std::vector<T>& raw) {
   return out;
 }
 
-std::vector<double> decode_all(nd::ScanDecoder& d, const std::vector<std::byte>& b) {
+std::vector<double> decode_all(nd::comedi::ScanDecoder& d, const std::vector<std::byte>& b) {
   std::vector<double> out;
   d.feed(b.data(), b.size(), [&](const double* v) { out.insert(out.end(), v, v + d.channels()); });
   return out;
@@ -36,18 +36,19 @@ std::vector<double> decode_all(nd::ScanDecoder& d, const std::vector<std::byte>&
 }  // namespace
 
 TEST(ComediSensitivity, UnitChains) {
-  EXPECT_DOUBLE_EQ(nd::microphone_pa_per_volt(50.0), 20.0);                  // 1 V / 50 mV/Pa = 20 Pa
-  EXPECT_DOUBLE_EQ(nd::pressure_pa_per_volt(20.0), 50.0 * 1e5);              // 1 V / 20 mV/bar = 50 bar
-  EXPECT_DOUBLE_EQ(nd::charge_pressure_pa_per_volt(2.0, 10.0), 50.0 * 1e5);  // 1000 mV/10 = 100 pC / 2 = 50 bar
-  EXPECT_THROW(nd::microphone_pa_per_volt(0.0), std::invalid_argument);
-  EXPECT_THROW(nd::charge_pressure_pa_per_volt(2.0, -1.0), std::invalid_argument);
+  EXPECT_DOUBLE_EQ(nd::comedi::microphone_pa_per_volt(50.0), 20.0);                  // 1 V / 50 mV/Pa = 20 Pa
+  EXPECT_DOUBLE_EQ(nd::comedi::pressure_pa_per_volt(20.0), 50.0 * 1e5);              // 1 V / 20 mV/bar = 50 bar
+  EXPECT_DOUBLE_EQ(nd::comedi::charge_pressure_pa_per_volt(2.0, 10.0), 50.0 * 1e5);  // 1000 mV/10 = 100 pC / 2 = 50 bar
+  EXPECT_THROW(nd::comedi::microphone_pa_per_volt(0.0), std::invalid_argument);
+  EXPECT_THROW(nd::comedi::charge_pressure_pa_per_volt(2.0, -1.0), std::invalid_argument);
 }
 
 TEST(ComediScan, Linear16BitHandValues) {
   // 12-bit card in sampl_t: range [-5, 5] V, maxdata 4095; codes 819, 2457 are -3 V and +1 V exactly.
   // Channel 0: microphone 50 mV/Pa; channel 1: raw volts.
-  nd::ScanDecoder d(nd::SampleWidth::k16Bit, {nd::linear_conversion(-5, 5, 4095, nd::microphone_pa_per_volt(50)),
-                                              nd::linear_conversion(-5, 5, 4095, 1.0)});
+  nd::comedi::ScanDecoder d(nd::comedi::SampleWidth::k16Bit,
+                            {nd::comedi::linear_conversion(-5, 5, 4095, nd::comedi::microphone_pa_per_volt(50)),
+                             nd::comedi::linear_conversion(-5, 5, 4095, 1.0)});
   const auto v = decode_all(d, bytes_of(std::vector<std::uint16_t>{819, 2457, 2457, 4095, 0, 819}));
   ASSERT_EQ(v.size(), 6u);
   EXPECT_NEAR(v[0], -60.0, 1e-12);  // -3 V * 20 Pa/V
@@ -61,8 +62,9 @@ TEST(ComediScan, Linear16BitHandValues) {
 TEST(ComediScan, Linear32BitHandValues) {
   // lsampl_t, range [-10, 10] V, maxdata 2^32-1 = 5 * 858993459: code 858993459 is -6 V, 3x that is +2 V.
   // Pressure transducer at 20 mV/bar: 2 V = 100 bar = 1e7 Pa.
-  nd::ScanDecoder d(nd::SampleWidth::k32Bit,
-                    {nd::linear_conversion(-10, 10, 4294967295u, nd::pressure_pa_per_volt(20))});
+  nd::comedi::ScanDecoder d(
+      nd::comedi::SampleWidth::k32Bit,
+      {nd::comedi::linear_conversion(-10, 10, 4294967295u, nd::comedi::pressure_pa_per_volt(20))});
   const auto v = decode_all(d, bytes_of(std::vector<std::uint32_t>{858993459u, 2576980377u, 4294967295u}));
   ASSERT_EQ(v.size(), 3u);
   EXPECT_NEAR(v[0], -3e7, 1e-6);
@@ -74,8 +76,9 @@ TEST(ComediScan, PolynomialHandValues) {
   // Soft calibration 0.5 + 1e-3 x + 1e-8 x^2 with x = raw - 32768: raw 33768 -> 1.51 V, 31768 -> -0.49 V.
   // Piezo 2 pC/bar behind a 10 mV/pC charge amplifier: 1.51 V -> 151 pC -> 75.5 bar.
   const double c16[] = {0.5, 1e-3, 1e-8};
-  nd::ScanDecoder d16(nd::SampleWidth::k16Bit,
-                      {nd::polynomial_conversion(c16, 2, 32768.0, nd::charge_pressure_pa_per_volt(2, 10))});
+  nd::comedi::ScanDecoder d16(
+      nd::comedi::SampleWidth::k16Bit,
+      {nd::comedi::polynomial_conversion(c16, 2, 32768.0, nd::comedi::charge_pressure_pa_per_volt(2, 10))});
   const auto v16 = decode_all(d16, bytes_of(std::vector<std::uint16_t>{33768, 31768, 32768}));
   ASSERT_EQ(v16.size(), 3u);
   EXPECT_NEAR(v16[0], 75.5e5, 1e-6);
@@ -84,7 +87,8 @@ TEST(ComediScan, PolynomialHandValues) {
 
   // Cubic, 32-bit: 1e-6 x + 1e-18 x^3 at x = 1e6 is 2 V; microphone 2 mV/Pa -> 1000 Pa.
   const double c32[] = {0.0, 1e-6, 0.0, 1e-18};
-  nd::ScanDecoder d32(nd::SampleWidth::k32Bit, {nd::polynomial_conversion(c32, 3, 0.0, nd::microphone_pa_per_volt(2))});
+  nd::comedi::ScanDecoder d32(nd::comedi::SampleWidth::k32Bit,
+                              {nd::comedi::polynomial_conversion(c32, 3, 0.0, nd::comedi::microphone_pa_per_volt(2))});
   const auto v32 = decode_all(d32, bytes_of(std::vector<std::uint32_t>{1000000u, 2000000u}));
   ASSERT_EQ(v32.size(), 2u);
   EXPECT_NEAR(v32[0], 1000.0, 1e-9);
@@ -92,10 +96,11 @@ TEST(ComediScan, PolynomialHandValues) {
 }
 
 TEST(ComediScan, RejectsBadChannelCounts) {
-  EXPECT_THROW(nd::ScanDecoder(nd::SampleWidth::k16Bit, {}), std::invalid_argument);
-  EXPECT_THROW(nd::ScanDecoder(nd::SampleWidth::k16Bit,
-                               std::vector<nd::ChannelConversion>(17, nd::linear_conversion(-1, 1, 65535, 1))),
-               std::invalid_argument);
+  EXPECT_THROW(nd::comedi::ScanDecoder(nd::comedi::SampleWidth::k16Bit, {}), std::invalid_argument);
+  EXPECT_THROW(
+      nd::comedi::ScanDecoder(nd::comedi::SampleWidth::k16Bit, std::vector<nd::comedi::ChannelConversion>(
+                                                                   17, nd::comedi::linear_conversion(-1, 1, 65535, 1))),
+      std::invalid_argument);
 }
 
 namespace {
@@ -109,13 +114,13 @@ struct Stream {
   std::vector<double> expected;
 };
 
-std::vector<nd::ChannelConversion> three_channels() {
+std::vector<nd::comedi::ChannelConversion> three_channels() {
   const double poly[] = {-0.25, 2e-4, -1e-10};
-  return {nd::linear_conversion(-10, 10, 65535, 100.0), nd::linear_conversion(0, 5, 65535, 1.0),
-          nd::polynomial_conversion(poly, 2, 30000.0, 7.0)};
+  return {nd::comedi::linear_conversion(-10, 10, 65535, 100.0), nd::comedi::linear_conversion(0, 5, 65535, 1.0),
+          nd::comedi::polynomial_conversion(poly, 2, 30000.0, 7.0)};
 }
 
-Stream make_stream(nd::SampleWidth width, std::uint32_t seed) {
+Stream make_stream(nd::comedi::SampleWidth width, std::uint32_t seed) {
   std::mt19937 rng(seed);
   std::uniform_int_distribution<std::uint32_t> code(0, 65535);
   std::vector<std::uint16_t> r16;
@@ -123,7 +128,7 @@ Stream make_stream(nd::SampleWidth width, std::uint32_t seed) {
   Stream s;
   for (std::size_t i = 0; i < kScans * kChannels; ++i) {
     const std::uint32_t raw = code(rng);
-    (width == nd::SampleWidth::k16Bit) ? r16.push_back(static_cast<std::uint16_t>(raw)) : r32.push_back(raw);
+    (width == nd::comedi::SampleWidth::k16Bit) ? r16.push_back(static_cast<std::uint16_t>(raw)) : r32.push_back(raw);
     const double x = raw;
     switch (i % kChannels) {
       case 0:
@@ -138,7 +143,7 @@ Stream make_stream(nd::SampleWidth width, std::uint32_t seed) {
       }
     }
   }
-  s.bytes = width == nd::SampleWidth::k16Bit ? bytes_of(r16) : bytes_of(r32);
+  s.bytes = width == nd::comedi::SampleWidth::k16Bit ? bytes_of(r16) : bytes_of(r32);
   return s;
 }
 
@@ -149,22 +154,22 @@ void expect_matches(const std::vector<double>& got, const std::vector<double>& e
 
 }  // namespace
 
-class ComediScanSplits : public ::testing::TestWithParam<nd::SampleWidth> {};
+class ComediScanSplits : public ::testing::TestWithParam<nd::comedi::SampleWidth> {};
 
 TEST_P(ComediScanSplits, ArbitrarySplitsEqualOnePiece) {
   const Stream s = make_stream(GetParam(), 11);
-  nd::ScanDecoder whole(GetParam(), three_channels());
+  nd::comedi::ScanDecoder whole(GetParam(), three_channels());
   const auto one_piece = decode_all(whole, s.bytes);
   expect_matches(one_piece, s.expected);
   EXPECT_EQ(whole.pending_bytes(), 0u);
 
-  nd::ScanDecoder bytewise(GetParam(), three_channels());
+  nd::comedi::ScanDecoder bytewise(GetParam(), three_channels());
   std::vector<double> by_byte;
   for (const std::byte& b : s.bytes)
     bytewise.feed(&b, 1, [&](const double* v) { by_byte.insert(by_byte.end(), v, v + kChannels); });
   EXPECT_EQ(by_byte, one_piece);
 
-  nd::ScanDecoder chunked(GetParam(), three_channels());
+  nd::comedi::ScanDecoder chunked(GetParam(), three_channels());
   std::vector<double> by_chunk;
   std::mt19937 rng(5);
   std::uniform_int_distribution<std::size_t> len(0, 23);
@@ -178,7 +183,7 @@ TEST_P(ComediScanSplits, ArbitrarySplitsEqualOnePiece) {
 
 TEST_P(ComediScanSplits, ResetDropsPartialScan) {
   const Stream s = make_stream(GetParam(), 3);
-  nd::ScanDecoder d(GetParam(), three_channels());
+  nd::comedi::ScanDecoder d(GetParam(), three_channels());
   std::vector<double> out;
   auto sink = [&](const double* v) { out.insert(out.end(), v, v + kChannels); };
   d.feed(s.bytes.data(), d.scan_bytes() + 3, sink);  // one scan and a fragment
@@ -197,13 +202,13 @@ TEST_P(ComediScanSplits, PipeThroughDeviceReadLoop) {
   ASSERT_EQ(write(fds[1], s.bytes.data(), s.bytes.size()), static_cast<ssize_t>(s.bytes.size()));
   close(fds[1]);
 
-  nd::ScanDecoder d(GetParam(), three_channels());
+  nd::comedi::ScanDecoder d(GetParam(), three_channels());
   std::vector<double> got;
   std::array<std::byte, 13> buffer{};  // odd size: reads split samples and scans
   std::atomic<bool> stop{false};
-  nd::ReadLoopConfig cfg{.device_path = "pipe", .subdevice = 2};
+  nd::comedi::ReadLoopConfig cfg{.device_path = "pipe", .subdevice = 2};
   int restarts = 0;
-  const auto r = nd::run_read_loop(
+  const auto r = nd::comedi::run_read_loop(
       fds[0], buffer,
       [&](const std::byte* b, std::size_t n) {
         d.feed(b, n, [&](const double* v) { got.insert(got.end(), v, v + kChannels); });
@@ -218,5 +223,8 @@ TEST_P(ComediScanSplits, PipeThroughDeviceReadLoop) {
   expect_matches(got, s.expected);
 }
 
-INSTANTIATE_TEST_SUITE_P(Widths, ComediScanSplits, ::testing::Values(nd::SampleWidth::k16Bit, nd::SampleWidth::k32Bit),
-                         [](const auto& info) { return info.param == nd::SampleWidth::k16Bit ? "16bit" : "32bit"; });
+INSTANTIATE_TEST_SUITE_P(Widths, ComediScanSplits,
+                         ::testing::Values(nd::comedi::SampleWidth::k16Bit, nd::comedi::SampleWidth::k32Bit),
+                         [](const auto& info) {
+                           return info.param == nd::comedi::SampleWidth::k16Bit ? "16bit" : "32bit";
+                         });

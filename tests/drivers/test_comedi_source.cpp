@@ -104,7 +104,7 @@ TEST_P(ComediSourcePipes, CardBytesBecomeTheAnalytic40kHzStreams) {
 
   // Microphones: each tone at its instant, from the first frame after the resampler settled.
   ASSERT_FALSE(h.mic_frames.empty());
-  EXPECT_EQ(h.mic_frames.begin()->first, 40 + nd::TimedStreamAssembler::kSettleFrames);  // origin at frame 40
+  EXPECT_EQ(h.mic_frames.begin()->first, 40 + nd::comedi::TimedStreamAssembler::kSettleFrames);  // origin at frame 40
   double max_err[3] = {0, 0, 0}, ms[3] = {0, 0, 0};
   std::size_t n = 0;
   for (const auto& [k, v] : h.mic_frames) {
@@ -180,8 +180,8 @@ TEST(ComediSource, CamTellsFiringTdcWhenBothTdcsLookAlike) {
   EXPECT_LT(c.max_p_err, 2000.0);
 
   // Without the cam, the look-alike TDCs never give a phase: no pressure output rather than a guess.
-  nd::ComediSourceConfig cfg = source_config(setup);
-  cfg.phase = nd::PhaseSource::kPressure;
+  nd::comedi::ComediSourceConfig cfg = source_config(setup);
+  cfg.phase = nd::comedi::PhaseSource::kPressure;
   Harness guess(cfg);
   const std::size_t edges = guess.run_engine(setup);
   EXPECT_TRUE(guess.pressure_frames.empty());
@@ -225,8 +225,8 @@ TEST(ComediSource, MicOverrunRestartsWithBackoffIsCountedAndResumes) {
   EXPECT_GT(n_before, 3000u);
   EXPECT_GT(n_after, 5000u);
   EXPECT_LT(max_err, 3e-3);
-  EXPECT_EQ(h.mic_frames.count(restart_frame + nd::TimedStreamAssembler::kSettleFrames - 1), 0u);
-  EXPECT_EQ(h.mic_frames.count(restart_frame + nd::TimedStreamAssembler::kSettleFrames), 1u);
+  EXPECT_EQ(h.mic_frames.count(restart_frame + nd::comedi::TimedStreamAssembler::kSettleFrames - 1), 0u);
+  EXPECT_EQ(h.mic_frames.count(restart_frame + nd::comedi::TimedStreamAssembler::kSettleFrames), 1u);
 }
 
 TEST(ComediSource, EncoderOverrunRestartsTheWholeEdgeGroup) {
@@ -290,10 +290,10 @@ TEST(ComediSource, EncoderOverrunRestartsTheWholeEdgeGroup) {
 
 TEST(ComediSource, MissingDeviceIsAnErrorNamingIt) {
   const std::string path = "/dev/comedi-noisemon-test-missing";
-  nd::ComediSourceConfig c = source_config(EngineSetup{});
+  nd::comedi::ComediSourceConfig c = source_config(EngineSetup{});
   c.pressure.device = path;
   try {
-    nd::make_comedi_source(c);
+    nd::comedi::make_comedi_source(c);
     FAIL() << "a missing device opened";
   } catch (const std::runtime_error& e) {
     EXPECT_NE(std::string(e.what()).find(path), std::string::npos) << e.what();
@@ -301,15 +301,15 @@ TEST(ComediSource, MissingDeviceIsAnErrorNamingIt) {
 }
 
 TEST(ComediSource, ConfigurationErrorsNameTheField) {
-  auto error = [](const nd::ComediSourceConfig& c) -> std::string {
+  auto error = [](const nd::comedi::ComediSourceConfig& c) -> std::string {
     try {
-      nd::comedi_acquisitions(c);
+      nd::comedi::comedi_acquisitions(c);
     } catch (const std::invalid_argument& e) {
       return e.what();
     }
     return "";
   };
-  nd::ComediSourceConfig c = source_config(EngineSetup{});
+  nd::comedi::ComediSourceConfig c = source_config(EngineSetup{});
   c.pressure.sensitivity_mv_per_bar = 20.0;  // as well as the charge chain
   EXPECT_NE(error(c).find("comedi.pressure"), std::string::npos);
   c = source_config(EngineSetup{});
@@ -319,18 +319,18 @@ TEST(ComediSource, ConfigurationErrorsNameTheField) {
   c.mics.sensitivity_mv_per_pa.pop_back();
   EXPECT_NE(error(c).find("comedi.mics.sensitivity_mv_per_pa"), std::string::npos);
   c = source_config(EngineSetup{});
-  c.phase = nd::PhaseSource::kCam;
+  c.phase = nd::comedi::PhaseSource::kCam;
   EXPECT_NE(error(c).find("cam_channel"), std::string::npos);
   // The acquisitions built from a good configuration: channel lists and clocks as wired.
-  const auto a = nd::comedi_acquisitions(source_config(EngineSetup{.cam = true}));
+  const auto a = nd::comedi::comedi_acquisitions(source_config(EngineSetup{.cam = true}));
   ASSERT_EQ(a.size(), 3u);
-  EXPECT_EQ(a[0].clock, nd::ScanClock::kExternal);
+  EXPECT_EQ(a[0].clock, nd::comedi::ScanClock::kExternal);
   ASSERT_EQ(a[0].channels.size(), 2u);                                        // pressure, cam
   EXPECT_DOUBLE_EQ(a[0].channels[0].si_per_volt, 1e5 / (10.0 * 5.0 * 1e-3));  // Pa per V of 50 mV/bar
   EXPECT_EQ(a[0].channels[1].channel, 3u);
   EXPECT_EQ(a[1].subdevice, 11);
   ASSERT_EQ(a[1].channels.size(), 2u);  // position, timestamp
   EXPECT_TRUE(a[1].channels[0].raw_counts && a[1].channels[1].raw_counts);
-  EXPECT_EQ(a[2].clock, nd::ScanClock::kTimed);
+  EXPECT_EQ(a[2].clock, nd::comedi::ScanClock::kTimed);
   EXPECT_DOUBLE_EQ(a[2].channels[1].si_per_volt, 1.0 / 12.5e-3);
 }

@@ -56,8 +56,8 @@ struct Faults {
   double pause_after_s = kInf, pause_s = 0.0;     // the crank stands still this long once past this instant
 };
 
-nd::EdgeStreamConfig config(bool checked, std::uint32_t counts_per_edge) {
-  nd::EdgeStreamConfig c;
+nd::comedi::EdgeStreamConfig config(bool checked, std::uint32_t counts_per_edge) {
+  nd::comedi::EdgeStreamConfig c;
   c.stream_channels = {3};
   c.pressure = {0, 0};
   c.position = {0, 1};
@@ -67,8 +67,8 @@ nd::EdgeStreamConfig config(bool checked, std::uint32_t counts_per_edge) {
   c.index_angle_deg = kIndexDeg;
   c.timebase_hz = kTimebase;
   c.timestamp_bits = 32;
-  c.timestamp_mode = nd::TimestampMode::kAbsolute;
-  c.phase = nd::PhaseSource::kPressure;
+  c.timestamp_mode = nd::comedi::TimestampMode::kAbsolute;
+  c.phase = nd::comedi::PhaseSource::kPressure;
   c.max_scan_skew = 1;
   c.index_resets_counter = checked;
   return c;
@@ -80,7 +80,7 @@ struct Frame {
 
 struct Outcome {
   std::map<std::int64_t, Frame> frames;
-  nd::EdgeStreamCounters counters;
+  nd::comedi::EdgeStreamCounters counters;
   std::uint64_t reverse_steps = 0;   // down-counts the test's counter made (an index resets instead)
   std::int64_t last_revolution = 0;  // revolution the last edge belongs to
 };
@@ -88,7 +88,7 @@ struct Outcome {
 // The edges of `duration_s` of crank rotation through the modelled counter into an assembler.
 // counts_per_edge: the counter counts that many a clocking edge (x4 quadrature decoding, scans on one edge).
 Outcome simulate(const Faults& f, double duration_s, bool checked = true, std::uint32_t counts_per_edge = 1) {
-  nd::EdgeStreamAssembler a(config(checked, counts_per_edge), kEpoch);
+  nd::comedi::EdgeStreamAssembler a(config(checked, counts_per_edge), kEpoch);
   nd::BlockRing ring(256);
   Outcome out;
   auto drain = [&] {

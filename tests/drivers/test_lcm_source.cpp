@@ -64,9 +64,9 @@ TEST(LcmSource, AMicrophoneBlockThatDoesNotFitTheSessionIsCountedNotDeliveredAnd
     info.mic_count = 2;
     info.mic_positions_m = {{1, 0, 0}, {0, 1, 0}};
     lcm::LogFile log(path, "w");
-    write(log, "NOISEMON_SESSION", nd::to_message(info, "test", kEpoch), kEpoch);
+    write(log, "NOISEMON_SESSION", nd::formats::to_message(info, "test", kEpoch), kEpoch);
     const auto raw = [&](const nd::SampleBlock& b, std::int8_t stream) {
-      write(log, "NOISEMON_RAW", nd::to_message(b, stream, kEpoch), kEpoch);
+      write(log, "NOISEMON_RAW", nd::formats::to_message(b, stream, kEpoch), kEpoch);
     };
     raw(block(0, 2, 1e5, true), noisemon::raw_block_t::STREAM_PRESSURE);
     raw(block(0, 2, 0.1), noisemon::raw_block_t::STREAM_MICS);
@@ -75,12 +75,12 @@ TEST(LcmSource, AMicrophoneBlockThatDoesNotFitTheSessionIsCountedNotDeliveredAnd
     raw(block(8, 2, 0.3), noisemon::raw_block_t::STREAM_MICS);
     nd::OperatingPoint op;
     op.speed_rpm = 1500;
-    write(log, "NOISEMON_OP", nd::to_message(op), kEpoch);
+    write(log, "NOISEMON_OP", nd::formats::to_message(op), kEpoch);
   }
-  nd::LcmSourceConfig config;
+  nd::lcm::LcmSourceConfig config;
   config.url = "file://" + path + "?speed=0";
   config.session_timeout_s = noisemon::test::allowance_s(1);
-  auto source = nd::make_lcm_source(config);
+  auto source = nd::lcm::make_lcm_source(config);
   EXPECT_EQ(source->info().mic_count, 2u);
   nd::BlockRing pressure(16), mics(16);
   nd::OperatingPointRing ops(16);

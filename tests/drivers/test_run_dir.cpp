@@ -14,6 +14,7 @@
 #include "tests/support/unique_temp.hpp"
 
 using namespace noisemon::drivers;
+using namespace noisemon::drivers::formats;
 namespace fs = std::filesystem;
 
 namespace {
@@ -75,7 +76,7 @@ fs::path valid_run(const std::string& name) {
 
 std::string error_of(const fs::path& dir) {
   try {
-    read_run_dir(dir);
+    formats::read_run_dir(dir);
   } catch (const RunDirError& e) {
     return e.what();
   }
@@ -83,9 +84,9 @@ std::string error_of(const fs::path& dir) {
 }
 
 std::string csv_error(const std::string& csv) {
-  RunDir run;
+  formats::RunDir run;
   try {
-    parse_pressure_csv(csv, "p.csv", 1e5, run);
+    formats::parse_pressure_csv(csv, "p.csv", 1e5, run);
   } catch (const RunDirError& e) {
     return e.what();
   }
@@ -94,7 +95,7 @@ std::string csv_error(const std::string& csv) {
 
 std::string json_error(const std::string& json) {
   try {
-    parse_run_json(json, "r.json");
+    formats::parse_run_json(json, "r.json");
   } catch (const RunDirError& e) {
     return e.what();
   }
@@ -107,7 +108,7 @@ std::string json_error(const std::string& json) {
 
 TEST(RunDir, ReadsAValidRunAndIgnoresUnknownKeys) {
   const fs::path d = valid_run("valid");
-  const RunDir run = read_run_dir(d);
+  const formats::RunDir run = formats::read_run_dir(d);
   EXPECT_EQ(run.condition.name, "idle_mi12");
   EXPECT_EQ(run.condition.speed_rpm, 3050);
   EXPECT_EQ(run.condition.soi_deg_btdc, 12);
@@ -130,14 +131,14 @@ TEST(RunDir, PressureOnlyRunHasNoMics) {
   write_text(d / "run.json", R"({"condition": {"name": "m", "speed_rpm": 3000, "load_nm": 0, "soi_deg_btdc": 0,
     "motored": true}, "pressure": {"file": "p.csv", "units": "Pa"}})");
   write_text(d / "p.csv", valid_csv());
-  const RunDir run = read_run_dir(d);
+  const formats::RunDir run = formats::read_run_dir(d);
   EXPECT_EQ(run.mic_count, 0u);
   EXPECT_TRUE(run.condition.motored);
   EXPECT_NEAR(run.pressure_pa[0], 1.0, 1e-12);  // units Pa: no scaling
 }
 
 TEST(RunDir, WriteThenReadGivesTheSameNumbers) {
-  RunDir run;
+  formats::RunDir run;
   run.condition = {"full_mi18", 3450, 20, 18, 550.0, false};
   for (int i = 0; i < 5000; ++i) {
     run.time_s.push_back(i / 40000.0 + 1.0 / 3.0);
@@ -152,8 +153,8 @@ TEST(RunDir, WriteThenReadGivesTheSameNumbers) {
   for (int i = 0; i < 3 * 4000; ++i) run.mic_pa.push_back(static_cast<float>(0.01 * std::sin(0.001 * i * i)));
   for (const char* units : {"bar", "Pa"}) {
     const fs::path d = fresh_dir(std::string("roundtrip_") + units);
-    write_run_dir(d, run, units);
-    const RunDir back = read_run_dir(d);
+    formats::write_run_dir(d, run, units);
+    const formats::RunDir back = formats::read_run_dir(d);
     EXPECT_EQ(back.condition.name, run.condition.name);
     EXPECT_EQ(back.condition.speed_rpm, 3450);
     EXPECT_EQ(back.condition.load_nm, 20);
@@ -188,7 +189,7 @@ TEST(RunDirNulls, NullIsAcceptedForEveryConditionValueAndReadsAsUnknown) {
   const fs::path d = valid_run("nulls");
   write_text(d / "run.json", run_json_with(R"("speed_rpm": null, "load_nm": null, "soi_deg_btdc": null,
                                               "rail_pressure_bar": null, "motored": null)"));
-  const RunDir run = read_run_dir(d);
+  const formats::RunDir run = formats::read_run_dir(d);
   EXPECT_TRUE(std::isnan(run.condition.speed_rpm));
   EXPECT_TRUE(std::isnan(run.condition.load_nm));
   EXPECT_TRUE(std::isnan(run.condition.soi_deg_btdc));
@@ -197,14 +198,14 @@ TEST(RunDirNulls, NullIsAcceptedForEveryConditionValueAndReadsAsUnknown) {
   EXPECT_FALSE(run.condition.motored);  // what a boolean message publishes
   EXPECT_EQ(run.time_s.size(), 200u);   // the rows are read as always
   // The speed, unknown, is the encoder's: 0.5 deg per 1/36000 s = 3000 rpm.
-  EXPECT_NEAR(encoder_speed_rpm(run), 3000.0, 0.01);
+  EXPECT_NEAR(formats::encoder_speed_rpm(run), 3000.0, 0.01);
 }
 
 TEST(RunDirNulls, AMotoredRunWithoutSoiKeepsEverythingElse) {
   const fs::path d = valid_run("motored_soi_null");
   write_text(d / "run.json",
              run_json_with(R"("speed_rpm": 3050, "load_nm": 0, "soi_deg_btdc": null, "motored": true)"));
-  const RunDir run = read_run_dir(d);
+  const formats::RunDir run = formats::read_run_dir(d);
   EXPECT_EQ(run.condition.speed_rpm, 3050);
   EXPECT_EQ(run.condition.load_nm, 0);
   EXPECT_TRUE(std::isnan(run.condition.soi_deg_btdc));
@@ -224,7 +225,7 @@ TEST(RunDirNulls, ANullSpeedIsNotCheckedAgainstTheRowsButAKnownOneStillIs) {
   EXPECT_HAS(error_of(d), "condition.speed_rpm is 3050");
   write_text(d / "run.json", run_json_with(R"("speed_rpm": null, "load_nm": 0, "soi_deg_btdc": 12, "motored": false)"));
   EXPECT_EQ(error_of(d), "(no error)");
-  EXPECT_NEAR(encoder_speed_rpm(read_run_dir(d)), 3.0, 0.01);
+  EXPECT_NEAR(formats::encoder_speed_rpm(formats::read_run_dir(d)), 3.0, 0.01);
 }
 
 TEST(RunDirNulls, AMissingKeyIsStillAnErrorNamingTheKeyAndTheFile) {
@@ -240,15 +241,15 @@ TEST(RunDirNulls, AMissingKeyIsStillAnErrorNamingTheKeyAndTheFile) {
 
 TEST(RunDirNulls, UnknownValuesAreWrittenAsNullAndReadBackUnknown) {
   const fs::path src = valid_run("nulls_write_src");
-  RunDir run = read_run_dir(src);
+  formats::RunDir run = formats::read_run_dir(src);
   run.condition = {"written", std::nan(""), std::nan(""), std::nan(""), std::nullopt, false, false};
   const fs::path d = fresh_dir("nulls_write");
-  write_run_dir(d, run);
+  formats::write_run_dir(d, run);
   std::ifstream in(d / "run.json");
   const std::string text{std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
   for (const char* key : {"speed_rpm", "load_nm", "soi_deg_btdc", "rail_pressure_bar", "motored"})
     EXPECT_HAS(text, "\"" + std::string(key) + "\": null");
-  const RunDir back = read_run_dir(d);
+  const formats::RunDir back = read_run_dir(d);
   EXPECT_TRUE(std::isnan(back.condition.speed_rpm));
   EXPECT_TRUE(std::isnan(back.condition.load_nm));
   EXPECT_TRUE(std::isnan(back.condition.soi_deg_btdc));
@@ -257,21 +258,21 @@ TEST(RunDirNulls, UnknownValuesAreWrittenAsNullAndReadBackUnknown) {
 
 TEST(RunDirNoiseFloor, RoundTripsThroughWriteAndRead) {
   const fs::path src = valid_run("floor_src");
-  RunDir run = read_run_dir(src);
+  formats::RunDir run = formats::read_run_dir(src);
   EXPECT_FALSE(run.pressure_noise_floor_bar.has_value());  // kJson has none
   run.pressure_noise_floor_bar = 0.0123456789;
   const fs::path d = fresh_dir("floor");
-  write_run_dir(d, run);
-  EXPECT_EQ(read_run_dir(d).pressure_noise_floor_bar.value_or(-1), 0.0123456789);
+  formats::write_run_dir(d, run);
+  EXPECT_EQ(formats::read_run_dir(d).pressure_noise_floor_bar.value_or(-1), 0.0123456789);
   run.pressure_noise_floor_bar = 0.0;  // a perfect chain is a known floor, not an unknown one
   write_run_dir(d, run);
-  EXPECT_EQ(read_run_dir(d).pressure_noise_floor_bar.value_or(-1), 0.0);
+  EXPECT_EQ(formats::read_run_dir(d).pressure_noise_floor_bar.value_or(-1), 0.0);
   run.pressure_noise_floor_bar.reset();  // unknown: not written at all
   write_run_dir(d, run);
   std::ifstream in(d / "run.json");
   const std::string text{std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
   EXPECT_EQ(text.find("noise_floor_bar"), std::string::npos) << text;
-  EXPECT_FALSE(read_run_dir(d).pressure_noise_floor_bar.has_value());
+  EXPECT_FALSE(formats::read_run_dir(d).pressure_noise_floor_bar.has_value());
   run.pressure_noise_floor_bar = -1e-3;
   try {
     write_run_dir(fresh_dir("floor_negative"), run);
@@ -283,10 +284,10 @@ TEST(RunDirNoiseFloor, RoundTripsThroughWriteAndRead) {
 
 TEST(RunDirNoiseFloor, NullAndAbsentAreUnknownBadValuesNameTheKey) {
   const std::string condition = R"("speed_rpm": 3000, "load_nm": 0, "soi_deg_btdc": 12, "motored": false)";
-  EXPECT_FALSE(parse_run_json(run_json_with(condition), "r.json").pressure_noise_floor_bar.has_value());
-  EXPECT_FALSE(parse_run_json(run_json_with(condition, R"(, "noise_floor_bar": null)"), "r.json")
+  EXPECT_FALSE(formats::parse_run_json(run_json_with(condition), "r.json").pressure_noise_floor_bar.has_value());
+  EXPECT_FALSE(formats::parse_run_json(run_json_with(condition, R"(, "noise_floor_bar": null)"), "r.json")
                    .pressure_noise_floor_bar.has_value());
-  EXPECT_EQ(parse_run_json(run_json_with(condition, R"(, "noise_floor_bar": 0.002)"), "r.json")
+  EXPECT_EQ(formats::parse_run_json(run_json_with(condition, R"(, "noise_floor_bar": 0.002)"), "r.json")
                 .pressure_noise_floor_bar.value_or(-1),
             0.002);
   EXPECT_HAS(
@@ -520,7 +521,7 @@ TEST(RunDirBadInput, PcmWavWithFullScaleIsScaledToPa) {
   std::string json = kJson;
   json.replace(json.find("\"radius_m\": 1.75"), 16, "\"radius_m\": 1.75, \"full_scale_pa\": 200");
   write_text(d / "run.json", json);
-  const RunDir run = read_run_dir(d);
+  const formats::RunDir run = formats::read_run_dir(d);
   // 0.25 of full scale = 50 Pa amplitude; 24-bit quantisation 200 Pa / 2^23.
   for (int i = 0; i < 100; ++i)
     EXPECT_NEAR(run.mic_pa[2 * i + 1], 50.0 * std::sin(2 * std::numbers::pi * 1000.0 * i / 48000.0), 200.0 / (1 << 22));

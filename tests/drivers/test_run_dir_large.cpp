@@ -20,6 +20,7 @@
 #include "tests/support/unique_temp.hpp"
 
 using namespace noisemon::drivers;
+using namespace noisemon::drivers::formats;
 namespace fs = std::filesystem;
 
 namespace {
@@ -44,9 +45,9 @@ std::string large_csv(const char* sep = ",", const char* eol = "\n", const char*
   return s;
 }
 
-RunDir parse(const std::string& csv) {
-  RunDir run;
-  parse_pressure_csv(csv, "p.csv", 1e5, run);
+formats::RunDir parse(const std::string& csv) {
+  formats::RunDir run;
+  formats::parse_pressure_csv(csv, "p.csv", 1e5, run);
   return run;
 }
 
@@ -81,7 +82,7 @@ int first_line_of_second_half(const std::string& text) {
   return line_at(text, cut + 1);
 }
 
-void expect_same_columns(const RunDir& a, const RunDir& b) {
+void expect_same_columns(const formats::RunDir& a, const formats::RunDir& b) {
   ASSERT_EQ(a.time_s.size(), b.time_s.size());
   // Bit for bit: memcmp, not ==.
   EXPECT_EQ(std::memcmp(a.time_s.data(), b.time_s.data(), a.time_s.size() * sizeof(double)), 0);
@@ -96,7 +97,7 @@ void expect_same_columns(const RunDir& a, const RunDir& b) {
 TEST(RunDirLargeCsv, PlainRowsReadAsTheLineByLineReadingReadsThem) {
   const std::string plain = large_csv();
   ASSERT_GT(plain.size(), std::size_t{2} << 20);
-  const RunDir fast = parse(plain);
+  const formats::RunDir fast = parse(plain);
   ASSERT_EQ(fast.time_s.size(), static_cast<std::size_t>(kRows));
   // A blank before the first comma of row 0 is not plain: that file is read line by line from the start.
   std::string spaced = plain;
@@ -122,7 +123,7 @@ TEST(RunDirLargeCsv, ReadingTheMappedFileGivesTheSameNumbers) {
     "rail_pressure_bar": null, "motored": false}, "pressure": {"file": "pressure.csv", "units": "bar"}})";
   const std::string plain = large_csv();
   std::ofstream(d / "pressure.csv", std::ios::binary) << plain;
-  const RunDir run = read_run_dir(d);
+  const formats::RunDir run = formats::read_run_dir(d);
   expect_same_columns(parse(plain), run);
   EXPECT_EQ(run.mic_count, 0u);
 }
@@ -165,7 +166,7 @@ TEST(RunDirLargeCsv, ABlankLineInTheFirstHalfWithRowsAfterItIsAnError) {
   // Blank from just before the second half to the end of the file: fine, the rows before it are read.
   const int second = first_line_of_second_half(plain);
   std::string cut = plain.substr(0, offset_of_line(plain, second - 1));
-  const RunDir run = parse(cut + std::string(plain.size() - cut.size(), '\n'));
+  const formats::RunDir run = parse(cut + std::string(plain.size() - cut.size(), '\n'));
   EXPECT_EQ(run.time_s.size(), static_cast<std::size_t>(second - 3));
 }
 
@@ -186,14 +187,14 @@ TEST(RunDirLargeCsv, ACsvProblemIsReportedBeforeAWavProblem) {
   std::ofstream(d / "mics.wav") << "not a wav";
   std::ofstream(d / "pressure.csv", std::ios::binary) << with_line(large_csv(), kRows - 5, "1,2");
   try {
-    read_run_dir(d);
+    formats::read_run_dir(d);
     FAIL() << "no error";
   } catch (const RunDirError& e) {
     EXPECT_HAS(std::string(e.what()), "pressure.csv: line " + std::to_string(kRows - 5) + ": 2 field(s)");
   }
   std::ofstream(d / "pressure.csv", std::ios::binary) << large_csv();  // now only the WAV is wrong
   try {
-    read_run_dir(d);
+    formats::read_run_dir(d);
     FAIL() << "no error";
   } catch (const RunDirError& e) {
     EXPECT_HAS(std::string(e.what()), "mics.wav: cannot read as a sound file");
@@ -224,8 +225,8 @@ TEST(RunDirLargeCsv, EncoderStepIsTheMedianStep) {
         else
           th += (i < n / 2 + 5) ? 0.1 : 0.1 + 1e-9 * static_cast<double>(i);  // sample and median far apart
       }
-      EXPECT_EQ(crank_step_deg(crank), nth_median(crank)) << "n " << n << " kind " << kind;
+      EXPECT_EQ(formats::crank_step_deg(crank), nth_median(crank)) << "n " << n << " kind " << kind;
     }
   }
-  EXPECT_TRUE(std::isnan(crank_step_deg({1.0})));
+  EXPECT_TRUE(std::isnan(formats::crank_step_deg({1.0})));
 }

@@ -20,7 +20,7 @@ constexpr double kStart = 0.05;  // the generators' first frame, s on the source
 // Channel 0 of every 40 kHz frame a generator writes up to t_end (all channels: every_channel), advanced in 10 ms
 // steps, from the source's first frame (a stretch before the first block stays NaN).
 template <class Generator>
-std::vector<double> generate(const nd::SimConfig& cfg, double t_end, bool every_channel = false) {
+std::vector<double> generate(const nd::sim::SimConfig& cfg, double t_end, bool every_channel = false) {
   Generator g(cfg, kStart);
   nd::BlockRing ring(4096);
   std::vector<double> out;
@@ -38,8 +38,8 @@ std::vector<double> generate(const nd::SimConfig& cfg, double t_end, bool every_
   return out;
 }
 
-nd::SimConfig scheduled(const char* effect, double onset_s, double ramp_s) {
-  nd::SimConfig c;
+nd::sim::SimConfig scheduled(const char* effect, double onset_s, double ramp_s) {
+  nd::sim::SimConfig c;
   c.seed = 5;
   c.scheduled_effects.push_back({nm::engine::parse_effect(effect), onset_s, ramp_s});
   return c;
@@ -48,14 +48,14 @@ nd::SimConfig scheduled(const char* effect, double onset_s, double ramp_s) {
 }  // namespace
 
 TEST(SimEffectSchedule, WeightIsZeroBeforeOnsetLinearOverTheRampAndOneAfter) {
-  const nd::ScheduledEffect step{nm::engine::parse_effect("mic_gain=3"), 90.0, 0.0};
-  EXPECT_EQ(nd::effect_weight(step, 89.999), 0.0);
-  EXPECT_EQ(nd::effect_weight(step, 90.0), 1.0);
-  const nd::ScheduledEffect ramp{nm::engine::parse_effect("mic_gain=1"), 10.0, 600.0};
-  EXPECT_EQ(nd::effect_weight(ramp, 5.0), 0.0);
-  EXPECT_DOUBLE_EQ(nd::effect_weight(ramp, 310.0), 0.5);
-  EXPECT_EQ(nd::effect_weight(ramp, 700.0), 1.0);
-  EXPECT_THROW((void)nd::cumulative_effects(nm::engine::parse_effects({"mic_gain=2"}), {step}, 1),
+  const nd::sim::ScheduledEffect step{nm::engine::parse_effect("mic_gain=3"), 90.0, 0.0};
+  EXPECT_EQ(nd::sim::effect_weight(step, 89.999), 0.0);
+  EXPECT_EQ(nd::sim::effect_weight(step, 90.0), 1.0);
+  const nd::sim::ScheduledEffect ramp{nm::engine::parse_effect("mic_gain=1"), 10.0, 600.0};
+  EXPECT_EQ(nd::sim::effect_weight(ramp, 5.0), 0.0);
+  EXPECT_DOUBLE_EQ(nd::sim::effect_weight(ramp, 310.0), 0.5);
+  EXPECT_EQ(nd::sim::effect_weight(ramp, 700.0), 1.0);
+  EXPECT_THROW((void)nd::sim::cumulative_effects(nm::engine::parse_effects({"mic_gain=2"}), {step}, 1),
                std::invalid_argument);
 }
 
@@ -64,7 +64,7 @@ TEST(SimEffectSchedule, WeightIsZeroBeforeOnsetLinearOverTheRampAndOneAfter) {
 // passed the step (its kernel spans under 2 ms).
 TEST(SimEffectSchedule, MicGainStepScalesOneMicrophoneFromItsOnsetOnly) {
   const double onset = 0.1;  // s after the first frame
-  const auto clean = generate<nd::sim::MicGenerator>(nd::SimConfig{.seed = 5}, 0.25, true);
+  const auto clean = generate<nd::sim::MicGenerator>(nd::sim::SimConfig{.seed = 5}, 0.25, true);
   const auto stepped = generate<nd::sim::MicGenerator>(scheduled("mic_gain=6,mic=4", onset, 0.0), 0.25, true);
   ASSERT_EQ(clean.size(), stepped.size());
   const std::size_t mics = 10, frames = clean.size() / mics;
@@ -86,7 +86,7 @@ TEST(SimEffectSchedule, MicGainStepScalesOneMicrophoneFromItsOnsetOnly) {
 
 // A ramp of 0.1 s from 0.05 s: half way through, the factor is 1 + (g - 1) / 2 (amplitude-linear growth).
 TEST(SimEffectSchedule, MicGainRampGrowsLinearly) {
-  const auto clean = generate<nd::sim::MicGenerator>(nd::SimConfig{.seed = 5}, 0.25, true);
+  const auto clean = generate<nd::sim::MicGenerator>(nd::sim::SimConfig{.seed = 5}, 0.25, true);
   const auto ramped = generate<nd::sim::MicGenerator>(scheduled("mic_gain=6,mic=2", 0.05, 0.1), 0.25, true);
   const std::size_t mics = 10;
   const double g = std::pow(10.0, 6.0 / 20.0);
@@ -108,12 +108,12 @@ TEST(SimEffectSchedule, MicGainRampGrowsLinearly) {
 // code path: PressureChain's counter-based floor) adds.
 TEST(SimEffectSchedule, TransducerNoiseStepAddsWhatTheSameFloorAdds) {
   const double onset = 0.1;
-  nd::SimConfig quiet{.seed = 5};
+  nd::sim::SimConfig quiet{.seed = 5};
   quiet.pressure_chain.noise_bar = 0.0;
   quiet.pressure_chain.adc_bits = 0;
-  nd::SimConfig floor = quiet;
+  nd::sim::SimConfig floor = quiet;
   floor.pressure_chain.noise_bar = 0.5;
-  nd::SimConfig noisy = quiet;
+  nd::sim::SimConfig noisy = quiet;
   noisy.scheduled_effects.push_back({nm::engine::parse_effect("transducer_noise=0.5"), onset, 0.0});
   const auto clean = generate<nd::sim::PressureGenerator>(quiet, 0.3);
   const auto with_floor = generate<nd::sim::PressureGenerator>(floor, 0.3);

@@ -26,8 +26,8 @@ nm::engine::OperatingCondition at(double rpm, double load = 0.0, double soi = 18
 // 3000 rpm: a cycle every 40 ms, cycle k from 0.04 k s. A step asked for 0.2 s after a first frame at 0.05 s
 // (0.25 s) lands on the boundary at 0.28 s, cycle 7; at 6000 rpm the next boundary is 20 ms later.
 TEST(OperatingProfile, AStepLandsOnTheFirstCycleBoundaryAfterItsInstant) {
-  const nd::OperatingProfile p(at(3000.0), {{.at_s = 0.2, .ramp_s = 0.0, .condition = at(6000.0, 10.0, 12.0)}}, 0.01,
-                               0.05);
+  const nd::sim::OperatingProfile p(at(3000.0), {{.at_s = 0.2, .ramp_s = 0.0, .condition = at(6000.0, 10.0, 12.0)}},
+                                    0.01, 0.05);
   EXPECT_EQ(p.condition(6).speed_rpm, 3000.0);
   EXPECT_EQ(p.condition(-3).speed_rpm, 3000.0);  // the pre-roll's cycles: the first operating point
   EXPECT_EQ(p.condition(7).speed_rpm, 6000.0);
@@ -51,8 +51,8 @@ TEST(OperatingProfile, AStepLandsOnTheFirstCycleBoundaryAfterItsInstant) {
 // 1000 -> 2000 rpm over 0.32 s (a mean cycle of 80 ms: 4 cycles): 1250, 1500, 1750, 2000 rpm; the cycles' lengths
 // follow (96, 80, 68.57 ms), load and SOI ramp with the speed.
 TEST(OperatingProfile, ARampChangesCycleByCycle) {
-  const nd::OperatingProfile p(at(1000.0, 0.0, 20.0),
-                               {{.at_s = 0.1, .ramp_s = 0.32, .condition = at(2000.0, 20.0, 12.0)}}, 0.0, 0.0);
+  const nd::sim::OperatingProfile p(at(1000.0, 0.0, 20.0),
+                                    {{.at_s = 0.1, .ramp_s = 0.32, .condition = at(2000.0, 20.0, 12.0)}}, 0.0, 0.0);
   // 1000 rpm: 120 ms cycles, the step's first boundary is 0.12 s (cycle 1).
   const double expected[] = {1000.0, 1250.0, 1500.0, 1750.0, 2000.0, 2000.0};
   for (int c = 0; c < 6; ++c) EXPECT_NEAR(p.condition(c).speed_rpm, expected[c], 1e-9) << c;
@@ -67,9 +67,9 @@ TEST(OperatingProfile, ARampChangesCycleByCycle) {
 }
 
 TEST(OperatingProfile, ValidationNamesTheStepAndField) {
-  const auto message = [](const std::vector<nd::OperatingStep>& s) {
+  const auto message = [](const std::vector<nd::sim::OperatingStep>& s) {
     try {
-      nd::validate_operating_schedule(s);
+      nd::sim::validate_operating_schedule(s);
     } catch (const std::invalid_argument& e) {
       return std::string(e.what());
     }
@@ -88,7 +88,7 @@ TEST(OperatingProfile, ValidationNamesTheStepAndField) {
 // wraps 60 ms apart before and 34.8 ms after, a trusted angle throughout (the decoder checks every revolution's
 // count and the phase), and a higher peak pressure at full load.
 TEST(OperatingProfile, TheDecodedStreamFollowsAStepOfSpeedAndLoad) {
-  nd::SimConfig cfg;
+  nd::sim::SimConfig cfg;
   cfg.speed_rpm = 2000.0;
   cfg.seed = 3;
   cfg.operating_schedule.push_back({.at_s = 0.3, .ramp_s = 0.0, .condition = at(3450.0, 20.0, 18.0)});

@@ -141,11 +141,11 @@ void capture(nd::Source& src, Rings& rings, SimRun& run, double seconds) {
 // `seconds` of the engine's data. Under a sanitizer the sim cannot keep the wall clock's pace, so it runs unpaced
 // (as fast as the rings are drained, nothing dropped) until it has delivered as much: the same data to check, and
 // the pacing assertions are left to the normal build.
-SimRun run_source(nd::SimConfig config, double seconds) {
+SimRun run_source(nd::sim::SimConfig config, double seconds) {
   SimRun run;
   if (noisemon::test::kSanitized) config.paced = false;
   Rings rings;  // before the source: its epoch is taken at construction, and the rings take a while under a sanitizer
-  auto src = nd::make_sim_source(config);
+  auto src = nd::sim::make_sim_source(config);
   run.info = src->info();
   capture(*src, rings, run, seconds);
   return run;
@@ -166,10 +166,10 @@ double wrap_deg(double theta) {
 // Engine pressure at time t with the source's seeded cycle-to-cycle variation (and its gas ringing).
 struct PressureReference {
   nm::engine::EngineCycle cycle;
-  nd::SimConfig config;
+  nd::sim::SimConfig config;
   std::int64_t index = std::numeric_limits<std::int64_t>::min();
-  explicit PressureReference(const nd::SimConfig& c) : cycle(params(c)), config(c) {}
-  static nm::engine::EngineCycleParams params(const nd::SimConfig& c) {
+  explicit PressureReference(const nd::sim::SimConfig& c) : cycle(params(c)), config(c) {}
+  static nm::engine::EngineCycleParams params(const nd::sim::SimConfig& c) {
     nm::engine::EngineCycleParams p;
     p.ringing = c.gas_ringing;
     return p;
@@ -202,7 +202,7 @@ double mic_mean_square(const Captured& m, std::size_t from, std::size_t to) {
 
 // Mean square of the sound the linear block radiates for a periodic pressure: sum over harmonics of
 // 2 |P_h|^2 |H(f_h)|^2 with H(s) = (C1 s + C0) / (m s^2 + b1 s + k1), harmonics below f_max.
-double analytic_mean_square(const nd::SimConfig& c, double f_max) {
+double analytic_mean_square(const nd::sim::SimConfig& c, double f_max) {
   PressureReference ref(c);
   const double period = 120.0 / c.speed_rpm;
   const int n = 8192;
@@ -236,8 +236,8 @@ double band_power(const Captured& m, std::uint32_t ch, std::size_t from, std::si
   return sum;
 }
 
-nd::SimConfig idle_config() {
-  nd::SimConfig c;  // defaults: idle 3050 rpm, 0 N m, SOI 18, 1 % speed ripple, 3 % cycle variation, 0.1 deg
+nd::sim::SimConfig idle_config() {
+  nd::sim::SimConfig c;  // defaults: idle 3050 rpm, 0 N m, SOI 18, 1 % speed ripple, 3 % cycle variation, 0.1 deg
   c.seed = 11;
   return c;
 }
@@ -258,7 +258,7 @@ std::int64_t counter(const SimRun& r, const std::string& name) {
 }  // namespace
 
 TEST(SimSource, InfoDescribesTheThesisSetup) {
-  auto src = nd::make_sim_source(idle_config());
+  auto src = nd::sim::make_sim_source(idle_config());
   const auto info = src->info();
   EXPECT_EQ(info.mic_count, 10u);
   ASSERT_EQ(info.mic_positions_m.size(), 10u);
@@ -271,9 +271,9 @@ TEST(SimSource, InfoDescribesTheThesisSetup) {
           .count();
   EXPECT_NEAR(static_cast<double>(info.epoch_utime), static_cast<double>(now), 1e6);
   EXPECT_FALSE(src->running());
-  nd::SimConfig bad = idle_config();
+  nd::sim::SimConfig bad = idle_config();
   bad.mic_count = 17;
-  EXPECT_THROW(nd::make_sim_source(bad), std::invalid_argument);
+  EXPECT_THROW(nd::sim::make_sim_source(bad), std::invalid_argument);
 }
 
 TEST(SimSource, StreamsAreContiguousAlignedAndPacedWithoutOverruns) {
@@ -340,7 +340,7 @@ TEST(SimSource, TheCrankAngleStreamHoldsEveryEdgeFromTheStart) {
 
 TEST(SimSource, PressureChannelIsTheEngineCycleAtEachFrame) {
   // An explicitly ideal pressure chain: the channel is the true pressure (gas ringing included), resampled.
-  nd::SimConfig cfg = idle_config();
+  nd::sim::SimConfig cfg = idle_config();
   cfg.pressure_chain = nm::engine::PressureChainConfig::ideal();
   const SimRun r = run_source(cfg, 0.8);
   PressureReference ref(cfg);
@@ -403,7 +403,7 @@ TEST(SimSource, PressureChannelCarriesTheConfiguredFloorPerEncoderSample) {
 }
 
 TEST(SimSource, AdcClippingIsCountedNeverSilent) {
-  nd::SimConfig cfg = idle_config();
+  nd::sim::SimConfig cfg = idle_config();
   cfg.pressure_chain.adc_max_bar = 50.0;  // below the fired peak (~77 bar)
   cfg.mic_chain.adc_range_pa = 5.0;       // below the engine's peaks
   const SimRun r = run_source(cfg, 0.6);
@@ -450,7 +450,7 @@ TEST(SimSource, CrankChannelFollowsTheKinematicsAndWrapsOncePerCycle) {
 // [[sim.schedule]]: the operating points at 10 Hz report the change of speed (measured from the crank angle), load
 // and injection timing from the cycle it lands on; the crank channel's cycles lengthen to the new speed's 120 / n.
 TEST(SimSource, AnOperatingPointScheduleChangesWhatTheStreamsAndTheOperatingPointsCarry) {
-  nd::SimConfig cfg = idle_config();
+  nd::sim::SimConfig cfg = idle_config();
   cfg.operating_schedule.push_back(
       {.at_s = 0.5, .ramp_s = 0.0, .condition = {.speed_rpm = 3450.0, .load_nm = 20.0, .soi_deg_btdc = 14.0}});
   const SimRun r = run_source(cfg, 1.2);
@@ -540,7 +540,7 @@ TEST(SimSource, MicrophonesCarryTheBlockResponseDelayedByRadiusOverC) {
 TEST(SimSource, MicLevelMatchesHarmonicResponseOfThePeriodicCycle) {
   // Without cycle-to-cycle variation the pressure is periodic in time (period 120 / n, the speed ripple
   // included), so the radiated mean square follows from the harmonics and H(jw) alone.
-  nd::SimConfig cfg;
+  nd::sim::SimConfig cfg;
   cfg.speed_rpm = 3450.0;
   cfg.load_nm = 20.0;
   cfg.soi_deg_btdc = 21.0;
@@ -566,7 +566,7 @@ TEST(SimSource, BackgroundNoiseMotoredAndFired) {
   // Motored: the combustion noise is gone. Overall (unweighted) levels are ruled by the low harmonics of the
   // compression pressure either way; at 1-5 kHz, where combustion excites the block, the fired engine is far
   // louder.
-  nd::SimConfig motored = idle_config();
+  nd::sim::SimConfig motored = idle_config();
   motored.motored = true;
   const SimRun rm = run_source(motored, 0.8);
   const SimRun& rf = fired_run();
@@ -580,7 +580,7 @@ TEST(SimSource, BackgroundNoiseMotoredAndFired) {
   EXPECT_GT(10.0 * std::log10(hf / hm), 10.0);
   // Background far above the engine: the level is the configured one, pink (equal power per octave), and
   // independent between microphones.
-  nd::SimConfig loud = motored;
+  nd::sim::SimConfig loud = motored;
   loud.background_noise_db = lm + 30.0;
   loud.mic_chain = nm::engine::MicChainConfig::ideal();  // explicitly ideal: a ~147 dB floor would clip the card's ADC
   const SimRun rb = run_source(loud, 0.8);
@@ -602,7 +602,7 @@ TEST(SimSource, BackgroundNoiseMotoredAndFired) {
 }
 
 TEST(SimSource, StopIsIdempotentAndRestartContinuesTheTimeBase) {
-  auto src = nd::make_sim_source(idle_config());
+  auto src = nd::sim::make_sim_source(idle_config());
   Rings rings;
   SimRun first, second;
   first.info = src->info();
@@ -624,7 +624,7 @@ TEST(SimSource, StopIsIdempotentAndRestartContinuesTheTimeBase) {
   // A source destroyed while running stops its threads (before its rings go: declared after them).
   {
     Rings r3;
-    auto running = nd::make_sim_source(idle_config());
+    auto running = nd::sim::make_sim_source(idle_config());
     running->start(r3.streams());
     EXPECT_THROW(running->start(r3.streams()), std::logic_error);
     std::this_thread::sleep_for(std::chrono::milliseconds(50));
@@ -635,7 +635,7 @@ namespace {
 
 // Everything a generator writes up to t_end, advanced in the given steps (s).
 template <class Generator>
-std::vector<double> generate(const nd::SimConfig& cfg, double t_end, double step) {
+std::vector<double> generate(const nd::sim::SimConfig& cfg, double t_end, double step) {
   Generator g(cfg, 0.05);
   nd::BlockRing ring(4096);
   std::vector<double> out;
@@ -654,7 +654,7 @@ std::vector<double> generate(const nd::SimConfig& cfg, double t_end, double step
 // The realistic cell is deterministic: the same seed gives the same bits, however the wall clock chunks the
 // generators (the pressure chain is counter-based on the encoder edge, the microphones sequential from the start).
 TEST(SimSource, RealisticCellIsBitReproducibleAndIndependentOfChunking) {
-  nd::SimConfig cfg = idle_config();
+  nd::sim::SimConfig cfg = idle_config();
   cfg.pressure_chain.flicker_bar = 0.01;  // every part on
   const auto p_one = generate<nd::sim::PressureGenerator>(cfg, 0.25, 0.2);
   const auto p_many = generate<nd::sim::PressureGenerator>(cfg, 0.25, 0.0037);
@@ -667,7 +667,7 @@ TEST(SimSource, RealisticCellIsBitReproducibleAndIndependentOfChunking) {
   ASSERT_GT(common, p_one.size() - 2 * 1600);
   EXPECT_TRUE(std::equal(p_one.begin(), p_one.begin() + static_cast<std::ptrdiff_t>(common), p_many.begin()));
   EXPECT_EQ(m_many, m_one);
-  nd::SimConfig other = cfg;
+  nd::sim::SimConfig other = cfg;
   other.seed = 12;
   EXPECT_NE(generate<nd::sim::PressureGenerator>(other, 0.25, 0.2), p_one);
 }

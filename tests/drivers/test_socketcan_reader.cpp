@@ -38,29 +38,29 @@ class SocketPair : public ::testing::Test {
   int fds_[2] = {-1, -1};
 };
 
-CanSignalMap engine_map() {
-  CanSignal speed;  // J1939 EEC1 engine speed: bytes 4-5 Intel, 0.125 rpm/bit
+formats::CanSignalMap engine_map() {
+  formats::CanSignal speed;  // J1939 EEC1 engine speed: bytes 4-5 Intel, 0.125 rpm/bit
   speed.id = 0x0CF00400;
   speed.extended = true;
   speed.start_bit = 24;
   speed.length = 16;
   speed.factor = 0.125;
-  CanSignal load;  // 11-bit frame 0x321, Motorola "7|16@0-" 0.5 Nm/bit
-  load.field = OperatingPointField::kLoadNm;
+  formats::CanSignal load;  // 11-bit frame 0x321, Motorola "7|16@0-" 0.5 Nm/bit
+  load.field = formats::OperatingPointField::kLoadNm;
   load.id = 0x321;
   load.start_bit = 7;
   load.length = 16;
-  load.byte_order = CanByteOrder::kMotorola;
+  load.byte_order = formats::CanByteOrder::kMotorola;
   load.is_signed = true;
   load.factor = 0.5;
-  return CanSignalMap({speed, load});
+  return formats::CanSignalMap({speed, load});
 }
 
 TEST_F(SocketPair, DecodesDataFramesAndCountsErrorFrames) {
   const int one = 1;
   ASSERT_EQ(setsockopt(fds_[1], SOL_SOCKET, SO_TIMESTAMP, &one, sizeof one), 0);
-  const CanSignalMap map = engine_map();
-  SocketCanReader reader(fds_[1]);
+  const formats::CanSignalMap map = engine_map();
+  can::SocketCanReader reader(fds_[1]);
   OperatingPoint op;
 
   const std::int64_t before = realtime_us();
@@ -72,20 +72,20 @@ TEST_F(SocketPair, DecodesDataFramesAndCountsErrorFrames) {
   send_frame(0x0CF00400 | CAN_EFF_FLAG | CAN_RTR_FLAG, {});
   const std::int64_t after = realtime_us();
 
-  ASSERT_EQ(reader.read_operating_point(1000, map, op), CanReadResult::kDataFrame);
+  ASSERT_EQ(reader.read_operating_point(1000, map, op), can::CanReadResult::kDataFrame);
   EXPECT_DOUBLE_EQ(op.speed_rpm, 1500.0);
   EXPECT_GE(op.utime, before);
   EXPECT_LE(op.utime, after);
-  EXPECT_EQ(reader.read_operating_point(1000, map, op), CanReadResult::kErrorFrame);
-  EXPECT_EQ(reader.read_operating_point(1000, map, op), CanReadResult::kErrorFrame);
-  ASSERT_EQ(reader.read_operating_point(1000, map, op), CanReadResult::kDataFrame);
+  EXPECT_EQ(reader.read_operating_point(1000, map, op), can::CanReadResult::kErrorFrame);
+  EXPECT_EQ(reader.read_operating_point(1000, map, op), can::CanReadResult::kErrorFrame);
+  ASSERT_EQ(reader.read_operating_point(1000, map, op), can::CanReadResult::kDataFrame);
   EXPECT_DOUBLE_EQ(op.load_nm, -100.0);
-  EXPECT_DOUBLE_EQ(op.speed_rpm, 1500.0);                                          // untouched by the load frame
-  EXPECT_EQ(reader.read_operating_point(1000, map, op), CanReadResult::kIgnored);  // not in the map
-  EXPECT_EQ(reader.read_operating_point(1000, map, op), CanReadResult::kIgnored);  // remote frame
-  EXPECT_EQ(reader.read_operating_point(20, map, op), CanReadResult::kTimeout);
+  EXPECT_DOUBLE_EQ(op.speed_rpm, 1500.0);                                               // untouched by the load frame
+  EXPECT_EQ(reader.read_operating_point(1000, map, op), can::CanReadResult::kIgnored);  // not in the map
+  EXPECT_EQ(reader.read_operating_point(1000, map, op), can::CanReadResult::kIgnored);  // remote frame
+  EXPECT_EQ(reader.read_operating_point(20, map, op), can::CanReadResult::kTimeout);
 
-  const SocketCanStats& s = reader.stats();
+  const can::SocketCanStats& s = reader.stats();
   EXPECT_EQ(s.data_frames, 3U);
   EXPECT_EQ(s.remote_frames, 1U);
   EXPECT_EQ(s.error_frames, 2U);
@@ -95,23 +95,23 @@ TEST_F(SocketPair, DecodesDataFramesAndCountsErrorFrames) {
 
   close(fds_[0]);
   fds_[0] = -1;
-  EXPECT_EQ(reader.read_operating_point(1000, map, op), CanReadResult::kClosed);
+  EXPECT_EQ(reader.read_operating_point(1000, map, op), can::CanReadResult::kClosed);
 }
 
 TEST_F(SocketPair, ErrorFrameCarriesClassAndShortReadsAreMalformed) {
-  SocketCanReader reader(fds_[1]);
+  can::SocketCanReader reader(fds_[1]);
   send_frame(CAN_ERR_FLAG | CAN_ERR_CRTL | CAN_ERR_RESTARTED, {0, CAN_ERR_CRTL_TX_PASSIVE});
   const char junk[5] = {1, 2, 3, 4, 5};
   ASSERT_EQ(send(fds_[0], junk, sizeof junk, 0), 5);
   const std::int64_t before = realtime_us();
-  ReceivedCanFrame rx;
-  ASSERT_EQ(reader.read(1000, rx), CanReadResult::kErrorFrame);
+  can::ReceivedCanFrame rx;
+  ASSERT_EQ(reader.read(1000, rx), can::CanReadResult::kErrorFrame);
   EXPECT_EQ(rx.error_class, CAN_ERR_CRTL | CAN_ERR_RESTARTED);
   EXPECT_EQ(rx.frame.data[1], CAN_ERR_CRTL_TX_PASSIVE);
   // Without SO_TIMESTAMP the reader times the frame itself.
   EXPECT_GE(rx.utime, before);
   EXPECT_LE(rx.utime, realtime_us());
-  EXPECT_EQ(reader.read(1000, rx), CanReadResult::kIgnored);
+  EXPECT_EQ(reader.read(1000, rx), can::CanReadResult::kIgnored);
   EXPECT_EQ(reader.stats().malformed, 1U);
   EXPECT_EQ(reader.stats().restarts, 1U);
   EXPECT_EQ(reader.stats().fallback_timestamps, 2U);
@@ -140,19 +140,19 @@ TEST(SocketCanAncillary, ReadsTimestampAndDropCounter) {
   std::int64_t utime = 0;
   bool have_drops = false;
   std::uint32_t got = 0;
-  EXPECT_TRUE(parse_can_ancillary(msg, utime, have_drops, got));
+  EXPECT_TRUE(can::parse_can_ancillary(msg, utime, have_drops, got));
   EXPECT_EQ(utime, 1700000000LL * 1000000 + 250);
   EXPECT_TRUE(have_drops);
   EXPECT_EQ(got, 42U);
 
   msg.msg_controllen = 0;
-  EXPECT_FALSE(parse_can_ancillary(msg, utime, have_drops, got));
+  EXPECT_FALSE(can::parse_can_ancillary(msg, utime, have_drops, got));
   EXPECT_FALSE(have_drops);
 }
 
 std::string open_error(const std::string& interface) {
   try {
-    const int fd = open_socketcan(interface, engine_map());
+    const int fd = can::open_socketcan(interface, engine_map());
     close(fd);
   } catch (const std::runtime_error& e) {
     return e.what();

@@ -80,14 +80,14 @@ TEST(StreamMessagesDamaged, IntactMessagesDecodeAsEncoded) {
   const auto rb = raw_block();
   const auto b = encode(rb);
   noisemon::raw_block_t r;
-  ASSERT_TRUE(decode_message(b.data(), b.size(), r));
+  ASSERT_TRUE(formats::decode_message(b.data(), b.size(), r));
   EXPECT_EQ(r.nsamples, 6);
   EXPECT_EQ(r.data, rb.data);
   EXPECT_EQ(r.frames, 3);
 
   const auto s = encode(session());
   noisemon::session_t sm;
-  ASSERT_TRUE(decode_message(s.data(), s.size(), sm));
+  ASSERT_TRUE(formats::decode_message(s.data(), s.size(), sm));
   EXPECT_EQ(sm.source, "sim");
   EXPECT_EQ(sm.condition, "idle");
   EXPECT_EQ(sm.mic_positions_m[1][2], 6.0);
@@ -96,7 +96,7 @@ TEST(StreamMessagesDamaged, IntactMessagesDecodeAsEncoded) {
   op.speed_rpm = 1800;
   const auto o = encode(op);
   noisemon::operating_point_t om;
-  ASSERT_TRUE(decode_message(o.data(), o.size(), om));
+  ASSERT_TRUE(formats::decode_message(o.data(), o.size(), om));
   EXPECT_EQ(om.speed_rpm, 1800);
 }
 
@@ -107,7 +107,7 @@ TEST(StreamMessagesDamaged, RawBlockClaimingTwoBillionSamplesIsRefusedWithoutAll
     put_be32(b, nsamples_offset(rb), claimed);
     largest_allocation = 0;
     noisemon::raw_block_t r;
-    EXPECT_FALSE(decode_message(b.data(), b.size(), r)) << claimed;
+    EXPECT_FALSE(formats::decode_message(b.data(), b.size(), r)) << claimed;
     EXPECT_LT(largest_allocation.load(), 4096U) << claimed;
   }
 }
@@ -117,7 +117,7 @@ TEST(StreamMessagesDamaged, RawBlockWithNegativeSampleCountIsRefused) {
   auto b = encode(rb);
   put_be32(b, nsamples_offset(rb), -3);
   noisemon::raw_block_t r;
-  EXPECT_FALSE(decode_message(b.data(), b.size(), r));
+  EXPECT_FALSE(formats::decode_message(b.data(), b.size(), r));
 }
 
 TEST(StreamMessagesDamaged, SessionWithDamagedStringLengthOrMicCountIsRefused) {
@@ -127,7 +127,7 @@ TEST(StreamMessagesDamaged, SessionWithDamagedStringLengthOrMicCountIsRefused) {
     auto b = encode(session());
     put_be32(b, source_len_at, len);
     noisemon::session_t m;
-    EXPECT_FALSE(decode_message(b.data(), b.size(), m)) << len;
+    EXPECT_FALSE(formats::decode_message(b.data(), b.size(), m)) << len;
   }
   // nmics (int16) follows the source ("sim" + NUL) and three doubles.
   const std::size_t nmics_at = source_len_at + 4 + 4 + 3 * 8;
@@ -136,22 +136,23 @@ TEST(StreamMessagesDamaged, SessionWithDamagedStringLengthOrMicCountIsRefused) {
   b.at(nmics_at) = 0xFF;
   b.at(nmics_at + 1) = 0xFF;  // -1
   noisemon::session_t m;
-  EXPECT_FALSE(decode_message(b.data(), b.size(), m));
+  EXPECT_FALSE(formats::decode_message(b.data(), b.size(), m));
 }
 
 TEST(StreamMessagesDamaged, TruncatedPaddedOrForeignPayloadsAreRefused) {
   const auto b = encode(raw_block());
   noisemon::raw_block_t r;
-  for (std::size_t n = 0; n < b.size(); ++n) EXPECT_FALSE(decode_message(b.data(), n, r)) << "truncated to " << n;
+  for (std::size_t n = 0; n < b.size(); ++n)
+    EXPECT_FALSE(formats::decode_message(b.data(), n, r)) << "truncated to " << n;
   auto padded = b;
   padded.push_back(0);
-  EXPECT_FALSE(decode_message(padded.data(), padded.size(), r));
+  EXPECT_FALSE(formats::decode_message(padded.data(), padded.size(), r));
   // A session's bytes are not a raw block (fingerprint), nor the other way round.
   const auto s = encode(session());
-  EXPECT_FALSE(decode_message(s.data(), s.size(), r));
+  EXPECT_FALSE(formats::decode_message(s.data(), s.size(), r));
   noisemon::session_t sm;
-  EXPECT_FALSE(decode_message(b.data(), b.size(), sm));
-  EXPECT_FALSE(decode_message(nullptr, 10, sm));
+  EXPECT_FALSE(formats::decode_message(b.data(), b.size(), sm));
+  EXPECT_FALSE(formats::decode_message(nullptr, 10, sm));
 }
 
 TEST(StreamMessagesDamaged, SessionCarriesTheConvertersFullScalesAndRefusesImpossibleOnes) {
@@ -160,23 +161,23 @@ TEST(StreamMessagesDamaged, SessionCarriesTheConvertersFullScalesAndRefusesImpos
   info.mic_positions_m = {{1, 2, 3}};
   info.pressure_full_scale_pa = 250e5;
   info.mic_full_scale_pa = 3162.3;
-  const auto bytes = encode(to_message(info, "sim", 5));
+  const auto bytes = encode(formats::to_message(info, "sim", 5));
   noisemon::session_t m;
-  ASSERT_TRUE(decode_message(bytes.data(), bytes.size(), m));
+  ASSERT_TRUE(formats::decode_message(bytes.data(), bytes.size(), m));
   EXPECT_EQ(m.pressure_full_scale_pa, 250e5);
   EXPECT_EQ(m.mic_full_scale_pa, 3162.3);
-  const StreamInfo back = from_message(m);
+  const StreamInfo back = formats::from_message(m);
   EXPECT_EQ(back.pressure_full_scale_pa, 250e5);
   EXPECT_EQ(back.mic_full_scale_pa, 3162.3);
   // 0: not known (a session that does not say); the default.
-  EXPECT_EQ(from_message(session()).mic_full_scale_pa, 0.0);
+  EXPECT_EQ(formats::from_message(session()).mic_full_scale_pa, 0.0);
   for (double fs : {-1.0, std::numeric_limits<double>::infinity(), std::nan("")}) {
     noisemon::session_t bad = session();
     bad.mic_full_scale_pa = fs;
-    EXPECT_THROW(from_message(bad), std::invalid_argument) << fs;
+    EXPECT_THROW(formats::from_message(bad), std::invalid_argument) << fs;
     bad = session();
     bad.pressure_full_scale_pa = fs;
-    EXPECT_THROW(from_message(bad), std::invalid_argument) << fs;
+    EXPECT_THROW(formats::from_message(bad), std::invalid_argument) << fs;
   }
 }
 
@@ -184,11 +185,11 @@ TEST(StreamMessagesDamaged, SessionWithAcousticDelayOf1e20sIsRefused) {
   for (double delay : {1e20, 1.5, -0.001, std::numeric_limits<double>::infinity(), std::nan("")}) {
     noisemon::session_t m = session();
     m.acoustic_delay_s = delay;
-    EXPECT_THROW(from_message(m), std::invalid_argument) << delay;
+    EXPECT_THROW(formats::from_message(m), std::invalid_argument) << delay;
   }
   noisemon::session_t ok = session();
   ok.acoustic_delay_s = 0.0051;  // 1.75 m at 343 m/s
-  EXPECT_DOUBLE_EQ(from_message(ok).acoustic_delay_s, 0.0051);
+  EXPECT_DOUBLE_EQ(formats::from_message(ok).acoustic_delay_s, 0.0051);
 }
 
 }  // namespace

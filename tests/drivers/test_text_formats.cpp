@@ -11,7 +11,7 @@
 namespace nd = noisemon::drivers;
 
 TEST(TextLines, SplitsOnNewlinesDropsOneCarriageReturnAndNumbersFromOne) {
-  nd::TextLines lines("a\r\n\nb\r\r\nc");
+  nd::formats::TextLines lines("a\r\n\nb\r\r\nc");
   std::vector<std::string> got;
   std::vector<std::size_t> numbers;
   for (std::string_view line; lines.next(line);) {
@@ -20,10 +20,10 @@ TEST(TextLines, SplitsOnNewlinesDropsOneCarriageReturnAndNumbersFromOne) {
   }
   EXPECT_EQ(got, (std::vector<std::string>{"a", "", "b\r", "c"}));
   EXPECT_EQ(numbers, (std::vector<std::size_t>{1, 2, 3, 4}));
-  nd::TextLines empty("");
+  nd::formats::TextLines empty("");
   std::string_view line;
   EXPECT_FALSE(empty.next(line));
-  nd::TextLines ended("x\n");  // a final line end opens no further line
+  nd::formats::TextLines ended("x\n");  // a final line end opens no further line
   ASSERT_TRUE(ended.next(line));
   EXPECT_FALSE(ended.next(line));
 }

@@ -52,8 +52,8 @@ std::chrono::duration<double> engine_time(int cycles) {
 }
 // The time a log's events span, as the recorder stamped them: what lcm-logplayer takes to play it at speed 1.
 std::chrono::duration<double> log_span(const std::string& path) {
-  noisemon::drivers::LcmLogReader reader{std::filesystem::path(path)};
-  noisemon::drivers::LcmLogEvent e;
+  noisemon::drivers::formats::LcmLogReader reader{std::filesystem::path(path)};
+  noisemon::drivers::formats::LcmLogEvent e;
   std::int64_t first = -1, last = 0;
   while (reader.next(e)) {
     if (first < 0) first = e.timestamp;
@@ -442,7 +442,7 @@ TEST(EndToEnd, AnLcmSourceKeepsTheBlocksThatArriveBeforeItStarts) {
   info.epoch_utime = kEpoch;
   info.mic_count = 1;
   info.mic_positions_m = {{1, 0, 0}};
-  const noisemon::session_t session = nd::to_message(info, "test", kEpoch);
+  const noisemon::session_t session = nd::formats::to_message(info, "test", kEpoch);
   std::atomic<bool> constructed{false};
   std::thread announcer([&] {  // the session until the source has it
     while (!constructed.load()) {
@@ -450,12 +450,12 @@ TEST(EndToEnd, AnLcmSourceKeepsTheBlocksThatArriveBeforeItStarts) {
       std::this_thread::sleep_for(20ms);
     }
   });
-  nd::LcmSourceConfig config;
+  nd::lcm::LcmSourceConfig config;
   config.url = kLcmUrl;
   config.session_timeout_s = allowance_s(2);
   std::unique_ptr<nd::Source> source;
   try {
-    source = nd::make_lcm_source(config);
+    source = nd::lcm::make_lcm_source(config);
   } catch (const std::exception& e) {
     ADD_FAILURE() << e.what();
   }
@@ -467,7 +467,7 @@ TEST(EndToEnd, AnLcmSourceKeepsTheBlocksThatArriveBeforeItStarts) {
     b.first_index = 8 * i;
     b.frames = 8;
     b.channels = 1;
-    const noisemon::raw_block_t raw = nd::to_message(b, noisemon::raw_block_t::STREAM_MICS, kEpoch);
+    const noisemon::raw_block_t raw = nd::formats::to_message(b, noisemon::raw_block_t::STREAM_MICS, kEpoch);
     bus.publish("NOISEMON_RAW", &raw);
   }
   std::this_thread::sleep_for(allowance(200ms));  // LCM's own receiving thread queues them; nobody handles them yet

@@ -9,7 +9,7 @@
 #include "drivers/formats/candump.hpp"
 #include "fuzz_util.hpp"
 
-using noisemon::drivers::CandumpRecord;
+using noisemon::drivers::formats::CandumpRecord;
 
 namespace {
 
@@ -49,7 +49,7 @@ void check_accepted(const CandumpRecord& r) {
   if (r.interface.empty()) noisemon::fuzz::fail("empty interface");
   CandumpRecord again;
   std::string error;
-  if (!noisemon::drivers::parse_candump_line(format_candump(r), 1, again, error) || !same(r, again))
+  if (!noisemon::drivers::formats::parse_candump_line(format_candump(r), 1, again, error) || !same(r, again))
     noisemon::fuzz::fail("accepted record does not survive a round trip through the candump format");
 }
 
@@ -70,7 +70,7 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
     if (line.find_first_not_of(" \t\r") == std::string_view::npos) continue;
     CandumpRecord r;
     std::string error;
-    if (noisemon::drivers::parse_candump_line(line, line_number, r, error)) {
+    if (noisemon::drivers::formats::parse_candump_line(line, line_number, r, error)) {
       check_accepted(r);
       expected.push_back(std::move(r));
     } else {
@@ -82,7 +82,7 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   // The reader on the same bytes as a file.
   const auto path = noisemon::fuzz::scratch_dir() / "input.candump";
   noisemon::fuzz::write_file(path, data, size);
-  noisemon::drivers::CandumpReader reader(path.string());
+  noisemon::drivers::formats::CandumpReader reader(path.string());
   CandumpRecord r;
   std::size_t good = 0;
   while (reader.next(r)) {

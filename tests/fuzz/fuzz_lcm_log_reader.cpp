@@ -1,4 +1,4 @@
-// libFuzzer target: the tolerant LCM log reader (drivers::LcmLogReader) on arbitrary bytes, from a buffer and
+// libFuzzer target: the tolerant LCM log reader (drivers::formats::LcmLogReader) on arbitrary bytes, from a buffer and
 // from a file. Every byte must be accounted for, either inside a well-framed event or in a counted damaged
 // stretch, and both ways of reading must agree.
 #include <cstring>
@@ -7,8 +7,8 @@
 #include "drivers/formats/lcm_log_reader.hpp"
 #include "fuzz_util.hpp"
 
-using noisemon::drivers::LcmLogEvent;
-using noisemon::drivers::LcmLogReader;
+using noisemon::drivers::formats::LcmLogEvent;
+using noisemon::drivers::formats::LcmLogReader;
 using noisemon::fuzz::fail;
 
 namespace {

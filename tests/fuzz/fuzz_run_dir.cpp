@@ -1,4 +1,4 @@
-// libFuzzer target: the run-directory importer (drivers::read_run_dir, then to_recording as `noisemon import`
+// libFuzzer target: the run-directory importer (drivers::formats::read_run_dir, then to_recording as `noisemon import`
 // does) with one of its files replaced by the fuzz bytes and the others valid. Built three times, the file
 // chosen by FUZZ_RUN_DIR_FILE ("run.json", "pressure.csv" or "mics.wav").
 #include <cmath>
@@ -32,7 +32,7 @@ bool all_finite(const auto& v) {
 }
 
 // What an accepted run directory promises its users (drivers/formats/run_dir.hpp).
-void check_accepted(const noisemon::drivers::RunDir& r) {
+void check_accepted(const noisemon::drivers::formats::RunDir& r) {
   const std::size_t n = r.time_s.size();
   if (r.crank_deg.size() != n || r.pressure_pa.size() != n) fail("pressure columns of different lengths");
   if (!all_finite(r.time_s) || !all_finite(r.crank_deg) || !all_finite(r.pressure_pa)) fail("non-finite pressure data");
@@ -49,9 +49,9 @@ void check_accepted(const noisemon::drivers::RunDir& r) {
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
   const auto& dir = run_dir();
   noisemon::fuzz::write_file(dir / FUZZ_RUN_DIR_FILE, data, size);
-  noisemon::drivers::RunDir run;
+  noisemon::drivers::formats::RunDir run;
   try {
-    run = noisemon::drivers::read_run_dir(dir);
+    run = noisemon::drivers::formats::read_run_dir(dir);
   } catch (const std::exception& e) {
     // The file at fault is named: the fuzzed one, or for run.json possibly a file it points to.
     const std::string_view what = e.what();

@@ -36,14 +36,15 @@ inline void write_raw_log(const std::string& path, std::uint32_t mics, int cycle
   for (std::uint32_t m = 0; m < mics; ++m) info.mic_positions_m.push_back({0.5 * m, 0.0, 1.75});
   info.radius_m = 1.75;
   info.acoustic_delay_s = 0.0;
-  write_event(log, "NOISEMON_SESSION", drivers::to_message(info, "fuzz-seed", info.epoch_utime), info.epoch_utime);
+  write_event(log, "NOISEMON_SESSION", drivers::formats::to_message(info, "fuzz-seed", info.epoch_utime),
+              info.epoch_utime);
   drivers::OperatingPoint op;
   op.utime = info.epoch_utime;
   op.speed_rpm = 3000;
   op.load_nm = 10;
   op.soi_deg_btdc = 12;
   op.rail_pressure_bar = std::nan("");
-  write_event(log, "NOISEMON_OP", drivers::to_message(op), op.utime);
+  write_event(log, "NOISEMON_OP", drivers::formats::to_message(op), op.utime);
   if (foreign) {
     const char junk[] = "not a noisemon message";
     lcm::LogEvent e{0, info.epoch_utime, "SOMEONE_ELSE", sizeof junk, const_cast<char*>(junk)};
@@ -64,11 +65,11 @@ inline void write_raw_log(const std::string& path, std::uint32_t mics, int cycle
       for (std::uint32_t c = 0; c < mics; ++c) m.data[f * mics + c] = 1e-3 * x * (1 + 0.1 * c);
     }
     const std::int64_t utime = info.epoch_utime + first * 25;
-    write_event(log, "NOISEMON_RAW", drivers::to_message(p, noisemon::raw_block_t::STREAM_PRESSURE, info.epoch_utime),
-                utime);
+    write_event(log, "NOISEMON_RAW",
+                drivers::formats::to_message(p, noisemon::raw_block_t::STREAM_PRESSURE, info.epoch_utime), utime);
     if (mics > 0)
-      write_event(log, "NOISEMON_RAW", drivers::to_message(m, noisemon::raw_block_t::STREAM_MICS, info.epoch_utime),
-                  utime);
+      write_event(log, "NOISEMON_RAW",
+                  drivers::formats::to_message(m, noisemon::raw_block_t::STREAM_MICS, info.epoch_utime), utime);
   }
 }
 
