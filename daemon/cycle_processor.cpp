@@ -32,10 +32,6 @@ double thread_cpu_seconds() {
 
 double overload_level(double full_scale) { return full_scale > 0 ? kOverloadFraction * full_scale : kInf; }
 
-std::int64_t utime_of(std::int64_t epoch, double frames) {
-  return epoch + static_cast<std::int64_t>(std::llround(frames * 1e6 / kFs));
-}
-
 }  // namespace
 
 // Adds the processing thread's CPU time spent in one call to cpu_spent_s_ (idle polling is not counted), unless a
@@ -439,8 +435,8 @@ void CycleProcessor::finish_cycle(std::int64_t end_index) {
   if (!encoder) last_duration_s_ = duration;
 
   CycleReport r;
-  r.utime = utime_of(info_.epoch_utime, static_cast<double>(start));
-  r.window_end_utime = utime_of(info_.epoch_utime, static_cast<double>(end_index + delay_frames_));
+  r.utime = drivers::utime_of_frame(info_.epoch_utime, static_cast<double>(start));
+  r.window_end_utime = drivers::utime_of_frame(info_.epoch_utime, static_cast<double>(end_index + delay_frames_));
   r.cycle = cycle;
   r.duration_s = duration;
   r.op = op_;

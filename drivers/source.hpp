@@ -11,6 +11,7 @@
 #include <array>
 #include <atomic>
 #include <chrono>
+#include <cmath>
 #include <cstdint>
 #include <memory>
 #include <string>
@@ -21,6 +22,15 @@
 namespace noisemon::drivers {
 
 inline constexpr double kPipelineRateHz = 40000.0;
+
+// The utime of 40 kHz frame `frame` (fractional: an instant between frames) of a stream whose frame 0 is at
+// epoch_utime, to the nearest microsecond; and the frame nearest to a utime.
+inline std::int64_t utime_of_frame(std::int64_t epoch_utime, double frame) {
+  return epoch_utime + static_cast<std::int64_t>(std::llround(frame * 1e6 / kPipelineRateHz));
+}
+inline std::int64_t frame_of_utime(std::int64_t epoch_utime, std::int64_t utime) {
+  return std::llround(static_cast<double>(utime - epoch_utime) * kPipelineRateHz / 1e6);
+}
 
 // The wall clock as an LCM utime: microseconds since 1970.
 inline std::int64_t wall_utime() {

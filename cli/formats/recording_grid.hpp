@@ -14,7 +14,7 @@ inline constexpr double kFs = drivers::kPipelineRateHz;
 
 // The utime of frame `index` of a recording whose frame 0 is at `epoch`.
 inline std::int64_t utime_of_index(std::int64_t epoch, std::int64_t index) {
-  return epoch + static_cast<std::int64_t>(std::llround(static_cast<double>(index) * 1e6 / kFs));
+  return drivers::utime_of_frame(epoch, static_cast<double>(index));
 }
 
 // Mean speed of a stretch of the wrapped crank channel (for a recording without operating points).

@@ -37,8 +37,7 @@ TimedStreamAssembler::TimedStreamAssembler(std::uint32_t channels, double card_r
 TimedStreamAssembler::~TimedStreamAssembler() = default;
 
 void TimedStreamAssembler::restart(std::int64_t origin_utime) {
-  // 40 kHz frames are 25 us apart.
-  first_index_ = std::llround(static_cast<double>(origin_utime - epoch_utime_) / 25.0);
+  first_index_ = frame_of_utime(epoch_utime_, origin_utime);
   resampler_ =
       dsp::RationalResampler(card_rate_hz_, kPipelineRateHz, channels_, dsp::SamplePrecision::kSingle);  // ADC words
   batch_ = 0;

@@ -32,8 +32,7 @@ void set_raw_block(noisemon::raw_block_t& m, std::int64_t first_index, std::size
                    std::int8_t stream, std::int64_t epoch_utime) {
   m.epoch_utime = epoch_utime;
   m.first_index = first_index;
-  m.utime =
-      epoch_utime + static_cast<std::int64_t>(std::llround(static_cast<double>(first_index) * 1e6 / kPipelineRateHz));
+  m.utime = utime_of_frame(epoch_utime, static_cast<double>(first_index));
   m.stream = stream;
   m.sample_rate_hz = kPipelineRateHz;
   m.channels = static_cast<std::int16_t>(channels);
@@ -251,8 +250,7 @@ std::string raw_block_problem(const noisemon::raw_block_t& m, const StreamInfo& 
   if (m.epoch_utime != info.epoch_utime)
     return "block of another session (epoch " + std::to_string(m.epoch_utime) + ")";
   if (m.first_index < -(std::int64_t{1} << 50) || m.first_index > (std::int64_t{1} << 50) ||
-      m.utime != m.epoch_utime + static_cast<std::int64_t>(
-                                     std::llround(static_cast<double>(m.first_index) * 1e6 / kPipelineRateHz)))
+      m.utime != utime_of_frame(m.epoch_utime, static_cast<double>(m.first_index)))
     return "utime does not match first_index (a damaged field)";
   std::size_t expected;
   if (m.stream == noisemon::raw_block_t::STREAM_PRESSURE)
