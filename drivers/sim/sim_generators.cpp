@@ -102,7 +102,12 @@ bool picked(std::int64_t edge_in_rev, std::int64_t counts_per_rev, double per_re
 }  // namespace
 
 PressureGenerator::PressureGenerator(const SimConfig& config, double t_first_s)
-    : profile_(std::make_shared<const OperatingProfile>(operating_profile(config, t_first_s))),
+    : PressureGenerator(config, t_first_s,
+                        std::make_shared<const OperatingProfile>(operating_profile(config, t_first_s))) {}
+
+PressureGenerator::PressureGenerator(const SimConfig& config, double t_first_s,
+                                     std::shared_ptr<const OperatingProfile> profile)
+    : profile_(std::move(profile)),
       kin_(profile_->kinematics()),
       cache_(config, profile_),
       chain_(config.pressure_chain, config.effects, config.seed),
@@ -295,7 +300,7 @@ model::engine::VirtualEngineConfig virtual_engine_config(const SimConfig& config
 
 EngineFeed::EngineFeed(const SimConfig& config, std::shared_ptr<const OperatingProfile> profile, double t0_s,
                        double rate_hz)
-    : kin_(profile->kinematics()), cache_(config, profile), t0_(t0_s), rate_(rate_hz) {}
+    : kin_(profile->kinematics()), cache_(config, std::move(profile)), t0_(t0_s), rate_(rate_hz) {}
 
 void EngineFeed::fill(std::int64_t first, double* pressure_pa, double* crank_deg, std::size_t n) {
   for (std::size_t i = 0; i < n; ++i) {
@@ -306,6 +311,10 @@ void EngineFeed::fill(std::int64_t first, double* pressure_pa, double* crank_deg
 }
 
 MicGenerator::MicGenerator(const SimConfig& config, double t_first_s)
+    : MicGenerator(config, t_first_s, std::make_shared<const OperatingProfile>(operating_profile(config, t_first_s))) {}
+
+MicGenerator::MicGenerator(const SimConfig& config, double t_first_s,
+                           const std::shared_ptr<const OperatingProfile>& profile)
     : card_rate_(config.mic_rate_hz),
       t0_(t_first_s - kPreRollS),
       index0_(to_index(t_first_s - kPreRollS, kPipelineRateHz)),
@@ -322,7 +331,6 @@ MicGenerator::MicGenerator(const SimConfig& config, double t_first_s)
       writer_(config.mic_count) {
   if (std::abs(t0_ / kGridAlignS - std::round(t0_ / kGridAlignS)) > 1e-6)
     throw std::invalid_argument("MicGenerator: start time must be a multiple of 1/1600 s");
-  const auto profile = std::make_shared<const OperatingProfile>(operating_profile(config, t_first_s));
   for (std::size_t k = 0; k <= schedule_.size(); ++k) {
     SimConfig step = config;
     step.effects = cumulative_effects(config.effects, schedule_, k);

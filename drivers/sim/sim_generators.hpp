@@ -70,6 +70,8 @@ class PressureGenerator {
   static constexpr double kTimebaseHz = 80e6;
 
   PressureGenerator(const SimConfig& config, double t_first_s);
+  // With the run's operating profile (operating_profile(config, t_first_s)), built once for every generator.
+  PressureGenerator(const SimConfig& config, double t_first_s, std::shared_ptr<const OperatingProfile> profile);
   ~PressureGenerator();
   void advance(double t_end_s, BlockRing& ring);  // every edge before t_end_s
   // The crank-angle stream (each edge's sample) goes to this ring too, its blocks that begin at first_index() or
@@ -141,6 +143,7 @@ class EngineFeed final : public model::engine::PressureFeed {
 class MicGenerator {
  public:
   MicGenerator(const SimConfig& config, double t_first_s);
+  MicGenerator(const SimConfig& config, double t_first_s, const std::shared_ptr<const OperatingProfile>& profile);
   void advance(double t_end_s, BlockRing& ring);  // every 40 kHz frame before t_end_s
   std::uint64_t blocks_written() const { return writer_.blocks_written(); }
   std::int64_t first_index() const { return first_index_; }

@@ -102,10 +102,11 @@ class SimSource final : public Source {
     // First frame: the next grid-aligned instant from now (never before the epoch).
     const double now_s = 1e-6 * static_cast<double>(wall_utime() - epoch_utime_);
     const double t_first = std::ceil(std::max(now_s, 0.0) / sim::kGridAlignS) * sim::kGridAlignS;
-    // Generators are built here (allocation happens now, not in the threads).
-    auto pressure = std::make_shared<sim::PressureGenerator>(config_, t_first);
+    // Generators are built here (allocation happens now, not in the threads), on one operating profile.
+    auto profile = std::make_shared<const OperatingProfile>(sim::operating_profile(config_, t_first));
+    auto pressure = std::make_shared<sim::PressureGenerator>(config_, t_first, profile);
     pressure->set_angle_ring(streams.pressure_angle);
-    auto mics = std::make_shared<sim::MicGenerator>(config_, t_first);
+    auto mics = std::make_shared<sim::MicGenerator>(config_, t_first, profile);
     const SimConfig::Threads& policy = config_.threads;
     for (auto& p : progress_) p.store(t_first, std::memory_order_relaxed);
     started_ = true;
@@ -118,7 +119,6 @@ class SimSource final : public Source {
                       [this, mics, ring = streams.mics, t_first](const std::atomic<bool>& stop) {
                         run_stream(workers_[1], 1, *mics, *ring, t_first, stop, [] {});
                       });
-    auto profile = std::make_shared<const OperatingProfile>(sim::operating_profile(config_, t_first));
     workers_[2].start("nm-op", policy.operating_point,
                       [this, profile, ring = streams.operating_point, t_first](const std::atomic<bool>& stop) {
                         run_operating_point(workers_[2], *profile, *ring, t_first, stop);
