@@ -7,8 +7,11 @@ false alarms (an event before the onset).
 
 Usage: gapwatch_effects.py BUILD_DIR [--jobs N] [--only NAME,...] [--keep DIR]
 """
-import argparse, json, os, subprocess, sys, tempfile
+import argparse, os, sys, tempfile
 from concurrent.futures import ThreadPoolExecutor
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from gapwatch_runs import daemon_config_head, run_daemon, run_gapwatch  # noqa: E402
 
 REFERENCE_S = 120.0
 ONSET_S = 150.0
@@ -44,20 +47,12 @@ def run(build, name, effect, sim, work):
     log = os.path.join(work, tag + ".lcmlog")
     toml = os.path.join(work, tag + ".toml")
     with open(toml, "w") as f:
-        f.write(f'[lcm]\nurl = "file://{log}?mode=w"\npublish_raw = false\n[sim]\npaced = false\nencoder_resolution_deg = 0.5\n')
+        f.write(daemon_config_head(log))
         for k, v in sim.items():
             f.write(f"{k} = {v}\n")
         f.write(f'[[sim.effects]]\neffect = "{effect}"\nonset_s = {ONSET_S}\nramp_s = {ramp}\n')
-    subprocess.run([f"{build}/daemon/noisemond", "--config", toml, "--cycles", str(cycles), "--log-level", "error"],
-                   check=True, stdout=subprocess.DEVNULL)
-    events = os.path.join(work, tag + ".jsonl")
-    if os.path.exists(events):
-        os.remove(events)
-    subprocess.run([f"{build}/daemon/noisemon", "gapwatch", "--log", log, "--json", events, "--no-progress",
-                    "--reference-s", str(REFERENCE_S), "--encoder-step-deg", "0.5"],
-                   check=True, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-    with open(events) if os.path.exists(events) else open(os.devnull) as f:
-        found = [json.loads(line) for line in f if line.strip()]
+    run_daemon(build, toml, cycles)
+    found = run_gapwatch(build, log, os.path.join(work, tag + ".jsonl"), REFERENCE_S)
     if not (os.environ.get("KEEP")):
         os.remove(log)
     return speed, found

@@ -8,7 +8,10 @@ bound, and the daemon's speed against real time.
 
 Usage: gapwatch_false_alarms.py BUILD_DIR [--hours H] [--keep DIR]
 """
-import argparse, json, math, os, shutil, subprocess, sys, tempfile, threading, time
+import argparse, math, os, shutil, sys, tempfile, threading, time
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from gapwatch_runs import daemon_config_head, run_daemon, run_gapwatch  # noqa: E402
 
 # (speed rpm, load N m, SOI deg BTDC): fixed here before the first run.
 POINTS = {"A": (3050.0, 0.0, 18.0), "B": (3450.0, 20.0, 18.0), "C": (3250.0, 10.0, 18.0),
@@ -28,8 +31,8 @@ def schedule(hours):
 def write_config(path, log, steps):
     first = steps[0][1]
     with open(path, "w") as f:
-        f.write(f'[lcm]\nurl = "file://{log}?mode=w"\npublish_raw = false\n')
-        f.write(f"[sim]\npaced = false\nencoder_resolution_deg = 0.5\nseed = 20261129\n")
+        f.write(daemon_config_head(log))
+        f.write("seed = 20261129\n")
         f.write(f"speed_rpm = {first[0]}\nload_nm = {first[1]}\nsoi_deg_btdc = {first[2]}\n")
         for at, (rpm, load, soi) in steps[1:]:
             f.write(f"[[sim.schedule]]\nat_s = {at:.1f}\nramp_s = {RAMP_S}\n"
@@ -69,18 +72,14 @@ def main():
     stop = threading.Event()
     threading.Thread(target=watch_progress, args=(log, stop), daemon=True).start()
     t0 = time.time()
-    subprocess.run([f"{args.build}/daemon/noisemond", "--config", toml, "--cycles", str(cycles), "--log-level", "error"],
-                   check=True, stdout=subprocess.DEVNULL)
+    run_daemon(args.build, toml, cycles)
     daemon_s = time.time() - t0
     stop.set()
     print(f"noisemond: {daemon_s:.0f} s wall for {args.hours * 3600:.0f} s of engine time "
           f"({args.hours * 3600 / daemon_s:.1f} x real time); log {os.path.getsize(log) / 1e6:.0f} MB", flush=True)
     t0 = time.time()
-    subprocess.run([f"{args.build}/daemon/noisemon", "gapwatch", "--log", log, "--json", events, "--no-progress",
-                    "--reference-s", str(REFERENCE_S), "--encoder-step-deg", "0.5"], check=True, stdout=subprocess.DEVNULL)
+    found = run_gapwatch(args.build, log, events, REFERENCE_S)
     watch_s = time.time() - t0
-    with open(events) as f:
-        found = [json.loads(line) for line in f if line.strip()]
     watched_h = args.hours - len(POINTS) * REFERENCE_S / 3600.0
     print(f"noisemon gapwatch: {watch_s:.0f} s wall")
     print(f"engine hours watched (after each point's {REFERENCE_S:g} s reference): {watched_h:.2f}")
