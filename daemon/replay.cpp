@@ -73,7 +73,7 @@ std::shared_ptr<FanoutPublisher> open_outputs(const ReplayOptions& o) {
 void replay_session(const ReplayOptions& o, const Config& config, std::unique_ptr<drivers::Source> source,
                     const std::shared_ptr<FanoutPublisher>& outputs, const drivers::log::LogSessions& log,
                     Progress& progress, ReplaySummary& sum) {
-  const std::string condition = log.condition();
+  const std::string& condition = log.condition();
   outputs->begin_run(condition);
   PipelineOptions po;
   po.lossless = true;

@@ -19,7 +19,6 @@
 namespace noisemon::cli::formats {
 namespace {
 
-using grid::kFs;
 using grid::speed_from_crank;
 using grid::utime_of_index;
 

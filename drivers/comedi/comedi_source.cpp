@@ -294,7 +294,7 @@ class ComediSource final : public Source {
                     },
                     acquisitions_[i]->read_function(), acquisitions_[i]->where()};
     }
-    const ReadLoopResult r = run_group_read_loop(
+    ReadLoopResult r = run_group_read_loop(
         streams,
         [&] {
           edge_->deliver(ring, false);
@@ -323,7 +323,7 @@ class ComediSource final : public Source {
                         decoders_[m].feed(b, n, [&](const double* v) { mic_->add_scan(v, ring); });
                       },
                       acquisitions_[m]->read_function(), acquisitions_[m]->where()};
-    const ReadLoopResult r = run_group_read_loop(
+    ReadLoopResult r = run_group_read_loop(
         std::span<ReadStream>(&stream, 1),
         [&] {
           mic_->deliver(ring, false);
@@ -497,7 +497,7 @@ std::vector<ComediAcquisitionConfig> comedi_acquisitions(const ComediSourceConfi
   return out;
 }
 
-std::unique_ptr<Source> make_comedi_source(const ComediSourceConfig& config, AcquisitionFactory factory,
+std::unique_ptr<Source> make_comedi_source(const ComediSourceConfig& config, const AcquisitionFactory& factory,
                                            std::int64_t epoch_utime) {
   return std::make_unique<ComediSource>(config, factory, epoch_utime);
 }

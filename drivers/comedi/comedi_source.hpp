@@ -145,7 +145,7 @@ std::vector<ComediAcquisitionConfig> comedi_acquisitions(const ComediSourceConfi
 
 // Opens every acquisition now (a missing device or a subdevice that cannot stream throws std::runtime_error
 // naming device and subdevice). epoch_utime 0: now.
-std::unique_ptr<Source> make_comedi_source(const ComediSourceConfig& config, AcquisitionFactory factory = {},
+std::unique_ptr<Source> make_comedi_source(const ComediSourceConfig& config, const AcquisitionFactory& factory = {},
                                            std::int64_t epoch_utime = 0);
 
 }  // namespace noisemon::drivers::comedi

@@ -515,7 +515,7 @@ void GapWatch::add_speed_law(GapEvent& event) {
 void GapWatch::finish_learning() {
   flush();
   for (std::size_t p = 0; p < points_.size(); ++p)
-    if (points_[p].learning && points_[p].block_means.size() > 0 && points_[p].block_means.front().size() >= 4)
+    if (points_[p].learning && !points_[p].block_means.empty() && points_[p].block_means.front().size() >= 4)
       finish_reference(p);
 }
 

@@ -51,7 +51,7 @@ void sum_taps(const ConditionSpectrum& sp, const std::vector<std::size_t>& bands
   std::vector<std::array<double, kDim>> flat(nbins);
   for (std::size_t j = 0; j < nbins; ++j) {
     flat[j][0] = g[j].a;
-    for (int d = 0; d < kStruct; ++d) flat[j][static_cast<std::size_t>(d + 1)] = g[j].v[d];
+    for (int d = 0; d < kStruct; ++d) flat[j][static_cast<std::size_t>(d) + 1] = g[j].v[d];
   }
   for (std::size_t i = 0; i < bands.size(); ++i) {
     std::array<double, kDim> acc{};
@@ -60,7 +60,7 @@ void sum_taps(const ConditionSpectrum& sp, const std::vector<std::size_t>& bands
       for (int d = 0; d < kDim; ++d) acc[static_cast<std::size_t>(d)] += t.q * f[static_cast<std::size_t>(d)];
     }
     Jet sum(acc[0]);
-    for (int d = 0; d < kStruct; ++d) sum.v[d] = acc[static_cast<std::size_t>(d + 1)];
+    for (int d = 0; d < kStruct; ++d) sum.v[d] = acc[static_cast<std::size_t>(d) + 1];
     out[i] = sum;
   }
 }

@@ -397,7 +397,7 @@ void add_uncertainty(const FitContext& ctx, const WaveformFitOptions& opt, Wavef
   if (!jac_ok) return;
   const Eigen::MatrixXd jtj = J.transpose() * J;
   Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> es(jtj);
-  const Eigen::VectorXd ev = es.eigenvalues();
+  const Eigen::VectorXd& ev = es.eigenvalues();
   const double tol = ev.maxCoeff() * 1e-14;
   Eigen::VectorXd inv_ev(ev.size());
   for (Eigen::Index i = 0; i < ev.size(); ++i) inv_ev(i) = ev(i) > tol ? 1.0 / ev(i) : 0.0;
