@@ -5,8 +5,6 @@
 #include <ctime>
 #include <limits>
 
-#include "dsp/levels.hpp"
-#include "dsp/resample.hpp"
 #include "dsp/weighting.hpp"
 
 namespace noisemon::daemon {

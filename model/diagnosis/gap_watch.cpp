@@ -497,8 +497,11 @@ void GapWatch::complete_event() {
 // kSpeedLawSpanRpm away is taken.
 void GapWatch::add_speed_law(GapEvent& event) {
   constexpr double kSpeedLawSpanRpm = 200.0;
-  if (event.effect != "speed_dependence" || event.params.empty()) return;
-  const double gain = event.params.front().second;
+  if (event.effect != "speed_dependence") return;
+  const auto fitted = std::find_if(event.params.begin(), event.params.end(),
+                                   [](const auto& param) { return param.first == "gain_db"; });
+  if (fitted == event.params.end()) return;
+  const double gain = fitted->second;
   event.params.emplace_back("speed_rpm", event.speed_rpm);
   for (auto it = structural_gains_.rbegin(); it != structural_gains_.rend(); ++it) {
     const double span_rpm = event.speed_rpm - it->first;

@@ -198,8 +198,8 @@ class GapWatch {
   std::vector<std::int64_t> watched_from_;  // per point: the cycle its reference was complete
   std::vector<double> watched_from_s_;      // and its time
   std::int64_t cycles_ = 0, blocks_ = 0;
-  // The open event.
   std::vector<std::pair<double, double>> structural_gains_;  // speed (rpm) and gain (dB) of speed_dependence events
+  // The open event.
   bool open_ = false;
   std::size_t event_point_ = 0, event_blocks_left_ = 0, event_blocks_seen_ = 0, event_feature_ = 0;
   GapEvent event_;

@@ -4,6 +4,7 @@ over the log with its events read back."""
 import json
 import os
 import subprocess
+import sys
 
 ENCODER_STEP_DEG = 0.5
 
@@ -23,9 +24,13 @@ def run_gapwatch(build, log, events, reference_s):
     """The events `noisemon gapwatch --log` finds (its JSON lines, as dicts)."""
     if os.path.exists(events):
         os.remove(events)
-    subprocess.run([f"{build}/daemon/noisemon", "gapwatch", "--log", log, "--json", events, "--no-progress",
-                    "--reference-s", str(reference_s), "--encoder-step-deg", str(ENCODER_STEP_DEG)],
-                   check=True, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    command = [f"{build}/daemon/noisemon", "gapwatch", "--log", log, "--json", events, "--no-progress",
+               "--reference-s", str(reference_s), "--encoder-step-deg", str(ENCODER_STEP_DEG)]
+    # Its messages only when it fails: the effects bench runs several at once.
+    done = subprocess.run(command, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+    if done.returncode != 0:
+        sys.stderr.write(done.stderr)
+        raise subprocess.CalledProcessError(done.returncode, command)
     if not os.path.exists(events):
         return []
     with open(events) as f:
