@@ -23,10 +23,20 @@ fi
 cd "$build"
 status=0
 jobs="$(nproc)"
-ctest --output-on-failure -j "$jobs" --timeout 600 -LE 'sanitize|e2e' || status=$?
+stage_start=0
+stage() {  # the time each stage took, for docs/benchmarks.md ("The test command")
+  echo "noisemon test: $1 took $((SECONDS - stage_start)) s" >&2
+  stage_start=$SECONDS
+}
+stage "installing and building"
+# The unit suite, lint and fuzz smoke; the slow proofs (label slow) are run by hand: ctest -L slow.
+ctest --output-on-failure -j "$jobs" --timeout 600 -LE 'sanitize|e2e|slow' || status=$?
+stage "the suite"
 # The end-to-end tests mostly wait on the simulated engine's real time: twice as many at once as there are cores.
 ctest --output-on-failure -j "$((2 * jobs))" --timeout 600 -L e2e || status=$?
-# AddressSanitizer + UndefinedBehaviorSanitizer over the unit suite, ThreadSanitizer over the threaded programs,
-# each in a tree of its own (docs/benchmarks.md "Sanitizers"); run even when the suite failed.
+stage "the end-to-end tests"
+# AddressSanitizer + UndefinedBehaviorSanitizer and ThreadSanitizer over what each finds something in, each in a
+# tree of its own (docs/benchmarks.md "Sanitizers"); run even when the suite failed.
 ctest --output-on-failure --timeout 3000 -L sanitize || status=$?
+stage "the sanitizers"
 exit $status

@@ -18,7 +18,7 @@ namespace fs = std::filesystem;
 
 namespace {
 
-const std::string kNoisemon = std::string(NOISEMON_BINARY_DIR) + "/daemon/noisemon";
+const std::string kNoisemon = std::string(NOISEMON_TOOL);
 const std::string kNoisemond = std::string(NOISEMON_BINARY_DIR) + "/daemon/noisemond";
 constexpr double kOnsetS = 20.0;
 

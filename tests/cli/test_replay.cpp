@@ -522,9 +522,7 @@ namespace {
 
 using Output = test::CommandOutput;
 
-Output run_noisemon(const std::string& args) {
-  return test::run_command(std::string(NOISEMON_BINARY_DIR) + "/daemon/noisemon " + args);
-}
+Output run_noisemon(const std::string& args) { return test::run_command(std::string(NOISEMON_TOOL) + " " + args); }
 
 }  // namespace
 

@@ -40,7 +40,7 @@ namespace {
 
 constexpr double kPi = std::numbers::pi;
 constexpr double kPref = 20e-6;
-const std::string kNoisemon = std::string(NOISEMON_BINARY_DIR) + "/daemon/noisemon";
+const std::string kNoisemon = std::string(NOISEMON_TOOL);
 
 fs::path temp(const std::string& name) {
   const fs::path p = noisemon::test::unique_temp("sim_command_" + name);  // per test and process

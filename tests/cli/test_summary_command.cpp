@@ -20,7 +20,7 @@ namespace fs = std::filesystem;
 
 namespace {
 
-const std::string kNoisemon = std::string(NOISEMON_BINARY_DIR) + "/daemon/noisemon";
+const std::string kNoisemon = std::string(NOISEMON_TOOL);
 const std::string kTable = std::string(NOISEMON_SHARED_DIR) + "/data/real/yanmar_l100v_fired_18Nm.txt";
 
 using Output = noisemon::test::CommandOutput;

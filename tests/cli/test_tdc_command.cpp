@@ -21,7 +21,7 @@ namespace fs = std::filesystem;
 
 namespace {
 
-const std::string kNoisemon = std::string(NOISEMON_BINARY_DIR) + "/daemon/noisemon";
+const std::string kNoisemon = std::string(NOISEMON_TOOL);
 const std::string kMotored = std::string(NOISEMON_SHARED_DIR) + "/data/real/yanmar_l100v_motored.txt";
 
 noisemon::test::CommandOutput run(const std::string& args) {

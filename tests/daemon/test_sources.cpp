@@ -41,7 +41,7 @@ using noisemon::test::kStartUp;
 using namespace std::chrono_literals;
 
 const std::string kNoisemond = std::string(NOISEMON_BINARY_DIR) + "/daemon/noisemond";
-const std::string kNoisemon = std::string(NOISEMON_BINARY_DIR) + "/daemon/noisemon";
+const std::string kNoisemon = std::string(NOISEMON_TOOL);
 
 std::string write_file(const std::string& name, const std::string& text) {
   const std::string path = noisemon::test::unique_temp_dir() + "/" + name;
