@@ -16,35 +16,12 @@
 #include "daemon/cycle_processor.hpp"
 #include "drivers/sim/sim_generators.hpp"
 #include "drivers/source.hpp"
+#include "tests/support/allocation_counter.hpp"
 
 namespace {
 std::atomic<bool> counting{false};
-std::atomic<long> allocations{0}, locks{0};
+std::atomic<long> locks{0};  // while counting (allocations: tests/support/allocation_counter.hpp)
 }  // namespace
-
-// Every allocation of the program goes through these while counting is on.
-void* operator new(std::size_t n) {
-  if (counting.load(std::memory_order_relaxed)) allocations.fetch_add(1, std::memory_order_relaxed);
-  if (void* p = std::malloc(n ? n : 1)) return p;
-  throw std::bad_alloc();
-}
-void* operator new[](std::size_t n) { return operator new(n); }
-void* operator new(std::size_t n, std::align_val_t a) {
-  if (counting.load(std::memory_order_relaxed)) allocations.fetch_add(1, std::memory_order_relaxed);
-  if (void* p = std::aligned_alloc(static_cast<std::size_t>(a),
-                                   (n + static_cast<std::size_t>(a) - 1) & ~(static_cast<std::size_t>(a) - 1)))
-    return p;
-  throw std::bad_alloc();
-}
-void* operator new[](std::size_t n, std::align_val_t a) { return operator new(n, a); }
-void operator delete(void* p) noexcept { std::free(p); }
-void operator delete[](void* p) noexcept { std::free(p); }
-void operator delete(void* p, std::size_t) noexcept { std::free(p); }
-void operator delete[](void* p, std::size_t) noexcept { std::free(p); }
-void operator delete(void* p, std::align_val_t) noexcept { std::free(p); }
-void operator delete[](void* p, std::align_val_t) noexcept { std::free(p); }
-void operator delete(void* p, std::size_t, std::align_val_t) noexcept { std::free(p); }
-void operator delete[](void* p, std::size_t, std::align_val_t) noexcept { std::free(p); }
 
 // Every std::mutex (and any other pthread mutex) lock of the program, interposed on the C library's.
 extern "C" int pthread_mutex_lock(pthread_mutex_t* m) {
@@ -64,12 +41,13 @@ struct Counted {
 
 template <class Work>
 Counted count(Work&& work) {
-  allocations = 0;
+  noisemon::test::reset_allocation_counts();
   locks = 0;
   counting = true;
   work();
+  const long allocations = noisemon::test::allocations_since_reset();
   counting = false;
-  return {allocations.load(), locks.load()};
+  return {allocations, locks.load()};
 }
 
 TEST(RealTimePath, TheCountersSeeAllocationsAndLocks) {

@@ -4,6 +4,7 @@
 // encoded); from_message must refuse a session whose acoustic delay is no frame offset (1e20 s overflowed the
 // processor's frame arithmetic).
 #include "drivers/formats/stream_messages.hpp"
+#include "tests/support/allocation_counter.hpp"
 
 #include <gtest/gtest.h>
 
@@ -13,20 +14,6 @@
 #include <limits>
 #include <new>
 #include <vector>
-
-// The largest single allocation, to check that a damaged length does not turn into a huge one. (gcc takes the
-// replaced operator delete's free() for a mismatch with operator new.)
-#pragma GCC diagnostic ignored "-Wmismatched-new-delete"
-static std::atomic<std::size_t> largest_allocation{0};
-void* operator new(std::size_t n) {
-  std::size_t seen = largest_allocation.load();
-  while (n > seen && !largest_allocation.compare_exchange_weak(seen, n)) {
-  }
-  if (void* p = std::malloc(n ? n : 1)) return p;
-  throw std::bad_alloc();
-}
-void operator delete(void* p) noexcept { std::free(p); }
-void operator delete(void* p, std::size_t) noexcept { std::free(p); }
 
 namespace noisemon::drivers {
 namespace {
@@ -105,10 +92,10 @@ TEST(StreamMessagesDamaged, RawBlockClaimingTwoBillionSamplesIsRefusedWithoutAll
   for (std::int32_t claimed : {INT32_MAX, 1'000'000, 7}) {
     auto b = encode(rb);
     put_be32(b, nsamples_offset(rb), claimed);
-    largest_allocation = 0;
+    noisemon::test::reset_allocation_counts();
     noisemon::raw_block_t r;
     EXPECT_FALSE(formats::decode_message(b.data(), b.size(), r)) << claimed;
-    EXPECT_LT(largest_allocation.load(), 4096U) << claimed;
+    EXPECT_LT(noisemon::test::largest_allocation_since_reset(), 4096U) << claimed;
   }
 }
 

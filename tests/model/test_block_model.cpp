@@ -29,19 +29,7 @@
 #include "dsp/levels.hpp"
 #include "dsp/third_octave_bank.hpp"
 #include "model/block_params.hpp"
-
-// Counts heap allocations, to check that process() makes none.
-namespace {
-std::size_t g_allocations = 0;
-}  // namespace
-// Out of line, so the compiler does not pair an inlined malloc with a delete elsewhere (and warn).
-[[gnu::noinline]] void* operator new(std::size_t size) {
-  ++g_allocations;
-  if (void* p = std::malloc(size == 0 ? 1 : size)) return p;
-  throw std::bad_alloc();
-}
-[[gnu::noinline]] void operator delete(void* p) noexcept { std::free(p); }
-[[gnu::noinline]] void operator delete(void* p, std::size_t) noexcept { std::free(p); }
+#include "tests/support/allocation_counter.hpp"
 
 namespace noisemon::model {
 namespace {
@@ -394,14 +382,14 @@ TEST(BlockModel, ProcessDoesNotAllocate) {
   const std::vector<double> u = pressure_samples(4000, fs, 100.0);  // deep step refinement included
   std::vector<double> y(u.size());
   for (const auto& name : preset_names()) {
-    const std::size_t at_start = g_allocations;
+    noisemon::test::reset_allocation_counts();
     BlockModel model(preset(name), fs);
-    ASSERT_GT(g_allocations, at_start);  // the counter works: the constructor allocates its tables
-    const std::size_t before = g_allocations;
+    ASSERT_GT(noisemon::test::allocations_since_reset(), 0);  // the counter works: the constructor allocates its tables
+    noisemon::test::reset_allocation_counts();
     model.process(u.data(), y.data(), u.size());
     model.reset();
     model.process(u.data(), y.data(), 1000);
-    EXPECT_EQ(g_allocations, before) << name;
+    EXPECT_EQ(noisemon::test::allocations_since_reset(), 0) << name;
   }
 }
 
