@@ -3,7 +3,7 @@
 // TSan's runtime is up, and its instrumented code crashes there.
 #pragma once
 
-#if defined(__x86_64__) && defined(__GNUC__) && !defined(__SANITIZE_THREAD__)
+#if defined(__x86_64__) && defined(__GNUC__) && !defined(NOISEMON_SANITIZE_THREAD)
 #define NOISEMON_KERNEL_CLONES __attribute__((target_clones("arch=x86-64-v3", "default")))
 #else
 #define NOISEMON_KERNEL_CLONES

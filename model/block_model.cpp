@@ -189,19 +189,28 @@ struct BlockModel::Impl {
   void advance_interval(int level, int index);
 };
 
-BlockModel::Impl::Impl(const BlockParams& params, double fs_hz, const BlockModelOptions& options)
-    : p(params),
-      opt(options),
-      fs(fs_hz),
-      base_steps(std::max(1, static_cast<int>(std::ceil(1.0 / (fs_hz * options.max_step_s) - 1e-9)))),
-      inv_m(1.0 / params.m),
-      vpeak_decay(std::exp(-1.0 / (fs_hz * kVelocityScaleMemoryS))),
-      refine_tokens(kRefineStepsPerSample * kRefineBurstS * fs_hz),
-      refine_cap(refine_tokens) {
+namespace {
+
+// The fixed steps per sample, once what they are computed from is checked (a zero rate would make them undefined).
+int checked_steps_per_sample(const BlockParams& params, double fs_hz, const BlockModelOptions& options) {
   if (!(fs_hz > 0 && std::isfinite(fs_hz)) || !(params.m > 0))
     throw std::invalid_argument("BlockModel: needs a positive sample rate and mass");
   if (!(options.max_step_s > 0) || 1.0 / (fs_hz * options.max_step_s) > 1e5)
     throw std::invalid_argument("BlockModel: max_step_s must be positive and at most 1e5 steps per sample");
+  return std::max(1, static_cast<int>(std::ceil(1.0 / (fs_hz * options.max_step_s) - 1e-9)));
+}
+
+}  // namespace
+
+BlockModel::Impl::Impl(const BlockParams& params, double fs_hz, const BlockModelOptions& options)
+    : p(params),
+      opt(options),
+      fs(fs_hz),
+      base_steps(checked_steps_per_sample(params, fs_hz, options)),
+      inv_m(1.0 / params.m),
+      vpeak_decay(std::exp(-1.0 / (fs_hz * kVelocityScaleMemoryS))),
+      refine_tokens(kRefineStepsPerSample * kRefineBurstS * fs_hz),
+      refine_cap(refine_tokens) {
   for (int d = 0; d <= kMaxLevel; ++d) tab.emplace_back(1.0 / (fs * base_steps * (1 << d)));
 
   const std::array<double, 4> nodes{0.0, kRadauC[0], kRadauC[1], 1.0};

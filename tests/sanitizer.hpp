@@ -11,10 +11,10 @@
 
 namespace noisemon::test {
 
-#if defined(__SANITIZE_THREAD__)
+#if defined(NOISEMON_SANITIZE_THREAD)
 inline constexpr bool kSanitized = true;
 inline constexpr double kSanitizerSlowdown = 15.0;
-#elif defined(__SANITIZE_ADDRESS__)
+#elif defined(NOISEMON_SANITIZE_ADDRESS)
 inline constexpr bool kSanitized = true;
 inline constexpr double kSanitizerSlowdown = 3.0;
 #else

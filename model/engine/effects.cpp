@@ -19,7 +19,6 @@ namespace noisemon::model::engine {
 namespace {
 
 constexpr double kPi = std::numbers::pi;
-constexpr double kInf = std::numeric_limits<double>::infinity();
 
 // Random stream identifiers: one per random quantity, so effects never share a realisation.
 enum : std::uint64_t {

@@ -11,7 +11,6 @@ namespace noisemon::model::engine {
 namespace {
 
 constexpr double kPi = std::numbers::pi;
-constexpr double kDegToRad = kPi / 180.0;
 constexpr double kUniversalGasConstant = 8.3143;  // J/(mol K), as in the Hardenberg-Hase fit
 
 // Woschni (Heywood, ch. 12): h = 3.26 B^-0.2 p[kPa]^0.8 T^-0.55 w^0.8,

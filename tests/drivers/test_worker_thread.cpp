@@ -262,7 +262,7 @@ TEST(WorkerThread, CpuAffinityTakesEffectOrFailsNamingTheCpu) {
 }
 
 TEST(LockMemory, RefusedToAnUnprivilegedProcessWithAClearError) {
-#if defined(__SANITIZE_ADDRESS__) || defined(__SANITIZE_THREAD__)
+#if defined(NOISEMON_SANITIZE_ADDRESS) || defined(NOISEMON_SANITIZE_THREAD)
   GTEST_SKIP() << "the sanitizer replaces mlockall with a no-op that succeeds";
 #endif
   GTEST_FLAG_SET(death_test_style, "threadsafe");

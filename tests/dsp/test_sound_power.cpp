@@ -45,7 +45,7 @@ TEST(SoundPower, Iso3744Of2010BoundsTheBandsWithinSixDecibelsAndStopsCorrectingA
 TEST(SoundPower, MeteorologicalCorrectionsFollowTheAirsImpedance) {
   // C1 refers the level to a characteristic impedance of 400 Pa s/m: 10 lg(400 / rho c) with rho c = p sqrt(gamma /
   // (R T)) of dry air (gamma 1.4, R 287.05 J/(kg K)), which is 400 at 314 K and 101.325 kPa; within 0.01 dB.
-  for (const auto [celsius, kpa] : {std::pair{23.0, 101.325}, {40.0, 95.0}, {5.0, 103.0}, {-10.0, 99.0}}) {
+  for (const auto& [celsius, kpa] : {std::pair{23.0, 101.325}, {40.0, 95.0}, {5.0, 103.0}, {-10.0, 99.0}}) {
     const double rho_c = kpa * 1e3 * std::sqrt(1.4 / (287.05 * (273.15 + celsius)));
     EXPECT_NEAR(reference_quantity_correction_c1_db(celsius, kpa), 10 * std::log10(400.0 / rho_c), 0.01) << celsius;
   }
