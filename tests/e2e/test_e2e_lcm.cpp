@@ -138,6 +138,14 @@ int lost_raw_blocks(const std::string& log) {
   return lost + static_cast<int>(reader.damaged());
 }
 
+// A file's whole text or bytes (a process's log, shown when it did not end as expected; a recording).
+std::string slurp(const std::string& path) {
+  std::ifstream in(path);
+  std::stringstream text;
+  text << in.rdbuf();
+  return text.str();
+}
+
 // A copy of a log less one raw block of the microphones, from the middle of the recording.
 bool copy_without_a_mic_block(const std::string& log, const std::string& copy) {
   std::vector<std::pair<std::size_t, std::size_t>> mic_blocks;  // each event's first byte and end
@@ -153,13 +161,17 @@ bool copy_without_a_mic_block(const std::string& log, const std::string& copy) {
   }
   if (mic_blocks.size() < 3) return false;
   const auto [from, to] = mic_blocks[mic_blocks.size() / 2];
-  std::ifstream in(log, std::ios::binary);
-  const std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  const std::string bytes = slurp(log);
   std::ofstream out(copy, std::ios::binary);
   out.write(bytes.data(), static_cast<std::streamsize>(from));
   out.write(bytes.data() + to, static_cast<std::streamsize>(bytes.size() - to));
   return static_cast<bool>(out);
 }
+
+// A cycle's flags for samples or crank-angle edges lost, or its filters settling after such a loss.
+constexpr int kLostDataFlags = static_cast<int>(noisemon::cycle_report_t::CYCLE_GAP) |
+                               static_cast<int>(noisemon::cycle_report_t::CYCLE_ANGLE_GAP) |
+                               static_cast<int>(noisemon::cycle_report_t::CYCLE_SETTLING);
 
 // How the cycles a subscriber received live came out again from a recording of the raw streams.
 struct Replayed {
@@ -178,9 +190,7 @@ Replayed compare_with_live(const std::string& live, const std::string& replayed)
       ++r.missing;
     } else if (it->second == line) {
       ++r.identical;
-    } else if ((flags_of(it->second) &
-                (noisemon::cycle_report_t::CYCLE_GAP | noisemon::cycle_report_t::CYCLE_ANGLE_GAP |
-                 noisemon::cycle_report_t::CYCLE_SETTLING)) != 0) {
+    } else if ((flags_of(it->second) & kLostDataFlags) != 0) {
       ++r.flagged;
     } else {
       ADD_FAILURE() << replayed << ": cycle " << cycle
@@ -417,14 +427,6 @@ TEST(EndToEnd, SystemdHearsReadyOnceDriversRunAndStoppingOnSigterm) {
   close(fd);
 }
 
-// A file's whole text (a process's log, shown when it did not end as expected).
-std::string slurp(const std::string& path) {
-  std::ifstream in(path);
-  std::stringstream text;
-  text << in.rdbuf();
-  return text.str();
-}
-
 TEST(EndToEnd, MissingMulticastRouteIsAClearError) {
   NOISEMON_REQUIRE_NAMESPACE();
   // A fresh namespace of its own has no multicast route: the daemon must say what failed and exit 1.
@@ -486,7 +488,9 @@ TEST(EndToEnd, LcmLoggerRecordingReplaysToTheLiveReportsOfflineAndThroughLcmLogp
       "flagged, %d dropped\n",
       lost, offline.identical, live_cycles.size(), offline.flagged, offline.missing);
   std::fflush(stdout);  // before the next fork, whose child would write it again
-  if (lost == 0) EXPECT_EQ(offline.identical, static_cast<int>(live_cycles.size()));
+  if (lost == 0) {
+    EXPECT_EQ(offline.identical, static_cast<int>(live_cycles.size()));
+  }
   EXPECT_GT(offline.identical, 0);
 
   // The real-tool round trip: lcm-logplayer plays the recorded streams into a daemon whose source is `lcm`.
@@ -546,8 +550,7 @@ TEST(EndToEnd, LcmLoggerRecordingReplaysToTheLiveReportsOfflineAndThroughLcmLogp
 
   // A log cut off in the middle still replays what it holds, without error.
   const std::string cut = dir + "/cut.lcmlog";
-  std::ifstream in(log, std::ios::binary);
-  std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  const std::string bytes = slurp(log);
   std::ofstream(cut, std::ios::binary).write(bytes.data(), static_cast<std::streamsize>(bytes.size() / 2 + 7));
   const std::string cut_csv = dir + "/cut.csv";
   const pid_t replay_cut = spawn({NOISEMON_PATH, "replay", cut, "--csv", cut_csv, "--no-progress"}, "/dev/null");
