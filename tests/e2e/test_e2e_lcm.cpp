@@ -467,8 +467,12 @@ TEST(EndToEnd, LcmLoggerRecordingReplaysToTheLiveReportsOfflineAndThroughLcmLogp
   std::ofstream(logged) << "[sim]\n"
                         << (noisemon::test::kSanitized ? "paced = false\n" : "") << "encoder_resolution_deg = 0.5\n"
                         << kRoomyRings;
-  const pid_t daemon = spawn({NOISEMOND_PATH, "--config", logged, "--lcm", kLcmUrl, "--cycles", cycles}, "/dev/null");
-  EXPECT_EQ(wait_for(daemon, allowance(kStartUp + engine_time(kCycles))), 0);  // it counts what it published
+  const std::string daemon_log = dir + "/daemon.err";
+  const pid_t daemon =
+      spawn({NOISEMOND_PATH, "--config", logged, "--lcm", kLcmUrl, "--cycles", cycles, "--log-level", "debug"},
+            "/dev/null", daemon_log);
+  // It counts what it published.
+  EXPECT_EQ(wait_for(daemon, allowance(kStartUp + engine_time(kCycles))), 0) << slurp(daemon_log);
   // The subscriber has what reached it once it holds every cycle or has heard nothing more for a while.
   wait_until([&] { return read_csv(live).size() >= kCycles; }, allowance(2 * kSubscribed));
   kill(watch, SIGINT);
