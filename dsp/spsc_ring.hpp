@@ -31,7 +31,10 @@ class SpscRing {
     while (cap < capacity) cap <<= 1;
     capacity_ = cap;
     mask_ = cap - 1;
-    slots_ = std::make_unique<T[]>(cap);
+    // Not zero-filled: a slot is written before it is read, and a 5 s ring of 32 KiB blocks is hundreds of MB the
+    // daemon would write at start-up (seconds on a busy machine). Its pages come in as the ring first goes round,
+    // or all at once under mlockall (the daemon's lock_memory), where a page fault must not meet the real-time path.
+    slots_ = std::make_unique_for_overwrite<T[]>(cap);
   }
   SpscRing(const SpscRing&) = delete;
   SpscRing& operator=(const SpscRing&) = delete;

@@ -15,6 +15,7 @@
 #include "daemon/config.hpp"
 #include "tests/cli/run_command.hpp"
 #include "tests/support/required.hpp"
+#include "tests/support/text_file.hpp"
 #include "tests/support/unique_temp.hpp"
 
 namespace fs = std::filesystem;
@@ -35,12 +36,7 @@ double tdc_printed(const std::string& text) {
   return std::stod(m[1]);
 }
 
-std::string slurp(const fs::path& p) {
-  std::ifstream in(p);
-  std::stringstream s;
-  s << in.rdbuf();
-  return s.str();
-}
+using noisemon::test::slurp;
 
 }  // namespace
 

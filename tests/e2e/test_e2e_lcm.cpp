@@ -34,6 +34,7 @@
 #include "noisemon/cycle_report_t.hpp"
 #include "noisemon/raw_block_t.hpp"
 #include "tests/e2e/private_network.hpp"
+#include "tests/support/text_file.hpp"
 #include "tests/support/unique_temp.hpp"
 
 namespace {
@@ -139,12 +140,7 @@ int lost_raw_blocks(const std::string& log) {
 }
 
 // A file's whole text or bytes (a process's log, shown when it did not end as expected; a recording).
-std::string slurp(const std::string& path) {
-  std::ifstream in(path);
-  std::stringstream text;
-  text << in.rdbuf();
-  return text.str();
-}
+using noisemon::test::slurp;
 
 // A copy of a log less one raw block of the microphones, from the middle of the recording.
 bool copy_without_a_mic_block(const std::string& log, const std::string& copy) {
