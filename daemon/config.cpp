@@ -147,6 +147,7 @@ void read_can(TableReader& top, const toml::table& root, const std::string& orig
     r.string("pace", pace);
     c.paced = pick<bool>(r, "pace", pace, {{"recorded", true}, {"fast", false}});
   }
+  r.node("dbc");     // read below with the signals it names
   r.node("signal");  // read below, with its own strict checks
   r.reject_unknown();
   try {

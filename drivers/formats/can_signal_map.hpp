@@ -6,6 +6,7 @@
 #include <toml++/toml.h>
 #include <cstdint>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "drivers/source.hpp"
@@ -27,6 +28,15 @@ enum class CanByteOrder : std::uint8_t {
 
 enum class OperatingPointField : std::uint8_t { kSpeedRpm, kLoadNm, kSoiDegBtdc, kRailPressureBar, kMotored };
 
+// A multiplexor a signal depends on (DBC multiplexing): the frame carries the signal only while this field's raw
+// value lies in one of the ranges. Cascaded multiplexing gives a signal several, all of which must hold.
+struct CanMuxCondition {
+  std::uint32_t start_bit = 0;
+  std::uint32_t length = 1;
+  CanByteOrder byte_order = CanByteOrder::kIntel;
+  std::vector<std::pair<std::uint64_t, std::uint64_t>> ranges;  // inclusive
+};
+
 struct CanSignal {
   OperatingPointField field = OperatingPointField::kSpeedRpm;
   std::uint32_t id = 0;
@@ -38,18 +48,22 @@ struct CanSignal {
   double factor = 1.0;
   double offset = 0.0;
   std::string unit;
+  std::vector<CanMuxCondition> multiplexors;  // empty: in every frame of its id
 };
 
 // Throws std::invalid_argument when the signal is malformed: id out of range for its width, length outside
 // 1..64, or bits running past the 8-byte frame.
 void validate_can_signal(const CanSignal& s);
 
-// Number of payload bytes a frame must carry for the signal to be present (1..8). Assumes a valid signal.
+// Number of payload bytes a frame must carry for the signal and its multiplexors (1..8). Assumes a valid signal.
 std::uint32_t can_signal_min_dlc(const CanSignal& s);
 
 // The signal's raw bits, right-aligned (no sign extension). Assumes a valid signal.
 std::uint64_t extract_can_raw(const std::uint8_t data[8], std::uint32_t start_bit, std::uint32_t length,
                               CanByteOrder order);
+
+// Whether the frame carries the signal: every multiplexor's value in its ranges. Assumes a valid signal.
+bool can_signal_present(const CanSignal& s, const std::uint8_t data[8]);
 
 // Physical value: raw (sign-extended when signed) * factor + offset.
 double can_signal_value(const CanSignal& s, const std::uint8_t data[8]);
@@ -70,13 +84,18 @@ class CanSignalMap {
   std::vector<std::uint32_t> min_dlc_;
 };
 
-// Reads the [[can.signal]] array of a config root table:
+// Reads the [[can.signal]] array of a config root table, each entry laid out by hand:
 //   [[can.signal]]
 //   field = "speed_rpm"  id = 0x0CF00400  extended = true  start_bit = 24  length = 16
 //   byte_order = "intel"  signed = false  factor = 0.125  offset = 0  unit = "rpm"
 // Required: field, id, start_bit, length, byte_order. Defaults: extended = false, signed = false, factor = 1,
-// offset = 0, unit = "". Throws std::invalid_argument naming origin, signal index and key
-// ("cfg.toml: can.signal[1].length: ..."); unknown keys are errors. No [can] table gives an empty map.
+// offset = 0, unit = "". Or picked by name from the DBC file can.dbc (a path relative to origin's folder):
+//   [[can.signal]]
+//   field = "load_nm"  dbc_signal = "ActualEnginePercentTorque"  dbc_message = "EEC1"  scale = 25.0  add = 0
+// dbc_message only where the name is in several messages; scale and add (default 1 and 0) turn the DBC's
+// physical value into the field's unit (a percentage of the reference torque into N m, say).
+// Throws std::invalid_argument naming origin, signal index and key ("cfg.toml: can.signal[1].length: ..."); unknown
+// keys are errors, and so are layout keys beside dbc_signal. No [can] table gives an empty map.
 CanSignalMap parse_can_signal_map(const toml::table& root, const std::string& origin);
 
 const char* to_string(OperatingPointField f);

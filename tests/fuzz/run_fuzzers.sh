@@ -74,6 +74,7 @@ run_one() {
   mkdir -p "$build/corpus/$name"
   [ -d "$src/tests/fuzz/corpus/$name" ] && corpora+=("$src/tests/fuzz/corpus/$name")
   [ -d "$build/seeds/$name" ] && corpora+=("$build/seeds/$name")
+  [ "$name" = dbc ] && corpora+=("$src/tests/data/dbc")  # the real DBC files the unit tests read
   local dict="$name"
   case "$name" in replay|recordings_log|lcm_log_reader) dict=lcm_log ;; esac
   [ -f "$src/tests/fuzz/$dict.dict" ] && flags+=("-dict=$src/tests/fuzz/$dict.dict")
