@@ -115,7 +115,7 @@ int CanSignalMap::decode(const CanFrame& frame, OperatingPoint& op) const {
   int set = 0;
   for (std::size_t i = 0; i < signals_.size(); ++i) {
     const CanSignal& s = signals_[i];
-    if (s.id != frame.id || s.extended != frame.extended || frame.dlc < min_dlc_[i]) continue;
+    if (((s.id ^ frame.id) & s.id_mask) != 0 || s.extended != frame.extended || frame.dlc < min_dlc_[i]) continue;
     if (!s.multiplexors.empty() && !can_signal_present(s, frame.data)) continue;
     const double v = can_signal_value(s, frame.data);
     switch (s.field) {

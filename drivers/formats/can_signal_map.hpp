@@ -49,6 +49,7 @@ struct CanSignal {
   double offset = 0.0;
   std::string unit;
   std::vector<CanMuxCondition> multiplexors;  // empty: in every frame of its id
+  std::uint32_t id_mask = 0x1FFFFFFF;         // the id's bits a frame must match (J1939: its PGN's)
 };
 
 // Throws std::invalid_argument when the signal is malformed: id out of range for its width, length outside

@@ -12,6 +12,8 @@ namespace {
 constexpr std::uint32_t kExtendedFlag = 0x80000000U;  // bit 31 of a DBC message id: a 29-bit identifier
 constexpr std::uint32_t kIdMask = 0x1FFFFFFFU;
 constexpr int kMaxMuxDepth = 8;
+constexpr std::uint32_t kPdu1PgnMask = 0x03FF0000U;  // without priority, destination and source address
+constexpr std::uint32_t kPdu2PgnMask = 0x03FFFF00U;  // without priority and source address
 
 // Reads the tokens of one DBC statement; every failure names the file and line.
 class Cursor {
@@ -171,8 +173,46 @@ void parse_value_type(Cursor& c, std::vector<DbcMessage>& messages) {
   s.float_bits = type == 1 ? 32 : type == 2 ? 64 : 0;
 }
 
+// The VFrameFormat attribute (Vector's): its enum's names, its default, each message's value (raw id, index).
+struct FrameFormats {
+  std::vector<std::string> names;
+  std::string default_name;
+  std::vector<std::pair<std::uint64_t, std::uint64_t>> by_id;
+};
+
+// BA_DEF_ [BO_] "name" type ...; BA_DEF_DEF_ "name" value; BA_ "name" [BO_ id] value: only VFrameFormat is kept.
+void parse_attribute(const std::string& keyword, Cursor& c, FrameFormats& formats) {
+  if (keyword == "BA_DEF_") {
+    const std::string object = c.at('"') ? std::string() : c.word("the attribute's object type");
+    if (object != "BO_" || c.quoted("attribute name") != "VFrameFormat" || c.word("the attribute's type") != "ENUM")
+      return;
+    formats.names.clear();
+    while (c.at('"')) {
+      formats.names.push_back(c.quoted("enum value"));
+      if (c.at(',')) c.expect(',', "between enum values");
+    }
+  } else if (keyword == "BA_DEF_DEF_") {
+    if (c.quoted("attribute name") == "VFrameFormat" && c.at('"')) formats.default_name = c.quoted("default value");
+  } else if (keyword == "BA_") {
+    if (c.quoted("attribute name") != "VFrameFormat" || c.word("the attribute's object type") != "BO_") return;
+    const std::uint64_t id = c.unsigned_number("the message id");
+    formats.by_id.emplace_back(id, c.unsigned_number("the frame format's index"));
+  }
+}
+
+// A J1939 parameter group: a 29-bit id whose VFrameFormat (its own, else the default) is J1939PG.
+void mark_j1939(std::vector<DbcMessage>& messages, const FrameFormats& formats) {
+  for (DbcMessage& m : messages) {
+    std::string format = formats.default_name;
+    const std::uint64_t raw = m.id | (m.extended ? kExtendedFlag : 0U);
+    for (const auto& [id, index] : formats.by_id)
+      if (id == raw) format = index < formats.names.size() ? formats.names[index] : std::string();
+    m.j1939 = m.extended && format == "J1939PG";
+  }
+}
+
 // One statement: BO_ starts a message, SG_ adds to it; the rest of the file's keywords are skipped.
-void parse_statement(const std::string& line, const std::string& where, int number, DbcFile& f) {
+void parse_statement(const std::string& line, const std::string& where, int number, DbcFile& f, FrameFormats& formats) {
   Cursor c(line, where);
   const std::string keyword = c.word("a keyword");
   if (c.at_end()) return;  // a keyword alone: the NS_ section's list of the keywords the file may use
@@ -193,6 +233,13 @@ void parse_statement(const std::string& line, const std::string& where, int numb
     parse_mux_values(c, f.messages);
   } else if (keyword == "SIG_VALTYPE_") {
     parse_value_type(c, f.messages);
+  } else if (keyword == "BA_DEF_" || keyword == "BA_DEF_DEF_" || keyword == "BA_") {
+    try {
+      parse_attribute(keyword, c, formats);
+    } catch (const std::runtime_error&) {
+      // An attribute written some other way: attributes are descriptions, and without the frame format the
+      // message's whole id is matched.
+    }
   }
 }
 
@@ -256,13 +303,15 @@ DbcFile parse_dbc(const std::string& text, const std::string& origin) {
   std::istringstream in(text);
   std::string line;
   bool in_quote = false;
+  FrameFormats formats;
   for (int number = 1; std::getline(in, line); ++number) {
     if (!line.empty() && line.back() == '\r') line.pop_back();
     const bool starts_in_quote = in_quote;
     in_quote = toggles_quote(line, in_quote);
     if (starts_in_quote || line.find_first_not_of(" \t") == std::string::npos) continue;
-    parse_statement(line, origin + ":" + std::to_string(number), number, f);
+    parse_statement(line, origin + ":" + std::to_string(number), number, f, formats);
   }
+  mark_j1939(f.messages, formats);
   return f;
 }
 
@@ -311,6 +360,10 @@ CanSignal DbcFile::can_signal(const std::string& name, const std::string& messag
   s.offset = d.offset;
   s.unit = d.unit;
   add_multiplexors(*owner, d, s.multiplexors, origin, 0);
+  if (owner->j1939) {  // the PGN: data page and PDU format, and for PDU2 (format 240 and above) the group extension
+    const std::uint32_t pdu_format = (owner->id >> 16) & 0xFFU;
+    s.id_mask = pdu_format < 240 ? kPdu1PgnMask : kPdu2PgnMask;
+  }
   return s;
 }
 

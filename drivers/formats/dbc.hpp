@@ -1,6 +1,7 @@
 // DBC files, the CAN databases engine controllers ship with: the messages (BO_), their signals (SG_: bit layout,
-// byte order, sign, factor, offset, unit, multiplexing), extended multiplexing (SG_MUL_VAL_) and floating-point
-// signals (SIG_VALTYPE_). Everything else in a DBC file (comments, attributes, value tables, nodes) is skipped.
+// byte order, sign, factor, offset, unit, multiplexing), extended multiplexing (SG_MUL_VAL_), floating-point
+// signals (SIG_VALTYPE_) and which messages are J1939 parameter groups (the VFrameFormat attribute). Everything else
+// in a DBC file (comments, other attributes, value tables, nodes) is skipped.
 // A signal picked by name becomes a CanSignal of the operating-point map (can_signal_map.hpp).
 #pragma once
 
@@ -37,6 +38,7 @@ struct DbcMessage {
   std::uint32_t id = 0;  // without the extended flag
   bool extended = false;
   std::uint32_t dlc = 0;
+  bool j1939 = false;  // a J1939 parameter group (the VFrameFormat attribute J1939PG): matched by its PGN
   std::vector<DbcSignal> signals;
   const DbcSignal* signal(const std::string& name) const;
 };
@@ -45,7 +47,8 @@ struct DbcFile {
   std::filesystem::path path;
   std::vector<DbcMessage> messages;
 
-  // The signal `name` as a CanSignal (its multiplexors' conditions included) setting `field`; message empty:
+  // The signal `name` as a CanSignal (its multiplexors' conditions included; a J1939 message's id matched by its
+  // PGN alone, whatever the priority and source address, and for PDU1 the destination) setting `field`; message empty:
   // whichever message holds it. Throws std::invalid_argument naming the file when the signal is unknown, in
   // several messages (name one), an IEEE float, or multiplexed by a multiplexor the message does not have.
   CanSignal can_signal(const std::string& name, const std::string& message, OperatingPointField field) const;

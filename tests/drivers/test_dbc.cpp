@@ -52,6 +52,30 @@ TEST(Dbc, ReadsTheJ1939EngineSpeedAsTheFileDeclaresIt) {
   EXPECT_DOUBLE_EQ(can_signal_value(s, frame_of(s, {0xFF, 0xFF, 0xFF, 0x40, 0x1F, 0xFF, 0xFF, 0xFF}).data), 1000.0);
 }
 
+// An engine sends EEC1 from its own source address and priority; the demo file names address 0xFE. A J1939
+// parameter group (VFrameFormat J1939PG) is matched by its PGN; an ExtendedCAN or 11-bit message by its whole id.
+TEST(Dbc, J1939GroupsMatchByPgnWhateverThePriorityAndAddresses) {
+  const DbcFile f = read_dbc(kDbcDir / "CSS-Electronics-SAE-J1939-DEMO.dbc");
+  EXPECT_TRUE(f.messages[0].j1939);
+  CanSignalMap speed({f.can_signal("EngineSpeed", "", OperatingPointField::kSpeedRpm)});
+  noisemon::drivers::OperatingPoint op;
+  EXPECT_EQ(speed.decode(CanFrame{0x0CF00400, true, 8, {0xFF, 0xFF, 0xFF, 0x40, 0x38, 0xFF, 0xFF, 0xFF}}, op), 1);
+  EXPECT_DOUBLE_EQ(op.speed_rpm, 1800.0);  // priority 3, address 0: 0x3840 * 0.125
+  EXPECT_EQ(speed.decode(CanFrame{0x18F00417, true, 8, {0xFF, 0xFF, 0xFF, 0x80, 0x0C, 0xFF, 0xFF, 0xFF}}, op), 1);
+  EXPECT_DOUBLE_EQ(op.speed_rpm, 400.0);                              // priority 6, address 0x17
+  EXPECT_EQ(speed.decode(CanFrame{0x0CF00500, true, 8, {}}, op), 0);  // PGN 0xF005: another group
+
+  const DbcFile j = read_dbc(kDbcDir / "j1939.dbc");  // Message1's own J1939PG, Message2's by default
+  EXPECT_TRUE(j.messages[0].j1939);
+  EXPECT_TRUE(j.messages[1].j1939);
+  CanSignalMap pdu1({j.can_signal("Signal1", "", OperatingPointField::kLoadNm)});  // id 0x15340201, format 0x34
+  EXPECT_EQ(pdu1.decode(CanFrame{0x0D347F22, true, 8, {5}}, op), 1);  // another priority, destination and source
+  EXPECT_EQ(op.load_nm, 5.0);
+  EXPECT_EQ(pdu1.decode(CanFrame{0x15350201, true, 8, {5}}, op), 0);                          // format 0x35
+  EXPECT_FALSE(read_dbc(kDbcDir / "issue_184_extended_mux_cascaded.dbc").messages[0].j1939);  // ExtendedCAN
+  EXPECT_FALSE(read_dbc(kDbcDir / "motohawk.dbc").messages[0].j1939);                         // 11-bit
+}
+
 // cantools' documentation decodes this frame of motohawk.dbc (Motorola, signed, an offset) to these values.
 TEST(Dbc, DecodesCantoolsDocumentedMotorolaExample) {
   const DbcFile f = read_dbc(kDbcDir / "motohawk.dbc");
