@@ -1,11 +1,12 @@
 // noisemon: the command-line tool beside the daemon (watch, replay, import, export, sim, fit, diagnose, summary, dash,
-// tdc, gapwatch).
+// tdc, gapwatch, dbc).
 #include <CLI/CLI.hpp>
 
 #include <cstdio>
 #include <memory>
 
 #include "cli/dash_command.hpp"
+#include "cli/dbc_command.hpp"
 #include "cli/diagnose_command.hpp"
 #include "cli/fit_command.hpp"
 #include "cli/gapwatch_command.hpp"
@@ -59,6 +60,7 @@ int main(int argc, char** argv) {
   DashCommand dash(app);
   TdcCommand tdc(app);
   GapwatchCommand gapwatch(app);
+  DbcCommand dbc(app);
 
   try {
     app.parse(argc, argv);
@@ -85,6 +87,7 @@ int main(int argc, char** argv) {
     if (const int status = summary.run(); status >= 0) return status;
     if (const int status = dash.run(); status >= 0) return status;
     if (const int status = tdc.run(); status >= 0) return status;
+    if (const int status = dbc.run(); status >= 0) return status;
     if (const int status = replay.run(); status >= 0) return status;
   } catch (const std::exception& e) {
     std::fprintf(stderr, "noisemon: %s\n", e.what());

@@ -113,8 +113,8 @@ TEST(Dbc, CascadedMultiplexorsMustAllHold) {
 }
 
 // Every signal of every file against canmatrix on random frames: the same value where both decode it, and the same
-// frames carrying it, except where canmatrix ignores SG_MUL_VAL_ (multiplex.dbc: it drops the m24 signals at 24,
-// which the file's SG_MUL_VAL_ lines and cantools carry; the test above holds those).
+// frames carrying it, except in multiplex.dbc, whose message mixes simple (m24) and extended (SG_MUL_VAL_) multiplexed
+// signals: canmatrix drops the simple ones at 24, which the DBC format and cantools carry (the test above holds them).
 TEST(Dbc, AgreesWithCanmatrixOnRandomFramesOfEveryFile) {
   NOISEMON_REQUIRE(fs::exists("/usr/lib/python3/dist-packages/canmatrix"), "python3-canmatrix (Debian's)");
   const std::string script = std::string(NOISEMON_SOURCE_DIR) + "/tests/drivers/dbc_reference.py";
