@@ -13,6 +13,7 @@
 
 #include "daemon/background_run.hpp"
 #include "daemon/config_reader.hpp"
+#include "daemon/sources.hpp"
 #include "drivers/mic_positions.hpp"
 #include "dsp/sound_power.hpp"
 
@@ -282,8 +283,8 @@ Config parse_table(const toml::table& root, const std::string& origin) {
 
   TableReader d(top.table("daemon"), "daemon", origin);
   d.string("source", c.source);
-  if (c.source != "sim" && c.source != "lcm" && c.source != "comedi")
-    d.fail("source", "unknown source '" + c.source + "' (this build knows: sim, lcm, comedi)");
+  if (!find_stream_source(c.source))
+    d.fail("source", "unknown source '" + c.source + "' (this build knows: " + stream_source_names() + ")");
   d.integer("cycles", c.cycles, 0, INT64_MAX);
   d.string("log_level", c.log_level);
   static const std::set<std::string> levels{"trace", "debug", "info", "warn", "error", "critical", "off"};

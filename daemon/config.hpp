@@ -47,7 +47,7 @@ struct ThreadsConfig {
 };
 
 struct Config {
-  std::string source = "sim";  // sim, lcm, comedi
+  std::string source = "sim";  // a name of stream_sources() (daemon/sources.hpp)
   std::int64_t cycles = 0;     // stop after this many cycles; 0 = until SIGINT/SIGTERM
   std::string log_level = "info";
   bool live = false;  // print one line per cycle on stdout

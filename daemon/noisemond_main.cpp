@@ -39,10 +39,13 @@ void add_options(CLI::App& app, Options& o) {
                  "TOML configuration file (default: built-in defaults, simulated engine); "
                  "SIGHUP reads it again")
       ->check(CLI::ExistingFile);
-  app.add_option("--source", o.source,
-                 "acquisition source, overrides [daemon] source: sim (virtual engine), lcm (raw blocks on the bus), "
-                 "comedi (DAQ card, see [comedi])")
-      ->check(CLI::IsMember({"sim", "lcm", "comedi"}));
+  std::string source_help = "acquisition source, overrides [daemon] source:";
+  std::vector<std::string> source_names;
+  for (const noisemon::daemon::StreamSourceKind& k : noisemon::daemon::stream_sources()) {
+    source_help += (source_names.empty() ? " " : ", ") + std::string(k.name) + " (" + std::string(k.what) + ")";
+    source_names.emplace_back(k.name);
+  }
+  app.add_option("--source", o.source, source_help)->check(CLI::IsMember(source_names));
   app.add_option("--lcm", o.lcm_url, "LCM URL, overrides [lcm] url (e.g. udpm://239.255.76.67:7667?ttl=0)");
   app.add_option("--cycles", o.cycles, "stop after publishing N cycles (0 = run until SIGINT/SIGTERM)")
       ->check(CLI::NonNegativeNumber);

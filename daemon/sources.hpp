@@ -1,14 +1,30 @@
-// Builds the daemon's source from its configuration: the stream source of [daemon] source (sim, lcm, comedi),
-// with its operating points replaced by the [can] source when [can] is configured; each driver thread gets its
-// policy from [threads].
+// Builds the daemon's source from its configuration: the stream source [daemon] source names (one of
+// kStreamSources), with its operating points replaced by the [can] source when [can] is configured; each driver
+// thread gets its policy from [threads].
 #pragma once
 
 #include <memory>
+#include <span>
+#include <string>
+#include <string_view>
 
 #include "daemon/config.hpp"
 #include "drivers/source.hpp"
 
 namespace noisemon::daemon {
+
+// A stream source the daemon can run on: the name [daemon] source and --source take, what it is (for --help), and
+// how it is built. The one list of them: the configuration, the command line and make_source read it.
+struct StreamSourceKind {
+  std::string_view name;
+  std::string_view what;
+  std::unique_ptr<drivers::Source> (*make)(const Config&);
+};
+std::span<const StreamSourceKind> stream_sources();
+
+// The kind named, or nullptr; and the names for a message ("sim, lcm, comedi").
+const StreamSourceKind* find_stream_source(std::string_view name);
+std::string stream_source_names();
 
 // Opens devices, sockets and files now: a missing comedi device, CAN interface or candump file, or an lcm
 // source without a session within [lcm] session_timeout_s, throws with a message naming it.

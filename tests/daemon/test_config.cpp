@@ -6,6 +6,7 @@
 #include <fstream>
 
 #include "daemon/config.hpp"
+#include "daemon/sources.hpp"
 
 using noisemon::daemon::Config;
 using noisemon::daemon::ConfigError;
@@ -282,6 +283,21 @@ gas_ringing_decay_ms = 2.5
             std::string::npos);
   EXPECT_NE(error_of("[sim]\nmic_self_noise_dba = \"quiet\"\n").find("sim.mic_self_noise_dba: expected a number"),
             std::string::npos);
+}
+
+// One list of stream sources (daemon/sources.hpp): the configuration takes each of its names and tells every one of
+// them for a name it does not know.
+TEST(Config, TheSourceIsOneOfTheRegisteredStreamSources) {
+  std::size_t kinds = 0;
+  for (const auto& kind : noisemon::daemon::stream_sources()) {
+    ++kinds;
+    const std::string name(kind.name);
+    EXPECT_EQ(parse_config("[daemon]\nsource = \"" + name + "\"\n", "test.toml").source, name);
+    EXPECT_NE(error_of("[daemon]\nsource = \"dac\"\n").find(name), std::string::npos) << name;
+    EXPECT_FALSE(kind.what.empty()) << name;
+  }
+  EXPECT_GE(kinds, 3u);  // sim, lcm, comedi
+  EXPECT_EQ(noisemon::daemon::find_stream_source("dac"), nullptr);
 }
 
 TEST(Config, ErrorsNameFileAndKey) {
