@@ -174,21 +174,30 @@ std::string fault(const std::string& kind, const std::string& channel, double at
 
 bool valid(const cycle_report_t& c) { return (c.flags & ~kQualifiers) == 0; }
 
+// Data lost on the way in (a ring overrun while four daemons and two browsers share the two cores): flagged on the
+// cycle and counted by the daemon, never the injected fault's doing. Away from the fault a cycle may carry it, a few
+// do on a busy machine (an angle gap before a microphone fault, once in about twenty runs); nothing else.
+constexpr std::int32_t kLossFlags =
+    static_cast<std::int32_t>(cycle_report_t::CYCLE_GAP) | static_cast<std::int32_t>(cycle_report_t::CYCLE_ANGLE_GAP);
+bool valid_or_lost(const cycle_report_t& c) { return (c.flags & ~(kQualifiers | kLossFlags)) == 0; }
+
 // The common expectations around a fault window [at, at + duration] (s after the first frame): the daemon ran
-// to the end and stopped cleanly; cycles well before are valid; every cycle inside it carries one of
-// `expected_flags` or is missing (dropped and counted); valid cycles are back within two cycles of its end, and
-// stay so.
+// to the end and stopped cleanly; cycles well before and long after are valid or flagged as lost data (a few); every
+// cycle inside it carries one of `expected_flags` or is missing (dropped and counted); valid cycles are back within two
+// cycles of its end, and stay so.
 void expect_contained(const DaemonRun& run, double at, double duration, std::int32_t expected_flags) {
   ASSERT_EQ(run.exit_status, 0) << run.log;
   ASSERT_NE(run.epoch_utime, 0) << "no session message";
   ASSERT_GT(run.cycles.size(), 50u) << run.log;
   const double end = at + duration + kStartSlackS;
-  int flagged = 0;
+  int flagged = 0, lost_away = 0;
   const cycle_report_t* first_after = nullptr;
   for (const cycle_report_t& c : run.cycles) {
     const double s = run.start_s(c), e = run.end_s(c);
-    if (s > 1.0 && e < at - kStartSlackS) {  // room for the microphones' acoustic delay, too
-      EXPECT_TRUE(valid(c)) << "cycle " << c.cycle << " before the fault, flags " << c.flags;
+    const bool away = (s > 1.0 && e < at - kStartSlackS) || s > end + 0.5;  // room for the acoustic delay, too
+    if (away) {
+      EXPECT_TRUE(valid_or_lost(c)) << "cycle " << c.cycle << " away from the fault, flags " << c.flags;
+      if (!valid(c)) ++lost_away;
     }
     if (s > at + kStartSlackS && e < at + duration) {
       EXPECT_NE(c.flags & expected_flags, 0)
@@ -196,10 +205,8 @@ void expect_contained(const DaemonRun& run, double at, double duration, std::int
     }
     if ((c.flags & expected_flags) != 0) ++flagged;
     if (s >= end && !first_after) first_after = &c;
-    if (s > end + 0.5) {
-      EXPECT_TRUE(valid(c)) << "cycle " << c.cycle << " long after the fault, flags " << c.flags;
-    }
   }
+  EXPECT_LE(lost_away, static_cast<int>(run.cycles.size() / 10)) << "data lost away from the fault, often";
   const std::int64_t dropped = run.statuses.empty() ? 0 : run.statuses.back().cycles_dropped;
   EXPECT_GT(flagged + dropped, 0) << "the fault left no trace";
   ASSERT_NE(first_after, nullptr);
