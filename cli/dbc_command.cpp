@@ -25,8 +25,7 @@ std::string id_text(const DbcMessage& m) {
   if (!m.j1939) {
     std::snprintf(text, sizeof text, m.extended ? "0x%08X ext" : "0x%03X", m.id);
   } else {
-    const std::uint32_t pdu_format = (m.id >> 16) & 0xFFU;
-    const std::uint32_t pgn = (m.id >> 8) & (pdu_format < 240 ? 0x3FF00U : 0x3FFFFU);
+    const std::uint32_t pgn = (m.id & drivers::formats::j1939_pgn_mask(m.id)) >> 8;
     std::snprintf(text, sizeof text, "0x%08X ext, J1939 PGN 0x%04X (%u)", m.id, pgn, pgn);
   }
   return text;

@@ -133,15 +133,18 @@ DbcSignal parse_signal(Cursor& c, int line) {
   return s;
 }
 
+// The id as the file writes it: bit 31 set for a 29-bit id.
+std::uint64_t raw_id(const DbcMessage& m) { return m.id | (m.extended ? kExtendedFlag : 0U); }
+
 DbcMessage* message_by_raw_id(std::vector<DbcMessage>& messages, std::uint64_t raw) {
   for (DbcMessage& m : messages)
-    if ((m.id | (m.extended ? kExtendedFlag : 0U)) == raw) return &m;
+    if (raw_id(m) == raw) return &m;
   return nullptr;
 }
 
-DbcSignal& signal_of(std::vector<DbcMessage>& messages, std::uint64_t raw_id, const std::string& name, Cursor& c) {
-  DbcMessage* m = message_by_raw_id(messages, raw_id);
-  if (!m) c.fail("no message with id " + std::to_string(raw_id));
+DbcSignal& signal_of(std::vector<DbcMessage>& messages, std::uint64_t raw, const std::string& name, Cursor& c) {
+  DbcMessage* m = message_by_raw_id(messages, raw);
+  if (!m) c.fail("no message with id " + std::to_string(raw));
   for (DbcSignal& s : m->signals)
     if (s.name == name) return s;
   c.fail("message " + m->name + " has no signal '" + name + "'");
@@ -204,9 +207,8 @@ void parse_attribute(const std::string& keyword, Cursor& c, FrameFormats& format
 void mark_j1939(std::vector<DbcMessage>& messages, const FrameFormats& formats) {
   for (DbcMessage& m : messages) {
     std::string format = formats.default_name;
-    const std::uint64_t raw = m.id | (m.extended ? kExtendedFlag : 0U);
     for (const auto& [id, index] : formats.by_id)
-      if (id == raw) format = index < formats.names.size() ? formats.names[index] : std::string();
+      if (id == raw_id(m)) format = index < formats.names.size() ? formats.names[index] : std::string();
     m.j1939 = m.extended && format == "J1939PG";
   }
 }
@@ -291,6 +293,11 @@ void add_multiplexors(const DbcMessage& m, const DbcSignal& s, std::vector<CanMu
 
 }  // namespace
 
+std::uint32_t j1939_pgn_mask(std::uint32_t id) {
+  const std::uint32_t pdu_format = (id >> 16) & 0xFFU;
+  return pdu_format < 240 ? kPdu1PgnMask : kPdu2PgnMask;
+}
+
 const DbcSignal* DbcMessage::signal(const std::string& wanted) const {
   for (const DbcSignal& s : signals)
     if (s.name == wanted) return &s;
@@ -360,10 +367,7 @@ CanSignal DbcFile::can_signal(const std::string& name, const std::string& messag
   s.offset = d.offset;
   s.unit = d.unit;
   add_multiplexors(*owner, d, s.multiplexors, origin, 0);
-  if (owner->j1939) {  // the PGN: data page and PDU format, and for PDU2 (format 240 and above) the group extension
-    const std::uint32_t pdu_format = (owner->id >> 16) & 0xFFU;
-    s.id_mask = pdu_format < 240 ? kPdu1PgnMask : kPdu2PgnMask;
-  }
+  if (owner->j1939) s.id_mask = j1939_pgn_mask(owner->id);
   return s;
 }
 

@@ -54,6 +54,10 @@ struct DbcFile {
   CanSignal can_signal(const std::string& name, const std::string& message, OperatingPointField field) const;
 };
 
+// The bits of a J1939 29-bit id its parameter group number covers: data page, PDU format and, for PDU2 (format 240
+// and above), the group extension; not the priority, the source address or a PDU1 destination. PGN = (id & mask) >> 8.
+std::uint32_t j1939_pgn_mask(std::uint32_t id);
+
 // Reads a DBC file. Throws std::runtime_error naming the file when it cannot be read, and file:line for a
 // BO_, SG_, SG_MUL_VAL_ or SIG_VALTYPE_ statement it cannot parse.
 DbcFile read_dbc(const std::filesystem::path& path);

@@ -146,8 +146,9 @@ TEST(Dbc, AgreesWithCanmatrixOnRandomFramesOfEveryFile) {
         const CanSignal s = f.can_signal(d.name, m->name, OperatingPointField::kLoadNm);
         const bool ours = frame.dlc >= can_signal_min_dlc(s) && can_signal_present(s, frame.data);
         const bool theirs = j["values"].contains(d.name);
-        if (!(canmatrix_drops_mul_val && ours && !theirs))
+        if (!(canmatrix_drops_mul_val && ours && !theirs)) {
           EXPECT_EQ(ours, theirs) << entry.path().filename() << " " << m->name << "." << d.name << " " << hex;
+        }
         if (!ours || !theirs) continue;
         const double expected = j["values"][d.name];
         EXPECT_NEAR(can_signal_value(s, frame.data), expected, 1e-9 * std::max(1.0, std::abs(expected)))
