@@ -15,7 +15,9 @@ esac
 bash "$here/scripts/install-deps.sh"
 build="${NOISEMON_BUILD_DIR:-$here/build}"
 cmake -S "$here" -B "$build" -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo
-cmake --build "$build" -j "$(nproc)"
+# Ninja's own job count (three on two cores): one compiles while another waits on the disk, and on a machine other
+# work loads, the build keeps its share of the cores.
+cmake --build "$build"
 
 if [ "$mode" = run ]; then
   exec "$build/daemon/noisemond" --live "$@"
@@ -24,9 +26,17 @@ cd "$build"
 status=0
 jobs="$(nproc)"
 stage_start=0
-stage() {  # the time each stage took, for docs/benchmarks.md ("The test command")
-  echo "noisemon test: $1 took $((SECONDS - stage_start)) s" >&2
+stage_cpu=0
+stage() {  # the time and CPU each stage took, for docs/benchmarks.md ("The test command")
+  # CPU: user + system of every finished child so far, the second line of `times` (run in this shell: in a pipe or a
+  # $(...) it would run in a subshell, which has no children).
+  times >"$build/.times"
+  local cpu
+  cpu=$(awk 'NR == 2 { t = 0; for (i = 1; i <= 2; i++) { split($i, a, /[ms]/); t += a[1] * 60 + a[2] } printf "%d", t }' \
+    "$build/.times")
+  echo "noisemon test: $1 took $((SECONDS - stage_start)) s ($((cpu - stage_cpu)) s of CPU)" >&2
   stage_start=$SECONDS
+  stage_cpu=$cpu
 }
 stage "installing and building"
 # The unit suite, lint and fuzz smoke; the slow proofs (label slow) are run by hand: ctest -L slow.
