@@ -79,6 +79,28 @@ void read_positions(TableReader& r, const char* key, double radius_m, std::vecto
   }
 }
 
+void read_mic_chain(TableReader& r, std::size_t n, const MicChainFields& f) {
+  if (r.node("sensitivity_mv_per_pa") || n != f.sensitivity_mv_per_pa.size())
+    f.sensitivity_mv_per_pa =
+        per_channel<double>(r, "sensitivity_mv_per_pa", n, 0.0, [&](const toml::node& v, const char* key) {
+          if (!v.is_number() || !(*v.value<double>() > 0.0)) r.fail(key, "expected positive numbers (mV/Pa)");
+          return *v.value<double>();
+        });
+  r.number("radius_m", f.radius_m, 0.1, 100);
+  read_positions(r, "positions_m", f.radius_m, f.positions_m);
+  if (!f.positions_m.empty() && f.positions_m.size() != n)
+    r.fail("positions_m", "has " + std::to_string(f.positions_m.size()) + " positions but there are " +
+                              std::to_string(n) + " channels");
+  r.number("speed_of_sound_m_s", f.speed_of_sound_m_s, 100, 1000);
+}
+
+std::string beside_config(const std::string& origin, const std::string& path) {
+  std::filesystem::path p(path);
+  if (p.is_relative() && std::filesystem::path(origin).has_parent_path())
+    p = std::filesystem::path(origin).parent_path() / p;
+  return p.string();
+}
+
 }  // namespace config_detail
 
 namespace {
@@ -125,11 +147,8 @@ void read_sound_power(TableReader& top, const std::string& origin, SoundPowerCon
   std::string run;
   r.string("background_run", run);
   if (!run.empty()) {
-    std::filesystem::path path(run);
-    if (path.is_relative() && std::filesystem::path(origin).has_parent_path())
-      path = std::filesystem::path(origin).parent_path() / path;
     try {
-      sp.background_db = background_from_run_dir(path);
+      sp.background_db = background_from_run_dir(beside_config(origin, run));
     } catch (const std::exception& e) {
       r.fail("background_run", e.what());
     }
@@ -285,6 +304,10 @@ Config parse_table(const toml::table& root, const std::string& origin) {
   d.string("source", c.source);
   if (!find_stream_source(c.source))
     d.fail("source", "unknown source '" + c.source + "' (this build knows: " + stream_source_names() + ")");
+  d.string("microphones", c.microphones);
+  if (!c.microphones.empty() && !find_mic_source(c.microphones))
+    d.fail("microphones", "unknown microphone source '" + c.microphones + "' (this build knows: " + mic_source_names() +
+                              "; leave it out for the source's own)");
   d.integer("cycles", c.cycles, 0, INT64_MAX);
   d.string("log_level", c.log_level);
   static const std::set<std::string> levels{"trace", "debug", "info", "warn", "error", "critical", "off"};
@@ -319,6 +342,7 @@ Config parse_table(const toml::table& root, const std::string& origin) {
   read_sim(top, origin, c.sim);
 
   read_comedi(top, origin, c.comedi);
+  read_alsa(top, origin, c.alsa);
   read_can(top, root, origin, c.can);
   read_threads(top, origin, c.threads);
 

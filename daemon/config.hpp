@@ -7,6 +7,7 @@
 #include <string>
 
 #include "daemon/sound_power_setup.hpp"
+#include "drivers/alsa/alsa_source.hpp"
 #include "drivers/can/can_source.hpp"
 #include "drivers/comedi/comedi_source.hpp"
 #include "drivers/sim/sim_source.hpp"
@@ -38,7 +39,7 @@ struct LcmConfig {
 struct ThreadsConfig {
   bool lock_memory = false;               // mlockall at start (needs CAP_IPC_LOCK or LimitMEMLOCK=infinity)
   drivers::ThreadPolicy pressure;         // nm-pressure: encoder and pressure (sim, comedi)
-  drivers::ThreadPolicy mics;             // nm-mics: microphones (sim, comedi)
+  drivers::ThreadPolicy mics;             // nm-mics: microphones (sim, comedi, alsa)
   drivers::ThreadPolicy operating_point;  // nm-op: the sim's operating points
   drivers::ThreadPolicy can;              // nm-can: operating points from SocketCAN or a candump log
   drivers::ThreadPolicy lcm_receive;      // nm-lcm-in: source "lcm", the raw streams received from the bus
@@ -48,6 +49,8 @@ struct ThreadsConfig {
 
 struct Config {
   std::string source = "sim";  // a name of stream_sources() (daemon/sources.hpp)
+  std::string microphones;     // a name of mic_sources(): the microphones from a front-end of their own; empty: the
+                               // source's own
   std::int64_t cycles = 0;     // stop after this many cycles; 0 = until SIGINT/SIGTERM
   std::string log_level = "info";
   bool live = false;  // print one line per cycle on stdout
@@ -60,6 +63,7 @@ struct Config {
   double ring_seconds = 0.5;      // capacity of each driver ring buffer
   drivers::sim::SimConfig sim;
   drivers::comedi::ComediSourceConfig comedi;  // [comedi]: the DAQ hardware (source = "comedi")
+  drivers::alsa::AlsaSourceConfig alsa;        // [alsa]: an audio interface (microphones = "alsa")
   drivers::can::CanSourceConfig can;           // [can]: operating points from CAN; when configured, they replace the
                                                // source's own (any source)
   ThreadsConfig threads;                       // [threads]: handed to the sources and the pipeline

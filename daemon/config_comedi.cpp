@@ -48,23 +48,6 @@ void read_kernel_buffer(TableReader& r, unsigned& buffer_bytes, bool& wake_every
   r.boolean("wake_every_scan", wake_every_scan);
 }
 
-// A key that is either one value for every microphone or an array of one per microphone.
-template <class T, class Read>
-std::vector<T> per_channel(TableReader& r, const char* key, std::size_t n, T fallback, Read read) {
-  std::vector<T> out(n, fallback);
-  const toml::node* node = r.node(key);
-  if (!node) return out;
-  if (const toml::array* a = node->as_array()) {
-    if (a->size() != n)
-      r.fail(key, "has " + std::to_string(a->size()) + " entries but there are " + std::to_string(n) + " channels");
-    for (std::size_t i = 0; i < n; ++i) out[i] = read((*a)[i], key);
-    return out;
-  }
-  const T v = read(*node, key);
-  std::fill(out.begin(), out.end(), v);
-  return out;
-}
-
 // [comedi.pressure]: the pressure (and cam) channel.
 void read_comedi_pressure(TableReader& r, const std::string& origin, drivers::comedi::ComediSourceConfig::Pressure& p) {
   TableReader pr(r.table("pressure"), "comedi.pressure", origin);
@@ -163,19 +146,7 @@ void read_comedi_mics(TableReader& r, const std::string& origin, drivers::comedi
   read_int(mr, "subdevice", m.subdevice, -1, 255);
   mr.number("scan_rate_hz", m.scan_rate_hz, 8000, 1e7);
   read_mic_channels(mr, m);
-  const std::size_t n = m.channels.size();
-  if (mr.node("sensitivity_mv_per_pa") || n != m.sensitivity_mv_per_pa.size())
-    m.sensitivity_mv_per_pa =
-        per_channel<double>(mr, "sensitivity_mv_per_pa", n, 0.0, [&](const toml::node& v, const char* key) {
-          if (!v.is_number() || !(*v.value<double>() > 0.0)) mr.fail(key, "expected positive numbers (mV/Pa)");
-          return *v.value<double>();
-        });
-  mr.number("radius_m", m.radius_m, 0.1, 100);
-  read_positions(mr, "positions_m", m.radius_m, m.positions_m);
-  if (!m.positions_m.empty() && m.positions_m.size() != n)
-    mr.fail("positions_m", "has " + std::to_string(m.positions_m.size()) + " positions but there are " +
-                               std::to_string(n) + " channels");
-  mr.number("speed_of_sound_m_s", m.speed_of_sound_m_s, 100, 1000);
+  read_mic_chain(mr, m.channels.size(), {m.sensitivity_mv_per_pa, m.radius_m, m.positions_m, m.speed_of_sound_m_s});
   read_kernel_buffer(mr, m.buffer_bytes, m.wake_every_scan);
   mr.reject_unknown();
 }

@@ -105,6 +105,36 @@ T pick(TableReader& r, const char* key, const std::string& value,
   r.fail(key, "unknown value '" + value + "' (expected one of " + names + ")");
 }
 
+// A key that is either one value for every microphone or an array of one per microphone.
+template <class T, class Read>
+std::vector<T> per_channel(TableReader& r, const char* key, std::size_t n, T fallback, Read read) {
+  std::vector<T> out(n, fallback);
+  const toml::node* node = r.node(key);
+  if (!node) return out;
+  if (const toml::array* a = node->as_array()) {
+    if (a->size() != n)
+      r.fail(key, "has " + std::to_string(a->size()) + " entries but there are " + std::to_string(n) + " channels");
+    for (std::size_t i = 0; i < n; ++i) out[i] = read((*a)[i], key);
+    return out;
+  }
+  const T v = read(*node, key);
+  std::fill(out.begin(), out.end(), v);
+  return out;
+}
+
+// What every microphone front-end's table has for its n microphones: sensitivity_mv_per_pa (one for all or one
+// each), radius_m, positions_m (none, or one each) and speed_of_sound_m_s.
+struct MicChainFields {
+  std::vector<double>& sensitivity_mv_per_pa;
+  double& radius_m;
+  std::vector<std::array<double, 3>>& positions_m;
+  double& speed_of_sound_m_s;
+};
+void read_mic_chain(TableReader& r, std::size_t n, const MicChainFields& fields);
+
+// A path given in the configuration file `origin`: relative ones are relative to the file's folder.
+std::string beside_config(const std::string& origin, const std::string& path);
+
 // An ADC resolution key: 0 (no converter) or 4 .. 32 bits.
 void read_adc_bits(TableReader& r, const char* key, int& bits);
 // A block-model table: a preset name and/or its parameters.
@@ -112,8 +142,9 @@ void read_block(TableReader& r, std::string& preset_name, model::BlockParams& p)
 // Microphone positions (an array of [x, y, z] in m, each about radius_m from the origin).
 void read_positions(TableReader& r, const char* key, double radius_m, std::vector<std::array<double, 3>>& out);
 
-// [sim] (config_sim.cpp) and [comedi] (config_comedi.cpp).
+// [sim] (config_sim.cpp), [comedi] (config_comedi.cpp) and [alsa] (config_alsa.cpp).
 void read_sim(TableReader& top, const std::string& origin, drivers::sim::SimConfig& s);
 void read_comedi(TableReader& top, const std::string& origin, drivers::comedi::ComediSourceConfig& c);
+void read_alsa(TableReader& top, const std::string& origin, drivers::alsa::AlsaSourceConfig& a);
 
 }  // namespace noisemon::daemon::config_detail

@@ -15,6 +15,7 @@
 #include <ctime>
 #include <iostream>
 #include <memory>
+#include <span>
 
 #include "daemon/config.hpp"
 #include "daemon/lcm_publisher.hpp"
@@ -29,23 +30,33 @@ using namespace noisemon;
 using Clock = std::chrono::steady_clock;
 
 struct Options {
-  std::string config_path, source, lcm_url, log_level;
+  std::string config_path, source, microphones, lcm_url, log_level;
   std::int64_t cycles = -1;
   bool live = false;
 };
+
+// An option naming one of a registry's kinds, its help listing each with what it is.
+template <class Kind>
+void add_kind_option(CLI::App& app, const std::string& name, std::string& out, std::string help,
+                     std::span<const Kind> kinds) {
+  std::vector<std::string> names;
+  for (const Kind& k : kinds) {
+    help += (names.empty() ? " " : ", ") + std::string(k.name) + " (" + std::string(k.what) + ")";
+    names.emplace_back(k.name);
+  }
+  app.add_option(name, out, help)->check(CLI::IsMember(names));
+}
 
 void add_options(CLI::App& app, Options& o) {
   app.add_option("--config", o.config_path,
                  "TOML configuration file (default: built-in defaults, simulated engine); "
                  "SIGHUP reads it again")
       ->check(CLI::ExistingFile);
-  std::string source_help = "acquisition source, overrides [daemon] source:";
-  std::vector<std::string> source_names;
-  for (const noisemon::daemon::StreamSourceKind& k : noisemon::daemon::stream_sources()) {
-    source_help += (source_names.empty() ? " " : ", ") + std::string(k.name) + " (" + std::string(k.what) + ")";
-    source_names.emplace_back(k.name);
-  }
-  app.add_option("--source", o.source, source_help)->check(CLI::IsMember(source_names));
+  add_kind_option(app, "--source", o.source,
+                  "acquisition source, overrides [daemon] source:", noisemon::daemon::stream_sources());
+  add_kind_option(app, "--microphones", o.microphones,
+                  "the microphones from a front-end of their own, overrides [daemon] microphones:",
+                  noisemon::daemon::mic_sources());
   app.add_option("--lcm", o.lcm_url, "LCM URL, overrides [lcm] url (e.g. udpm://239.255.76.67:7667?ttl=0)");
   app.add_option("--cycles", o.cycles, "stop after publishing N cycles (0 = run until SIGINT/SIGTERM)")
       ->check(CLI::NonNegativeNumber);
@@ -58,6 +69,7 @@ void add_options(CLI::App& app, Options& o) {
 daemon::Config effective_config(const Options& o) {
   daemon::Config config = o.config_path.empty() ? daemon::Config{} : daemon::load_config(o.config_path);
   if (!o.source.empty()) config.source = o.source;
+  if (!o.microphones.empty()) config.microphones = o.microphones;
   if (!o.lcm_url.empty()) config.lcm.url = o.lcm_url;
   if (o.cycles >= 0) config.cycles = o.cycles;
   if (o.live) config.live = true;

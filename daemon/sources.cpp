@@ -2,6 +2,7 @@
 
 #include <spdlog/spdlog.h>
 
+#include "drivers/alsa/alsa_source.hpp"
 #include "drivers/can/can_source.hpp"
 #include "drivers/combined_source.hpp"
 #include "drivers/comedi/comedi_source.hpp"
@@ -47,27 +48,57 @@ constexpr StreamSourceKind kStreamSources[] = {
     {"comedi", "a DAQ card, see [comedi]", make_comedi},
 };
 
-}  // namespace
+std::unique_ptr<drivers::MicSource> make_alsa(const Config& c) {
+  drivers::alsa::AlsaSourceConfig alsa = c.alsa;
+  alsa.thread = c.threads.mics;
+  try {
+    return drivers::alsa::make_alsa_source(alsa);
+  } catch (const std::invalid_argument& e) {
+    throw ConfigError(e.what());
+  }
+}
 
-std::span<const StreamSourceKind> stream_sources() { return kStreamSources; }
+constexpr MicSourceKind kMicSources[] = {
+    {"alsa", "an audio interface through ALSA, see [alsa]", make_alsa},
+};
 
-const StreamSourceKind* find_stream_source(std::string_view name) {
-  for (const StreamSourceKind& k : kStreamSources)
+template <class Kind>
+const Kind* find_kind(std::span<const Kind> kinds, std::string_view name) {
+  for (const Kind& k : kinds)
     if (k.name == name) return &k;
   return nullptr;
 }
 
-std::string stream_source_names() {
+template <class Kind>
+std::string names_of(std::span<const Kind> kinds) {
   std::string names;
-  for (const StreamSourceKind& k : kStreamSources) names += (names.empty() ? "" : ", ") + std::string(k.name);
+  for (const Kind& k : kinds) names += (names.empty() ? "" : ", ") + std::string(k.name);
   return names;
 }
+
+}  // namespace
+
+std::span<const StreamSourceKind> stream_sources() { return kStreamSources; }
+const StreamSourceKind* find_stream_source(std::string_view name) { return find_kind(stream_sources(), name); }
+std::string stream_source_names() { return names_of(stream_sources()); }
+
+std::span<const MicSourceKind> mic_sources() { return kMicSources; }
+const MicSourceKind* find_mic_source(std::string_view name) { return find_kind(mic_sources(), name); }
+std::string mic_source_names() { return names_of(mic_sources()); }
 
 std::unique_ptr<drivers::Source> make_source(const Config& config) {
   const StreamSourceKind* kind = find_stream_source(config.source);
   if (!kind)
     throw ConfigError("unknown source '" + config.source + "' (this build knows: " + stream_source_names() + ")");
   auto streams = kind->make(config);
+  if (!config.microphones.empty()) {
+    const MicSourceKind* mics = find_mic_source(config.microphones);
+    if (!mics)
+      throw ConfigError("unknown microphone source '" + config.microphones +
+                        "' (this build knows: " + mic_source_names() + ")");
+    streams = drivers::compose_microphones(std::move(streams), mics->make(config));
+    spdlog::info("microphones from {} ({})", config.microphones, mics->what);
+  }
   if (!config.can.configured()) return streams;
   drivers::can::CanSourceConfig can_config = config.can;
   can_config.thread = config.threads.can;

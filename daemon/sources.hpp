@@ -1,6 +1,7 @@
 // Builds the daemon's source from its configuration: the stream source [daemon] source names (one of
-// kStreamSources), with its operating points replaced by the [can] source when [can] is configured; each driver
-// thread gets its policy from [threads].
+// stream_sources()), with its microphones replaced by the one [daemon] microphones names (one of mic_sources()) and
+// its operating points by the [can] source when [can] is configured; each driver thread gets its policy from
+// [threads].
 #pragma once
 
 #include <memory>
@@ -26,8 +27,19 @@ std::span<const StreamSourceKind> stream_sources();
 const StreamSourceKind* find_stream_source(std::string_view name);
 std::string stream_source_names();
 
-// Opens devices, sockets and files now: a missing comedi device, CAN interface or candump file, or an lcm
-// source without a session within [lcm] session_timeout_s, throws with a message naming it.
+// A microphone source the daemon can compose with the stream source ([daemon] microphones): its name, what it is,
+// and how it is built. The one list of them.
+struct MicSourceKind {
+  std::string_view name;
+  std::string_view what;
+  std::unique_ptr<drivers::MicSource> (*make)(const Config&);
+};
+std::span<const MicSourceKind> mic_sources();
+const MicSourceKind* find_mic_source(std::string_view name);
+std::string mic_source_names();
+
+// Opens devices, sockets and files now: a missing comedi device, audio interface, CAN interface or candump file, or
+// an lcm source without a session within [lcm] session_timeout_s, throws with a message naming it.
 std::unique_ptr<drivers::Source> make_source(const Config& config);
 
 }  // namespace noisemon::daemon

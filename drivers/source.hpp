@@ -159,6 +159,26 @@ class Source : public SourceBase {
   virtual bool exhausted() const { return false; }
 };
 
+// What a microphone source's stream is: StreamInfo's microphone fields (compose_microphones puts them there).
+struct MicStreamInfo {
+  std::uint32_t mic_count = 0;
+  std::vector<std::array<double, 3>> mic_positions_m;  // one per microphone
+  double radius_m = 1.75;
+  double acoustic_delay_s = 0.0;
+  double mic_full_scale_pa = 0.0;  // 0: not known (the microphones' full scales differ)
+  double mic_passband_hz = 0.0;
+};
+
+// A microphone front-end of its own (an audio interface on its own crystal), whose stream is composed with another
+// source's pressure and crank angle (combined_source.hpp).
+class MicSource : public SourceBase {
+ public:
+  virtual MicStreamInfo info() const = 0;
+  // Starts the driver thread: 40 kHz blocks of the microphones (Pa) into `mics`, frame k being the instant
+  // epoch_utime + k * 25 us by the host clock at each (re)start. Throws on a device error.
+  virtual void start(BlockRing& mics, std::int64_t epoch_utime) = 0;
+};
+
 // An operating-point source: no streams, only the engine's operating points (CAN).
 class OperatingPointSource : public SourceBase {
  public:

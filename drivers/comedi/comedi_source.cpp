@@ -7,6 +7,7 @@
 #include <stdexcept>
 
 #include "drivers/mic_positions.hpp"
+#include "drivers/timed_stream.hpp"
 #include "dsp/resample.hpp"
 
 namespace noisemon::drivers::comedi {

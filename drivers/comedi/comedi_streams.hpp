@@ -20,14 +20,12 @@
 // confirms the count (the counter counts from the last index the card saw); deliver(ring, true) releases what
 // is held with NaN crank. Before the first phase lock (and pegging) after a (re)start nothing goes out.
 //
-// TimedStreamAssembler: the microphone scans on the card's timer, resampled from the card rate to 40 kHz
-// (dsp::RationalResampler).
+// The microphone scans on the card's timer go through drivers/timed_stream.hpp, as every timed stream does.
 //
-// Time base: a stream's origin_utime is the host time of its first timer tick (the instant its command
-// started); epoch_utime is the source's frame 0. Nothing allocates after construction except restart()
-// (after an overrun, never on the per-sample path) and, with the encoder checks, the soft restart of the
-// pressure resampler when no edge came for 50 ms (the engine stopped: the stream has a gap there instead of
-// pressure interpolated across it).
+// Time base: a stream's origin_utime is the host time of its first scan; epoch_utime is the source's frame 0. Nothing
+// allocates after construction except restart() (after an overrun, never on the per-sample path) and, with the encoder
+// checks, the soft restart of the pressure resampler when no edge came for 50 ms (the engine stopped: the stream has a
+// gap there instead of pressure interpolated across it).
 #pragma once
 
 #include <cstddef>
@@ -234,36 +232,6 @@ class EdgeStreamAssembler {
   BlockWriter angle_writer_{kAngleStreamChannels};
   std::uint32_t angle_block_edges_ = 0;  // max_edges_per_angle_block of the encoder
   EdgeStreamCounters counters_;
-};
-
-class TimedStreamAssembler {
- public:
-  // card_rate_hz: whole Hz (the resampler's ratio must be rational); throws std::invalid_argument otherwise.
-  TimedStreamAssembler(std::uint32_t channels, double card_rate_hz, std::int64_t epoch_utime);
-  ~TimedStreamAssembler();
-
-  // Starts over: card scan 0 is at origin_utime (rounded to the nearest 40 kHz frame, +-12.5 us).
-  void restart(std::int64_t origin_utime);
-  void add_scan(const double* values, BlockRing& ring);
-  void deliver(BlockRing& ring, bool all);
-  std::uint64_t frames() const { return frames_; }
-  std::uint64_t blocks_written() const { return writer_.blocks_written(); }
-
-  // Output frames dropped after each (re)start: the resampler's filter starts from silence.
-  static constexpr std::int64_t kSettleFrames = 400;
-
- private:
-  void run_batch(BlockRing& ring);
-
-  std::uint32_t channels_;
-  double card_rate_hz_;
-  std::int64_t epoch_utime_;
-  std::int64_t first_index_ = 0;  // 40 kHz index of card scan 0
-  dsp::RationalResampler resampler_;
-  std::vector<double> in_, out_;
-  std::size_t batch_ = 0;
-  BlockWriter writer_;
-  std::uint64_t frames_ = 0;
 };
 
 }  // namespace noisemon::drivers::comedi

@@ -30,6 +30,7 @@ TEST(Config, DocumentedDefaultFileEqualsBuiltInDefaults) {
   const Config file = load_config(NOISEMON_SOURCE_DIR "/systemd/noisemond.toml");
   const Config def;
   EXPECT_EQ(file.source, def.source);
+  EXPECT_EQ(file.microphones, def.microphones);
   EXPECT_EQ(file.cycles, def.cycles);
   EXPECT_EQ(file.log_level, def.log_level);
   EXPECT_EQ(file.live, def.live);
@@ -298,6 +299,39 @@ TEST(Config, TheSourceIsOneOfTheRegisteredStreamSources) {
   }
   EXPECT_GE(kinds, 3u);  // sim, lcm, comedi
   EXPECT_EQ(noisemon::daemon::find_stream_source("dac"), nullptr);
+}
+
+// [daemon] microphones composes the microphones of a front-end of their own with the source's pressure; [alsa]
+// describes the interface; its config file is found beside the configuration.
+TEST(Config, MicrophonesFromAnAudioInterfaceAreReadFromTheAlsaTable) {
+  const noisemon::daemon::Config c = parse_config(
+      "[daemon]\nmicrophones = \"alsa\"\n"
+      "[alsa]\npcm = \"hw:CARD=UMC1820,DEV=0\"\nconfig_file = \"cell.asoundrc\"\nrate_hz = 96000\n"
+      "format = \"S24_3LE\"\ncapture_channels = 10\nchannels = [0, 1, 2, 9]\n"
+      "sensitivity_mv_per_pa = [50.1, 49.8, 50.0, 51.2]\nfull_scale_v = 4.9\nperiod_frames = 480\nperiods = 6\n",
+      "/etc/noisemon/cell.toml");
+  EXPECT_EQ(c.microphones, "alsa");
+  EXPECT_EQ(c.alsa.capture.pcm, "hw:CARD=UMC1820,DEV=0");
+  EXPECT_EQ(c.alsa.capture.config_file, "/etc/noisemon/cell.asoundrc");
+  EXPECT_EQ(c.alsa.capture.rate_hz, 96000u);
+  EXPECT_EQ(c.alsa.capture.format, "S24_3LE");
+  EXPECT_EQ(c.alsa.capture.channels, 10u);
+  EXPECT_EQ(c.alsa.channels, (std::vector<unsigned>{0, 1, 2, 9}));
+  EXPECT_EQ(c.alsa.sensitivity_mv_per_pa, (std::vector<double>{50.1, 49.8, 50.0, 51.2}));
+  EXPECT_DOUBLE_EQ(c.alsa.full_scale_v, 4.9);
+  EXPECT_EQ(c.alsa.capture.period_frames, 480u);
+  EXPECT_EQ(c.alsa.capture.periods, 6u);
+  EXPECT_TRUE(parse_config("", "test.toml").microphones.empty());  // default: the source's own
+
+  for (const auto& kind : noisemon::daemon::mic_sources())
+    EXPECT_NE(error_of("[daemon]\nmicrophones = \"jack\"\n").find(std::string(kind.name)), std::string::npos);
+  EXPECT_NE(error_of("[daemon]\nmicrophones = \"jack\"\n").find("daemon.microphones"), std::string::npos);
+  EXPECT_NE(error_of("[alsa]\nformat = \"S20_LE\"\n").find("alsa.format: unknown sample format"), std::string::npos);
+  EXPECT_NE(error_of("[alsa]\nchannels = [0, 32]\n").find("alsa.channels"), std::string::npos);
+  EXPECT_NE(error_of("[alsa]\nchannels = [0, 1]\nsensitivity_mv_per_pa = [50]\n").find("alsa.sensitivity_mv_per_pa"),
+            std::string::npos);
+  EXPECT_NE(error_of("[alsa]\nrate_hz = 1000\n").find("alsa.rate_hz"), std::string::npos);
+  EXPECT_NE(error_of("[alsa]\npcm_name = \"hw:1\"\n").find("unknown key 'alsa.pcm_name'"), std::string::npos);
 }
 
 TEST(Config, ErrorsNameFileAndKey) {

@@ -2,7 +2,8 @@
 // error naming the channel (an in-process memq:// LCM on which nobody publishes: no network involved), a
 // missing comedi device or CAN interface is an error naming it (from make_source and from the noisemond
 // process: exit status 1, message on stderr), [can] combines with the sim, and the driver counters reach
-// `noisemon watch --status` (real processes over LCM in a private network namespace; needs root).
+// `noisemon watch --status` (real processes over LCM in a private network namespace; needs root), and the
+// microphones of an audio interface reach every cycle of a noisemond process.
 #include "daemon/sources.hpp"
 
 #include <lcm/lcm-cpp.hpp>
@@ -151,6 +152,39 @@ TEST(Noisemond, MissingComediDeviceExitsNonZeroNamingIt) {
   EXPECT_EQ(run({kNoisemond, "--config", cfg}, dir + "/missing.out", dir + "/missing.err", allowance(kStartUp)), 1);
   const std::string err = read_file(dir + "/missing.err");
   EXPECT_NE(err.find("cannot open comedi device /dev/comedi-noisemon-missing"), std::string::npos) << err;
+}
+
+// The virtual engine's pressure with the microphones of an audio interface (the tests' virtual interface, through
+// alsa-lib: 12 channels at 48 kHz on a crystal 80 ppm fast, a 1 kHz tone of 0.1 of full scale on every channel):
+// behind 1 V of full scale and 50 mV/Pa the tone is 2 Pa of amplitude, 96.99 dB SPL, and 0 dB of A-weighting at
+// 1 kHz leaves every published cycle's measured Lp(A) there.
+TEST(Noisemond, MicrophonesFromAnAudioInterfaceCarryItsLevelToEveryCycle) {
+  const std::string dir = noisemon::test::unique_temp_dir();
+  write_file("cell.asoundrc", "pcm_type.nmtimed { lib \"" NOISEMON_ALSA_TIMED_DEVICE
+                              "\" }\n"
+                              "pcm.cell { type nmtimed rate 48000 channels 12 tone_hz 1000 amplitude 0.1 ppm 80 }\n");
+  const std::string cfg = write_file("alsa.toml",
+                                     "[daemon]\nmicrophones = \"alsa\"\n"
+                                     "[alsa]\npcm = \"cell\"\nconfig_file = \"cell.asoundrc\"\nrate_hz = 48000\n"
+                                     "channels = [0, 1, 2, 3, 4, 5, 6, 7, 8, 11]\nsensitivity_mv_per_pa = 50.0\n"
+                                     "full_scale_v = 1.0\nperiod_frames = 480\nperiods = 100\n");
+  EXPECT_EQ(run({kNoisemond, "--config", cfg, "--lcm", "memq://", "--cycles", "20", "--live"}, dir + "/alsa.out",
+                dir + "/alsa.err", allowance(kStartUp + 5s)),
+            0)
+      << read_file(dir + "/alsa.err");
+  std::istringstream out(read_file(dir + "/alsa.out"));
+  std::string line;
+  int cycles = 0;
+  while (std::getline(out, line)) {
+    std::istringstream fields(line);
+    long cycle = 0;
+    double rpm = 0, soi = 0, measured = 0;
+    if (!(fields >> cycle >> rpm >> soi >> measured)) continue;  // the header
+    ++cycles;
+    EXPECT_NEAR(measured, 96.99, 0.1) << line;
+  }
+  EXPECT_EQ(cycles, 20) << read_file(dir + "/alsa.out");
+  EXPECT_NE(read_file(dir + "/alsa.err").find("microphones from alsa"), std::string::npos);
 }
 
 TEST(Noisemond, LcmSourceWithoutSessionExitsNonZeroAfterTheTimeout) {

@@ -15,6 +15,8 @@
 
 #include <cstdio>
 
+#include "drivers/timed_stream.hpp"
+
 using namespace comedi_fake;
 
 namespace {
@@ -104,7 +106,7 @@ TEST_P(ComediSourcePipes, CardBytesBecomeTheAnalytic40kHzStreams) {
 
   // Microphones: each tone at its instant, from the first frame after the resampler settled.
   ASSERT_FALSE(h.mic_frames.empty());
-  EXPECT_EQ(h.mic_frames.begin()->first, 40 + nd::comedi::TimedStreamAssembler::kSettleFrames);  // origin at frame 40
+  EXPECT_EQ(h.mic_frames.begin()->first, 40 + nd::TimedStreamAssembler::kSettleFrames);  // origin at frame 40
   double max_err[3] = {0, 0, 0}, ms[3] = {0, 0, 0};
   std::size_t n = 0;
   for (const auto& [k, v] : h.mic_frames) {
@@ -225,8 +227,8 @@ TEST(ComediSource, MicOverrunRestartsWithBackoffIsCountedAndResumes) {
   EXPECT_GT(n_before, 3000u);
   EXPECT_GT(n_after, 5000u);
   EXPECT_LT(max_err, 3e-3);
-  EXPECT_EQ(h.mic_frames.count(restart_frame + nd::comedi::TimedStreamAssembler::kSettleFrames - 1), 0u);
-  EXPECT_EQ(h.mic_frames.count(restart_frame + nd::comedi::TimedStreamAssembler::kSettleFrames), 1u);
+  EXPECT_EQ(h.mic_frames.count(restart_frame + nd::TimedStreamAssembler::kSettleFrames - 1), 0u);
+  EXPECT_EQ(h.mic_frames.count(restart_frame + nd::TimedStreamAssembler::kSettleFrames), 1u);
 }
 
 TEST(ComediSource, EncoderOverrunRestartsTheWholeEdgeGroup) {

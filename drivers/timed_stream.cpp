@@ -1,13 +1,11 @@
-// The timed streams of a comedi card (microphones, and the pressure when the card clocks it): the card's scans
-// resampled from its whole-Hz rate to the pipeline's 40 kHz frames.
+#include "drivers/timed_stream.hpp"
+
 #include <algorithm>
 #include <cmath>
 #include <stdexcept>
 #include <string>
 
-#include "drivers/comedi/comedi_streams.hpp"
-
-namespace noisemon::drivers::comedi {
+namespace noisemon::drivers {
 namespace {
 
 constexpr std::size_t kCardBatch = 1024;  // card scans per resampler call
@@ -16,8 +14,8 @@ double whole_rate(double hz) {
   const double r = std::round(hz);
   if (!(r >= 1.0) || std::abs(hz - r) > 1e-6 * r)
     throw std::invalid_argument(
-        "card scan rate " + std::to_string(hz) +
-        " Hz is not a whole number of Hz (choose a rate whose period the card's timer hits exactly, e.g. 50000)");
+        "scan rate " + std::to_string(hz) +
+        " Hz is not a whole number of Hz (choose a rate the converter's clock hits exactly, e.g. 48000 or 50000)");
   return r;
 }
 }  // namespace
@@ -67,4 +65,4 @@ void TimedStreamAssembler::deliver(BlockRing& ring, bool all) {
   if (all || writer_.pending_frames() >= SampleBlock::kMaxFrames / 2) writer_.flush(ring);
 }
 
-}  // namespace noisemon::drivers::comedi
+}  // namespace noisemon::drivers
