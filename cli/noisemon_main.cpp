@@ -1,10 +1,12 @@
 // noisemon: the command-line tool beside the daemon (watch, replay, import, export, sim, fit, diagnose, summary, dash,
-// tdc, gapwatch, dbc).
+// tdc, gapwatch, dbc, calibrate, check).
 #include <CLI/CLI.hpp>
 
 #include <cstdio>
 #include <memory>
 
+#include "cli/calibrate_command.hpp"
+#include "cli/check_command.hpp"
 #include "cli/dash_command.hpp"
 #include "cli/dbc_command.hpp"
 #include "cli/diagnose_command.hpp"
@@ -61,6 +63,8 @@ int main(int argc, char** argv) {
   TdcCommand tdc(app);
   GapwatchCommand gapwatch(app);
   DbcCommand dbc(app);
+  CalibrateCommand calibrate(app);
+  CheckCommand check(app);
 
   try {
     app.parse(argc, argv);
@@ -88,6 +92,8 @@ int main(int argc, char** argv) {
     if (const int status = dash.run(); status >= 0) return status;
     if (const int status = tdc.run(); status >= 0) return status;
     if (const int status = dbc.run(); status >= 0) return status;
+    if (const int status = calibrate.run(); status >= 0) return status;
+    if (const int status = check.run(); status >= 0) return status;
     if (const int status = replay.run(); status >= 0) return status;
   } catch (const std::exception& e) {
     std::fprintf(stderr, "noisemon: %s\n", e.what());

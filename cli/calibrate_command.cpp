@@ -1,0 +1,191 @@
+#include "cli/calibrate_command.hpp"
+
+#include <cmath>
+#include <cstdio>
+#include <ctime>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+#include <vector>
+
+#include "cli/config_edit.hpp"
+#include "cli/source_capture.hpp"
+#include "daemon/config.hpp"
+#include "dsp/calibrator_tone.hpp"
+
+namespace noisemon::cli {
+namespace {
+
+constexpr double kReferencePa = 20e-6;
+constexpr double kFrequencyTolerance = 0.01;  // IEC 60942 class 1: the tone within 1 % of its stated frequency
+constexpr double kMaxFluctuationDb = 0.2;     // its level steady within +-0.1 dB over the measurement
+constexpr double kMinToneShareDb = -1.0;      // the tone at least 80 % of the signal's power: the calibrator is on
+constexpr double kWarnChangeDb = 0.5;
+constexpr double kSettleS = 0.5;  // the source's start: resamplers filling, the first blocks
+
+// Where the microphones' sensitivities are written: the front-end they come from.
+std::string mic_table(const daemon::Config& c) {
+  if (c.microphones == "alsa") return "alsa";
+  if (c.source == "comedi") return "comedi.mics";
+  throw std::invalid_argument("calibrate: the microphones come from " + c.source +
+                              " (the virtual engine or the bus): calibrate on the front-end they are wired to "
+                              "([daemon] microphones = \"alsa\" or source = \"comedi\")");
+}
+std::vector<double>& sensitivities(daemon::Config& c) {
+  return c.microphones == "alsa" ? c.alsa.sensitivity_mv_per_pa : c.comedi.mics.sensitivity_mv_per_pa;
+}
+
+// `seconds` of microphone `mic` (0-based) at 40 kHz, after the source's start has settled.
+std::vector<double> record_microphone(const daemon::Config& config, std::size_t mic, double seconds) {
+  CapturedStreams streams = capture_streams(config, seconds, kSettleS);
+  if (mic >= streams.mics.size())
+    throw std::invalid_argument("calibrate: --mic " + std::to_string(mic + 1) + ", but the configuration has " +
+                                std::to_string(streams.mics.size()) + " microphones");
+  if (streams.mic_gaps > 0)
+    std::fprintf(stderr, "calibrate: %zu gaps in the stream (overruns); measured after the last\n", streams.mic_gaps);
+  return std::move(streams.mics[mic]);
+}
+
+// The tone must be the calibrator's: at its frequency, steady, and most of what the microphone hears.
+void check_tone(const dsp::ToneMeasurement& t, double freq_hz, int mic) {
+  const double share_db = 20.0 * std::log10(t.rms / t.total_rms);
+  char what[256];
+  if (!(share_db >= kMinToneShareDb)) {
+    std::snprintf(what, sizeof what,
+                  "no calibrator tone near %.0f Hz on microphone %d: the tone carries %.0f %% of the signal's power "
+                  "(is the calibrator seated on it, and switched on?)",
+                  freq_hz, mic, 100.0 * std::pow(10.0, share_db / 10.0));
+    throw std::runtime_error(what);
+  }
+  if (std::abs(t.frequency_hz - freq_hz) > kFrequencyTolerance * freq_hz) {
+    std::snprintf(what, sizeof what, "the tone is at %.1f Hz, not within 1 %% of %.0f Hz (check --freq)",
+                  t.frequency_hz, freq_hz);
+    throw std::runtime_error(what);
+  }
+  if (t.fluctuation_db > kMaxFluctuationDb) {
+    std::snprintf(what, sizeof what,
+                  "the tone's level moved %.2f dB during the measurement (more than +-0.1 dB): hold the calibrator "
+                  "still, seated fully, and measure again",
+                  t.fluctuation_db);
+    throw std::runtime_error(what);
+  }
+}
+
+std::string array_text(const std::vector<double>& values) {
+  std::ostringstream s;
+  s << "[";
+  for (std::size_t i = 0; i < values.size(); ++i) s << (i ? ", " : "") << std::round(values[i] * 1000.0) / 1000.0;
+  s << "]";
+  return s.str();
+}
+
+std::string utc_now() {
+  const std::time_t now = std::time(nullptr);
+  char text[32];
+  std::strftime(text, sizeof text, "%Y-%m-%dT%H:%M:%SZ", std::gmtime(&now));
+  return text;
+}
+
+// The sensitivity of the microphone's last calibration in the history (and its date); 0 when it has none.
+double last_calibration(const std::string& history, int mic, std::string& when) {
+  std::ifstream in(history);
+  std::string line;
+  double last = 0;
+  while (std::getline(in, line)) {
+    std::istringstream fields(line);
+    std::string utc, microphone, serial, sensitivity;
+    if (!std::getline(fields, utc, ',') || !std::getline(fields, microphone, ',') ||
+        !std::getline(fields, serial, ',') || !std::getline(fields, sensitivity, ','))
+      continue;
+    if (microphone != std::to_string(mic)) continue;
+    try {
+      last = std::stod(sensitivity);
+      when = utc;
+    } catch (const std::exception&) {  // the header
+    }
+  }
+  return last;
+}
+
+}  // namespace
+
+CalibrateCommand::CalibrateCommand(CLI::App& app) {
+  calibrate_ = app.add_subcommand(
+      "calibrate",
+      "with a sound calibrator on one microphone: check its tone, derive the microphone's sensitivity and write it "
+      "into the configuration file, and append the calibration to the cell's history");
+  calibrate_->add_option("--config", config_path_, "the daemon's configuration file (its sensitivity is rewritten)")
+      ->required()
+      ->check(CLI::ExistingFile);
+  calibrate_->add_option("--mic", mic_, "the microphone the calibrator is on (1 = the first)")
+      ->required()
+      ->check(CLI::PositiveNumber);
+  calibrate_->add_option("--level", level_db_, "the calibrator's stated sound pressure level, dB re 20 uPa")
+      ->capture_default_str()
+      ->check(CLI::Range(40.0, 160.0));
+  calibrate_->add_option("--freq", freq_hz_, "the calibrator's stated frequency, Hz")
+      ->capture_default_str()
+      ->check(CLI::Range(20.0, 16000.0));
+  calibrate_->add_option("--seconds", seconds_, "how long to measure")
+      ->capture_default_str()
+      ->check(CLI::Range(1.0, 60.0));
+  calibrate_->add_option("--serial", serial_, "the microphone's serial number, for the history");
+  calibrate_->add_option("--history", history_path_,
+                         "the calibration history (CSV; default: <config>.calibrations.csv beside the file)");
+  calibrate_->add_flag("--dry-run", dry_run_, "measure and report, but write nothing");
+}
+
+int CalibrateCommand::run() {
+  if (!calibrate_->parsed()) return -1;
+  daemon::Config config = daemon::load_config(config_path_);
+  const std::string table = mic_table(config);
+  const auto index = static_cast<std::size_t>(mic_ - 1);
+  std::fprintf(stderr, "calibrate: measuring microphone %d for %.0f s (%s)\n", mic_, seconds_, table.c_str());
+  const std::vector<double> pa = record_microphone(config, index, seconds_);
+  const dsp::ToneMeasurement tone = dsp::measure_tone(pa, drivers::kPipelineRateHz, freq_hz_);
+  check_tone(tone, freq_hz_, mic_);
+
+  std::vector<double>& s = sensitivities(config);
+  const double old_mv_per_pa = s.at(index);
+  const double true_rms = kReferencePa * std::pow(10.0, level_db_ / 20.0);
+  const double new_mv_per_pa = old_mv_per_pa * tone.rms / true_rms;  // the same volts, now the stated pressure
+  const std::string history = history_path_.empty()
+                                  ? std::filesystem::path(config_path_).replace_extension(".calibrations.csv").string()
+                                  : history_path_;
+  std::string last_when;
+  const double last = last_calibration(history, mic_, last_when);
+  const double reference = last > 0 ? last : old_mv_per_pa;
+  const double change_db = 20.0 * std::log10(new_mv_per_pa / reference);
+  std::printf(
+      "microphone %d: tone %.2f Hz, %.2f dB re 20 uPa with the configured %.3f mV/Pa (steady within %.2f "
+      "dB)\nsensitivity %.3f mV/Pa (%+.2f dB from %s; a class 1 calibrator's +-0.4 dB is its uncertainty)\n",
+      mic_, tone.frequency_hz, 20.0 * std::log10(tone.rms / kReferencePa), old_mv_per_pa, tone.fluctuation_db,
+      new_mv_per_pa, change_db, last > 0 ? ("the last calibration, " + last_when).c_str() : "the configuration");
+  if (std::abs(change_db) > kWarnChangeDb)
+    std::fprintf(stderr,
+                 "calibrate: warning: microphone %d's sensitivity moved %+.2f dB since %s: check the capsule, its "
+                 "cable and the preamplifier's gain before trusting it\n",
+                 mic_, change_db, last > 0 ? last_when.c_str() : "the configured value");
+  if (dry_run_) return 0;
+
+  s[index] = new_mv_per_pa;
+  std::ifstream in(config_path_, std::ios::binary);
+  const std::string text{std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
+  const std::string edited = set_toml_value(text, table, "sensitivity_mv_per_pa", array_text(s));
+  daemon::Config reread = daemon::parse_config(edited, config_path_);  // never write a file the daemon cannot read
+  if (std::abs(sensitivities(reread).at(index) - new_mv_per_pa) > 1e-3)
+    throw std::logic_error("calibrate: the edited configuration does not hold the new sensitivity; nothing written");
+  replace_file_atomically(config_path_, edited);
+  const bool new_history = !std::filesystem::exists(history);
+  std::ofstream h(history, std::ios::app);
+  if (new_history) h << "utc,microphone,serial,sensitivity_mv_per_pa,change_db,level_db,frequency_hz\n";
+  char row[256];
+  std::snprintf(row, sizeof row, "%s,%d,%s,%.4f,%.3f,%.2f,%.2f\n", utc_now().c_str(), mic_, serial_.c_str(),
+                new_mv_per_pa, change_db, level_db_, tone.frequency_hz);
+  h << row;
+  if (!h) throw std::runtime_error("calibrate: cannot append to " + history);
+  std::printf("written: %s ([%s] sensitivity_mv_per_pa), %s\n", config_path_.c_str(), table.c_str(), history.c_str());
+  return 0;
+}
+
+}  // namespace noisemon::cli

@@ -1,0 +1,161 @@
+#include "cli/check_command.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <string>
+#include <vector>
+
+#include "cli/source_capture.hpp"
+#include "daemon/config.hpp"
+
+namespace noisemon::cli {
+namespace {
+
+constexpr double kReferencePa = 20e-6;
+constexpr double kDeadPa = 20e-6;            // below 0 dB SPL: no microphone's self-noise is that quiet
+constexpr double kImplausibleDb = 10.0;      // this far from the median of the others
+constexpr double kDeadBelowOthersDb = 40.0;  // this far below them: an open input's noise, not a microphone
+constexpr double kAtmosphereBar = 1.013;     // what an absolute transducer reads with the engine stopped
+constexpr double kOffsetLimitBar = 0.2;
+
+struct Row {
+  std::string item, value, verdict;
+  bool failed = false;
+};
+
+double db(double rms_pa) { return 20.0 * std::log10(std::max(rms_pa, 1e-12) / kReferencePa); }
+
+double rms(const std::vector<double>& x, std::size_t from, std::size_t to) {
+  double s = 0;
+  for (std::size_t k = from; k < to; ++k) s += x[k] * x[k];
+  return to > from ? std::sqrt(s / static_cast<double>(to - from)) : 0.0;
+}
+
+// The quietest tenth of 100 ms blocks: the floor under the passing sounds.
+double floor_db(const std::vector<double>& x) {
+  std::vector<double> levels;
+  for (std::size_t k = 0; k + 4000 <= x.size(); k += 4000) levels.push_back(db(rms(x, k, k + 4000)));
+  if (levels.empty()) return db(rms(x, 0, x.size()));
+  std::sort(levels.begin(), levels.end());
+  return levels[levels.size() / 10];
+}
+
+std::vector<Row> microphone_rows(const CapturedStreams& s) {
+  std::vector<double> levels;
+  for (const auto& m : s.mics) levels.push_back(db(rms(m, 0, m.size())));
+  std::vector<Row> rows;
+  for (std::size_t i = 0; i < s.mics.size(); ++i) {
+    const std::vector<double>& x = s.mics[i];
+    std::vector<double> others;
+    for (std::size_t j = 0; j < levels.size(); ++j)
+      if (j != i) others.push_back(levels[j]);
+    std::nth_element(others.begin(), others.begin() + static_cast<std::ptrdiff_t>(others.size() / 2), others.end());
+    const double median = others.empty() ? levels[i] : others[others.size() / 2];
+    const auto [lo, hi] = std::minmax_element(x.begin(), x.end());
+    const bool finite = std::all_of(x.begin(), x.end(), [](double v) { return std::isfinite(v); });
+    const double full = s.info.mic_full_scale_pa;
+    Row r{"microphone " + std::to_string(i + 1), "", "ok"};
+    char value[96];
+    std::snprintf(value, sizeof value, "%.1f dB, floor %.1f dB", levels[i], floor_db(x));
+    r.value = value;
+    char why[96];
+    if (!finite || rms(x, 0, x.size()) < kDeadPa || *lo == *hi) {
+      r.verdict = !finite ? "dead: not a number" : "dead: no signal (unplugged, no power, or muted)";
+    } else if (full > 0 && std::max(-*lo, *hi) >= 0.999 * full) {
+      std::snprintf(why, sizeof why, "clipped: peaks at the converter's full scale (%.0f Pa)", full);
+      r.verdict = why;
+    } else if (levels[i] - median < -kDeadBelowOthersDb) {
+      std::snprintf(why, sizeof why, "dead: %.0f dB below the others (unplugged, no power, or muted)",
+                    median - levels[i]);
+      r.verdict = why;
+    } else if (std::abs(levels[i] - median) > kImplausibleDb) {
+      std::snprintf(why, sizeof why, "implausible: %+.1f dB from the others' median", levels[i] - median);
+      r.verdict = why;
+    }
+    r.failed = r.verdict != "ok";
+    rows.push_back(r);
+  }
+  return rows;
+}
+
+std::vector<Row> pressure_and_encoder_rows(const CapturedStreams& s) {
+  std::vector<Row> rows;
+  std::size_t known = 0, wraps = 0;
+  double previous = NAN, sum = 0;
+  std::size_t finite = 0;
+  for (std::size_t k = 0; k < s.crank_deg.size(); ++k) {
+    const double a = s.crank_deg[k];
+    if (std::isfinite(a)) ++known;
+    if (std::isfinite(a) && std::isfinite(previous) && a < previous - 360.0) ++wraps;  // a new cycle
+    previous = a;
+    if (std::isfinite(s.pressure_pa[k])) sum += s.pressure_pa[k], ++finite;
+  }
+  const bool turning = wraps > 0;
+  char value[96];
+  if (finite == 0) {
+    rows.push_back({"pressure", "no samples", "no pressure stream", true});
+  } else if (!turning) {
+    const double offset = sum / static_cast<double>(finite) / 1e5 - kAtmosphereBar;
+    std::snprintf(value, sizeof value, "%.3f bar with the engine stopped", sum / static_cast<double>(finite) / 1e5);
+    const bool bad = std::abs(offset) > kOffsetLimitBar;
+    rows.push_back({"pressure", value, bad ? "offset: not atmospheric (zero of the charge amplifier?)" : "ok", bad});
+  } else {
+    rows.push_back({"pressure", "engine turning", "offset not checked (it needs the engine stopped)", false});
+  }
+  std::snprintf(
+      value, sizeof value, "%zu cycles, crank angle known in %.0f %% of frames", wraps,
+      s.crank_deg.empty() ? 0.0 : 100.0 * static_cast<double>(known) / static_cast<double>(s.crank_deg.size()));
+  rows.push_back({"encoder", value, turning ? "ok" : "not turning: checked when the engine turns", false});
+  return rows;
+}
+
+std::vector<Row> driver_rows(const CapturedStreams& s, bool can_configured) {
+  std::vector<Row> rows;
+  if (can_configured) {
+    char value[64];
+    std::snprintf(value, sizeof value, "%zu operating points, last %.0f rpm", s.operating_points, s.last_speed_rpm);
+    const bool none = s.operating_points == 0;
+    rows.push_back({"CAN", value, none ? "no frames decoded: bus, bitrate or signal map?" : "ok", none});
+  }
+  for (const auto& c : s.counters) {
+    const bool error_count = c.name.find("error") != std::string::npos || c.name.find("overrun") != std::string::npos ||
+                             c.name.find("lost") != std::string::npos;
+    if (error_count && c.value > 0) rows.push_back({c.name, std::to_string(c.value), "errors during the check", true});
+  }
+  if (s.mic_gaps > 0) rows.push_back({"microphone stream", std::to_string(s.mic_gaps) + " gaps", "overruns", true});
+  rows.push_back({"clock drift", "not measured", "no sync channel support yet", false});
+  return rows;
+}
+
+}  // namespace
+
+CheckCommand::CheckCommand(CLI::App& app) {
+  check_ = app.add_subcommand("check",
+                              "check the measurement chain before a test: microphones (dead, clipped, implausible), "
+                              "the pressure's offset, the encoder, CAN; exit status 1 when something is wrong");
+  check_->add_option("--config", config_path_, "the daemon's configuration file (default: the simulated engine)")
+      ->check(CLI::ExistingFile);
+  check_->add_option("--seconds", seconds_, "how long to listen")->capture_default_str()->check(CLI::Range(1.0, 60.0));
+}
+
+int CheckCommand::run() {
+  if (!check_->parsed()) return -1;
+  const daemon::Config config = config_path_.empty() ? daemon::Config{} : daemon::load_config(config_path_);
+  std::fprintf(stderr, "check: listening to %s for %.0f s\n", config.source.c_str(), seconds_);
+  const CapturedStreams streams = capture_streams(config, seconds_);
+  std::vector<Row> rows = microphone_rows(streams);
+  for (Row& r : pressure_and_encoder_rows(streams)) rows.push_back(std::move(r));
+  for (Row& r : driver_rows(streams, config.can.configured())) rows.push_back(std::move(r));
+  int failed = 0;
+  std::printf("%-28s %-44s %s\n", "check", "value", "verdict");
+  for (const Row& r : rows) {
+    std::printf("%-28s %-44s %s%s\n", r.item.c_str(), r.value.c_str(), r.failed ? "FAIL " : "", r.verdict.c_str());
+    failed += r.failed ? 1 : 0;
+  }
+  std::printf("%s\n", failed ? (std::to_string(failed) + " problems: fix them before the test").c_str()
+                             : "the measurement chain is ready");
+  return failed ? 1 : 0;
+}
+
+}  // namespace noisemon::cli
