@@ -412,3 +412,37 @@ TEST(AlsaCapture, ABusyInterfaceAndAFormatItLacksAreErrorsNamingIt) {
     EXPECT_NE(std::string(e.what()).find("cannot capture S16_LE"), std::string::npos) << e.what();
   }
 }
+
+class AlsaRates : public ::testing::TestWithParam<unsigned> {};
+
+// The interface's rate from 44.1 to 192 kHz: the resampling to 40 kHz keeps a 1 kHz tone's level (20 Pa of
+// amplitude from 0.5 of full scale, 1 V and 25 mV/Pa) and frequency.
+TEST_P(AlsaRates, AToneKeepsItsLevelAt40kHz) {
+  const unsigned rate = GetParam();
+  const std::string raw = write_raw("rate.raw", na::SampleFormat::kS32, rate, {{0.5, 1000.0}}, rate);
+  na::AlsaSourceConfig a;
+  a.capture = {.pcm = "nm_test",
+               .config_file = write_asoundrc(raw),
+               .rate_hz = rate,
+               .channels = 1,
+               .format = "S32_LE",
+               .period_frames = 1024,
+               .periods = 4};
+  a.channels = {0};
+  a.sensitivity_mv_per_pa = {25.0};
+  a.full_scale_v = 1.0;
+  auto src = na::make_alsa_source(a);
+  nd::BlockRing mics(4096);
+  src->start(mics, nd::wall_utime());
+  std::vector<double> v;
+  auto block = std::make_unique<nd::SampleBlock>();
+  for (int waits = 0; v.size() < 30000 && waits < 20000; ++waits) {
+    while (mics.read(block.get(), 1) == 1) v.insert(v.end(), block->data, block->data + block->frames);
+    std::this_thread::sleep_for(std::chrono::milliseconds(1));
+  }
+  src->stop();
+  ASSERT_GE(v.size(), 30000u);
+  EXPECT_NEAR(amplitude_at(v, 1, 0, 1000.0, 2000, 30000), 20.0, 0.02) << rate;
+}
+
+INSTANTIATE_TEST_SUITE_P(FromCdToStudioRates, AlsaRates, ::testing::Values(44100u, 96000u, 192000u));
