@@ -10,6 +10,7 @@
 
 #include "cli/config_edit.hpp"
 #include "cli/source_capture.hpp"
+#include "daemon/calibration_history.hpp"
 #include "daemon/config.hpp"
 #include "dsp/calibrator_tone.hpp"
 
@@ -79,32 +80,19 @@ std::string array_text(const std::vector<double>& values) {
   return s.str();
 }
 
-std::string utc_now() {
-  const std::time_t now = std::time(nullptr);
-  char text[32];
-  std::strftime(text, sizeof text, "%Y-%m-%dT%H:%M:%SZ", std::gmtime(&now));
-  return text;
+// The sensitivity of the microphone's last calibration in the history (and when); 0 when it has none.
+double last_calibration(const std::string& history, int mic, std::int64_t& when) {
+  double last = 0;
+  for (const daemon::CalibrationRecord& r : daemon::read_calibration_history(history))
+    if (r.microphone == mic && r.utime >= when) last = r.sensitivity_mv_per_pa, when = r.utime;
+  return last;
 }
 
-// The sensitivity of the microphone's last calibration in the history (and its date); 0 when it has none.
-double last_calibration(const std::string& history, int mic, std::string& when) {
-  std::ifstream in(history);
-  std::string line;
-  double last = 0;
-  while (std::getline(in, line)) {
-    std::istringstream fields(line);
-    std::string utc, microphone, serial, sensitivity;
-    if (!std::getline(fields, utc, ',') || !std::getline(fields, microphone, ',') ||
-        !std::getline(fields, serial, ',') || !std::getline(fields, sensitivity, ','))
-      continue;
-    if (microphone != std::to_string(mic)) continue;
-    try {
-      last = std::stod(sensitivity);
-      when = utc;
-    } catch (const std::exception&) {  // the header
-    }
-  }
-  return last;
+std::string date_of(std::int64_t utime) {
+  const std::time_t t = static_cast<std::time_t>(utime / 1000000);
+  char text[32];
+  std::strftime(text, sizeof text, "%Y-%m-%d %H:%M UTC", std::gmtime(&t));
+  return text;
 }
 
 }  // namespace
@@ -149,11 +137,10 @@ int CalibrateCommand::run() {
   const double old_mv_per_pa = s.at(index);
   const double true_rms = kReferencePa * std::pow(10.0, level_db_ / 20.0);
   const double new_mv_per_pa = old_mv_per_pa * tone.rms / true_rms;  // the same volts, now the stated pressure
-  const std::string history = history_path_.empty()
-                                  ? std::filesystem::path(config_path_).replace_extension(".calibrations.csv").string()
-                                  : history_path_;
-  std::string last_when;
-  const double last = last_calibration(history, mic_, last_when);
+  const std::string history = history_path_.empty() ? config.calibration_history : history_path_;
+  std::int64_t last_utime = 0;
+  const double last = last_calibration(history, mic_, last_utime);
+  const std::string last_when = last > 0 ? date_of(last_utime) : "";
   const double reference = last > 0 ? last : old_mv_per_pa;
   const double change_db = 20.0 * std::log10(new_mv_per_pa / reference);
   std::printf(
@@ -176,14 +163,13 @@ int CalibrateCommand::run() {
   if (std::abs(sensitivities(reread).at(index) - new_mv_per_pa) > 1e-3)
     throw std::logic_error("calibrate: the edited configuration does not hold the new sensitivity; nothing written");
   replace_file_atomically(config_path_, edited);
-  const bool new_history = !std::filesystem::exists(history);
-  std::ofstream h(history, std::ios::app);
-  if (new_history) h << "utc,microphone,serial,sensitivity_mv_per_pa,change_db,level_db,frequency_hz\n";
-  char row[256];
-  std::snprintf(row, sizeof row, "%s,%d,%s,%.4f,%.3f,%.2f,%.2f\n", utc_now().c_str(), mic_, serial_.c_str(),
-                new_mv_per_pa, change_db, level_db_, tone.frequency_hz);
-  h << row;
-  if (!h) throw std::runtime_error("calibrate: cannot append to " + history);
+  daemon::append_calibration(history, {.utime = drivers::wall_utime(),
+                                       .microphone = mic_,
+                                       .serial = serial_,
+                                       .sensitivity_mv_per_pa = new_mv_per_pa,
+                                       .change_db = change_db,
+                                       .level_db = level_db_,
+                                       .frequency_hz = tone.frequency_hz});
   std::printf("written: %s ([%s] sensitivity_mv_per_pa), %s\n", config_path_.c_str(), table.c_str(), history.c_str());
   return 0;
 }

@@ -12,6 +12,7 @@
 #include <sstream>
 
 #include "daemon/background_run.hpp"
+#include "daemon/calibration_history.hpp"
 #include "daemon/config_reader.hpp"
 #include "daemon/sources.hpp"
 #include "drivers/mic_positions.hpp"
@@ -383,7 +384,9 @@ Config load_config(const std::string& path) {
   if (!in) throw ConfigError(path + ": cannot open configuration file");
   std::stringstream buf;
   buf << in.rdbuf();
-  return parse_config(buf.str(), path);
+  Config c = parse_config(buf.str(), path);
+  c.calibration_history = calibration_history_path(path);
+  return c;
 }
 
 }  // namespace noisemon::daemon

@@ -51,7 +51,9 @@ struct Config {
   std::string source = "sim";  // a name of stream_sources() (daemon/sources.hpp)
   std::string microphones;     // a name of mic_sources(): the microphones from a front-end of their own; empty: the
                                // source's own
-  std::int64_t cycles = 0;     // stop after this many cycles; 0 = until SIGINT/SIGTERM
+  std::string calibration_history;  // the microphones' calibrations (calibration_history.hpp); load_config sets it
+                                    // beside the file; empty: none
+  std::int64_t cycles = 0;          // stop after this many cycles; 0 = until SIGINT/SIGTERM
   std::string log_level = "info";
   bool live = false;  // print one line per cycle on stdout
   LcmConfig lcm;

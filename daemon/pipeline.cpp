@@ -10,6 +10,7 @@
 #include <stdexcept>
 #include <thread>
 
+#include "daemon/calibration_history.hpp"
 #include "daemon/cycle_processor.hpp"
 #include "daemon/cycle_statistics.hpp"
 #include "daemon/latency_window.hpp"
@@ -73,6 +74,7 @@ struct Pipeline::Impl {
   std::atomic<std::int64_t> crank_unknown_frames{0};  // frames whose crank angle was NaN (encoder fault)
   std::atomic<std::int64_t> reports_queued{0};
   std::atomic<std::uint64_t> report_overruns{0};
+  std::vector<std::int64_t> calibrated_utime;  // each microphone's latest calibration (0: never); none: not published
   Clock::time_point started;
   // Last: destroyed (stopped) first, before anything their bodies use. A stop request to the processing thread
   // means the drivers have stopped: it processes what is left in the rings, then returns.
@@ -104,9 +106,12 @@ struct Pipeline::Impl {
         angle_ring(angle_ring_factor(info) > 0 ? angle_ring_factor(info) * ring_blocks : 1),
         op_ring(256),
         raw_ring(c.lcm.publish_raw ? (2 + angle_ring_factor(info)) * ring_blocks : 1),
-        processor(make_processor()) {}
+        processor(make_processor()) {
+    read_calibrations();
+  }
 
   std::unique_ptr<CycleProcessor> make_processor();
+  void read_calibrations();
   void run_processing(const std::atomic<bool>& drain);
   void queue_report(const CycleReport& r);
   void run_publishing(std::atomic<std::int64_t>& published);
@@ -279,8 +284,23 @@ noisemon::status_t Pipeline::Impl::make_status(std::int64_t published, const Sta
     s.counter_name.push_back(name);
     s.counter_value.push_back(value->load(std::memory_order_relaxed));
   }
+  const std::int64_t now = drivers::wall_utime();
+  for (std::size_t m = 0; m < calibrated_utime.size(); ++m) {
+    s.counter_name.push_back("calibration.mic" + std::to_string(m + 1) + ".age_days");
+    s.counter_value.push_back(calibrated_utime[m] > 0 ? (now - calibrated_utime[m]) / 86'400'000'000 : -1);
+  }
   s.ncounters = static_cast<std::int16_t>(s.counter_name.size());
   return s;
+}
+
+// The microphones' calibration ages go out with the status when they come from a front-end `noisemon calibrate`
+// writes the sensitivities of (an audio interface, the comedi card).
+void Pipeline::Impl::read_calibrations() {
+  if (config.calibration_history.empty() || !(config.microphones == "alsa" || config.source == "comedi")) return;
+  std::size_t skipped = 0;
+  calibrated_utime = last_calibrations(read_calibration_history(config.calibration_history, &skipped), info.mic_count);
+  if (skipped > 0)
+    spdlog::warn("{}: {} rows that are not calibrations were skipped", config.calibration_history, skipped);
 }
 
 void Pipeline::Impl::remember_for_statistics(const noisemon::cycle_report_t& m) {

@@ -12,16 +12,19 @@
 #include <chrono>
 #include <cmath>
 #include <cstdlib>
+#include <fstream>
 #include <numbers>
 #include <optional>
 #include <thread>
 #include <vector>
 
+#include "daemon/calibration_history.hpp"
 #include "daemon/cycle_processor.hpp"
 #include "daemon/memory_publisher.hpp"
 #include "daemon/report_messages.hpp"
 #include "drivers/worker_thread.hpp"
 #include "tests/sanitizer.hpp"
+#include "tests/support/unique_temp.hpp"
 
 namespace noisemon::daemon {
 namespace {
@@ -291,6 +294,49 @@ TEST(Pipeline, LostSamplesDropTheirCyclesAndTheStatusSaysSo) {
   ASSERT_EQ(s.nthreads, 3);
   EXPECT_EQ(s.thread_name[0], "memory.feed");
   EXPECT_EQ(s.thread_name[1], "processing");
+}
+
+// A microphone calibrated three days and an hour ago (and ten days ago before that, and a line a person mistyped):
+// the status says 3 days for it, -1 (never) for none calibrated; and nothing when the microphones are the sim's.
+TEST(Pipeline, TheStatusCarriesEachMicrophonesCalibrationAge) {
+  const std::string history = noisemon::test::unique_temp("cell.calibrations.csv").string();
+  const std::int64_t day = 86'400'000'000, now = noisemon::drivers::wall_utime();
+  auto calibrated = [&](std::int64_t utime, const std::string& serial, double mv_per_pa) {
+    noisemon::daemon::CalibrationRecord r;
+    r.utime = utime, r.microphone = 1, r.serial = serial, r.sensitivity_mv_per_pa = mv_per_pa;
+    noisemon::daemon::append_calibration(history, r);
+  };
+  calibrated(now - 10 * day, "", 50.0);
+  calibrated(now - 3 * day - day / 24, "3021456", 50.2);
+  std::ofstream(history, std::ios::app) << "2026-12-01,one,x,y\n";
+  std::size_t skipped = 0;
+  const auto rows = noisemon::daemon::read_calibration_history(history, &skipped);
+  ASSERT_EQ(rows.size(), 2u);
+  EXPECT_EQ(skipped, 1u);
+  EXPECT_EQ(rows[1].serial, "3021456");
+  EXPECT_DOUBLE_EQ(rows[1].sensitivity_mv_per_pa, 50.2);
+
+  auto last_status = [&](const Config& config) {
+    auto out = std::make_shared<MemoryPublisher>();
+    Pipeline pipeline(config, std::make_unique<MemorySource>(MemorySource::Script{tone(10), true}), out);
+    pipeline.start();
+    EXPECT_TRUE(wait_for([&] { return pipeline.finished(); }));
+    pipeline.stop();
+    return out->statuses().back().message;
+  };
+  auto counter = [](const noisemon::status_t& s, const std::string& name) -> std::optional<std::int64_t> {
+    for (int i = 0; i < s.ncounters; ++i)
+      if (s.counter_name[i] == name) return s.counter_value[i];
+    return std::nullopt;
+  };
+  Config config = quiet_config();
+  config.microphones = "alsa";
+  config.calibration_history = history;
+  EXPECT_EQ(counter(last_status(config), "calibration.mic1.age_days"), 3);
+  std::ofstream(history, std::ios::trunc);
+  EXPECT_EQ(counter(last_status(config), "calibration.mic1.age_days"), -1);
+  config.microphones.clear();  // the sim's microphones: nothing to calibrate
+  EXPECT_EQ(counter(last_status(config), "calibration.mic1.age_days"), std::nullopt);
 }
 
 TEST(Pipeline, AFailingSourceFinishesItWithTheFailuresText) {

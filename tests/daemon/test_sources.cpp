@@ -157,7 +157,7 @@ TEST(Noisemond, MissingComediDeviceExitsNonZeroNamingIt) {
 // The virtual engine's pressure with the microphones of an audio interface (the tests' virtual interface, through
 // alsa-lib: 12 channels at 48 kHz on a crystal 80 ppm fast, a 1 kHz tone of 0.1 of full scale on every channel):
 // behind 1 V of full scale and 50 mV/Pa the tone is 2 Pa of amplitude, 96.99 dB SPL, and 0 dB of A-weighting at
-// 1 kHz leaves every published cycle's measured Lp(A) there.
+// 1 kHz leaves every cycle's measured Lp(A) there but the first's, in which the band filters start from rest.
 TEST(Noisemond, MicrophonesFromAnAudioInterfaceCarryItsLevelToEveryCycle) {
   const std::string dir = noisemon::test::unique_temp_dir();
   write_file("cell.asoundrc", "pcm_type.nmtimed { lib \"" NOISEMON_ALSA_TIMED_DEVICE
@@ -174,16 +174,19 @@ TEST(Noisemond, MicrophonesFromAnAudioInterfaceCarryItsLevelToEveryCycle) {
       << read_file(dir + "/alsa.err");
   std::istringstream out(read_file(dir + "/alsa.out"));
   std::string line;
-  int cycles = 0;
+  int cycles = 0, checked = 0;
   while (std::getline(out, line)) {
     std::istringstream fields(line);
     long cycle = 0;
     double rpm = 0, soi = 0, measured = 0;
     if (!(fields >> cycle >> rpm >> soi >> measured)) continue;  // the header
     ++cycles;
+    if (cycle == 0) continue;  // the band filters start from rest in it (flagged settling, as the next few are)
+    ++checked;
     EXPECT_NEAR(measured, 96.99, 0.1) << line;
   }
   EXPECT_EQ(cycles, 20) << read_file(dir + "/alsa.out");
+  EXPECT_EQ(checked, 19) << read_file(dir + "/alsa.out");
   EXPECT_NE(read_file(dir + "/alsa.err").find("microphones from alsa"), std::string::npos);
 }
 
