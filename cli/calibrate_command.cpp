@@ -13,11 +13,11 @@
 #include "daemon/calibration_history.hpp"
 #include "daemon/config.hpp"
 #include "dsp/calibrator_tone.hpp"
+#include "dsp/levels.hpp"
 
 namespace noisemon::cli {
 namespace {
 
-constexpr double kReferencePa = 20e-6;
 constexpr double kFrequencyTolerance = 0.01;  // IEC 60942 class 1: the tone within 1 % of its stated frequency
 constexpr double kMaxFluctuationDb = 0.2;     // its level steady within +-0.1 dB over the measurement
 constexpr double kMinToneShareDb = -1.0;      // the tone at least 80 % of the signal's power: the calibrator is on
@@ -135,7 +135,7 @@ int CalibrateCommand::run() {
 
   std::vector<double>& s = sensitivities(config);
   const double old_mv_per_pa = s.at(index);
-  const double true_rms = kReferencePa * std::pow(10.0, level_db_ / 20.0);
+  const double true_rms = std::sqrt(dsp::mean_square_from_level(level_db_));
   const double new_mv_per_pa = old_mv_per_pa * tone.rms / true_rms;  // the same volts, now the stated pressure
   const std::string history = history_path_.empty() ? config.calibration_history : history_path_;
   std::int64_t last_utime = 0;
@@ -146,8 +146,8 @@ int CalibrateCommand::run() {
   std::printf(
       "microphone %d: tone %.2f Hz, %.2f dB re 20 uPa with the configured %.3f mV/Pa (steady within %.2f "
       "dB)\nsensitivity %.3f mV/Pa (%+.2f dB from %s; a class 1 calibrator's +-0.4 dB is its uncertainty)\n",
-      mic_, tone.frequency_hz, 20.0 * std::log10(tone.rms / kReferencePa), old_mv_per_pa, tone.fluctuation_db,
-      new_mv_per_pa, change_db, last > 0 ? ("the last calibration, " + last_when).c_str() : "the configuration");
+      mic_, tone.frequency_hz, dsp::level_db(tone.rms * tone.rms), old_mv_per_pa, tone.fluctuation_db, new_mv_per_pa,
+      change_db, last > 0 ? ("the last calibration, " + last_when).c_str() : "the configuration");
   if (std::abs(change_db) > kWarnChangeDb)
     std::fprintf(stderr,
                  "calibrate: warning: microphone %d's sensitivity moved %+.2f dB since %s: check the capsule, its "

@@ -8,15 +8,15 @@
 
 #include "cli/source_capture.hpp"
 #include "daemon/config.hpp"
+#include "dsp/levels.hpp"
 
 namespace noisemon::cli {
 namespace {
 
-constexpr double kReferencePa = 20e-6;
-constexpr double kDeadPa = 20e-6;            // below 0 dB SPL: no microphone's self-noise is that quiet
-constexpr double kImplausibleDb = 10.0;      // this far from the median of the others
-constexpr double kDeadBelowOthersDb = 40.0;  // this far below them: an open input's noise, not a microphone
-constexpr double kAtmosphereBar = 1.013;     // what an absolute transducer reads with the engine stopped
+constexpr double kDeadPa = dsp::kReferencePressurePa;  // below 0 dB SPL: no microphone's self-noise is that quiet
+constexpr double kImplausibleDb = 10.0;                // this far from the median of the others
+constexpr double kDeadBelowOthersDb = 40.0;            // this far below them: an open input's noise, not a microphone
+constexpr double kAtmosphereBar = 1.013;               // what an absolute transducer reads with the engine stopped
 constexpr double kOffsetLimitBar = 0.2;
 
 struct Row {
@@ -24,7 +24,7 @@ struct Row {
   bool failed = false;
 };
 
-double db(double rms_pa) { return 20.0 * std::log10(std::max(rms_pa, 1e-12) / kReferencePa); }
+double db(double rms_pa) { return dsp::level_db(std::max(rms_pa * rms_pa, 1e-24)); }
 
 double rms(const std::vector<double>& x, std::size_t from, std::size_t to) {
   double s = 0;
