@@ -51,6 +51,11 @@ void read_alsa(TableReader& top, const std::string& origin, drivers::alsa::AlsaS
   read_capture(r, origin, a.capture);
   read_channel_list(r, a.channels);
   r.number("full_scale_v", a.full_scale_v, 1e-6, 1000);
+  std::int64_t sync = a.sync_channel;
+  r.integer("sync_channel", sync, -1, drivers::alsa::kMaxCaptureChannels - 1);
+  a.sync_channel = static_cast<int>(sync);
+  r.number("sync_angle_deg", a.sync_angle_deg, -720.0, 720.0);
+  r.number("host_delay_uncertainty_s", a.host_delay_uncertainty_s, 0.0, 1.0);
   read_mic_chain(r, a.channels.size(), {a.sensitivity_mv_per_pa, a.radius_m, a.positions_m, a.speed_of_sound_m_s});
   r.reject_unknown();
 }

@@ -16,6 +16,7 @@
 #include "daemon/latency_window.hpp"
 #include "daemon/report_messages.hpp"
 #include "daemon/wakeup.hpp"
+#include "drivers/crank_reference.hpp"
 #include "drivers/worker_thread.hpp"
 #include "noisemon/status_t.hpp"
 
@@ -53,6 +54,8 @@ struct Pipeline::Impl {
   drivers::BlockRing pressure_ring, mic_ring;
   drivers::BlockRing angle_ring;  // the crank-angle stream, when the source has one (one edge per frame: larger)
   drivers::OperatingPointRing op_ring;
+  // The instants the crank passes a microphone front-end's sync pulse angle, when the source has one.
+  std::unique_ptr<drivers::CrankReference> crank_reference;
   dsp::SpscRing<CycleReport> report_ring{256};
   dsp::SpscRing<RawItem> raw_ring;  // every stream's blocks on their way to NOISEMON_RAW: the driver rings' room
   dsp::SpscRing<drivers::OperatingPoint> op_publish_ring{64};
@@ -107,6 +110,8 @@ struct Pipeline::Impl {
         op_ring(256),
         raw_ring(c.lcm.publish_raw ? (2 + angle_ring_factor(info)) * ring_blocks : 1),
         processor(make_processor()) {
+    if (std::isfinite(info.sync_angle_deg))
+      crank_reference = std::make_unique<drivers::CrankReference>(info.sync_angle_deg);
     read_calibrations();
   }
 
@@ -168,6 +173,7 @@ void Pipeline::Impl::run_processing(const std::atomic<bool>& drain) {
       if (const drivers::SampleBlock* b = pressure_ring.front()) {
         last_input_ns = now_ns();
         processor.add_pressure(*b);
+        if (crank_reference) crank_reference->add_crank(*b);
         if (config.lcm.publish_raw) (void)raw_ring.push(RawItem{0, *b});
         pressure_ring.consume(1);
         got = true;
@@ -388,7 +394,7 @@ void Pipeline::start() {
   // spdlog's registry is a static made on first use: make it here, before the threads that log. (Its guard lives
   // in libspdlog, which ThreadSanitizer does not see into: two threads' first logs were reported as a race.)
   spdlog::default_logger_raw();
-  drivers::Streams streams{&d.pressure_ring, &d.mic_ring, &d.op_ring, &d.angle_ring};
+  drivers::Streams streams{&d.pressure_ring, &d.mic_ring, &d.op_ring, &d.angle_ring, d.crank_reference.get()};
   // Processing first: the publishing thread ends once the processing thread no longer runs.
   d.processing_thread.start("nm-processing", d.config.threads.processing,
                             [this](const std::atomic<bool>& drain) { impl_->run_processing(drain); });

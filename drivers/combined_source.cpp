@@ -68,11 +68,12 @@ class MicComposedSource final : public Source {
     info.acoustic_delay_s = m.acoustic_delay_s;
     info.mic_full_scale_pa = m.mic_full_scale_pa;
     info.mic_passband_hz = m.mic_passband_hz;
+    info.sync_angle_deg = m.sync_angle_deg;
     return info;
   }
   void start(const Streams& s) override {
     if (!s.mics) throw std::invalid_argument(name() + ": start() needs the microphone ring");
-    mics_->start(*s.mics, streams_->info().epoch_utime);
+    mics_->start(*s.mics, streams_->info().epoch_utime, s.crank_reference);
     try {
       Streams own = s;
       own.mics = &discarded_;

@@ -21,6 +21,8 @@
 
 namespace noisemon::drivers {
 
+class CrankReference;  // drivers/crank_reference.hpp
+
 inline constexpr double kPipelineRateHz = 40000.0;
 
 // The utime of 40 kHz frame `frame` (fractional: an instant between frames) of a stream whose frame 0 is at
@@ -92,6 +94,9 @@ struct Streams {
   BlockRing* mics = nullptr;      // StreamInfo::mic_count channels, Pa
   OperatingPointRing* operating_point = nullptr;
   BlockRing* pressure_angle = nullptr;  // kAngleStreamChannels channels, when StreamInfo::pressure_angle_step_deg > 0
+  // The instants the crank passes StreamInfo::sync_angle_deg, when that is a number: posted by the pipeline from
+  // the crank angle, read by a microphone front-end that aligns its clock to them.
+  CrankReference* crank_reference = nullptr;
 };
 
 struct StreamInfo {
@@ -114,6 +119,10 @@ struct StreamInfo {
   // The crank angle of firing TDC on this stream's scale that its processing uses ([combustion] tdc_deg; session_t
   // tdc_deg). 0: the angles are the piston's.
   double tdc_deg = 0.0;
+  // A number: the crank angle (degrees after firing TDC, on this stream's scale) of a once-per-revolution sync pulse
+  // a microphone front-end samples beside its microphones; the pipeline then posts the instants the crank passes
+  // it (Streams::crank_reference). NaN: none.
+  double sync_angle_deg = NAN;
 };
 
 enum class ThreadState : std::uint8_t { kIdle = 0, kRunning = 1, kStopped = 2, kFailed = 3 };
@@ -167,6 +176,7 @@ struct MicStreamInfo {
   double acoustic_delay_s = 0.0;
   double mic_full_scale_pa = 0.0;  // 0: not known (the microphones' full scales differ)
   double mic_passband_hz = 0.0;
+  double sync_angle_deg = NAN;  // StreamInfo::sync_angle_deg
 };
 
 // A microphone front-end of its own (an audio interface on its own crystal), whose stream is composed with another
@@ -175,8 +185,9 @@ class MicSource : public SourceBase {
  public:
   virtual MicStreamInfo info() const = 0;
   // Starts the driver thread: 40 kHz blocks of the microphones (Pa) into `mics`, frame k being the instant
-  // epoch_utime + k * 25 us by the host clock at each (re)start. Throws on a device error.
-  virtual void start(BlockRing& mics, std::int64_t epoch_utime) = 0;
+  // epoch_utime + k * 25 us on the stream source's clock (by its sync pulse matched to `reference` when it has one,
+  // else by the host clock). Throws on a device error.
+  virtual void start(BlockRing& mics, std::int64_t epoch_utime, const CrankReference* reference) = 0;
 };
 
 // An operating-point source: no streams, only the engine's operating points (CAN).

@@ -2,10 +2,12 @@
 
 #include <algorithm>
 #include <atomic>
+#include <chrono>
+#include <cmath>
 #include <stdexcept>
 
+#include "drivers/aligned_stream.hpp"
 #include "drivers/mic_positions.hpp"
-#include "drivers/timed_stream.hpp"
 #include "dsp/resample.hpp"
 
 namespace noisemon::drivers::alsa {
@@ -29,6 +31,13 @@ void check(const AlsaSourceConfig& c) {
   if (!c.positions_m.empty() && c.positions_m.size() != n)
     throw std::invalid_argument("alsa.positions_m: " + std::to_string(c.positions_m.size()) + " positions for " +
                                 std::to_string(n) + " microphones");
+  if (c.sync_channel >= static_cast<int>(kMaxCaptureChannels) ||
+      std::find(c.channels.begin(), c.channels.end(), c.sync_channel) != c.channels.end())
+    throw std::invalid_argument("alsa.sync_channel: " + std::to_string(c.sync_channel) +
+                                " must be a spare capture channel, none of the microphones', below " +
+                                std::to_string(kMaxCaptureChannels));
+  if (c.sync_channel >= 0 && !std::isfinite(c.sync_angle_deg))
+    throw std::invalid_argument("alsa.sync_angle_deg: the crank angle of the sync pulse is needed with a sync channel");
   if (c.capture.rate_hz < kMinRateHz || c.capture.rate_hz > kMaxRateHz)
     throw std::invalid_argument("alsa.rate_hz: " + std::to_string(c.capture.rate_hz) + " Hz is outside " +
                                 std::to_string(kMinRateHz) + ".." + std::to_string(kMaxRateHz));
@@ -36,7 +45,8 @@ void check(const AlsaSourceConfig& c) {
 
 CaptureConfig capture_config(const AlsaSourceConfig& c) {
   CaptureConfig cc = c.capture;
-  const unsigned needed = *std::max_element(c.channels.begin(), c.channels.end()) + 1;
+  const unsigned needed =
+      std::max(*std::max_element(c.channels.begin(), c.channels.end()) + 1, static_cast<unsigned>(c.sync_channel + 1));
   if (cc.channels == 0) {
     cc.channels = needed;
     cc.at_least_channels = true;
@@ -69,24 +79,42 @@ class AlsaSource final : public MicSource {
     const bool one_scale =
         std::all_of(pa_per_unit_.begin(), pa_per_unit_.end(), [&](double s) { return s == pa_per_unit_.front(); });
     info_.mic_full_scale_pa = one_scale ? pa_per_unit_.front() : 0.0;
+    if (config.sync_channel >= 0) info_.sync_angle_deg = config.sync_angle_deg;
   }
   ~AlsaSource() override { stop(); }
 
   std::string name() const override { return "alsa"; }
   MicStreamInfo info() const override { return info_; }
 
-  void start(BlockRing& mics, std::int64_t epoch_utime) override {
+  void start(BlockRing& mics, std::int64_t epoch_utime, const CrankReference* reference) override {
     if (worker_.joinable()) throw std::logic_error("alsa source: start() while running; stop() first");
-    assembler_ = std::make_unique<TimedStreamAssembler>(info_.mic_count, capture_config_.rate_hz, epoch_utime);
-    assembler_->restart(capture_.start());
+    AlignedStreamAssembler::Options o;
+    o.channels = info_.mic_count;
+    o.card_rate_hz = capture_config_.rate_hz;
+    o.epoch_utime = epoch_utime;
+    o.reference = config_.sync_channel >= 0 ? reference : nullptr;
+    o.read_period_s = static_cast<double>(capture_.period_frames()) / capture_config_.rate_hz;
+    o.host_delay_uncertainty_s = config_.host_delay_uncertainty_s;
+    epoch_utime_ = epoch_utime;
+    assembler_ = std::make_unique<AlignedStreamAssembler>(o);
+    restart();
     worker_.start("nm-mics", config_.thread, [this, &mics](const std::atomic<bool>& stop) { run(mics, stop); });
   }
   void stop() override { worker_.stop(); }
   bool running() const override { return worker_.state() == ThreadState::kRunning && worker_.blocks_written() > 0; }
   std::vector<DriverThreadStatus> thread_status() const override { return {worker_.status()}; }
   std::vector<DriverCounter> counters() const override {
-    return {{"alsa.mics.overruns", static_cast<std::int64_t>(overruns_.load(std::memory_order_relaxed))},
-            {"alsa.mics.frames", static_cast<std::int64_t>(frames_.load(std::memory_order_relaxed))}};
+    auto count = [](const std::atomic<std::int64_t>& c) { return c.load(std::memory_order_relaxed); };
+    std::vector<DriverCounter> out{{"alsa.mics.overruns", static_cast<std::int64_t>(overruns_.load())},
+                                   {"alsa.mics.frames", static_cast<std::int64_t>(frames_.load())},
+                                   {"alsa.mics.clock_ppb", count(clock_ppb_)},
+                                   {"alsa.mics.alignment_uncertainty_us", count(uncertainty_us_)}};
+    if (config_.sync_channel >= 0) {
+      out.push_back({"alsa.mics.synced", count(synced_)});
+      out.push_back({"alsa.mics.sync_losses", count(sync_losses_)});
+      out.push_back({"alsa.mics.sync_pulses_rejected", count(pulses_rejected_)});
+    }
+    return out;
   }
 
  private:
@@ -101,7 +129,7 @@ class AlsaSource final : public MicSource {
         case ReadStatus::kOverrun:
           assembler_->deliver(ring, true);
           overruns_.fetch_add(1, std::memory_order_relaxed);
-          assembler_->restart(capture_.start());
+          restart();
           continue;
         case ReadStatus::kFrames:
           break;
@@ -109,14 +137,37 @@ class AlsaSource final : public MicSource {
       for (std::size_t f = 0; f < frames; ++f) {
         const double* in = &values[f * capture_.channels()];
         for (std::size_t m = 0; m < frame.size(); ++m) frame[m] = in[config_.channels[m]] * pa_per_unit_[m];
-        assembler_->add_scan(frame.data(), ring);
+        assembler_->add_scan(frame.data(), config_.sync_channel >= 0 ? in[config_.sync_channel] : 0.0, ring);
       }
+      scans_ += frames;
       frames_.fetch_add(frames, std::memory_order_relaxed);
+      assembler_->observe_host(scans_, host_seconds());
       assembler_->deliver(ring, false);
+      publish_alignment();
       worker_.set_blocks_written(assembler_->blocks_written());
     }
     assembler_->deliver(ring, true);
     worker_.set_blocks_written(assembler_->blocks_written());
+  }
+
+  // Capture starts (again): scan 0 at the wall time it returns, the monotonic clock read beside it.
+  void restart() {
+    origin_utime_ = capture_.start();
+    origin_steady_ = std::chrono::steady_clock::now();
+    assembler_->restart(origin_utime_);
+    scans_ = 0;
+  }
+  // Now on the pipeline's clock by the host's monotonic clock (s since the epoch).
+  double host_seconds() const {
+    const std::chrono::duration<double> since = std::chrono::steady_clock::now() - origin_steady_;
+    return static_cast<double>(origin_utime_ - epoch_utime_) * 1e-6 + since.count();
+  }
+  void publish_alignment() {
+    clock_ppb_.store(std::llround(assembler_->ppm() * 1000.0), std::memory_order_relaxed);
+    uncertainty_us_.store(std::llround(assembler_->uncertainty_s() * 1e6), std::memory_order_relaxed);
+    synced_.store(assembler_->synced() ? 1 : 0, std::memory_order_relaxed);
+    sync_losses_.store(static_cast<std::int64_t>(assembler_->sync_losses()), std::memory_order_relaxed);
+    pulses_rejected_.store(static_cast<std::int64_t>(assembler_->pulses_rejected()), std::memory_order_relaxed);
   }
 
   AlsaSourceConfig config_;
@@ -124,8 +175,12 @@ class AlsaSource final : public MicSource {
   Capture capture_;
   MicStreamInfo info_;
   std::vector<double> pa_per_unit_;  // Pa of digital full scale, per microphone
-  std::unique_ptr<TimedStreamAssembler> assembler_;
+  std::unique_ptr<AlignedStreamAssembler> assembler_;
+  std::int64_t epoch_utime_ = 0, origin_utime_ = 0;
+  std::chrono::steady_clock::time_point origin_steady_;
+  std::uint64_t scans_ = 0;  // since the latest (re)start
   std::atomic<std::uint64_t> overruns_{0}, frames_{0};
+  std::atomic<std::int64_t> clock_ppb_{0}, uncertainty_us_{0}, synced_{0}, sync_losses_{0}, pulses_rejected_{0};
   WorkerThread worker_;
 };
 

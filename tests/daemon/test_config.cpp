@@ -321,7 +321,14 @@ TEST(Config, MicrophonesFromAnAudioInterfaceAreReadFromTheAlsaTable) {
   EXPECT_DOUBLE_EQ(c.alsa.full_scale_v, 4.9);
   EXPECT_EQ(c.alsa.capture.period_frames, 480u);
   EXPECT_EQ(c.alsa.capture.periods, 6u);
+  EXPECT_EQ(c.alsa.sync_channel, -1);  // default: no sync pulse, the host clock aligns the interface
   EXPECT_TRUE(parse_config("", "test.toml").microphones.empty());  // default: the source's own
+  const noisemon::daemon::Config synced =
+      parse_config("[alsa]\nsync_channel = 11\nsync_angle_deg = 37.0\nhost_delay_uncertainty_s = 0.002\n", "t.toml");
+  EXPECT_EQ(synced.alsa.sync_channel, 11);
+  EXPECT_DOUBLE_EQ(synced.alsa.sync_angle_deg, 37.0);
+  EXPECT_DOUBLE_EQ(synced.alsa.host_delay_uncertainty_s, 0.002);
+  EXPECT_NE(error_of("[alsa]\nsync_channel = 32\n").find("alsa.sync_channel"), std::string::npos);
 
   for (const auto& kind : noisemon::daemon::mic_sources())
     EXPECT_NE(error_of("[daemon]\nmicrophones = \"jack\"\n").find(std::string(kind.name)), std::string::npos);

@@ -317,6 +317,12 @@ TEST(AlsaSource, AConfigurationThatCannotWorkIsRefusedNamingTheField) {
   a.sensitivity_mv_per_pa = {50.0, 50.0};
   a.channels = {0, 40};
   EXPECT_NE(message(a).find("alsa.channels"), std::string::npos) << message(a);
+  a.channels = {0, 3};
+  a.sync_channel = 3;  // a microphone's channel cannot carry the sync pulse
+  EXPECT_NE(message(a).find("alsa.sync_channel"), std::string::npos) << message(a);
+  a.sync_channel = 2;
+  a.sync_angle_deg = NAN;
+  EXPECT_NE(message(a).find("alsa.sync_angle_deg"), std::string::npos) << message(a);
 }
 
 namespace {
@@ -355,7 +361,7 @@ TEST(AlsaSource, AnOverrunIsCountedAndSurvivedWithAGapInTheStream) {
   a.full_scale_v = 1.0;  // 0.5 FS = 10 Pa
   auto src = na::make_alsa_source(a);
   nd::BlockRing mics(4096);
-  src->start(mics, nd::wall_utime());
+  src->start(mics, nd::wall_utime(), nullptr);
   std::vector<std::int64_t> first_index, end_index;  // of each block
   std::vector<double> values;
   auto block = std::make_unique<nd::SampleBlock>();
@@ -433,7 +439,7 @@ TEST_P(AlsaRates, AToneKeepsItsLevelAt40kHz) {
   a.full_scale_v = 1.0;
   auto src = na::make_alsa_source(a);
   nd::BlockRing mics(4096);
-  src->start(mics, nd::wall_utime());
+  src->start(mics, nd::wall_utime(), nullptr);
   std::vector<double> v;
   auto block = std::make_unique<nd::SampleBlock>();
   for (int waits = 0; v.size() < 30000 && waits < 20000; ++waits) {
