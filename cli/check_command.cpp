@@ -2,7 +2,9 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <cstdio>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -18,6 +20,7 @@ constexpr double kImplausibleDb = 10.0;                // this far from the medi
 constexpr double kDeadBelowOthersDb = 40.0;            // this far below them: an open input's noise, not a microphone
 constexpr double kAtmosphereBar = 1.013;               // what an absolute transducer reads with the engine stopped
 constexpr double kOffsetLimitBar = 0.2;
+constexpr double kImplausiblePpm = 1000.0;  // a crystal this far off is a wrong nominal rate, not drift
 
 struct Row {
   std::string item, value, verdict;
@@ -79,18 +82,26 @@ std::vector<Row> microphone_rows(const CapturedStreams& s) {
   return rows;
 }
 
-std::vector<Row> pressure_and_encoder_rows(const CapturedStreams& s) {
-  std::vector<Row> rows;
-  std::size_t known = 0, wraps = 0;
-  double previous = NAN, sum = 0;
-  std::size_t finite = 0;
-  for (std::size_t k = 0; k < s.crank_deg.size(); ++k) {
-    const double a = s.crank_deg[k];
-    if (std::isfinite(a)) ++known;
+// The engine cycles the crank angle began while listening (the engine turns when there are any).
+std::size_t cycles_seen(const CapturedStreams& s) {
+  std::size_t wraps = 0;
+  double previous = NAN;
+  for (double a : s.crank_deg) {
     if (std::isfinite(a) && std::isfinite(previous) && a < previous - 360.0) ++wraps;  // a new cycle
     previous = a;
+  }
+  return wraps;
+}
+
+std::vector<Row> pressure_and_encoder_rows(const CapturedStreams& s) {
+  std::vector<Row> rows;
+  std::size_t known = 0, finite = 0;
+  double sum = 0;
+  for (std::size_t k = 0; k < s.crank_deg.size(); ++k) {
+    if (std::isfinite(s.crank_deg[k])) ++known;
     if (std::isfinite(s.pressure_pa[k])) sum += s.pressure_pa[k], ++finite;
   }
+  const std::size_t wraps = cycles_seen(s);
   const bool turning = wraps > 0;
   char value[96];
   if (finite == 0) {
@@ -110,7 +121,29 @@ std::vector<Row> pressure_and_encoder_rows(const CapturedStreams& s) {
   return rows;
 }
 
-std::vector<Row> driver_rows(const CapturedStreams& s, bool can_configured) {
+// The microphone front-end's clock against the encoder's, from the source's gauges (drivers/aligned_stream.hpp).
+Row clock_row(const CapturedStreams& s, bool turning) {
+  const auto gauge = [&](const char* name) -> std::optional<std::int64_t> {
+    for (const auto& c : s.counters)
+      if (c.name == name) return c.value;
+    return std::nullopt;
+  };
+  const std::optional<std::int64_t> ppb = gauge("alsa.mics.clock_ppb");
+  if (!ppb) return {"clock drift", "one clock", "ok: the microphones are on the encoder's card", false};
+  const std::optional<std::int64_t> synced = gauge("alsa.mics.synced");
+  char value[96];
+  std::snprintf(value, sizeof value, "%+.1f ppm, placed to %lld us (%s)", 1e-3 * static_cast<double>(*ppb),
+                static_cast<long long>(gauge("alsa.mics.alignment_uncertainty_us").value_or(-1)),
+                synced ? (*synced ? "sync pulse" : "sync pulse not locked") : "host clock");
+  if (std::abs(1e-3 * static_cast<double>(*ppb)) > kImplausiblePpm)
+    return {"clock drift", value, "implausible: is rate_hz the interface's rate?", true};
+  if (synced && !*synced)
+    return turning ? Row{"clock drift", value, "the sync pulse did not lock: wiring, level or sync_angle_deg?", true}
+                   : Row{"clock drift", value, "sync not checked: it locks when the engine turns", false};
+  return {"clock drift", value, "ok", false};
+}
+
+std::vector<Row> driver_rows(const CapturedStreams& s, bool can_configured, bool turning) {
   std::vector<Row> rows;
   if (can_configured) {
     char value[64];
@@ -124,7 +157,7 @@ std::vector<Row> driver_rows(const CapturedStreams& s, bool can_configured) {
     if (error_count && c.value > 0) rows.push_back({c.name, std::to_string(c.value), "errors during the check", true});
   }
   if (s.mic_gaps > 0) rows.push_back({"microphone stream", std::to_string(s.mic_gaps) + " gaps", "overruns", true});
-  rows.push_back({"clock drift", "not measured", "no sync channel support yet", false});
+  rows.push_back(clock_row(s, turning));
   return rows;
 }
 
@@ -146,7 +179,7 @@ int CheckCommand::run() {
   const CapturedStreams streams = capture_streams(config, seconds_);
   std::vector<Row> rows = microphone_rows(streams);
   for (Row& r : pressure_and_encoder_rows(streams)) rows.push_back(std::move(r));
-  for (Row& r : driver_rows(streams, config.can.configured())) rows.push_back(std::move(r));
+  for (Row& r : driver_rows(streams, config.can.configured(), cycles_seen(streams) > 0)) rows.push_back(std::move(r));
   int failed = 0;
   std::printf("%-28s %-44s %s\n", "check", "value", "verdict");
   for (const Row& r : rows) {

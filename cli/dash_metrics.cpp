@@ -72,7 +72,12 @@ void status_metrics(std::ostringstream& out, const std::string& cell, const nois
   Family counters(out, cell, "noisemon_driver_counter_total", "counter",
                   "The source's driver counters, cumulative since start.");
   for (int i = 0; i < s.ncounters; ++i)
-    counters.sample(static_cast<double>(s.counter_value[i]), "counter", s.counter_name[i]);
+    if (!s.counter_is_gauge[i]) counters.sample(static_cast<double>(s.counter_value[i]), "counter", s.counter_name[i]);
+  Family gauges(out, cell, "noisemon_driver_gauge", "gauge",
+                "The source's states that may go down: a clock's drift (ppb), an alignment's uncertainty (us), a "
+                "microphone's calibration age (days), ...");
+  for (int i = 0; i < s.ncounters; ++i)
+    if (s.counter_is_gauge[i]) gauges.sample(static_cast<double>(s.counter_value[i]), "gauge", s.counter_name[i]);
 }
 
 void cycle_metrics(std::ostringstream& out, const std::string& cell, const noisemon::cycle_report_t& r) {

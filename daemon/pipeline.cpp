@@ -280,6 +280,7 @@ noisemon::status_t Pipeline::Impl::make_status(std::int64_t published, const Sta
   for (const drivers::DriverCounter& c : source->counters()) {
     s.counter_name.push_back(c.name);
     s.counter_value.push_back(c.value);
+    s.counter_is_gauge.push_back(c.gauge);
   }
   const std::pair<const char*, const std::atomic<std::int64_t>*> processing_counters[] = {
       {"processing.frames_discarded", &frames_discarded},
@@ -289,11 +290,13 @@ noisemon::status_t Pipeline::Impl::make_status(std::int64_t published, const Sta
   for (const auto& [name, value] : processing_counters) {
     s.counter_name.push_back(name);
     s.counter_value.push_back(value->load(std::memory_order_relaxed));
+    s.counter_is_gauge.push_back(false);
   }
   const std::int64_t now = drivers::wall_utime();
   for (std::size_t m = 0; m < calibrated_utime.size(); ++m) {
     s.counter_name.push_back("calibration.mic" + std::to_string(m + 1) + ".age_days");
     s.counter_value.push_back(calibrated_utime[m] > 0 ? (now - calibrated_utime[m]) / 86'400'000'000 : -1);
+    s.counter_is_gauge.push_back(true);
   }
   s.ncounters = static_cast<std::int16_t>(s.counter_name.size());
   return s;

@@ -134,10 +134,12 @@ struct DriverThreadStatus {
   std::string error;  // empty unless kFailed
 };
 
-// A named event count of a driver (overruns, restarts, error frames, ...), shown in the status message.
+// A named event count of a driver (overruns, restarts, error frames, ...), shown in the status message; or, a gauge,
+// a state that may go down (a clock's drift, whether a sync pulse is locked).
 struct DriverCounter {
   std::string name;  // "<source>.<what>", e.g. "comedi.pressure.overruns"
   std::int64_t value = 0;
+  bool gauge = false;
 };
 
 // What every source has: a name, driver threads that stop, their state and their event counters.

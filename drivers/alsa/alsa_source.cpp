@@ -107,10 +107,10 @@ class AlsaSource final : public MicSource {
     auto count = [](const std::atomic<std::int64_t>& c) { return c.load(std::memory_order_relaxed); };
     std::vector<DriverCounter> out{{"alsa.mics.overruns", static_cast<std::int64_t>(overruns_.load())},
                                    {"alsa.mics.frames", static_cast<std::int64_t>(frames_.load())},
-                                   {"alsa.mics.clock_ppb", count(clock_ppb_)},
-                                   {"alsa.mics.alignment_uncertainty_us", count(uncertainty_us_)}};
+                                   {"alsa.mics.clock_ppb", count(clock_ppb_), true},
+                                   {"alsa.mics.alignment_uncertainty_us", count(uncertainty_us_), true}};
     if (config_.sync_channel >= 0) {
-      out.push_back({"alsa.mics.synced", count(synced_)});
+      out.push_back({"alsa.mics.synced", count(synced_), true});
       out.push_back({"alsa.mics.sync_losses", count(sync_losses_)});
       out.push_back({"alsa.mics.sync_pulses_rejected", count(pulses_rejected_)});
     }

@@ -33,6 +33,7 @@ TEST(CheckCommand, AHealthyChainIsReadyAndAnUnpluggedMicrophoneIsNamed) {
     EXPECT_NE(r.find(" ok"), std::string::npos) << r << "\n" << healthy.text;
   }
   EXPECT_NE(row(healthy.text, "encoder").find(" ok"), std::string::npos) << healthy.text;
+  EXPECT_NE(row(healthy.text, "clock drift").find("one clock"), std::string::npos) << healthy.text;  // the sim's
   EXPECT_NE(healthy.text.find("the measurement chain is ready"), std::string::npos);
 
   const std::string config = noisemon::test::unique_temp("unplugged.toml").string();

@@ -99,9 +99,10 @@ noisemon::status_t make_status() {
   s.latency_ms_max = 34.0f;
   s.processing_ms_mean = 0.5f;
   s.processing_ms_max = 0.75f;
-  s.ncounters = 1;
-  s.counter_name = {"comedi.pressure.overruns"};
-  s.counter_value = {3};
+  s.ncounters = 2;
+  s.counter_name = {"comedi.pressure.overruns", "alsa.mics.clock_ppb"};
+  s.counter_value = {3, -49870};
+  s.counter_is_gauge = {false, true};
   return s;
 }
 
@@ -138,6 +139,11 @@ TEST(DashMetrics, StatusAndLevelsParseAsPrometheusTextWithTheCellOnEverySample) 
   EXPECT_DOUBLE_EQ(find(e, "noisemon_latency_mean_seconds")->value, 0.0205);
   EXPECT_DOUBLE_EQ(find(e, "noisemon_processing_max_seconds")->value, 0.00075);
   EXPECT_EQ(find(e, "noisemon_driver_counter_total", "counter", "comedi.pressure.overruns")->value, 3);
+  // A state that may go down is a gauge, never a "_total" counter (Prometheus would take its fall for a reset).
+  EXPECT_EQ(find(e, "noisemon_driver_counter_total", "counter", "alsa.mics.clock_ppb"), nullptr);
+  ASSERT_NE(find(e, "noisemon_driver_gauge", "gauge", "alsa.mics.clock_ppb"), nullptr);
+  EXPECT_EQ(find(e, "noisemon_driver_gauge", "gauge", "alsa.mics.clock_ppb")->value, -49870);
+  EXPECT_EQ(e.types.at("noisemon_driver_gauge"), "gauge");
   EXPECT_EQ(find(e, "noisemon_lpa_measured_db")->value, 111.25);
   EXPECT_TRUE(std::isnan(find(e, "noisemon_lpa_predicted_db")->value));
   EXPECT_EQ(find(e, "noisemon_last_cycle")->value, 99);

@@ -22,6 +22,7 @@
 #include "daemon/cycle_processor.hpp"
 #include "daemon/memory_publisher.hpp"
 #include "daemon/report_messages.hpp"
+#include "drivers/crank_reference.hpp"
 #include "drivers/worker_thread.hpp"
 #include "tests/sanitizer.hpp"
 #include "tests/support/unique_temp.hpp"
@@ -90,6 +91,7 @@ class MemorySource final : public nd::Source {
     bool finite = false;
     std::size_t fail_at = SIZE_MAX;  // throws "device unplugged" instead of delivering this block
     double tdc_deg = 0.0;            // the session's (a log's producer's) firing TDC
+    double sync_angle_deg = NAN;     // a microphone front-end's sync pulse angle (StreamInfo::sync_angle_deg)
   };
   explicit MemorySource(Script script) : script_(std::move(script)) {}
   ~MemorySource() override { stop(); }
@@ -98,9 +100,11 @@ class MemorySource final : public nd::Source {
   nd::StreamInfo info() const override {
     nd::StreamInfo i = one_mic();
     i.tdc_deg = script_.tdc_deg;
+    i.sync_angle_deg = script_.sync_angle_deg;
     return i;
   }
   void start(const nd::Streams& s) override {
+    reference_ = s.crank_reference;
     worker_.start("nm-memory", {}, [this, s](const std::atomic<bool>& stop) { run(s, stop); });
   }
   void stop() override { worker_.stop(); }
@@ -111,6 +115,7 @@ class MemorySource final : public nd::Source {
     return {{"memory.blocks", static_cast<std::int64_t>(worker_.blocks_written())}};
   }
   bool delivered() const { return delivered_.load(); }
+  const nd::CrankReference* reference() const { return reference_; }
 
  private:
   void run(const nd::Streams& s, const std::atomic<bool>& stop) {
@@ -136,6 +141,7 @@ class MemorySource final : public nd::Source {
   }
 
   Script script_;
+  const nd::CrankReference* reference_ = nullptr;
   std::atomic<bool> delivered_{false}, exhausted_{false};
   nd::WorkerThread worker_{"memory.feed"};
 };
@@ -226,6 +232,31 @@ TEST(Pipeline, StopDrainsEveryCompleteCycleAndTheReportsAreTheProcessorsByHand) 
     EXPECT_GT(r.utime, r.message.utime) << "a report is stamped with the end of its cycle's window";
   }
   EXPECT_TRUE(pipeline.failure().empty());
+}
+
+// A source that asks for its sync pulse's crank instants (a microphone front-end aligning its clock) gets them from
+// the pipeline, read off the crank angle it delivers: in tone(), 0.72 deg a frame from -360 at each 1000th frame,
+// so 90 deg (and -270) are passed at frames 625 and 125 of each cycle.
+TEST(Pipeline, ASourceWithASyncPulseGetsTheInstantsTheCrankPassesItsAngle) {
+  MemorySource::Script script{tone(40)};
+  script.sync_angle_deg = 90.0;
+  auto source = std::make_unique<MemorySource>(script);
+  const MemorySource* feed = source.get();
+  Pipeline pipeline(quiet_config(), std::move(source), std::make_shared<MemoryPublisher>());
+  pipeline.start();
+  ASSERT_TRUE(wait_for([&] { return feed->delivered(); }));
+  pipeline.stop();
+  ASSERT_NE(feed->reference(), nullptr);
+  for (double frame = 125.0; frame < 7900.0; frame += 500.0)
+    EXPECT_NEAR(feed->reference()->nearest(frame / 40000.0).instant_s * 40000.0, frame, 1e-6) << frame;
+
+  auto plain = std::make_unique<MemorySource>(MemorySource::Script{tone(2)});
+  const MemorySource* none = plain.get();
+  Pipeline without(quiet_config(), std::move(plain), std::make_shared<MemoryPublisher>());
+  without.start();
+  ASSERT_TRUE(wait_for([&] { return none->delivered(); }));
+  without.stop();
+  EXPECT_EQ(none->reference(), nullptr);  // no sync pulse asked for: none made
 }
 
 TEST(Pipeline, TheCycleLimitFinishesItWithExactlyThatManyReports) {
