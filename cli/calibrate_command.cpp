@@ -1,5 +1,7 @@
 #include "cli/calibrate_command.hpp"
 
+#include <CLI/CLI.hpp>
+
 #include <cmath>
 #include <cstdio>
 #include <ctime>

@@ -5,8 +5,11 @@
 // calibration is a warning: a damaged capsule, a loose connector, a preamplifier's gain turned.
 #pragma once
 
-#include <CLI/CLI.hpp>
 #include <string>
+
+namespace CLI {
+class App;
+}  // namespace CLI
 
 namespace noisemon::cli {
 

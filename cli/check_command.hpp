@@ -4,8 +4,11 @@
 // the CAN bus's operating points; the drivers' error counters. One table; exit status 1 when something is wrong.
 #pragma once
 
-#include <CLI/CLI.hpp>
 #include <string>
+
+namespace CLI {
+class App;
+}  // namespace CLI
 
 namespace noisemon::cli {
 

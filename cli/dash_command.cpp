@@ -1,5 +1,7 @@
 #include "cli/dash_command.hpp"
 
+#include <CLI/CLI.hpp>
+
 #include <cstdio>
 #include <lcm/lcm-cpp.hpp>
 

@@ -1,5 +1,7 @@
 #include "cli/dbc_command.hpp"
 
+#include <CLI/CLI.hpp>
+
 #include <algorithm>
 #include <cctype>
 #include <cstdio>

@@ -3,8 +3,11 @@
 // engineer finds the names to put in [[can.signal]] dbc_signal.
 #pragma once
 
-#include <CLI/CLI.hpp>
 #include <string>
+
+namespace CLI {
+class App;
+}  // namespace CLI
 
 namespace noisemon::cli {
 

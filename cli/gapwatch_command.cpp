@@ -1,5 +1,7 @@
 #include "cli/gapwatch_command.hpp"
 
+#include <CLI/CLI.hpp>
+
 #include <cstdio>
 #include <cstring>
 #include <filesystem>

@@ -5,9 +5,11 @@
 
 #include <string>
 
-#include <CLI/CLI.hpp>
-
 #include "model/diagnosis/gap_watch.hpp"
+
+namespace CLI {
+class App;
+}  // namespace CLI
 
 namespace noisemon::cli {
 

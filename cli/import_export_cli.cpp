@@ -1,5 +1,7 @@
 #include "cli/import_export_cli.hpp"
 
+#include <CLI/CLI.hpp>
+
 #include <cstdio>
 
 namespace noisemon::cli {

@@ -2,12 +2,15 @@
 // on stderr. Kept out of noisemon_main.cpp so that file stays a list of subcommands.
 #pragma once
 
-#include <CLI/CLI.hpp>
-
 #include <string>
 #include <vector>
 
 #include "cli/import_export.hpp"
+
+namespace CLI {
+class App;
+class Option;
+}  // namespace CLI
 
 namespace noisemon::cli {
 

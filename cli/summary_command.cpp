@@ -1,5 +1,7 @@
 #include "cli/summary_command.hpp"
 
+#include <CLI/CLI.hpp>
+
 #include <unistd.h>
 
 #include <filesystem>

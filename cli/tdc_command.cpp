@@ -1,5 +1,7 @@
 #include "cli/tdc_command.hpp"
 
+#include <CLI/CLI.hpp>
+
 #include <algorithm>
 #include <cmath>
 #include <cstdio>

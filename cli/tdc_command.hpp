@@ -6,9 +6,11 @@
 #include <string>
 #include <vector>
 
-#include <CLI/CLI.hpp>
-
 #include "model/motored_tdc.hpp"
+
+namespace CLI {
+class App;
+}  // namespace CLI
 
 namespace noisemon::cli {
 

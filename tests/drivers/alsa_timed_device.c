@@ -6,7 +6,10 @@
  *   pcm.cell { type nmtimed rate 48000 channels 4 tone_hz 1000 amplitude 0.5 ppm 80 xrun_at_frame 24000
  *              busy_file "/tmp/x.lock" }
  *
- * Every channel carries amplitude * sin(2 pi tone_hz n / rate) of its own frame count n (S32_LE only). xrun_at_frame:
+ * Every channel carries amplitude * sin(2 pi tone_hz n / rate) of its own frame count n (S32_LE only), but for
+ * sync_channel (with sync_period_us > 0): a pulse train, high (0.4) for the first 5 % of each period of the wall
+ * clock (CLOCK_REALTIME: multiples of sync_period_us since 1970), low (-0.4) otherwise, each frame n taken at the
+ * start's wall time + n / (rate (1 + ppm)), as a once-per-revolution pulse wired to a spare input. xrun_at_frame:
  * one overrun when the clock passes that frame (a driver thread that missed its turn). busy_file: a second open
  * while the first holds it fails with EBUSY, as a card another program holds does. */
 #include <alsa/asoundlib.h>
@@ -25,9 +28,9 @@ typedef struct {
   snd_pcm_ioplug_t io;
   int timer_fd, busy_fd;
   double ppm, tone_hz, amplitude;
-  long long xrun_at, generated;
-  int xrun_done;
-  struct timespec start;
+  long long xrun_at, generated, sync_period_us;
+  int xrun_done, sync_channel;
+  struct timespec start, wall_start;
 } timed_t;
 
 static double seconds_since(const struct timespec *t0) {
@@ -39,6 +42,8 @@ static double seconds_since(const struct timespec *t0) {
 static int timed_start(snd_pcm_ioplug_t *io) {
   timed_t *d = io->private_data;
   clock_gettime(CLOCK_MONOTONIC, &d->start);
+  clock_gettime(CLOCK_REALTIME, &d->wall_start);
+  d->generated = 0;
   double period = (double)io->period_size / (double)io->rate;
   struct itimerspec its;
   its.it_interval.tv_sec = (time_t)period;
@@ -67,15 +72,24 @@ static snd_pcm_sframes_t timed_pointer(snd_pcm_ioplug_t *io) {
   return (snd_pcm_sframes_t)(made % (long long)io->buffer_size);
 }
 
+/* The sync channel's value at frame n: where the frame's wall-clock instant falls in its pulse period. */
+static int32_t sync_sample(const timed_t *d, long long n, unsigned rate) {
+  double us = (double)(d->wall_start.tv_sec % 100000) * 1e6 + (double)d->wall_start.tv_nsec * 1e-3 +
+              (double)n * 1e6 / ((double)rate * (1.0 + d->ppm * 1e-6));
+  double phase = fmod(us, (double)d->sync_period_us) / (double)d->sync_period_us;
+  return (int32_t)lround((phase < 0.05 ? 0.4 : -0.4) * 2147483647.0);
+}
+
 static snd_pcm_sframes_t timed_transfer(snd_pcm_ioplug_t *io, const snd_pcm_channel_area_t *areas,
                                         snd_pcm_uframes_t offset, snd_pcm_uframes_t size) {
   timed_t *d = io->private_data;
   for (snd_pcm_uframes_t f = 0; f < size; ++f, ++d->generated) {
     double v = d->amplitude * sin(2.0 * M_PI * d->tone_hz * (double)d->generated / (double)io->rate);
     int32_t s = (int32_t)lround(v * 2147483647.0);
+    int32_t sync = d->sync_period_us > 0 ? sync_sample(d, d->generated, io->rate) : 0;
     for (unsigned c = 0; c < io->channels; ++c) {
       char *p = (char *)areas[c].addr + (areas[c].first + areas[c].step * (offset + f)) / 8;
-      memcpy(p, &s, sizeof s);
+      memcpy(p, (int)c == d->sync_channel && d->sync_period_us > 0 ? &sync : &s, sizeof s);
     }
   }
   return (snd_pcm_sframes_t)size;
@@ -125,7 +139,7 @@ static int constrain(snd_pcm_ioplug_t *io, unsigned rate, unsigned channels) {
 
 SND_PCM_PLUGIN_DEFINE_FUNC(nmtimed) {
   snd_config_iterator_t i, next;
-  long rate = 48000, channels = 1, xrun_at = -1;
+  long rate = 48000, channels = 1, xrun_at = -1, sync_channel = -1, sync_period_us = 0;
   double ppm = 0.0, tone_hz = 1000.0, amplitude = 0.5;
   const char *busy_file = NULL;
   (void)root;
@@ -142,6 +156,8 @@ SND_PCM_PLUGIN_DEFINE_FUNC(nmtimed) {
     else if (!strcmp(id, "tone_hz")) err = snd_config_get_ireal(n, &tone_hz);
     else if (!strcmp(id, "amplitude")) err = snd_config_get_ireal(n, &amplitude);
     else if (!strcmp(id, "busy_file")) err = snd_config_get_string(n, &busy_file);
+    else if (!strcmp(id, "sync_channel")) err = snd_config_get_integer(n, &sync_channel);
+    else if (!strcmp(id, "sync_period_us")) err = snd_config_get_integer(n, &sync_period_us);
     else {
       SNDERR("nmtimed: unknown field %s", id);
       return -EINVAL;
@@ -164,6 +180,7 @@ SND_PCM_PLUGIN_DEFINE_FUNC(nmtimed) {
     }
   }
   d->ppm = ppm, d->tone_hz = tone_hz, d->amplitude = amplitude, d->xrun_at = xrun_at;
+  d->sync_channel = (int)sync_channel, d->sync_period_us = sync_period_us;
   d->timer_fd = timerfd_create(CLOCK_MONOTONIC, TFD_NONBLOCK | TFD_CLOEXEC);
   d->io.version = SND_PCM_IOPLUG_VERSION;
   d->io.name = "noisemon timed test device";

@@ -13,6 +13,7 @@
 #include <cstring>
 #include <fstream>
 #include <numbers>
+#include <optional>
 #include <string>
 #include <thread>
 #include <vector>
@@ -20,6 +21,8 @@
 #include "drivers/alsa/alsa_capture.hpp"
 #include "drivers/alsa/alsa_source.hpp"
 #include "drivers/combined_source.hpp"
+#include "drivers/crank_reference.hpp"
+#include "tests/sanitizer.hpp"
 #include "tests/support/unique_temp.hpp"
 
 namespace nd = noisemon::drivers;
@@ -390,6 +393,53 @@ TEST(AlsaSource, AnOverrunIsCountedAndSurvivedWithAGapInTheStream) {
   double peak = 0;
   for (std::size_t k = frames_before_gap + 1000; k < values.size(); ++k) peak = std::max(peak, std::abs(values[k]));
   EXPECT_NEAR(peak, 10.0, 0.1);
+}
+
+// A sync pulse through alsa-lib's own path: the virtual interface runs 80 ppm fast and carries, on a spare channel, a
+// pulse at each multiple of 20 ms of the wall clock (a 3000 rpm engine's once-per-revolution); the test posts those
+// instants as the pipeline would post the crank's. The source locks to them and tracks the interface's rate.
+TEST(AlsaSource, ASyncPulseOnASpareChannelLocksTheClockAndTracksTheDrift) {
+  constexpr std::int64_t kPeriodUs = 20000;
+  na::AlsaSourceConfig a;
+  a.capture = {.pcm = "nm_timed",
+               .config_file = timed_asoundrc("rate 48000 channels 2 ppm 80 sync_channel 1 sync_period_us 20000"),
+               .rate_hz = 48000,
+               .channels = 2,
+               .format = "",
+               .period_frames = 480,
+               .periods = 400};  // 4 s of buffer: a loaded machine's stalls are no overrun
+  a.channels = {0};
+  a.sensitivity_mv_per_pa = {50.0};
+  a.sync_channel = 1;
+  a.sync_angle_deg = 0.0;
+  auto src = na::make_alsa_source(a);
+  const std::int64_t epoch = nd::wall_utime() / kPeriodUs * kPeriodUs;  // a pulse's instant
+  nd::CrankReference reference(0.0);
+  nd::BlockRing mics(4096);
+  src->start(mics, epoch, &reference);
+  auto block = std::make_unique<nd::SampleBlock>();
+  std::int64_t posted = 0;  // pulses posted, from the epoch's
+  const auto deadline = std::chrono::steady_clock::now() + noisemon::test::allowance(std::chrono::seconds(20));
+  // Tracked for 3 s after the lock: the rate then known to about a ppm.
+  std::optional<std::chrono::steady_clock::time_point> locked;
+  while (std::chrono::steady_clock::now() < deadline) {
+    while (mics.read(block.get(), 1) == 1) {
+    }
+    for (; epoch + posted * kPeriodUs < nd::wall_utime() - 30000; ++posted)
+      reference.post(static_cast<double>(posted * kPeriodUs) * 1e-6);
+    if (!locked && counter(*src, "alsa.mics.synced") == 1) locked = std::chrono::steady_clock::now();
+    if (locked && std::chrono::steady_clock::now() - *locked > std::chrono::seconds(3)) break;
+    std::this_thread::sleep_for(std::chrono::milliseconds(5));
+  }
+  ASSERT_TRUE(locked.has_value()) << "never locked; sync pulses rejected: "
+                                  << counter(*src, "alsa.mics.sync_pulses_rejected");
+  EXPECT_EQ(counter(*src, "alsa.mics.synced"), 1);
+  RecordProperty("clock_ppb", std::to_string(counter(*src, "alsa.mics.clock_ppb")));
+  RecordProperty("alignment_uncertainty_us", std::to_string(counter(*src, "alsa.mics.alignment_uncertainty_us")));
+  EXPECT_NEAR(static_cast<double>(counter(*src, "alsa.mics.clock_ppb")), 80000.0, 5000.0);
+  EXPECT_LE(counter(*src, "alsa.mics.alignment_uncertainty_us"), 25);  // within a 40 kHz sample
+  EXPECT_EQ(counter(*src, "alsa.mics.sync_losses"), 0);
+  src->stop();
 }
 
 TEST(AlsaCapture, ABusyInterfaceAndAFormatItLacksAreErrorsNamingIt) {
