@@ -11,7 +11,7 @@ namespace {
 constexpr std::size_t kBatch = 1024;  // scans per resampler call
 constexpr double kRealignS = 0.05;    // a jump of the mapping larger than this restarts the stream (50 ms)
 constexpr double kMaxSlew = 200e-6;   // the fastest the placing bends towards the tracker (0.02 %: no level moves)
-constexpr double kAgreeS = 50e-6;     // the locking pulses' offsets agree within this
+constexpr double kAgreeS = 50e-6;     // the locking pulses lie this close to their fitted line
 constexpr double kWaitForReferenceS = 1.0;  // a pulse waits this long for its crank instant to be posted
 constexpr double kOriginSigmaS = 2e-3;      // how well the wall time of a capture's start places its scan 0
 // A host reading is late by at most a read period (+-1.7 sigma of the uniform) and the scheduler's delay: beyond 4
