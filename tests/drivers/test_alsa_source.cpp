@@ -338,6 +338,18 @@ std::string timed_asoundrc(const std::string& fields) {
   return path;
 }
 
+// The virtual interface at 48 kHz, two channels and the device fields given, read 480 frames at a time with a
+// buffer of `periods` periods.
+na::CaptureConfig timed_capture(const std::string& fields, unsigned periods) {
+  return {.pcm = "nm_timed",
+          .config_file = timed_asoundrc("rate 48000 channels 2 " + fields),
+          .rate_hz = 48000,
+          .channels = 2,
+          .format = "",
+          .period_frames = 480,
+          .periods = periods};
+}
+
 std::int64_t counter(const nd::SourceBase& src, const std::string& name) {
   for (const nd::DriverCounter& c : src.counters())
     if (c.name == name) return c.value;
@@ -352,13 +364,7 @@ std::int64_t counter(const nd::SourceBase& src, const std::string& name) {
 // one did, it would be counted and leave its own gap.
 TEST(AlsaSource, AnOverrunIsCountedAndSurvivedWithAGapInTheStream) {
   na::AlsaSourceConfig a;
-  a.capture = {.pcm = "nm_timed",
-               .config_file = timed_asoundrc("rate 48000 channels 2 tone_hz 1000 amplitude 0.5 xrun_at_frame 9600"),
-               .rate_hz = 48000,
-               .channels = 2,
-               .format = "",
-               .period_frames = 480,
-               .periods = 200};
+  a.capture = timed_capture("tone_hz 1000 amplitude 0.5 xrun_at_frame 9600", 200);
   a.channels = {1};
   a.sensitivity_mv_per_pa = {50.0};
   a.full_scale_v = 1.0;  // 0.5 FS = 10 Pa
@@ -401,13 +407,7 @@ TEST(AlsaSource, AnOverrunIsCountedAndSurvivedWithAGapInTheStream) {
 TEST(AlsaSource, ASyncPulseOnASpareChannelLocksTheClockAndTracksTheDrift) {
   constexpr std::int64_t kPeriodUs = 20000;
   na::AlsaSourceConfig a;
-  a.capture = {.pcm = "nm_timed",
-               .config_file = timed_asoundrc("rate 48000 channels 2 ppm 80 sync_channel 1 sync_period_us 20000"),
-               .rate_hz = 48000,
-               .channels = 2,
-               .format = "",
-               .period_frames = 480,
-               .periods = 400};  // 4 s of buffer: a loaded machine's stalls are no overrun
+  a.capture = timed_capture("ppm 80 sync_channel 1 sync_period_us 20000", 400);  // 4 s of buffer: no overrun
   a.channels = {0};
   a.sensitivity_mv_per_pa = {50.0};
   a.sync_channel = 1;
