@@ -76,10 +76,10 @@ void AlignedStreamAssembler::add_scan(const double* values, double sync, BlockRi
   if (++batch_ == kBatch) run_batch(ring);
 }
 
-void AlignedStreamAssembler::observe_host(std::uint64_t scans, double host_s) {
-  if (synced_ || static_cast<double>(scans) < kHostSettleS * options_.card_rate_hz) return;
+void AlignedStreamAssembler::observe_host(double host_s) {
+  if (synced_ || static_cast<double>(scans_) < kHostSettleS * options_.card_rate_hz) return;
   // The reading came up to a read period after its last scan was captured: its mean lateness is half of that.
-  (void)tracker_.observe(static_cast<double>(scans - 1), host_s - 0.5 * options_.read_period_s,
+  (void)tracker_.observe(static_cast<double>(scans_ - 1), host_s - 0.5 * options_.read_period_s,
                          host_sigma_s(options_.read_period_s), kHostGateSigmas);
 }
 

@@ -54,8 +54,8 @@ class AlignedStreamAssembler {
   void restart(std::int64_t origin_utime);
   // One scan: the microphones' values and the sync channel's (ignored without a reference).
   void add_scan(const double* values, double sync, BlockRing& ring);
-  // A host reading: `scans` scans since the restart had been read by host_s (s since the epoch, monotonic).
-  void observe_host(std::uint64_t scans, double host_s);
+  // A host reading: every scan added so far had been read by host_s (s since the epoch, monotonic).
+  void observe_host(double host_s);
   void deliver(BlockRing& ring, bool all);
 
   [[nodiscard]] bool synced() const { return synced_; }

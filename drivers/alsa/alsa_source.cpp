@@ -139,9 +139,8 @@ class AlsaSource final : public MicSource {
         for (std::size_t m = 0; m < frame.size(); ++m) frame[m] = in[config_.channels[m]] * pa_per_unit_[m];
         assembler_->add_scan(frame.data(), config_.sync_channel >= 0 ? in[config_.sync_channel] : 0.0, ring);
       }
-      scans_ += frames;
       frames_.fetch_add(frames, std::memory_order_relaxed);
-      assembler_->observe_host(scans_, host_seconds());
+      assembler_->observe_host(host_seconds());
       assembler_->deliver(ring, false);
       publish_alignment();
       worker_.set_blocks_written(assembler_->blocks_written());
@@ -155,7 +154,6 @@ class AlsaSource final : public MicSource {
     origin_utime_ = capture_.start();
     origin_steady_ = std::chrono::steady_clock::now();
     assembler_->restart(origin_utime_);
-    scans_ = 0;
   }
   // Now on the pipeline's clock by the host's monotonic clock (s since the epoch).
   double host_seconds() const {
@@ -178,7 +176,6 @@ class AlsaSource final : public MicSource {
   std::unique_ptr<AlignedStreamAssembler> assembler_;
   std::int64_t epoch_utime_ = 0, origin_utime_ = 0;
   std::chrono::steady_clock::time_point origin_steady_;
-  std::uint64_t scans_ = 0;  // since the latest (re)start
   std::atomic<std::uint64_t> overruns_{0}, frames_{0};
   std::atomic<std::int64_t> clock_ppb_{0}, uncertainty_us_{0}, synced_{0}, sync_losses_{0}, pulses_rejected_{0};
   WorkerThread worker_;

@@ -93,7 +93,7 @@ inline AlignmentRun run_card(const DriftingCardSpec& spec, bool sync, double sec
     assembler.add_scan(&s.mic, sync_value, ring);
     if (!card.reading_due()) continue;
     for (double instant : card.crank_instants_until(s.t - 0.03)) reference.post(instant);
-    assembler.observe_host(card.scans(), card.reading_instant());
+    assembler.observe_host(card.reading_instant());
     assembler.deliver(ring, false);
     stated = assembler.uncertainty_s();
     nd::SampleBlock b;
