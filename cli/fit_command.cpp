@@ -14,6 +14,7 @@
 #include "cli/cli_support.hpp"
 #include "cli/formats/waveform_csv.hpp"
 #include "daemon/params_file.hpp"
+#include "dsp/math_constants.hpp"
 #include "model/diagnosis/diagnosis.hpp"
 #include "model/fit/band_fit.hpp"
 #include "model/fit/pressure_floor.hpp"
@@ -21,8 +22,6 @@
 
 namespace noisemon::cli {
 namespace {
-
-constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 
 std::string format_g(double v, int digits = 6) {
   char buf[64];

@@ -21,10 +21,10 @@ namespace {
 namespace fs = std::filesystem;
 
 // "label  42%" redrawn on stderr at most every 100 ms, only when stderr is a terminal.
-class Progress {
+class PercentProgress {
  public:
-  explicit Progress(bool enabled) : enabled_(enabled && isatty(STDERR_FILENO)) {}
-  ~Progress() { done(); }
+  explicit PercentProgress(bool enabled) : enabled_(enabled && isatty(STDERR_FILENO)) {}
+  ~PercentProgress() { done(); }
   void stage(std::string label) {
     label_ = std::move(label);
     last_ = {};
@@ -207,7 +207,7 @@ ImportSummary run_import(const ImportOptions& o) {
   ImportSummary sum;
   OutputGuard guard(o.out_log);
   formats::RecordingLogWriter writer(o.out_log, o.channels);
-  Progress progress(o.progress);
+  PercentProgress progress(o.progress);
   std::int64_t epoch = first_epoch(o.epoch_utime);
   if (!o.motored_run.empty()) {
     progress.stage("import: thermodynamic TDC from " + o.motored_run);
@@ -248,7 +248,7 @@ ImportSummary run_import(const ImportOptions& o) {
 
 ImportSummary run_import_cycle_table(const CycleTableImportOptions& o) {
   ImportSummary sum;
-  Progress progress(o.progress);
+  PercentProgress progress(o.progress);
   progress.stage("import " + o.table + ": reading");
   const formats::CycleTable table = formats::read_cycle_table(o.table);
   formats::CycleTableOptions to = o.table_options;
@@ -291,7 +291,7 @@ ImportSummary run_import_cycle_table(const CycleTableImportOptions& o) {
 
 ExportSummary run_export(const ExportOptions& o) {
   ExportSummary sum;
-  Progress progress(o.progress);
+  PercentProgress progress(o.progress);
   progress.stage("export " + o.log + ": reading");
   std::vector<formats::Recording> recs =
       formats::read_recordings_log(o.log, o.channels, nullptr, &sum.stats, progress.fn());

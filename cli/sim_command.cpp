@@ -60,23 +60,16 @@ json effects_json(const model::engine::Effects& effects) {
   return out;
 }
 
-class Progress {
- public:
-  explicit Progress(bool enabled) : enabled_(enabled && isatty(STDERR_FILENO)) {}
-  void show(std::size_t k, std::size_t n, const std::string& name, const char* what) const {
-    if (enabled_) std::fprintf(stderr, "\rnoisemon sim: [%zu/%zu] %-16s %-12s", k + 1, n, name.c_str(), what);
-  }
-  void finish() const {
-    if (enabled_) std::fprintf(stderr, "\r%70s\r", "");
-  }
-
- private:
-  bool enabled_;
-};
-
 }  // namespace
 
 namespace {
+
+// "noisemon sim: [3/12] name  generating" on the progress line.
+void show_job(ProgressLine& line, std::size_t k, std::size_t n, const std::string& name, const char* what) {
+  char text[160];
+  std::snprintf(text, sizeof text, "noisemon sim: [%zu/%zu] %-16s %-12s", k + 1, n, name.c_str(), what);
+  line.show(text);
+}
 
 struct Job {
   std::string name, dir;
@@ -229,17 +222,17 @@ SimSummary run_sim(const SimOptions& o) {
   const fs::path out(o.out_dir);
 
   SimSummary sum;
-  Progress progress(o.progress);
+  ProgressLine progress(o.progress);
   json runs = json::array();
   for (std::size_t k = 0; k < jobs.size(); ++k) {
     const Job& job = jobs[k];
     cli::SimRunSpec spec = base;
     spec.seed = cli::condition_seed(o.seed, job.name);
-    progress.show(k, jobs.size(), job.name, "generating");
+    show_job(progress, k, jobs.size(), job.name, "generating");
     double t0 = cpu_s();
     const drivers::formats::RunDir run = generate(job, spec, sum);
     sum.generate_s += cpu_s() - t0;
-    progress.show(k, jobs.size(), job.name, "writing");
+    show_job(progress, k, jobs.size(), job.name, "writing");
     const auto w0 = std::chrono::steady_clock::now();
     drivers::formats::write_run_dir(out / job.dir, run, "bar");
     sum.write_s += std::chrono::duration<double>(std::chrono::steady_clock::now() - w0).count();
@@ -259,7 +252,7 @@ SimSummary run_sim(const SimOptions& o) {
                      run.pressure_noise_floor_bar ? json(*run.pressure_noise_floor_bar) : json(nullptr)},
                     {"cycles", job.pressure_dir.empty() ? json(o.cycles) : json(nullptr)}});
   }
-  progress.finish();
+  progress.done();
 
   json truth = {
       {"generator", "noisemon sim"},

@@ -1,4 +1,5 @@
 #include "daemon/crank_grid.hpp"
+#include "dsp/math_constants.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -8,7 +9,6 @@
 
 namespace noisemon::daemon {
 namespace {
-constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 constexpr double kOnPoint = 1e-6;  // of a step: a sample this close to a point is on it
 }  // namespace
 

@@ -7,14 +7,13 @@
 
 #include "daemon/cycle_processor.hpp"
 #include "dsp/levels.hpp"
+#include "dsp/math_constants.hpp"
 #include "dsp/resample.hpp"
 #include "dsp/weighting.hpp"
 #include "model/combustion_noise.hpp"
 
 namespace noisemon::daemon {
-namespace {
-constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
-}  // namespace
+namespace {}  // namespace
 
 // Every microphone's own A-weighted level over the bands above the firing frequency.
 void CycleProcessor::mic_levels(CycleReport& r) const {

@@ -5,6 +5,7 @@
 #include <ctime>
 #include <limits>
 
+#include "dsp/math_constants.hpp"
 #include "dsp/weighting.hpp"
 
 namespace noisemon::daemon {
@@ -19,8 +20,6 @@ constexpr std::size_t kReplacedChannel = drivers::kPressureStreamChannels;  // p
 constexpr std::size_t kPressureFifoChannels = drivers::kPressureStreamChannels + 1;
 constexpr double kOverloadFraction = 0.99;    // of the full scale: a sample there was clipped
 constexpr double kHiddenBoundaryRatio = 1.5;  // a flagged-encoder cycle this much longer than a good one hid a boundary
-constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
-constexpr double kInf = std::numeric_limits<double>::infinity();
 
 double thread_cpu_seconds() {
   timespec ts{};

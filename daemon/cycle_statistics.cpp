@@ -10,6 +10,7 @@
 #include <nlohmann/json.hpp>
 
 #include "dsp/levels.hpp"
+#include "dsp/math_constants.hpp"
 #include "dsp/sound_power.hpp"
 #include "dsp/third_octave_bank.hpp"
 #include "dsp/weighting.hpp"
@@ -17,7 +18,6 @@
 namespace noisemon::daemon {
 namespace {
 
-constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 using Report = noisemon::cycle_report_t;
 
 struct Field {

@@ -6,13 +6,10 @@
 #include <stdexcept>
 
 #include "dsp/levels.hpp"
+#include "dsp/math_constants.hpp"
 
 namespace noisemon::daemon {
-namespace {
-
-constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
-
-}  // namespace
+namespace {}  // namespace
 
 int background_band_index(double nominal_hz) {
   return static_cast<int>(std::lround(10.0 * std::log10(nominal_hz / 20.0)));

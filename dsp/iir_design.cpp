@@ -1,4 +1,5 @@
 #include "dsp/iir_design.hpp"
+#include "dsp/math_constants.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -9,7 +10,6 @@ namespace noisemon::dsp {
 namespace {
 
 using cd = std::complex<double>;
-constexpr double kPi = std::numbers::pi;
 
 // Analog frequencies are expressed as tan(pi f / fs), so the bilinear map is z = (1 + s) / (1 - s).
 double prewarp(double f_hz, double fs_hz) { return std::tan(kPi * f_hz / fs_hz); }

@@ -1,4 +1,5 @@
 #include "model/combustion_metrics.hpp"
+#include "dsp/math_constants.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -10,7 +11,6 @@
 namespace noisemon::model {
 namespace {
 
-constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 constexpr double kGasConstant = 287.0;  // J/(kg K), air
 constexpr double kValleyHalfWidthDeg = 2.0;
 constexpr double

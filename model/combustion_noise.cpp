@@ -1,4 +1,5 @@
 #include "model/combustion_noise.hpp"
+#include "dsp/math_constants.hpp"
 
 #include <cmath>
 #include <complex>
@@ -12,7 +13,6 @@
 namespace noisemon::model {
 namespace {
 
-constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 // Table band 0 (nominal 20 Hz) is IEC 61260-1 band x = -17 re 1 kHz.
 constexpr double kFirstBandIndex = -17.0;
 

@@ -1,4 +1,5 @@
 #include "model/engine_geometry.hpp"
+#include "dsp/math_constants.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -9,7 +10,6 @@
 namespace noisemon::model {
 
 namespace {
-constexpr double kPi = std::numbers::pi;
 constexpr double kDegToRad = kPi / 180.0;
 }  // namespace
 

@@ -7,25 +7,13 @@
 #include <fstream>
 #include <sstream>
 
+#include "drivers/formats/number_field.hpp"
 #include "drivers/formats/text_lines.hpp"
 
 namespace noisemon::cli::formats {
 namespace {
 
 bool is_blank(char c) { return c == ' ' || c == '\t'; }
-
-// A number; with decimal_comma, "0,969" reads as 0.969 (the European spreadsheet export, ';'-separated).
-bool parse_number(std::string_view field, double& out, bool decimal_comma = false) {
-  if (!field.empty() && field.front() == '+') field.remove_prefix(1);
-  if (field.empty() || field.size() > 64) return false;
-  char buf[65];
-  if (decimal_comma) {
-    for (std::size_t i = 0; i < field.size(); ++i) buf[i] = field[i] == ',' ? '.' : field[i];
-    field = std::string_view(buf, field.size());
-  }
-  const auto [end, ec] = std::from_chars(field.data(), field.data() + field.size(), out);
-  return ec == std::errc() && end == field.data() + field.size() && std::isfinite(out);
-}
 
 // Splits a line into fields. A line with tabs or semicolons is separated by them (and by blanks, with tabs) and a
 // ',' inside a field is a decimal comma (*decimal_comma is set): the spreadsheet exports of comma-decimal
@@ -104,7 +92,7 @@ CycleTable parse_cycle_table(std::string_view text, const std::string& file) {
     if (!fields[0].empty() && fields[0].front() == '#') continue;
     if (blank_line != 0) throw drivers::formats::RunDirError(at(blank_line) + "empty line inside the table");
     double crank;
-    if (!parse_number(fields[0], crank, decimal_comma)) {
+    if (!drivers::formats::parse_number_field(fields[0], crank, decimal_comma)) {
       if (columns == 0 && header_lines < kMaxHeaderLines) {  // header lines: names, units, a title
         ++header_lines;
         continue;
@@ -132,7 +120,7 @@ CycleTable parse_cycle_table(std::string_view text, const std::string& file) {
     t.crank_deg.push_back(crank);
     for (std::size_t c = 1; c < columns; ++c) {
       double p;
-      if (!parse_number(fields[c], p, decimal_comma) || std::abs(p) > kMaxAbsPressureBar)
+      if (!drivers::formats::parse_number_field(fields[c], p, decimal_comma) || std::abs(p) > kMaxAbsPressureBar)
         throw drivers::formats::RunDirError(at(line_no) + "column " + std::to_string(c + 1) + " is \"" +
                                             std::string(fields[c]) + "\", expected a pressure in bar (within +-" +
                                             fmt(kMaxAbsPressureBar) + ")");

@@ -5,6 +5,7 @@
 #include <fstream>
 #include <sstream>
 
+#include "drivers/formats/number_field.hpp"
 #include "drivers/formats/text_lines.hpp"
 
 namespace noisemon::cli::formats {
@@ -61,13 +62,6 @@ std::vector<std::string_view> split(std::string_view line, Separator sep) {
   return out;
 }
 
-bool parse_number(std::string_view field, double& out) {
-  if (!field.empty() && field.front() == '+') field.remove_prefix(1);
-  if (field.empty()) return false;
-  const auto [end, ec] = std::from_chars(field.data(), field.data() + field.size(), out);
-  return ec == std::errc() && end == field.data() + field.size() && std::isfinite(out);
-}
-
 }  // namespace
 
 Waveform parse_waveform_csv(std::string_view text, const std::string& file) {
@@ -84,7 +78,8 @@ Waveform parse_waveform_csv(std::string_view text, const std::string& file) {
     const Separator this_sep = separator_of(line);
     const auto fields = split(line, this_sep);
     double u = 0.0, y = 0.0;
-    const bool numeric = fields.size() == 2 && parse_number(fields[0], u) && parse_number(fields[1], y);
+    const bool numeric = fields.size() == 2 && drivers::formats::parse_number_field(fields[0], u) &&
+                         drivers::formats::parse_number_field(fields[1], y);
     if (first_content) {
       first_content = false;
       if (!numeric && fields.size() == 2) {  // a header such as `u,y`
@@ -101,7 +96,7 @@ Waveform parse_waveform_csv(std::string_view text, const std::string& file) {
     if (!numeric) {
       const int bad = [&] {
         double dummy;
-        return parse_number(fields[0], dummy) ? 1 : 0;
+        return drivers::formats::parse_number_field(fields[0], dummy) ? 1 : 0;
       }();
       throw WaveformCsvError(where + "column " + std::to_string(bad + 1) + (bad == 0 ? " (u)" : " (y)") + ": '" +
                              std::string(fields[static_cast<std::size_t>(bad)]) + "' is not a finite number");

@@ -12,10 +12,11 @@
 #include <utility>
 #include <vector>
 
+#include "dsp/math_constants.hpp"
+
 namespace noisemon::cli::report::svg {
 
 using Series = std::vector<double>;
-constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 inline bool finite(double v) { return std::isfinite(v); }
 
 // ---- Formatting: a value that is not finite shows as kDash ----

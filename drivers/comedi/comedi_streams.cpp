@@ -6,6 +6,7 @@
 #include <stdexcept>
 #include <string>
 
+#include "dsp/math_constants.hpp"
 #include "model/engine_geometry.hpp"
 
 namespace noisemon::drivers::comedi {
@@ -20,7 +21,6 @@ constexpr int kMismatchesToCorrect = 2;    // consecutive contrary phase votes b
 // Encoder checks only (index_resets_counter):
 constexpr double kMaxEdgeGapS = 0.05;   // no edge for this long: the resampler starts afresh (a gap)
 constexpr double kMaxBatchSpanS = 0.1;  // a batch spanning this long is resampled at once (slow edges)
-constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 
 std::int64_t floor_mod2(std::int64_t j) { return ((j % 2) + 2) % 2; }
 std::int64_t floor_div(std::int64_t a, std::int64_t b) { return a / b - ((a % b != 0 && (a < 0) != (b < 0)) ? 1 : 0); }

@@ -9,21 +9,14 @@
 #include <cstring>
 #include <stdexcept>
 
+#include "drivers/formats/big_endian.hpp"
+
 namespace noisemon::drivers::formats {
 namespace {
 
 constexpr std::uint8_t kSync[4] = {0xED, 0xA1, 0xDA, 0x01};
 constexpr std::size_t kHeaderBytes = 4 + 8 + 8 + 4 + 4;
 constexpr std::int32_t kMaxChannelLength = 1000;  // lcm's own limit (eventlog.c)
-
-std::uint64_t be64(const std::uint8_t* p) {
-  std::uint64_t v = 0;
-  for (int i = 0; i < 8; ++i) v = (v << 8) | p[i];
-  return v;
-}
-std::uint32_t be32(const std::uint8_t* p) {
-  return (std::uint32_t{p[0]} << 24) | (std::uint32_t{p[1]} << 16) | (std::uint32_t{p[2]} << 8) | p[3];
-}
 
 }  // namespace
 
@@ -90,10 +83,10 @@ bool LcmLogReader::next(LcmLogEvent& e) {
       return false;
     }
     const std::uint8_t* h = data_ + m + 4;
-    const auto eventnum = static_cast<std::int64_t>(be64(h));
-    const auto timestamp = static_cast<std::int64_t>(be64(h + 8));
-    const auto channel_len = static_cast<std::int32_t>(be32(h + 16));
-    const auto data_len = static_cast<std::int32_t>(be32(h + 20));
+    const auto eventnum = static_cast<std::int64_t>(read_be64(h));
+    const auto timestamp = static_cast<std::int64_t>(read_be64(h + 8));
+    const auto channel_len = read_be32(h + 16);
+    const auto data_len = read_be32(h + 20);
     bool ok = channel_len >= 1 && channel_len < kMaxChannelLength && data_len >= 0;
     const std::uint64_t end = m + kHeaderBytes + static_cast<std::uint64_t>(ok ? channel_len : 0) +
                               static_cast<std::uint64_t>(ok ? data_len : 0);

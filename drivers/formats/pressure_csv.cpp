@@ -8,21 +8,12 @@
 #include <limits>
 #include <vector>
 
+#include "drivers/formats/number_field.hpp"
 #include "drivers/formats/run_both.hpp"
 #include "drivers/formats/text_lines.hpp"
 
 namespace noisemon::drivers::formats {
 namespace {
-
-// One field of a CSV row as a finite number; blanks around it are allowed, nothing else.
-bool parse_number(std::string_view field, double& out) {
-  while (!field.empty() && (field.front() == ' ' || field.front() == '\t')) field.remove_prefix(1);
-  while (!field.empty() && (field.back() == ' ' || field.back() == '\t')) field.remove_suffix(1);
-  if (!field.empty() && field.front() == '+') field.remove_prefix(1);
-  if (field.empty()) return false;
-  const auto [end, ec] = std::from_chars(field.data(), field.data() + field.size(), out);
-  return ec == std::errc() && end == field.data() + field.size() && std::isfinite(out);
-}
 
 std::string quoted(std::string_view s) {
   if (s.size() > 40) return "\"" + std::string(s.substr(0, 40)) + "...\"";
@@ -44,7 +35,7 @@ void parse_csv_row(std::string_view line, const std::string& file, std::uint32_t
     const std::string_view field = line.substr(start, comma - start);
     if (i == 2 && field.find(',') != std::string_view::npos)
       throw RunDirError(at_line(file, line_no) + "more than 3 fields, expected 3 (time_s,crank_deg,pressure)");
-    if (!parse_number(field, v[i])) {
+    if (!parse_number_field(field, v[i])) {
       static const char* names[3] = {"time_s", "crank_deg", "pressure"};
       throw RunDirError(at_line(file, line_no) + "field " + names[i] + " is " + quoted(field) +
                         ", expected a finite number");

@@ -6,6 +6,7 @@
 #include <limits>
 #include <stdexcept>
 
+#include "drivers/formats/big_endian.hpp"
 #include "noisemon/session_v1_t.hpp"
 
 namespace noisemon::drivers::formats {
@@ -141,16 +142,10 @@ OperatingPoint from_message(const noisemon::operating_point_t& m) {
 
 namespace {
 
-std::int32_t be32(const std::uint8_t* p) {
-  return static_cast<std::int32_t>((std::uint32_t{p[0]} << 24) | (std::uint32_t{p[1]} << 16) |
-                                   (std::uint32_t{p[2]} << 8) | p[3]);
-}
-std::int16_t be16(const std::uint8_t* p) { return static_cast<std::int16_t>((p[0] << 8) | p[1]); }
-
 // A string field at pos: int32 length (including the terminating NUL) then the bytes. Advances pos.
 bool skip_string(const std::uint8_t* d, std::size_t size, std::size_t& pos) {
   if (size - pos < 4) return false;
-  const std::int32_t len = be32(d + pos);
+  const std::int32_t len = read_be32(d + pos);
   pos += 4;
   if (len < 1 || static_cast<std::size_t>(len) > size - pos || d[pos + static_cast<std::size_t>(len) - 1] != 0)
     return false;
@@ -178,7 +173,7 @@ std::size_t session_tail_bytes(const void* data, std::size_t size) {
   if (size < pos || !skip_string(d, size, pos)) return SIZE_MAX;
   pos += 24;
   if (size < pos + 2) return SIZE_MAX;
-  const std::int16_t nmics = be16(d + pos);
+  const std::int16_t nmics = read_be16(d + pos);
   pos += 2;
   if (nmics < 0 || static_cast<std::size_t>(nmics) * 24 > size - pos) return SIZE_MAX;
   pos += static_cast<std::size_t>(nmics) * 24;
@@ -208,7 +203,7 @@ bool decode_message(const void* data, std::size_t size, noisemon::raw_block_t& m
   constexpr std::size_t kNsamplesAt = 8 + 8 + 8 + 8 + 1 + 8 + 2 + 2;
   const auto* d = static_cast<const std::uint8_t*>(data);
   if (size < kNsamplesAt + 4) return false;
-  const std::int32_t n = be32(d + kNsamplesAt);
+  const std::int32_t n = read_be32(d + kNsamplesAt);
   if (n < 0 || static_cast<std::size_t>(n) * 8 != size - kNsamplesAt - 4) return false;
   return decode_exact(data, size, m);
 }

@@ -1,4 +1,5 @@
 #include "model/diagnosis/change_attribution.hpp"
+#include "dsp/math_constants.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -11,7 +12,6 @@ namespace noisemon::model::diagnosis {
 
 namespace {
 
-constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 constexpr double kAdditiveSplitHz =
     1000.0;                      // additive sound centred below: test-cell noise; above: the engine's impacts
 constexpr int kBandPoints = 16;  // frequencies averaged over a band for the spectral templates

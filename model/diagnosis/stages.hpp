@@ -21,6 +21,7 @@
 #include <string>
 #include <vector>
 
+#include "dsp/math_constants.hpp"
 #include "model/diagnosis/diagnosis.hpp"
 #include "model/fit/band_dataset.hpp"
 #include "model/fit/band_fit.hpp"
@@ -29,7 +30,6 @@
 namespace noisemon::model::diagnosis {
 
 inline constexpr std::size_t kW = fit::kCrankWindows;
-inline constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 
 double db(double ratio);               // 10 log10(ratio)
 double median(std::vector<double> v);  // NaN when empty

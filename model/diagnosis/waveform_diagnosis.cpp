@@ -1,4 +1,5 @@
 #include "model/diagnosis/waveform_diagnosis.hpp"
+#include "dsp/math_constants.hpp"
 
 #include <Eigen/Dense>
 
@@ -18,8 +19,6 @@
 
 namespace noisemon::model::diagnosis {
 namespace {
-
-constexpr double kInf = std::numeric_limits<double>::infinity();
 
 std::string fmt(const char* f, double a, double b = 0.0, double c = 0.0) {
   char buf[256];

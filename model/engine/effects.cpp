@@ -1,4 +1,5 @@
 #include "model/engine/effects.hpp"
+#include "dsp/math_constants.hpp"
 
 #include <algorithm>
 #include <array>
@@ -17,8 +18,6 @@
 namespace noisemon::model::engine {
 
 namespace {
-
-constexpr double kPi = std::numbers::pi;
 
 // Random stream identifiers: one per random quantity, so effects never share a realisation.
 enum : std::uint64_t {

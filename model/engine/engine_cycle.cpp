@@ -1,4 +1,5 @@
 #include "model/engine/engine_cycle.hpp"
+#include "dsp/math_constants.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -10,7 +11,6 @@ namespace noisemon::model::engine {
 
 namespace {
 
-constexpr double kPi = std::numbers::pi;
 constexpr double kUniversalGasConstant = 8.3143;  // J/(mol K), as in the Hardenberg-Hase fit
 
 // Woschni (Heywood, ch. 12): h = 3.26 B^-0.2 p[kPa]^0.8 T^-0.55 w^0.8,

@@ -1,4 +1,5 @@
 #include "model/engine/gas_ringing.hpp"
+#include "dsp/math_constants.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -9,7 +10,6 @@ namespace noisemon::model::engine {
 
 namespace {
 
-constexpr double kPi = std::numbers::pi;
 constexpr double kTaperDeg = 20.0;  // raised-cosine end before EVO
 
 // Normalised premixed Wiebe rate (peak 1) at x = (theta - soc) / duration.

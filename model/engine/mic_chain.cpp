@@ -1,4 +1,5 @@
 #include "model/engine/mic_chain.hpp"
+#include "dsp/math_constants.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -14,7 +15,6 @@ namespace noisemon::model::engine {
 
 namespace {
 
-constexpr double kPi = std::numbers::pi;
 constexpr double kQ = 1.0;  // broad peaks (1.9 octaves between the half-gain points): neighbours overlap smoothly
 constexpr double kSpreadCornerHz = 1000.0;  // sigma(f) = D sqrt(f / (f + corner))
 constexpr int kNormaliseIterations = 20;    // band-centre energy normalisation (a contraction: ~1e-9 dB left)

@@ -1,4 +1,5 @@
 #include "model/engine/virtual_engine.hpp"
+#include "dsp/math_constants.hpp"
 
 #include <algorithm>
 #include <array>
@@ -19,7 +20,6 @@ namespace noisemon::model::engine {
 
 namespace {
 
-constexpr double kPi = std::numbers::pi;
 constexpr std::size_t kBatch = 1024;  // input samples per feed/block-model call
 
 enum : std::uint64_t {

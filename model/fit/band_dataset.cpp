@@ -12,8 +12,6 @@
 namespace noisemon::model::fit {
 namespace {
 
-constexpr std::size_t kW = kCrankWindows;
-
 // Complete cycles of one recording: [starts[k], starts[k + 1]) for k < starts.size() - 1, every one with its
 // microphone frames inside the recording.
 std::vector<std::size_t> complete_cycle_starts(const ConditionRecording& r) {

@@ -28,7 +28,8 @@
 namespace noisemon::model::fit {
 
 inline constexpr double kDatasetRateHz = 40000.0;
-inline constexpr std::size_t kCrankWindows = 8;  // 90-degree crank-angle windows per 720-degree cycle
+inline constexpr std::size_t kCrankWindows = 8;   // 90-degree crank-angle windows per 720-degree cycle
+inline constexpr std::size_t kW = kCrankWindows;  // its short name in the fits' arithmetic
 
 // What a condition is (from run.json / the operating point).
 struct ConditionInfo {

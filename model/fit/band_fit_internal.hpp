@@ -20,15 +20,14 @@
 #include <numbers>
 #include <vector>
 
+#include "dsp/math_constants.hpp"
 #include "model/fit/band_dataset.hpp"
 #include "model/fit/band_fit.hpp"
 #include "model/fit/pressure_floor.hpp"
 
 namespace noisemon::model::fit::band_fit_internal {
 
-inline constexpr double kPi = std::numbers::pi;
 inline constexpr double kDbPerNeper = 10.0 / std::numbers::ln10;  // d(10 log10 x) / d(ln x)
-inline constexpr std::size_t kW = kCrankWindows;
 inline constexpr double kAdditiveFloor = 1e-9;  // additive noise bounds, relative to the band's measured power
 inline constexpr double kAdditiveCeil = 1e2;
 // The pressure chain's noise (its judged floor, and the transducer candidate's extra): the part of a prediction

@@ -9,7 +9,6 @@
 namespace noisemon::model::fit {
 namespace {
 
-constexpr std::size_t kW = kCrankWindows;
 constexpr double kEstimateFromHz = 1000.0;  // the quiet windows' true pressure is far below any floor up here
 constexpr double kGridMaxHz = 0.5 * kDatasetRateHz;
 

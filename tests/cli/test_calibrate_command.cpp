@@ -11,12 +11,13 @@
 #include <string>
 
 #include "tests/cli/run_command.hpp"
+#include "tests/support/programs.hpp"
 #include "tests/support/text_file.hpp"
 #include "tests/support/unique_temp.hpp"
 
 namespace {
 
-const std::string kTool = NOISEMON_TOOL;
+using noisemon::test::kNoisemon;
 
 constexpr const char* kConfig =
     "# cell 3: microphones on the audio interface\n"
@@ -62,7 +63,7 @@ double written(const std::string& text, int mic) {
 
 TEST(CalibrateCommand, WritesTheSensitivityTheToneGivesAndKeepsEveryOtherLine) {
   const Cell c = make_cell();
-  const auto out = noisemon::test::run_command(kTool + " calibrate --config " + c.config +
+  const auto out = noisemon::test::run_command(kNoisemon + " calibrate --config " + c.config +
                                                " --mic 2 --level 94 --seconds 1.5 --serial 3021456");
   ASSERT_EQ(out.status, 0) << out.text;
   const std::string text = noisemon::test::slurp(c.config);
@@ -86,10 +87,11 @@ TEST(CalibrateCommand, WritesTheSensitivityTheToneGivesAndKeepsEveryOtherLine) {
 
 TEST(CalibrateCommand, ASensitivityThatMovedSinceTheLastCalibrationIsAWarning) {
   const Cell c = make_cell();
-  ASSERT_EQ(noisemon::test::run_command(kTool + " calibrate --config " + c.config + " --mic 3 --seconds 1").status, 0);
+  ASSERT_EQ(noisemon::test::run_command(kNoisemon + " calibrate --config " + c.config + " --mic 3 --seconds 1").status,
+            0);
   // The same tone said to be 1 dB louder: the sensitivity comes out 1 dB lower than the last calibration's.
   const auto again =
-      noisemon::test::run_command(kTool + " calibrate --config " + c.config + " --mic 3 --level 95 --seconds 1");
+      noisemon::test::run_command(kNoisemon + " calibrate --config " + c.config + " --mic 3 --level 95 --seconds 1");
   ASSERT_EQ(again.status, 0) << again.text;
   EXPECT_NE(again.text.find("warning: microphone 3's sensitivity moved -1.00 dB"), std::string::npos) << again.text;
   EXPECT_NEAR(written(noisemon::test::slurp(c.config), 3), expected_mv_per_pa(95.0), 0.01);
@@ -103,15 +105,16 @@ TEST(CalibrateCommand, ASensitivityThatMovedSinceTheLastCalibrationIsAWarning) {
 TEST(CalibrateCommand, AToneThatIsNotTheCalibratorsIsRefusedAndNothingWritten) {
   const Cell c = make_cell();
   const auto out =
-      noisemon::test::run_command(kTool + " calibrate --config " + c.config + " --mic 1 --freq 250 --seconds 1");
+      noisemon::test::run_command(kNoisemon + " calibrate --config " + c.config + " --mic 1 --freq 250 --seconds 1");
   EXPECT_NE(out.status, 0);
   EXPECT_NE(out.text.find("no calibrator tone near 250 Hz on microphone 1"), std::string::npos) << out.text;
   EXPECT_EQ(noisemon::test::slurp(c.config), kConfig);
   EXPECT_FALSE(std::ifstream(c.history).good());
-  const auto sim = noisemon::test::run_command(kTool + " calibrate --config /dev/null --mic 1");
+  const auto sim = noisemon::test::run_command(kNoisemon + " calibrate --config /dev/null --mic 1");
   EXPECT_NE(sim.status, 0);
   EXPECT_NE(sim.text.find("calibrate on the front-end they are wired to"), std::string::npos) << sim.text;
-  const auto beyond = noisemon::test::run_command(kTool + " calibrate --config " + c.config + " --mic 5 --seconds 1");
+  const auto beyond =
+      noisemon::test::run_command(kNoisemon + " calibrate --config " + c.config + " --mic 5 --seconds 1");
   EXPECT_NE(beyond.status, 0);
   EXPECT_NE(beyond.text.find("--mic 5, but the configuration has 4 microphones"), std::string::npos) << beyond.text;
 }

@@ -8,11 +8,12 @@
 #include <string>
 
 #include "tests/cli/run_command.hpp"
+#include "tests/support/programs.hpp"
 #include "tests/support/unique_temp.hpp"
 
 namespace {
 
-const std::string kTool = NOISEMON_TOOL;
+using noisemon::test::kNoisemon;
 
 // The table's row for `item` ("microphone 3").
 std::string row(const std::string& text, const std::string& item) {
@@ -26,7 +27,7 @@ std::string row(const std::string& text, const std::string& item) {
 }  // namespace
 
 TEST(CheckCommand, AHealthyChainIsReadyAndAnUnpluggedMicrophoneIsNamed) {
-  const auto healthy = noisemon::test::run_command(kTool + " check --seconds 1");
+  const auto healthy = noisemon::test::run_command(kNoisemon + " check --seconds 1");
   ASSERT_EQ(healthy.status, 0) << healthy.text;
   for (int m = 1; m <= 10; ++m) {
     const std::string r = row(healthy.text, "microphone " + std::to_string(m));
@@ -39,7 +40,7 @@ TEST(CheckCommand, AHealthyChainIsReadyAndAnUnpluggedMicrophoneIsNamed) {
   const std::string config = noisemon::test::unique_temp("unplugged.toml").string();
   std::ofstream(config)
       << "[[sim.faults]]\nkind = \"unplugged\"\nchannel = \"mic3\"\nat_s = 0.0\nduration_s = 1000.0\n";
-  const auto broken = noisemon::test::run_command(kTool + " check --config " + config + " --seconds 1");
+  const auto broken = noisemon::test::run_command(kNoisemon + " check --config " + config + " --seconds 1");
   EXPECT_EQ(broken.status, 1) << broken.text;
   EXPECT_NE(row(broken.text, "microphone 3").find("FAIL"), std::string::npos) << broken.text;
   EXPECT_EQ(row(broken.text, "microphone 2").find("FAIL"), std::string::npos) << broken.text;

@@ -27,12 +27,13 @@
 #include "cli/sim_command.hpp"
 #include "daemon/config.hpp"
 #include "daemon/params_file.hpp"
+#include "dsp/math_constants.hpp"
 
 namespace noisemon::cli {
 namespace {
 
 namespace fs = std::filesystem;
-constexpr double kPi = std::numbers::pi;
+using noisemon::kPi;
 
 struct TempDir {
   fs::path path;

@@ -12,14 +12,15 @@
 #include <nlohmann/json.hpp>
 
 #include "tests/cli/run_command.hpp"
+#include "tests/support/programs.hpp"
 #include "tests/support/unique_temp.hpp"
 
 namespace fs = std::filesystem;
 
 namespace {
 
-const std::string kNoisemon = std::string(NOISEMON_TOOL);
-const std::string kNoisemond = std::string(NOISEMON_BINARY_DIR) + "/daemon/noisemond";
+using noisemon::test::kNoisemon;
+using noisemon::test::kNoisemond;
 constexpr double kOnsetS = 20.0;
 
 std::vector<nlohmann::json> read_events(const fs::path& path) {

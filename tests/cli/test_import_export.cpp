@@ -28,10 +28,12 @@
 #include "cli/formats/cycle_table.hpp"
 #include "cli/import_export.hpp"
 #include "daemon/replay.hpp"
+#include "dsp/math_constants.hpp"
 #include "dsp/resample.hpp"
 #include "noisemon/cycle_report_t.hpp"
 #include "tests/daemon/csv_column.hpp"
 #include "tests/support/required.hpp"
+#include "tests/support/text_file.hpp"
 #include "tests/support/unique_temp.hpp"
 
 using namespace noisemon;
@@ -41,9 +43,9 @@ namespace {
 
 constexpr double kRpm = 1799.9;  // the fired table's speed (data README); the motored table is taken at the same
 constexpr std::int64_t kEpoch = 1'600'000'000'000'000;
-constexpr double kPi = std::numbers::pi;
+using noisemon::kPi;
 
-fs::path temp(const std::string& name) {
+fs::path import_temp(const std::string& name) {
   return fs::path(noisemon::test::unique_temp_dir()) / ("import_export_" + name);
 }
 
@@ -72,7 +74,7 @@ std::vector<noisemon::cycle_report_t> replay(const fs::path& log, const std::str
 fs::path import_table(const std::string& table, const std::string& name, bool motored) {
   cli::CycleTableImportOptions o;
   o.table = table;
-  o.out_log = temp(name + ".lcmlog").string();
+  o.out_log = import_temp(name + ".lcmlog").string();
   o.epoch_utime = kEpoch;
   o.progress = false;
   o.table_options.speed_rpm = kRpm;
@@ -372,7 +374,7 @@ TEST_F(YanmarTables, MotoredTableSetsFiringTdcAndTheFiguresObeyThePhysics) {
   cli::CycleTableImportOptions o;
   o.table = shared_file("yanmar_l100v_fired_18Nm.txt");
   o.motored_table = shared_file("yanmar_l100v_motored.txt");
-  o.out_log = temp("fired_tdc.lcmlog").string();
+  o.out_log = import_temp("fired_tdc.lcmlog").string();
   o.epoch_utime = kEpoch;
   o.progress = false;
   o.table_options.speed_rpm = kRpm;
@@ -417,7 +419,7 @@ TEST_F(YanmarTables, MotoredTableSetsFiringTdcAndTheFiguresObeyThePhysics) {
 TEST_F(YanmarTables, BadMotoredTablesAreRefusedNamingTheFile) {
   cli::CycleTableImportOptions o;
   o.table = shared_file("yanmar_l100v_fired_18Nm.txt");
-  o.out_log = temp("fired_bad_tdc.lcmlog").string();
+  o.out_log = import_temp("fired_bad_tdc.lcmlog").string();
   o.progress = false;
   o.table_options.speed_rpm = kRpm;
   const auto error = [&] {
@@ -452,7 +454,7 @@ TEST_F(YanmarTables, BadMotoredTablesAreRefusedNamingTheFile) {
 }
 
 TEST_F(YanmarTables, ExportThenImportGivesTheSameReports) {
-  const fs::path dir = temp("fired_exported");
+  const fs::path dir = import_temp("fired_exported");
   fs::remove_all(dir);
   cli::ExportOptions e;
   e.log = fired_->log.string();
@@ -465,7 +467,7 @@ TEST_F(YanmarTables, ExportThenImportGivesTheSameReports) {
 
   cli::ImportOptions i;
   i.run_dirs = {dir.string()};
-  i.out_log = temp("fired_reimported.lcmlog").string();
+  i.out_log = import_temp("fired_reimported.lcmlog").string();
   i.epoch_utime = kEpoch;
   i.progress = false;
   cli::run_import(i);
@@ -489,20 +491,20 @@ TEST_F(YanmarTables, SeveralRunsInOneLogReplayAsSeparateSessions) {
   for (const TableRun* t : {fired_, motored_}) {
     cli::ExportOptions e;
     e.log = t->log.string();
-    e.out_dir = temp("two_" + t->log.stem().string()).string();
+    e.out_dir = import_temp("two_" + t->log.stem().string()).string();
     e.progress = false;
     e.force = true;
     dirs.push_back(cli::run_export(e).run_dirs.at(0));
   }
   cli::ImportOptions i;
   i.run_dirs = dirs;
-  i.out_log = temp("two_runs.lcmlog").string();
+  i.out_log = import_temp("two_runs.lcmlog").string();
   i.epoch_utime = kEpoch;
   i.progress = false;
   const cli::ImportSummary is = cli::run_import(i);
   ASSERT_EQ(is.runs.size(), 2u);
   EXPECT_GT(is.runs[1].epoch_utime, is.runs[0].epoch_utime);
-  const std::string csv = temp("two_runs.csv").string();
+  const std::string csv = import_temp("two_runs.csv").string();
   const auto both = replay(i.out_log, csv);
   // Each session gets a fresh processor: the reports equal those of replaying each run alone.
   ASSERT_EQ(both.size(), fired_->reports.size() + motored_->reports.size());
@@ -549,12 +551,12 @@ TEST(ImportExport, RecordingWithMicrophonesExportsAndImportsToTheSameReports) {
   op.soi_deg_btdc = 14;
   op.rail_pressure_bar = 600;
   rec.operating_points = {op};
-  const fs::path log = temp("synthetic.lcmlog");
+  const fs::path log = import_temp("synthetic.lcmlog");
   cli::formats::write_recordings_log(log, {rec});
   const auto before = replay(log);
   ASSERT_GT(before.size(), 25u);
 
-  const fs::path dir = temp("synthetic_dir");
+  const fs::path dir = import_temp("synthetic_dir");
   fs::remove_all(dir);
   cli::ExportOptions e;
   e.log = log.string();
@@ -563,7 +565,7 @@ TEST(ImportExport, RecordingWithMicrophonesExportsAndImportsToTheSameReports) {
   cli::run_export(e);
   cli::ImportOptions i;
   i.run_dirs = {dir.string()};
-  i.out_log = temp("synthetic_again.lcmlog").string();
+  i.out_log = import_temp("synthetic_again.lcmlog").string();
   i.epoch_utime = kEpoch + 7;
   i.progress = false;
   cli::run_import(i);
@@ -582,7 +584,7 @@ TEST(ImportExport, RecordingWithMicrophonesExportsAndImportsToTheSameReports) {
 }
 
 TEST(ImportExport, BadRunDirectoryFailsNamingTheFileAndLeavesNoLog) {
-  const fs::path dir = temp("bad_run");
+  const fs::path dir = import_temp("bad_run");
   fs::remove_all(dir);
   fs::create_directories(dir);
   std::ofstream(dir / "run.json") << R"({"condition": {"name": "x", "speed_rpm": 1800, "load_nm": 0, "soi_deg_btdc": 0,
@@ -590,7 +592,7 @@ TEST(ImportExport, BadRunDirectoryFailsNamingTheFileAndLeavesNoLog) {
   std::ofstream(dir / "pressure.csv") << "time_s,crank_deg,pressure\n0,0,1\n0.001,0.5,oops\n";
   cli::ImportOptions i;
   i.run_dirs = {dir.string()};
-  i.out_log = temp("bad.lcmlog").string();
+  i.out_log = import_temp("bad.lcmlog").string();
   i.progress = false;
   try {
     cli::run_import(i);
@@ -609,7 +611,7 @@ TEST(ImportExport, MicsSimGivesTheRealCyclesTheVirtualEnginesAcousticSide) {
   if (fired.empty()) GTEST_SKIP() << "Yanmar table not found";
   cli::CycleTableImportOptions o;
   o.table = fired;
-  o.out_log = temp("fired_with_sim_mics.lcmlog").string();
+  o.out_log = import_temp("fired_with_sim_mics.lcmlog").string();
   o.epoch_utime = kEpoch;
   o.progress = false;
   o.table_options.speed_rpm = kRpm;
@@ -637,7 +639,7 @@ TEST(ImportExport, MicsSynthesizerHookFillsAPressureOnlyImport) {
   if (fired.empty()) GTEST_SKIP() << "Yanmar table not found";
   cli::CycleTableImportOptions o;
   o.table = fired;
-  o.out_log = temp("hooked.lcmlog").string();
+  o.out_log = import_temp("hooked.lcmlog").string();
   o.epoch_utime = kEpoch;
   o.progress = false;
   o.table_options.speed_rpm = kRpm;
@@ -663,7 +665,7 @@ constexpr double kForeignRpm = 1800.0;
 // ripple once per cycle, a firing peak at every TDC, 1.2 s (18 cycles); `condition` is the condition object's
 // keys after the name, `pressure_extra` more keys of the pressure object.
 fs::path foreign_run(const std::string& name, const std::string& condition, const std::string& pressure_extra = "") {
-  const fs::path dir = temp(name);
+  const fs::path dir = import_temp(name);
   fs::remove_all(dir);
   fs::create_directories(dir);
   std::ofstream(dir / "run.json") << R"({"condition": {"name": ")" << name << "\", " << condition << R"(},
@@ -697,11 +699,6 @@ std::string all_notes(const cli::ImportSummary& s) {
   return out;
 }
 
-std::string read_text(const fs::path& p) {
-  std::ifstream in(p);
-  return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
-}
-
 // Field `column` of every data row of a replay CSV.
 std::vector<std::string> csv_column(const fs::path& csv, std::size_t column) {
   std::ifstream in(csv);
@@ -713,7 +710,7 @@ std::vector<std::string> csv_column(const fs::path& csv, std::size_t column) {
 TEST(ImportNulls, MotoredRunWithNullSoiImportsAndReplaysWithTheSoiUnknown) {
   const fs::path dir = foreign_run("motored_soi_null", R"("speed_rpm": 1800, "load_nm": 0, "soi_deg_btdc": null,
                                                            "rail_pressure_bar": null, "motored": true)");
-  const fs::path log = temp("motored_soi_null.lcmlog"), csv = temp("motored_soi_null.csv");
+  const fs::path log = import_temp("motored_soi_null.lcmlog"), csv = import_temp("motored_soi_null.csv");
   const cli::ImportSummary sum = import_dir(dir, log);
   EXPECT_NE(all_notes(sum).find("SOI n/a"), std::string::npos) << all_notes(sum);
   const auto reports = replay(log, csv.string());
@@ -731,7 +728,7 @@ TEST(ImportNulls, MotoredRunWithNullSoiImportsAndReplaysWithTheSoiUnknown) {
 TEST(ImportNulls, NullLoadAndRailTravelAsUnknownTheRestAsGiven) {
   const fs::path dir = foreign_run("load_null", R"("speed_rpm": 1800, "load_nm": null, "soi_deg_btdc": 12.5,
                                                     "rail_pressure_bar": null, "motored": false)");
-  const fs::path log = temp("load_null.lcmlog"), csv = temp("load_null.csv");
+  const fs::path log = import_temp("load_null.lcmlog"), csv = import_temp("load_null.csv");
   const cli::ImportSummary sum = import_dir(dir, log);
   EXPECT_NE(all_notes(sum).find("load n/a"), std::string::npos) << all_notes(sum);
   EXPECT_NE(all_notes(sum).find("rail pressure n/a"), std::string::npos) << all_notes(sum);
@@ -750,7 +747,7 @@ TEST(ImportNulls, NullLoadAndRailTravelAsUnknownTheRestAsGiven) {
 TEST(ImportNulls, NullSpeedIsMeasuredFromTheEncoderAndSaidSo) {
   const fs::path dir =
       foreign_run("speed_null", R"("speed_rpm": null, "load_nm": 5, "soi_deg_btdc": 10, "motored": false)");
-  const fs::path log = temp("speed_null.lcmlog");
+  const fs::path log = import_temp("speed_null.lcmlog");
   const cli::ImportSummary sum = import_dir(dir, log);
   EXPECT_NE(all_notes(sum).find("measured from the encoder"), std::string::npos) << all_notes(sum);
   const auto recs = cli::formats::read_recordings_log(log);
@@ -766,7 +763,7 @@ TEST(ImportNulls, NullSpeedIsMeasuredFromTheEncoderAndSaidSo) {
 TEST(ImportNulls, NullMotoredImportsButTheDiagnosisLoaderRefusesTheRun) {
   const fs::path dir =
       foreign_run("motored_null", R"("speed_rpm": 1800, "load_nm": 0, "soi_deg_btdc": 12, "motored": null)");
-  const fs::path log = temp("motored_null.lcmlog");
+  const fs::path log = import_temp("motored_null.lcmlog");
   const cli::ImportSummary sum = import_dir(dir, log);
   EXPECT_NE(all_notes(sum).find("motored n/a"), std::string::npos) << all_notes(sum);
   EXPECT_NE(all_notes(sum).find("condition.motored is null: published as false"), std::string::npos) << all_notes(sum);
@@ -786,7 +783,7 @@ TEST(ImportNulls, NullMotoredImportsButTheDiagnosisLoaderRefusesTheRun) {
       << R"({"condition": {"name": "x", "speed_rpm": 1800, "load_nm": 0, "soi_deg_btdc": 12},
       "pressure": {"file": "pressure.csv", "units": "bar"}})";
   try {
-    import_dir(dir, temp("motored_missing.lcmlog"));
+    import_dir(dir, import_temp("motored_missing.lcmlog"));
     ADD_FAILURE() << "no error";
   } catch (const drivers::formats::RunDirError& e) {
     EXPECT_NE(std::string(e.what()).find((dir / "run.json").string() + ": missing key \"condition.motored\""),
@@ -810,7 +807,7 @@ TEST(ImportNulls, TheDiagnosisLoaderPassesUnknownSoiAndLoadAndTheNoiseFloor) {
   EXPECT_NEAR(info.pressure_floor_pa, 250.0, 1e-9);                                 // 0.0025 bar
   EXPECT_NEAR(info.encoder_rate_hz, 6.0 * kForeignRpm, 0.005 * 6.0 * kForeignRpm);  // 1 deg steps
   // A raw LCM log knows no floor and no encoder.
-  const fs::path log = temp("loader_nulls.lcmlog");
+  const fs::path log = import_temp("loader_nulls.lcmlog");
   import_dir(dir, log);
   const std::vector<cli::LoadedRecording> from_log = cli::load_recordings({log.string()});
   ASSERT_EQ(from_log.size(), 1u);
@@ -823,7 +820,7 @@ TEST(ImportNulls, TheDiagnosisLoaderPassesUnknownSoiAndLoadAndTheNoiseFloor) {
 TEST(ImportNulls, ImportThenExportKeepsNullsAsNull) {
   const fs::path dir = foreign_run("export_nulls", R"("speed_rpm": 1800, "load_nm": null, "soi_deg_btdc": null,
                                                        "rail_pressure_bar": null, "motored": true)");
-  const fs::path log = temp("export_nulls.lcmlog"), out = temp("export_nulls_out");
+  const fs::path log = import_temp("export_nulls.lcmlog"), out = import_temp("export_nulls_out");
   import_dir(dir, log);
   fs::remove_all(out);
   cli::ExportOptions e;
@@ -831,7 +828,7 @@ TEST(ImportNulls, ImportThenExportKeepsNullsAsNull) {
   e.out_dir = out.string();
   e.progress = false;
   cli::run_export(e);
-  const std::string text = read_text(out / "run.json");
+  const std::string text = noisemon::test::slurp(out / "run.json");
   for (const char* key : {"load_nm", "soi_deg_btdc", "rail_pressure_bar"})
     EXPECT_NE(text.find("\"" + std::string(key) + "\": null"), std::string::npos) << key << " in " << text;
   EXPECT_NE(text.find("\"motored\": true"), std::string::npos) << text;
@@ -847,7 +844,7 @@ TEST(ImportNulls, MicsSimNamesTheRunAndTheKeyItLacks) {
       foreign_run("mics_sim_soi_null", R"("speed_rpm": 1800, "load_nm": 0, "soi_deg_btdc": null, "motored": true)");
   cli::ImportOptions i;
   i.run_dirs = {dir.string()};
-  i.out_log = temp("mics_sim_soi_null.lcmlog").string();
+  i.out_log = import_temp("mics_sim_soi_null.lcmlog").string();
   i.progress = false;
   i.synthesize_mics = cli::mic_synthesizer("sim");
   try {

@@ -26,6 +26,8 @@
 #include "cli/formats/recording.hpp"
 #include "drivers/formats/lcm_log_reader.hpp"
 #include "drivers/formats/stream_messages.hpp"
+#include "dsp/math_constants.hpp"
+#include "tests/support/text_file.hpp"
 #include "tests/support/unique_temp.hpp"
 
 using namespace noisemon::drivers;
@@ -34,7 +36,7 @@ namespace fs = std::filesystem;
 
 namespace {
 
-constexpr double kPi = std::numbers::pi;
+using noisemon::kPi;
 constexpr double kOmega = 6.0 * 2000.0;               // deg/s at 2000 rpm
 constexpr double kCycleS = 720.0 / kOmega;            // 0.06 s
 constexpr double kRipple = 0.01 * 720.0 / (2 * kPi);  // deg: 1 % speed ripple once per cycle
@@ -106,7 +108,9 @@ Errors compare(std::int64_t first, const std::vector<double>& p, const std::vect
   return {std::sqrt(pe / pr), pmax, cmax, std::sqrt(me / mr)};
 }
 
-fs::path temp(const std::string& name) { return fs::path(noisemon::test::unique_temp_dir()) / ("recording_" + name); }
+fs::path recording_temp(const std::string& name) {
+  return fs::path(noisemon::test::unique_temp_dir()) / ("recording_" + name);
+}
 
 std::vector<std::uint8_t> read_bytes(const fs::path& p) {
   std::ifstream in(p, std::ios::binary);
@@ -181,7 +185,7 @@ void expect_subset_of(const std::vector<Recording>& pieces, const Recording& ori
 }
 
 fs::path good_log(const std::string& name, const Recording& rec) {
-  const fs::path p = temp(name + ".lcmlog");
+  const fs::path p = recording_temp(name + ".lcmlog");
   write_recordings_log(p, {rec});
   return p;
 }
@@ -204,7 +208,7 @@ TEST(Recording, RunDirToLogAndBackMatchesTheAnalyticSignals) {
   EXPECT_EQ(rec.info.acoustic_delay_s, 0.0051);
 
   // Through an LCM log: bit-exact.
-  const fs::path log = temp("analytic.lcmlog");
+  const fs::path log = recording_temp("analytic.lcmlog");
   write_recordings_log(log, {rec});
   std::int64_t skipped = -1;
   const std::vector<Recording> back = read_recordings_log(log, {}, &skipped);
@@ -257,7 +261,7 @@ TEST(Recording, RunDirToLogAndBackMatchesTheAnalyticSignals) {
   EXPECT_FALSE(op.motored);
 
   // And out to a run directory again: time_s = 0 at the first frame, crank unwrapped, mics at 40 kHz.
-  const fs::path dir = temp("analytic_dir");
+  const fs::path dir = recording_temp("analytic_dir");
   fs::remove_all(dir);
   write_run_dir(dir, to_run_dir(back[0]));
   const formats::RunDir out = formats::read_run_dir(dir);
@@ -359,11 +363,6 @@ Recording long_recording(const OperatingPoint& op) {
   return r;
 }
 
-std::string read_text(const fs::path& p) {
-  std::ifstream in(p);
-  return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
-}
-
 }  // namespace
 
 TEST(RecordingUnknowns, UnknownValuesTravelAsNaNThroughTheLogAndAreWrittenAsNull) {
@@ -379,7 +378,7 @@ TEST(RecordingUnknowns, UnknownValuesTravelAsNaNThroughTheLogAndAreWrittenAsNull
   // Through a log where the point is repeated every second: NaN is not "a new value" at each repeat.
   op.speed_rpm = 3000.0;                                        // the long recording's crank speed
   op.soi_deg_btdc = -std::numeric_limits<double>::quiet_NaN();  // sign bit set, as 0.0 / 0.0 gives on x86
-  const fs::path log = temp("unknowns.lcmlog");
+  const fs::path log = recording_temp("unknowns.lcmlog");
   write_recordings_log(log, {long_recording(op)});
   const std::vector<Recording> back = read_recordings_log(log);
   ASSERT_EQ(back.size(), 1u);
@@ -391,10 +390,10 @@ TEST(RecordingUnknowns, UnknownValuesTravelAsNaNThroughTheLogAndAreWrittenAsNull
   EXPECT_FALSE(std::signbit(b.soi_deg_btdc));  // one NaN for every unknown: printed "nan", never "-nan"
   EXPECT_TRUE(std::isnan(b.rail_pressure_bar));
   // Out as a run directory: null, not 0, and unknown again when read.
-  const fs::path dir = temp("unknowns_dir");
+  const fs::path dir = recording_temp("unknowns_dir");
   fs::remove_all(dir);
   write_run_dir(dir, to_run_dir(back[0]));
-  const std::string text = read_text(dir / "run.json");
+  const std::string text = noisemon::test::slurp(dir / "run.json");
   for (const char* key : {"load_nm", "soi_deg_btdc", "rail_pressure_bar"})
     EXPECT_NE(text.find("\"" + std::string(key) + "\": null"), std::string::npos) << key << " in " << text;
   const formats::RunDir again = formats::read_run_dir(dir);
@@ -406,7 +405,7 @@ TEST(RecordingUnknowns, UnknownValuesTravelAsNaNThroughTheLogAndAreWrittenAsNull
 TEST(RecordingUnknowns, ALogWithoutOperatingPointsHasAMeasuredSpeedAndNothingMadeUp) {
   Recording rec = long_recording({});
   rec.operating_points.clear();
-  const fs::path log = temp("no_op.lcmlog");
+  const fs::path log = recording_temp("no_op.lcmlog");
   write_recordings_log(log, {rec});
   const std::vector<Recording> back = read_recordings_log(log);
   ASSERT_EQ(back.size(), 1u);
@@ -442,7 +441,7 @@ TEST(RecordingLogDamage, TruncatedLogGivesWhatItHoldsAndCountsTheCut) {
   const Recording rec = small_recording("cut", 5'000'000);
   auto bytes = read_bytes(good_log("full", rec));
   bytes.resize(bytes.size() * 6 / 10 + 13);
-  const fs::path p = temp("cut.lcmlog");
+  const fs::path p = recording_temp("cut.lcmlog");
   write_bytes(p, bytes);
   std::int64_t skipped = 0;
   LogReadStats st;
@@ -466,7 +465,7 @@ TEST(RecordingLogDamage, CorruptedHeaderSkipsOneEventAndSplitsTheSession) {
   for (const EventAt& e : events)
     if (e.channel == "NOISEMON_RAW" && ++seen == 20) at = e.offset;
   bytes[at + 20] = 0x7f;
-  const fs::path p = temp("hdr.lcmlog");
+  const fs::path p = recording_temp("hdr.lcmlog");
   write_bytes(p, bytes);
   std::int64_t skipped = 0;
   LogReadStats st;
@@ -491,7 +490,7 @@ TEST(RecordingLogDamage, DamagedDataLengthLosesOnlyThatEvent) {
       for (int i = 0; i < 4; ++i)
         bytes[e.offset + 24 + static_cast<std::size_t>(i)] = static_cast<std::uint8_t>(len >> (24 - 8 * i));
     }
-  const fs::path p = temp("len.lcmlog");
+  const fs::path p = recording_temp("len.lcmlog");
   write_bytes(p, bytes);
   std::int64_t skipped = 0;
   const auto recs = read_recordings_log(p, {}, &skipped);
@@ -508,7 +507,7 @@ TEST(RecordingLogDamage, GarbageBetweenEventsIsSkippedAndCounted) {
   std::vector<std::uint8_t> junk(777);
   for (std::size_t i = 0; i < junk.size(); ++i) junk[i] = static_cast<std::uint8_t>(i * 37 + 11);
   bytes.insert(bytes.begin() + static_cast<std::ptrdiff_t>(events[30].offset), junk.begin(), junk.end());
-  const fs::path p = temp("garbage.lcmlog");
+  const fs::path p = recording_temp("garbage.lcmlog");
   write_bytes(p, bytes);
   std::int64_t skipped = 0;
   const auto recs = read_recordings_log(p, {}, &skipped);
@@ -527,7 +526,7 @@ TEST(RecordingLogDamage, WrongFingerprintAndForeignTypesAreSkippedAndCounted) {
   int seen = 0;
   for (const EventAt& e : events)
     if (e.channel == "NOISEMON_RAW" && ++seen == 7) bytes[e.data_offset + 3] ^= 0x5a;
-  const fs::path p = temp("types.lcmlog");
+  const fs::path p = recording_temp("types.lcmlog");
   write_bytes(p, bytes);
   {
     // Events of a foreign type on the raw and session channels, and of an unknown channel.
@@ -568,7 +567,7 @@ TEST(RecordingLogDamage, BlocksThatContradictThemselvesAreNotUsed) {
       std::memcpy(&bytes[e.data_offset + 49 + 8 * 5], nan_be, 8);
     }
   }
-  const fs::path p = temp("fields.lcmlog");
+  const fs::path p = recording_temp("fields.lcmlog");
   write_bytes(p, bytes);
   std::int64_t skipped = 0;
   LogReadStats st;
@@ -583,14 +582,14 @@ TEST(RecordingLogDamage, BlocksThatContradictThemselvesAreNotUsed) {
 }
 
 TEST(RecordingLogDamage, LogWithoutSessionIsAnErrorNamingTheFile) {
-  const fs::path p = temp("nosession.lcmlog");
+  const fs::path p = recording_temp("nosession.lcmlog");
   {
     lcm::LogFile log(p.string(), "w");
     std::vector<char> junk(100, 'x');
     lcm::LogEvent e{0, 1, "NOISEMON_RAW", static_cast<std::int32_t>(junk.size()), junk.data()};
     log.writeEvent(&e);
   }
-  for (const fs::path& f : {p, temp("empty.lcmlog")}) {
+  for (const fs::path& f : {p, recording_temp("empty.lcmlog")}) {
     if (f != p) std::ofstream(f).close();
     try {
       read_recordings_log(f);
@@ -608,7 +607,7 @@ TEST(Recording, SeveralRunsInOneLogComeBackAsSeveralRecordings) {
   b.info.mic_count = 0;
   b.info.mic_positions_m.clear();
   b.mics_pa.clear();
-  const fs::path p = temp("two.lcmlog");
+  const fs::path p = recording_temp("two.lcmlog");
   write_recordings_log(p, {a, b});
   LogReadStats st;
   const auto recs = read_recordings_log(p, {}, nullptr, &st);
@@ -620,5 +619,5 @@ TEST(Recording, SeveralRunsInOneLogComeBackAsSeveralRecordings) {
   expect_subset_of({recs[0]}, a);
   EXPECT_EQ(recs[1].pressure_pa, b.pressure_pa);
   // The same epoch twice cannot be told apart: refused.
-  EXPECT_THROW(write_recordings_log(temp("same.lcmlog"), {a, a}), std::invalid_argument);
+  EXPECT_THROW(write_recordings_log(recording_temp("same.lcmlog"), {a, a}), std::invalid_argument);
 }

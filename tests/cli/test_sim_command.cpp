@@ -28,7 +28,10 @@
 
 #include "cli/band_data.hpp"
 #include "drivers/formats/run_dir.hpp"
+#include "dsp/math_constants.hpp"
+#include "tests/support/programs.hpp"
 #include "tests/support/required.hpp"
+#include "tests/support/text_file.hpp"
 #include "tests/support/unique_temp.hpp"
 
 namespace fs = std::filesystem;
@@ -38,21 +41,14 @@ using cd = std::complex<double>;
 
 namespace {
 
-constexpr double kPi = std::numbers::pi;
+using noisemon::kPi;
 constexpr double kPref = 20e-6;
-const std::string kNoisemon = std::string(NOISEMON_TOOL);
+using noisemon::test::kNoisemon;
 
-fs::path temp(const std::string& name) {
+fs::path sim_temp(const std::string& name) {
   const fs::path p = noisemon::test::unique_temp("sim_command_" + name);  // per test and process
   fs::remove_all(p);
   return p;
-}
-
-std::string read_text(const fs::path& path) {
-  std::ifstream in(path);
-  std::stringstream s;
-  s << in.rdbuf();
-  return s.str();
 }
 
 struct Result {
@@ -63,7 +59,8 @@ struct Result {
 // Runs noisemon with the arguments; stdout and stderr captured; killed after the timeout (status -1).
 Result run_noisemon(const std::vector<std::string>& args, std::chrono::seconds timeout = std::chrono::seconds(120)) {
   static int counter = 0;
-  const fs::path out = temp("stdout" + std::to_string(counter)), err = temp("stderr" + std::to_string(counter++));
+  const fs::path out = sim_temp("stdout" + std::to_string(counter)),
+                 err = sim_temp("stderr" + std::to_string(counter++));
   const pid_t pid = fork();
   if (pid == 0) {
     if (!std::freopen(out.c_str(), "w", stdout) || !std::freopen(err.c_str(), "w", stderr)) _exit(126);
@@ -87,8 +84,8 @@ Result run_noisemon(const std::vector<std::string>& args, std::chrono::seconds t
     kill(pid, SIGKILL);
     waitpid(pid, nullptr, 0);
   }
-  r.out = read_text(out);
-  r.err = read_text(err);
+  r.out = noisemon::test::slurp(out);
+  r.err = noisemon::test::slurp(err);
   return r;
 }
 
@@ -186,7 +183,7 @@ TEST(SimCommand, HelpAndListEffectsNameEveryDesignEffectWithItsUnit) {
 // is white noise of the documented rms per encoder sample, the microphones are unchanged; the realistic run minus
 // an ideal chain's (--pressure-floor 0) is the configured floor, which run.json records.
 TEST(SimCommand, WritesRunDirectoriesThatLoadAndCarryTheInjectedEffect) {
-  const fs::path base = temp("small");
+  const fs::path base = sim_temp("small");
   const std::vector<std::string> common{"sim", "--condition", "idle_mi18", "--cycles",
                                         "3",   "--seed",      "5",         "--no-progress"};
   auto args = [&](std::vector<std::string> extra) {
@@ -265,7 +262,7 @@ TEST(SimCommand, WritesRunDirectoriesThatLoadAndCarryTheInjectedEffect) {
   EXPECT_EQ(*e.pressure_noise_floor_bar, 0.0);
 
   // truth.json says what was injected.
-  const auto truth = nlohmann::json::parse(read_text(base / "gain" / "truth.json"));
+  const auto truth = nlohmann::json::parse(noisemon::test::slurp(base / "gain" / "truth.json"));
   ASSERT_EQ(truth.at("effects").size(), 1u);
   EXPECT_EQ(truth["effects"][0]["name"], "mic_gain");
   EXPECT_EQ(truth["effects"][0]["magnitude"], 6.0);
@@ -274,7 +271,7 @@ TEST(SimCommand, WritesRunDirectoriesThatLoadAndCarryTheInjectedEffect) {
 }
 
 TEST(SimCommand, BadOptionsFailWithClearErrorsAndWriteNothing) {
-  const fs::path out = temp("bad");
+  const fs::path out = sim_temp("bad");
   const std::vector<std::string> run{"sim", "--condition",   "idle_mi12", "--cycles",
                                      "1",   "--no-progress", "-o",        out.string()};
   auto with = [&](std::vector<std::string> extra) {
@@ -310,16 +307,16 @@ TEST(SimCommand, BadOptionsFailWithClearErrorsAndWriteNothing) {
   // An existing run is never replaced without --force.
   ASSERT_EQ(with({}).status, 0);
   const auto stamp = fs::last_write_time(out / "idle_mi12" / "mics.wav");
-  const std::string before = read_text(out / "idle_mi12" / "pressure.csv");
+  const std::string before = noisemon::test::slurp(out / "idle_mi12" / "pressure.csv");
   const Result again = with({"--seed", "2"});
   EXPECT_NE(again.status, 0);
   EXPECT_NE(again.err.find("already holds a run; use --force"), std::string::npos) << again.err;
   EXPECT_NE(again.err.find((out / "idle_mi12").string()), std::string::npos) << again.err;
-  EXPECT_EQ(read_text(out / "idle_mi12" / "pressure.csv"), before);
+  EXPECT_EQ(noisemon::test::slurp(out / "idle_mi12" / "pressure.csv"), before);
   EXPECT_EQ(fs::last_write_time(out / "idle_mi12" / "mics.wav"), stamp);
   const Result forced = with({"--seed", "2", "--force"});
   EXPECT_EQ(forced.status, 0) << forced.err;
-  EXPECT_NE(read_text(out / "idle_mi12" / "pressure.csv"), before);
+  EXPECT_NE(noisemon::test::slurp(out / "idle_mi12" / "pressure.csv"), before);
 }
 
 // ------------------------------------------------------------------------------------------ real Yanmar cycles
@@ -390,7 +387,7 @@ TEST(SimCommand, RealYanmarFiredAndMotoredCyclesDriveTheVirtualEngine) {
   const std::string motored_table = shared_table("yanmar_l100v_motored.txt");
   if (fired_table.empty() || motored_table.empty())
     GTEST_SKIP() << "Yanmar tables not found under " << NOISEMON_SHARED_DIR << "/data/real";
-  const fs::path base = temp("yanmar");
+  const fs::path base = sim_temp("yanmar");
   fs::create_directories(base);
   const fs::path fired_p = import_table(fired_table, "yanmar_fired", false, base);
   const fs::path motored_p = import_table(motored_table, "yanmar_motored", true, base);
@@ -476,7 +473,7 @@ TEST(SimCommand, RealYanmarFiredAndMotoredCyclesDriveTheVirtualEngine) {
 // --background-run: an engine-off run named "background", which the diagnosis loader takes as the floor: its
 // microphones hear only the test cell, its pressure is ambient through the chain; truth.json records the cell.
 TEST(SimCommand, BackgroundRunIsTheTestCellAloneAndLoadsAsTheDiagnosisFloor) {
-  const fs::path base = temp("background");
+  const fs::path base = sim_temp("background");
   const Result r = run_noisemon({"sim", "--condition", "motored_idle", "--background-run", "--effect",
                                  "background_noise=60", "--effect", "transducer_noise=0.1", "--cycles", "4", "--seed",
                                  "2", "--no-progress", "-o", (base / "runs").string()});
@@ -520,7 +517,7 @@ TEST(SimCommand, BackgroundRunIsTheTestCellAloneAndLoadsAsTheDiagnosisFloor) {
     EXPECT_GE(c.cycles.size(), 1u) << c.info.name;  // measured cycles (after the dataset's pre-roll)
   }
   // truth.json: every setting of the cell, the background run marked.
-  const auto truth = nlohmann::json::parse(read_text(base / "runs" / "truth.json"));
+  const auto truth = nlohmann::json::parse(noisemon::test::slurp(base / "runs" / "truth.json"));
   const auto& cell = truth.at("test_cell");
   EXPECT_EQ(cell.at("pressure_chain").at("noise_bar"), 0.02);
   EXPECT_EQ(cell.at("pressure_chain").at("adc_bits"), 16);
@@ -539,7 +536,7 @@ TEST(SimCommand, BackgroundRunIsTheTestCellAloneAndLoadsAsTheDiagnosisFloor) {
   const Result ideal = run_noisemon({"sim", "--condition", "idle_mi12", "--ideal-cell", "--cycles", "1",
                                      "--no-progress", "-o", (base / "ideal").string()});
   ASSERT_EQ(ideal.status, 0) << ideal.err;
-  const auto ideal_truth = nlohmann::json::parse(read_text(base / "ideal" / "truth.json"));
+  const auto ideal_truth = nlohmann::json::parse(noisemon::test::slurp(base / "ideal" / "truth.json"));
   EXPECT_EQ(ideal_truth.at("test_cell").at("ideal_cell"), true);
   EXPECT_EQ(ideal_truth.at("test_cell").at("pressure_chain").at("floor_bar"), 0.0);
   EXPECT_TRUE(ideal_truth.at("test_cell").at("mic_chain").at("self_noise_dba").is_null());
@@ -548,6 +545,8 @@ TEST(SimCommand, BackgroundRunIsTheTestCellAloneAndLoadsAsTheDiagnosisFloor) {
   const Result loud = run_noisemon(
       {"sim", "--condition", "full_mi24", "--cycles", "2", "--no-progress", "-o", (base / "loud").string()});
   ASSERT_EQ(loud.status, 0) << loud.err;
-  EXPECT_EQ(nlohmann::json::parse(read_text(base / "loud" / "truth.json")).at("adc_clipped").at("mic_samples"), 0);
+  EXPECT_EQ(
+      nlohmann::json::parse(noisemon::test::slurp(base / "loud" / "truth.json")).at("adc_clipped").at("mic_samples"),
+      0);
   EXPECT_EQ(loud.err.find("clipped"), std::string::npos) << loud.err;
 }

@@ -13,6 +13,7 @@
 
 #include "tests/cli/run_command.hpp"
 #include "tests/daemon/csv_column.hpp"
+#include "tests/support/programs.hpp"
 #include "tests/support/required.hpp"
 #include "tests/support/unique_temp.hpp"
 
@@ -20,12 +21,12 @@ namespace fs = std::filesystem;
 
 namespace {
 
-const std::string kNoisemon = std::string(NOISEMON_TOOL);
+using noisemon::test::kNoisemon;
 const std::string kTable = std::string(NOISEMON_SHARED_DIR) + "/data/real/yanmar_l100v_fired_18Nm.txt";
 
 using Output = noisemon::test::CommandOutput;
 
-Output run(const std::string& args) { return noisemon::test::run_command(kNoisemon + " " + args); }
+Output run_summary(const std::string& args) { return noisemon::test::run_command(kNoisemon + " " + args); }
 
 std::size_t column_of(const std::string& csv_path, const std::string& name) {
   std::ifstream in(csv_path);
@@ -58,10 +59,11 @@ TEST(SummaryCommand, StatisticsOfTheRealCyclesAgreeWithTheReplayCsv) {
   fs::remove_all(dir);
   fs::create_directories(dir);
   const std::string log = (dir / "fired.lcmlog").string(), csv = (dir / "fired.csv").string();
-  ASSERT_EQ(run("import --cycles-table " + kTable + " --rpm 1799.9 --load 18 --soi 9.6 --rail 470 -o " + log).status,
-            0);
-  ASSERT_EQ(run("replay " + log + " --csv " + csv + " --no-progress").status, 0);
-  const Output json_out = run("summary " + log + " --json --no-progress");
+  ASSERT_EQ(
+      run_summary("import --cycles-table " + kTable + " --rpm 1799.9 --load 18 --soi 9.6 --rail 470 -o " + log).status,
+      0);
+  ASSERT_EQ(run_summary("replay " + log + " --csv " + csv + " --no-progress").status, 0);
+  const Output json_out = run_summary("summary " + log + " --json --no-progress");
   ASSERT_EQ(json_out.status, 0) << json_out.text;
   const nlohmann::json all = nlohmann::json::parse(json_out.text);
   ASSERT_TRUE(all.contains("yanmar_l100v_fired_18Nm")) << json_out.text;
@@ -89,7 +91,7 @@ TEST(SummaryCommand, StatisticsOfTheRealCyclesAgreeWithTheReplayCsv) {
   EXPECT_TRUE(s["scalars"]["lpa_measured_db"]["mean"].is_null());  // a pressure-only recording measured nothing
 
   // CSV output: a header and one row per quantity; the same run as a run directory gives the same cycles.
-  const Output csv_out = run("summary " + log + " --csv --no-progress");
+  const Output csv_out = run_summary("summary " + log + " --csv --no-progress");
   ASSERT_EQ(csv_out.status, 0);
   EXPECT_EQ(csv_out.text.rfind("run,quantity,unit,energy_mean,n,mean,std,cov,min,max,lnv\n", 0), 0u) << csv_out.text;
   // The lowest normalised value of net IMEP (lowest over mean), from the replay CSV's column; the TDC the figures used.
@@ -102,8 +104,8 @@ TEST(SummaryCommand, StatisticsOfTheRealCyclesAgreeWithTheReplayCsv) {
             std::string::npos)
       << csv_out.text;
   EXPECT_NE(csv_out.text.find("yanmar_l100v_fired_18Nm,ca50_deg,deg,0,"), std::string::npos);
-  ASSERT_EQ(run("export " + log + " -o " + (dir / "fired_run").string()).status, 0);
-  const Output from_dir = run("summary " + (dir / "fired_run").string() + " --json --no-progress");
+  ASSERT_EQ(run_summary("export " + log + " -o " + (dir / "fired_run").string()).status, 0);
+  const Output from_dir = run_summary("summary " + (dir / "fired_run").string() + " --json --no-progress");
   ASSERT_EQ(from_dir.status, 0) << from_dir.text;
   const nlohmann::json d = nlohmann::json::parse(from_dir.text);
   ASSERT_EQ(d.size(), 1u);
@@ -114,7 +116,7 @@ TEST(SummaryCommand, StatisticsOfTheRealCyclesAgreeWithTheReplayCsv) {
   EXPECT_NEAR(d.begin().value()["scalars"]["peak_pressure_bar"]["mean"].get<double>(),
               s["scalars"]["peak_pressure_bar"]["mean"].get<double>(), 0.5);
   // A path that is not there is a clear error.
-  const Output missing = run("summary " + (dir / "nothing").string());
+  const Output missing = run_summary("summary " + (dir / "nothing").string());
   EXPECT_NE(missing.status, 0);
   EXPECT_NE(missing.text.find("nothing"), std::string::npos) << missing.text;
   fs::remove_all(dir);
@@ -127,16 +129,17 @@ TEST(SummaryCommand, StatisticsOfTheRealCyclesAgreeWithTheReplayCsv) {
 // upper bound 1.3 dB under the uncorrected one.
 TEST(SummaryCommand, BackgroundRunFromTheVirtualCellFlagsOnlyTheBandsItReaches) {
   const fs::path dir = noisemon::test::unique_temp("sim");
-  const Output sim = run("sim --condition full_mi12 --cycles 30 --background-run --no-progress -o " + dir.string());
+  const Output sim =
+      run_summary("sim --condition full_mi12 --cycles 30 --background-run --no-progress -o " + dir.string());
   ASSERT_EQ(sim.status, 0) << sim.text;
   const fs::path config = dir / "bg.toml", self = dir / "self.toml";
   std::ofstream(config) << "[sound_power]\nbackground_run = \"" << (dir / "background").string() << "\"\n";
   std::ofstream(self) << "[sound_power]\nbackground_run = \"" << (dir / "full_mi12").string() << "\"\n";
   const Output with =
-      run("summary --json --no-progress --config " + config.string() + " " + (dir / "full_mi12").string());
-  const Output without = run("summary --json --no-progress " + (dir / "full_mi12").string());
+      run_summary("summary --json --no-progress --config " + config.string() + " " + (dir / "full_mi12").string());
+  const Output without = run_summary("summary --json --no-progress " + (dir / "full_mi12").string());
   const Output itself =
-      run("summary --json --no-progress --config " + self.string() + " " + (dir / "full_mi12").string());
+      run_summary("summary --json --no-progress --config " + self.string() + " " + (dir / "full_mi12").string());
   ASSERT_EQ(with.status, 0) << with.text;
   ASSERT_EQ(itself.status, 0) << itself.text;
   const auto stats = [](const Output& o) {

@@ -14,6 +14,7 @@
 #include "cli/tdc_command.hpp"
 #include "daemon/config.hpp"
 #include "tests/cli/run_command.hpp"
+#include "tests/support/programs.hpp"
 #include "tests/support/required.hpp"
 #include "tests/support/text_file.hpp"
 #include "tests/support/unique_temp.hpp"
@@ -22,10 +23,10 @@ namespace fs = std::filesystem;
 
 namespace {
 
-const std::string kNoisemon = std::string(NOISEMON_TOOL);
+using noisemon::test::kNoisemon;
 const std::string kMotored = std::string(NOISEMON_SHARED_DIR) + "/data/real/yanmar_l100v_motored.txt";
 
-noisemon::test::CommandOutput run(const std::string& args) {
+noisemon::test::CommandOutput run_tdc(const std::string& args) {
   return noisemon::test::run_command(kNoisemon + " " + args);
 }
 
@@ -44,26 +45,26 @@ TEST(TdcCommand, TheTableAndARunDirectoryOfItAgree) {
   NOISEMON_REQUIRE(fs::exists(kMotored), kMotored);
   const fs::path dir = noisemon::test::unique_temp("tdc");
   fs::create_directories(dir);
-  const auto table = run("tdc --cycles-table " + kMotored);  // a table's TDC needs no speed
+  const auto table = run_tdc("tdc --cycles-table " + kMotored);  // a table's TDC needs no speed
   ASSERT_EQ(table.status, 0) << table.text;
-  ASSERT_EQ(run("import --cycles-table " + kMotored + " --rpm 1799.9 --motored --load 0 --no-progress -o " +
-                (dir / "m.lcmlog").string())
+  ASSERT_EQ(run_tdc("import --cycles-table " + kMotored + " --rpm 1799.9 --motored --load 0 --no-progress -o " +
+                    (dir / "m.lcmlog").string())
                 .status,
             0);
-  ASSERT_EQ(run("export " + (dir / "m.lcmlog").string() + " --no-progress -o " + (dir / "run").string()).status, 0);
-  const auto from_run = run("tdc " + (dir / "run").string());
+  ASSERT_EQ(run_tdc("export " + (dir / "m.lcmlog").string() + " --no-progress -o " + (dir / "run").string()).status, 0);
+  const auto from_run = run_tdc("tdc " + (dir / "run").string());
   ASSERT_EQ(from_run.status, 0) << from_run.text;
   const double a = tdc_printed(table.text), b = tdc_printed(from_run.text);
   std::printf("TDC from the table %+.2f deg, from its run directory %+.2f deg\n", a, b);
   EXPECT_NEAR(a, -1.84, 0.05);  // docs/sources-and-formats.md: the peak at -2.54 plus 0.7
   EXPECT_NEAR(b, a, 0.1);
   // The raw log itself (what the daemon records while motoring) gives the same.
-  const auto from_log = run("tdc " + (dir / "m.lcmlog").string());
+  const auto from_log = run_tdc("tdc " + (dir / "m.lcmlog").string());
   ASSERT_EQ(from_log.status, 0) << from_log.text;
   EXPECT_NEAR(tdc_printed(from_log.text), b, 1e-6);
   // A fired run is refused, naming it.
   const auto fired =
-      run("tdc --cycles-table " + std::string(NOISEMON_SHARED_DIR) + "/data/real/yanmar_l100v_fired_18Nm.txt");
+      run_tdc("tdc --cycles-table " + std::string(NOISEMON_SHARED_DIR) + "/data/real/yanmar_l100v_fired_18Nm.txt");
   EXPECT_NE(fired.status, 0);
   EXPECT_NE(fired.text.find("not a motored cycle"), std::string::npos) << fired.text;
   fs::remove_all(dir);
@@ -100,13 +101,14 @@ TEST(TdcCommand, ImportWithAMotoredRunPutsTheRunsOnThePistonsAngles) {
   fs::create_directories(dir);
   const auto as_run = [&](const std::string& table, const std::string& name, const std::string& extra) {
     const std::string log = (dir / (name + ".lcmlog")).string();
-    ASSERT_EQ(run("import --cycles-table " + table + " --rpm 1799.9 " + extra + " --no-progress -o " + log).status, 0);
-    ASSERT_EQ(run("export " + log + " --no-progress -o " + (dir / name).string()).status, 0);
+    ASSERT_EQ(run_tdc("import --cycles-table " + table + " --rpm 1799.9 " + extra + " --no-progress -o " + log).status,
+              0);
+    ASSERT_EQ(run_tdc("export " + log + " --no-progress -o " + (dir / name).string()).status, 0);
   };
   as_run(kMotored, "motored", "--motored --load 0");
   as_run(fired_table, "fired", "--load 18 --soi 9.6");
   const auto net_imep = [&](const std::string& log) -> double {
-    const auto s = run("summary " + log + " --csv --no-progress");
+    const auto s = run_tdc("summary " + log + " --csv --no-progress");
     const std::size_t at = s.text.find(",imep_net_bar,bar,0,");
     if (at == std::string::npos) return NAN;
     std::stringstream row(s.text.substr(at + 20));
@@ -117,13 +119,13 @@ TEST(TdcCommand, ImportWithAMotoredRunPutsTheRunsOnThePistonsAngles) {
   };
   const std::string with = (dir / "with.lcmlog").string(), without = (dir / "without.lcmlog").string(),
                     table = (dir / "table.lcmlog").string();
-  const auto imported = run("import " + (dir / "fired").string() + " --motored-run " + (dir / "motored").string() +
-                            " --no-progress -o " + with);
+  const auto imported = run_tdc("import " + (dir / "fired").string() + " --motored-run " + (dir / "motored").string() +
+                                " --no-progress -o " + with);
   ASSERT_EQ(imported.status, 0) << imported.text;
   EXPECT_NE(imported.text.find("thermodynamic TDC from"), std::string::npos) << imported.text;
-  ASSERT_EQ(run("import " + (dir / "fired").string() + " --no-progress -o " + without).status, 0);
-  ASSERT_EQ(run("import --cycles-table " + fired_table + " --motored-table " + kMotored +
-                " --rpm 1799.9 --load 18 --soi 9.6 --no-progress -o " + table)
+  ASSERT_EQ(run_tdc("import " + (dir / "fired").string() + " --no-progress -o " + without).status, 0);
+  ASSERT_EQ(run_tdc("import --cycles-table " + fired_table + " --motored-table " + kMotored +
+                    " --rpm 1799.9 --load 18 --soi 9.6 --no-progress -o " + table)
                 .status,
             0);
   const double a = net_imep(with), b = net_imep(without), c = net_imep(table);
@@ -132,7 +134,8 @@ TEST(TdcCommand, ImportWithAMotoredRunPutsTheRunsOnThePistonsAngles) {
   EXPECT_GT(a, 5.19);
   EXPECT_LT(b, 5.19);
   EXPECT_NEAR(a, c, 0.03);
-  const auto refused = run("import " + (dir / "fired").string() + " --loss-angle-deg 1 --no-progress -o " + without);
+  const auto refused =
+      run_tdc("import " + (dir / "fired").string() + " --loss-angle-deg 1 --no-progress -o " + without);
   EXPECT_EQ(refused.status, 2);
   EXPECT_NE(refused.text.find("--loss-angle-deg needs"), std::string::npos) << refused.text;
   fs::remove_all(dir);

@@ -11,16 +11,17 @@
 #include <vector>
 
 #include "daemon/cycle_processor.hpp"
+#include "dsp/math_constants.hpp"
 
 using namespace noisemon;
 
 namespace {
 
-constexpr double kPi = std::numbers::pi;
-constexpr int kCycleFrames = 1600;   // 3000 rpm at 40 kHz
-constexpr double kStepDeg = 0.1;     // the encoder: 183 kHz of edges, 4.5 a frame
-constexpr double kPhaseDeg = 0.037;  // the encoder's edges lie this far after each multiple of the step
-constexpr double kN = 1.32;          // the motored cycle's polytropic exponent
+using noisemon::kPi;
+constexpr int kAngleCycleFrames = 1600;  // 3000 rpm at 40 kHz
+constexpr double kStepDeg = 0.1;         // the encoder: 183 kHz of edges, 4.5 a frame
+constexpr double kPhaseDeg = 0.037;      // the encoder's edges lie this far after each multiple of the step
+constexpr double kN = 1.32;              // the motored cycle's polytropic exponent
 constexpr double kRippleHz = 30e3, kRipplePa = 0.2e5;  // above the 40 kHz stream's Nyquist: only the edges carry it
 constexpr std::int64_t kFrames = 160 * 256;            // a second and a bit: 25 whole cycles
 
@@ -37,9 +38,11 @@ double volume(double theta_deg) {
 double motored(double theta_deg) {
   return std::abs(theta_deg) >= 180.0 ? 1.0e5 : 1.0e5 * std::pow(volume(180.0) / volume(theta_deg), kN);
 }
-double crank_of_instant(double frames) { return -360.0 + 720.0 * std::fmod(frames, kCycleFrames) / kCycleFrames; }
+double crank_of_instant(double frames) {
+  return -360.0 + 720.0 * std::fmod(frames, kAngleCycleFrames) / kAngleCycleFrames;
+}
 double instant_of_edge(std::int64_t e) {
-  return (kPhaseDeg + kStepDeg * static_cast<double>(e)) / 720.0 * kCycleFrames;
+  return (kPhaseDeg + kStepDeg * static_cast<double>(e)) / 720.0 * kAngleCycleFrames;
 }
 double with_ripple(double theta_deg, double frames) {
   return motored(theta_deg) + kRipplePa * std::sin(2 * kPi * kRippleHz * frames / 40000.0);

@@ -12,13 +12,14 @@
 
 #include "daemon/cycle_processor.hpp"
 #include "daemon/report_messages.hpp"
+#include "dsp/math_constants.hpp"
 
 using namespace noisemon;
 
 namespace {
 
 constexpr double kFs = 40000.0;
-constexpr double kPi = std::numbers::pi;
+using noisemon::kPi;
 constexpr int kCycleFrames = 1600;  // 0.04 s per 720 deg: 3000 rpm
 constexpr int kDelayFrames = 200;   // 5 ms acoustic delay
 constexpr std::uint32_t kMics = 3;

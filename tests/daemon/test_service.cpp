@@ -17,6 +17,8 @@
 #include <vector>
 
 #include "tests/sanitizer.hpp"
+#include "tests/support/programs.hpp"
+#include "tests/support/text_file.hpp"
 #include "tests/support/unique_temp.hpp"
 
 namespace {
@@ -24,7 +26,7 @@ namespace {
 using noisemon::test::allowance;
 using namespace std::chrono_literals;
 
-const std::string kNoisemond = std::string(NOISEMON_BINARY_DIR) + "/daemon/noisemond";
+using noisemon::test::kNoisemond;
 
 class NotifySocket {
  public:
@@ -68,13 +70,6 @@ int count(const std::vector<std::string>& messages, const std::string& what) {
   return n;
 }
 
-std::string read_file(const std::string& path) {
-  std::ifstream in(path);
-  std::stringstream s;
-  s << in.rdbuf();
-  return s.str();
-}
-
 }  // namespace
 
 TEST(Service, ReadyStatusWatchdogAndAReloadThatKeepsTheRunningConfigurationWhenTheFileIsBroken) {
@@ -107,7 +102,7 @@ TEST(Service, ReadyStatusWatchdogAndAReloadThatKeepsTheRunningConfigurationWhenT
         return count(got, "READY=1") >= 1 && count(got, "cycles published") >= 1 && count(got, "WATCHDOG=1") >= 6;
       },
       allowance(4s));
-  EXPECT_EQ(count(first, "READY=1"), 1) << read_file(err);
+  EXPECT_EQ(count(first, "READY=1"), 1) << noisemon::test::slurp(err);
   EXPECT_GE(count(first, "STATUS=acquiring: "), 1);
   EXPECT_GE(count(first, "cycles published"), 1);
   EXPECT_GE(count(first, "WATCHDOG=1"), 6);
@@ -115,7 +110,9 @@ TEST(Service, ReadyStatusWatchdogAndAReloadThatKeepsTheRunningConfigurationWhenT
   // A broken file: logged, nothing restarts, the watchdog keeps being fed.
   std::ofstream(cfg) << "[model\npreset = \"linear\"\n";
   kill(pid, SIGHUP);
-  const auto kept = [&] { return read_file(err).find("keeping the running configuration") != std::string::npos; };
+  const auto kept = [&] {
+    return noisemon::test::slurp(err).find("keeping the running configuration") != std::string::npos;
+  };
   const std::vector<std::string> broken =
       notify.collect([&](const auto& got) { return count(got, "WATCHDOG=1") >= 3 && kept(); }, allowance(1.5s));
   EXPECT_EQ(count(broken, "RELOADING=1"), 0);
@@ -131,7 +128,7 @@ TEST(Service, ReadyStatusWatchdogAndAReloadThatKeepsTheRunningConfigurationWhenT
   kill(pid, SIGTERM);
   int status = 0;
   waitpid(pid, &status, 0);
-  const std::string log = read_file(err);
+  const std::string log = noisemon::test::slurp(err);
   EXPECT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 0) << log;
   EXPECT_NE(log.find("SIGHUP: " + cfg), std::string::npos) << log;  // the parse error names the file
   EXPECT_NE(log.find("keeping the running configuration"), std::string::npos) << log;

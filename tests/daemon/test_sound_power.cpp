@@ -17,6 +17,7 @@
 #include "daemon/sound_power_setup.hpp"
 #include "drivers/formats/run_dir.hpp"
 #include "drivers/mic_positions.hpp"
+#include "dsp/math_constants.hpp"
 #include "dsp/sound_power.hpp"
 #include "tests/support/unique_temp.hpp"
 
@@ -25,8 +26,8 @@ using namespace noisemon;
 namespace {
 
 constexpr double kFs = 40000.0;
-constexpr double kPi = std::numbers::pi;
-constexpr int kCycleFrames = 1600;  // 3000 rpm
+using noisemon::kPi;
+constexpr int kPowerCycleFrames = 1600;  // 3000 rpm
 constexpr int kDelayFrames = 200;
 constexpr std::uint32_t kMics = 6;
 constexpr double kNoiseSigmaPa = 0.02;  // white background noise at each microphone
@@ -103,7 +104,8 @@ Result run(const std::vector<Tone>& tones, double noise_sigma, const daemon::Sou
         sound += t.mic_amplitude_pa * std::sin(2 * kPi * t.f * (k - kDelayFrames) / kFs + std::arg(h));
       }
       pb.data[f * 2 + drivers::kPressureChannel] = pressure;
-      pb.data[f * 2 + drivers::kCrankChannel] = -360.0 + 720.0 * static_cast<double>(k % kCycleFrames) / kCycleFrames;
+      pb.data[f * 2 + drivers::kCrankChannel] =
+          -360.0 + 720.0 * static_cast<double>(k % kPowerCycleFrames) / kPowerCycleFrames;
       for (std::uint32_t m = 0; m < info.mic_count; ++m)
         mb.data[f * info.mic_count + m] = gains[m] * sound + (noise_sigma > 0 ? noise(rng) : 0.0);
     }

@@ -27,7 +27,9 @@
 #include "drivers/lcm/lcm_source.hpp"
 #include "tests/e2e/private_network.hpp"
 #include "tests/sanitizer.hpp"
+#include "tests/support/programs.hpp"
 #include "tests/support/required.hpp"
+#include "tests/support/text_file.hpp"
 #include "tests/support/unique_temp.hpp"
 
 using noisemon::daemon::Config;
@@ -41,20 +43,13 @@ using noisemon::test::allowance_s;
 using noisemon::test::kStartUp;
 using namespace std::chrono_literals;
 
-const std::string kNoisemond = std::string(NOISEMON_BINARY_DIR) + "/daemon/noisemond";
-const std::string kNoisemon = std::string(NOISEMON_TOOL);
+using noisemon::test::kNoisemon;
+using noisemon::test::kNoisemond;
 
 std::string write_file(const std::string& name, const std::string& text) {
   const std::string path = noisemon::test::unique_temp_dir() + "/" + name;
   std::ofstream(path) << text;
   return path;
-}
-
-std::string read_file(const std::string& path) {
-  std::ifstream in(path);
-  std::stringstream s;
-  s << in.rdbuf();
-  return s.str();
 }
 
 // Runs a program with stdout and stderr to files; kills it after the timeout. Returns the exit status (-1: killed).
@@ -150,7 +145,7 @@ TEST(Noisemond, MissingComediDeviceExitsNonZeroNamingIt) {
   const std::string dir = noisemon::test::unique_temp_dir();
   const std::string cfg = write_file("missing.toml", kComediMissing);
   EXPECT_EQ(run({kNoisemond, "--config", cfg}, dir + "/missing.out", dir + "/missing.err", allowance(kStartUp)), 1);
-  const std::string err = read_file(dir + "/missing.err");
+  const std::string err = noisemon::test::slurp(dir + "/missing.err");
   EXPECT_NE(err.find("cannot open comedi device /dev/comedi-noisemon-missing"), std::string::npos) << err;
 }
 
@@ -171,8 +166,8 @@ TEST(Noisemond, MicrophonesFromAnAudioInterfaceCarryItsLevelToEveryCycle) {
   EXPECT_EQ(run({kNoisemond, "--config", cfg, "--lcm", "memq://", "--cycles", "20", "--live"}, dir + "/alsa.out",
                 dir + "/alsa.err", allowance(kStartUp + 5s)),
             0)
-      << read_file(dir + "/alsa.err");
-  std::istringstream out(read_file(dir + "/alsa.out"));
+      << noisemon::test::slurp(dir + "/alsa.err");
+  std::istringstream out(noisemon::test::slurp(dir + "/alsa.out"));
   std::string line;
   int cycles = 0, checked = 0;
   while (std::getline(out, line)) {
@@ -185,9 +180,9 @@ TEST(Noisemond, MicrophonesFromAnAudioInterfaceCarryItsLevelToEveryCycle) {
     ++checked;
     EXPECT_NEAR(measured, 96.99, 0.1) << line;
   }
-  EXPECT_EQ(cycles, 20) << read_file(dir + "/alsa.out");
-  EXPECT_EQ(checked, 19) << read_file(dir + "/alsa.out");
-  EXPECT_NE(read_file(dir + "/alsa.err").find("microphones from alsa"), std::string::npos);
+  EXPECT_EQ(cycles, 20) << noisemon::test::slurp(dir + "/alsa.out");
+  EXPECT_EQ(checked, 19) << noisemon::test::slurp(dir + "/alsa.out");
+  EXPECT_NE(noisemon::test::slurp(dir + "/alsa.err").find("microphones from alsa"), std::string::npos);
 }
 
 TEST(Noisemond, LcmSourceWithoutSessionExitsNonZeroAfterTheTimeout) {
@@ -199,7 +194,7 @@ TEST(Noisemond, LcmSourceWithoutSessionExitsNonZeroAfterTheTimeout) {
             1);
   // The process's start-up and then the timeout (an ASan binary beside other load takes seconds to start).
   EXPECT_LT(std::chrono::steady_clock::now() - t0, allowance(kStartUp) + allowance(0.3s));
-  const std::string err = read_file(dir + "/nosession.err");
+  const std::string err = noisemon::test::slurp(dir + "/nosession.err");
   EXPECT_NE(err.find("no noisemon.session_t on 'NOISEMON_SESSION'"), std::string::npos) << err;
 }
 
@@ -243,16 +238,17 @@ TEST(Noisemond, DriverCountersAppearInWatchStatusAndTheRollingStatisticsInWatchS
   waitpid(pid, &status, 0);
   ASSERT_TRUE(WIFEXITED(status));
   ASSERT_NE(WEXITSTATUS(status), 125) << "cannot set up a private network namespace";
-  const std::string out = read_file(dir + "/status.out");
-  EXPECT_EQ(WEXITSTATUS(status), 0) << out << read_file(dir + "/status.err") << read_file(dir + "/stats.err")
-                                    << read_file(dir + "/daemon.err");
+  const std::string out = noisemon::test::slurp(dir + "/status.out");
+  EXPECT_EQ(WEXITSTATUS(status), 0) << out << noisemon::test::slurp(dir + "/status.err")
+                                    << noisemon::test::slurp(dir + "/stats.err")
+                                    << noisemon::test::slurp(dir + "/daemon.err");
   EXPECT_NE(out.find("source=sim+candump"), std::string::npos) << out;
   EXPECT_NE(out.find("candump.replay="), std::string::npos) << out;
   EXPECT_NE(out.find("counters:"), std::string::npos) << out;
   EXPECT_NE(out.find("candump.malformed_lines=1"), std::string::npos) << out;
   EXPECT_NE(out.find("candump.decoded_frames=2"), std::string::npos) << out;
   // The rolling statistics of the cycles so far (the window is 100 by default; the daemon ran a few seconds).
-  const std::string stats = read_file(dir + "/stats.out");
+  const std::string stats = noisemon::test::slurp(dir + "/stats.out");
   EXPECT_NE(stats.find("of 100 cycles"), std::string::npos) << stats;
   EXPECT_NE(stats.find("Leq(A) measured"), std::string::npos) << stats;
   EXPECT_NE(stats.find("imep_net_bar"), std::string::npos) << stats;

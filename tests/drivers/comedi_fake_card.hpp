@@ -27,12 +27,13 @@
 #include <vector>
 
 #include "drivers/comedi/comedi_source.hpp"
+#include "dsp/math_constants.hpp"
 
 namespace comedi_fake {
 
 namespace nd = noisemon::drivers;
 
-constexpr double kPi = std::numbers::pi;
+using noisemon::kPi;
 constexpr std::int64_t kEpoch = 1'700'000'000'000'000;  // utime of 40 kHz frame 0
 
 // Card ranges the fake card offers: range 0 = +-10 V, range 1 = +-1 V (16-bit converters).

@@ -23,6 +23,7 @@
 #include "drivers/combined_source.hpp"
 #include "drivers/crank_reference.hpp"
 #include "tests/sanitizer.hpp"
+#include "tests/support/driver_counters.hpp"
 #include "tests/support/unique_temp.hpp"
 
 namespace nd = noisemon::drivers;
@@ -59,14 +60,14 @@ void append_sample(std::vector<std::uint8_t>& out, na::SampleFormat f, double v)
 }
 
 // `frames` frames of `channels` channels; channel c holds amplitude[c] * sin(2 pi freq[c] t).
-struct Tone {
+struct CaptureTone {
   double amplitude, freq_hz;
 };
-std::string write_raw(const std::string& name, na::SampleFormat f, unsigned rate, const std::vector<Tone>& tones,
+std::string write_raw(const std::string& name, na::SampleFormat f, unsigned rate, const std::vector<CaptureTone>& tones,
                       std::size_t frames) {
   std::vector<std::uint8_t> bytes;
   for (std::size_t k = 0; k < frames; ++k)
-    for (const Tone& t : tones)
+    for (const CaptureTone& t : tones)
       append_sample(bytes, f,
                     t.amplitude * std::sin(2.0 * std::numbers::pi * t.freq_hz * static_cast<double>(k) / rate));
   const std::string path = noisemon::test::unique_temp(name).string();
@@ -115,7 +116,7 @@ class AlsaFormats : public ::testing::TestWithParam<na::SampleFormat> {};
 // the bytes were written from.
 TEST_P(AlsaFormats, DecodedSamplesAreAlsaLibsOwnConversionAndTheWrittenTone) {
   const na::SampleFormat f = GetParam();
-  const std::vector<Tone> tones = {{0.5, 1000.0}, {-0.25, 3000.0}};
+  const std::vector<CaptureTone> tones = {{0.5, 1000.0}, {-0.25, 3000.0}};
   const std::string raw = write_raw("tone.raw", f, 48000, tones, 4800);
   const std::string name(na::format_name(f));
 
@@ -213,7 +214,7 @@ class PressureOnly final : public nd::Source {
 // in Pa the bytes and the chain make, and the composed source reports the interface's microphones, the pressure
 // source's epoch and encoder, and both sources' threads.
 TEST(AlsaSource, MappedChannelsArriveInPascalAt40kHzBesideAnotherSourcesPressure) {
-  const std::vector<Tone> tones = {{0.25, 2000.0}, {0.9, 500.0}, {0.5, 1000.0}, {0.1, 7000.0}};
+  const std::vector<CaptureTone> tones = {{0.25, 2000.0}, {0.9, 500.0}, {0.5, 1000.0}, {0.1, 7000.0}};
   const std::string raw = write_raw("mics.raw", na::SampleFormat::kS24Packed, 48000, tones, 48000);
   na::AlsaSourceConfig a;
   a.capture = {.pcm = "nm_test",
@@ -350,11 +351,7 @@ na::CaptureConfig timed_capture(const std::string& fields, unsigned periods) {
           .periods = periods};
 }
 
-std::int64_t counter(const nd::SourceBase& src, const std::string& name) {
-  for (const nd::DriverCounter& c : src.counters())
-    if (c.name == name) return c.value;
-  return -1;
-}
+using noisemon::test::counter;
 
 }  // namespace
 

@@ -19,6 +19,7 @@
 
 #include "drivers/combined_source.hpp"
 #include "tests/sanitizer.hpp"
+#include "tests/support/driver_counters.hpp"
 #include "tests/support/unique_temp.hpp"
 
 namespace nd = noisemon::drivers;
@@ -122,12 +123,7 @@ std::vector<nd::OperatingPoint> drain(nd::OperatingPointRing& ring) {
   return out;
 }
 
-std::int64_t counter(const nd::SourceBase& s, const std::string& name) {
-  for (const auto& c : s.counters())
-    if (c.name == name) return c.value;
-  ADD_FAILURE() << "no counter " << name;
-  return -1;
-}
+using noisemon::test::counter;
 
 void wait_until_stopped(const nd::SourceBase& s) {
   const auto deadline = std::chrono::steady_clock::now() + allowance(std::chrono::seconds(1));  // a thread ending

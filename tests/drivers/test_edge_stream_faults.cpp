@@ -19,6 +19,7 @@
 #include <vector>
 
 #include "drivers/comedi/comedi_streams.hpp"
+#include "dsp/math_constants.hpp"
 
 namespace nd = noisemon::drivers;
 
@@ -32,7 +33,7 @@ constexpr double kTheta0 = -250.0;            // crank angle at the acquisition 
 constexpr double kTimebase = 80e6;
 constexpr std::int64_t kEpoch = 1'700'000'000'000'000;
 constexpr double kFrame = 1.0 / 40000.0;
-constexpr double kInf = std::numeric_limits<double>::infinity();
+using noisemon::kInf;
 
 double theta_at(double t) { return kTheta0 + kOmega * t; }
 double time_at(double theta) { return (theta - kTheta0) / kOmega; }

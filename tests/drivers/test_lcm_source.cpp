@@ -13,13 +13,14 @@
 
 #include "drivers/formats/stream_messages.hpp"
 #include "tests/sanitizer.hpp"
+#include "tests/support/driver_counters.hpp"
 #include "tests/support/unique_temp.hpp"
 
 namespace nd = noisemon::drivers;
 
 namespace {
 
-constexpr std::int64_t kEpoch = 1'700'000'000'000'000;
+constexpr std::int64_t kLcmSourceEpoch = 1'700'000'000'000'000;
 
 template <class Message>
 void write(lcm::LogFile& log, const std::string& channel, const Message& m, std::int64_t utime) {
@@ -40,12 +41,7 @@ nd::SampleBlock block(std::int64_t first_index, std::uint32_t channels, double v
   return b;
 }
 
-std::int64_t counter(const nd::Source& s, const std::string& name) {
-  for (const auto& c : s.counters())
-    if (c.name == name) return c.value;
-  ADD_FAILURE() << "no counter " << name;
-  return -1;
-}
+using noisemon::test::counter;
 
 std::vector<nd::SampleBlock> drain(nd::BlockRing& ring) {
   std::vector<nd::SampleBlock> out;
@@ -60,13 +56,13 @@ TEST(LcmSource, AMicrophoneBlockThatDoesNotFitTheSessionIsCountedNotDeliveredAnd
   const std::string path = noisemon::test::unique_temp_dir() + "/bad_mic_block.lcmlog";
   {
     nd::StreamInfo info;
-    info.epoch_utime = kEpoch;
+    info.epoch_utime = kLcmSourceEpoch;
     info.mic_count = 2;
     info.mic_positions_m = {{1, 0, 0}, {0, 1, 0}};
     lcm::LogFile log(path, "w");
-    write(log, "NOISEMON_SESSION", nd::formats::to_message(info, "test", kEpoch), kEpoch);
+    write(log, "NOISEMON_SESSION", nd::formats::to_message(info, "test", kLcmSourceEpoch), kLcmSourceEpoch);
     const auto raw = [&](const nd::SampleBlock& b, std::int8_t stream) {
-      write(log, "NOISEMON_RAW", nd::formats::to_message(b, stream, kEpoch), kEpoch);
+      write(log, "NOISEMON_RAW", nd::formats::to_message(b, stream, kLcmSourceEpoch), kLcmSourceEpoch);
     };
     raw(block(0, 2, 1e5, true), noisemon::raw_block_t::STREAM_PRESSURE);
     raw(block(0, 2, 0.1), noisemon::raw_block_t::STREAM_MICS);
@@ -75,7 +71,7 @@ TEST(LcmSource, AMicrophoneBlockThatDoesNotFitTheSessionIsCountedNotDeliveredAnd
     raw(block(8, 2, 0.3), noisemon::raw_block_t::STREAM_MICS);
     nd::OperatingPoint op;
     op.speed_rpm = 1500;
-    write(log, "NOISEMON_OP", nd::formats::to_message(op), kEpoch);
+    write(log, "NOISEMON_OP", nd::formats::to_message(op), kLcmSourceEpoch);
   }
   nd::lcm::LcmSourceConfig config;
   config.url = "file://" + path + "?speed=0";

@@ -15,7 +15,7 @@
 namespace noisemon::drivers {
 namespace {
 
-constexpr std::int64_t kEpoch = 1'700'000'000'000'000;
+constexpr std::int64_t kDecoderEpoch = 1'700'000'000'000'000;
 
 template <class Message>
 std::vector<std::uint8_t> bytes_of(const Message& m) {
@@ -24,7 +24,7 @@ std::vector<std::uint8_t> bytes_of(const Message& m) {
   return b;
 }
 
-StreamInfo two_mics(std::int64_t epoch = kEpoch) {
+StreamInfo two_mics(std::int64_t epoch = kDecoderEpoch) {
   StreamInfo i;
   i.epoch_utime = epoch;
   i.mic_count = 2;
@@ -35,7 +35,7 @@ StreamInfo two_mics(std::int64_t epoch = kEpoch) {
 
 // A pressure block of `frames` frames at first_index, crank inside [-360, 360).
 noisemon::raw_block_t pressure_block(std::int64_t first_index = 256, std::uint32_t frames = 4,
-                                     std::int64_t epoch = kEpoch) {
+                                     std::int64_t epoch = kDecoderEpoch) {
   SampleBlock b;
   b.first_index = first_index;
   b.frames = frames;
@@ -53,7 +53,7 @@ noisemon::raw_block_t mic_block(std::uint32_t channels) {
   b.frames = 3;
   b.channels = channels;
   for (std::uint32_t i = 0; i < b.frames * channels; ++i) b.data[i] = 0.01 * i;
-  return formats::to_message(b, noisemon::raw_block_t::STREAM_MICS, kEpoch);
+  return formats::to_message(b, noisemon::raw_block_t::STREAM_MICS, kDecoderEpoch);
 }
 
 class Decoder : public ::testing::Test {
@@ -87,9 +87,9 @@ TEST_F(Decoder, TheFirstSessionStartsRepeatsDoNotAnotherRunDoes) {
   EXPECT_FALSE(repeat.session_started);
   EXPECT_TRUE(session(two_mics(), "another condition").session_started);
   EXPECT_EQ(decoder.condition(), "another condition");
-  EXPECT_TRUE(session(two_mics(kEpoch + 60'000'000), "another condition").session_started);
-  EXPECT_EQ(decoder.info().epoch_utime, kEpoch + 60'000'000);
-  StreamInfo one = two_mics(kEpoch + 60'000'000);
+  EXPECT_TRUE(session(two_mics(kDecoderEpoch + 60'000'000), "another condition").session_started);
+  EXPECT_EQ(decoder.info().epoch_utime, kDecoderEpoch + 60'000'000);
+  StreamInfo one = two_mics(kDecoderEpoch + 60'000'000);
   one.mic_count = 1;
   one.mic_positions_m.resize(1);
   EXPECT_TRUE(session(one, "another condition").session_started);
@@ -98,12 +98,12 @@ TEST_F(Decoder, TheFirstSessionStartsRepeatsDoNotAnotherRunDoes) {
 TEST_F(Decoder, KeepFirstHoldsTheFirstSessionAndCallsLaterRunsBlocksOtherSession) {
   decoder = formats::RawStreamDecoder({formats::StreamChannels{}, formats::SessionChanges::kKeepFirst});
   ASSERT_TRUE(session(two_mics()).session_started);
-  const formats::RawEvent& later = session(two_mics(kEpoch + 60'000'000), "next run");
+  const formats::RawEvent& later = session(two_mics(kDecoderEpoch + 60'000'000), "next run");
   EXPECT_EQ(later.kind, formats::RawEventKind::kSession);
   EXPECT_FALSE(later.session_started);
-  EXPECT_EQ(decoder.info().epoch_utime, kEpoch);
+  EXPECT_EQ(decoder.info().epoch_utime, kDecoderEpoch);
   EXPECT_EQ(decoder.condition(), "run");
-  const formats::RawEvent& e = feed("NOISEMON_RAW", pressure_block(0, 4, kEpoch + 60'000'000));
+  const formats::RawEvent& e = feed("NOISEMON_RAW", pressure_block(0, 4, kDecoderEpoch + 60'000'000));
   EXPECT_EQ(e.kind, formats::RawEventKind::kOtherSessionBlock);
   EXPECT_NE(e.reason.find("another session"), std::string::npos) << e.reason;
   EXPECT_EQ(feed("NOISEMON_RAW", pressure_block()).kind, formats::RawEventKind::kBlock);
@@ -130,7 +130,7 @@ TEST_F(Decoder, ABlockOfTheSessionComesOutWithItsSamples) {
 
 TEST_F(Decoder, OperatingPointsBelongToASession) {
   OperatingPoint op;
-  op.utime = kEpoch;
+  op.utime = kDecoderEpoch;
   op.speed_rpm = 3050;
   op.load_nm = 12;
   EXPECT_EQ(feed("NOISEMON_OP", formats::to_message(op)).kind, formats::RawEventKind::kBeforeSession);
@@ -159,7 +159,7 @@ TEST_F(Decoder, PayloadsThatDoNotDecodeAreDamagedNamingTheirType) {
 }
 
 TEST_F(Decoder, ASessionThatIsNoneIsDamagedWithTheReason) {
-  noisemon::session_t m = formats::to_message(two_mics(), "test", kEpoch, "run");
+  noisemon::session_t m = formats::to_message(two_mics(), "test", kDecoderEpoch, "run");
   m.sample_rate_hz = 48000;
   const formats::RawEvent& e = feed("NOISEMON_SESSION", m);
   EXPECT_EQ(e.kind, formats::RawEventKind::kDamaged);
@@ -202,9 +202,9 @@ TEST_F(Decoder, NaNSamplesPassAsDeliveredAndAreDamageForRecordings) {
 
 TEST_F(Decoder, ChannelNamesAreTheConfiguredOnes) {
   decoder = formats::RawStreamDecoder(formats::RawStreamDecoderOptions{{"R", "O", "S"}});
-  EXPECT_EQ(feed("NOISEMON_SESSION", formats::to_message(two_mics(), "test", kEpoch)).kind,
+  EXPECT_EQ(feed("NOISEMON_SESSION", formats::to_message(two_mics(), "test", kDecoderEpoch)).kind,
             formats::RawEventKind::kOtherChannel);
-  EXPECT_TRUE(feed("S", formats::to_message(two_mics(), "test", kEpoch)).session_started);
+  EXPECT_TRUE(feed("S", formats::to_message(two_mics(), "test", kDecoderEpoch)).session_started);
   EXPECT_EQ(feed("R", pressure_block()).kind, formats::RawEventKind::kBlock);
 }
 
@@ -220,7 +220,7 @@ TEST_F(Decoder, CrankAngleBlocksBelongToAnEncodersSessionAndKeepToTheirBounds) {
       b.data[2 * f + kAngleCrankChannel] = first_angle + 0.5 * f;
       b.data[2 * f + kAnglePressureChannel] = 1e5;
     }
-    return formats::to_message(b, noisemon::raw_block_t::STREAM_PRESSURE_ANGLE, kEpoch);
+    return formats::to_message(b, noisemon::raw_block_t::STREAM_PRESSURE_ANGLE, kDecoderEpoch);
   };
   StreamInfo info = two_mics();
   info.pressure_edges_per_rev = 720;  // 0.5 deg: 180 edges make 90 deg
@@ -238,7 +238,7 @@ TEST_F(Decoder, CrankAngleBlocksBelongToAnEncodersSessionAndKeepToTheirBounds) {
   EXPECT_NE(outside.reason.find("outside [-360, 360]"), std::string::npos) << outside.reason;
 
   formats::RawStreamDecoder timed;  // a session sampled in time (no encoder edges): no crank-angle stream
-  const std::vector<std::uint8_t> s = bytes_of(formats::to_message(two_mics(), "test", kEpoch, "run"));
+  const std::vector<std::uint8_t> s = bytes_of(formats::to_message(two_mics(), "test", kDecoderEpoch, "run"));
   timed.decode("NOISEMON_SESSION", s.data(), s.size());
   const std::vector<std::uint8_t> b = bytes_of(angle_block(10, 0.0));
   const formats::RawEvent& refused = timed.decode("NOISEMON_RAW", b.data(), b.size());

@@ -51,7 +51,7 @@ formats::RunDir parse(const std::string& csv) {
   return run;
 }
 
-std::string csv_error(const std::string& csv) {
+std::string large_csv_error(const std::string& csv) {
   try {
     parse(csv);
   } catch (const RunDirError& e) {
@@ -133,13 +133,13 @@ TEST(RunDirLargeCsv, ProblemsInTheSecondHalfNameTheirLine) {
   const int second = first_line_of_second_half(plain);
   ASSERT_GT(second, kRows / 3);
   const int late = kRows - 10;
-  EXPECT_HAS(csv_error(with_line(plain, late, "0.5,abc,1")),
+  EXPECT_HAS(large_csv_error(with_line(plain, late, "0.5,abc,1")),
              "p.csv: line " + std::to_string(late) + ": field crank_deg is \"abc\", expected a finite number");
-  EXPECT_HAS(csv_error(with_line(plain, late, "0.5,1")),
+  EXPECT_HAS(large_csv_error(with_line(plain, late, "0.5,1")),
              "p.csv: line " + std::to_string(late) + ": 2 field(s), expected 3");
-  EXPECT_HAS(csv_error(with_line(plain, late, "")),
+  EXPECT_HAS(large_csv_error(with_line(plain, late, "")),
              "p.csv: line " + std::to_string(late) + ": empty line inside the data");
-  EXPECT_HAS(csv_error(with_line(plain, late, "1,2,3\r\r")),
+  EXPECT_HAS(large_csv_error(with_line(plain, late, "1,2,3\r\r")),
              "p.csv: line " + std::to_string(late) + ": field pressure is \"3\r\"");
   // Where the halves meet: the second half's first row repeats the first half's last time (written with leading
   // zeros to its length, so that the halves still meet there).
@@ -153,16 +153,16 @@ TEST(RunDirLargeCsv, ProblemsInTheSecondHalfNameTheirLine) {
     repeated.replace(last, last_time.size(), std::string(last_time.size() - first_time.size(), '0') + first_time);
   ASSERT_EQ(repeated.size(), plain.size());
   ASSERT_EQ(first_line_of_second_half(repeated), second);
-  EXPECT_HAS(csv_error(repeated), "p.csv: line " + std::to_string(second) + ": time_s");
-  EXPECT_HAS(csv_error(repeated), "does not increase");
+  EXPECT_HAS(large_csv_error(repeated), "p.csv: line " + std::to_string(second) + ": time_s");
+  EXPECT_HAS(large_csv_error(repeated), "does not increase");
   // The first problem in the file is the one named, though the second half's thread meets its own first.
-  EXPECT_HAS(csv_error(with_line(with_line(plain, late, "x,1,1"), 100, "y,1,1")),
+  EXPECT_HAS(large_csv_error(with_line(with_line(plain, late, "x,1,1"), 100, "y,1,1")),
              "p.csv: line 100: field time_s is \"y\"");
 }
 
 TEST(RunDirLargeCsv, ABlankLineInTheFirstHalfWithRowsAfterItIsAnError) {
   const std::string plain = large_csv();
-  EXPECT_HAS(csv_error(with_line(plain, 200, " \t")), "p.csv: line 200: empty line inside the data");
+  EXPECT_HAS(large_csv_error(with_line(plain, 200, " \t")), "p.csv: line 200: empty line inside the data");
   // Blank from just before the second half to the end of the file: fine, the rows before it are read.
   const int second = first_line_of_second_half(plain);
   std::string cut = plain.substr(0, offset_of_line(plain, second - 1));
@@ -174,7 +174,7 @@ TEST(RunDirLargeCsv, CrankGapsAndSpeedJumpsLateInTheFileNameTheirLine) {
   std::string s = "time_s,crank_deg,pressure\n";
   for (int i = 0; i < kRows; ++i)
     if (i < kRows - 100 || i >= kRows - 90) append_row(s, i);  // 10 encoder samples missing: line kRows - 99
-  EXPECT_HAS(csv_error(s), "p.csv: line " + std::to_string(kRows - 98) + ": crank_deg jumps by 1.1 deg");
+  EXPECT_HAS(large_csv_error(s), "p.csv: line " + std::to_string(kRows - 98) + ": crank_deg jumps by 1.1 deg");
 }
 
 TEST(RunDirLargeCsv, ACsvProblemIsReportedBeforeAWavProblem) {

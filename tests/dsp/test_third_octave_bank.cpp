@@ -4,6 +4,7 @@
 // one-third-octave bands with the clause 5.10 formula), analytic sinusoid levels, the Butterworth noise
 // bandwidth for white noise, and single-channel / single-block runs of the same bank for the
 // streaming and multichannel properties.
+#include "dsp/math_constants.hpp"
 #include "dsp/third_octave_bank.hpp"
 
 #include <gtest/gtest.h>
@@ -24,8 +25,8 @@ using noisemon::dsp::ThirdOctaveBand;
 using noisemon::dsp::ThirdOctaveBank;
 
 constexpr double kFs = 40000;
-constexpr double kPi = std::numbers::pi;
-constexpr double kInf = std::numeric_limits<double>::infinity();
+using noisemon::kInf;
+using noisemon::kPi;
 const double kG = std::pow(10.0, 3.0 / 10.0);  // base-10 octave ratio
 
 double db(double power_ratio) { return 10.0 * std::log10(power_ratio); }

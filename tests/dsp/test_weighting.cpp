@@ -1,4 +1,5 @@
 // A and C weightings against IEC 61672-1:2013 Table 3 (design goals and class 1 acceptance limits).
+#include "dsp/math_constants.hpp"
 #include "dsp/weighting.hpp"
 
 #include <gtest/gtest.h>
@@ -12,7 +13,7 @@ namespace {
 using noisemon::dsp::a_weighting_db;
 using noisemon::dsp::c_weighting_db;
 
-constexpr double kInf = std::numeric_limits<double>::infinity();
+using noisemon::kInf;
 
 // IEC 61672-1:2013 Table 3: nominal frequency, A and C design goals (rounded to 0.1 dB, computed at
 // the exact base-10 frequencies 1000 * 10^(x/10)), class 1 acceptance limits (upper, lower).

@@ -7,7 +7,6 @@
 namespace indep {
 namespace {
 
-constexpr double kPi = std::numbers::pi;
 constexpr std::size_t kOversample = 4;  // fine samples per input sample; one RK4 step spans two of them
 
 struct State {

@@ -20,7 +20,6 @@ namespace indep {
 namespace {
 
 using cd = std::complex<double>;
-constexpr double kPi = std::numbers::pi;
 constexpr double kPref = 20e-6;  // Pa
 constexpr double kBarToPa = 1e5;
 constexpr double kDeviationCutoffHz = 1000;  // each cycle's deviation below it is kept whole (the floor is far below)

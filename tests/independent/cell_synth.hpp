@@ -79,11 +79,13 @@
 #include <filesystem>
 #include <functional>
 #include <limits>
+#include <numbers>
 #include <string>
 #include <vector>
 
 namespace indep {
 
+inline constexpr double kPi = std::numbers::pi;
 constexpr double kRecordStepDeg = 0.2;
 constexpr int kSamplesPerCycle = 3600;  // 720 deg / 0.2 deg
 constexpr int kMics = 10;

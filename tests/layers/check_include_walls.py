@@ -2,17 +2,20 @@
 """The compiler keeps the layers: a library's sources see only the headers of what it links.
 
 Each case compiles (syntax only) one line, `#include "<header>"`, with the exact flags the build gives a source of
-the library (compile_commands.json): a header of a library it does not link must fail, and a header of one it does
-link must compile (the control: without it a broken command would pass every forbidden case).
+the library (compile_commands.json, a unity build's batches expanded to their sources): a header of a library it does
+not link must fail, and a header of one it does link must compile (the control: without it a broken command would
+pass every forbidden case).
 
 usage: check_include_walls.py SOURCE_DIR BUILD_DIR
 """
-import json
 import os
 import shlex
 import subprocess
 import sys
 import tempfile
+
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "support"))
+from compile_database import per_file_entries  # noqa: E402  (tests/support: a unity build's batches expanded)
 
 # (a source of the library, a header it may not include, a header it may)
 CASES = [
@@ -58,8 +61,7 @@ def main():
     if len(sys.argv) != 3:
         raise SystemExit(__doc__)
     source_dir, build_dir = sys.argv[1], sys.argv[2]
-    with open(os.path.join(build_dir, "compile_commands.json")) as f:
-        database = json.load(f)
+    database = per_file_entries(build_dir)
     failures = 0
     for source, forbidden, allowed in CASES:
         args, directory = compile_command(database, os.path.join(source_dir, source))

@@ -22,6 +22,10 @@ if ! command -v clang-tidy >/dev/null; then
   exit 77
 fi
 [ -f "$build/compile_commands.json" ] || { echo "clang-tidy: $build/compile_commands.json missing"; exit 1; }
+# One command per source file (a unity build's batches expanded): clang-tidy checks each file on its own.
+work="$(mktemp -d)"
+trap 'rm -rf "$work"' EXIT
+python3 "$(dirname "${BASH_SOURCE[0]}")/../support/compile_database.py" "$build" "$work"
 
 cd "$src"
 layers=(cli daemon drivers model dsp)
@@ -37,7 +41,7 @@ fi
 files=()
 for f in "${changed[@]}"; do
   cpp="${f%.hpp}.cpp"
-  [ -f "$cpp" ] && grep -qF "\"$src/$cpp\"" "$build/compile_commands.json" && files+=("$cpp")
+  [ -f "$cpp" ] && grep -qF "\"$src/$cpp\"" "$work/compile_commands.json" && files+=("$cpp")
 done
 # The first MAX distinct files, in the order of the log (newest change first).
 mapfile -t files < <(printf '%s\n' "${files[@]}" | sed '/^$/d' | awk '!seen[$0]++' | head -n "$max")
@@ -46,11 +50,10 @@ if [ "${#files[@]}" -eq 0 ]; then
   exit 0
 fi
 echo "clang-tidy: ${#files[@]} file(s) changed since $base"
-out="$(mktemp)"
-trap 'rm -f "$out"' EXIT
+out="$work/findings"
 status=0
 printf '%s\n' "${files[@]}" |
-  xargs -P "$(nproc)" -n 4 clang-tidy -p "$build" --quiet --extra-arg=-Wno-unknown-warning-option >"$out" 2>&1 ||
+  xargs -P "$(nproc)" -n 4 clang-tidy -p "$work" --quiet --extra-arg=-Wno-unknown-warning-option >"$out" 2>&1 ||
   status=$?
 grep -E 'warning:|error:' "$out" | sort -u || true
 if [ "$status" -ne 0 ]; then

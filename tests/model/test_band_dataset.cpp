@@ -15,7 +15,7 @@
 namespace noisemon::model {
 namespace {
 
-constexpr std::size_t kW = fit::kCrankWindows;
+using fit::kW;
 
 // A sine of amplitude a at f Hz on the pressure (around 1 bar) and, times g, on `mics` microphones; the crank angle
 // of an engine at rpm; `cycles` + 2 cycles of frames.

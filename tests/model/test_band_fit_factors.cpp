@@ -13,7 +13,7 @@
 namespace noisemon::model {
 namespace {
 
-constexpr std::size_t kW = fit::kCrankWindows;
+using fit::kW;
 
 // Two bands, two cycles of unequal window lengths, two microphones.
 fit::ConditionData small_condition() {

@@ -16,7 +16,7 @@ namespace {
 
 namespace bfi = fit::band_fit_internal;
 
-const BlockParams& truth() {
+const BlockParams& residual_truth() {
   static const BlockParams p = [] {
     BlockParams q = preset("linear");
     q.k1 *= 1.2;
@@ -35,7 +35,7 @@ const fit::BandDataset& data() {
     fast.name = "fast";
     fast.rpm = 3200.0;
     fast.seed = 2;
-    return test_cell::block_dataset(truth(), {slow, fast});
+    return test_cell::block_dataset(residual_truth(), {slow, fast});
   }();
   return d;
 }
@@ -59,18 +59,18 @@ fit::FitOutcome evaluate(const BlockParams& anchor_block, const BlockParams& at)
 }
 
 TEST(BandFitResiduals, VanishWhenTheDataIsMadeByTheParametersTheyAreEvaluatedAt) {
-  const fit::FitOutcome o = evaluate(truth(), truth());
+  const fit::FitOutcome o = evaluate(residual_truth(), residual_truth());
   std::printf("at the truth: train RMS %.5f dB, objective %.3g\n", o.train_rms_db, o.objective);
   EXPECT_LT(o.train_rms_db, 0.01);
 }
 
 TEST(BandFitResiduals, StayNearZeroWhenTheAnchorIsElsewhere) {
-  BlockParams away = truth();
+  BlockParams away = residual_truth();
   away.k1 *= 0.8;
   away.b1 *= 1.3;
   away.c1 *= 0.8;
   const fit::FitOutcome there = evaluate(away, away);
-  const fit::FitOutcome moved = evaluate(away, truth());
+  const fit::FitOutcome moved = evaluate(away, residual_truth());
   std::printf("anchor away: %.3f dB at the anchor, %.5f dB moved to the truth by the shortcut\n", there.train_rms_db,
               moved.train_rms_db);
   EXPECT_GT(there.train_rms_db, 1.0);
@@ -87,11 +87,11 @@ struct Problem {
 
   Problem(const BlockParams& at, const fit::ExtensionSet& on, bool windows) {
     s.extensions = on;
-    anchor = fit::make_anchor(data(), truth(), s.train, s.fit_cycles, windows);
+    anchor = fit::make_anchor(data(), residual_truth(), s.train, s.fit_cycles, windows);
     fit::ExtendedModel m;
     m.block = at;
     m.on = on;
-    L = bfi::make_layout(data(), truth(), at, s.free, false, on, s.train, s.scored);
+    L = bfi::make_layout(data(), residual_truth(), at, s.free, false, on, s.train, s.scored);
     for (std::size_t i = 0; i < s.train.size(); ++i)
       conds.push_back(bfi::make_cond_setup(data(), anchor, i, L, s, m, 3000.0));
     v = bfi::initial_values(L, m, conds);
@@ -99,7 +99,7 @@ struct Problem {
 };
 
 TEST(BandFitResiduals, DoubledOutputGainsAreMinusSixDbInEveryBand) {
-  BlockParams loud = truth();
+  BlockParams loud = residual_truth();
   loud.c0 *= 2.0;
   loud.c1 *= 2.0;
   const Problem p(loud, fit::ExtensionSet{}, false);
@@ -117,7 +117,7 @@ TEST(BandFitResiduals, DoubledOutputGainsAreMinusSixDbInEveryBand) {
 TEST(BandFitResiduals, JetDerivativesAgreeWithCentralDifferences) {
   fit::ExtensionSet on;
   on.second_mode = on.speed = on.stationary = on.locked = true;
-  Problem p(truth(), on, true);
+  Problem p(residual_truth(), on, true);
   p.v.lin = {0.1, -0.2, 0.05, 0.1};
   p.v.mode = {4.0, std::log(1.5), std::log(3.0)};
   p.v.speed = {2.0, 0.05};

@@ -22,20 +22,20 @@ using test_cell::db;
 
 constexpr std::size_t kCycles = 8;
 
-struct Cell {
+struct ShortcutCell {
   fit::BandDataset data = test_cell::block_dataset(preset("linear"), {test_cell::CellCondition{}});
   fit::ConditionSpectrum spec = condition_spectrum(data, 0, kCycles);
   std::vector<std::vector<char>> scored = test_cell::scored_bands(data);
 };
 
-const Cell& cell() {
-  static const Cell c;
+const ShortcutCell& cell() {
+  static const ShortcutCell c;
   return c;
 }
 
 // Largest |difference| in dB over the scored bands of two per-cycle predictions.
 double worst_db(const std::vector<double>& a, const std::vector<double>& b) {
-  const Cell& c = cell();
+  const ShortcutCell& c = cell();
   const std::size_t nb = c.data.band_count();
   const std::vector<double> ma = test_cell::cycle_mean(a, nb), mb = test_cell::cycle_mean(b, nb);
   double worst = 0.0;
@@ -46,7 +46,7 @@ double worst_db(const std::vector<double>& a, const std::vector<double>& b) {
 
 // The anchor's re-simulation moved to `model` by the shortcut.
 std::vector<double> shortcut(const BlockParams& anchor, const fit::ExtendedModel& model) {
-  const Cell& c = cell();
+  const ShortcutCell& c = cell();
   std::vector<double> moved;
   simulate_condition(c.data.conditions[0], anchor, kCycles, moved);
   fit::apply_factors(fit::extension_factors(c.data, 0, c.spec, anchor, model), c.data.conditions[0], moved, nullptr);

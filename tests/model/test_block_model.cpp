@@ -7,6 +7,7 @@
 // from 20 Hz to 16 kHz at 40 kHz (0.007 dB to 40 kHz at 100 kHz); nonlinear presets on a
 // pressure-like input, relative rms error vs the reference 2e-5..3e-5 at 9e5..9e6 Pa peak, 1.5e-4 at
 // 9e7 Pa, <= 1.2e-3 at 9e8 Pa (100x), audible 1/3-octave bands within 0.02 dB.
+#include "dsp/math_constants.hpp"
 #include "model/block_model.hpp"
 
 #include <gtest/gtest.h>
@@ -34,7 +35,7 @@
 namespace noisemon::model {
 namespace {
 
-constexpr double kPi = std::numbers::pi;
+using noisemon::kPi;
 using cd = std::complex<double>;
 
 // Eq. 4.1 from the printed constants (ka = 11.885, wb = 2 pi 100, zeta = 0.35, wn = 2 pi 5000).

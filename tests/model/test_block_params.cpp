@@ -1,4 +1,5 @@
 // Block-model parameters against the thesis: Table 4.1 presets, eq. 4.1 and its eq. 4.8 mapping.
+#include "dsp/math_constants.hpp"
 #include "model/block_params.hpp"
 
 #include <gtest/gtest.h>
@@ -13,7 +14,7 @@
 namespace noisemon::model {
 namespace {
 
-constexpr double kPi = std::numbers::pi;
+using noisemon::kPi;
 
 // Eq. 4.1 constants as printed in the thesis (sec. 4.3.1).
 constexpr double kKa = 11.885;

@@ -14,13 +14,14 @@
 #include <string>
 #include <vector>
 
+#include "dsp/math_constants.hpp"
 #include "model/combustion_noise.hpp"
 
 namespace nm = noisemon::model;
 
 namespace {
 
-constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+using noisemon::kNaN;
 
 // IEC 61672-1:2013 Table 3, A-weighting at the nominal 1/3-octave frequencies 20 Hz ... 20 kHz, dB (0.1 dB steps).
 constexpr std::array<double, nm::kSaBandCount> kIecA{

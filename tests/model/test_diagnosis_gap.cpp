@@ -11,22 +11,22 @@
 namespace noisemon::model::diagnosis {
 namespace {
 
-constexpr std::size_t kBands = 6;
-constexpr std::size_t kMics = 5;
+constexpr std::size_t kGapBands = 6;
+constexpr std::size_t kGapMics = 5;
 
 // A condition of `cycles` cycles whose microphones all read `level(c, b)` (mean square), per window an equal share.
 template <class Level>
 fit::ConditionData condition(std::size_t cycles, Level level) {
   fit::ConditionData d;
-  d.bands = kBands;
-  d.mics = kMics;
+  d.bands = kGapBands;
+  d.mics = kGapMics;
   d.cycles.resize(cycles, fit::CycleInfo{0.04, 3000.0});
-  d.mic_ms.resize(cycles * kMics * kBands);
-  d.win_ms.resize(cycles * kW * kBands);
+  d.mic_ms.resize(cycles * kGapMics * kGapBands);
+  d.win_ms.resize(cycles * kW * kGapBands);
   for (std::size_t c = 0; c < cycles; ++c)
-    for (std::size_t b = 0; b < kBands; ++b) {
-      for (std::size_t m = 0; m < kMics; ++m) d.mic_ms[(c * kMics + m) * kBands + b] = level(c, b);
-      for (std::size_t w = 0; w < kW; ++w) d.win_ms[(c * kW + w) * kBands + b] = level(c, b) / kW;
+    for (std::size_t b = 0; b < kGapBands; ++b) {
+      for (std::size_t m = 0; m < kGapMics; ++m) d.mic_ms[(c * kGapMics + m) * kGapBands + b] = level(c, b);
+      for (std::size_t w = 0; w < kW; ++w) d.win_ms[(c * kW + w) * kGapBands + b] = level(c, b) / kW;
     }
   return d;
 }
@@ -41,8 +41,8 @@ fit::ConditionPrediction lower_by(const fit::ConditionData& d, double gap_db) {
   return p;
 }
 
-const std::vector<char> kAll(kBands, 1);
-const std::vector<double> kNoFloor(kBands, 0.0);
+const std::vector<char> kAll(kGapBands, 1);
+const std::vector<double> kNoFloor(kGapBands, 0.0);
 
 TEST(ScoreCondition, AUniformGapIsTheBandAndTheWindowPartAndNoMicrophoneStandsOut) {
   const fit::ConditionData d = condition(8, [](std::size_t, std::size_t b) { return 1e-3 * (b + 1); });
@@ -62,10 +62,10 @@ TEST(ScoreCondition, OnlyScoredBandsCountAndOnlyFastBandsHaveWindows) {
   fit::ConditionData d = condition(4, [](std::size_t, std::size_t) { return 1e-3; });
   // Band 0 reads 3 dB more than the rest; the prediction is the rest's level everywhere.
   for (std::size_t c = 0; c < 4; ++c)
-    for (std::size_t m = 0; m < kMics; ++m) d.mic_ms[(c * kMics + m) * kBands] *= std::pow(10.0, 0.3);
+    for (std::size_t m = 0; m < kGapMics; ++m) d.mic_ms[(c * kGapMics + m) * kGapBands] *= std::pow(10.0, 0.3);
   const Measured ms = measured_side(d, fit::ExtendedModel{});
   fit::ConditionPrediction p = lower_by(condition(4, [](std::size_t, std::size_t) { return 1e-3; }), 0.0);
-  std::vector<char> scored(kBands, 1), fast(kBands, 0);
+  std::vector<char> scored(kGapBands, 1), fast(kGapBands, 0);
   scored[0] = 0;
   ScoreDetail det;
   Parts parts = score_condition(d, ms, p, scored, fast, kNoFloor, nullptr, &det);
@@ -74,7 +74,7 @@ TEST(ScoreCondition, OnlyScoredBandsCountAndOnlyFastBandsHaveWindows) {
   EXPECT_EQ(parts.window_ms, 0.0);
   scored[0] = 1;
   parts = score_condition(d, ms, p, scored, fast, kNoFloor, nullptr, &det);
-  EXPECT_NEAR(parts.band_ms, 9.0 / kBands, 1e-9);  // (3 dB)^2 over six bands
+  EXPECT_NEAR(parts.band_ms, 9.0 / kGapBands, 1e-9);  // (3 dB)^2 over six bands
 }
 
 TEST(ScoreCondition, AnUpperBoundPredictionCountsOnlyTheSoundAboveIt) {
@@ -82,8 +82,8 @@ TEST(ScoreCondition, AnUpperBoundPredictionCountsOnlyTheSoundAboveIt) {
   const Measured ms = measured_side(d, fit::ExtendedModel{});
   for (double g : {-4.0, 2.0}) {
     fit::ConditionPrediction p = lower_by(d, g);
-    p.upper.assign(kBands, 1);
-    p.upper_win.assign(kBands * kW, 1);
+    p.upper.assign(kGapBands, 1);
+    p.upper_win.assign(kGapBands * kW, 1);
     const Parts parts = score_condition(d, ms, p, kAll, kAll, kNoFloor, nullptr, nullptr);
     const double counted = g > 0 ? g : 0.0;
     EXPECT_NEAR(parts.band_ms, counted * counted, 1e-9) << g;
@@ -96,9 +96,9 @@ TEST(ScoreCondition, TheStationaryFloorTheModelLeavesIsNotCountedInTheWindows) {
   const fit::ConditionData d =
       condition(8, [](std::size_t c, std::size_t b) { return 1e-3 * (1 + 0.1 * c) * (b + 1); });
   const Measured ms = measured_side(d, fit::ExtendedModel{});
-  const std::vector<double> floor(kBands, 2e-5);
+  const std::vector<double> floor(kGapBands, 2e-5);
   fit::ConditionPrediction p = lower_by(d, 0.0);
-  for (std::size_t i = 0; i < p.win_ms.size(); ++i) p.win_ms[i] -= floor[i % kBands];
+  for (std::size_t i = 0; i < p.win_ms.size(); ++i) p.win_ms[i] -= floor[i % kGapBands];
   EXPECT_NEAR(score_condition(d, ms, p, kAll, kAll, floor, nullptr, nullptr).window_ms, 0.0, 1e-9);
   EXPECT_GT(score_condition(d, ms, p, kAll, kAll, kNoFloor, nullptr, nullptr).window_ms, 0.01);
 }
@@ -109,7 +109,8 @@ TEST(ScoreCondition, AMiscalibratedMicrophoneCountsBeyondThreeTimesTheArraysSpre
   for (double x : {1.0, 3.0}) {
     fit::ConditionData d = condition(6, [](std::size_t, std::size_t) { return 1e-3; });
     for (std::size_t c = 0; c < 6; ++c)
-      for (std::size_t b = 0; b < kBands; ++b) d.mic_ms[(c * kMics + 2) * kBands + b] *= std::pow(10.0, x / 10.0);
+      for (std::size_t b = 0; b < kGapBands; ++b)
+        d.mic_ms[(c * kGapMics + 2) * kGapBands + b] *= std::pow(10.0, x / 10.0);
     const Measured ms = measured_side(d, fit::ExtendedModel{});
     ScoreDetail det;
     const Parts p = score_condition(d, ms, lower_by(d, 0.0), kAll, kAll, kNoFloor, nullptr, &det);
@@ -119,7 +120,7 @@ TEST(ScoreCondition, AMiscalibratedMicrophoneCountsBeyondThreeTimesTheArraysSpre
     // The model's gains correct the measurement: with the channel's gain known, nothing stands out.
     fit::ExtendedModel gains;
     gains.on.mic_gain = true;
-    gains.ext.mic_gain_db.assign(kMics, 0.0);
+    gains.ext.mic_gain_db.assign(kGapMics, 0.0);
     gains.ext.mic_gain_db[2] = x;
     const Measured corrected = measured_side(d, gains);
     const fit::ConditionPrediction flat = lower_by(condition(6, [](std::size_t, std::size_t) { return 1e-3; }), 0.0);
@@ -131,20 +132,20 @@ TEST(ScoreCondition, CycleWeightsEqualTheCyclesRepeated) {
   // A second method for the bootstrap's weights: a condition whose cycles are physically repeated.
   std::mt19937_64 rng(5);
   std::lognormal_distribution<double> scatter(0.0, 0.3);
-  std::vector<double> level(5 * kBands);
+  std::vector<double> level(5 * kGapBands);
   for (double& x : level) x = 1e-3 * scatter(rng);
-  const fit::ConditionData d = condition(5, [&](std::size_t c, std::size_t b) { return level[c * kBands + b]; });
+  const fit::ConditionData d = condition(5, [&](std::size_t c, std::size_t b) { return level[c * kGapBands + b]; });
   const std::vector<int> counts{2, 0, 1, 0, 2};
   std::vector<std::size_t> repeated;
   for (std::size_t c = 0; c < counts.size(); ++c)
     for (int i = 0; i < counts[c]; ++i) repeated.push_back(c);
   const fit::ConditionData r =
-      condition(repeated.size(), [&](std::size_t c, std::size_t b) { return level[repeated[c] * kBands + b]; });
+      condition(repeated.size(), [&](std::size_t c, std::size_t b) { return level[repeated[c] * kGapBands + b]; });
   // The same prediction per cycle in both (a fixed shape, 1 dB low).
   const auto shape = [](std::size_t, std::size_t b) { return 1e-3 * (b + 1); };
   const fit::ConditionPrediction pd = lower_by(condition(5, shape), 1.0);
   const fit::ConditionPrediction pr = lower_by(condition(repeated.size(), shape), 1.0);
-  const std::vector<double> floor(kBands, 1e-6);
+  const std::vector<double> floor(kGapBands, 1e-6);
   const Parts weighted =
       score_condition(d, measured_side(d, fit::ExtendedModel{}), pd, kAll, kAll, floor, &counts, nullptr);
   const Parts copies =
@@ -167,14 +168,14 @@ TEST(ScoreCondition, TheCycleScatterDoesNotCountAsGapOnAverage) {
   double corrected = 0.0, raw = 0.0;
   constexpr int draws = 1000;
   for (int i = 0; i < draws; ++i) {
-    std::vector<double> f(cycles * kBands);
+    std::vector<double> f(cycles * kGapBands);
     for (double& x : f) x = std::exp(z(rng)) * std::pow(10.0, g / 10.0);
     const fit::ConditionData d =
-        condition(cycles, [&](std::size_t c, std::size_t b) { return 1e-3 * f[c * kBands + b]; });
+        condition(cycles, [&](std::size_t c, std::size_t b) { return 1e-3 * f[c * kGapBands + b]; });
     ScoreDetail det;
     corrected +=
         score_condition(d, measured_side(d, fit::ExtendedModel{}), p, kAll, kAll, kNoFloor, nullptr, &det).band_ms;
-    for (double x : det.gaps) raw += x * x / kBands;
+    for (double x : det.gaps) raw += x * x / kGapBands;
   }
   corrected /= draws;
   raw /= draws;

@@ -25,13 +25,13 @@ testdata::Recipe with_noise(testdata::Recipe r, std::uint64_t seed) {
   return r;
 }
 
-struct Cell {
+struct MotoredCell {
   fit::BandDataset data;
   DiagnosisOptions opt;
   Context cx;
 };
 
-void make_cell(Cell& c) {
+void make_cell(MotoredCell& c) {
   const BlockParams truth = preset("linear");
   const std::vector<double> flat(4, 0.0);
   testdata::Recipe motored = testdata::fired("motored_3000", 3000, 0.3, truth, flat, 11);
@@ -57,7 +57,7 @@ ModelScore with_source(const fit::BandDataset& data, const std::vector<double>& 
 }
 
 // The white noise's mean square per band as the motored run's microphones measure it beyond the block's sound.
-std::vector<double> noise_per_band(const Cell& c) {
+std::vector<double> noise_per_band(const MotoredCell& c) {
   const std::size_t k = c.cx.refs.front(), nb = c.data.band_count();
   fit::ExtendedModel bare;
   bare.block = preset("linear");
@@ -71,7 +71,7 @@ std::vector<double> noise_per_band(const Cell& c) {
 }
 
 TEST(MotoredLaw, ASourceAtTheNoisesTrueLevelObeysItAndOneSixDbAboveIsRefuted) {
-  Cell c;
+  MotoredCell c;
   make_cell(c);
   ASSERT_EQ(c.cx.refs.size(), 1u);
   const std::vector<double> noise = noise_per_band(c);
@@ -97,7 +97,7 @@ TEST(MotoredLaw, ASourceAtTheNoisesTrueLevelObeysItAndOneSixDbAboveIsRefuted) {
 TEST(MotoredLaw, ThePredictionsAdditivePartIsWhatTheSourceAddsToTheBarePrediction) {
   // The law reads the bare prediction as the full one less its additive part: held to a second prediction made
   // without the source.
-  Cell c;
+  MotoredCell c;
   make_cell(c);
   const std::size_t k = c.cx.refs.front(), nb = c.data.band_count();
   ModelScore m = with_source(c.data, noise_per_band(c));
@@ -125,7 +125,7 @@ TEST(PressureLaw, AModeTheMotoredRunDoesNotHaveIsRefutedAndTheTrueBlockIsNot) {
   // baseline (the same block); a 10 dB mode at 250 Hz, which the run does not hear, predicts it worse where the block
   // dominates what the run hears and is refuted (where the noise dominates, any added sound would seem to explain it:
   // those bands are not judged); an additive model is left to the other law.
-  Cell c;
+  MotoredCell c;
   make_cell(c);
   ModelScore baseline;
   baseline.model.block = preset("linear");
@@ -150,7 +150,7 @@ TEST(PressureLaw, AModeTheMotoredRunDoesNotHaveIsRefutedAndTheTrueBlockIsNot) {
 }
 
 TEST(MotoredLaw, OnlyAdditiveModelsAreJudged) {
-  Cell c;
+  MotoredCell c;
   make_cell(c);
   ModelScore mode;
   mode.model.block = preset("linear");

@@ -12,16 +12,16 @@
 namespace noisemon::model::diagnosis {
 namespace {
 
-constexpr std::size_t kBands = 6;
-constexpr double kNominal[kBands] = {500, 630, 800, 1000, 1250, 1600};
+constexpr std::size_t kRemainingBands = 6;
+constexpr double kNominal[kRemainingBands] = {500, 630, 800, 1000, 1250, 1600};
 
-struct Cell {
+struct RemainingCell {
   fit::BandDataset data;
   DiagnosisOptions opt;
   Context cx;
 
   // Held-out conditions at these speeds (one load) and these input levels (cycle-mean CPL, Pa^2 per band).
-  Cell(const std::vector<double>& rpm, const std::vector<double>& cpl_ms_per_band) {
+  RemainingCell(const std::vector<double>& rpm, const std::vector<double>& cpl_ms_per_band) {
     for (double f : kNominal) {
       dsp::ThirdOctaveBand b;
       b.nominal_hz = b.exact_mid_hz = f;
@@ -31,9 +31,9 @@ struct Cell {
       fit::ConditionData d;
       d.info.name = "fired_" + std::to_string(k);
       d.info.load_nm = 40.0;
-      d.bands = kBands;
+      d.bands = kRemainingBands;
       d.cycles = {fit::CycleInfo{120.0 / rpm[k], rpm[k]}, fit::CycleInfo{120.0 / rpm[k], rpm[k]}};
-      d.cpl_ms.assign(2 * kBands, cpl_ms_per_band[k]);
+      d.cpl_ms.assign(2 * kRemainingBands, cpl_ms_per_band[k]);
       data.conditions.push_back(d);
       cx.heldout.push_back(k);
     }
@@ -44,7 +44,7 @@ struct Cell {
 
 TEST(Remaining, ItsTrendWithSpeedIsTheSlopeOfTheMeanGapPerHeldOutCondition) {
   const std::vector<double> rpm{1500, 2000, 2600};
-  Cell cell(rpm, {1e6, 2e6, 4e6});
+  RemainingCell cell(rpm, {1e6, 2e6, 4e6});
   ModelScore after;
   after.name = "second_mode";
   after.heldout_gap_db = 0.8;
@@ -80,15 +80,15 @@ TEST(Remaining, ItsTrendWithSpeedIsTheSlopeOfTheMeanGapPerHeldOutCondition) {
 }
 
 TEST(Remaining, AGapWithinTheToleranceIsSaidToBeAndTheMicrophonesCanBeItsLargestPart) {
-  Cell cell({1800, 2200}, {1e6, 1e6});
+  RemainingCell cell({1800, 2200}, {1e6, 1e6});
   ModelScore after;
   after.name = "baseline";
   after.heldout_gap_db = 0.3;
   after.part_band_ms = 0.01;
   after.part_mic = 0.08;
   after.part_window_ms = 0.005;
-  after.gaps = {std::vector<double>(kBands, 0.1), std::vector<double>(kBands, 0.1)};
-  const RemainingGap r = describe_remaining(cell.cx, after, std::vector<double>(kBands, 0.1));
+  after.gaps = {std::vector<double>(kRemainingBands, 0.1), std::vector<double>(kRemainingBands, 0.1)};
+  const RemainingGap r = describe_remaining(cell.cx, after, std::vector<double>(kRemainingBands, 0.1));
   EXPECT_EQ(r.part, "microphones");
   EXPECT_NEAR(r.speed_slope_db_per_krpm, 0.0, 1e-12);
   EXPECT_NE(r.summary.find("within the tolerance"), std::string::npos) << r.summary;

@@ -144,14 +144,14 @@ TEST(ConditionMatches, GlobsAgreeWithFnmatchAndAPlainPatternIsANameOrAPrefixBefo
 
 // ------------------------------------------------------------------------------------------- floors
 
-constexpr double kRpm = 3000.0;
-constexpr std::size_t kMics = 2;
+constexpr double kRolesRpm = 3000.0;
+constexpr std::size_t kRolesMics = 2;
 
-// A run at kRpm whose microphones hear only `noise` times a gain (dB) and whose pressure is `pressure_cycle`.
+// A run at kRolesRpm whose microphones hear only `noise` times a gain (dB) and whose pressure is `pressure_cycle`.
 Recipe noise_run(const std::string& name, const std::vector<double>& pressure_cycle,
                  const std::vector<std::vector<double>>& noise, double gain_db) {
   Recipe r;
-  r.info = testdata::ideal_info(name, kRpm);
+  r.info = testdata::ideal_info(name, kRolesRpm);
   r.pressure_cycle = pressure_cycle;
   for (const auto& w : noise) {
     r.mic_cycles.emplace_back(pressure_cycle.size(), 0.0);
@@ -164,7 +164,7 @@ Recipe noise_run(const std::string& name, const std::vector<double>& pressure_cy
 
 std::vector<std::vector<double>> mic_noise(std::size_t frames, double sigma, std::uint64_t seed) {
   std::vector<std::vector<double>> w;
-  for (std::size_t m = 0; m < kMics; ++m) w.push_back(testdata::white_noise(frames, sigma, seed + m));
+  for (std::size_t m = 0; m < kRolesMics; ++m) w.push_back(testdata::white_noise(frames, sigma, seed + m));
   return w;
 }
 
@@ -182,7 +182,7 @@ bool informative(const fit::BandDataset& data, std::size_t k, std::size_t b) {
 }
 
 TEST(MarkBandsAndFloors, MicrophonesWithinTheMarginOfTheBackgroundRunsAreFloorLimitedAndNeverScored) {
-  const std::vector<double> engine = testdata::pressure_cycle(kRpm, 1.0, 7);
+  const std::vector<double> engine = testdata::pressure_cycle(kRolesRpm, 1.0, 7);
   const std::vector<double> ambient(engine.size(), 1e5);
   Recipe probe;
   probe.pressure_cycle = engine;
@@ -217,7 +217,7 @@ TEST(MarkBandsAndFloors, APressureWithinTheMarginOfTheStatedChainFloorIsFloorLim
   // Pressure: the ambient plus white noise of sigma on the 40 kHz grid; the chain's floor stated as sigma (the same
   // density, 2 sigma^2 / 40 kHz) or 20 dB below it.
   const double sigma = 500.0;
-  const std::vector<double> ambient(static_cast<std::size_t>(testdata::kFs * 120.0 / kRpm), 1e5);
+  const std::vector<double> ambient(static_cast<std::size_t>(testdata::kFs * 120.0 / kRolesRpm), 1e5);
   Recipe probe;
   probe.pressure_cycle = ambient;
   const std::size_t frames = testdata::recording_frames(probe);
@@ -242,7 +242,7 @@ TEST(MarkBandsAndFloors, APressureWithinTheMarginOfTheStatedChainFloorIsFloorLim
 TEST(MarkBandsAndFloors, BandsWithinTheMarginOfTheNearestMotoredRunsExcessAreScoredButNotTunedOn) {
   // No sound from the block (constant pressure): each motored run's excess over the start model is its noise.
   // The run at the fired conditions' speed has the same noise as they; the far one (1500 rpm) is 20 dB louder.
-  const std::vector<double> ambient(static_cast<std::size_t>(testdata::kFs * 120.0 / kRpm), 1e5);
+  const std::vector<double> ambient(static_cast<std::size_t>(testdata::kFs * 120.0 / kRolesRpm), 1e5);
   const std::vector<double> ambient_slow(2 * ambient.size(), 1e5);
   Recipe probe, probe_slow;
   probe.pressure_cycle = ambient;
@@ -251,7 +251,7 @@ TEST(MarkBandsAndFloors, BandsWithinTheMarginOfTheNearestMotoredRunsExcessAreSco
   const auto noise_slow = mic_noise(testdata::recording_frames(probe_slow), 0.5, 51);
   Recipe near = noise_run("motored_near", ambient, noise, 0.0);
   Recipe far = noise_run("motored_far", ambient_slow, noise_slow, 0.0);
-  far.info.speed_rpm = kRpm / 2;
+  far.info.speed_rpm = kRolesRpm / 2;
   near.info.motored = far.info.motored = true;
   const fit::BandDataset data = fit::make_dataset({testdata::build(noise_run("clear_1", ambient, noise, 10.0)),
                                                    testdata::build(noise_run("noisy_1", ambient, noise, 3.0)),
@@ -275,12 +275,12 @@ TEST(MarkBandsAndFloors, NoiseDominanceIsJudgedAgainBeyondTheTunedBlockNotTheSta
   BlockParams truth = preset("linear");
   truth.c0 *= 4.0;
   truth.c1 *= 4.0;
-  const std::vector<double> gains(kMics, 0.0);
-  testdata::Recipe motored = testdata::fired("motored", kRpm, 0.9, truth, gains, 3);  // within 6 dB of the fired
+  const std::vector<double> gains(kRolesMics, 0.0);
+  testdata::Recipe motored = testdata::fired("motored", kRolesRpm, 0.9, truth, gains, 3);  // within 6 dB of the fired
   motored.info.motored = true;
   const fit::BandDataset data = fit::make_dataset(
-      {testdata::build(testdata::fired("fired_1", kRpm, 1.0, truth, gains, 1)),
-       testdata::build(testdata::fired("fired_2", kRpm, 0.95, truth, gains, 2)), testdata::build(motored)});
+      {testdata::build(testdata::fired("fired_1", kRolesRpm, 1.0, truth, gains, 1)),
+       testdata::build(testdata::fired("fired_2", kRolesRpm, 0.95, truth, gains, 2)), testdata::build(motored)});
   const DiagnosisOptions opt;
   Context cx = marked(data, opt);
   int scored = 0, noisy = 0;

@@ -12,7 +12,7 @@
 namespace noisemon::model::diagnosis {
 namespace {
 
-constexpr std::size_t kBands = 3;
+constexpr std::size_t kVerdictBands = 3;
 
 ModelScore scored(const std::string& name, double gap, double thesis, bool significant = false) {
   ModelScore m;
@@ -22,7 +22,7 @@ ModelScore scored(const std::string& name, double gap, double thesis, bool signi
   m.heldout_thesis_rms_db = thesis;
   m.significant = significant;
   m.replicate_gaps.assign(50, gap);
-  m.gaps = {std::vector<double>(kBands, gap)};
+  m.gaps = {std::vector<double>(kVerdictBands, gap)};
   return m;
 }
 
@@ -34,7 +34,7 @@ struct Case {
   DiagnosisResult res;
 
   Case(const ModelScore& baseline, const std::vector<ModelScore>& ranked) {
-    data.bands.resize(kBands);
+    data.bands.resize(kVerdictBands);
     cx.data = &data;
     cx.opt = &opt;
     res.baseline = baseline;
@@ -139,7 +139,7 @@ TEST(Verdict, PerBandBeforeAndAfterAreTheRmsOverTheHeldOutConditions) {
   best.gaps = {{0.5, NAN, 0.0}, {0.5, 1.0, 0.0}};
   Case c(base, {best});
   const Verdict& v = c.judged();
-  ASSERT_EQ(v.band_before_db.size(), kBands);
+  ASSERT_EQ(v.band_before_db.size(), kVerdictBands);
   EXPECT_NEAR(v.band_before_db[0], std::sqrt(5.0), 1e-12);
   EXPECT_TRUE(std::isnan(v.band_before_db[1]));
   EXPECT_NEAR(v.band_before_db[2], 2.0, 1e-12);

@@ -14,7 +14,7 @@
 namespace noisemon::model::diagnosis {
 namespace {
 
-constexpr double kRpm = 3000.0;
+constexpr double kWhereRpm = 3000.0;
 const std::vector<double> kMicAmplitude{1.0, 1.0, 2.0, 1.0};  // microphone 3 hears twice the pressure
 
 // IEC 61672-1 A-weighting, dB.
@@ -28,9 +28,9 @@ double a_weighting(double f) {
 
 testdata::Recipe gain_run(const std::string& name, double scale, double soi) {
   testdata::Recipe r;
-  r.info = testdata::ideal_info(name, kRpm);
+  r.info = testdata::ideal_info(name, kWhereRpm);
   r.info.soi_deg_btdc = soi;
-  r.pressure_cycle = testdata::pressure_cycle(kRpm, scale, 7);
+  r.pressure_cycle = testdata::pressure_cycle(kWhereRpm, scale, 7);
   for (double g : kMicAmplitude) {
     std::vector<double> m = r.pressure_cycle;
     for (double& x : m) x = g * (x - 1e5);
@@ -41,8 +41,8 @@ testdata::Recipe gain_run(const std::string& name, double scale, double soi) {
 
 testdata::Recipe noise_run(const std::string& name, double sigma, std::uint64_t seed) {
   testdata::Recipe r;
-  r.info = testdata::ideal_info(name, kRpm);
-  r.pressure_cycle.assign(static_cast<std::size_t>(testdata::kFs * 120.0 / kRpm), 1e5);
+  r.info = testdata::ideal_info(name, kWhereRpm);
+  r.pressure_cycle.assign(static_cast<std::size_t>(testdata::kFs * 120.0 / kWhereRpm), 1e5);
   for (std::size_t m = 0; m < kMicAmplitude.size(); ++m) {
     r.mic_cycles.emplace_back(r.pressure_cycle.size(), 0.0);
     r.mic_extra.push_back(testdata::white_noise(testdata::recording_frames(r), sigma, seed + m));

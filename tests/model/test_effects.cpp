@@ -17,6 +17,7 @@
 //    from rendered samples; counter-based noise independent of chunking.
 // quiet_config() is an explicitly ideal cell (no floor, no self-noise, directivity or ADCs): the tests of the
 // engine's sound and of each effect measure it alone.
+#include "dsp/math_constants.hpp"
 #include "model/engine/virtual_engine.hpp"
 
 #include <gtest/gtest.h>
@@ -40,7 +41,7 @@ namespace nm = noisemon::model;
 
 namespace {
 
-constexpr double kPi = std::numbers::pi;
+using noisemon::kPi;
 constexpr double kFsIn = 102400.0;
 constexpr double kFsOut = 51200.0;
 constexpr double kPref = 20e-6;

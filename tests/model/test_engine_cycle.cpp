@@ -5,6 +5,7 @@
 // each mode's frequency against Draper's formula written out here at the model's own gas temperature, its
 // amplitude against the documented law, none in motored cycles, and its first mode against the ringing of the
 // real fired Yanmar record (the same spectral estimator on both).
+#include "dsp/math_constants.hpp"
 #include "model/engine/engine_cycle.hpp"
 #include "tests/support/required.hpp"
 
@@ -26,7 +27,7 @@ namespace nm = noisemon::model;
 
 namespace {
 
-constexpr double kPi = std::numbers::pi;
+using noisemon::kPi;
 
 double trapezoid(std::span<const double> x, std::span<const double> y) {
   double s = 0.0;

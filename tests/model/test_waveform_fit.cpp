@@ -7,6 +7,7 @@
 // the held-out error equals the added noise (nothing left to explain); the diagnosis names cubic_stiffness,
 // cubic_damping, or none for the matching data; the block bootstrap keeps its false-alarm rate on
 // correlated noise.
+#include "dsp/math_constants.hpp"
 #include "model/diagnosis/waveform_diagnosis.hpp"
 #include "model/fit/waveform_fit.hpp"
 
@@ -28,7 +29,7 @@
 namespace noisemon::model {
 namespace {
 
-constexpr double kPi = std::numbers::pi;
+using noisemon::kPi;
 
 struct Multisine {
   std::vector<double> amp, freq, phase;
