@@ -1,18 +1,22 @@
 #include "cli/check_command.hpp"
 
 #include <CLI/CLI.hpp>
+#include <lcm/lcm-cpp.hpp>
 
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <cstdint>
 #include <cstdio>
 #include <optional>
+#include <stdexcept>
 #include <string>
 #include <vector>
 
 #include "cli/source_capture.hpp"
 #include "daemon/config.hpp"
 #include "dsp/levels.hpp"
+#include "noisemon/check_t.hpp"
 
 namespace noisemon::cli {
 namespace {
@@ -163,6 +167,31 @@ std::vector<Row> driver_rows(const CapturedStreams& s, bool can_configured, bool
   return rows;
 }
 
+// The table on LCM for the dashboard: the rows as printed.
+void publish_table(const std::vector<Row>& rows, const std::string& summary, const daemon::Config& config,
+                   double seconds) {
+  noisemon::check_t m{};
+  m.utime = std::chrono::duration_cast<std::chrono::microseconds>(std::chrono::system_clock::now().time_since_epoch())
+                .count();
+  m.source = config.source;
+  m.seconds = seconds;
+  for (const Row& r : rows) {
+    m.item.push_back(r.item);
+    m.value.push_back(r.value);
+    m.verdict.push_back(r.verdict);
+    m.failed.push_back(r.failed);
+    m.problems += r.failed ? 1 : 0;
+  }
+  m.nrows = static_cast<std::int32_t>(rows.size());
+  m.summary = summary;
+  ::lcm::LCM bus(config.lcm.url);
+  if (!bus.good() || bus.publish(config.lcm.check_channel, &m) != 0)
+    throw std::runtime_error(
+        "--publish: cannot publish on LCM at '" +
+        (config.lcm.url.empty() ? std::string("default URL") : config.lcm.url) +
+        "': the network needs a multicast route (docs/sources-and-formats.md, 'LCM and multicast')");
+}
+
 }  // namespace
 
 CheckCommand::CheckCommand(CLI::App& app) {
@@ -172,6 +201,9 @@ CheckCommand::CheckCommand(CLI::App& app) {
   check_->add_option("--config", config_path_, "the daemon's configuration file (default: the simulated engine)")
       ->check(CLI::ExistingFile);
   check_->add_option("--seconds", seconds_, "how long to listen")->capture_default_str()->check(CLI::Range(1.0, 60.0));
+  check_->add_flag("--publish", publish_,
+                   "also publish the table on the configuration's LCM ([lcm] check_channel, NOISEMON_CHECK), where "
+                   "noisemon dash shows it");
 }
 
 int CheckCommand::run() {
@@ -188,8 +220,11 @@ int CheckCommand::run() {
     std::printf("%-28s %-44s %s%s\n", r.item.c_str(), r.value.c_str(), r.failed ? "FAIL " : "", r.verdict.c_str());
     failed += r.failed ? 1 : 0;
   }
-  std::printf("%s\n", failed ? (std::to_string(failed) + " problems: fix them before the test").c_str()
-                             : "the measurement chain is ready");
+  const std::string summary =
+      failed ? std::to_string(failed) + " problems: fix them before the test" : "the measurement chain is ready";
+  std::printf("%s\n", summary.c_str());
+  std::fflush(stdout);
+  if (publish_) publish_table(rows, summary, config, seconds_);
   return failed ? 1 : 0;
 }
 

@@ -77,6 +77,8 @@ int DashCommand::run() {
   LcmHandler<noisemon::gap_status_t> gap_status{[&](const auto& m) { state.on_gap_status(m); }};
   lcm.subscribe(config.lcm.gap_event_channel, &LcmHandler<noisemon::gap_event_t>::on, &gap_events);
   lcm.subscribe(config.lcm.gap_status_channel, &LcmHandler<noisemon::gap_status_t>::on, &gap_status);
+  LcmHandler<noisemon::check_t> check{[&](const auto& m) { state.on_check(m); }};
+  lcm.subscribe(config.lcm.check_channel, &LcmHandler<noisemon::check_t>::on, &check);
 
   DashServer server(state, std::chrono::milliseconds(static_cast<int>(1000.0 / max_rate_)));
   if (!server.start(host, port)) return 1;

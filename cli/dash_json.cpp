@@ -137,4 +137,13 @@ nlohmann::json gap_status_json(const noisemon::gap_status_t& s) {
           {"watched_features", s.watched_features}};
 }
 
+nlohmann::json check_json(const noisemon::check_t& c) {
+  nlohmann::json rows = nlohmann::json::array();
+  for (int i = 0; i < c.nrows; ++i)
+    rows.push_back(
+        {{"item", c.item[i]}, {"value", c.value[i]}, {"verdict", c.verdict[i]}, {"failed", c.failed[i] != 0}});
+  return {{"utime", c.utime},       {"source", c.source},   {"seconds", c.seconds},
+          {"problems", c.problems}, {"summary", c.summary}, {"rows", rows}};
+}
+
 }  // namespace noisemon::cli

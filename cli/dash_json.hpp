@@ -3,6 +3,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "noisemon/check_t.hpp"
 #include "noisemon/cycle_report_t.hpp"
 #include "noisemon/gap_event_t.hpp"
 #include "noisemon/gap_status_t.hpp"
@@ -21,5 +22,7 @@ nlohmann::json operating_point_json(const noisemon::operating_point_t& op);
 // noisemon gapwatch's event (with its evidence: the change per band and microphone) and state.
 nlohmann::json gap_event_json(const noisemon::gap_event_t& e);
 nlohmann::json gap_status_json(const noisemon::gap_status_t& s);
+// noisemon check --publish's table: its rows as the terminal printed them.
+nlohmann::json check_json(const noisemon::check_t& c);
 
 }  // namespace noisemon::cli

@@ -130,6 +130,16 @@ void gap_metrics(std::ostringstream& out, const MetricsInput& in) {
   }
 }
 
+// The pre-test check's verdicts: 1 per failed row, by its item, and when it ran.
+void check_metrics(std::ostringstream& out, const std::string& cell, const noisemon::check_t& c) {
+  Family(out, cell, "noisemon_check_problems", "gauge", "Rows noisemon check failed, its last published run.")
+      .sample(c.problems);
+  Family(out, cell, "noisemon_check_time_seconds", "gauge", "When that check ended, seconds since the epoch.")
+      .sample(1e-6 * static_cast<double>(c.utime));
+  Family failed(out, cell, "noisemon_check_failed", "gauge", "1 where a row of that check failed, by its item.");
+  for (int i = 0; i < c.nrows; ++i) failed.sample(c.failed[i] ? 1.0 : 0.0, "item", c.item[i]);
+}
+
 }  // namespace
 
 std::string prometheus_label_value(const std::string& value) {
@@ -155,6 +165,7 @@ std::string prometheus_text(const MetricsInput& in) {
   if (in.status) status_metrics(out, in.cell, *in.status, in.status_age_s);
   if (in.cycle) cycle_metrics(out, in.cell, *in.cycle);
   gap_metrics(out, in);
+  if (in.check) check_metrics(out, in.cell, *in.check);
   return out.str();
 }
 

@@ -6,6 +6,7 @@
 #include <optional>
 #include <string>
 
+#include "noisemon/check_t.hpp"
 #include "noisemon/cycle_report_t.hpp"
 #include "noisemon/gap_status_t.hpp"
 #include "noisemon/status_t.hpp"
@@ -20,6 +21,7 @@ struct MetricsInput {
   long long cycles_received = 0;                          // by the dash since it started
   std::optional<noisemon::gap_status_t> gap_status;       // noisemon gapwatch's last state, if any
   std::map<std::string, long long> gap_events_by_effect;  // its events since the dash started
+  std::optional<noisemon::check_t> check;                 // noisemon check --publish's last table, if any
 };
 
 std::string prometheus_text(const MetricsInput& in);

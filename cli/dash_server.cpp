@@ -12,6 +12,7 @@ namespace {
 // One browser's event stream: what it has been sent, and when.
 struct Client {
   std::uint64_t sent = 0;
+  std::uint64_t checks = 0;  // check tables it has seen
   bool first = true;
   std::chrono::steady_clock::time_point last_send{};
 };
@@ -21,15 +22,18 @@ bool next_event(DashState& state, Client& c, std::chrono::milliseconds min_inter
   if (c.first) {  // the reconnection delay, then the whole history at once
     c.first = false;
     c.last_send = std::chrono::steady_clock::now();
+    c.checks = state.checks();
     const std::string data = "retry: 1000\ndata: " + state.event_json(0, c.sent) + "\n\n";
     return sink.write(data.data(), data.size());
   }
   std::this_thread::sleep_until(c.last_send + min_interval);  // the throttle: late cycles go into the next event
-  const std::uint64_t seq = state.wait_newer(c.sent, std::chrono::seconds(2));
+  const std::uint64_t seq = state.wait_newer(c.sent, std::chrono::seconds(2), c.checks);
   if (state.stopped()) return false;
-  // A comment line every 2 s without cycles: finds browsers that went away.
-  const std::string data =
-      seq == c.sent ? std::string(": idle\n\n") : "data: " + state.event_json(c.sent, c.sent) + "\n\n";
+  const std::uint64_t checks = state.checks();
+  // A comment line every 2 s without cycles or a check: finds browsers that went away.
+  const bool idle = seq == c.sent && checks == c.checks;
+  c.checks = checks;
+  const std::string data = idle ? std::string(": idle\n\n") : "data: " + state.event_json(c.sent, c.sent) + "\n\n";
   c.last_send = std::chrono::steady_clock::now();
   return sink.write(data.data(), data.size());
 }

@@ -50,14 +50,28 @@ void DashState::on_gap_status(const noisemon::gap_status_t& s) {
   last_gap_status_ = s;
 }
 
+void DashState::on_check(const noisemon::check_t& c) {
+  nlohmann::json json = check_json(c);
+  std::lock_guard lock(mutex_);
+  check_ = std::move(json);
+  last_check_ = c;
+  ++checks_;
+  changed_.notify_all();
+}
+
+std::uint64_t DashState::checks() const {
+  std::lock_guard lock(mutex_);
+  return checks_;
+}
+
 std::uint64_t DashState::sequence() const {
   std::lock_guard lock(mutex_);
   return sequence_;
 }
 
-std::uint64_t DashState::wait_newer(std::uint64_t after, std::chrono::milliseconds timeout) {
+std::uint64_t DashState::wait_newer(std::uint64_t after, std::chrono::milliseconds timeout, std::uint64_t checks_seen) {
   std::unique_lock lock(mutex_);
-  changed_.wait_for(lock, timeout, [&] { return stopped_ || sequence_ > after; });
+  changed_.wait_for(lock, timeout, [&] { return stopped_ || sequence_ > after || checks_ > checks_seen; });
   return sequence_;
 }
 
@@ -85,7 +99,8 @@ nlohmann::json DashState::snapshot_locked(std::uint64_t after) const {
                              {"op", operating_point_},
                              {"trend", std::move(trend)},
                              {"gap_status", gap_status_},
-                             {"gap_events", nlohmann::json(gap_events_)}};
+                             {"gap_events", nlohmann::json(gap_events_)},
+                             {"check", check_}};
   if (after == 0) snapshot["reference"] = reference_;
   return snapshot;
 }
@@ -110,6 +125,7 @@ std::string DashState::metrics_text() const {
     in.cycle = last_cycle_;
     in.gap_status = last_gap_status_;
     in.gap_events_by_effect = gap_events_by_effect_;
+    in.check = last_check_;
     in.cycles_received = static_cast<long long>(sequence_);
     in.status_age_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - status_received_).count();
   }

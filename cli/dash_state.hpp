@@ -13,6 +13,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "noisemon/check_t.hpp"
 #include "noisemon/cycle_report_t.hpp"
 #include "noisemon/gap_event_t.hpp"
 #include "noisemon/gap_status_t.hpp"
@@ -32,11 +33,16 @@ class DashState {
   // noisemon gapwatch's events (the last 100 kept: the page's timeline) and state.
   void on_gap_event(const noisemon::gap_event_t& e);
   void on_gap_status(const noisemon::gap_status_t& s);
+  // noisemon check --publish's table (the newest kept).
+  void on_check(const noisemon::check_t& c);
 
   // Number of cycle reports received so far (the sequence of the newest one).
   std::uint64_t sequence() const;
-  // Waits until a cycle newer than `after` arrives, `timeout` passes or stop() is called; returns sequence().
-  std::uint64_t wait_newer(std::uint64_t after, std::chrono::milliseconds timeout);
+  // Number of check tables received so far (they come while no cycle does: before the engine starts).
+  std::uint64_t checks() const;
+  // Waits until a cycle newer than `after` or a check table after the `checks_seen`th arrives, `timeout` passes or
+  // stop() is called; returns sequence().
+  std::uint64_t wait_newer(std::uint64_t after, std::chrono::milliseconds timeout, std::uint64_t checks_seen = 0);
   // Wakes every waiter for good (shutdown).
   void stop();
   bool stopped() const;
@@ -68,6 +74,9 @@ class DashState {
   std::map<std::string, long long> gap_events_by_effect_;
   nlohmann::json gap_status_;
   std::optional<noisemon::gap_status_t> last_gap_status_;
+  nlohmann::json check_;
+  std::uint64_t checks_ = 0;
+  std::optional<noisemon::check_t> last_check_;
   std::chrono::steady_clock::time_point status_received_;
 };
 

@@ -276,14 +276,7 @@ void read_threads(TableReader& top, const std::string& origin, ThreadsConfig& t)
 void read_lcm(TableReader& top, const std::string& origin, LcmConfig& lcm) {
   TableReader l(top.table("lcm"), "lcm", origin);
   l.string("url", lcm.url);
-  l.string("report_channel", lcm.report_channel);
-  l.string("status_channel", lcm.status_channel);
-  l.string("raw_channel", lcm.raw_channel);
-  l.string("operating_point_channel", lcm.operating_point_channel);
-  l.string("session_channel", lcm.session_channel);
-  l.string("stats_channel", lcm.stats_channel);
-  l.string("gap_event_channel", lcm.gap_event_channel);
-  l.string("gap_status_channel", lcm.gap_status_channel);
+  for (const auto& [key, channel] : lcm.channels()) l.string(key, *channel);
   l.boolean("publish_raw", lcm.publish_raw);
   l.boolean("publish_operating_point", lcm.publish_operating_point);
   l.number("session_timeout_s", lcm.session_timeout_s, 0.01, 3600);
@@ -358,9 +351,7 @@ void set_cell(LcmConfig& lcm, const std::string& cell) {
     if (!std::isalnum(static_cast<unsigned char>(ch)) && ch != '-')
       throw ConfigError("cell id '" + cell + "': only letters, digits and '-' are allowed");
   const std::string old_suffix = lcm.cell.empty() ? "" : "_" + lcm.cell;
-  for (std::string* channel :
-       {&lcm.report_channel, &lcm.status_channel, &lcm.raw_channel, &lcm.operating_point_channel, &lcm.session_channel,
-        &lcm.stats_channel, &lcm.gap_event_channel, &lcm.gap_status_channel}) {
+  for (const auto& [key, channel] : lcm.channels()) {
     if (!old_suffix.empty() && channel->ends_with(old_suffix)) channel->resize(channel->size() - old_suffix.size());
     if (!cell.empty()) *channel += "_" + cell;
   }

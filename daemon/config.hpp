@@ -2,9 +2,11 @@
 // command-line overrides. systemd/noisemond.toml documents every field.
 #pragma once
 
+#include <array>
 #include <cstdint>
 #include <stdexcept>
 #include <string>
+#include <utility>
 
 #include "daemon/sound_power_setup.hpp"
 #include "drivers/alsa/alsa_source.hpp"
@@ -28,10 +30,24 @@ struct LcmConfig {
   std::string stats_channel = "NOISEMON_STATS";            // the rolling statistics (cycle_stats_t)
   std::string gap_event_channel = "NOISEMON_GAP_EVENT";    // noisemon gapwatch's events (gap_event_t)
   std::string gap_status_channel = "NOISEMON_GAP_STATUS";  // and its state, 1 Hz (gap_status_t)
+  std::string check_channel = "NOISEMON_CHECK";            // noisemon check --publish's table (check_t)
   bool publish_raw = true;
   bool publish_operating_point = true;
   double session_timeout_s = 30.0;  // source "lcm": how long to wait for the session message
   std::string cell;                 // test cell id, appended to every channel as "_<cell>" (empty: the plain names)
+
+  // Every channel with its key in [lcm]: the reader and the cell's suffix walk this one list.
+  [[nodiscard]] std::array<std::pair<const char*, std::string*>, 9> channels() {
+    return {{{"report_channel", &report_channel},
+             {"status_channel", &status_channel},
+             {"raw_channel", &raw_channel},
+             {"operating_point_channel", &operating_point_channel},
+             {"session_channel", &session_channel},
+             {"stats_channel", &stats_channel},
+             {"gap_event_channel", &gap_event_channel},
+             {"gap_status_channel", &gap_status_channel},
+             {"check_channel", &check_channel}}};
+  }
 };
 
 // [threads]: memory locking and the scheduling of each thread the daemon may run (drivers/worker_thread.hpp).

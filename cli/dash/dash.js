@@ -253,6 +253,17 @@ function showEvidence(e) {
     + `<p>microphone level change, dB: ${escapeHtml(mics)}</p><p>candidates' weights: ${escapeHtml(candidates)}</p>`;
 }
 
+// ---------------------------------------------------------------------------------------------- the pre-test check
+
+// noisemon check --publish's table: the rows and verdicts the terminal printed.
+function showCheck(c) {
+  if (!c || c.utime === undefined) return;
+  setText('check-status', `(${new Date(c.utime / 1000).toLocaleString()} · ${c.source}, ${fmt(c.seconds, 0)} s · ${c.summary})`,
+    c.problems > 0 ? 'bad' : 'ok');
+  $('check-rows').innerHTML = '<tr><th>check</th><th>value</th><th>verdict</th></tr>' + c.rows.map((r) => `<tr><th>${escapeHtml(r.item)}</th>`
+    + `<td>${escapeHtml(r.value)}</td><td class="${r.failed ? 'bad' : 'ok'}">${r.failed ? 'FAIL ' : ''}${escapeHtml(r.verdict)}</td></tr>`).join('');
+}
+
 function onEvent(message) {
   const e = JSON.parse(message.data);
   seen.events += 1;
@@ -267,6 +278,7 @@ function onEvent(message) {
   drawGapHeatmap();
   showCycle(e.cycle);
   showStatus(e.status);
+  showCheck(e.check);
   setText('received', String(seen.received)); setText('events', String(seen.events)); setText('restarts', String(seen.restarts));
 }
 

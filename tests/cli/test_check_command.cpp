@@ -6,7 +6,10 @@
 #include <fstream>
 #include <sstream>
 #include <string>
+#include <vector>
 
+#include "drivers/formats/lcm_log_reader.hpp"
+#include "noisemon/check_t.hpp"
 #include "tests/cli/run_command.hpp"
 #include "tests/support/programs.hpp"
 #include "tests/support/unique_temp.hpp"
@@ -45,4 +48,39 @@ TEST(CheckCommand, AHealthyChainIsReadyAndAnUnpluggedMicrophoneIsNamed) {
   EXPECT_NE(row(broken.text, "microphone 3").find("FAIL"), std::string::npos) << broken.text;
   EXPECT_EQ(row(broken.text, "microphone 2").find("FAIL"), std::string::npos) << broken.text;
   EXPECT_NE(broken.text.find("1 problems"), std::string::npos) << broken.text;
+}
+
+// --publish sends the same table on LCM for the dashboard: LCM's own file provider (file://...?mode=w, no network)
+// records what a subscriber would get; every row, verdict and the summary match the printed table.
+TEST(CheckCommand, PublishSendsThePrintedTableOnTheConfiguredChannel) {
+  const std::string log = noisemon::test::unique_temp("check.lcmlog").string();
+  const std::string config = noisemon::test::unique_temp("publish.toml").string();
+  std::ofstream(config)
+      << "[lcm]\nurl = \"file://" << log << "?mode=w\"\ncell = \"c7\"\n"
+      << "[[sim.faults]]\nkind = \"unplugged\"\nchannel = \"mic5\"\nat_s = 0.0\nduration_s = 1000.0\n";
+  const auto run = noisemon::test::run_command(kNoisemon + " check --publish --config " + config + " --seconds 1");
+  ASSERT_EQ(run.status, 1) << run.text;
+
+  noisemon::drivers::formats::LcmLogReader reader(log);
+  noisemon::drivers::formats::LcmLogEvent e;
+  std::vector<noisemon::check_t> published;
+  while (reader.next(e)) {
+    EXPECT_EQ(e.channel, "NOISEMON_CHECK_c7");  // the cell's suffix, as every channel
+    noisemon::check_t m;
+    ASSERT_GT(m.decode(e.data, 0, e.datalen), 0);
+    published.push_back(m);
+  }
+  ASSERT_EQ(published.size(), 1u);
+  const noisemon::check_t& m = published[0];
+  EXPECT_EQ(m.problems, 1);
+  EXPECT_EQ(m.seconds, 1.0);
+  ASSERT_GE(m.nrows, 12);  // ten microphones, the pressure, the encoder, ...
+  for (int i = 0; i < m.nrows; ++i) {
+    const std::string printed = row(run.text, m.item[i]);
+    EXPECT_NE(printed.find(m.value[i]), std::string::npos) << m.item[i] << ": " << printed;
+    EXPECT_NE(printed.find(m.verdict[i]), std::string::npos) << m.item[i] << ": " << printed;
+    EXPECT_EQ(printed.find("FAIL") != std::string::npos, m.failed[i] != 0) << printed;
+    EXPECT_EQ(m.failed[i] != 0, m.item[i] == "microphone 5") << m.item[i];
+  }
+  EXPECT_NE(run.text.find(m.summary), std::string::npos) << m.summary;
 }

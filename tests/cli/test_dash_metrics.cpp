@@ -9,6 +9,7 @@
 #include <set>
 #include <sstream>
 #include <string>
+#include <thread>
 
 #include "cli/dash_json.hpp"
 #include "cli/dash_metrics.hpp"
@@ -218,4 +219,49 @@ TEST(DashState, EventsCarryTheTrendPointsAClientHasNotHadAndMarkRestartsAndDrops
   ASSERT_EQ(newer["trend"].size(), 1u);
   EXPECT_EQ(newer["full"], false);
   EXPECT_EQ(state.wait_newer(5, std::chrono::milliseconds(1)), 5u);
+}
+
+// A check table (published before the engine starts, when no cycle comes) wakes the page's stream, reaches it with
+// every row, and /metrics counts its failed rows.
+TEST(DashState, ACheckTableWakesTheStreamAndIsInTheEventAndTheMetrics) {
+  noisemon::cli::DashState state("c", 10);
+  EXPECT_EQ(state.checks(), 0u);
+  std::uint64_t sent = 0;
+  EXPECT_TRUE(nlohmann::json::parse(state.event_json(0, sent))["check"].is_null());
+  noisemon::check_t c{};
+  c.utime = 1'700'000'000'000'000;
+  c.source = "alsa";
+  c.seconds = 3.0;
+  c.item = {"microphone 1", "microphone 2", "CAN"};
+  c.value = {"94.0 dB, floor 30.1 dB", "12.0 dB, floor 11.9 dB", "0 operating points, last 0 rpm"};
+  c.verdict = {"ok", "dead: 82 dB below the others (unplugged, no power, or muted)", "no frames decoded"};
+  c.failed = {false, true, true};
+  c.nrows = 3;
+  c.problems = 2;
+  c.summary = "2 problems: fix them before the test";
+  std::thread publisher([&] {
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));
+    state.on_check(c);
+  });
+  // No cycle arrives: only the check ends the wait, long before its 60 s.
+  const auto start = std::chrono::steady_clock::now();
+  EXPECT_EQ(state.wait_newer(0, std::chrono::seconds(60), 0), 0u);
+  publisher.join();
+  EXPECT_LT(std::chrono::steady_clock::now() - start, std::chrono::seconds(30));
+  EXPECT_EQ(state.checks(), 1u);
+
+  const auto event = nlohmann::json::parse(state.event_json(0, sent));
+  ASSERT_EQ(event["check"]["rows"].size(), 3u);
+  EXPECT_EQ(event["check"]["rows"][1]["item"], "microphone 2");
+  EXPECT_EQ(event["check"]["rows"][1]["failed"], true);
+  EXPECT_EQ(event["check"]["rows"][1]["verdict"], c.verdict[1]);
+  EXPECT_EQ(event["check"]["summary"], c.summary);
+  EXPECT_EQ(event["check"]["problems"], 2);
+
+  const Exposition e = parse(state.metrics_text());
+  for (const std::string& error : e.errors) ADD_FAILURE() << error;
+  EXPECT_EQ(find(e, "noisemon_check_problems")->value, 2);
+  EXPECT_EQ(find(e, "noisemon_check_failed", "item", "microphone 1")->value, 0);
+  EXPECT_EQ(find(e, "noisemon_check_failed", "item", "microphone 2")->value, 1);
+  EXPECT_NEAR(find(e, "noisemon_check_time_seconds")->value, 1.7e9, 1e-3);
 }

@@ -395,3 +395,54 @@ TEST(Dash, GapPanelShowsTheLiveGapWatchsEventAndItsEvidence) {
   EXPECT_EQ(watch.stop(), 0);
   EXPECT_EQ(dash.stop(), 0);
 }
+
+// The pre-test check's panel: `noisemon check --publish` before the engine starts (no daemon, so no cycle ever
+// comes), microphone 4 unplugged. The page must show the table the check printed, row by row with its verdicts, the
+// failed row marked, and /metrics must say which row failed.
+TEST(Dash, PreTestCheckPanelShowsThePublishedTableWithNoEngineRunning) {
+  NOISEMON_REQUIRE_NAMESPACE();
+  REQUIRE_CHROMIUM();
+  constexpr int port = 18083;
+  const std::string config = temp("check.toml");
+  std::ofstream(config)
+      << "[lcm]\nurl = \"" << kLcmUrl << "\"\n"
+      << "[[sim.faults]]\nkind = \"unplugged\"\nchannel = \"mic4\"\nat_s = 0.0\nduration_s = 1000.0\n";
+  Process dash = start_dash(port, {}, "dash");
+  noisemon::test::Chromium browser("http://127.0.0.1:" + std::to_string(port) + "/", temp("chromium-profile"),
+                                   temp("chromium.log"));
+  Process check(spawn({NOISEMON_PATH, "check", "--publish", "--config", config, "--seconds", "1"}, temp("check.out"),
+                      temp("check.err")));
+  ASSERT_EQ(check.wait(static_cast<int>(noisemon::test::allowance_s(60.0))), 1)
+      << slurp(temp("check.out")) << slurp(temp("check.err"));
+  const std::string printed = slurp(temp("check.out"));
+  const char* const read_check = R"JS((() => {
+    const status = document.getElementById('check-status');
+    if (!status) return { rows: [] };  // still loading
+    const rows = [...document.querySelectorAll('#check-rows tr')].slice(1).map((r) => [...r.children].map((c) => c.textContent));
+    return { rows, status: status.textContent };
+  })())JS";
+  json page;
+  ASSERT_TRUE(eventually(noisemon::test::allowance_s(10.0),
+                         [&] { return !(page = browser.evaluate(read_check))["rows"].empty(); }))
+      << page.dump() << slurp(temp("dash.err"));
+  int failed_rows = 0;
+  for (const auto& row : page["rows"]) {  // item, value, verdict: each as the terminal printed that row
+    const std::string item = row[0], value = row[1], verdict = row[2];
+    std::istringstream lines(printed);
+    std::string line, match;
+    while (std::getline(lines, line))
+      if (line.rfind(item + " ", 0) == 0) match = line;
+    EXPECT_NE(match.find(value), std::string::npos) << item << ": " << match;
+    EXPECT_NE(match.find(verdict), std::string::npos) << item << ": " << match;
+    failed_rows += verdict.rfind("FAIL", 0) == 0 ? 1 : 0;
+    EXPECT_EQ(verdict.rfind("FAIL", 0) == 0, item == "microphone 4") << item << ": " << verdict;
+  }
+  EXPECT_EQ(failed_rows, 1);
+  EXPECT_NE(page["status"].get<std::string>().find("1 problems: fix them before the test"), std::string::npos)
+      << page["status"];
+  const auto metrics = parse_metrics(http_get(port, "/metrics"));
+  EXPECT_EQ(metrics.at("noisemon_check_problems{cell=\"\"}"), 1.0);
+  EXPECT_EQ(metrics.at("noisemon_check_failed{cell=\"\",item=\"microphone 4\"}"), 1.0);
+  EXPECT_EQ(metrics.at("noisemon_check_failed{cell=\"\",item=\"microphone 3\"}"), 0.0);
+  EXPECT_EQ(dash.stop(), 0);
+}
