@@ -1,19 +1,19 @@
 #!/usr/bin/env bash
 # clang-tidy with the checks of .clang-tidy over the project's sources a change touched: the .cpp files of cli,
 # daemon, drivers, model and dsp changed by the commits after BASE, newest commit first, and the .cpp beside each
-# changed header (a header is checked through the files that include it); at most MAX files (about 6 s each).
+# changed header (a header is checked through the files that include it); at most MAX files (6-15 s each).
 #
 #   run_clang_tidy.sh SOURCE_DIR BUILD_DIR [BASE [MAX]]
 #
-# BASE: a commit (default HEAD~10), or "all" for every file (about as long as a build). MAX: default 16 (a
-# minute or two on two cores: the suite's share). BUILD_DIR must hold compile_commands.json
-# (CMAKE_EXPORT_COMPILE_COMMANDS is on). Exit 0 clean, 1 with the findings, 77 (skipped) without clang-tidy or git
+# BASE: a commit (default HEAD~10), or "all" for every file (about as long as a build). MAX: default 8 (about a
+# minute on two cores: the suite's share; 16 took two minutes of both cores, a sixth of the suite's CPU).
+# BUILD_DIR must hold compile_commands.json (CMAKE_EXPORT_COMPILE_COMMANDS is on). Exit 0 clean, 1 with the findings, 77 (skipped) without clang-tidy or git
 # history: a failure under CI for want of clang-tidy, which scripts/install-deps.sh installs.
 set -euo pipefail
 src="$(cd "$1" && pwd)"
 build="$2"
 base="${3:-HEAD~10}"
-max="${4:-16}"
+max="${4:-8}"
 source "$(dirname "${BASH_SOURCE[0]}")/../support/under_ci.sh"
 
 if ! command -v clang-tidy >/dev/null; then

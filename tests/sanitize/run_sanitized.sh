@@ -38,7 +38,7 @@ cmake -S "$src" -B "$build" -G Ninja "${compilers[@]}" -DCMAKE_BUILD_TYPE=RelWit
   -DCMAKE_CXX_FLAGS_RELWITHDEBINFO="-O1 -g1" -DNOISEMON_SANITIZE="$sanitize" -DNOISEMON_BUILD_BENCHMARKS=OFF \
   -DNOISEMON_TOOL_PATH="$tool" >/dev/null
 # shellcheck disable=SC2086
-cmake --build "$build" -j "$jobs" --target $targets
+cmake --build "$build" --target $targets  # ninja's own job count, as the main build
 built=$(date +%s)
 
 export ASAN_OPTIONS="abort_on_error=1:detect_leaks=1:strict_string_checks=1:detect_stack_use_after_return=1"
