@@ -38,12 +38,17 @@ std::vector<double>& sensitivities(daemon::Config& c) {
   return c.microphones == "alsa" ? c.alsa.sensitivity_mv_per_pa : c.comedi.mics.sensitivity_mv_per_pa;
 }
 
+// --mic N names one of the `count` microphones (0-based `mic`), checked before anything is captured.
+void require_microphone(std::size_t mic, std::size_t count) {
+  if (mic >= count)
+    throw std::invalid_argument("calibrate: --mic " + std::to_string(mic + 1) + ", but the configuration has " +
+                                std::to_string(count) + " microphones");
+}
+
 // `seconds` of microphone `mic` (0-based) at 40 kHz, after the source's start has settled.
 std::vector<double> record_microphone(const daemon::Config& config, std::size_t mic, double seconds) {
   CapturedStreams streams = capture_streams(config, seconds, kSettleS);
-  if (mic >= streams.mics.size())
-    throw std::invalid_argument("calibrate: --mic " + std::to_string(mic + 1) + ", but the configuration has " +
-                                std::to_string(streams.mics.size()) + " microphones");
+  require_microphone(mic, streams.mics.size());
   if (streams.mic_gaps > 0)
     std::fprintf(stderr, "calibrate: %zu gaps in the stream (overruns); measured after the last\n", streams.mic_gaps);
   return std::move(streams.mics[mic]);
@@ -130,6 +135,7 @@ int CalibrateCommand::run() {
   daemon::Config config = daemon::load_config(config_path_);
   const std::string table = mic_table(config);
   const auto index = static_cast<std::size_t>(mic_ - 1);
+  require_microphone(index, sensitivities(config).size());
   std::fprintf(stderr, "calibrate: measuring microphone %d for %.0f s (%s)\n", mic_, seconds_, table.c_str());
   const std::vector<double> pa = record_microphone(config, index, seconds_);
   const dsp::ToneMeasurement tone = dsp::measure_tone(pa, drivers::kPipelineRateHz, freq_hz_);

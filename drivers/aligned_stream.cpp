@@ -30,7 +30,10 @@ ClockTracker::Options tracker_options(const AlignedStreamAssembler::Options& o) 
   return t;
 }
 
-double host_sigma_s(double read_period_s) { return read_period_s / std::sqrt(12.0) + 2e-4; }
+// How well one reading of the monotonic clock places the scans it follows: uniform over a read period (when in the
+// period the driver woke), plus the scheduler's wake-up latency on a loaded machine.
+constexpr double kWakeLatencyS = 2e-4;
+double host_sigma_s(double read_period_s) { return read_period_s / std::sqrt(12.0) + kWakeLatencyS; }
 
 }  // namespace
 

@@ -44,9 +44,9 @@ class AlignedStreamAssembler {
     double host_delay_uncertainty_s = 1e-3;     // how well the transport's delay (USB, the driver) is known
     double ppm_limit = 300.0;                   // how far a crystal may be off its nominal rate
   };
-  static constexpr double kSyncLossSeconds = 2.0;     // no matched pulse for this long: back to the host reference
-  static constexpr int kLockPulses = 4;               // pulses that agree before the sync reference is trusted
-  static constexpr std::int64_t kSettleFrames = 400;  // output dropped after a (re)start: the filter's warm-up
+  static constexpr double kSyncLossSeconds = 2.0;  // no matched pulse for this long: back to the host reference
+  static constexpr int kLockPulses = 4;            // pulses that agree before the sync reference is trusted
+  static constexpr std::int64_t kSettleFrames = dsp::kResamplerSettleFrames;  // output dropped after a (re)start
 
   explicit AlignedStreamAssembler(const Options& options);
 

@@ -28,7 +28,7 @@ class TimedStreamAssembler {
   std::uint64_t blocks_written() const { return writer_.blocks_written(); }
 
   // Output frames dropped after each (re)start: the resampler's filter starts from silence.
-  static constexpr std::int64_t kSettleFrames = 400;
+  static constexpr std::int64_t kSettleFrames = dsp::kResamplerSettleFrames;
 
  private:
   void run_batch(BlockRing& ring);

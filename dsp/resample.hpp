@@ -12,6 +12,10 @@
 
 namespace noisemon::dsp {
 
+// Output frames (40 kHz) dropped after a resampler starts from silence, either kind: its filter's warm-up (10 ms,
+// longer than both kernels reach).
+inline constexpr std::int64_t kResamplerSettleFrames = 400;
+
 // The arithmetic of a resampler's filter. kSingle suits samples that are single precision already (float WAVs,
 // ADC words: 24 bits hold them) at twice the speed; its rounding, ~1e-7 of the signal, is not a pure gain.
 enum class SamplePrecision { kDouble, kSingle };

@@ -163,8 +163,12 @@ TEST(Noisemond, MicrophonesFromAnAudioInterfaceCarryItsLevelToEveryCycle) {
                                      "[alsa]\npcm = \"cell\"\nconfig_file = \"cell.asoundrc\"\nrate_hz = 48000\n"
                                      "channels = [0, 1, 2, 3, 4, 5, 6, 7, 8, 11]\nsensitivity_mv_per_pa = 50.0\n"
                                      "full_scale_v = 1.0\nperiod_frames = 480\nperiods = 100\n");
-  EXPECT_EQ(run({kNoisemond, "--config", cfg, "--lcm", "memq://", "--cycles", "20", "--live"}, dir + "/alsa.out",
-                dir + "/alsa.err", allowance(kStartUp + 5s)),
+  // The interface's clock is real time: under a sanitizer on a loaded machine the daemon cannot keep its pace and
+  // overruns, as a real one would (a ThreadSanitizer run published 12 cycles in 390 s beside two busy loops). Its
+  // threads are what that build checks: a few cycles show them at work.
+  const int wanted = noisemon::test::kSanitized ? 4 : 20;
+  EXPECT_EQ(run({kNoisemond, "--config", cfg, "--lcm", "memq://", "--cycles", std::to_string(wanted), "--live"},
+                dir + "/alsa.out", dir + "/alsa.err", allowance(kStartUp + 5s)),
             0)
       << noisemon::test::slurp(dir + "/alsa.err");
   std::istringstream out(noisemon::test::slurp(dir + "/alsa.out"));
@@ -180,8 +184,8 @@ TEST(Noisemond, MicrophonesFromAnAudioInterfaceCarryItsLevelToEveryCycle) {
     ++checked;
     EXPECT_NEAR(measured, 96.99, 0.1) << line;
   }
-  EXPECT_EQ(cycles, 20) << noisemon::test::slurp(dir + "/alsa.out");
-  EXPECT_EQ(checked, 19) << noisemon::test::slurp(dir + "/alsa.out");
+  EXPECT_EQ(cycles, wanted) << noisemon::test::slurp(dir + "/alsa.out");
+  EXPECT_EQ(checked, wanted - 1) << noisemon::test::slurp(dir + "/alsa.out");
   EXPECT_NE(noisemon::test::slurp(dir + "/alsa.err").find("microphones from alsa"), std::string::npos);
 }
 
