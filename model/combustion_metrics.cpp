@@ -204,7 +204,7 @@ void check(std::span<const double> p, double step, const EngineGeometry& e, cons
   if (!(step > 0) || !(step <= 2.0))
     throw std::invalid_argument("crank-angle step must be in (0, 2] deg, got " + std::to_string(step));
   const int half = static_cast<int>(std::lround(o.derivative_half_width_deg / step));
-  if (p.size() < static_cast<std::size_t>(2 * std::max(half, 1) + 3))
+  if (p.size() < 2 * static_cast<std::size_t>(std::max(half, 1)) + 3)
     throw std::invalid_argument("a cycle of " + std::to_string(p.size()) + " samples is too short for the metrics");
   if (!(o.gamma > 1)) throw std::invalid_argument("gamma must be above 1");
 }

@@ -40,7 +40,7 @@ else
 fi
 files=()
 for f in "${changed[@]}"; do
-  cpp="${f%.hpp}.cpp"
+  cpp="${f%.*}.cpp"  # a changed .cpp, or the .cpp beside a changed header
   [ -f "$cpp" ] && grep -qF "\"$src/$cpp\"" "$work/compile_commands.json" && files+=("$cpp")
 done
 # The first MAX distinct files, in the order of the log (newest change first).
