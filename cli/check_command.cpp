@@ -13,6 +13,7 @@
 #include <string>
 #include <vector>
 
+#include "cli/lcm_loop.hpp"
 #include "cli/source_capture.hpp"
 #include "daemon/config.hpp"
 #include "dsp/levels.hpp"
@@ -168,7 +169,7 @@ std::vector<Row> driver_rows(const CapturedStreams& s, bool can_configured, bool
 }
 
 // The table on LCM for the dashboard: the rows as printed.
-void publish_table(const std::vector<Row>& rows, const std::string& summary, const daemon::Config& config,
+void publish_table(const std::vector<Row>& rows, int problems, const std::string& summary, const daemon::Config& config,
                    double seconds) {
   noisemon::check_t m{};
   m.utime = std::chrono::duration_cast<std::chrono::microseconds>(std::chrono::system_clock::now().time_since_epoch())
@@ -180,16 +181,13 @@ void publish_table(const std::vector<Row>& rows, const std::string& summary, con
     m.value.push_back(r.value);
     m.verdict.push_back(r.verdict);
     m.failed.push_back(r.failed);
-    m.problems += r.failed ? 1 : 0;
   }
+  m.problems = problems;
   m.nrows = static_cast<std::int32_t>(rows.size());
   m.summary = summary;
   ::lcm::LCM bus(config.lcm.url);
   if (!bus.good() || bus.publish(config.lcm.check_channel, &m) != 0)
-    throw std::runtime_error(
-        "--publish: cannot publish on LCM at '" +
-        (config.lcm.url.empty() ? std::string("default URL") : config.lcm.url) +
-        "': the network needs a multicast route (docs/sources-and-formats.md, 'LCM and multicast')");
+    throw std::runtime_error("--publish: " + lcm_open_error(config.lcm.url));
 }
 
 }  // namespace
@@ -224,7 +222,7 @@ int CheckCommand::run() {
       failed ? std::to_string(failed) + " problems: fix them before the test" : "the measurement chain is ready";
   std::printf("%s\n", summary.c_str());
   std::fflush(stdout);
-  if (publish_) publish_table(rows, summary, config, seconds_);
+  if (publish_) publish_table(rows, failed, summary, config, seconds_);
   return failed ? 1 : 0;
 }
 

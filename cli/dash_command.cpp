@@ -60,10 +60,7 @@ int DashCommand::run() {
   }
   lcm::LCM lcm(config.lcm.url);
   if (!lcm.good()) {
-    std::fprintf(stderr,
-                 "noisemon dash: cannot open LCM at '%s': the network needs a multicast route (see "
-                 "docs/sources-and-formats.md, 'LCM and multicast')\n",
-                 config.lcm.url.empty() ? "default URL" : config.lcm.url.c_str());
+    std::fprintf(stderr, "noisemon dash: %s\n", lcm_open_error(config.lcm.url).c_str());
     return 1;
   }
   DashState state(config.lcm.cell, static_cast<std::size_t>(history_), linear_reference_json());

@@ -187,10 +187,7 @@ int GapwatchCommand::run() {
     std::unique_ptr<lcm::LCM> lcm;
     if (live || publish_) {
       lcm = std::make_unique<lcm::LCM>(config.lcm.url);
-      if (!lcm->good())
-        throw std::runtime_error(
-            "cannot open LCM at '" + (config.lcm.url.empty() ? std::string("default URL") : config.lcm.url) +
-            "': the network needs a multicast route (docs/sources-and-formats.md, 'LCM and multicast')");
+      if (!lcm->good()) throw std::runtime_error(lcm_open_error(config.lcm.url));
     }
     std::int64_t utime = 0, events = 0;
     watch.on_event = [&](const model::diagnosis::GapEvent& e) {

@@ -1,5 +1,5 @@
-// What the `noisemon` commands that listen on LCM share: a callable as LCM's member-function handler, and the loop
-// that handles messages until SIGINT or SIGTERM.
+// What the `noisemon` commands that use LCM share: a callable as LCM's member-function handler, the loop that
+// handles messages until SIGINT or SIGTERM, and what to say when the bus cannot be opened.
 #pragma once
 
 #include <poll.h>
@@ -17,6 +17,12 @@ struct LcmHandler {
   std::function<void(const Message&)> fn;
   void on(const lcm::ReceiveBuffer*, const std::string&, const Message* m) { fn(*m); }
 };
+
+// "cannot open LCM at 'URL': ..." for an LCM whose good() is false (url empty: LCM's default).
+inline std::string lcm_open_error(const std::string& url) {
+  return "cannot open LCM at '" + (url.empty() ? std::string("default URL") : url) +
+         "': the network needs a multicast route (docs/sources-and-formats.md, 'LCM and multicast')";
+}
 
 namespace lcm_loop_detail {
 inline volatile std::sig_atomic_t stop = 0;

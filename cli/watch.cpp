@@ -1,4 +1,5 @@
 #include "cli/watch.hpp"
+#include "cli/lcm_loop.hpp"
 
 #include <poll.h>
 
@@ -82,10 +83,7 @@ void print_status(const noisemon::status_t& s) {
 int run_watch(const WatchOptions& o) {
   lcm::LCM lcm(o.lcm_url);
   if (!lcm.good()) {
-    std::fprintf(stderr,
-                 "noisemon watch: cannot open LCM at '%s': the network needs a multicast route (see "
-                 "docs/sources-and-formats.md, 'LCM and multicast')\n",
-                 o.lcm_url.empty() ? "default URL" : o.lcm_url.c_str());
+    std::fprintf(stderr, "noisemon watch: %s\n", lcm_open_error(o.lcm_url).c_str());
     return 1;
   }
   std::ofstream csv;
