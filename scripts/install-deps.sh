@@ -7,7 +7,7 @@ packages=(
   liblcm-dev liblcm-bin liblcm-java libglib2.0-dev default-jdk-headless
   libcomedi-dev libasound2-dev libsystemd-dev libsndfile1-dev nlohmann-json3-dev libceres-dev libhdf5-dev
   clang libclang-rt-14-dev clang-tidy clang-format
-  libgtest-dev libgmock-dev libbenchmark-dev
+  libgtest-dev libgmock-dev libbenchmark-dev libfftw3-dev
   iproute2 util-linux python3 python3-canmatrix python3-h5py python3-numpy python3-scipy systemd
   libcpp-httplib-dev chromium libjchart2d-java
 )

@@ -1,11 +1,12 @@
 #!/usr/bin/env bash
-# Builds the libFuzzer targets of tests/fuzz in their own clang build and runs each for a bounded time over
-# its seed corpus; fails on any crash, leak, timeout or out-of-memory. The suite's `fuzz_smoke` test runs it
-# with the defaults; run it by hand for longer sessions:
+# Builds the libFuzzer targets of tests/fuzz in the AddressSanitizer tree (clang; tests/sanitize/configure_sanitized.sh)
+# and runs each for a bounded time over its seed corpus; fails on any crash, leak, timeout or out-of-memory. The
+# sanitize_address stage runs it for 5 s a target after its unit tests; run it by hand for longer sessions:
 #
 #   tests/fuzz/run_fuzzers.sh [--build-dir DIR] [--seconds N] [--jobs N] [TARGET...]
 #
-#   --build-dir DIR  clang build directory (default: build/fuzz); corpora, crash artifacts and logs stay in it
+#   --build-dir DIR  the AddressSanitizer tree (default: build/sanitize-address); corpora, crash artifacts and logs
+#                    stay in it
 #   --seconds N      fuzzing time per target (default 15)
 #   --jobs N         targets fuzzed at once, also the build's -j (default 2)
 #   TARGET           targets to run, `candump` or `fuzz_candump` (default: every target, as listed in DIR/fuzz_targets.txt)
@@ -14,7 +15,7 @@
 # Exit status: 0 clean, 1 a finding or a build failure, 77 no clang here (a skip; a failure when CI is set).
 set -euo pipefail
 src="$(cd "$(dirname "${BASH_SOURCE[0]}")/../.." && pwd)"
-build="$src/build/fuzz"
+build="$src/build/sanitize-address"
 seconds=15
 jobs=2
 targets=()
@@ -23,7 +24,7 @@ while [ $# -gt 0 ]; do
     --build-dir) build="$2"; shift 2 ;;
     --seconds) seconds="$2"; shift 2 ;;
     --jobs) jobs="$2"; shift 2 ;;
-    -h|--help) sed -n '2,14p' "${BASH_SOURCE[0]}" | sed 's/^# \{0,1\}//'; exit 0 ;;
+    -h|--help) sed -n '2,15p' "${BASH_SOURCE[0]}" | sed 's/^# \{0,1\}//'; exit 0 ;;
     -*) echo "run_fuzzers.sh: unknown option $1 (see --help)" >&2; exit 2 ;;
     *) targets+=("fuzz_${1#fuzz_}"); shift ;;
   esac
@@ -39,23 +40,19 @@ missing_clang() {
   if under_ci; then exit 1; fi
   exit 77
 }
-cxx="${NOISEMON_FUZZ_CXX:-}"
-if [ -z "$cxx" ]; then
-  for c in clang++-14 clang++; do
-    if command -v "$c" >/dev/null; then cxx="$c"; break; fi
-  done
-fi
-[ -n "$cxx" ] && command -v "$cxx" >/dev/null || missing_clang "no clang++ found"
-cc="${cxx/clang++/clang}"
-command -v "$cc" >/dev/null || missing_clang "no $cc beside $cxx"
+cxx=""
+for c in clang++-14 clang++; do  # configure_sanitized.sh's choice
+  if command -v "$c" >/dev/null; then cxx="$c"; break; fi
+done
+[ -n "$cxx" ] || missing_clang "no clang++ found"
+command -v "${cxx/clang++/clang}" >/dev/null || missing_clang "no ${cxx/clang++/clang} beside $cxx"
 runtime="$("$cxx" -print-resource-dir)/lib/linux/libclang_rt.fuzzer-x86_64.a"
 [ -f "$runtime" ] || missing_clang "$cxx has no libFuzzer runtime ($runtime)"
 
-# Configure (cheap when nothing changed) and build only the fuzz targets. Debug keeps assert() on; the fuzz
-# code itself is compiled at -O1 (tests/fuzz/CMakeLists.txt).
+# Configure (cheap when nothing changed: the sanitize_address stage configured it the same way) and build the fuzz
+# targets.
 start=$SECONDS
-cmake -S "$src" -B "$build" -G Ninja -DCMAKE_BUILD_TYPE=Debug -DCMAKE_C_COMPILER="$cc" -DCMAKE_CXX_COMPILER="$cxx" \
-  -DNOISEMON_FUZZ=ON -DNOISEMON_BUILD_TESTS=OFF -DNOISEMON_BUILD_BENCHMARKS=OFF >"$build/configure.log" 2>&1 ||
+bash "$src/tests/sanitize/configure_sanitized.sh" address "$build" >"$build/configure.log" 2>&1 ||
   { cat "$build/configure.log" >&2; echo "fuzz: configuring $build failed" >&2; exit 1; }
 cmake --build "$build" --target fuzzers -j "$jobs" >"$build/build.log" 2>&1 ||
   { tail -n 60 "$build/build.log" >&2; echo "fuzz: building the fuzz targets failed (full log: $build/build.log)" >&2; exit 1; }
