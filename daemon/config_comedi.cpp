@@ -62,6 +62,7 @@ void read_comedi_pressure(TableReader& r, const std::string& origin, drivers::co
   pr.number("sensitivity_mv_per_bar", p.sensitivity_mv_per_bar, 0, 1e6);
   pr.number("sensitivity_pc_per_bar", p.sensitivity_pc_per_bar, 0, 1e6);
   pr.number("amplifier_mv_per_pc", p.amplifier_mv_per_pc, 0, 1e6);
+  pr.number("offset_bar", p.offset_bar, -100, 100);
   pr.number("peg_pa", p.peg_pa, 0, 1e8);
   pr.number("peg_angle_deg", p.peg_angle_deg, -360, 360);
   read_int(pr, "cam_channel", p.cam_channel, -1, 65535);

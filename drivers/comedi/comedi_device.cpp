@@ -293,7 +293,7 @@ ComediDevice::ComediDevice(ComediAcquisitionConfig config) : config_(std::move(c
                                                                     COMEDI_TO_PHYSICAL, calibration, &poly) == 0;
       if (soft) {
         conversions_.push_back(
-            polynomial_conversion(poly.coefficients, poly.order, poly.expansion_origin, ch.si_per_volt));
+            polynomial_conversion(poly.coefficients, poly.order, poly.expansion_origin, ch.si_per_volt, ch.si_offset));
         continue;
       }
       const comedi_range* range = comedi_get_range(dev_, subdevice_, ch.channel, ch.range);
@@ -303,7 +303,7 @@ ComediDevice::ComediDevice(ComediAcquisitionConfig config) : config_(std::move(c
         throw std::runtime_error("invalid channel " + std::to_string(ch.channel) + " range " +
                                  std::to_string(ch.range) + " on " + where(config_.device_path, subdevice_));
       }
-      conversions_.push_back(linear_conversion(range->min, range->max, maxdata, ch.si_per_volt));
+      conversions_.push_back(linear_conversion(range->min, range->max, maxdata, ch.si_per_volt, ch.si_offset));
     }
     if (calibration) comedi_cleanup_calibration(calibration);
     chanlist_ = pack_channel_list(config_.channels);

@@ -80,6 +80,7 @@ struct ComediChannelConfig {
   unsigned range = 0;
   unsigned aref = AREF_GROUND;
   double si_per_volt = 1.0;  // from microphone_pa_per_volt / pressure_pa_per_volt / charge_pressure_pa_per_volt
+  double si_offset = 0.0;    // SI subtracted after the conversion (the pressure chain's zero, offset_bar)
   bool raw_counts = false;   // counter channels: deliver the raw count (no range, no calibration)
   int counter_mode = -1;     // >= 0: comedi_set_counter_mode bits applied before the command (card-specific)
 };

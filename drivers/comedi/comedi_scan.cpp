@@ -28,7 +28,8 @@ double charge_pressure_pa_per_volt(double pc_per_bar, double amplifier_mv_per_pc
   return 1e3 * 1e5 / (amplifier_mv_per_pc * pc_per_bar);
 }
 
-ChannelConversion linear_conversion(double range_min, double range_max, std::uint32_t maxdata, double si_per_volt) {
+ChannelConversion linear_conversion(double range_min, double range_max, std::uint32_t maxdata, double si_per_volt,
+                                    double si_offset) {
   if (maxdata == 0 || !(range_max > range_min)) throw std::invalid_argument("invalid comedi range");
   ChannelConversion c;
   c.kind = ChannelConversion::Kind::kLinear;
@@ -36,11 +37,12 @@ ChannelConversion linear_conversion(double range_min, double range_max, std::uin
   c.range_max = range_max;
   c.maxdata = static_cast<double>(maxdata);
   c.si_per_volt = si_per_volt;
+  c.si_offset = si_offset;
   return c;
 }
 
 ChannelConversion polynomial_conversion(const double* coefficients, unsigned order, double expansion_origin,
-                                        double si_per_volt) {
+                                        double si_per_volt, double si_offset) {
   if (order >= ChannelConversion::kMaxCoefficients) throw std::invalid_argument("polynomial order too high");
   ChannelConversion c;
   c.kind = ChannelConversion::Kind::kPolynomial;
@@ -48,6 +50,7 @@ ChannelConversion polynomial_conversion(const double* coefficients, unsigned ord
   c.order = order;
   c.expansion_origin = expansion_origin;
   c.si_per_volt = si_per_volt;
+  c.si_offset = si_offset;
   return c;
 }
 

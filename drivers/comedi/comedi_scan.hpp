@@ -4,7 +4,7 @@
 // (sampl_t) or 4 bytes (lsampl_t, subdevice flag SDF_LSAMPL), one scan = one sample per channel in channel-list
 // order. read() may split samples and scans anywhere; the decoder keeps the partial scan between feeds.
 // Conversion: raw -> volts with the card's calibration (comedi_to_phys linear range or comedi_to_physical
-// polynomial), then volts -> SI (Pa) with the sensor chain's sensitivity.
+// polynomial), then volts -> SI (Pa) with the sensor chain's sensitivity, less the chain's zero offset (SI).
 #pragma once
 
 #include <algorithm>
@@ -40,6 +40,9 @@ struct ChannelConversion {
   double expansion_origin = 0.0;
   unsigned order = 0;
   double si_per_volt = 1.0;
+  // The chain's zero error, SI, subtracted after the conversion (a voltage-output pressure chain's offset_bar:
+  // what it reads above the reference at ambient).
+  double si_offset = 0.0;
 
   double to_volts(std::uint32_t raw) const {
     const double x = static_cast<double>(raw);
@@ -49,12 +52,13 @@ struct ChannelConversion {
     for (unsigned i = order + 1; i-- > 0;) sum = sum * dx + coefficients[i];  // Horner
     return sum;
   }
-  double to_si(std::uint32_t raw) const { return to_volts(raw) * si_per_volt; }
+  double to_si(std::uint32_t raw) const { return to_volts(raw) * si_per_volt - si_offset; }
 };
 
-ChannelConversion linear_conversion(double range_min, double range_max, std::uint32_t maxdata, double si_per_volt);
+ChannelConversion linear_conversion(double range_min, double range_max, std::uint32_t maxdata, double si_per_volt,
+                                    double si_offset = 0.0);
 ChannelConversion polynomial_conversion(const double* coefficients, unsigned order, double expansion_origin,
-                                        double si_per_volt);
+                                        double si_per_volt, double si_offset = 0.0);
 
 class ScanDecoder {
  public:

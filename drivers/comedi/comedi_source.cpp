@@ -57,6 +57,10 @@ double pressure_si_per_volt(const ComediSourceConfig::Pressure& p) {
         "comedi.pressure: set either sensitivity_mv_per_bar (voltage-output chain) or sensitivity_pc_per_bar and "
         "amplifier_mv_per_pc (charge-output transducer and charge amplifier)");
   if (voltage) return pressure_pa_per_volt(p.sensitivity_mv_per_bar);
+  if (p.offset_bar != 0.0)
+    throw std::invalid_argument(
+        "comedi.pressure: offset_bar applies to a voltage-output chain; a charge amplifier has no absolute zero (it "
+        "drifts): reference each cycle by pegging instead (peg_pa)");
   if (!(p.sensitivity_pc_per_bar > 0.0 && p.amplifier_mv_per_pc > 0.0))
     throw std::invalid_argument(
         "comedi.pressure: a charge chain needs both sensitivity_pc_per_bar and amplifier_mv_per_pc");
@@ -404,6 +408,7 @@ ComediAcquisitionConfig pressure_acquisition(const ComediSourceConfig& c) {
   p.wake_every_scan = c.pressure.wake_every_scan;
   ComediChannelConfig pc = c.pressure.channel;
   pc.si_per_volt = pressure_si_per_volt(c.pressure);
+  pc.si_offset = 1e5 * c.pressure.offset_bar;
   p.channels.push_back(pc);
   if (c.pressure.cam_channel >= 0)
     p.channels.push_back({.channel = static_cast<unsigned>(c.pressure.cam_channel),

@@ -45,7 +45,9 @@ struct ComediSourceConfig {
     double sensitivity_mv_per_bar = 0.0;  // voltage-output chain; or:
     double sensitivity_pc_per_bar = 0.0;  // charge-output transducer ...
     double amplifier_mv_per_pc = 0.0;     // ... behind a charge amplifier of this gain
-    int cam_channel = -1;                 // analog channel of the cam sensor (V), scanned after the pressure; -1: none
+    double offset_bar = 0.0;  // voltage-output chain: its zero error, subtracted after the conversion (what it reads
+                              // above the reference at ambient; `noisemon calibrate --pressure` sets it)
+    int cam_channel = -1;     // analog channel of the cam sensor (V), scanned after the pressure; -1: none
     unsigned cam_range = 0;
     unsigned cam_aref = AREF_GROUND;
     double peg_pa = 0.0;  // > 0: relative sensor, pegged to this pressure at peg_angle_deg every cycle

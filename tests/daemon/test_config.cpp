@@ -140,6 +140,13 @@ TEST(Config, ComediAndCanErrorsNameFileAndKey) {
             std::string::npos);
   EXPECT_NE(error_of("[comedi.encoder]\nmax_rpm = -1\n").find("comedi.encoder.max_rpm"), std::string::npos);
   EXPECT_NE(
+      error_of("[comedi.pressure]\noffset_bar = 250.0\n").find("comedi.pressure.offset_bar: value 250 out of range"),
+      std::string::npos);
+  EXPECT_NE(error_of("[comedi.pressure]\noffset_bar = \"0.4\"\n").find("comedi.pressure.offset_bar: expected a number"),
+            std::string::npos);
+  EXPECT_DOUBLE_EQ(
+      noisemon::daemon::parse_config("[comedi.pressure]\noffset_bar = -0.25\n", "t").comedi.pressure.offset_bar, -0.25);
+  EXPECT_NE(
       error_of("[comedi.encoder]\ntimestamp_bits = 48\n").find("comedi.encoder.timestamp_bits: value 48 out of range"),
       std::string::npos);
   EXPECT_NE(error_of("[comedi.mics]\nchannels = [0, 1]\nsensitivity_mv_per_pa = [50.0]\n")

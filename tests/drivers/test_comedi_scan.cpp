@@ -72,6 +72,27 @@ TEST(ComediScan, Linear32BitHandValues) {
   EXPECT_NEAR(v[2], 5e7, 1e-6);
 }
 
+TEST(ComediScan, PressureOffsetIsSubtractedInBarAfterTheConversion) {
+  // 12-bit card, range [-5, 5] V, maxdata 4095: codes 819, 2457, 2048 are -3 V, +1 V and 5 / 4095 V.
+  // Voltage-output transducer at 20 mV/bar (50 bar/V) reading 0.37 bar high: +1 V is 50 bar on the scale, 49.63 bar
+  // true; -3 V is -150.37 bar; 5 / 4095 V is 0.0610500 bar on the scale, -0.3089500 bar true.
+  nd::comedi::ScanDecoder d(nd::comedi::SampleWidth::k16Bit,
+                            {nd::comedi::linear_conversion(-5, 5, 4095, nd::comedi::pressure_pa_per_volt(20), 0.37e5)});
+  const auto v = decode_all(d, bytes_of(std::vector<std::uint16_t>{2457, 819, 2048}));
+  ASSERT_EQ(v.size(), 3u);
+  EXPECT_NEAR(v[0], 49.63e5, 1e-6);
+  EXPECT_NEAR(v[1], -150.37e5, 1e-6);
+  EXPECT_NEAR(v[2], (50.0 * 5.0 / 4095.0 - 0.37) * 1e5, 1e-6);
+  // The soft calibration's polynomial takes the same offset: 0.5 + 1e-3 x at x = 1000 is 1.5 V = 75 bar - 0.37.
+  const double c[] = {0.5, 1e-3};
+  nd::comedi::ScanDecoder p(
+      nd::comedi::SampleWidth::k16Bit,
+      {nd::comedi::polynomial_conversion(c, 1, 32768.0, nd::comedi::pressure_pa_per_volt(20), 0.37e5)});
+  const auto w = decode_all(p, bytes_of(std::vector<std::uint16_t>{33768}));
+  ASSERT_EQ(w.size(), 1u);
+  EXPECT_NEAR(w[0], 74.63e5, 1e-6);
+}
+
 TEST(ComediScan, PolynomialHandValues) {
   // Soft calibration 0.5 + 1e-3 x + 1e-8 x^2 with x = raw - 32768: raw 33768 -> 1.51 V, 31768 -> -0.49 V.
   // Piezo 2 pC/bar behind a 10 mV/pC charge amplifier: 1.51 V -> 151 pC -> 75.5 bar.

@@ -323,6 +323,15 @@ TEST(ComediSource, ConfigurationErrorsNameTheField) {
   c = source_config(EngineSetup{});
   c.phase = nd::comedi::PhaseSource::kCam;
   EXPECT_NE(error(c).find("cam_channel"), std::string::npos);
+  c = source_config(EngineSetup{});
+  c.pressure.offset_bar = 0.37;  // a charge chain has no absolute zero
+  EXPECT_NE(error(c).find("comedi.pressure: offset_bar applies to a voltage-output chain"), std::string::npos)
+      << error(c);
+  c = source_config(EngineSetup{});
+  c.pressure.sensitivity_pc_per_bar = c.pressure.amplifier_mv_per_pc = 0.0;
+  c.pressure.sensitivity_mv_per_bar = 20.0;
+  c.pressure.offset_bar = 0.37;
+  EXPECT_DOUBLE_EQ(nd::comedi::comedi_acquisitions(c)[0].channels[0].si_offset, 0.37e5);  // in Pa, as the scan's SI
   // The acquisitions built from a good configuration: channel lists and clocks as wired.
   const auto a = nd::comedi::comedi_acquisitions(source_config(EngineSetup{.cam = true}));
   ASSERT_EQ(a.size(), 3u);
