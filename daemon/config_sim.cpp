@@ -19,6 +19,8 @@ void read_sim_cell(TableReader& sr, drivers::sim::SimConfig& s) {
   sr.number("pressure_adc_max_bar", p.adc_max_bar, -1e3, 1e4);
   if (p.adc_bits > 0 && !(p.adc_max_bar > p.adc_min_bar))
     sr.fail("pressure_adc_max_bar", "must be above pressure_adc_min_bar");
+  sr.number("pressure_offset_bar", p.offset_bar, -100, 100);
+  sr.number("pressure_gain_error", p.gain_error, -0.49, 0.49);
   auto& m = s.mic_chain;
   sr.number("mic_self_noise_dba", m.self_noise_dba, -kInf, 120);
   sr.number("mic_directivity_db", m.directivity_db, 0, 6);
@@ -143,6 +145,8 @@ void read_sim(TableReader& top, const std::string& origin, drivers::sim::SimConf
   sr.number("full_load_nm", s.full_load_nm, 1e-3, 1e4);
   sr.number("soi_deg_btdc", s.soi_deg_btdc, -30, 60);
   sr.boolean("motored", s.motored);
+  sr.boolean("stopped", s.stopped);
+  sr.number("static_pressure_bar", s.static_pressure_bar, 0, 1000);
   sr.number("speed_fluctuation", s.speed_fluctuation, 0, 0.2);
   sr.number("cycle_variation", s.cycle_variation, 0, 0.5);
   sr.number("encoder_resolution_deg", s.encoder_resolution_deg, 0.01, 6);

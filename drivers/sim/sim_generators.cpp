@@ -288,7 +288,7 @@ model::engine::VirtualEngineConfig virtual_engine_config(const SimConfig& config
   double mean = 0.0;
   const int n = 1440;
   for (int i = 0; i < n; ++i) mean += cycle.pressure_pa(-360.0 + 720.0 * i / n);
-  v.mean_pressure_pa = mean / n;
+  v.mean_pressure_pa = config.stopped ? 1e5 * config.static_pressure_bar : mean / n;
   v.speed_rpm = config.speed_rpm;
   v.soi_deg_btdc = config.soi_deg_btdc;
   v.motored = config.motored;
@@ -300,9 +300,19 @@ model::engine::VirtualEngineConfig virtual_engine_config(const SimConfig& config
 
 EngineFeed::EngineFeed(const SimConfig& config, std::shared_ptr<const OperatingProfile> profile, double t0_s,
                        double rate_hz)
-    : kin_(profile->kinematics()), cache_(config, std::move(profile)), t0_(t0_s), rate_(rate_hz) {}
+    : kin_(profile->kinematics()),
+      cache_(config, std::move(profile)),
+      t0_(t0_s),
+      rate_(rate_hz),
+      stopped_(config.stopped),
+      static_pa_(1e5 * config.static_pressure_bar) {}
 
 void EngineFeed::fill(std::int64_t first, double* pressure_pa, double* crank_deg, std::size_t n) {
+  if (stopped_) {
+    std::fill_n(pressure_pa, n, static_pa_);
+    std::fill_n(crank_deg, n, 0.0);
+    return;
+  }
   for (std::size_t i = 0; i < n; ++i) {
     const double t = t0_ + static_cast<double>(first + static_cast<std::int64_t>(i)) / rate_;
     crank_deg[i] = kin_.theta_deg(t);

@@ -125,7 +125,8 @@ class PressureGenerator {
 // config.mic_rate_hz.
 model::engine::VirtualEngineConfig virtual_engine_config(const SimConfig& config, double input_rate_hz);
 
-// The true engine as a model::engine::PressureFeed: cylinder pressure and unwrapped crank angle at t0 + i / rate.
+// The true engine as a model::engine::PressureFeed: cylinder pressure and unwrapped crank angle at t0 + i / rate
+// (an engine at rest: its static pressure, the crank at 0).
 class EngineFeed final : public model::engine::PressureFeed {
  public:
   EngineFeed(const SimConfig& config, std::shared_ptr<const OperatingProfile> profile, double t0_s, double rate_hz);
@@ -135,6 +136,8 @@ class EngineFeed final : public model::engine::PressureFeed {
   model::CrankKinematics kin_;
   EngineCycleCache cache_;
   double t0_, rate_;
+  bool stopped_;
+  double static_pa_;
 };
 
 // Microphones: model::engine::VirtualEngine fed with the true pressure at twice the card rate renders the card-rate

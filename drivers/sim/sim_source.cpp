@@ -14,6 +14,7 @@
 
 #include "drivers/mic_positions.hpp"
 #include "drivers/sim/sim_generators.hpp"
+#include "drivers/sim/sim_stopped.hpp"
 #include "dsp/resample.hpp"
 
 namespace noisemon::drivers::sim {
@@ -53,6 +54,8 @@ void validate(const SimConfig& c) {
   if (!(c.mic_rate_hz >= 8000.0 && c.mic_rate_hz == std::round(c.mic_rate_hz)))
     fail("mic_rate_hz must be a whole number >= 8000");
   if (!(c.mic_gain_spread_db >= 0.0 && c.mic_gain_spread_db <= 6.0)) fail("mic_gain_spread_db must be in [0, 6]");
+  if (!(c.static_pressure_bar >= 0.0 && c.static_pressure_bar <= 1000.0))
+    fail("static_pressure_bar must be in [0, 1000]");
   if (!(c.gas_ringing.gain_s >= 0.0 && c.gas_ringing.gain_s <= 1e-3) ||
       !(c.gas_ringing.decay_s > 0.0 && c.gas_ringing.decay_s <= 0.1))
     fail("gas ringing: gain must be in [0, 1 ms] and decay in (0, 100 ms]");
@@ -104,17 +107,14 @@ class SimSource final : public Source {
     const double t_first = std::ceil(std::max(now_s, 0.0) / sim::kGridAlignS) * sim::kGridAlignS;
     // Generators are built here (allocation happens now, not in the threads), on one operating profile.
     auto profile = std::make_shared<const OperatingProfile>(sim::operating_profile(config_, t_first));
-    auto pressure = std::make_shared<sim::PressureGenerator>(config_, t_first, profile);
-    pressure->set_angle_ring(streams.pressure_angle);
     auto mics = std::make_shared<sim::MicGenerator>(config_, t_first, profile);
     const SimConfig::Threads& policy = config_.threads;
     for (auto& p : progress_) p.store(t_first, std::memory_order_relaxed);
     started_ = true;
-    workers_[0].start("nm-pressure", policy.pressure,
-                      [this, pressure, ring = streams.pressure, t_first](const std::atomic<bool>& stop) {
-                        run_stream(workers_[0], 0, *pressure, *ring, t_first, stop,
-                                   [this, &pressure] { publish_encoder(pressure->encoder_counters()); });
-                      });
+    if (config_.stopped)
+      start_stopped_pressure(streams, t_first);
+    else
+      start_pressure(streams, t_first, profile);
     workers_[1].start("nm-mics", policy.mics,
                       [this, mics, ring = streams.mics, t_first](const std::atomic<bool>& stop) {
                         run_stream(workers_[1], 1, *mics, *ring, t_first, stop, [] {});
@@ -122,6 +122,25 @@ class SimSource final : public Source {
     workers_[2].start("nm-op", policy.operating_point,
                       [this, profile, ring = streams.operating_point, t_first](const std::atomic<bool>& stop) {
                         run_operating_point(workers_[2], *profile, *ring, t_first, stop);
+                      });
+  }
+
+  // The pressure's driver thread: sampled on the encoder's edges (the turning engine) ...
+  void start_pressure(const Streams& streams, double t_first, const std::shared_ptr<const OperatingProfile>& profile) {
+    auto pressure = std::make_shared<sim::PressureGenerator>(config_, t_first, profile);
+    pressure->set_angle_ring(streams.pressure_angle);
+    workers_[0].start("nm-pressure", config_.threads.pressure,
+                      [this, pressure, ring = streams.pressure, t_first](const std::atomic<bool>& stop) {
+                        run_stream(workers_[0], 0, *pressure, *ring, t_first, stop,
+                                   [this, &pressure] { publish_encoder(pressure->encoder_counters()); });
+                      });
+  }
+  // ... or on the card's timer (the engine at rest).
+  void start_stopped_pressure(const Streams& streams, double t_first) {
+    auto pressure = std::make_shared<sim::StoppedPressureGenerator>(config_, t_first);
+    workers_[0].start("nm-pressure", config_.threads.pressure,
+                      [this, pressure, ring = streams.pressure, t_first](const std::atomic<bool>& stop) {
+                        run_stream(workers_[0], 0, *pressure, *ring, t_first, stop, [] {});
                       });
   }
 
@@ -250,8 +269,8 @@ class SimSource final : public Source {
       if (!wait_turn(2, t, nullptr, stop)) break;
       OperatingPoint op;
       op.utime = epoch_utime_ + std::llround(t * 1e6);
-      // Speed as a tachometer measures it: mean over the last window from the crank angle.
-      op.speed_rpm = (kin.theta_deg(t) - kin.theta_deg(t - window)) / (6.0 * window);
+      // Speed as a tachometer measures it: mean over the last window from the crank angle (none at rest).
+      op.speed_rpm = config_.stopped ? 0.0 : (kin.theta_deg(t) - kin.theta_deg(t - window)) / (6.0 * window);
       // Load and injection timing as the test bed's controller reports them: the cycle's setting.
       const model::engine::OperatingCondition& now =
           profile.condition(model::CrankKinematics::cycle_index(kin.theta_deg(t)));

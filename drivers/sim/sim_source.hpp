@@ -12,6 +12,7 @@
 //  The measurement chains are realistic by default (DESIGN.md "Measurement chains are not ideal"); ADC clipping
 //  is counted in counters() ("sim.pressure.adc_clipped", "sim.mics.adc_clipped").
 //  - operating point: speed, load, injection timing at 10 Hz -> Streams::operating_point.
+//  With the engine stopped (SimConfig::stopped), the pressure is sampled on a timer instead (sim_stopped.hpp).
 #pragma once
 
 #include <array>
@@ -42,6 +43,10 @@ struct SimConfig {
   bool motored = false;
   double speed_fluctuation = 0.01;  // peak relative speed ripple within a cycle
   double cycle_variation = 0.03;    // relative cycle-to-cycle variation of the heat release
+  // true: the engine at rest (sim_stopped.hpp): the pressure sampled on the card's timer at static_pressure_bar, the
+  // microphones hearing the cell's floor, the speed 0; the operating point above is not run.
+  bool stopped = false;
+  double static_pressure_bar = 1.013;  // the cylinder's pressure at rest: ambient, or a dead-weight tester's
   // Changes of the operating point mid-run (sim_operating_schedule.hpp): none, the one above throughout.
   std::vector<OperatingStep> operating_schedule;
   // Encoder.

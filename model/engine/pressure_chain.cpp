@@ -44,6 +44,8 @@ void PressureChainConfig::validate() const {
   if (!(flicker_bar >= 0.0 && flicker_bar <= 100.0)) fail("flicker_bar must be in [0, 100]");
   if (adc_bits != 0 && (adc_bits < 4 || adc_bits > 32)) fail("adc_bits must be 0 (no ADC) or 4 .. 32");
   if (adc_bits != 0 && !(adc_max_bar > adc_min_bar)) fail("adc_max_bar must be above adc_min_bar");
+  if (!(offset_bar >= -100.0 && offset_bar <= 100.0)) fail("offset_bar must be in [-100, 100]");
+  if (!(gain_error > -0.5 && gain_error < 0.5)) fail("gain_error must be in (-0.5, 0.5)");
 }
 
 // Voss-McCartney: the sum of kFlickerRows rows, row k a unit Gaussian held for 2^k samples (from a seeded offset, so
@@ -81,8 +83,10 @@ double PressureChain::flicker_at(std::int64_t index) {
 
 void PressureChain::measure(std::int64_t first_index, double* pressure_pa, std::size_t n) {
   const double white = 1e5 * config_.noise_bar, flicker = 1e5 * config_.flicker_bar;
+  const double gain = 1.0 + config_.gain_error, offset = 1e5 * config_.offset_bar;
   for (std::size_t i = 0; i < n; ++i) {
     const std::int64_t index = first_index + static_cast<std::int64_t>(i);
+    pressure_pa[i] = gain * pressure_pa[i] + offset;
     if (white > 0.0)
       pressure_pa[i] += white * rnd::normal_at(seed_, kStreamPressureFloor, static_cast<std::uint64_t>(index));
     if (flicker > 0.0) pressure_pa[i] += flicker * flicker_at(index);

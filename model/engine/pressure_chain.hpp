@@ -2,8 +2,10 @@
 // the true pressure and the MEASURED one (DESIGN.md "Measurement chains are not ideal"). The engine and the
 // microphones hear the true pressure; only what the chain delivers carries its floor.
 //
-//   measured = ADC( true + white floor + 1/f (flicker) part + transducer_noise effect )
+//   measured = ADC( (1 + gain_error) true + offset + white floor + 1/f (flicker) part + transducer_noise effect )
 //
+// - Gain error and offset: a transducer whose sensitivity is not the one its conversion assumes, and whose zero
+//   is off (what `noisemon calibrate --pressure` finds and corrects). Default none.
 // - White floor: Gaussian, noise_bar rms per encoder sample (over the encoder bandwidth). Default 0.02 bar: a
 //   good piezoelectric chain (e.g. a Kistler 6052C / AVL GH13P-class transducer behind a charge amplifier, into a
 //   16-bit card) resolves a few hundredths of a bar; the real Yanmar records in data/real carry about 0.2 bar
@@ -37,10 +39,14 @@ struct PressureChainConfig {
   int adc_bits = 16;           // 0: no ADC (no quantisation, no clipping)
   double adc_min_bar = 0.0;    // absolute pressure at code 0
   double adc_max_bar = 250.0;  // top of the range (exclusive)
+  double offset_bar = 0.0;     // zero error: what the chain reads above the true pressure
+  double gain_error = 0.0;     // sensitivity error, a fraction: +0.04 reads 4 % high
 
-  // No floor, no flicker, no ADC: the measured pressure is the true pressure.
-  static PressureChainConfig ideal() { return {0.0, 0.0, 0, 0.0, 250.0}; }
-  bool is_ideal() const { return noise_bar == 0.0 && flicker_bar == 0.0 && adc_bits == 0; }
+  // No floor, no flicker, no ADC, no zero or gain error: the measured pressure is the true pressure.
+  static PressureChainConfig ideal() { return {0.0, 0.0, 0, 0.0, 250.0, 0.0, 0.0}; }
+  bool is_ideal() const {
+    return noise_bar == 0.0 && flicker_bar == 0.0 && adc_bits == 0 && offset_bar == 0.0 && gain_error == 0.0;
+  }
   double adc_step_bar() const;  // 0 without an ADC
   // The chain's broadband (white) floor, bar rms per encoder sample: the white floor and the quantisation
   // (step / sqrt 12) in quadrature (the flicker part is not white and not included).

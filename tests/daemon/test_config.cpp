@@ -133,6 +133,19 @@ TEST(Config, HardwareExampleFileIsAValidComediAndCanConfiguration) {
   EXPECT_EQ(c.threads.publishing.fifo_priority, 0);
 }
 
+TEST(Config, SimStoppedEngineAndPressureChainErrors) {
+  const Config c = parse_config(
+      "[sim]\nstopped = true\nstatic_pressure_bar = 20.0\npressure_offset_bar = 0.37\npressure_gain_error = 0.04\n",
+      "t");
+  EXPECT_TRUE(c.sim.stopped);
+  EXPECT_DOUBLE_EQ(c.sim.static_pressure_bar, 20.0);
+  EXPECT_DOUBLE_EQ(c.sim.pressure_chain.offset_bar, 0.37);
+  EXPECT_DOUBLE_EQ(c.sim.pressure_chain.gain_error, 0.04);
+  EXPECT_NE(error_of("[sim]\npressure_gain_error = 4\n").find("sim.pressure_gain_error: value 4 out of range"),
+            std::string::npos);
+  EXPECT_NE(error_of("[sim]\nstopped = 1\n").find("sim.stopped: expected true or false"), std::string::npos);
+}
+
 TEST(Config, ComediAndCanErrorsNameFileAndKey) {
   EXPECT_NE(error_of("[comedi.pressure]\nchanel = 1\n").find("test.toml:2: unknown key 'comedi.pressure.chanel'"),
             std::string::npos);
