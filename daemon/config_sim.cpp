@@ -21,6 +21,7 @@ void read_sim_cell(TableReader& sr, drivers::sim::SimConfig& s) {
     sr.fail("pressure_adc_max_bar", "must be above pressure_adc_min_bar");
   sr.number("pressure_offset_bar", p.offset_bar, -100, 100);
   sr.number("pressure_gain_error", p.gain_error, -0.49, 0.49);
+  sr.number("pressure_nominal_mv_per_bar", s.pressure_readout.nominal_mv_per_bar, 0, 1e6);
   auto& m = s.mic_chain;
   sr.number("mic_self_noise_dba", m.self_noise_dba, -kInf, 120);
   sr.number("mic_directivity_db", m.directivity_db, 0, 6);

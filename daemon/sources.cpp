@@ -15,6 +15,10 @@ namespace {
 std::unique_ptr<drivers::Source> make_sim(const Config& c) {
   drivers::sim::SimConfig sim = c.sim;
   sim.threads = {c.threads.pressure, c.threads.mics, c.threads.operating_point};
+  // A sim chain of a sheet sensitivity is read as [comedi.pressure] converts a voltage-output chain: its
+  // calibration (`noisemon calibrate --pressure`) shows on the virtual engine.
+  sim.pressure_readout.card_mv_per_bar = c.comedi.pressure.sensitivity_mv_per_bar;
+  sim.pressure_readout.card_offset_bar = c.comedi.pressure.offset_bar;
   return drivers::sim::make_sim_source(sim);
 }
 

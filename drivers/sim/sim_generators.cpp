@@ -20,6 +20,13 @@ std::int64_t to_index(double t_s, double rate_hz) { return std::llround(t_s * ra
 
 }  // namespace
 
+void read_out_pressure(const SimConfig::PressureReadout& readout, double* pressure_pa, std::size_t n) {
+  if (!(readout.nominal_mv_per_bar > 0.0)) return;
+  const double card = readout.card_mv_per_bar > 0.0 ? readout.card_mv_per_bar : readout.nominal_mv_per_bar;
+  const double scale = readout.nominal_mv_per_bar / card, offset = 1e5 * readout.card_offset_bar;
+  for (std::size_t i = 0; i < n; ++i) pressure_pa[i] = scale * pressure_pa[i] - offset;
+}
+
 model::engine::EngineCycleParams engine_params(const SimConfig& config) {
   model::engine::EngineCycleParams p;
   p.ringing = config.gas_ringing;
@@ -111,6 +118,7 @@ PressureGenerator::PressureGenerator(const SimConfig& config, double t_first_s,
       kin_(profile_->kinematics()),
       cache_(config, profile_),
       chain_(config.pressure_chain, config.effects, config.seed),
+      readout_(config.pressure_readout),
       faults_(config.faults),
       seed_(config.seed),
       resolution_deg_(config.encoder_resolution_deg),
@@ -150,6 +158,7 @@ void PressureGenerator::advance(double t_end_s, BlockRing& ring) {
     if (n == 0) break;
     add_scheduled_transducer_noise(n);
     chain_.measure(edge_[0], x_.data(), n);
+    read_out_pressure(readout_, x_.data(), n);
     apply_channel_faults(n);
     for (std::size_t i = 0; i < n; ++i) count_edge(edge_[i], t_[i], x_[i], ring);
     if (n < batch_) break;

@@ -29,6 +29,9 @@ inline constexpr double kPreRollS = 0.2;
 // Start instants are multiples of this (s): the 40 kHz, 51.2 kHz and 102.4 kHz grids all meet there.
 inline constexpr double kGridAlignS = 1.0 / 1600.0;
 
+// The card's reading of the pressure chain's output (SimConfig::pressure_readout), in place.
+void read_out_pressure(const SimConfig::PressureReadout& readout, double* pressure_pa, std::size_t n);
+
 // Engine parameters and operating condition of the virtual engine for a configuration.
 model::engine::EngineCycleParams engine_params(const SimConfig& config);
 model::engine::OperatingCondition operating_condition(const SimConfig& config);
@@ -95,6 +98,7 @@ class PressureGenerator {
   model::CrankKinematics kin_;
   EngineCycleCache cache_;
   model::engine::PressureChain chain_;
+  SimConfig::PressureReadout readout_;
   std::vector<SimFault> faults_;
   std::vector<ScheduledEffect> schedule_;  // those with transducer_noise: on the measured pressure
   std::uint64_t seed_;

@@ -64,8 +64,17 @@ struct SimConfig {
   std::vector<ScheduledEffect> scheduled_effects;  // effects that switch on mid-run (sim_effect_schedule.hpp): none
   // The realistic test cell (each part documented and cited in its header; each switchable off):
   model::engine::PressureChainConfig pressure_chain;  // floor 0.02 bar, flicker off, 16-bit ADC over 0..250 bar
-  model::engine::MicChainConfig mic_chain;            // self-noise 20 dB(A), directivity +-1 dB, 24-bit ADC +-800 Pa
-  model::engine::GasRingingParams gas_ringing;        // combustion-excited gas ringing in the true pressure
+  // The card's conversion of the chain's output. With nominal_mv_per_bar > 0 the chain is a voltage-output
+  // transducer of that sheet sensitivity (its gain_error against the sheet) and the card converts its volts with
+  // card_mv_per_bar, less card_offset_bar, as [comedi.pressure] does (the daemon hands its values over): a
+  // calibration of [comedi.pressure] shows on the virtual engine. 0: the chain's output is the reading.
+  struct PressureReadout {
+    double nominal_mv_per_bar = 0.0;
+    double card_mv_per_bar = 0.0;  // 0: the sheet's
+    double card_offset_bar = 0.0;
+  } pressure_readout;
+  model::engine::MicChainConfig mic_chain;      // self-noise 20 dB(A), directivity +-1 dB, 24-bit ADC +-800 Pa
+  model::engine::GasRingingParams gas_ringing;  // combustion-excited gas ringing in the true pressure
   std::uint64_t seed = 1;
   std::vector<SimFault> faults;  // injected faults (drivers/sim/sim_faults.hpp): none by default
   // true: the driver threads keep to the wall clock, as hardware does. false: as fast as the processing takes the

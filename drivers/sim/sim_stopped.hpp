@@ -1,7 +1,8 @@
 // The virtual engine at rest ([sim] stopped = true): no encoder edges clock the pressure, so the card samples it on
 // its timer instead, at the pipeline's 40 kHz, with the crank angle unknown (NaN). The cylinder holds a static
 // pressure (ambient, or what a dead-weight tester applies), measured through the configured pressure chain (its
-// floor, flicker, ADC, zero and gain error): what `noisemon calibrate --pressure` and `noisemon check` look at.
+// floor, flicker, ADC, zero and gain error) and the card's conversion: what `noisemon calibrate --pressure` and
+// `noisemon check` look at.
 #pragma once
 
 #include <cstdint>
@@ -22,6 +23,7 @@ class StoppedPressureGenerator {
 
  private:
   model::engine::PressureChain chain_;
+  SimConfig::PressureReadout readout_;
   double static_pa_;
   std::int64_t next_;  // the next frame on the 40 kHz grid
   BlockWriter writer_;

@@ -8,6 +8,8 @@
 #include <memory>
 #include <vector>
 
+#include "drivers/sim/sim_generators.hpp"
+
 namespace nd = noisemon::drivers;
 
 TEST(SimStopped, PressureIsTheStaticPressureThroughTheChainOnTheTimer) {
@@ -41,4 +43,19 @@ TEST(SimStopped, PressureIsTheStaticPressureThroughTheChainOnTheTimer) {
   EXPECT_NEAR(mean, 20.0 * 1.04 + 0.37, 5.0 * floor / std::sqrt(static_cast<double>(n)));
   EXPECT_NEAR(sd / floor, 1.0, 0.03);
   EXPECT_EQ(gen.clipped_samples(), 0u);
+}
+
+TEST(SimStopped, TheCardReadsTheChainThroughTheConfiguredConversion) {
+  // A 10 mV/bar sheet, the transducer 4 % steep and 0.37 bar high: the card converting with 10.4 mV/bar less
+  // 0.37 / 1.04 bar reads the true 20 bar where the transducer puts out 20 * 1.04 + 0.37 on the sheet's scale.
+  std::vector<double> p{20e5, 20e5};
+  nd::sim::read_out_pressure({.nominal_mv_per_bar = 10.0, .card_mv_per_bar = 10.4, .card_offset_bar = 0.37 / 1.04},
+                             p.data(), 1);
+  EXPECT_NEAR(p[0], (20.0 * 10.0 / 10.4 - 0.37 / 1.04) * 1e5, 1e-6);
+  std::vector<double> q{(20.0 * 1.04 + 0.37) * 1e5};
+  nd::sim::read_out_pressure({.nominal_mv_per_bar = 10.0, .card_mv_per_bar = 10.4, .card_offset_bar = 0.37 / 1.04},
+                             q.data(), 1);
+  EXPECT_NEAR(q[0], 20e5, 1e-6);
+  nd::sim::read_out_pressure({}, p.data() + 1, 1);  // no sheet: the chain's output is the reading
+  EXPECT_EQ(p[1], 20e5);
 }
