@@ -91,15 +91,8 @@ std::string array_text(const std::vector<double>& values) {
 double last_calibration(const std::string& history, int mic, std::int64_t& when) {
   double last = 0;
   for (const daemon::CalibrationRecord& r : daemon::read_calibration_history(history))
-    if (r.microphone == mic && r.utime >= when) last = r.sensitivity_mv_per_pa, when = r.utime;
+    if (r.microphone == mic && r.utime >= when) last = r.sensitivity, when = r.utime;
   return last;
-}
-
-std::string date_of(std::int64_t utime) {
-  const std::time_t t = static_cast<std::time_t>(utime / 1000000);
-  char text[32];
-  std::strftime(text, sizeof text, "%Y-%m-%d %H:%M UTC", std::gmtime(&t));
-  return text;
 }
 
 }  // namespace
@@ -148,7 +141,7 @@ int CalibrateCommand::run() {
   const std::string history = history_path_.empty() ? config.calibration_history : history_path_;
   std::int64_t last_utime = 0;
   const double last = last_calibration(history, mic_, last_utime);
-  const std::string last_when = last > 0 ? date_of(last_utime) : "";
+  const std::string last_when = last > 0 ? daemon::calibration_date(last_utime) : "";
   const double reference = last > 0 ? last : old_mv_per_pa;
   const double change_db = 20.0 * std::log10(new_mv_per_pa / reference);
   std::printf(
@@ -174,7 +167,7 @@ int CalibrateCommand::run() {
   daemon::append_calibration(history, {.utime = drivers::wall_utime(),
                                        .microphone = mic_,
                                        .serial = serial_,
-                                       .sensitivity_mv_per_pa = new_mv_per_pa,
+                                       .sensitivity = new_mv_per_pa,
                                        .change_db = change_db,
                                        .level_db = level_db_,
                                        .frequency_hz = tone.frequency_hz});

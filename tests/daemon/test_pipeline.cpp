@@ -334,7 +334,7 @@ TEST(Pipeline, TheStatusCarriesEachMicrophonesCalibrationAge) {
   const std::int64_t day = 86'400'000'000, now = noisemon::drivers::wall_utime();
   auto calibrated = [&](std::int64_t utime, const std::string& serial, double mv_per_pa) {
     noisemon::daemon::CalibrationRecord r;
-    r.utime = utime, r.microphone = 1, r.serial = serial, r.sensitivity_mv_per_pa = mv_per_pa;
+    r.utime = utime, r.microphone = 1, r.serial = serial, r.sensitivity = mv_per_pa;
     noisemon::daemon::append_calibration(history, r);
   };
   calibrated(now - 10 * day, "", 50.0);
@@ -345,7 +345,7 @@ TEST(Pipeline, TheStatusCarriesEachMicrophonesCalibrationAge) {
   ASSERT_EQ(rows.size(), 2u);
   EXPECT_EQ(skipped, 1u);
   EXPECT_EQ(rows[1].serial, "3021456");
-  EXPECT_DOUBLE_EQ(rows[1].sensitivity_mv_per_pa, 50.2);
+  EXPECT_DOUBLE_EQ(rows[1].sensitivity, 50.2);
 
   auto last_status = [&](const Config& config) {
     auto out = std::make_shared<MemoryPublisher>();
