@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "cli/config_edit.hpp"
+#include "cli/pressure_calibration.hpp"
 #include "cli/source_capture.hpp"
 #include "daemon/calibration_history.hpp"
 #include "daemon/config.hpp"
@@ -35,6 +36,9 @@ std::string mic_table(const daemon::Config& c) {
                               "([daemon] microphones = \"alsa\" or source = \"comedi\")");
 }
 std::vector<double>& sensitivities(daemon::Config& c) {
+  return c.microphones == "alsa" ? c.alsa.sensitivity_mv_per_pa : c.comedi.mics.sensitivity_mv_per_pa;
+}
+const std::vector<double>& sensitivities(const daemon::Config& c) {
   return c.microphones == "alsa" ? c.alsa.sensitivity_mv_per_pa : c.comedi.mics.sensitivity_mv_per_pa;
 }
 
@@ -100,14 +104,34 @@ double last_calibration(const std::string& history, int mic, std::int64_t& when)
 CalibrateCommand::CalibrateCommand(CLI::App& app) {
   calibrate_ = app.add_subcommand(
       "calibrate",
-      "with a sound calibrator on one microphone: check its tone, derive the microphone's sensitivity and write it "
-      "into the configuration file, and append the calibration to the cell's history");
-  calibrate_->add_option("--config", config_path_, "the daemon's configuration file (its sensitivity is rewritten)")
+      "with a sound calibrator on one microphone (--mic): check its tone, derive the microphone's sensitivity and "
+      "write it into the configuration file; or, with the engine stopped, the cylinder-pressure chain's zero or gain "
+      "against a known pressure (--pressure); and append the calibration to the cell's history");
+  calibrate_
+      ->add_option("--config", config_path_, "the daemon's configuration file (the calibrated value is rewritten)")
       ->required()
       ->check(CLI::ExistingFile);
-  calibrate_->add_option("--mic", mic_, "the microphone the calibrator is on (1 = the first)")
-      ->required()
-      ->check(CLI::PositiveNumber);
+  CLI::Option* mic = calibrate_->add_option("--mic", mic_, "the microphone the calibrator is on (1 = the first)")
+                         ->check(CLI::PositiveNumber);
+  CLI::Option* pressure = calibrate_->add_flag(
+      "--pressure", pressure_,
+      "the pressure chain instead, engine stopped and the reading steady: its zero, [comedi.pressure] offset_bar = "
+      "old + (reading - reference), with the transducer at ambient (a voltage-output chain only: a charge "
+      "amplifier drifts, peg it instead); or with --gain its sensitivity");
+  CLI::Option* reference =
+      calibrate_
+          ->add_option("--reference-bar", reference_bar_,
+                       "--pressure: the pressure the transducer is at, bar absolute (ambient from a barometer; "
+                       "with --gain a dead-weight tester's or a reference transducer's, at least 5 bar)")
+          ->check(CLI::Range(0.0, 1000.0));
+  CLI::Option* gain = calibrate_->add_flag(
+      "--gain", gain_,
+      "--pressure: the gain, after a zero: the sensitivity scaled by (reading - zero) / (reference - zero), the zero "
+      "the latest in the history, and offset_bar rescaled so the zero holds");
+  mic->excludes(pressure);
+  pressure->needs(reference);
+  reference->needs(pressure);
+  gain->needs(pressure);
   calibrate_->add_option("--level", level_db_, "the calibrator's stated sound pressure level, dB re 20 uPa")
       ->capture_default_str()
       ->check(CLI::Range(40.0, 160.0));
@@ -117,7 +141,8 @@ CalibrateCommand::CalibrateCommand(CLI::App& app) {
   calibrate_->add_option("--seconds", seconds_, "how long to measure")
       ->capture_default_str()
       ->check(CLI::Range(1.0, 60.0));
-  calibrate_->add_option("--serial", serial_, "the microphone's serial number, for the history");
+  calibrate_->add_option("--serial", serial_,
+                         "the microphone's (or the pressure transducer's) serial number, for the history");
   calibrate_->add_option("--history", history_path_,
                          "the calibration history (CSV; default: <config>.calibrations.csv beside the file)");
   calibrate_->add_flag("--dry-run", dry_run_, "measure and report, but write nothing");
@@ -125,6 +150,20 @@ CalibrateCommand::CalibrateCommand(CLI::App& app) {
 
 int CalibrateCommand::run() {
   if (!calibrate_->parsed()) return -1;
+  if (pressure_)
+    return calibrate_pressure({.config_path = config_path_,
+                               .history_path = history_path_,
+                               .serial = serial_,
+                               .reference_bar = reference_bar_,
+                               .gain = gain_,
+                               .seconds = seconds_,
+                               .dry_run = dry_run_});
+  if (mic_ == 0)
+    throw std::invalid_argument("calibrate: give --mic N (a microphone) or --pressure (the pressure chain)");
+  return run_microphone();
+}
+
+int CalibrateCommand::run_microphone() {
   daemon::Config config = daemon::load_config(config_path_);
   const std::string table = mic_table(config);
   const auto index = static_cast<std::size_t>(mic_ - 1);
@@ -157,13 +196,9 @@ int CalibrateCommand::run() {
   if (dry_run_) return 0;
 
   s[index] = new_mv_per_pa;
-  std::ifstream in(config_path_, std::ios::binary);
-  const std::string text{std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
-  const std::string edited = set_toml_value(text, table, "sensitivity_mv_per_pa", array_text(s));
-  daemon::Config reread = daemon::parse_config(edited, config_path_);  // never write a file the daemon cannot read
-  if (std::abs(sensitivities(reread).at(index) - new_mv_per_pa) > 1e-3)
-    throw std::logic_error("calibrate: the edited configuration does not hold the new sensitivity; nothing written");
-  replace_file_atomically(config_path_, edited);
+  edit_config_file(config_path_, {{table, "sensitivity_mv_per_pa", array_text(s)}}, [&](const daemon::Config& c) {
+    return std::abs(sensitivities(c).at(index) - new_mv_per_pa) <= 1e-3;
+  });
   daemon::append_calibration(history, {.utime = drivers::wall_utime(),
                                        .microphone = mic_,
                                        .serial = serial_,

@@ -89,17 +89,6 @@ std::vector<Row> microphone_rows(const CapturedStreams& s) {
   return rows;
 }
 
-// The engine cycles the crank angle began while listening (the engine turns when there are any).
-std::size_t cycles_seen(const CapturedStreams& s) {
-  std::size_t wraps = 0;
-  double previous = NAN;
-  for (double a : s.crank_deg) {
-    if (std::isfinite(a) && std::isfinite(previous) && a < previous - 360.0) ++wraps;  // a new cycle
-    previous = a;
-  }
-  return wraps;
-}
-
 std::vector<Row> pressure_and_encoder_rows(const CapturedStreams& s) {
   std::vector<Row> rows;
   std::size_t known = 0, finite = 0;
@@ -108,7 +97,7 @@ std::vector<Row> pressure_and_encoder_rows(const CapturedStreams& s) {
     if (std::isfinite(s.crank_deg[k])) ++known;
     if (std::isfinite(s.pressure_pa[k])) sum += s.pressure_pa[k], ++finite;
   }
-  const std::size_t wraps = cycles_seen(s);
+  const std::size_t wraps = engine_cycles_seen(s);
   const bool turning = wraps > 0;
   char value[96];
   if (finite == 0) {
@@ -211,7 +200,8 @@ int CheckCommand::run() {
   const CapturedStreams streams = capture_streams(config, seconds_);
   std::vector<Row> rows = microphone_rows(streams);
   for (Row& r : pressure_and_encoder_rows(streams)) rows.push_back(std::move(r));
-  for (Row& r : driver_rows(streams, config.can.configured(), cycles_seen(streams) > 0)) rows.push_back(std::move(r));
+  for (Row& r : driver_rows(streams, config.can.configured(), engine_cycles_seen(streams) > 0))
+    rows.push_back(std::move(r));
   int failed = 0;
   std::printf("%-28s %-44s %s\n", "check", "value", "verdict");
   for (const Row& r : rows) {

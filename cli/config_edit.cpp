@@ -6,6 +6,8 @@
 
 #include <cerrno>
 #include <cstring>
+#include <fstream>
+#include <iterator>
 #include <stdexcept>
 #include <vector>
 
@@ -98,6 +100,17 @@ std::string set_toml_value(const std::string& text, const std::string& table, co
   std::string out;
   for (const std::string& l : lines) out += l + "\n";
   return out;
+}
+
+void edit_config_file(const std::string& path, const std::vector<TomlEdit>& edits,
+                      const std::function<bool(const daemon::Config&)>& holds) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw std::runtime_error("cannot read " + path);
+  std::string text{std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
+  for (const TomlEdit& e : edits) text = set_toml_value(text, e.table, e.key, e.value_text);
+  if (!holds(daemon::parse_config(text, path)))
+    throw std::logic_error("the edited configuration " + path + " does not hold the new values; nothing written");
+  replace_file_atomically(path, text);
 }
 
 void replace_file_atomically(const std::string& path, const std::string& text) {

@@ -1,6 +1,7 @@
 #include "cli/source_capture.hpp"
 
 #include <chrono>
+#include <cmath>
 #include <memory>
 #include <stdexcept>
 #include <thread>
@@ -72,6 +73,16 @@ CapturedStreams capture_streams(const daemon::Config& config, double seconds, do
                              " gaps: overruns; give the microphone thread a priority in [threads.mics])");
   for (auto& m : out.mics) m.erase(m.begin(), m.begin() + static_cast<std::ptrdiff_t>(std::min(settle, m.size())));
   return out;
+}
+
+std::size_t engine_cycles_seen(const CapturedStreams& streams) {
+  std::size_t wraps = 0;
+  double previous = NAN;
+  for (double a : streams.crank_deg) {
+    if (std::isfinite(a) && std::isfinite(previous) && a < previous - 360.0) ++wraps;  // a new cycle
+    previous = a;
+  }
+  return wraps;
 }
 
 }  // namespace noisemon::cli

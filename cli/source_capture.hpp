@@ -27,4 +27,7 @@ struct CapturedStreams {
 // failed, or the stream did not come within a generous deadline.
 CapturedStreams capture_streams(const daemon::Config& config, double seconds, double settle_s = 0.5);
 
+// The engine cycles the crank angle began while listening (the engine turns when there are any).
+std::size_t engine_cycles_seen(const CapturedStreams& streams);
+
 }  // namespace noisemon::cli
