@@ -1,11 +1,11 @@
 // DATA arguments of `noisemon fit` and `noisemon diagnose` -> the band dataset (model/fit/band_dataset.hpp).
 //
-// A DATA path is a run directory (DESIGN.md interchange format: run.json + pressure.csv + mics.wav) or a raw LCM
-// log (NOISEMON_SESSION / NOISEMON_RAW / NOISEMON_OP, as noisemond publishes and `noisemon import` writes); a log
-// may hold several recordings. Recordings are grouped by condition name (run.json's condition.name, the
-// session's condition; without one, the path's name); several recordings of one condition add their cycles.
-// A condition named "background..." (or with speed 0) is an engine-off background measurement. A directory holding
-// run directories (no run.json of its own, as `noisemon sim -o DIR` writes) stands for all of them, in name
+// A DATA path is a run directory (the interchange format of docs/sources-and-formats.md: run.json + pressure.csv +
+// mics.wav) or a raw LCM log (NOISEMON_SESSION / NOISEMON_RAW / NOISEMON_OP, as noisemond publishes and `noisemon
+// import` writes); a log may hold several recordings. Recordings are grouped by condition name (run.json's
+// condition.name, the session's condition; without one, the path's name); several recordings of one condition add their
+// cycles. A condition named "background..." (or with speed 0) is an engine-off background measurement. A directory
+// holding run directories (no run.json of its own, as `noisemon sim -o DIR` writes) stands for all of them, in name
 // order; a .json file among the paths (the truth.json a glob picks up) is noted and skipped.
 #pragma once
 

@@ -284,7 +284,7 @@ DiagnoseCommand::DiagnoseCommand(CLI::App& app) {
                    "default: leave-one-condition-out), waveform mode sample ranges A:B or DATA files");
   cmd_->add_option("--train", options_.train, "fit only on these (same syntax); default: every condition not held out");
   cmd_->add_option("--candidates", options_.candidates,
-                   "comma-separated effects to try (default: all of DESIGN.md's list that apply to the mode)");
+                   "comma-separated effects to try (default: every listed effect that applies to the mode)");
   cmd_->add_option("--free", options_.free,
                    "baseline free parameters (default: k1,b1,c0,c1, +y_offset in waveform mode)");
   cmd_->add_option("--fs", options_.fs_hz, "waveform mode: sample rate of the CSV, Hz")->check(CLI::PositiveNumber);

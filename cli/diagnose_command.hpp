@@ -1,5 +1,5 @@
 // `noisemon diagnose`: the sim-to-real gap. Where the tuned block model and the measurements disagree, which
-// unmodelled effect of DESIGN.md's list explains it, and how much of the held-out gap that effect closes.
+// unmodelled effect of the list (docs/diagnosis.md) explains it, and how much of the held-out gap that effect closes.
 //   band mode      DATA = run directories or raw LCM logs (cli/band_data): model/diagnosis on 1/3-octave
 //                  spectra; --train / --holdout take condition patterns (model::diagnosis::condition_matches); without
 //                  --holdout every fired condition is held out in turn (leave-one-condition-out).

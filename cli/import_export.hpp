@@ -1,9 +1,9 @@
 // `noisemon import` and `noisemon export`: recordings from other systems into the raw LCM log that
 // `noisemon replay`, `noisemond --source lcm` and `noisemon diagnose` read, and back.
 //
-//   import RUN_DIR...          run directories (DESIGN.md format) -> one log, one session per run
-//   import --cycles-table F    an indicating system's cycle table (crank angle + one pressure column per cycle)
-//   export LOG                 one run directory per session (and per stretch without lost samples)
+//   import RUN_DIR...          run directories (docs/sources-and-formats.md, "Run directory format") -> one log, one
+//   session per run import --cycles-table F    an indicating system's cycle table (crank angle + one pressure column
+//   per cycle) export LOG                 one run directory per session (and per stretch without lost samples)
 //
 // The conversions themselves live in drivers/ (run_dir, cycle_table, recording); this file sequences them,
 // names the epochs, shows progress and collects what to tell the user.

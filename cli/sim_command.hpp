@@ -1,8 +1,8 @@
 // `noisemon sim`: run directories from the virtual engine with effects injected into the "true" engine (one
-// per condition, DESIGN.md's interchange format) and DIR/truth.json recording what was injected and every
-// setting of the virtual test cell (for the user's own checking; the diagnosis never reads it). The test cell is
-// realistic by default (pressure-chain floor and ADC, microphone self-noise, directivity and ADC, gas ringing);
-// each run.json records the configured pressure floor (pressure.noise_floor_bar).
+// per condition, the interchange format of docs/sources-and-formats.md) and DIR/truth.json recording what was injected
+// and every setting of the virtual test cell (for the user's own checking; the diagnosis never reads it). The test cell
+// is realistic by default (pressure-chain floor and ADC, microphone self-noise, directivity and ADC, gas ringing); each
+// run.json records the configured pressure floor (pressure.noise_floor_bar).
 #pragma once
 
 #include <cstdint>

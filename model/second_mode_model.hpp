@@ -1,5 +1,5 @@
 // The block model with a second structural mode: a further linear mass-spring-damper (m = 1 kg) driven by
-// the same input, whose output adds to the block model's (DESIGN.md effect `second_mode`):
+// the same input, whose output adds to the block model's (the effect `second_mode`):
 //   z'' = u - k1 z - k3 z^3 - b1 z' - b3 z'^3,   w'' = u - k1_2 w - b1_2 w',
 //   y = C0 z + C1 z' + C0_2 w + C1_2 w'.
 // Two BlockModels side by side, so eq. 4.13's integrator and its band-limited input are reused unchanged.

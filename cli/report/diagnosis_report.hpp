@@ -1,4 +1,4 @@
-// `noisemon diagnose` results as DESIGN.md's report schema (report.json). The JSON document is the one source of
+// `noisemon diagnose` results as report.json (its fields: docs/diagnosis.md). The JSON document is the one source of
 // both reports: report.html (cli/report/report_html) renders nothing that is not in it.
 //
 // Band mode (run directories, LCM logs): figures in dB. baseline.heldout_rms_db, candidates[].heldout_rms_db and

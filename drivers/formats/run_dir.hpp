@@ -1,4 +1,4 @@
-// The run directory: DESIGN.md's interchange format for recordings from other systems.
+// The run directory: the interchange format of docs/sources-and-formats.md for recordings from other systems.
 //
 //   run.json      condition (name, speed_rpm, load_nm, soi_deg_btdc, rail_pressure_bar, motored; each may be
 //                 null: unknown), pressure {file, units: bar|Pa, noise_floor_bar}, mics {file, units: Pa,

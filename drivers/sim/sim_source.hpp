@@ -9,7 +9,7 @@
 //    differences and directivity, the test cell's background floor and each microphone's self-noise and ADC,
 //    sampled at the card rate (51.2 kHz) and resampled (RationalResampler) to 40 kHz -> Streams::mics. The
 //    acoustic side is model::engine::VirtualEngine, with the configured effects.
-//  The measurement chains are realistic by default (DESIGN.md "Measurement chains are not ideal"); ADC clipping
+//  The measurement chains are realistic by default (docs/sources-and-formats.md, "The simulated engine"); ADC clipping
 //  is counted in counters() ("sim.pressure.adc_clipped", "sim.mics.adc_clipped").
 //  - operating point: speed, load, injection timing at 10 Hz -> Streams::operating_point.
 //  With the engine stopped (SimConfig::stopped), the pressure is sampled on a timer instead (sim_stopped.hpp).

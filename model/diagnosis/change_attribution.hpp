@@ -2,8 +2,8 @@
 //
 // The watch hands over what the cycle reports carry, averaged before the change (its reference) and after it:
 // per 1/3-octave band the measured and predicted A-weighted levels and the cylinder pressure level, per microphone
-// its overall A-weighted level. Each candidate of `noisemon diagnose` (DESIGN.md's list) predicts how those move,
-// with a few parameters fitted by weighted least squares on the change:
+// its overall A-weighted level. Each candidate of `noisemon diagnose` (the effect list, docs/diagnosis.md) predicts how
+// those move, with a few parameters fitted by weighted least squares on the change:
 //   mic_gain          one microphone reads G dB more: its level rises G, the array's energy mean rises by its share
 //                     (2 parameters: which microphone, G)
 //   transducer_noise  white noise of density D in the measured pressure: CPL rises 10 lg(1 + D bw / CPL) per band,

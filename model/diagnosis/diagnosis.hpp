@@ -1,6 +1,6 @@
 // The sim-to-real gap diagnosis: where the tuned block model and the measurements disagree, which unmodelled
-// effect of DESIGN.md's list explains it, and how much of the gap that effect closes on conditions it was not
-// fitted to.
+// effect of the list (docs/diagnosis.md) explains it, and how much of the gap that effect closes on conditions it was
+// not fitted to.
 //
 // Roles of the conditions. Fired conditions are scored. Motored runs are reference runs: they carry the
 // combustion-independent noise and take part in every fit, never in a score. Background runs (engine off)
@@ -61,7 +61,7 @@
 
 namespace noisemon::model::diagnosis {
 
-// The candidate effects, DESIGN.md's names in its order.
+// The candidate effects, the listed names in docs/diagnosis.md's order.
 const std::vector<std::string>& candidate_effects();
 
 struct DiagnosisOptions {

@@ -123,9 +123,9 @@ struct WaveformDiagnosis {
 WaveformDiagnosis diagnose_waveform(std::span<const double> u, std::span<const double> y,
                                     const WaveformDiagnosisOptions& opt);
 
-// The diagnosis in DESIGN.md's report-schema shape, for `noisemon diagnose` in waveform mode. The RMS figures are
-// free-run output errors in the data's units (not dB): a writer puts them under the schema's *_rms_db keys only
-// with a "units" field beside them. Candidates best first (the diagnosis' ranking), second-round ones after.
+// The diagnosis in report.json's shape (docs/diagnosis.md), for `noisemon diagnose` in waveform mode. The RMS
+// figures are free-run output errors in the data's units (not dB): a writer puts them under the schema's *_rms_db keys
+// only with a "units" field beside them. Candidates best first (the diagnosis' ranking), second-round ones after.
 struct WaveformReportCandidate {
   std::string effect;
   double heldout_rms = 0.0;

@@ -1,6 +1,6 @@
 // The effect library of the virtual engine: physical effects a real engine and test cell have and the block
 // model (eq. 4.13 with its parameters) may lack. `noisemon sim --effect NAME=MAGNITUDE` injects them into the
-// "true" engine so the diagnosis can be proven on data whose effect is known (DESIGN.md "Effect names").
+// "true" engine so the diagnosis can be proven on data whose effect is known (the effect list: docs/diagnosis.md).
 //
 // Each effect has ONE magnitude with a physical unit; `NAME` alone takes the documented default (the
 // realistic magnitude the withheld-effect tests use). A few effects take optional qualifiers after the
@@ -28,7 +28,7 @@
 //                    records is scaled by 10^(M/20) (a wrong sensitivity entered at calibration).
 //  speed_dependence  the structural transfer (block + second mode) changes by M dB per 1000 rpm relative to
 //                    3050 rpm: gain 10^(M (n - 3050) / 1000 / 20) on the radiated combustion noise.
-//  foreign_soi_gain  TEST-ONLY "foreign" effect, outside DESIGN.md's list and outside every diagnosis
+//  foreign_soi_gain  TEST-ONLY "foreign" effect, outside the effect list and outside every diagnosis
 //                    candidate: the structural transfer of FIRED cycles changes by M dB per degree of injection
 //                    advance relative to 18 deg BTDC (earlier injection -> louder than any block predicts).
 //                    Used to prove the `unexplained` verdict; never a diagnosis answer.
@@ -70,14 +70,14 @@ struct EffectInfo {
   double realistic_min, realistic_max;
   double min, max;  // accepted by the parser
   std::span<const EffectQualifierInfo> qualifiers;
-  bool test_only;  // not a DESIGN.md effect (the foreign effect)
+  bool test_only;  // not one of the listed effects (the foreign effect)
 };
 
-// DESIGN.md's eight effects in its order, then the test-only foreign effect.
+// The eight effects of docs/diagnosis.md in its order, then the test-only foreign effect.
 std::span<const EffectInfo> effect_catalog();
 // nullptr when unknown.
 const EffectInfo* find_effect(std::string_view name);
-// Comma-separated names, DESIGN.md's first, then "(test only: foreign_soi_gain)".
+// Comma-separated names, the listed ones first, then "(test only: foreign_soi_gain)".
 std::string valid_effect_names();
 // Human-readable table of every effect (name, unit, meaning, default, realistic range, qualifiers): the text of
 // `noisemon sim --list-effects` and of its --help.

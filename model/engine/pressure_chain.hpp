@@ -1,5 +1,5 @@
 // The cylinder-pressure measurement chain of the virtual test cell: transducer, charge amplifier and ADC between
-// the true pressure and the MEASURED one (DESIGN.md "Measurement chains are not ideal"). The engine and the
+// the true pressure and the MEASURED one (docs/sources-and-formats.md, "The simulated engine"). The engine and the
 // microphones hear the true pressure; only what the chain delivers carries its floor.
 //
 //   measured = ADC( (1 + gain_error) true + offset + white floor + 1/f (flicker) part + transducer_noise effect )

@@ -1,4 +1,5 @@
-// The floors of the measurement chains (DESIGN.md "Measurement chains are not ideal"), for the fit and the diagnosis.
+// The floors of the measurement chains (docs/sources-and-formats.md, "The simulated engine"), for the fit and the
+// diagnosis.
 //
 // Pressure chain. Every real pressure chain (transducer, charge amplifier, ADC) adds a broadband floor to the
 // MEASURED pressure that the engine never hears: a model driven by the measured pressure predicts sound there

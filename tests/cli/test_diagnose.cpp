@@ -1,5 +1,5 @@
 // Proof of the band-mode diagnosis on withheld effects (issues 4 and 9): the virtual engine's "true" engine carries an
-// effect of DESIGN.md's list at a realistic magnitude; the diagnosis is told nothing of it. The independent
+// effect of the list (docs/diagnosis.md) at a realistic magnitude; the diagnosis is told nothing of it. The independent
 // reference is what was injected: the verdict must name it and the held-out gap must shrink by at least 60 %.
 // A null dataset gives `none`, an effect the library cannot express gives `unexplained`, two effects at once
 // name the stronger first with the other significant. Both thesis conditions (idle 3050 rpm / 0 N m and full load
@@ -85,7 +85,7 @@ void print(const std::string& title, const model::diagnosis::DiagnosisResult& r)
 // ------------------------------------------------------------------------------------------ one effect
 
 struct Withheld {
-  const char* name;    // DESIGN.md's effect name: the expected verdict
+  const char* name;    // the effect's name: the expected verdict
   const char* effect;  // what the sim injects (magnitude and qualifiers; never shown to the diagnosis)
 };
 
@@ -321,14 +321,14 @@ TEST(Diagnose, CommandLineWritesTheReportSchemaFromRunDirectories) {
   std::ifstream f(out.json_path);
   ASSERT_TRUE(f.good());
   const nlohmann::json j = nlohmann::json::parse(f);
-  // DESIGN.md's schema.
+  // report.json's fields.
   for (const char* k : {"baseline", "where", "candidates", "verdict"}) EXPECT_TRUE(j.contains(k)) << k;
   for (const char* k : {"model", "train_rms_db", "heldout_rms_db"}) EXPECT_TRUE(j["baseline"].contains(k)) << k;
   for (const char* k : {"bands_hz", "conditions", "mics"}) EXPECT_TRUE(j["where"].contains(k)) << k;
   for (const char* k : {"effect", "heldout_rms_before_db", "heldout_rms_after_db"})
     EXPECT_TRUE(j["verdict"].contains(k)) << k;
   ASSERT_TRUE(j["candidates"].is_array());
-  ASSERT_EQ(j["candidates"].size(), 8u);  // every effect of DESIGN.md's list was tried
+  ASSERT_EQ(j["candidates"].size(), 8u);  // every effect of the list (docs/diagnosis.md) was tried
   for (const auto& c : j["candidates"])
     for (const char* k : {"effect", "heldout_rms_db", "gap_closed_fraction", "significant", "params"})
       EXPECT_TRUE(c.contains(k)) << k;

@@ -258,8 +258,9 @@ preset = "nl_spring_damper"
   EXPECT_DOUBLE_EQ(c.sim.true_block.k3, 1.00e13);
 }
 
-// The realistic test cell of [sim]: the built-in defaults are the documented realistic values (DESIGN.md
-// "Measurement chains are not ideal"), every part has a key that switches it off, and bad values name the key.
+// The realistic test cell of [sim]: the built-in defaults are the documented realistic values
+// (docs/sources-and-formats.md, "The simulated engine"), every part has a key that switches it off, and bad values name
+// the key.
 TEST(Config, SimTestCellIsRealisticByDefaultAndEveryPartSwitchesOff) {
   const Config def;
   EXPECT_EQ(def.sim.pressure_chain.noise_bar, 0.02);

@@ -1,5 +1,5 @@
-// Run-directory reader and writer (DESIGN.md interchange format): every bad input names the file, the position
-// and what was expected; what is written reads back to the same numbers.
+// Run-directory reader and writer (the interchange format of docs/sources-and-formats.md): every bad input names the
+// file, the position and what was expected; what is written reads back to the same numbers.
 #include <gtest/gtest.h>
 #include <sndfile.h>
 

@@ -4,9 +4,10 @@
 //                   symmetric hardening: a joint closing, a cover meeting its stop), where the candidate is k3 z^3
 //   quadratic drag  a damping force quadratic_damping * z' |z'| (fluid-like), where the candidate is b3 z'^3
 // Integrated by the classical fourth-order Runge-Kutta method on the input band-limited-interpolated to four times
-// its rate (the midpoints of every step are samples of the band-limited input, not holds: DESIGN.md's sampling trap),
-// over one period of a periodic input, run twice so that the kept second pass starts from its own end state. Shares
-// nothing with model/ (its integrator, its presets) or with the frequency-domain synthesis it is checked against.
+// its rate (the midpoints of every step are samples of the band-limited input, not holds: the sampling trap of
+// docs/accuracy.md), over one period of a periodic input, run twice so that the kept second pass starts from its own
+// end state. Shares nothing with model/ (its integrator, its presets) or with the frequency-domain synthesis it is
+// checked against.
 #pragma once
 
 #include <vector>

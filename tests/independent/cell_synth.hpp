@@ -1,7 +1,7 @@
-// An independent test cell: run directories (DESIGN.md's interchange format) made from the REAL Yanmar L100V
-// cylinder-pressure records by code that shares nothing with the project (no model/, drivers/, dsp/, daemon/):
-// its own table parser, its own frequency-domain synthesis of the thesis's eq. 4.1, its own microphones, floors
-// and effects, its own A-weighting and its own writers. The gap diagnosis is then proven on data whose truth it
+// An independent test cell: run directories (the interchange format of docs/sources-and-formats.md) made from the REAL
+// Yanmar L100V cylinder-pressure records by code that shares nothing with the project (no model/, drivers/, dsp/,
+// daemon/): its own table parser, its own frequency-domain synthesis of the thesis's eq. 4.1, its own microphones,
+// floors and effects, its own A-weighting and its own writers. The gap diagnosis is then proven on data whose truth it
 // did not define (tests/independent/test_independent_diagnosis.cpp runs the real `noisemon diagnose` on it).
 //
 // The pressure (per condition, `cycles` engine cycles end to end, 0.2 deg encoder steps)

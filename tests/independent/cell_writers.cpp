@@ -1,5 +1,5 @@
 // The independent test cell's writers (see cell_synth.hpp): run.json, pressure.csv and mics.wav of a run directory,
-// in DESIGN.md's interchange format, by the cell's own code (nlohmann-json, libsndfile).
+// in the interchange format of docs/sources-and-formats.md, by the cell's own code (nlohmann-json, libsndfile).
 #include <sndfile.h>
 
 #include <cmath>

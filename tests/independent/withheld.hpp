@@ -29,7 +29,7 @@ namespace indep {
 
 struct Case {
   std::string label;
-  std::string expect;  // DESIGN.md's effect name, or "none"
+  std::string expect;  // the effect's name, or "none"
   Effects fx;
   int cell = 1;               // 1: default_conditions on Chain{}; 2: second_cell_conditions on second_cell_chain
   bool states_floor = false;  // run.json states the chain's commissioned floor (Chain::states_floor)

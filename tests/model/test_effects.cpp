@@ -205,7 +205,7 @@ nm::engine::Effects effects(const std::vector<std::string>& texts) { return nm::
 // ------------------------------------------------------------------------------------------ catalogue, parsing
 
 TEST(Effects, CatalogHoldsDesignMdsEightEffectsThenOneTestOnlyForeignEffect) {
-  // DESIGN.md "Effect names", in its order.
+  // The effect list of docs/diagnosis.md, in its order.
   const std::vector<std::string> design = {"cubic_damping",    "cubic_stiffness",  "second_mode", "mechanical_noise",
                                            "background_noise", "transducer_noise", "mic_gain",    "speed_dependence"};
   const auto cat = nm::engine::effect_catalog();
