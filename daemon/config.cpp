@@ -3,6 +3,7 @@
 #include <sched.h>
 
 #include <toml++/toml.h>
+#include <algorithm>
 #include <cctype>
 #include <cmath>
 #include <filesystem>
@@ -267,7 +268,8 @@ void read_threads(TableReader& top, const std::string& origin, ThreadsConfig& t)
                                                                      {"can", &t.can},
                                                                      {"lcm_receive", &t.lcm_receive},
                                                                      {"processing", &t.processing},
-                                                                     {"publishing", &t.publishing}};
+                                                                     {"publishing", &t.publishing},
+                                                                     {"recording", &t.recording}};
   for (const auto& [name, policy] : policies) read_thread_policy(r, name, origin, *policy);
   r.reject_unknown();
 }
@@ -290,6 +292,36 @@ void read_lcm(TableReader& top, const std::string& origin, LcmConfig& lcm) {
   l.reject_unknown();
 }
 
+// [record]: the recorder. Its folder is made and tried when the daemon starts it (recorder.hpp), not here: a
+// configuration is also read where it never records (replay, the tool's commands).
+void read_record(TableReader& top, const std::string& origin, RecordConfig& rec) {
+  TableReader r(top.table("record"), "record", origin);
+  r.boolean("enabled", rec.enabled);
+  r.string("dir", rec.dir);
+  if (rec.enabled && rec.dir.empty()) r.fail("dir", "required when the recorder is enabled: the folder of its files");
+  if (!rec.dir.empty()) rec.dir = beside_config(origin, rec.dir);
+  r.number("buffer_mb", rec.buffer_mb, 1, 65536);
+  r.number("rotate_mb", rec.rotate_mb, 1, 1 << 30);
+  r.number("rotate_s", rec.rotate_s, 0, 366 * 86400.0);
+  if (rec.rotate_s > 0 && rec.rotate_s < 1) r.fail("rotate_s", "expected 0 (no rotation by time) or at least 1 s");
+  if (r.node("fsync")) {
+    std::string fsync;
+    r.string("fsync", fsync);
+    rec.fsync = pick<RecordFsync>(
+        r, "fsync", fsync,
+        {{"none", RecordFsync::kNone}, {"rotate", RecordFsync::kRotate}, {"interval", RecordFsync::kInterval}});
+  }
+  r.number("fsync_interval_s", rec.fsync_interval_s, 0.1, 86400);
+  r.string("test_point", rec.test_point);
+  const bool name_ok = !rec.test_point.empty() && rec.test_point.front() != '.' &&
+                       std::all_of(rec.test_point.begin(), rec.test_point.end(), [](char ch) {
+                         return std::isalnum(static_cast<unsigned char>(ch)) || ch == '.' || ch == '_' || ch == '-';
+                       });
+  if (!name_ok)
+    r.fail("test_point", "'" + rec.test_point + "': expected letters, digits, '.', '_' or '-' (a part of file names)");
+  r.reject_unknown();
+}
+
 Config parse_table(const toml::table& root, const std::string& origin) {
   Config c;
   TableReader top(&root, "", origin);
@@ -310,6 +342,7 @@ Config parse_table(const toml::table& root, const std::string& origin) {
   d.reject_unknown();
 
   read_lcm(top, origin, c.lcm);
+  read_record(top, origin, c.record);
 
   read_engine(top, origin, c.engine);
   read_combustion(top, origin, c.combustion, c.tdc_deg_configured);

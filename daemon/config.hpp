@@ -27,17 +27,19 @@ struct LcmConfig {
   std::string raw_channel = "NOISEMON_RAW";
   std::string operating_point_channel = "NOISEMON_OP";
   std::string session_channel = "NOISEMON_SESSION";
-  std::string stats_channel = "NOISEMON_STATS";            // the rolling statistics (cycle_stats_t)
-  std::string gap_event_channel = "NOISEMON_GAP_EVENT";    // noisemon gapwatch's events (gap_event_t)
-  std::string gap_status_channel = "NOISEMON_GAP_STATUS";  // and its state, 1 Hz (gap_status_t)
-  std::string check_channel = "NOISEMON_CHECK";            // noisemon check --publish's table (check_t)
+  std::string stats_channel = "NOISEMON_STATS";              // the rolling statistics (cycle_stats_t)
+  std::string gap_event_channel = "NOISEMON_GAP_EVENT";      // noisemon gapwatch's events (gap_event_t)
+  std::string gap_status_channel = "NOISEMON_GAP_STATUS";    // and its state, 1 Hz (gap_status_t)
+  std::string check_channel = "NOISEMON_CHECK";              // noisemon check --publish's table (check_t)
+  std::string record_loss_channel = "NOISEMON_RECORD_LOSS";  // the recorder's loss markers (record_loss_t), in its
+                                                             // files only
   bool publish_raw = true;
   bool publish_operating_point = true;
   double session_timeout_s = 30.0;  // source "lcm": how long to wait for the session message
   std::string cell;                 // test cell id, appended to every channel as "_<cell>" (empty: the plain names)
 
   // Every channel with its key in [lcm]: the reader and the cell's suffix walk this one list.
-  [[nodiscard]] std::array<std::pair<const char*, std::string*>, 9> channels() {
+  [[nodiscard]] std::array<std::pair<const char*, std::string*>, 10> channels() {
     return {{{"report_channel", &report_channel},
              {"status_channel", &status_channel},
              {"raw_channel", &raw_channel},
@@ -46,8 +48,26 @@ struct LcmConfig {
              {"stats_channel", &stats_channel},
              {"gap_event_channel", &gap_event_channel},
              {"gap_status_channel", &gap_status_channel},
-             {"check_channel", &check_channel}}};
+             {"check_channel", &check_channel},
+             {"record_loss_channel", &record_loss_channel}}};
   }
+};
+
+// When the recorder makes a file durable (fsync): never (the kernel writes it out when it likes), when the file is
+// closed (rotation, stop), or also every fsync_interval_s.
+enum class RecordFsync { kNone, kRotate, kInterval };
+
+// [record]: the recorder inside the daemon (recorder.hpp), which writes what the pipeline publishes into LCM log
+// files in `dir`, named <cell>_<test_point>_<YYYYmmdd-HHMMSS>_<NNN>.lcmlog (record_files.hpp).
+struct RecordConfig {
+  bool enabled = false;
+  std::string dir;          // required when enabled (relative: to the configuration file's folder)
+  double buffer_mb = 256;   // between the publishing thread and the writer (rounded up to a power of two)
+  double rotate_mb = 1024;  // a new file once this one holds this much
+  double rotate_s = 0;      // and/or once it is this old; 0: no rotation by time
+  RecordFsync fsync = RecordFsync::kRotate;
+  double fsync_interval_s = 10;    // fsync = "interval": how often
+  std::string test_point = "run";  // in the file names: [A-Za-z0-9._-], not starting with '.'
 };
 
 // [threads]: memory locking and the scheduling of each thread the daemon may run (drivers/worker_thread.hpp).
@@ -61,6 +81,7 @@ struct ThreadsConfig {
   drivers::ThreadPolicy lcm_receive;      // nm-lcm-in: source "lcm", the raw streams received from the bus
   drivers::ThreadPolicy processing;       // nm-processing: cycles, model, levels
   drivers::ThreadPolicy publishing;       // nm-publish: the publishing thread (status name "lcm")
+  drivers::ThreadPolicy recording;        // nm-record: the recorder's writer ([record]; status name "record")
 };
 
 struct Config {
@@ -73,6 +94,7 @@ struct Config {
   std::string log_level = "info";
   bool live = false;  // print one line per cycle on stdout
   LcmConfig lcm;
+  RecordConfig record;
   std::string model_name = "linear";  // the preset the model parameters start from
   model::BlockParams model = model::preset("linear");
   double acoustic_delay_s = -1;   // < 0: radius / speed of sound, as the source reports it
@@ -90,6 +112,9 @@ struct Config {
   bool tdc_deg_configured = false;             // [combustion] tdc_deg was given (else a replay takes its session's)
   std::int64_t stats_window_cycles = 100;      // [statistics] window_cycles: the rolling statistics' window; 0: none
   SoundPowerConfig sound_power;                // [sound_power]: ISO 3744's K1 (background) and K2, the surface check
+
+  // The raw streams (and the session describing them) leave the processing thread: for the bus, the recorder or both.
+  [[nodiscard]] bool raw_streams() const { return lcm.publish_raw || record.enabled; }
 };
 
 // A configuration error; what() names the file and the field.

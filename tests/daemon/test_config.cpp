@@ -7,6 +7,7 @@
 
 #include "daemon/config.hpp"
 #include "daemon/sources.hpp"
+#include "tests/support/unique_temp.hpp"
 
 using noisemon::daemon::Config;
 using noisemon::daemon::ConfigError;
@@ -84,6 +85,15 @@ TEST(Config, DocumentedDefaultFileEqualsBuiltInDefaults) {
   EXPECT_EQ(file.sim.seed, def.sim.seed);
   EXPECT_EQ(file.sim.true_block.k1, def.sim.true_block.k1);
   EXPECT_EQ(file.lcm.session_timeout_s, def.lcm.session_timeout_s);
+  EXPECT_EQ(file.lcm.record_loss_channel, def.lcm.record_loss_channel);
+  EXPECT_EQ(file.record.enabled, def.record.enabled);
+  EXPECT_EQ(file.record.dir, def.record.dir);
+  EXPECT_EQ(file.record.buffer_mb, def.record.buffer_mb);
+  EXPECT_EQ(file.record.rotate_mb, def.record.rotate_mb);
+  EXPECT_EQ(file.record.rotate_s, def.record.rotate_s);
+  EXPECT_EQ(file.record.fsync, def.record.fsync);
+  EXPECT_EQ(file.record.fsync_interval_s, def.record.fsync_interval_s);
+  EXPECT_EQ(file.record.test_point, def.record.test_point);
   // [comedi] and [can] are documented as commented-out examples: the file leaves their defaults.
   EXPECT_EQ(file.comedi.pressure.device, def.comedi.pressure.device);
   EXPECT_EQ(file.comedi.encoder.subdevice, def.comedi.encoder.subdevice);
@@ -94,10 +104,11 @@ TEST(Config, DocumentedDefaultFileEqualsBuiltInDefaults) {
   EXPECT_FALSE(file.can.configured());
   EXPECT_TRUE(file.can.map.signals().empty());
   EXPECT_EQ(file.threads.lock_memory, def.threads.lock_memory);
-  for (const auto member : {&noisemon::daemon::ThreadsConfig::pressure, &noisemon::daemon::ThreadsConfig::mics,
-                            &noisemon::daemon::ThreadsConfig::operating_point, &noisemon::daemon::ThreadsConfig::can,
-                            &noisemon::daemon::ThreadsConfig::lcm_receive, &noisemon::daemon::ThreadsConfig::processing,
-                            &noisemon::daemon::ThreadsConfig::publishing}) {
+  for (const auto member :
+       {&noisemon::daemon::ThreadsConfig::pressure, &noisemon::daemon::ThreadsConfig::mics,
+        &noisemon::daemon::ThreadsConfig::operating_point, &noisemon::daemon::ThreadsConfig::can,
+        &noisemon::daemon::ThreadsConfig::lcm_receive, &noisemon::daemon::ThreadsConfig::processing,
+        &noisemon::daemon::ThreadsConfig::publishing, &noisemon::daemon::ThreadsConfig::recording}) {
     EXPECT_EQ((file.threads.*member).fifo_priority, (def.threads.*member).fifo_priority);
     EXPECT_EQ((file.threads.*member).cpu, (def.threads.*member).cpu);
   }
@@ -501,6 +512,44 @@ cpu = -1
   EXPECT_NE(error_of("[threads]\nlock_memory = 1\n").find("threads.lock_memory: expected true or false"),
             std::string::npos);
   EXPECT_NE(error_of("[threads]\nprocessing = 80\n").find("threads.processing: expected a table"), std::string::npos);
+}
+
+TEST(Config, TheRecordSectionAndItsErrorsNamingTheField) {
+  const Config def;
+  EXPECT_FALSE(def.record.enabled);
+  EXPECT_FALSE(def.raw_streams() && !def.lcm.publish_raw);
+  const Config c = parse_config(
+      "[lcm]\npublish_raw = false\ncell = \"B\"\n[record]\nenabled = true\ndir = \"/data/rec\"\nbuffer_mb = 64.0\n"
+      "rotate_mb = 512.0\nrotate_s = 3600.0\nfsync = \"interval\"\nfsync_interval_s = 2.0\ntest_point = \"tp_07\"\n"
+      "[threads.recording]\ncpu = 1\n",
+      "t");
+  EXPECT_TRUE(c.record.enabled);
+  EXPECT_TRUE(c.raw_streams());  // for the recorder, though not for the bus
+  EXPECT_EQ(c.record.dir, "/data/rec");
+  EXPECT_EQ(c.record.buffer_mb, 64.0);
+  EXPECT_EQ(c.record.rotate_mb, 512.0);
+  EXPECT_EQ(c.record.rotate_s, 3600.0);
+  EXPECT_EQ(c.record.fsync, noisemon::daemon::RecordFsync::kInterval);
+  EXPECT_EQ(c.record.fsync_interval_s, 2.0);
+  EXPECT_EQ(c.record.test_point, "tp_07");
+  EXPECT_EQ(c.threads.recording.cpu, 1);
+  EXPECT_EQ(c.lcm.record_loss_channel, "NOISEMON_RECORD_LOSS_B");
+  EXPECT_NE(error_of("[record]\nenabled = true\n").find("test.toml: record.dir: required when the recorder is enabled"),
+            std::string::npos);
+  EXPECT_NE(error_of("[record]\nfsync = \"always\"\n")
+                .find("record.fsync: unknown value 'always' (expected one of none, rotate, interval)"),
+            std::string::npos);
+  EXPECT_NE(error_of("[record]\nbuffer_mb = 0.5\n").find("record.buffer_mb: value 0.5 out of range"),
+            std::string::npos);
+  EXPECT_NE(error_of("[record]\nrotate_s = 0.5\n").find("record.rotate_s: expected 0"), std::string::npos);
+  EXPECT_NE(error_of("[record]\ntest_point = \"a/b\"\n").find("record.test_point: 'a/b': expected letters"),
+            std::string::npos);
+  EXPECT_NE(error_of("[record]\ntest_point = \"\"\n").find("record.test_point"), std::string::npos);
+  EXPECT_NE(error_of("[record]\nfolder = \"x\"\n").find("test.toml:2: unknown key 'record.folder'"), std::string::npos);
+  // A relative folder is the configuration file's neighbour.
+  const std::string dir = noisemon::test::unique_temp_dir();
+  std::ofstream(dir + "/n.toml") << "[record]\nenabled = true\ndir = \"runs\"\n";
+  EXPECT_EQ(load_config(dir + "/n.toml").record.dir, dir + "/runs");
 }
 
 TEST(Config, EngineGeometryForTheCombustionMetrics) {
