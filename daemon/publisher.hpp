@@ -38,6 +38,9 @@ class Publisher {
   virtual void begin_run(const std::string& /*condition*/) {}
   // Makes what was published so far durable (files written out); the pipeline calls it when it stops.
   virtual void flush() {}
+  // What a publisher with a state of its own (the recorder) adds to the daemon's status message: threads, rings,
+  // counters. Called on the publishing thread before each status is published.
+  virtual void add_status(noisemon::status_t& /*status*/) const {}
 
   // Any LCM message type of msgs/ (noisemon::cycle_report_t, status_t, ...).
   template <class Message>
@@ -75,6 +78,9 @@ class FanoutPublisher final : public Publisher {
   }
   void flush() override {
     for (const auto& p : publishers_) p->flush();
+  }
+  void add_status(noisemon::status_t& status) const override {
+    for (const auto& p : publishers_) p->add_status(status);
   }
 
  private:

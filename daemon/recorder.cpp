@@ -1,0 +1,223 @@
+#include "daemon/recorder.hpp"
+
+#include <spdlog/spdlog.h>
+
+#include <algorithm>
+#include <cerrno>
+#include <chrono>
+#include <cmath>
+#include <cstring>
+#include <stdexcept>
+#include <system_error>
+#include <thread>
+
+#include "daemon/record_files.hpp"
+#include "noisemon/record_loss_t.hpp"
+
+namespace noisemon::daemon {
+namespace {
+
+constexpr auto kWriterIdle = std::chrono::milliseconds(100);  // the writer's longest sleep with nothing queued
+constexpr auto kProducerPoll = std::chrono::microseconds(200);
+
+std::size_t bytes_of_mb(double mb) { return static_cast<std::size_t>(std::llround(mb * 1024 * 1024)); }
+
+// [record] dir, made if missing, with record_file_name's names from the recording's start; a name that exists is
+// skipped, never overwritten.
+Recorder::NextPath files_in_folder(const RecordConfig& record, const LcmConfig& lcm) {
+  std::error_code ec;
+  std::filesystem::create_directories(record.dir, ec);
+  if (ec) throw std::runtime_error("[record] dir " + record.dir + ": cannot make the folder (" + ec.message() + ")");
+  const std::time_t start = std::time(nullptr);
+  return [dir = std::filesystem::path(record.dir), cell = lcm.cell, test_point = record.test_point, start](int opened) {
+    for (int part = opened + 1;; ++part) {
+      std::filesystem::path p = dir / record_file_name(cell, test_point, start, part);
+      if (!std::filesystem::exists(p)) return p;
+    }
+  };
+}
+
+RecordFilesOptions files_options(const RecordConfig& record, const LcmConfig& lcm, Recorder::NextPath next_path) {
+  RecordFilesOptions o;
+  o.rotate_bytes = bytes_of_mb(record.rotate_mb);
+  o.rotate_s = record.rotate_s;
+  o.fsync = record.fsync;
+  o.fsync_interval_s = record.fsync_interval_s;
+  // What a reader of a part needs before its raw blocks: the session, and the operating point in force.
+  o.lead_channels = {lcm.session_channel, lcm.operating_point_channel};
+  o.next_path = next_path ? std::move(next_path) : files_in_folder(record, lcm);
+  return o;
+}
+
+}  // namespace
+
+Recorder::Recorder(const RecordConfig& record, const LcmConfig& lcm, const drivers::ThreadPolicy& policy,
+                   NextPath next_path)
+    : loss_channel_(lcm.record_loss_channel),
+      queue_(std::max<std::size_t>(bytes_of_mb(record.buffer_mb), 1)),
+      files_(std::make_unique<RecordFiles>(files_options(record, lcm, std::move(next_path)))) {
+  file_ = files_->path().string();
+  parts_ = files_->parts();
+  writer_.start("nm-record", policy, [this](const std::atomic<bool>& stop) { run_writer(stop); });
+  spdlog::info("recording into {} ({:.3g} MiB buffer)", file_,
+               static_cast<double>(queue_.capacity_bytes()) / (1 << 20));
+}
+
+Recorder::~Recorder() { stop(); }
+
+void Recorder::count_loss(const std::string& channel, std::size_t size, std::int64_t utime) {
+  if (pending_.messages == 0) pending_.first_utime = utime;
+  ++pending_.messages;
+  pending_.bytes += static_cast<std::int64_t>(size);
+  pending_.last_utime = utime;
+  auto it = std::find_if(pending_.by_channel.begin(), pending_.by_channel.end(),
+                         [&](const auto& c) { return c.first == channel; });
+  if (it == pending_.by_channel.end()) it = pending_.by_channel.insert(it, {channel, 0});
+  ++it->second;
+  lost_.fetch_add(1, std::memory_order_relaxed);
+  bytes_lost_.fetch_add(static_cast<std::int64_t>(size), std::memory_order_relaxed);
+  std::lock_guard lock(mutex_);
+  auto total =
+      std::find_if(lost_by_channel_.begin(), lost_by_channel_.end(), [&](const auto& c) { return c.first == channel; });
+  if (total == lost_by_channel_.end()) total = lost_by_channel_.insert(total, {channel, 0});
+  ++total->second;
+}
+
+// The losses not yet in the file, as a marker queued ahead of the next message; false when it does not fit either.
+bool Recorder::push_marker(std::int64_t utime) {
+  noisemon::record_loss_t m;
+  m.utime = utime;
+  m.first_lost_utime = pending_.first_utime;
+  m.last_lost_utime = pending_.last_utime;
+  m.messages = pending_.messages;
+  m.bytes = pending_.bytes;
+  m.nchannels = static_cast<std::int16_t>(pending_.by_channel.size());
+  for (const auto& [channel, n] : pending_.by_channel) {
+    m.channel.push_back(channel);
+    m.channel_messages.push_back(n);
+  }
+  marker_bytes_.resize(static_cast<std::size_t>(m.getEncodedSize()));
+  m.encode(marker_bytes_.data(), 0, static_cast<int>(marker_bytes_.size()));
+  if (!queue_.push(loss_channel_, marker_bytes_.data(), marker_bytes_.size(), utime)) return false;
+  pending_.messages = pending_.bytes = 0;
+  pending_.by_channel.clear();
+  wakeup_.notify();
+  return true;
+}
+
+void Recorder::publish_bytes(const std::string& channel, const std::uint8_t* data, std::size_t size,
+                             std::int64_t utime) {
+  if (!writer_running()) return;  // stopped, or failed: the error is in the state
+  sent_.fetch_add(1, std::memory_order_relaxed);
+  // The marker goes first, so it sits where the loss was: when it does not fit, neither does this message.
+  if ((pending_.messages > 0 && !push_marker(utime)) || !queue_.push(channel, data, size, utime)) {
+    count_loss(channel, size, utime);
+    return;
+  }
+  wakeup_.notify();
+}
+
+void Recorder::wait_for_room_and_mark() {
+  while (pending_.messages > 0 && writer_running() && !push_marker(pending_.last_utime)) {
+    wakeup_.notify();
+    std::this_thread::sleep_for(kProducerPoll);
+  }
+}
+
+void Recorder::flush() {
+  wait_for_room_and_mark();
+  const std::uint64_t ask = flush_asked_.fetch_add(1, std::memory_order_acq_rel) + 1;
+  wakeup_.notify();
+  while (writer_running() && flush_done_.load(std::memory_order_acquire) < ask)
+    std::this_thread::sleep_for(kProducerPoll);
+}
+
+void Recorder::stop() {
+  if (!writer_.joinable()) return;
+  wait_for_room_and_mark();  // the publishing thread has ended: this thread is the producer now
+  writer_.request_stop();
+  wakeup_.notify();
+  writer_.join();
+  const RecorderState s = state();
+  if (s.error.empty())
+    spdlog::info("recording stopped: {} messages in {} file(s), {} lost", s.messages_written, s.files, s.messages_lost);
+}
+
+void Recorder::write_event(const QueuedEvent& e) {
+  files_->write(e.channel, e.data.data(), e.data.size(), e.utime);
+  if (e.channel != loss_channel_) written_.fetch_add(1, std::memory_order_relaxed);
+  bytes_written_.store(static_cast<std::int64_t>(files_->bytes_written()), std::memory_order_relaxed);
+  if (files_->parts() != parts_.load(std::memory_order_relaxed)) {
+    std::lock_guard lock(mutex_);
+    file_ = files_->path().string();
+    parts_.store(files_->parts(), std::memory_order_relaxed);
+    spdlog::info("recording into {}", file_);
+  }
+}
+
+void Recorder::run_writer(const std::atomic<bool>& stop) {
+  QueuedEvent e;
+  try {
+    while (true) {
+      // Read before draining: everything published before the ask or the stop is in the queue by now.
+      const std::uint64_t asked = flush_asked_.load(std::memory_order_acquire);
+      const bool stopping = stop.load(std::memory_order_acquire);
+      while (queue_.pop(e)) write_event(e);
+      files_->flush();  // a process killed now leaves every whole event on disk
+      flush_done_.store(asked, std::memory_order_release);
+      if (stopping) break;
+      wakeup_.wait_for(kWriterIdle);
+    }
+    files_->close();
+  } catch (const std::exception& ex) {
+    spdlog::error("recording stopped: {}; the daemon goes on without it", ex.what());
+    throw;
+  }
+}
+
+RecorderState Recorder::state() const {
+  RecorderState s;
+  const drivers::DriverThreadStatus t = writer_.status();
+  s.recording = t.state == drivers::ThreadState::kRunning;
+  s.error = t.error;
+  s.files = parts_.load(std::memory_order_relaxed);
+  s.messages_sent = sent_.load(std::memory_order_relaxed);
+  s.messages_written = written_.load(std::memory_order_relaxed);
+  s.messages_lost = lost_.load(std::memory_order_relaxed);
+  s.bytes_written = bytes_written_.load(std::memory_order_relaxed);
+  s.bytes_lost = bytes_lost_.load(std::memory_order_relaxed);
+  std::lock_guard lock(mutex_);
+  if (s.recording) s.file = file_;
+  s.lost_by_channel = lost_by_channel_;
+  return s;
+}
+
+void Recorder::add_status(noisemon::status_t& status) const {
+  const RecorderState s = state();
+  const drivers::DriverThreadStatus t = writer_.status();
+  status.thread_name.push_back(t.name);
+  status.thread_state.push_back(static_cast<std::int8_t>(t.state));
+  status.thread_error.push_back(t.error);
+  // Its buffer is a ring like the pipeline's: how full, and the messages it could not take.
+  status.ring_name.push_back("record");
+  status.ring_fill.push_back(static_cast<float>(queue_.fill_fraction()));
+  status.ring_overruns.push_back(s.messages_lost);
+  const std::pair<std::string, std::int64_t> counts[] = {{"record.files", s.files},
+                                                         {"record.messages_sent", s.messages_sent},
+                                                         {"record.messages_written", s.messages_written},
+                                                         {"record.bytes_written", s.bytes_written},
+                                                         {"record.bytes_lost", s.bytes_lost}};
+  for (const auto& [name, value] : counts) {
+    status.counter_name.push_back(name);
+    status.counter_value.push_back(value);
+    status.counter_is_gauge.push_back(false);
+  }
+  for (const auto& [channel, n] : s.lost_by_channel) {
+    status.counter_name.push_back("record.lost." + channel);
+    status.counter_value.push_back(n);
+    status.counter_is_gauge.push_back(false);
+  }
+  status.record_file = s.file;
+}
+
+}  // namespace noisemon::daemon
