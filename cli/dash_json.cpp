@@ -84,7 +84,8 @@ nlohmann::json status_json(const noisemon::status_t& s) {
           {"report_latency_ms_p50", s.report_latency_ms_p50},
           {"report_latency_ms_p99", s.report_latency_ms_p99},
           {"report_latency_ms_max", s.report_latency_ms_max},
-          {"counters", counters}};
+          {"counters", counters},
+          {"record_file", s.record_file}};
 }
 
 nlohmann::json operating_point_json(const noisemon::operating_point_t& op) {

@@ -76,6 +76,7 @@ void print_status(const noisemon::status_t& s) {
       std::printf(" %s=%lld", s.counter_name[i].c_str(), static_cast<long long>(s.counter_value[i]));
     std::printf("\n");
   }
+  if (!s.record_file.empty()) std::printf("  recording into %s\n", s.record_file.c_str());
 }
 
 }  // namespace

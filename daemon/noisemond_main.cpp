@@ -20,6 +20,7 @@
 #include "daemon/config.hpp"
 #include "daemon/lcm_publisher.hpp"
 #include "daemon/pipeline.hpp"
+#include "daemon/recorder.hpp"
 #include "daemon/report_messages.hpp"
 #include "daemon/sources.hpp"
 #include "drivers/worker_thread.hpp"
@@ -82,6 +83,21 @@ daemon::Config effective_config(const Options& o) {
   return config;
 }
 
+// The bus, and the recorder when [record] is enabled. Every message goes to both, but the raw streams go on the bus
+// only with publish_raw (else they are the recorder's alone), and a daemon whose source is the bus publishes no
+// streams or session back onto it. After the source: a missing device is the error reported first.
+std::shared_ptr<daemon::Publisher> make_publisher(const daemon::Config& config) {
+  std::vector<std::string> kept_off;
+  if (!config.lcm.publish_raw) kept_off.push_back(config.lcm.raw_channel);
+  if (config.source == "lcm") kept_off.push_back(config.lcm.session_channel);
+  auto bus = std::make_shared<daemon::LcmPublisher>(config.lcm.url, std::move(kept_off));
+  if (!config.record.enabled) return bus;
+  auto both = std::make_shared<daemon::FanoutPublisher>();
+  both->add(bus);
+  both->add(std::make_shared<daemon::Recorder>(config.record, config.lcm, config.threads.recording));
+  return both;
+}
+
 std::unique_ptr<daemon::Pipeline> start_pipeline(const daemon::Config& config) {
   spdlog::set_level(spdlog::level::from_str(config.log_level));
   daemon::PipelineOptions options;
@@ -98,8 +114,7 @@ std::unique_ptr<daemon::Pipeline> start_pipeline(const daemon::Config& config) {
     drivers::lock_memory();
     spdlog::info("memory locked (mlockall MCL_CURRENT | MCL_FUTURE)");
   }
-  // After the source: a missing device is the error reported first.
-  auto publisher = std::make_shared<daemon::LcmPublisher>(config.lcm.url);
+  auto publisher = make_publisher(config);
   auto pipeline = std::make_unique<daemon::Pipeline>(config, std::move(acquisition), publisher, options);
   pipeline->start();
   return pipeline;

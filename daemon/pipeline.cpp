@@ -57,7 +57,8 @@ struct Pipeline::Impl {
   // The instants the crank passes a microphone front-end's sync pulse angle, when the source has one.
   std::unique_ptr<drivers::CrankReference> crank_reference;
   dsp::SpscRing<CycleReport> report_ring{256};
-  dsp::SpscRing<RawItem> raw_ring;  // every stream's blocks on their way to NOISEMON_RAW: the driver rings' room
+  dsp::SpscRing<RawItem> raw_ring;  // every stream's blocks on their way to NOISEMON_RAW (the bus, the recorder or
+                                    // both: Config::raw_streams()): the driver rings' room
   dsp::SpscRing<drivers::OperatingPoint> op_publish_ring{64};
 
   std::unique_ptr<CycleProcessor> processor;  // made with the pipeline, run by the processing thread
@@ -108,7 +109,7 @@ struct Pipeline::Impl {
         mic_ring(ring_blocks),
         angle_ring(angle_ring_factor(info) > 0 ? angle_ring_factor(info) * ring_blocks : 1),
         op_ring(256),
-        raw_ring(c.lcm.publish_raw ? (2 + angle_ring_factor(info)) * ring_blocks : 1),
+        raw_ring(c.raw_streams() ? (2 + angle_ring_factor(info)) * ring_blocks : 1),
         processor(make_processor()) {
     if (std::isfinite(info.sync_angle_deg))
       crank_reference = std::make_unique<drivers::CrankReference>(info.sync_angle_deg);
@@ -156,6 +157,7 @@ void Pipeline::Impl::run_processing(const std::atomic<bool>& drain) {
   while (true) {
     processing_beat_ns.store(now_ns(), std::memory_order_relaxed);
     const bool draining = drain.load(std::memory_order_acquire);
+    const bool raw = config.raw_streams();
     bool any = false;
     // Operating points first, process() last: an operating point a source hands over once the block rings are
     // empty applies to exactly the cycles its blocks complete after it (the log source's ordering relies on it).
@@ -174,14 +176,14 @@ void Pipeline::Impl::run_processing(const std::atomic<bool>& drain) {
         last_input_ns = now_ns();
         processor.add_pressure(*b);
         if (crank_reference) crank_reference->add_crank(*b);
-        if (config.lcm.publish_raw) (void)raw_ring.push(RawItem{0, *b});
+        if (raw) (void)raw_ring.push(RawItem{0, *b});
         pressure_ring.consume(1);
         got = true;
       }
       if (const drivers::SampleBlock* b = mic_ring.front()) {
         last_input_ns = now_ns();
         processor.add_mics(*b);
-        if (config.lcm.publish_raw) (void)raw_ring.push(RawItem{1, *b});
+        if (raw) (void)raw_ring.push(RawItem{1, *b});
         mic_ring.consume(1);
         got = true;
       }
@@ -190,7 +192,7 @@ void Pipeline::Impl::run_processing(const std::atomic<bool>& drain) {
         const drivers::SampleBlock* b = angle_ring.front();
         if (!b) break;
         processor.add_pressure_angle(*b);
-        if (config.lcm.publish_raw) (void)raw_ring.push(RawItem{noisemon::raw_block_t::STREAM_PRESSURE_ANGLE, *b});
+        if (raw) (void)raw_ring.push(RawItem{noisemon::raw_block_t::STREAM_PRESSURE_ANGLE, *b});
         angle_ring.consume(1);
         got = true;
       }
@@ -255,7 +257,6 @@ noisemon::status_t Pipeline::Impl::make_status(std::int64_t published, const Sta
     s.thread_state.push_back(static_cast<std::int8_t>(t.state));
     s.thread_error.push_back(t.error);
   }
-  s.nthreads = static_cast<std::int16_t>(s.thread_name.size());
   auto ring = [&](const char* name, double fill, std::uint64_t overruns) {
     s.ring_name.push_back(name);
     s.ring_fill.push_back(static_cast<float>(fill));
@@ -267,7 +268,6 @@ noisemon::status_t Pipeline::Impl::make_status(std::int64_t published, const Sta
   ring("operating_point", op_ring.fill_fraction(), op_ring.overrun_events());
   ring("reports", report_ring.fill_fraction(), report_ring.overrun_events());
   ring("raw_publish", raw_ring.fill_fraction(), raw_ring.overrun_events());
-  s.nrings = static_cast<std::int16_t>(s.ring_name.size());
   s.cycles_published = published;
   s.cycles_dropped = cycles_dropped.load();
   s.latency_ms_mean = latency.n ? static_cast<float>(latency.sum / latency.n) : 0.f;
@@ -298,6 +298,9 @@ noisemon::status_t Pipeline::Impl::make_status(std::int64_t published, const Sta
     s.counter_value.push_back(calibrated_utime[m] > 0 ? (now - calibrated_utime[m]) / 86'400'000'000 : -1);
     s.counter_is_gauge.push_back(true);
   }
+  publisher->add_status(s);
+  s.nthreads = static_cast<std::int16_t>(s.thread_name.size());
+  s.nrings = static_cast<std::int16_t>(s.ring_name.size());
   s.ncounters = static_cast<std::int16_t>(s.counter_name.size());
   return s;
 }
@@ -333,7 +336,7 @@ void Pipeline::Impl::run_publishing(std::atomic<std::int64_t>& published) {
   auto next_status = Clock::now() + std::chrono::seconds(1);
   // The session (time base, microphones) goes out before any raw block, then each second for late loggers.
   auto publish_session = [&] {
-    if (!config.lcm.publish_raw) return;  // the session describes the raw streams
+    if (!config.raw_streams()) return;  // the session describes the raw streams
     const noisemon::session_t session = to_message(info, source->name(), drivers::wall_utime());
     publisher->publish(config.lcm.session_channel, session, session.utime);
   };

@@ -46,7 +46,8 @@ class Progress {
   std::chrono::steady_clock::time_point last_{};
 };
 
-// The daemon's configuration as replay runs it: every cycle of the log reported, the streams not published again,
+// The daemon's configuration as replay runs it: every cycle of the log reported, the streams not published (or
+// recorded) again,
 // the threads scheduled normally (a service configuration's real-time priorities are the test cell's), and short
 // rings: the log source waits while they are full, so they only set how far it reads ahead, and a pipeline per run
 // costs little to set up.
@@ -55,6 +56,7 @@ Config replay_config(Config c) {
   c.ring_seconds = kReplayRingSeconds;
   c.lcm.publish_raw = false;
   c.lcm.publish_operating_point = false;
+  c.record.enabled = false;
   c.threads = ThreadsConfig{};
   return c;
 }
