@@ -19,6 +19,7 @@ namespace {
 
 constexpr auto kWriterIdle = std::chrono::milliseconds(100);  // the writer's longest sleep with nothing queued
 constexpr auto kProducerPoll = std::chrono::microseconds(200);
+constexpr int kWriterBatch = 256;  // events between two flushes while the queue stays full
 
 std::size_t bytes_of_mb(double mb) { return static_cast<std::size_t>(std::llround(mb * 1024 * 1024)); }
 
@@ -162,8 +163,13 @@ void Recorder::run_writer(const std::atomic<bool>& stop) {
       // Read before draining: everything published before the ask or the stop is in the queue by now.
       const std::uint64_t asked = flush_asked_.load(std::memory_order_acquire);
       const bool stopping = stop.load(std::memory_order_acquire);
-      while (queue_.pop(e)) write_event(e);
-      files_->flush();  // a process killed now leaves every whole event on disk
+      int taken = 0;
+      while (taken < kWriterBatch && queue_.pop(e)) {
+        write_event(e);
+        ++taken;
+      }
+      files_->flush();  // a process killed now leaves every whole event on disk; the fsync interval is kept
+      if (taken == kWriterBatch) continue;  // more may wait: on with them
       flush_done_.store(asked, std::memory_order_release);
       if (stopping) break;
       wakeup_.wait_for(kWriterIdle);
