@@ -79,6 +79,14 @@ std::vector<RecEvent> rec_read_with_lcm(const fs::path& file) {
   return out;
 }
 
+// The running test's folder, emptied: a test repeated in one process (--gtest_repeat) starts again from nothing.
+std::string rec_fresh_dir() {
+  const std::string dir = noisemon::test::unique_temp_dir();
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  return dir;
+}
+
 RecordConfig rec_config(const std::string& dir, double buffer_mb = 16) {
   RecordConfig c;
   c.enabled = true;
@@ -103,7 +111,7 @@ std::vector<fs::path> rec_files_in(const fs::path& dir) {
 }  // namespace
 
 TEST(Recorder, EveryMessageComesBackEqualAndInOrderFromAFileNamedAsDocumented) {
-  const std::string dir = noisemon::test::unique_temp_dir() + "/made/by/the/recorder";
+  const std::string dir = rec_fresh_dir() + "/made/by/the/recorder";
   std::vector<RecEvent> sent;
   {
     RecordConfig config = rec_config(dir);
@@ -137,7 +145,7 @@ TEST(Recorder, EveryMessageComesBackEqualAndInOrderFromAFileNamedAsDocumented) {
 TEST(Recorder, AWriterHeldUpLosesMessagesThatAreCountedExactlyAndMarkedInTheFile) {
   // A pipe nobody reads for a while: the writer blocks once the pipe holds 64 KiB, its 64 KiB buffer fills behind it,
   // and the rest of the burst is lost.
-  const std::string fifo = noisemon::test::unique_temp_dir() + "/held-up.pipe";
+  const std::string dir = rec_fresh_dir(), fifo = dir + "/held-up.pipe";
   ASSERT_EQ(::mkfifo(fifo.c_str(), 0600), 0) << std::strerror(errno);
   const int read_end = ::open(fifo.c_str(), O_RDONLY | O_NONBLOCK);
   ASSERT_GE(read_end, 0);
@@ -146,8 +154,7 @@ TEST(Recorder, AWriterHeldUpLosesMessagesThatAreCountedExactlyAndMarkedInTheFile
   std::string bytes;
   RecorderState s;
   {
-    Recorder recorder(rec_config(noisemon::test::unique_temp_dir(), 1.0 / 16), rec_lcm(), {},
-                      [&](int) { return fs::path(fifo); });
+    Recorder recorder(rec_config(dir, 1.0 / 16), rec_lcm(), {}, [&](int) { return fs::path(fifo); });
     for (int i = 0; i < kBurst; ++i) {
       sent.push_back(rec_message(i, 4000));
       rec_publish(recorder, sent.back());
@@ -207,7 +214,7 @@ TEST(Recorder, AWriterHeldUpLosesMessagesThatAreCountedExactlyAndMarkedInTheFile
 }
 
 TEST(Recorder, RotationBySizeGivesNumberedPartsThatHoldWhatWasPublishedEachStartingWithTheSession) {
-  const std::string dir = noisemon::test::unique_temp_dir();
+  const std::string dir = rec_fresh_dir();
   const LcmConfig lcm = rec_lcm();
   RecordConfig config = rec_config(dir);
   config.rotate_mb = 50.0 / 1024;  // 51200 bytes
@@ -245,9 +252,37 @@ TEST(Recorder, RotationBySizeGivesNumberedPartsThatHoldWhatWasPublishedEachStart
   EXPECT_EQ(joined, sent);
 }
 
+TEST(Recorder, RotationByAgeStartsANewPartWithTheFirstMessageAfterTheFileIsOld) {
+  const std::string dir = rec_fresh_dir();
+  RecordConfig config = rec_config(dir);
+  config.rotate_s = 0.05;  // the configuration file allows 1 s at the least: a test need not wait that long
+  {
+    Recorder recorder(config, rec_lcm());
+    for (int i = 0; i < 3; ++i) {
+      rec_publish(recorder, rec_message(2 * i));
+      rec_publish(recorder, rec_message(2 * i + 1));
+      recorder.flush();
+      std::this_thread::sleep_for(std::chrono::milliseconds(60));
+    }
+  }
+  // The first message after each pause starts a part (a stall of the writer on a loaded machine may start more).
+  const std::vector<fs::path> files = rec_files_in(dir);
+  ASSERT_GE(files.size(), 3u);
+  std::vector<RecEvent> joined, firsts;
+  for (const fs::path& f : files) {
+    const std::vector<RecEvent> events = rec_read(f);
+    ASSERT_FALSE(events.empty()) << f;
+    firsts.push_back(events.front());
+    joined.insert(joined.end(), events.begin(), events.end());
+  }
+  std::vector<RecEvent> sent;
+  for (int i = 0; i < 6; ++i) sent.push_back(rec_message(i));
+  EXPECT_EQ(joined, sent);
+  for (const int i : {0, 2, 4}) EXPECT_NE(std::find(firsts.begin(), firsts.end(), sent[i]), firsts.end()) << i;
+}
+
 TEST(Recorder, AFullDiskStopsTheRecordingWithTheErrorInItsStateAndPublishingGoesOn) {
-  Recorder recorder(rec_config(noisemon::test::unique_temp_dir()), rec_lcm(), {},
-                    [](int) { return fs::path("/dev/full"); });
+  Recorder recorder(rec_config(rec_fresh_dir()), rec_lcm(), {}, [](int) { return fs::path("/dev/full"); });
   EXPECT_TRUE(recorder.state().recording);
   // Writes reach the device once the stream's buffer is handed on: when the writer is idle, or 4 KiB on.
   for (int i = 0; i < 50; ++i) rec_publish(recorder, rec_message(i, 4000));
@@ -271,7 +306,7 @@ TEST(Recorder, AFullDiskStopsTheRecordingWithTheErrorInItsStateAndPublishingGoes
 }
 
 TEST(Recorder, AFolderThatCannotBeMadeIsAnErrorAtStartNamingIt) {
-  const std::string file = noisemon::test::unique_temp_dir() + "/a-file";
+  const std::string file = rec_fresh_dir() + "/a-file";
   std::ofstream(file) << "not a folder";
   try {
     Recorder recorder(rec_config(file + "/records"), rec_lcm());
@@ -282,7 +317,7 @@ TEST(Recorder, AFolderThatCannotBeMadeIsAnErrorAtStartNamingIt) {
 }
 
 TEST(Recorder, AFileCutInsideAnEventReadsBackToItsLastWholeEvent) {
-  const std::string dir = noisemon::test::unique_temp_dir() + "/whole";
+  const std::string scratch = rec_fresh_dir(), dir = scratch + "/whole";
   std::vector<RecEvent> sent;
   {
     Recorder recorder(rec_config(dir), rec_lcm());
@@ -301,7 +336,7 @@ TEST(Recorder, AFileCutInsideAnEventReadsBackToItsLastWholeEvent) {
   for (const std::size_t whole_events : {std::size_t{0}, std::size_t{1}, std::size_t{17}, std::size_t{39}}) {
     const std::size_t start = whole_events == 0 ? 0 : ends[whole_events - 1];
     for (const std::size_t into : {std::size_t{3}, std::size_t{20}, std::size_t{30}, sent[whole_events].data.size()}) {
-      const fs::path cut = fs::path(noisemon::test::unique_temp_dir()) / "cut.lcmlog";
+      const fs::path cut = fs::path(scratch) / "cut.lcmlog";
       std::ofstream(cut, std::ios::binary).write(bytes.data(), static_cast<std::streamsize>(start + into));
       const std::vector<RecEvent> want(sent.begin(), sent.begin() + static_cast<std::ptrdiff_t>(whole_events));
       drivers::formats::LcmLogReader reader(cut);

@@ -109,6 +109,7 @@ std::size_t recd_reports_in(const fs::path& dir) {
 TEST(Noisemond, ARecordingWithoutRawStreamsOnTheBusReplaysToTheReportsItPublished) {
   const std::string dir = noisemon::test::unique_temp_dir();
   const std::string bus = dir + "/bus.lcmlog", replayed = dir + "/replayed.lcmlog";
+  fs::remove_all(dir + "/records");  // a test repeated in one process starts from no recording
   constexpr int kCycles = 30;
   const pid_t daemon = noisemon::test::spawn({kNoisemond, "--config", recd_config(dir, false), "--lcm",
                                               "file://" + bus + "?mode=w", "--cycles", std::to_string(kCycles)},
@@ -165,6 +166,7 @@ TEST(Noisemond, ARecordingWithoutRawStreamsOnTheBusReplaysToTheReportsItPublishe
 TEST(Noisemond, SigintClosesTheRecordingWholeAndSigkillLeavesOneThatReplaysToItsLastWholeEvent) {
   for (const int signal : {SIGINT, SIGKILL}) {
     const std::string dir = noisemon::test::unique_temp_dir() + "/" + std::to_string(signal);
+    fs::remove_all(dir);
     fs::create_directories(dir);
     constexpr int kCycles = 10;
     const pid_t daemon = noisemon::test::spawn({kNoisemond, "--config", recd_config(dir, true), "--lcm", "memq://"},
