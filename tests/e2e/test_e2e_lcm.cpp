@@ -202,6 +202,17 @@ Replayed compare_with_live(const std::string& live, const std::string& replayed)
   return r;
 }
 
+// `noisemon replay` of a recording of `cycles` cycles, compared with the live ones, the counts printed under `what`.
+Replayed replay_against_live(const std::string& log, int cycles, const std::string& live, const char* what) {
+  const std::string csv = log + ".csv";
+  const pid_t replay = spawn({NOISEMON_PATH, "replay", log, "--csv", csv, "--no-progress"}, "/dev/null");
+  EXPECT_EQ(wait_for(replay, allowance(kStartUp + engine_time(cycles))), 0);
+  const Replayed r = compare_with_live(live, csv);
+  std::printf("%s: %d identical, %d flagged, %d dropped\n", what, r.identical, r.flagged, r.missing);
+  std::fflush(stdout);  // before the next fork, whose child would write it again
+  return r;
+}
+
 std::string write_config(const std::string& name, const std::string& model, const std::string& true_block) {
   const std::string path = noisemon::test::unique_temp_dir() + "/" + name + ".toml";
   std::ofstream(path) << noisemon::test::sim_pacing_toml() << "[model]\npreset = \"" << model
@@ -567,29 +578,18 @@ TEST(EndToEnd, LcmLoggerRecordingReplaysToTheLiveReportsOfflineAndThroughLcmLogp
   // The accounting above, proven on a loss made on purpose: the recording less one microphone block in its middle
   // replays with the cycle it falls in dropped and those after it flagged while the filters settle, never changed
   // without a flag.
-  const std::string holed = dir + "/holed.lcmlog", holed_csv = dir + "/holed.csv";
+  const std::string holed = dir + "/holed.lcmlog";
   ASSERT_TRUE(copy_without_a_block(log, holed, noisemon::raw_block_t::STREAM_MICS));
   EXPECT_EQ(lost_raw_blocks(holed), lost + 1);
-  const pid_t replay_holed = spawn({NOISEMON_PATH, "replay", holed, "--csv", holed_csv, "--no-progress"}, "/dev/null");
-  EXPECT_EQ(wait_for(replay_holed, allowance(kStartUp + engine_time(kCycles))), 0);
-  const Replayed with_hole = compare_with_live(live, holed_csv);
-  std::printf("the recording less a block: %d identical, %d flagged, %d dropped\n", with_hole.identical,
-              with_hole.flagged, with_hole.missing);
-  std::fflush(stdout);
+  const Replayed with_hole = replay_against_live(holed, kCycles, live, "the recording less a block");
   EXPECT_GT(with_hole.missing + with_hole.flagged, offline.missing + offline.flagged);
   EXPECT_GT(with_hole.identical, 0);
 
   // And less one block of the crank-angle stream (edges lost: a cycle may go uncounted, so the replay numbers the
   // cycles after it differently; each is still the live one at its instant, or flagged, or absent).
-  const std::string no_edges = dir + "/no_edges.lcmlog", no_edges_csv = dir + "/no_edges.csv";
+  const std::string no_edges = dir + "/no_edges.lcmlog";
   ASSERT_TRUE(copy_without_a_block(log, no_edges, noisemon::raw_block_t::STREAM_PRESSURE_ANGLE));
-  const pid_t replay_no_edges =
-      spawn({NOISEMON_PATH, "replay", no_edges, "--csv", no_edges_csv, "--no-progress"}, "/dev/null");
-  EXPECT_EQ(wait_for(replay_no_edges, allowance(kStartUp + engine_time(kCycles))), 0);
-  const Replayed without_edges = compare_with_live(live, no_edges_csv);
-  std::printf("the recording less a block of edges: %d identical, %d flagged, %d dropped\n", without_edges.identical,
-              without_edges.flagged, without_edges.missing);
-  std::fflush(stdout);
+  const Replayed without_edges = replay_against_live(no_edges, kCycles, live, "the recording less a block of edges");
   EXPECT_GT(without_edges.missing + without_edges.flagged, offline.missing + offline.flagged);
   EXPECT_GT(without_edges.identical, 0);
 }
