@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <stdexcept>
 #include <string>
 
@@ -20,15 +21,17 @@ double whole_rate(double hz) {
 }
 }  // namespace
 
-TimedStreamAssembler::TimedStreamAssembler(std::uint32_t channels, double card_rate_hz, std::int64_t epoch_utime)
+TimedStreamAssembler::TimedStreamAssembler(std::uint32_t channels, double card_rate_hz, std::int64_t epoch_utime,
+                                           std::uint32_t unknown_channels)
     : channels_(channels),
+      unknown_channels_(unknown_channels),
       card_rate_hz_(whole_rate(card_rate_hz)),
       epoch_utime_(epoch_utime),
       resampler_(card_rate_hz_, kPipelineRateHz, channels),
       in_(kCardBatch * channels),
       out_((resampler_.max_output_frames(kCardBatch) + 1) * channels),
-      writer_(channels) {
-  if (channels == 0 || channels > SampleBlock::kMaxChannels)
+      writer_(channels + unknown_channels) {
+  if (channels == 0 || channels + unknown_channels > SampleBlock::kMaxChannels)
     throw std::invalid_argument("timed stream needs 1.." + std::to_string(SampleBlock::kMaxChannels) + " channels");
 }
 
@@ -56,6 +59,7 @@ void TimedStreamAssembler::run_batch(BlockRing& ring) {
     if (local < kSettleFrames) continue;
     double* slot = writer_.frame(first_index_ + local, ring);
     std::copy_n(&out_[f * channels_], channels_, slot);
+    std::fill_n(slot + channels_, unknown_channels_, std::numeric_limits<double>::quiet_NaN());
     ++frames_;
   }
 }

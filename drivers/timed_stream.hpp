@@ -17,7 +17,10 @@ namespace noisemon::drivers {
 class TimedStreamAssembler {
  public:
   // card_rate_hz: whole Hz (the resampler's ratio must be rational); throws std::invalid_argument otherwise.
-  TimedStreamAssembler(std::uint32_t channels, double card_rate_hz, std::int64_t epoch_utime);
+  // unknown_channels: each frame carries that many more channels after the resampled ones, NaN (the crank angle of a
+  // pressure sampled on a timer with the engine at rest).
+  TimedStreamAssembler(std::uint32_t channels, double card_rate_hz, std::int64_t epoch_utime,
+                       std::uint32_t unknown_channels = 0);
   ~TimedStreamAssembler();
 
   // Starts over: card scan 0 is at origin_utime (rounded to the nearest 40 kHz frame, +-12.5 us).
@@ -34,6 +37,7 @@ class TimedStreamAssembler {
   void run_batch(BlockRing& ring);
 
   std::uint32_t channels_;
+  std::uint32_t unknown_channels_;
   double card_rate_hz_;
   std::int64_t epoch_utime_;
   std::int64_t first_index_ = 0;  // 40 kHz index of card scan 0
