@@ -6,6 +6,7 @@
 #include <sstream>
 #include <stdexcept>
 
+#include "drivers/comedi/comedi_rest.hpp"
 #include "drivers/mic_positions.hpp"
 #include "drivers/timed_stream.hpp"
 #include "dsp/resample.hpp"
@@ -122,7 +123,7 @@ class ComediSource final : public Source {
     info_.acoustic_delay_s = config.mics.radius_m / config.mics.speed_of_sound_m_s;
     info_.pressure_edges_per_rev = static_cast<double>(config.encoder.counts_per_rev) / config.encoder.counts_per_edge;
     // (A coarser encoder, a trigger wheel, has too few edges for the figures: they come from the 40 kHz pressure.)
-    info_.pressure_angle_step_deg = angle_step_deg(info_.pressure_edges_per_rev);
+    info_.pressure_angle_step_deg = config.at_rest ? 0.0 : angle_step_deg(info_.pressure_edges_per_rev);
     info_.mic_passband_hz = dsp::converter_passband_hz(config.mics.scan_rate_hz);
   }
   ~ComediSource() override { stop(); }
@@ -136,27 +137,32 @@ class ComediSource final : public Source {
       throw std::invalid_argument("comedi source: start() needs the pressure and mic rings");
     decoders_.clear();
     for (const auto& a : acquisitions_) decoders_.emplace_back(a->sample_width(), a->conversions());
-    edge_ = std::make_unique<EdgeStreamAssembler>(edge_config_, epoch_utime_);
-    if (info_.pressure_angle_step_deg > 0) edge_->set_angle_ring(streams.pressure_angle);
+    if (!config_.at_rest) {
+      edge_ = std::make_unique<EdgeStreamAssembler>(edge_config_, epoch_utime_);
+      if (info_.pressure_angle_step_deg > 0) edge_->set_angle_ring(streams.pressure_angle);
+    }
     std::size_t started = 0;
     try {
       for (; started < acquisitions_.size(); ++started) acquisitions_[started]->start();
-      const Acquisition& mic = *acquisitions_.back();
-      try {
-        mic_ = std::make_unique<TimedStreamAssembler>(info_.mic_count, 1.0 / mic.scan_period_s(), epoch_utime_);
-      } catch (const std::invalid_argument& e) {
-        throw std::runtime_error("comedi " + mic.where() + ": " + e.what());
-      }
+      mic_ = timed_assembler(*acquisitions_.back(), info_.mic_count, 0);
+      if (config_.at_rest) rest_ = timed_assembler(*acquisitions_[0], 1, kPressureStreamChannels - 1);  // crank NaN
     } catch (...) {
       for (std::size_t i = 0; i < started; ++i) acquisitions_[i]->cancel();
       throw;
     }
-    edge_->restart(acquisitions_[timestamp_acquisition_]->origin_utime());
+    if (config_.at_rest) {
+      rest_->restart(acquisitions_[0]->origin_utime());
+      speed_ = std::make_unique<RestSpeedMeter>(info_.pressure_edges_per_rev);
+    } else {
+      edge_->restart(acquisitions_[timestamp_acquisition_]->origin_utime());
+    }
     mic_->restart(acquisitions_.back()->origin_utime());
     note_buffers();
     started_ = true;
     edge_worker_.start("nm-pressure", config_.threads.pressure,
-                       [this, ring = streams.pressure](const std::atomic<bool>& stop) { run_edges(*ring, stop); });
+                       [this, ring = streams.pressure, ops = streams.operating_point](const std::atomic<bool>& stop) {
+                         run_edges(*ring, ops, stop);
+                       });
     mic_worker_.start("nm-mics", config_.threads.mics,
                       [this, ring = streams.mics](const std::atomic<bool>& stop) { run_mics(*ring, stop); });
   }
@@ -207,6 +213,16 @@ class ComediSource final : public Source {
         reverse_steps{0};
   };
 
+  // A timer-clocked acquisition's stream (the card's settled rate must be a whole number of Hz).
+  std::unique_ptr<TimedStreamAssembler> timed_assembler(const Acquisition& a, std::uint32_t channels,
+                                                        std::uint32_t unknown_channels) const {
+    try {
+      return std::make_unique<TimedStreamAssembler>(channels, 1.0 / a.scan_period_s(), epoch_utime_, unknown_channels);
+    } catch (const std::invalid_argument& e) {
+      throw std::runtime_error("comedi " + a.where() + ": " + e.what());
+    }
+  }
+
   ReadLoopConfig loop_config() const {
     ReadLoopConfig c;
     c.initial_backoff = config_.initial_backoff;
@@ -220,9 +236,9 @@ class ComediSource final : public Source {
     for (std::size_t i = 0; i < acquisitions_.size(); ++i) {
       const Acquisition& a = *acquisitions_[i];
       if (a.buffer_bytes() == 0) continue;
-      const bool mic = i == edge_count_;
-      const std::string rate_what = mic ? "the card's settled scan rate" : edge_rate_what(config_.encoder);
-      const double rate = mic ? 1.0 / a.scan_period_s() : edge_scan_rate_hz(config_.encoder);
+      const bool timed = a.scan_period_s() > 0.0;  // the microphones; the pressure at rest
+      const std::string rate_what = timed ? "the card's settled scan rate" : edge_rate_what(config_.encoder);
+      const double rate = timed ? 1.0 / a.scan_period_s() : edge_scan_rate_hz(config_.encoder);
       const std::string note = buffer_note(a, acquisition_configs_[i], rate, rate_what);
       if (config_.log_info)
         config_.log_info(note);
@@ -251,6 +267,26 @@ class ComediSource final : public Source {
     return ok;
   }
 
+  // Acquisition i's descriptor as the read loop takes it, its bytes decoded into scans for on_scan.
+  template <class OnScan>
+  ReadStream stream_of(std::size_t i, std::span<std::byte> buffer, OnScan on_scan) {
+    return {acquisitions_[i]->fd(), buffer,
+            [this, i, on_scan](const std::byte* b, std::size_t n) { decoders_[i].feed(b, n, on_scan); },
+            acquisitions_[i]->read_function(), acquisitions_[i]->where()};
+  }
+
+  // After an overrun of the pressure's group (edge-clocked, or at rest): what was gathered goes out, the group is
+  // re-armed together and the stream starts again from the new origin of acquisition `origin_of`.
+  template <class Assembler>
+  bool recover_pressure(Assembler& stream, BlockRing& ring, std::size_t origin_of) {
+    c_.pressure_overruns.fetch_add(1, std::memory_order_relaxed);
+    stream.deliver(ring, true);
+    const bool ok = rearm(0, edge_count_);
+    stream.restart(acquisitions_[origin_of]->origin_utime());
+    if (ok) c_.pressure_restarts.fetch_add(1, std::memory_order_relaxed);
+    return ok;
+  }
+
   void publish_edge_counters() {
     const EdgeStreamCounters& e = edge_->counters();
     c_.edges.store(e.edges, std::memory_order_relaxed);
@@ -266,10 +302,10 @@ class ComediSource final : public Source {
   }
 
   // The errors of a thread's reads name the acquisitions it reads.
-  void run_edges(BlockRing& ring, const std::atomic<bool>& stop) {
+  void run_edges(BlockRing& ring, OperatingPointRing* ops, const std::atomic<bool>& stop) {
     ReadLoopResult r;
     try {
-      r = read_edges(ring, stop);
+      r = config_.at_rest ? read_rest(ring, ops, stop) : read_edges(ring, stop);
     } catch (const std::exception& e) {
       std::string names;
       for (std::size_t i = 0; i < edge_count_; ++i) names += (i ? ", " : "") + acquisitions_[i]->where();
@@ -293,11 +329,8 @@ class ComediSource final : public Source {
     std::vector<ReadStream> streams(edge_count_);
     for (std::size_t i = 0; i < edge_count_; ++i) {
       const auto stream = static_cast<std::uint32_t>(i);
-      streams[i] = {acquisitions_[i]->fd(), buffers[i],
-                    [this, i, stream, &ring](const std::byte* b, std::size_t n) {
-                      decoders_[i].feed(b, n, [&](const double* v) { edge_->add_scan(stream, v, ring); });
-                    },
-                    acquisitions_[i]->read_function(), acquisitions_[i]->where()};
+      streams[i] =
+          stream_of(i, buffers[i], [this, stream, &ring](const double* v) { edge_->add_scan(stream, v, ring); });
     }
     ReadLoopResult r = run_group_read_loop(
         streams,
@@ -305,17 +338,34 @@ class ComediSource final : public Source {
           edge_->deliver(ring, false);
           publish_edge_counters();
         },
-        [&] {
-          c_.pressure_overruns.fetch_add(1, std::memory_order_relaxed);
-          edge_->deliver(ring, true);
-          const bool ok = rearm(0, edge_count_);
-          edge_->restart(acquisitions_[timestamp_acquisition_]->origin_utime());
-          if (ok) c_.pressure_restarts.fetch_add(1, std::memory_order_relaxed);
-          return ok;
-        },
-        stop, loop_config());
+        [&] { return recover_pressure(*edge_, ring, timestamp_acquisition_); }, stop, loop_config());
     edge_->deliver(ring, true);
     publish_edge_counters();
+    c_.pressure_overruns.store(r.overruns, std::memory_order_relaxed);
+    return r;
+  }
+
+  // At rest: the pressure on the card's timer (acquisition 0) and the encoder's counter (1), whose edges, when any
+  // come, are counted into the speed.
+  ReadLoopResult read_rest(BlockRing& ring, OperatingPointRing* ops, const std::atomic<bool>& stop) {
+    std::vector<std::byte> pressure_buffer(kReadBufferBytes), encoder_buffer(kReadBufferBytes);
+    std::array<ReadStream, 2> streams{
+        stream_of(0, pressure_buffer, [this, &ring](const double* v) { rest_->add_scan(v, ring); }),
+        stream_of(1, encoder_buffer, [this](const double*) { speed_->add_edge(); })};
+    auto publish = [&] {
+      c_.edges.store(speed_->edges(), std::memory_order_relaxed);
+      edge_worker_.set_blocks_written(rest_->blocks_written());
+    };
+    ReadLoopResult r = run_group_read_loop(
+        streams,
+        [&] {
+          rest_->deliver(ring, false);
+          speed_->after_pass(ops);
+          publish();
+        },
+        [&] { return recover_pressure(*rest_, ring, 0); }, stop, loop_config());
+    rest_->deliver(ring, true);
+    publish();
     c_.pressure_overruns.store(r.overruns, std::memory_order_relaxed);
     return r;
   }
@@ -323,11 +373,7 @@ class ComediSource final : public Source {
   ReadLoopResult read_mics(BlockRing& ring, const std::atomic<bool>& stop) {
     const std::size_t m = acquisitions_.size() - 1;
     std::vector<std::byte> buffer(kReadBufferBytes);
-    ReadStream stream{acquisitions_[m]->fd(), buffer,
-                      [this, m, &ring](const std::byte* b, std::size_t n) {
-                        decoders_[m].feed(b, n, [&](const double* v) { mic_->add_scan(v, ring); });
-                      },
-                      acquisitions_[m]->read_function(), acquisitions_[m]->where()};
+    ReadStream stream = stream_of(m, buffer, [this, &ring](const double* v) { mic_->add_scan(v, ring); });
     ReadLoopResult r = run_group_read_loop(
         std::span<ReadStream>(&stream, 1),
         [&] {
@@ -360,6 +406,8 @@ class ComediSource final : public Source {
   std::vector<ScanDecoder> decoders_;
   std::unique_ptr<EdgeStreamAssembler> edge_;
   std::unique_ptr<TimedStreamAssembler> mic_;
+  std::unique_ptr<TimedStreamAssembler> rest_;  // at rest: the pressure on the card's timer
+  std::unique_ptr<RestSpeedMeter> speed_;       // at rest: the encoder's edges
   Counters c_;
   bool started_ = false;
   // Last: destroyed (stopped) first, before anything their bodies use.
@@ -495,8 +543,11 @@ ComediAcquisitionConfig mic_acquisition(const ComediSourceConfig& c) {
 
 std::vector<ComediAcquisitionConfig> comedi_acquisitions(const ComediSourceConfig& c) {
   std::vector<ComediAcquisitionConfig> out;
-  out.push_back(pressure_acquisition(c));
+  check_rest_scan_rate(c.pressure.rest_scan_rate_hz);
+  const ComediAcquisitionConfig pressure = pressure_acquisition(c);
+  out.push_back(c.at_rest ? rest_pressure_acquisition(pressure, c.pressure.rest_scan_rate_hz) : pressure);
   add_encoder_acquisitions(c, out);
+  if (c.at_rest) out.resize(2);  // the encoder's edges are counted, not timed: no timestamp subdevice
   out.push_back(mic_acquisition(c));
   for (const auto& a : out)
     if (a.device_path.empty()) fail_config("comedi: empty device path for " + where(a.device_path, a.subdevice));

@@ -11,7 +11,8 @@
 // (start_trigger) so scan n of each is the same edge.
 //
 // Driver threads: `comedi.encoder_pressure` polls the encoder-clocked subdevices together, pairs their scans
-// and feeds the EdgeStreamAssembler (-> Streams::pressure); `comedi.microphones` feeds the
+// and feeds the EdgeStreamAssembler (-> Streams::pressure), or at rest (at_rest) the timer-clocked pressure through
+// the TimedStreamAssembler with the encoder's edges counted beside it; `comedi.microphones` feeds the
 // TimedStreamAssembler (-> Streams::mics). Both run the same code whether the bytes come from the device's
 // descriptor or, in tests, from a pipe: an Acquisition is anything with a descriptor, a sample width, per-channel
 // conversions and start/restart/cancel. A buffer overrun (EPIPE) restarts the affected acquisition (the
@@ -52,8 +53,9 @@ struct ComediSourceConfig {
     unsigned cam_aref = AREF_GROUND;
     double peg_pa = 0.0;  // > 0: relative sensor, pegged to this pressure at peg_angle_deg every cycle
     double peg_angle_deg = -180.0;
-    unsigned buffer_bytes = 0;     // > 0: the kernel acquisition buffer's size; 0: leave the driver's
-    bool wake_every_scan = false;  // CMDF_WAKE_EOS: wake the driver thread after every scan
+    unsigned buffer_bytes = 0;           // > 0: the kernel acquisition buffer's size; 0: leave the driver's
+    bool wake_every_scan = false;        // CMDF_WAKE_EOS: wake the driver thread after every scan
+    double rest_scan_rate_hz = 40000.0;  // at_rest: the pressure channel's scan rate on the card's timer (whole Hz)
   } pressure;
 
   struct Encoder {
@@ -78,6 +80,12 @@ struct ComediSourceConfig {
     unsigned buffer_bytes = 0;          // as for the pressure (also the separate timestamp subdevice's)
     bool wake_every_scan = false;
   } encoder;
+
+  // The engine at rest (comedi_rest.hpp; `noisemon calibrate --pressure`, `noisemon check`): the pressure channel is
+  // scanned on the card's timer at pressure.rest_scan_rate_hz instead of on the encoder's edges, and goes out as the
+  // 40 kHz pressure stream with the crank angle NaN; the encoder's counter runs on its own (no timestamp subdevice),
+  // its edges counted into operating points of speed only (0 at rest), every 100 ms. Never the daemon's mode.
+  bool at_rest = false;
 
   PhaseSource phase = PhaseSource::kPressure;
   double cam_threshold_v = 2.5;
@@ -142,7 +150,8 @@ std::string buffer_note(const Acquisition& acquisition, const ComediAcquisitionC
                         const std::string& rate_what);
 
 // The acquisition configurations the source opens, in order: the encoder-clocked ones (pressure, encoder,
-// [separate timestamp counter]) then the microphones. Throws std::invalid_argument naming the config field.
+// [separate timestamp counter]) then the microphones; at rest: the pressure on the card's timer, the encoder's
+// counter, the microphones. Throws std::invalid_argument naming the config field.
 std::vector<ComediAcquisitionConfig> comedi_acquisitions(const ComediSourceConfig& config);
 
 // Opens every acquisition now (a missing device or a subdevice that cannot stream throws std::runtime_error

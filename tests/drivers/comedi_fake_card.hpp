@@ -52,7 +52,7 @@ void append(std::vector<std::byte>& out, T value) {
 }
 
 // A pipe standing in for a subdevice's descriptor; conversions as a hard-calibrated 16-bit card (or raw 32-bit
-// counters) computes them.
+// counters) computes them, the channel's si_offset (the pressure chain's zero) subtracted as the device does.
 class PipeAcquisition final : public nd::comedi::Acquisition {
  public:
   PipeAcquisition(const nd::comedi::ComediAcquisitionConfig& cfg, std::int64_t origin) : cfg_(cfg), origin_(origin) {
@@ -61,9 +61,9 @@ class PipeAcquisition final : public nd::comedi::Acquisition {
     bool counters = false;
     for (const auto& ch : cfg.channels) {
       counters = counters || ch.raw_counts;
-      conversions_.push_back(
-          ch.raw_counts ? nd::comedi::linear_conversion(0.0, 4294967295.0, 4294967295u, 1.0)
-                        : nd::comedi::linear_conversion(kRangeLo[ch.range], kRangeHi[ch.range], 65535, ch.si_per_volt));
+      conversions_.push_back(ch.raw_counts ? nd::comedi::linear_conversion(0.0, 4294967295.0, 4294967295u, 1.0)
+                                           : nd::comedi::linear_conversion(kRangeLo[ch.range], kRangeHi[ch.range],
+                                                                           65535, ch.si_per_volt, ch.si_offset));
     }
     width_ = counters ? nd::comedi::SampleWidth::k32Bit : nd::comedi::SampleWidth::k16Bit;
   }

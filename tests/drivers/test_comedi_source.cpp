@@ -290,15 +290,19 @@ TEST(ComediSource, EncoderOverrunRestartsTheWholeEdgeGroup) {
   EXPECT_GT(after, static_cast<std::size_t>(0.1 * 40000));  // locked again after the restart
 }
 
+// Turning, and at rest (the pressure on the card's timer): the device the source could not open is named.
 TEST(ComediSource, MissingDeviceIsAnErrorNamingIt) {
   const std::string path = "/dev/comedi-noisemon-test-missing";
-  nd::comedi::ComediSourceConfig c = source_config(EngineSetup{});
-  c.pressure.device = path;
-  try {
-    nd::comedi::make_comedi_source(c);
-    FAIL() << "a missing device opened";
-  } catch (const std::runtime_error& e) {
-    EXPECT_NE(std::string(e.what()).find(path), std::string::npos) << e.what();
+  for (const bool at_rest : {false, true}) {
+    nd::comedi::ComediSourceConfig c = source_config(EngineSetup{});
+    c.pressure.device = path;
+    c.at_rest = at_rest;
+    try {
+      nd::comedi::make_comedi_source(c);
+      ADD_FAILURE() << "a missing device opened (at rest: " << at_rest << ")";
+    } catch (const std::runtime_error& e) {
+      EXPECT_NE(std::string(e.what()).find(path), std::string::npos) << e.what();
+    }
   }
 }
 
