@@ -1,9 +1,11 @@
 // [comedi] of the configuration: the DAQ cards of the pressure, the encoder and the microphones.
 #include <comedilib.h>
 
+#include <cmath>
 #include <string>
 
 #include "daemon/config_reader.hpp"
+#include "drivers/comedi/comedi_rest.hpp"
 
 namespace noisemon::daemon::config_detail {
 namespace {
@@ -69,6 +71,10 @@ void read_comedi_pressure(TableReader& r, const std::string& origin, drivers::co
   read_unsigned(pr, "cam_range", p.cam_range, 255);
   read_aref_key(pr, "cam_aref", p.cam_aref);
   read_kernel_buffer(pr, p.buffer_bytes, p.wake_every_scan);
+  pr.number("rest_scan_rate_hz", p.rest_scan_rate_hz, drivers::comedi::kMinRestScanRateHz,
+            drivers::comedi::kMaxRestScanRateHz);
+  if (p.rest_scan_rate_hz != std::round(p.rest_scan_rate_hz))
+    pr.fail("rest_scan_rate_hz", "a whole number of Hz (the card's timer; it is resampled to 40 kHz)");
   pr.reject_unknown();
 }
 

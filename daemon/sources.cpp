@@ -12,7 +12,7 @@
 namespace noisemon::daemon {
 namespace {
 
-std::unique_ptr<drivers::Source> make_sim(const Config& c) {
+std::unique_ptr<drivers::Source> make_sim(const Config& c, PressureClock /*at rest when [sim] stopped says so*/) {
   drivers::sim::SimConfig sim = c.sim;
   sim.threads = {c.threads.pressure, c.threads.mics, c.threads.operating_point};
   // A sim chain of a sheet sensitivity is read as [comedi.pressure] converts a voltage-output chain: its
@@ -22,7 +22,7 @@ std::unique_ptr<drivers::Source> make_sim(const Config& c) {
   return drivers::sim::make_sim_source(sim);
 }
 
-std::unique_ptr<drivers::Source> make_lcm(const Config& c) {
+std::unique_ptr<drivers::Source> make_lcm(const Config& c, PressureClock /*as the other process sends it*/) {
   drivers::lcm::LcmSourceConfig l;
   l.url = c.lcm.url;
   l.raw_channel = c.lcm.raw_channel;
@@ -35,12 +35,9 @@ std::unique_ptr<drivers::Source> make_lcm(const Config& c) {
   return drivers::lcm::make_lcm_source(l);
 }
 
-std::unique_ptr<drivers::Source> make_comedi(const Config& c) {
-  drivers::comedi::ComediSourceConfig comedi = c.comedi;
-  comedi.threads = {c.threads.pressure, c.threads.mics};
-  comedi.log_info = [](const std::string& m) { spdlog::info("{}", m); };
+std::unique_ptr<drivers::Source> make_comedi(const Config& c, PressureClock clock) {
   try {
-    return drivers::comedi::make_comedi_source(comedi);
+    return drivers::comedi::make_comedi_source(comedi_source_config(c, clock));
   } catch (const std::invalid_argument& e) {
     throw ConfigError(std::string("comedi source: ") + e.what());
   }
@@ -82,6 +79,14 @@ std::string names_of(std::span<const Kind> kinds) {
 
 }  // namespace
 
+drivers::comedi::ComediSourceConfig comedi_source_config(const Config& c, PressureClock clock) {
+  drivers::comedi::ComediSourceConfig comedi = c.comedi;
+  comedi.threads = {c.threads.pressure, c.threads.mics};
+  comedi.log_info = [](const std::string& m) { spdlog::info("{}", m); };
+  comedi.at_rest = clock == PressureClock::kAtRest;
+  return comedi;
+}
+
 std::span<const StreamSourceKind> stream_sources() { return kStreamSources; }
 const StreamSourceKind* find_stream_source(std::string_view name) { return find_kind(stream_sources(), name); }
 std::string stream_source_names() { return names_of(stream_sources()); }
@@ -90,11 +95,11 @@ std::span<const MicSourceKind> mic_sources() { return kMicSources; }
 const MicSourceKind* find_mic_source(std::string_view name) { return find_kind(mic_sources(), name); }
 std::string mic_source_names() { return names_of(mic_sources()); }
 
-std::unique_ptr<drivers::Source> make_source(const Config& config) {
+std::unique_ptr<drivers::Source> make_source(const Config& config, PressureClock clock) {
   const StreamSourceKind* kind = find_stream_source(config.source);
   if (!kind)
     throw ConfigError("unknown source '" + config.source + "' (this build knows: " + stream_source_names() + ")");
-  auto streams = kind->make(config);
+  auto streams = kind->make(config, clock);
   if (!config.microphones.empty()) {
     const MicSourceKind* mics = find_mic_source(config.microphones);
     if (!mics)
