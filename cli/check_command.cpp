@@ -28,6 +28,8 @@ constexpr double kDeadBelowOthersDb = 40.0;            // this far below them: a
 constexpr double kAtmosphereBar = 1.013;               // what an absolute transducer reads with the engine stopped
 constexpr double kOffsetLimitBar = 0.2;
 constexpr double kImplausiblePpm = 1000.0;  // a crystal this far off is a wrong nominal rate, not drift
+constexpr double kRestSeconds = 1.0;        // the second listen, the pressure on the card's timer
+constexpr double kRestTurningRpm = 1.0;     // the encoder's edges (or CAN) faster than this at rest: turning
 
 struct Row {
   std::string item, value, verdict;
@@ -89,16 +91,27 @@ std::vector<Row> microphone_rows(const CapturedStreams& s) {
   return rows;
 }
 
-std::vector<Row> pressure_and_encoder_rows(const CapturedStreams& s) {
+std::size_t finite_count(const std::vector<double>& x) {
+  return static_cast<std::size_t>(std::count_if(x.begin(), x.end(), [](double v) { return std::isfinite(v); }));
+}
+
+// With the engine stopped, a card whose pressure the encoder's edges clock delivered none: it is sampled again on the
+// card's timer (daemon::PressureClock::kAtRest).
+bool needs_rest_capture(const CapturedStreams& s) {
+  return engine_cycles_seen(s) == 0 && finite_count(s.pressure_pa) == 0;
+}
+
+// s: the listen; rest: the second one at rest, when there was one (its pressure gives the offset).
+std::vector<Row> pressure_and_encoder_rows(const CapturedStreams& s, const CapturedStreams* rest) {
   std::vector<Row> rows;
   std::size_t known = 0, finite = 0;
   double sum = 0;
-  for (std::size_t k = 0; k < s.crank_deg.size(); ++k) {
+  for (std::size_t k = 0; k < s.crank_deg.size(); ++k)
     if (std::isfinite(s.crank_deg[k])) ++known;
-    if (std::isfinite(s.pressure_pa[k])) sum += s.pressure_pa[k], ++finite;
-  }
+  for (double p : (rest ? rest->pressure_pa : s.pressure_pa))
+    if (std::isfinite(p)) sum += p, ++finite;
   const std::size_t wraps = engine_cycles_seen(s);
-  const bool turning = wraps > 0;
+  const bool turning = wraps > 0 || (rest && rest->max_speed_rpm > kRestTurningRpm);
   char value[96];
   if (finite == 0) {
     rows.push_back({"pressure", "no samples", "no pressure stream", true});
@@ -113,7 +126,7 @@ std::vector<Row> pressure_and_encoder_rows(const CapturedStreams& s) {
   std::snprintf(
       value, sizeof value, "%zu cycles, crank angle known in %.0f %% of frames", wraps,
       s.crank_deg.empty() ? 0.0 : 100.0 * static_cast<double>(known) / static_cast<double>(s.crank_deg.size()));
-  rows.push_back({"encoder", value, turning ? "ok" : "not turning: checked when the engine turns", false});
+  rows.push_back({"encoder", value, wraps > 0 ? "ok" : "not turning: checked when the engine turns", false});
   return rows;
 }
 
@@ -198,8 +211,14 @@ int CheckCommand::run() {
   const daemon::Config config = config_path_.empty() ? daemon::Config{} : daemon::load_config(config_path_);
   std::fprintf(stderr, "check: listening to %s for %.0f s\n", config.source.c_str(), seconds_);
   const CapturedStreams streams = capture_streams(config, seconds_);
+  std::optional<CapturedStreams> rest;
+  if (needs_rest_capture(streams)) {
+    std::fprintf(stderr, "check: no pressure with the engine stopped: %.0f s more with it on the card's timer\n",
+                 kRestSeconds);
+    rest = capture_streams(config, kRestSeconds, 0.5, daemon::PressureClock::kAtRest);
+  }
   std::vector<Row> rows = microphone_rows(streams);
-  for (Row& r : pressure_and_encoder_rows(streams)) rows.push_back(std::move(r));
+  for (Row& r : pressure_and_encoder_rows(streams, rest ? &*rest : nullptr)) rows.push_back(std::move(r));
   for (Row& r : driver_rows(streams, config.can.configured(), engine_cycles_seen(streams) > 0))
     rows.push_back(std::move(r));
   int failed = 0;

@@ -60,20 +60,28 @@ void check_request(const PressureCalibration& r, const Chain& chain) {
   }
 }
 
+std::string number_text(double v, const char* format) {
+  char text[64];
+  std::snprintf(text, sizeof text, format, v);
+  return text;
+}
+
 struct Reading {
   double mean_bar = 0.0, sd_bar = 0.0;
   std::size_t samples = 0;
 };
 
-// The pressure over `seconds` with the engine stopped; refused when the engine turns or the reading is not steady.
-Reading steady_reading(const daemon::Config& config, double seconds) {
-  const CapturedStreams s = capture_streams(config, seconds, kPressureSettleS);
+// The pressure over `seconds` with the engine stopped, sampled on the card's timer (PressureClock::kAtRest); refused
+// when the engine turns (cycles on the crank angle, or a speed from the encoder's edges or CAN) or the reading is not
+// steady.
+Reading steady_reading(const daemon::Config& config, double seconds, const SourceMaker& make) {
+  const CapturedStreams s = capture_streams(config, seconds, kPressureSettleS, daemon::PressureClock::kAtRest, make);
   char what[512];
-  if (const std::size_t cycles = engine_cycles_seen(s); cycles > 0 || s.last_speed_rpm > kTurningRpm) {
+  if (const std::size_t cycles = engine_cycles_seen(s); cycles > 0 || s.max_speed_rpm > kTurningRpm) {
     std::snprintf(what, sizeof what,
                   "calibrate --pressure: the engine is turning (%zu cycles, %.0f rpm while measuring): the pressure "
                   "chain is calibrated with the engine stopped and the cylinder at a steady, known pressure",
-                  cycles, s.last_speed_rpm);
+                  cycles, s.max_speed_rpm);
     throw std::runtime_error(what);
   }
   const auto skip = static_cast<std::size_t>(kPressureSettleS * drivers::kPipelineRateHz);
@@ -82,10 +90,10 @@ Reading steady_reading(const daemon::Config& config, double seconds) {
   for (std::size_t k = skip; k < s.pressure_pa.size(); ++k)
     if (const double bar = 1e-5 * s.pressure_pa[k]; std::isfinite(bar)) sum += bar, sum2 += bar * bar, ++r.samples;
   if (r.samples == 0)
-    throw std::runtime_error(
-        "calibrate --pressure: no pressure samples arrived: the comedi card's pressure input is clocked by the "
-        "encoder's edges, and none come with the engine stopped (a timer-clocked acquisition at rest is still to "
-        "come)");
+    throw std::runtime_error("calibrate --pressure: no pressure samples arrived from " + config.source + " in " +
+                             number_text(seconds, "%.0f") +
+                             " s: is the pressure channel configured ([comedi.pressure] device, subdevice, channel) "
+                             "and the source delivering?");
   r.mean_bar = sum / static_cast<double>(r.samples);
   r.sd_bar = std::sqrt(std::max(0.0, sum2 / static_cast<double>(r.samples) - r.mean_bar * r.mean_bar));
   if (r.sd_bar > kMaxReadingSdBar) {
@@ -97,12 +105,6 @@ Reading steady_reading(const daemon::Config& config, double seconds) {
     throw std::runtime_error(what);
   }
   return r;
-}
-
-std::string number_text(double v, const char* format) {
-  char text[64];
-  std::snprintf(text, sizeof text, format, v);
-  return text;
 }
 
 // What one calibration writes: the edits, and the history's row.
@@ -167,7 +169,7 @@ Result gain_calibration(const daemon::Config& config, const Chain& chain, const 
 
 }  // namespace
 
-int calibrate_pressure(const PressureCalibration& request) {
+int calibrate_pressure(const PressureCalibration& request, const SourceMaker& make) {
   const daemon::Config config = daemon::load_config(request.config_path);
   const Chain chain = configured_chain(config);
   check_request(request, chain);
@@ -175,7 +177,7 @@ int calibrate_pressure(const PressureCalibration& request) {
   const std::vector<daemon::CalibrationRecord> rows = daemon::read_calibration_history(history);
   std::fprintf(stderr, "calibrate: measuring the pressure chain for %.0f s (%s)\n", request.seconds,
                config.source.c_str());
-  const Reading m = steady_reading(config, request.seconds);
+  const Reading m = steady_reading(config, request.seconds, make);
   std::printf("pressure chain: %.5f bar, standard deviation %.4f bar over %zu samples (the mean to +-%.5f bar)\n",
               m.mean_bar, m.sd_bar, m.samples, m.sd_bar / std::sqrt(static_cast<double>(m.samples)));
   Result r = request.gain ? gain_calibration(config, chain, m, request.reference_bar, rows)

@@ -9,6 +9,8 @@
 
 #include <string>
 
+#include "cli/source_capture.hpp"
+
 namespace noisemon::cli {
 
 struct PressureCalibration {
@@ -21,8 +23,9 @@ struct PressureCalibration {
   bool dry_run = false;
 };
 
-// Measures, checks, writes; returns the exit status. Throws with the reason it refuses (engine turning, the
-// reading not steady, a charge chain's zero, a gain below 5 bar or before a zero).
-int calibrate_pressure(const PressureCalibration& request);
+// Measures (the pressure on the card's timer: PressureClock::kAtRest), checks, writes; returns the exit status. Throws
+// with the reason it refuses (engine turning, the reading not steady, a charge chain's zero, a gain below 5 bar or
+// before a zero). make: how the source is built (empty: daemon::make_source).
+int calibrate_pressure(const PressureCalibration& request, const SourceMaker& make = {});
 
 }  // namespace noisemon::cli

@@ -1,5 +1,6 @@
 #include "cli/source_capture.hpp"
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <memory>
@@ -28,13 +29,15 @@ void take_pressure(Rings& r, CapturedStreams& out, drivers::SampleBlock& block) 
   while (r.ops.read(&op, 1) == 1) {
     ++out.operating_points;
     out.last_speed_rpm = op.speed_rpm;
+    if (std::isfinite(op.speed_rpm)) out.max_speed_rpm = std::max(out.max_speed_rpm, op.speed_rpm);
   }
 }
 
 }  // namespace
 
-CapturedStreams capture_streams(const daemon::Config& config, double seconds, double settle_s) {
-  auto source = daemon::make_source(config);
+CapturedStreams capture_streams(const daemon::Config& config, double seconds, double settle_s,
+                                daemon::PressureClock clock, const SourceMaker& make) {
+  auto source = make ? make(config, clock) : daemon::make_source(config, clock);
   CapturedStreams out;
   out.info = source->info();
   out.mics.resize(out.info.mic_count);
