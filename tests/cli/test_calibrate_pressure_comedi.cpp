@@ -18,10 +18,11 @@
 #include "tests/support/text_file.hpp"
 #include "tests/support/unique_temp.hpp"
 
+namespace nd = noisemon::drivers;
+namespace calib_card = comedi_fake;
+
 namespace {
 
-namespace cf = comedi_fake;
-namespace nd = comedi_fake::nd;
 namespace nmd = noisemon::daemon;
 
 constexpr double kCardAmbientBar = 1.013;    // the barometer's reading
@@ -41,7 +42,9 @@ std::string comedi_cell() {
 }
 
 // The card's one code for the ambient pressure read kCardReadsHighBar high (range 0, +-10 V).
-std::uint16_t ambient_code() { return cf::code16((kCardAmbientBar + kCardReadsHighBar) * kCardMvPerBar * 1e-3, 0); }
+std::uint16_t ambient_code() {
+  return calib_card::code16((kCardAmbientBar + kCardReadsHighBar) * kCardMvPerBar * 1e-3, 0);
+}
 
 // The comedi source the daemon's registry builds from the configuration, its acquisitions the fake card's pipes: the
 // pressure on its timer (at rest) reads ambient_code(), the encoder sees no edge, the microphones their tones.
@@ -51,17 +54,17 @@ std::unique_ptr<nd::Source> piped_card(const nmd::Config& config, nmd::PressureC
   return nd::comedi::make_comedi_source(
       comedi,
       [](const nd::comedi::ComediAcquisitionConfig& a) {
-        auto pipe = std::make_unique<cf::PipeAcquisition>(a, cf::kEpoch + cf::kMicOriginUs);
-        if (a.device_path == "/dev/test-mics") pipe->feed(cf::mic_bytes(kCardPipeSeconds));
+        auto pipe = std::make_unique<calib_card::PipeAcquisition>(a, calib_card::kEpoch + calib_card::kMicOriginUs);
+        if (a.device_path == "/dev/test-mics") pipe->feed(calib_card::mic_bytes(kCardPipeSeconds));
         if (a.device_path == "/dev/test-pressure" && a.clock == nd::comedi::ScanClock::kTimed) {
           std::vector<std::byte> codes;
           for (auto n = static_cast<std::size_t>(kCardPipeSeconds * a.scan_rate_hz); n > 0; --n)
-            cf::append(codes, ambient_code());
+            calib_card::append(codes, ambient_code());
           pipe->feed(std::move(codes));
         }
         return pipe;
       },
-      cf::kEpoch);
+      calib_card::kEpoch);
 }
 
 }  // namespace
@@ -86,7 +89,7 @@ TEST(CalibratePressureComedi, ZeroAtRestOnTheCardsTimerWritesTheHandComputedOffs
 
   // By hand: the code's volts through 100 mV/bar, less the barometer's reading.
   const std::uint16_t code = ambient_code();
-  const double volts = cf::kRangeLo[0] + code * (cf::kRangeHi[0] - cf::kRangeLo[0]) / 65535.0;
+  const double volts = calib_card::kRangeLo[0] + code * (calib_card::kRangeHi[0] - calib_card::kRangeLo[0]) / 65535.0;
   const double expected_offset = volts / (kCardMvPerBar * 1e-3) - kCardAmbientBar;
   EXPECT_NEAR(expected_offset, kCardReadsHighBar, 0.004);  // one code is 3 mbar
   const nmd::Config written = nmd::load_config(config);

@@ -522,7 +522,7 @@ namespace {
 
 using Output = test::CommandOutput;
 
-Output run_noisemon(const std::string& args) { return test::run_command(std::string(NOISEMON_TOOL) + " " + args); }
+Output run_replay_tool(const std::string& args) { return test::run_command(std::string(NOISEMON_TOOL) + " " + args); }
 
 }  // namespace
 
@@ -534,18 +534,18 @@ TEST(Replay, CommandLineWithSeveralLogsAndJobs) {
   write_mixed_log(a);
   write_mixed_log(c);
   std::filesystem::create_directory(dir + "/out");
-  Output o = run_noisemon("replay " + a + " " + c + " -j 2 --csv " + dir + "/out --out " + dir + "/out");
+  Output o = run_replay_tool("replay " + a + " " + c + " -j 2 --csv " + dir + "/out --out " + dir + "/out");
   EXPECT_EQ(o.status, 0) << o.text;
   EXPECT_NE(o.text.find("[1/2] "), std::string::npos) << o.text;
   EXPECT_NE(o.text.find("[2/2] "), std::string::npos) << o.text;
   EXPECT_NE(o.text.find("2 logs (-j 2)"), std::string::npos) << o.text;
   EXPECT_EQ(read_bytes(dir + "/out/a.csv"), read_bytes(dir + "/out/c.csv"));  // the same log twice
   EXPECT_TRUE(std::filesystem::exists(dir + "/out/a.lcmlog"));
-  o = run_noisemon("replay " + a + " " + c + " --csv " + dir + "/x.csv");
+  o = run_replay_tool("replay " + a + " " + c + " --csv " + dir + "/x.csv");
   EXPECT_EQ(o.status, 1) << o.text;
   EXPECT_NE(o.text.find("--csv names an existing directory"), std::string::npos) << o.text;
   EXPECT_FALSE(std::filesystem::exists(dir + "/x.csv"));
-  o = run_noisemon("replay " + a + " --csv " + dir + "/one.csv --no-progress");
+  o = run_replay_tool("replay " + a + " --csv " + dir + "/one.csv --no-progress");
   EXPECT_EQ(o.status, 0) << o.text;
   EXPECT_NE(o.text.find("noisemon replay: 1 session(s), "), std::string::npos) << o.text;
   EXPECT_EQ(read_bytes(dir + "/one.csv"), read_bytes(dir + "/out/a.csv"));

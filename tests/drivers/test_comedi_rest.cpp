@@ -12,7 +12,8 @@
 #include "drivers/timed_stream.hpp"
 #include "tests/drivers/comedi_fake_card.hpp"
 
-using namespace comedi_fake;
+namespace rest_card = comedi_fake;  // (no using-directive: a unity batch shares this file's scope)
+namespace nd = noisemon::drivers;
 
 namespace {
 
@@ -22,7 +23,7 @@ constexpr double kRestRateHz = 20000.0;
 
 // The fake card at rest: a voltage chain zeroed with kRestOffsetBar, the pressure scanned at kRestRateHz.
 nd::comedi::ComediSourceConfig rest_config() {
-  nd::comedi::ComediSourceConfig c = source_config(EngineSetup{.charge_chain = false});
+  nd::comedi::ComediSourceConfig c = rest_card::source_config(rest_card::EngineSetup{.charge_chain = false});
   c.pressure.offset_bar = kRestOffsetBar;
   c.pressure.rest_scan_rate_hz = kRestRateHz;
   c.at_rest = true;
@@ -35,13 +36,13 @@ std::vector<std::byte> rest_pressure_bytes(double seconds, Pressure bar_at) {
   std::vector<std::byte> out;
   const auto scans = static_cast<std::size_t>(seconds * kRestRateHz);
   for (std::size_t n = 0; n < scans; ++n)
-    append(out, code16((bar_at(n / kRestRateHz) + kRestOffsetBar) * kRestMvPerBar * 1e-3, 0));
+    rest_card::append(out, rest_card::code16((bar_at(n / kRestRateHz) + kRestOffsetBar) * kRestMvPerBar * 1e-3, 0));
   return out;
 }
 
 // Pa of one raw code, by hand: the code's volts over the range, through 100 mV/bar, less offset_bar.
 double pa_of_code(std::uint16_t code) {
-  const double volts = kRangeLo[0] + code * (kRangeHi[0] - kRangeLo[0]) / 65535.0;
+  const double volts = rest_card::kRangeLo[0] + code * (rest_card::kRangeHi[0] - rest_card::kRangeLo[0]) / 65535.0;
   return 1e5 * (volts / (kRestMvPerBar * 1e-3) - kRestOffsetBar);
 }
 
@@ -81,7 +82,7 @@ TEST(ComediRest, ScanRateErrorsNameTheField) {
 }
 
 TEST(ComediRest, PressureIsTheCardsCodesThroughSensitivityAndOffset) {
-  Harness h(rest_config());
+  rest_card::Harness h(rest_config());
   ASSERT_EQ(h.acquisitions.size(), 3u);
   constexpr double kBar = 1.0132;
   const std::vector<std::byte> bytes = rest_pressure_bytes(0.3, [](double) { return kBar; });
@@ -90,7 +91,7 @@ TEST(ComediRest, PressureIsTheCardsCodesThroughSensitivityAndOffset) {
   const double expected = pa_of_code(code);
   EXPECT_NEAR(expected, kBar * 1e5, 200.0);  // one code is 3 mbar through 100 mV/bar
   h.by_device("/dev/test-pressure", 0).feed(bytes);
-  h.by_device("/dev/test-mics", 0).feed(mic_bytes(0.3));
+  h.by_device("/dev/test-mics", 0).feed(rest_card::mic_bytes(0.3));
   h.run();
 
   for (const auto& t : h.source->thread_status())
@@ -100,7 +101,7 @@ TEST(ComediRest, PressureIsTheCardsCodesThroughSensitivityAndOffset) {
   EXPECT_EQ(h.counter("comedi.encoder.edges"), 0);
   ASSERT_FALSE(h.pressure_frames.empty());
   // The card's scan 0 at its origin (frame 40); the resampler's settling left out.
-  EXPECT_EQ(h.pressure_frames.begin()->first, kMicOriginUs / 25 + nd::TimedStreamAssembler::kSettleFrames);
+  EXPECT_EQ(h.pressure_frames.begin()->first, rest_card::kMicOriginUs / 25 + nd::TimedStreamAssembler::kSettleFrames);
   double max_error = 0;
   std::size_t n = 0;
   for (const auto& [k, v] : h.pressure_frames) {
@@ -119,15 +120,15 @@ TEST(ComediRest, PressureIsTheCardsCodesThroughSensitivityAndOffset) {
 }
 
 TEST(ComediRest, PressureIsPlacedOnTheCardsScanClock) {
-  Harness h(rest_config());
-  auto bar_at = [](double t) { return 1.5 + 0.5 * std::sin(2.0 * kPi * 50.0 * t); };
+  rest_card::Harness h(rest_config());
+  auto bar_at = [](double t) { return 1.5 + 0.5 * std::sin(2.0 * rest_card::kPi * 50.0 * t); };
   h.by_device("/dev/test-pressure", 0).feed(rest_pressure_bytes(0.3, bar_at));
-  h.by_device("/dev/test-mics", 0).feed(mic_bytes(0.3));
+  h.by_device("/dev/test-mics", 0).feed(rest_card::mic_bytes(0.3));
   h.run();
   double max_error = 0;
   std::size_t n = 0;
   for (const auto& [k, v] : h.pressure_frames) {
-    const double t = static_cast<double>(k) / 40000.0 - kMicOriginUs * 1e-6;
+    const double t = static_cast<double>(k) / 40000.0 - rest_card::kMicOriginUs * 1e-6;
     if (t > 0.29) continue;
     max_error = std::max(max_error, std::abs(v[0] - 1e5 * bar_at(t)));
     ++n;
@@ -137,13 +138,13 @@ TEST(ComediRest, PressureIsPlacedOnTheCardsScanClock) {
 }
 
 TEST(ComediRest, ATurningEngineShowsAsSpeed) {
-  Harness h(rest_config());
-  EngineSetup turning{.duration_s = 0.2, .charge_chain = false};
-  EdgeBytes e = engine_bytes(turning);
-  PipeAcquisition& encoder = h.by_device("/dev/test-counter", 11);
+  rest_card::Harness h(rest_config());
+  rest_card::EngineSetup turning{.duration_s = 0.2, .charge_chain = false};
+  rest_card::EdgeBytes e = rest_card::engine_bytes(turning);
+  rest_card::PipeAcquisition& encoder = h.by_device("/dev/test-counter", 11);
   encoder.feed(std::move(e.encoder));
   h.by_device("/dev/test-pressure", 0).feed(rest_pressure_bytes(0.3, [](double) { return 1.0; }));
-  h.by_device("/dev/test-mics", 0).feed(mic_bytes(0.3));
+  h.by_device("/dev/test-mics", 0).feed(rest_card::mic_bytes(0.3));
   h.source->start(nd::Streams{&h.pressure, &h.mics, &h.op, &h.angle});
   // The speed goes out every 100 ms of host time: wait for two windows after the edges were read.
   const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(20);

@@ -17,6 +17,8 @@
 
 #include "drivers/timed_stream.hpp"
 
+// In a namespace of its own: the using-directive must not reach the other sources of its unity batch.
+namespace comedi_source_tests {
 using namespace comedi_fake;
 
 namespace {
@@ -349,3 +351,5 @@ TEST(ComediSource, ConfigurationErrorsNameTheField) {
   EXPECT_EQ(a[2].clock, nd::comedi::ScanClock::kTimed);
   EXPECT_DOUBLE_EQ(a[2].channels[1].si_per_volt, 1.0 / 12.5e-3);
 }
+
+}  // namespace comedi_source_tests
