@@ -170,6 +170,16 @@ TEST(Config, ComediAndCanErrorsNameFileAndKey) {
             std::string::npos);
   EXPECT_DOUBLE_EQ(
       noisemon::daemon::parse_config("[comedi.pressure]\noffset_bar = -0.25\n", "t").comedi.pressure.offset_bar, -0.25);
+  // The engine at rest: the pressure's scan rate on the card's timer, whole Hz.
+  EXPECT_NE(
+      error_of("[comedi.pressure]\nrest_scan_rate_hz = 500\n").find("comedi.pressure.rest_scan_rate_hz: value 500"),
+      std::string::npos);
+  EXPECT_NE(error_of("[comedi.pressure]\nrest_scan_rate_hz = 12345.5\n")
+                .find("comedi.pressure.rest_scan_rate_hz: a whole number of Hz"),
+            std::string::npos);
+  EXPECT_DOUBLE_EQ(noisemon::daemon::parse_config("[comedi.pressure]\nrest_scan_rate_hz = 10000\n", "t")
+                       .comedi.pressure.rest_scan_rate_hz,
+                   10000.0);
   EXPECT_NE(
       error_of("[comedi.encoder]\ntimestamp_bits = 48\n").find("comedi.encoder.timestamp_bits: value 48 out of range"),
       std::string::npos);

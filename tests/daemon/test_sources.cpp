@@ -119,13 +119,22 @@ TEST(Sources, LcmSourceWithoutSessionFailsAfterTheConfiguredTimeout) {
   }
 }
 
+// As the daemon opens it, and at rest (the pressure on the card's timer, for calibrate and check).
 TEST(Sources, MissingComediDeviceIsNamed) {
-  try {
-    make_source(parse_config(kComediMissing, "t"));
-    FAIL() << "opened a missing comedi device";
-  } catch (const std::runtime_error& e) {
-    EXPECT_NE(std::string(e.what()).find("/dev/comedi-noisemon-missing"), std::string::npos) << e.what();
+  for (const auto clock : {noisemon::daemon::PressureClock::kEncoder, noisemon::daemon::PressureClock::kAtRest}) {
+    try {
+      make_source(parse_config(kComediMissing, "t"), clock);
+      ADD_FAILURE() << "opened a missing comedi device";
+    } catch (const std::runtime_error& e) {
+      EXPECT_NE(std::string(e.what()).find("/dev/comedi-noisemon-missing"), std::string::npos) << e.what();
+    }
   }
+  EXPECT_TRUE(noisemon::daemon::comedi_source_config(parse_config(kComediMissing, "t"),
+                                                     noisemon::daemon::PressureClock::kAtRest)
+                  .at_rest);
+  EXPECT_FALSE(noisemon::daemon::comedi_source_config(parse_config(kComediMissing, "t"),
+                                                      noisemon::daemon::PressureClock::kEncoder)
+                   .at_rest);
 }
 
 TEST(Sources, CanSectionCombinesWithTheSimAndMissingInterfaceIsNamed) {
