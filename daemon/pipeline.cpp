@@ -8,7 +8,9 @@
 #include <deque>
 #include <optional>
 #include <stdexcept>
+#include <string>
 #include <thread>
+#include <utility>
 
 #include "daemon/calibration_history.hpp"
 #include "daemon/cycle_processor.hpp"
@@ -78,7 +80,8 @@ struct Pipeline::Impl {
   std::atomic<std::int64_t> crank_unknown_frames{0};  // frames whose crank angle was NaN (encoder fault)
   std::atomic<std::int64_t> reports_queued{0};
   std::atomic<std::uint64_t> report_overruns{0};
-  std::vector<std::int64_t> calibrated_utime;  // each microphone's latest calibration (0: never); none: not published
+  // The status's calibration ages: each gauge's name and its latest calibration (0: never); none: not published.
+  std::vector<std::pair<std::string, std::int64_t>> calibrated_utime;
   Clock::time_point started;
   // Last: destroyed (stopped) first, before anything their bodies use. A stop request to the processing thread
   // means the drivers have stopped: it processes what is left in the rings, then returns.
@@ -293,9 +296,9 @@ noisemon::status_t Pipeline::Impl::make_status(std::int64_t published, const Sta
     s.counter_is_gauge.push_back(false);
   }
   const std::int64_t now = drivers::wall_utime();
-  for (std::size_t m = 0; m < calibrated_utime.size(); ++m) {
-    s.counter_name.push_back("calibration.mic" + std::to_string(m + 1) + ".age_days");
-    s.counter_value.push_back(calibrated_utime[m] > 0 ? (now - calibrated_utime[m]) / 86'400'000'000 : -1);
+  for (const auto& [name, utime] : calibrated_utime) {
+    s.counter_name.push_back(name);
+    s.counter_value.push_back(utime > 0 ? (now - utime) / 86'400'000'000 : -1);
     s.counter_is_gauge.push_back(true);
   }
   publisher->add_status(s);
@@ -305,14 +308,27 @@ noisemon::status_t Pipeline::Impl::make_status(std::int64_t published, const Sta
   return s;
 }
 
-// The microphones' calibration ages go out with the status when they come from a front-end `noisemon calibrate`
-// writes the sensitivities of (an audio interface, the comedi card).
+// The calibration ages that go out with the status: the microphones' when they come from a front-end `noisemon
+// calibrate` writes the sensitivities of (an audio interface, the comedi card); the pressure chain's zero and gain on
+// the comedi card, or wherever the history holds them (the virtual engine's chain is calibrated too). A charge chain
+// has no zero to calibrate.
 void Pipeline::Impl::read_calibrations() {
-  if (config.calibration_history.empty() || !(config.microphones == "alsa" || config.source == "comedi")) return;
+  if (config.calibration_history.empty()) return;
   std::size_t skipped = 0;
-  calibrated_utime = last_calibrations(read_calibration_history(config.calibration_history, &skipped), info.mic_count);
+  const std::vector<CalibrationRecord> history = read_calibration_history(config.calibration_history, &skipped);
   if (skipped > 0)
     spdlog::warn("{}: {} rows that are not calibrations were skipped", config.calibration_history, skipped);
+  if (config.microphones == "alsa" || config.source == "comedi") {
+    const std::vector<std::int64_t> mics = last_calibrations(history, info.mic_count);
+    for (std::size_t m = 0; m < mics.size(); ++m)
+      calibrated_utime.emplace_back("calibration.mic" + std::to_string(m + 1) + ".age_days", mics[m]);
+  }
+  const bool charge = config.comedi.pressure.sensitivity_pc_per_bar > 0;
+  for (const char* step : {"zero", "gain"}) {
+    const CalibrationRecord* last = last_pressure_calibration(history, step);
+    if ((config.source == "comedi" && !(charge && std::string(step) == "zero")) || last)
+      calibrated_utime.emplace_back(std::string("calibration.pressure_") + step + ".age_days", last ? last->utime : 0);
+  }
 }
 
 void Pipeline::Impl::remember_for_statistics(const noisemon::cycle_report_t& m) {

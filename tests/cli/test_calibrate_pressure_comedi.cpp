@@ -1,13 +1,14 @@
-// `noisemon calibrate --pressure` on a comedi card with the engine stopped. The calibration builds its source as the
-// daemon's registry does (daemon::comedi_source_config at PressureClock::kAtRest) on the fake card's pipes
-// (tests/drivers/comedi_fake_card.hpp): no encoder edge comes, the pressure comes on the card's timer, and the zero it
-// writes is the one a hand computation from the card's raw code gives. Through the real binary, on a machine without
-// the card, the same configuration is an error naming the missing device.
+// `noisemon calibrate --pressure` and `noisemon check` on a comedi card with the engine stopped. Each builds its
+// source as the daemon's registry does (daemon::comedi_source_config at PressureClock::kAtRest) on the fake card's
+// pipes (tests/drivers/comedi_fake_card.hpp): no encoder edge comes, the pressure comes on the card's timer, and the
+// zero it writes is the one a hand computation from the card's raw code gives. Through the real binary, on a machine
+// without the card, the same configuration is an error naming the missing device.
 #include <gtest/gtest.h>
 
 #include <fstream>
 #include <string>
 
+#include "cli/chain_check.hpp"
 #include "cli/pressure_calibration.hpp"
 #include "daemon/calibration_history.hpp"
 #include "daemon/config.hpp"
@@ -31,11 +32,13 @@ constexpr double kCardMvPerBar = 100.0;      // [comedi.pressure] sensitivity_mv
 constexpr double kCardRestRateHz = 10000.0;  // [comedi.pressure] rest_scan_rate_hz
 constexpr double kCardPipeSeconds = 2.5;     // what each pipe carries (within its 1 MiB)
 
-// The cell: the fake card's devices, a voltage chain from its sheet, not yet zeroed.
-std::string comedi_cell() {
+// The cell: the fake card's devices, a voltage chain from its sheet, not yet zeroed (or `chain` in its place).
+std::string comedi_cell(
+    const std::string& chain = "sensitivity_mv_per_bar = 100.0   # from the sheet\noffset_bar = 0.0\n") {
   return "# the cell's DAQ card\n[daemon]\nsource = \"comedi\"\n\n"
-         "[comedi.pressure]\ndevice = \"/dev/test-pressure\"\nsubdevice = 0\nchannel = 0\n"
-         "sensitivity_mv_per_bar = 100.0   # from the sheet\noffset_bar = 0.0\nrest_scan_rate_hz = 10000\n\n"
+         "[comedi.pressure]\ndevice = \"/dev/test-pressure\"\nsubdevice = 0\nchannel = 0\n" +
+         chain +
+         "rest_scan_rate_hz = 10000\n\n"
          "[comedi.encoder]\ndevice = \"/dev/test-counter\"\nsubdevice = 11\ncounts_per_rev = 1440\n\n"
          "[comedi.mics]\ndevice = \"/dev/test-mics\"\nsubdevice = 0\nscan_rate_hz = 50000.0\nchannels = [0, 1, 2]\n"
          "range = 1\nsensitivity_mv_per_pa = [50.0, 12.5, 31.6]\n";
@@ -112,4 +115,44 @@ TEST(CalibratePressureComedi, MissingCardIsAnErrorNamingTheDevice) {
   EXPECT_NE(out.status, 0) << out.text;
   EXPECT_NE(out.text.find("/dev/test-pressure"), std::string::npos) << out.text;
   EXPECT_EQ(out.text.find("no pressure samples"), std::string::npos) << out.text;
+}
+
+// The pressure row of `noisemon check` with the engine stopped, on the configuration `chain` (the card reads the
+// ambient pressure kCardReadsHighBar high); at_rest: whether any listen asked for the pressure on the card's timer.
+noisemon::cli::CheckRow card_pressure_row(const std::string& chain, bool& at_rest) {
+  const std::string config = noisemon::test::unique_temp("check-card.toml").string();
+  std::ofstream(config) << comedi_cell(chain);
+  at_rest = false;
+  const auto rows = noisemon::cli::check_measurement_chain(nmd::load_config(config), 1.0,
+                                                           [&](const nmd::Config& c, nmd::PressureClock clock) {
+                                                             bool rest = false;
+                                                             auto source = piped_card(c, clock, rest);
+                                                             at_rest = at_rest || rest;
+                                                             return source;
+                                                           });
+  for (const auto& r : rows)
+    if (r.item == "pressure") return r;
+  ADD_FAILURE() << "no pressure row";
+  return {};
+}
+
+// No edge comes, so the encoder-clocked pressure is silent; check listens again on the card's timer and compares
+// the mean with the atmosphere: 0.42 bar high fails, the same card with that offset configured passes, and a charge
+// chain (no absolute zero) is shown but not judged.
+TEST(CheckComedi, PressureOffsetAtRestIsReadOnTheCardsTimer) {
+  bool at_rest = false;
+  const auto unzeroed = card_pressure_row("sensitivity_mv_per_bar = 100.0\noffset_bar = 0.0\n", at_rest);
+  EXPECT_TRUE(at_rest);
+  EXPECT_TRUE(unzeroed.failed) << unzeroed.value << " " << unzeroed.verdict;
+  EXPECT_NE(unzeroed.value.find(std::to_string(kCardAmbientBar + kCardReadsHighBar).substr(0, 4)), std::string::npos)
+      << unzeroed.value;
+
+  const auto zeroed = card_pressure_row("sensitivity_mv_per_bar = 100.0\noffset_bar = 0.42\n", at_rest);
+  EXPECT_FALSE(zeroed.failed) << zeroed.value << " " << zeroed.verdict;
+  EXPECT_EQ(zeroed.verdict, "ok");
+
+  const auto charge = card_pressure_row("sensitivity_pc_per_bar = 10.0\namplifier_mv_per_pc = 10.0\n", at_rest);
+  EXPECT_TRUE(at_rest);
+  EXPECT_FALSE(charge.failed) << charge.value << " " << charge.verdict;
+  EXPECT_NE(charge.verdict.find("charge chain"), std::string::npos) << charge.verdict;
 }

@@ -368,6 +368,20 @@ TEST(Pipeline, TheStatusCarriesEachMicrophonesCalibrationAge) {
   EXPECT_EQ(counter(last_status(config), "calibration.mic1.age_days"), -1);
   config.microphones.clear();  // the sim's microphones: nothing to calibrate
   EXPECT_EQ(counter(last_status(config), "calibration.mic1.age_days"), std::nullopt);
+  EXPECT_EQ(counter(last_status(config), "calibration.pressure_zero.age_days"), std::nullopt);  // nor a pressure row
+
+  // The pressure chain's zero, five days ago, and a gain twelve days ago: each step's age (any source that has them).
+  auto pressure = [&](std::int64_t utime, const char* step) {
+    noisemon::daemon::CalibrationRecord r;
+    r.utime = utime, r.microphone = 0, r.pressure_step = step, r.sensitivity = 100.0, r.reference_bar = 1.013;
+    noisemon::daemon::append_calibration(history, r);
+  };
+  pressure(now - 12 * day, "gain");
+  pressure(now - 20 * day, "zero");
+  pressure(now - 5 * day - day / 24, "zero");
+  const noisemon::status_t with_pressure = last_status(config);
+  EXPECT_EQ(counter(with_pressure, "calibration.pressure_zero.age_days"), 5);
+  EXPECT_EQ(counter(with_pressure, "calibration.pressure_gain.age_days"), 12);
 }
 
 TEST(Pipeline, AFailingSourceFinishesItWithTheFailuresText) {
