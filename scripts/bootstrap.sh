@@ -15,10 +15,11 @@ esac
 bash "$here/scripts/install-deps.sh"
 build="${NOISEMON_BUILD_DIR:-$here/build}"
 cmake -S "$here" -B "$build" -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo
-# Twice as many jobs as cores: one compiles while another waits on the disk, and on a machine other work loads, the
-# kernel shares the cores between runnable tasks, not commands: beside two busy loops on two cores, 4 jobs get 1.33
-# cores where ninja's own 3 got 1.2 (docs/benchmarks.md, "The test command").
-cmake --build "$build" -j "$((2 * $(nproc)))"
+# Three times as many jobs as cores: one compiles while another waits on the disk, and on a machine other work loads,
+# the kernel shares the cores between runnable tasks, not commands: beside two busy loops on two cores, 6 jobs get
+# 1.5 cores where 4 got 1.33 and ninja's own 3 got 1.2 (docs/benchmarks.md, "The test command"). The largest
+# compilations take about 1.5 GB each.
+cmake --build "$build" -j "$((3 * $(nproc)))"
 
 if [ "$mode" = run ]; then
   exec "$build/daemon/noisemond" --live "$@"

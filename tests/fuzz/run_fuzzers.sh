@@ -1,14 +1,16 @@
 #!/usr/bin/env bash
 # Builds the libFuzzer targets of tests/fuzz in the AddressSanitizer tree (clang; tests/sanitize/configure_sanitized.sh)
 # and runs each for a bounded time over its seed corpus; fails on any crash, leak, timeout or out-of-memory. The
-# sanitize_address stage runs it for 5 s a target after its unit tests; run it by hand for longer sessions:
+# sanitize_address stage runs the quick ones for 5 s a target after its unit tests; run it by hand for longer sessions,
+# and for the replay's (the daemon's cycle processing) after a change there:
 #
-#   tests/fuzz/run_fuzzers.sh [--build-dir DIR] [--seconds N] [--jobs N] [TARGET...]
+#   tests/fuzz/run_fuzzers.sh [--build-dir DIR] [--seconds N] [--jobs N] [--quick] [TARGET...]
 #
 #   --build-dir DIR  the AddressSanitizer tree (default: build/sanitize-address); corpora, crash artifacts and logs
 #                    stay in it
 #   --seconds N      fuzzing time per target (default 15)
 #   --jobs N         targets fuzzed at once, also the build's -j (default 2)
+#   --quick          every target but those whose build is slow (the replay's: the whole daemon), as the test command
 #   TARGET           targets to run, `candump` or `fuzz_candump` (default: every target, as listed in DIR/fuzz_targets.txt)
 #   Extra libFuzzer flags: NOISEMON_FUZZ_FLAGS="-max_len=65536 -only_ascii=1" tests/fuzz/run_fuzzers.sh ...
 #
@@ -18,13 +20,15 @@ src="$(cd "$(dirname "${BASH_SOURCE[0]}")/../.." && pwd)"
 build="$src/build/sanitize-address"
 seconds=15
 jobs=2
+list=fuzz_targets
 targets=()
 while [ $# -gt 0 ]; do
   case "$1" in
     --build-dir) build="$2"; shift 2 ;;
     --seconds) seconds="$2"; shift 2 ;;
     --jobs) jobs="$2"; shift 2 ;;
-    -h|--help) sed -n '2,15p' "${BASH_SOURCE[0]}" | sed 's/^# \{0,1\}//'; exit 0 ;;
+    --quick) list=fuzzers_quick; shift ;;
+    -h|--help) sed -n '2,17p' "${BASH_SOURCE[0]}" | sed 's/^# \{0,1\}//'; exit 0 ;;
     -*) echo "run_fuzzers.sh: unknown option $1 (see --help)" >&2; exit 2 ;;
     *) targets+=("fuzz_${1#fuzz_}"); shift ;;
   esac
@@ -54,11 +58,13 @@ runtime="$("$cxx" -print-resource-dir)/lib/linux/libclang_rt.fuzzer-x86_64.a"
 start=$SECONDS
 bash "$src/tests/sanitize/configure_sanitized.sh" address "$build" >"$build/configure.log" 2>&1 ||
   { cat "$build/configure.log" >&2; echo "fuzz: configuring $build failed" >&2; exit 1; }
-cmake --build "$build" --target fuzzers -j "$jobs" >"$build/build.log" 2>&1 ||
+build_targets=("${targets[@]}")
+[ ${#targets[@]} -gt 0 ] || build_targets=("${list/fuzz_targets/fuzzers}")
+cmake --build "$build" --target "${build_targets[@]}" fuzz_make_seeds -j "$jobs" >"$build/build.log" 2>&1 ||
   { tail -n 60 "$build/build.log" >&2; echo "fuzz: building the fuzz targets failed (full log: $build/build.log)" >&2; exit 1; }
 echo "fuzz: clang build ready in $((SECONDS - start)) s ($build)"
 
-if [ ${#targets[@]} -eq 0 ]; then mapfile -t targets <"$build/fuzz_targets.txt"; fi
+if [ ${#targets[@]} -eq 0 ]; then mapfile -t targets <"$build/$list.txt"; fi
 rm -rf "$build/seeds"
 "$build/tests/fuzz/fuzz_make_seeds" "$build/seeds"
 mkdir -p "$build/artifacts" "$build/logs"
