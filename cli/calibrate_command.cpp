@@ -199,13 +199,15 @@ int CalibrateCommand::run_microphone() {
   edit_config_file(config_path_, {{table, "sensitivity_mv_per_pa", array_text(s)}}, [&](const daemon::Config& c) {
     return std::abs(sensitivities(c).at(index) - new_mv_per_pa) <= 1e-3;
   });
-  daemon::append_calibration(history, {.utime = drivers::wall_utime(),
-                                       .microphone = mic_,
-                                       .serial = serial_,
-                                       .sensitivity = new_mv_per_pa,
-                                       .change_db = change_db,
-                                       .level_db = level_db_,
-                                       .frequency_hz = tone.frequency_hz});
+  daemon::CalibrationRecord row;
+  row.utime = drivers::wall_utime();
+  row.microphone = mic_;
+  row.serial = serial_;
+  row.sensitivity = new_mv_per_pa;
+  row.change_db = change_db;
+  row.level_db = level_db_;
+  row.frequency_hz = tone.frequency_hz;
+  daemon::append_calibration(history, row);
   std::printf("written: %s ([%s] sensitivity_mv_per_pa), %s\n", config_path_.c_str(), table.c_str(), history.c_str());
   return 0;
 }

@@ -4,7 +4,10 @@
 
 #include <cstdio>
 #include <lcm/lcm-cpp.hpp>
+#include <nlohmann/json.hpp>
+#include <stdexcept>
 
+#include "cli/command_client.hpp"
 #include "cli/dash_reference.hpp"
 #include "cli/dash_server.hpp"
 #include "cli/dash_state.hpp"
@@ -47,6 +50,30 @@ DashCommand::DashCommand(CLI::App& app) {
   dash_->footer("Pages: / (the dashboard), /events (server-sent events), /api/state (JSON), /metrics (Prometheus).");
 }
 
+namespace {
+
+constexpr double kRecordAnswerTimeoutS = 5.0;  // the button's wait for the daemon (the command repeats meanwhile)
+
+// The page's recording buttons: the command to the daemon, and its answer as JSON.
+ControlAnswer record_control(const daemon::LcmConfig& bus, const std::string& action, const std::string& argument) {
+  CommandRequest request;
+  try {
+    request = record_request(action, argument);
+  } catch (const std::invalid_argument& e) {
+    return {400, nlohmann::json{{"error", e.what()}}.dump()};
+  }
+  const auto ack = send_command(bus, request, kRecordAnswerTimeoutS);
+  if (!ack)
+    return {504, nlohmann::json{{"answered", false},
+                                {"message", "no noisemond answered on " + bus.command_channel + " within " +
+                                                std::to_string(static_cast<int>(kRecordAnswerTimeoutS)) + " s"}}
+                     .dump()};
+  return {200,
+          nlohmann::json{{"answered", true}, {"ok", ack->ok}, {"message", ack->message}, {"file", ack->file}}.dump()};
+}
+
+}  // namespace
+
 int DashCommand::run() {
   if (!dash_->parsed()) return -1;
   daemon::Config config = config_path_.empty() ? daemon::Config{} : daemon::load_config(config_path_);
@@ -77,7 +104,10 @@ int DashCommand::run() {
   LcmHandler<noisemon::check_t> check{[&](const auto& m) { state.on_check(m); }};
   lcm.subscribe(config.lcm.check_channel, &LcmHandler<noisemon::check_t>::on, &check);
 
-  DashServer server(state, std::chrono::milliseconds(static_cast<int>(1000.0 / max_rate_)));
+  DashServer server(state, std::chrono::milliseconds(static_cast<int>(1000.0 / max_rate_)),
+                    [bus = config.lcm](const std::string& action, const std::string& argument) {
+                      return record_control(bus, action, argument);
+                    });
   if (!server.start(host, port)) return 1;
   std::fprintf(stderr, "noisemon dash: http://%s:%d/ (channels %s, %s, %s)\n", host.c_str(), server.port(),
                config.lcm.report_channel.c_str(), config.lcm.status_channel.c_str(),

@@ -1,6 +1,7 @@
 #include "cli/dash_server.hpp"
 
 #include <httplib.h>
+#include <nlohmann/json.hpp>
 
 #include <cstdio>
 
@@ -40,8 +41,11 @@ bool next_event(DashState& state, Client& c, std::chrono::milliseconds min_inter
 
 }  // namespace
 
-DashServer::DashServer(DashState& state, std::chrono::milliseconds min_interval)
-    : state_(state), min_interval_(min_interval), server_(std::make_unique<httplib::Server>()) {
+DashServer::DashServer(DashState& state, std::chrono::milliseconds min_interval, RecordControl record_control)
+    : state_(state),
+      min_interval_(min_interval),
+      record_control_(std::move(record_control)),
+      server_(std::make_unique<httplib::Server>()) {
   // Each event stream holds a thread: room for many browsers beside the plain requests.
   server_->new_task_queue = [] { return new httplib::ThreadPool(32); };
   routes();
@@ -63,6 +67,16 @@ void DashServer::routes() {
   server_->Get("/metrics", [this](const httplib::Request&, httplib::Response& res) {
     res.set_content(state_.metrics_text(), "text/plain; version=0.0.4; charset=utf-8");
   });
+  if (record_control_)
+    server_->Post("/api/record", [this](const httplib::Request& req, httplib::Response& res) {
+      const nlohmann::json body = nlohmann::json::parse(req.body, nullptr, false);
+      ControlAnswer a{400, nlohmann::json{{"error", "expected {\"action\": ..., \"argument\": ...}"}}.dump()};
+      if (body.is_object() && body.value("action", nlohmann::json()).is_string())
+        a = record_control_(body["action"].get<std::string>(), body.value("argument", std::string()));
+      res.status = a.status;
+      res.set_header("Cache-Control", "no-store");
+      res.set_content(a.json, "application/json");
+    });
   server_->Get("/events", [this](const httplib::Request&, httplib::Response& res) {
     res.set_header("Cache-Control", "no-store");
     auto client = std::make_shared<Client>();

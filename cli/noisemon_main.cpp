@@ -1,5 +1,5 @@
 // noisemon: the command-line tool beside the daemon (watch, replay, import, export, sim, fit, diagnose, summary, dash,
-// tdc, gapwatch, dbc, calibrate, check).
+// tdc, gapwatch, dbc, calibrate, check, record).
 #include <CLI/CLI.hpp>
 
 #include <cstdio>
@@ -13,6 +13,7 @@
 #include "cli/fit_command.hpp"
 #include "cli/gapwatch_command.hpp"
 #include "cli/import_export_cli.hpp"
+#include "cli/record_command.hpp"
 #include "cli/replay_command.hpp"
 #include "cli/sim_command.hpp"
 #include "cli/summary_command.hpp"
@@ -65,6 +66,7 @@ int main(int argc, char** argv) {
   DbcCommand dbc(app);
   CalibrateCommand calibrate(app);
   CheckCommand check(app);
+  RecordCommand record(app);
 
   try {
     app.parse(argc, argv);
@@ -94,6 +96,7 @@ int main(int argc, char** argv) {
     if (const int status = dbc.run(); status >= 0) return status;
     if (const int status = calibrate.run(); status >= 0) return status;
     if (const int status = check.run(); status >= 0) return status;
+    if (const int status = record.run(); status >= 0) return status;
     if (const int status = replay.run(); status >= 0) return status;
   } catch (const std::exception& e) {
     std::fprintf(stderr, "noisemon: %s\n", e.what());

@@ -15,6 +15,7 @@
 #include "daemon/background_run.hpp"
 #include "daemon/calibration_history.hpp"
 #include "daemon/config_reader.hpp"
+#include "daemon/record_files.hpp"
 #include "daemon/sources.hpp"
 #include "drivers/mic_positions.hpp"
 #include "dsp/sound_power.hpp"
@@ -297,6 +298,7 @@ void read_lcm(TableReader& top, const std::string& origin, LcmConfig& lcm) {
 void read_record(TableReader& top, const std::string& origin, RecordConfig& rec) {
   TableReader r(top.table("record"), "record", origin);
   r.boolean("enabled", rec.enabled);
+  r.boolean("autostart", rec.autostart);
   r.string("dir", rec.dir);
   if (rec.enabled && rec.dir.empty()) r.fail("dir", "required when the recorder is enabled: the folder of its files");
   if (!rec.dir.empty()) rec.dir = beside_config(origin, rec.dir);
@@ -313,12 +315,7 @@ void read_record(TableReader& top, const std::string& origin, RecordConfig& rec)
   }
   r.number("fsync_interval_s", rec.fsync_interval_s, 0.1, 86400);
   r.string("test_point", rec.test_point);
-  const bool name_ok = !rec.test_point.empty() && rec.test_point.front() != '.' &&
-                       std::all_of(rec.test_point.begin(), rec.test_point.end(), [](char ch) {
-                         return std::isalnum(static_cast<unsigned char>(ch)) || ch == '.' || ch == '_' || ch == '-';
-                       });
-  if (!name_ok)
-    r.fail("test_point", "'" + rec.test_point + "': expected letters, digits, '.', '_' or '-' (a part of file names)");
+  if (!valid_test_point(rec.test_point)) r.fail("test_point", "'" + rec.test_point + "': " + kTestPointRule);
   r.reject_unknown();
 }
 

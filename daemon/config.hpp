@@ -33,13 +33,15 @@ struct LcmConfig {
   std::string check_channel = "NOISEMON_CHECK";              // noisemon check --publish's table (check_t)
   std::string record_loss_channel = "NOISEMON_RECORD_LOSS";  // the recorder's loss markers (record_loss_t), in its
                                                              // files only
+  std::string command_channel = "NOISEMON_CMD";              // the test bed's commands (command_t)
+  std::string command_ack_channel = "NOISEMON_CMD_ACK";      // and the daemon's answers (command_ack_t)
   bool publish_raw = true;
   bool publish_operating_point = true;
   double session_timeout_s = 30.0;  // source "lcm": how long to wait for the session message
   std::string cell;                 // test cell id, appended to every channel as "_<cell>" (empty: the plain names)
 
   // Every channel with its key in [lcm]: the reader and the cell's suffix walk this one list.
-  [[nodiscard]] std::array<std::pair<const char*, std::string*>, 10> channels() {
+  [[nodiscard]] std::array<std::pair<const char*, std::string*>, 12> channels() {
     return {{{"report_channel", &report_channel},
              {"status_channel", &status_channel},
              {"raw_channel", &raw_channel},
@@ -49,7 +51,9 @@ struct LcmConfig {
              {"gap_event_channel", &gap_event_channel},
              {"gap_status_channel", &gap_status_channel},
              {"check_channel", &check_channel},
-             {"record_loss_channel", &record_loss_channel}}};
+             {"record_loss_channel", &record_loss_channel},
+             {"command_channel", &command_channel},
+             {"command_ack_channel", &command_ack_channel}}};
   }
 };
 
@@ -61,6 +65,7 @@ enum class RecordFsync { kNone, kRotate, kInterval };
 // files in `dir`, named <cell>_<test_point>_<YYYYmmdd-HHMMSS>_<NNN>.lcmlog (record_files.hpp).
 struct RecordConfig {
   bool enabled = false;
+  bool autostart = true;    // record from the daemon's start; false: from the first `record start` command
   std::string dir;          // required when enabled (relative: to the configuration file's folder)
   double buffer_mb = 256;   // between the publishing thread and the writer (rounded up to a power of two)
   double rotate_mb = 1024;  // a new file once this one holds this much

@@ -17,6 +17,7 @@
 #include <memory>
 #include <span>
 
+#include "daemon/command_listener.hpp"
 #include "daemon/config.hpp"
 #include "daemon/lcm_publisher.hpp"
 #include "daemon/pipeline.hpp"
@@ -83,22 +84,34 @@ daemon::Config effective_config(const Options& o) {
   return config;
 }
 
+// A running pipeline, and the listener of the test bed's commands to its recorder (stopped first).
+struct Running {
+  std::unique_ptr<daemon::Pipeline> pipeline;
+  std::unique_ptr<daemon::CommandListener> commands;
+
+  void stop() {
+    commands.reset();
+    pipeline->stop();
+  }
+};
+
 // The bus, and the recorder when [record] is enabled. Every message goes to both, but the raw streams go on the bus
 // only with publish_raw (else they are the recorder's alone), and a daemon whose source is the bus publishes no
 // streams or session back onto it. After the source: a missing device is the error reported first.
-std::shared_ptr<daemon::Publisher> make_publisher(const daemon::Config& config) {
+std::shared_ptr<daemon::Publisher> make_publisher(const daemon::Config& config,
+                                                  const std::shared_ptr<daemon::Recorder>& recorder) {
   std::vector<std::string> kept_off;
   if (!config.lcm.publish_raw) kept_off.push_back(config.lcm.raw_channel);
   if (config.source == "lcm") kept_off.push_back(config.lcm.session_channel);
   auto bus = std::make_shared<daemon::LcmPublisher>(config.lcm.url, std::move(kept_off));
-  if (!config.record.enabled) return bus;
+  if (!recorder) return bus;
   auto both = std::make_shared<daemon::FanoutPublisher>();
   both->add(bus);
-  both->add(std::make_shared<daemon::Recorder>(config.record, config.lcm, config.threads.recording));
+  both->add(recorder);
   return both;
 }
 
-std::unique_ptr<daemon::Pipeline> start_pipeline(const daemon::Config& config) {
+Running start_pipeline(const daemon::Config& config) {
   spdlog::set_level(spdlog::level::from_str(config.log_level));
   daemon::PipelineOptions options;
   if (config.live) {
@@ -114,14 +127,20 @@ std::unique_ptr<daemon::Pipeline> start_pipeline(const daemon::Config& config) {
     drivers::lock_memory();
     spdlog::info("memory locked (mlockall MCL_CURRENT | MCL_FUTURE)");
   }
-  auto publisher = make_publisher(config);
-  auto pipeline = std::make_unique<daemon::Pipeline>(config, std::move(acquisition), publisher, options);
-  pipeline->start();
-  return pipeline;
+  std::shared_ptr<daemon::Recorder> recorder;
+  if (config.record.enabled)
+    recorder = std::make_shared<daemon::Recorder>(config.record, config.lcm, config.threads.recording);
+  Running running;
+  running.pipeline =
+      std::make_unique<daemon::Pipeline>(config, std::move(acquisition), make_publisher(config, recorder), options);
+  running.pipeline->start();
+  if (daemon::CommandListener::listens_on(config.lcm.url))
+    running.commands = std::make_unique<daemon::CommandListener>(config.lcm, recorder);
+  return running;
 }
 
 // SIGHUP: the configuration file again. A broken one changes nothing; a good one restarts the pipeline with it.
-void reload(const Options& o, std::unique_ptr<daemon::Pipeline>& pipeline) {
+void reload(const Options& o, Running& running) {
   daemon::Config fresh;
   try {
     fresh = effective_config(o);
@@ -132,9 +151,9 @@ void reload(const Options& o, std::unique_ptr<daemon::Pipeline>& pipeline) {
   spdlog::info("SIGHUP: {} read: restarting the pipeline with it",
                o.config_path.empty() ? "(built-in defaults)" : o.config_path);
   sd_notify(0, "RELOADING=1");
-  pipeline->stop();
-  pipeline.reset();
-  pipeline = start_pipeline(fresh);
+  running.stop();
+  running = Running{};
+  running = start_pipeline(fresh);
 }
 
 // The systemd side while the pipeline runs: READY=1, STATUS= each second, WATCHDOG=1 while healthy.
@@ -191,14 +210,14 @@ int run(int argc, char** argv) {
   for (int s : {SIGINT, SIGTERM, SIGHUP}) sigaddset(&signals, s);
   pthread_sigmask(SIG_BLOCK, &signals, nullptr);
 
-  std::unique_ptr<daemon::Pipeline> pipeline = start_pipeline(config);
+  Running running = start_pipeline(config);
   Supervisor supervisor;
-  while (!pipeline->finished()) {
-    supervisor.tick(*pipeline);
+  while (!running.pipeline->finished()) {
+    supervisor.tick(*running.pipeline);
     const timespec timeout{0, 50'000'000};
     const int sig = sigtimedwait(&signals, nullptr, &timeout);
     if (sig == SIGHUP) {
-      reload(options, pipeline);
+      reload(options, running);
       supervisor.restarted();
     } else if (sig > 0) {
       spdlog::info("{} received: finishing the last complete cycle", sig == SIGINT ? "SIGINT" : "SIGTERM");
@@ -206,8 +225,8 @@ int run(int argc, char** argv) {
     }
   }
   sd_notify(0, "STOPPING=1");
-  pipeline->stop();
-  if (const std::string why = pipeline->failure(); !why.empty()) {
+  running.stop();
+  if (const std::string why = running.pipeline->failure(); !why.empty()) {
     spdlog::error("{}", why);
     return 1;
   }

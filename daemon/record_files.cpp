@@ -3,6 +3,7 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <cctype>
 #include <cerrno>
 #include <cstdio>
 #include <cstring>
@@ -17,6 +18,12 @@ constexpr std::uint64_t kEventHeaderBytes = 4 + 8 + 8 + 4 + 4;
 
 }  // namespace
 
+bool valid_test_point(std::string_view name) {
+  return !name.empty() && name.front() != '.' && std::all_of(name.begin(), name.end(), [](char ch) {
+    return std::isalnum(static_cast<unsigned char>(ch)) || ch == '.' || ch == '_' || ch == '-';
+  });
+}
+
 std::string record_file_name(const std::string& cell, const std::string& test_point, std::time_t start, int part) {
   std::tm local{};
   localtime_r(&start, &local);
@@ -28,7 +35,13 @@ std::string record_file_name(const std::string& cell, const std::string& test_po
 }
 
 RecordFiles::RecordFiles(RecordFilesOptions options) : options_(std::move(options)) {
-  if (!options_.next_path) throw std::invalid_argument("RecordFiles: next_path is required");
+  if (options_.next_path) open_next();
+}
+
+void RecordFiles::begin(std::function<std::filesystem::path(int opened)> next_path) {
+  close();
+  options_.next_path = std::move(next_path);
+  recording_parts_ = 0;
   open_next();
 }
 
@@ -45,7 +58,8 @@ void RecordFiles::fail(const char* what, int error) const {
 
 void RecordFiles::open_next() {
   close();
-  path_ = options_.next_path(parts_);
+  if (!options_.next_path) throw std::logic_error("RecordFiles: a recording's part without begin()");
+  path_ = options_.next_path(recording_parts_);
   errno = 0;
   log_ = std::make_unique<lcm::LogFile>(path_.string(), "w");
   if (!log_->good()) {
@@ -54,6 +68,7 @@ void RecordFiles::open_next() {
     fail("cannot create the recording's file", error);
   }
   ++parts_;
+  ++recording_parts_;
   bytes_in_part_ = 0;
   events_in_part_ = 0;
   opened_ = synced_ = Clock::now();

@@ -1,7 +1,8 @@
 // The files of one recording (the recorder's writer thread writes through it): LCM log files in the lcm-logger
 // format (lcm::LogFile, as log_publisher.hpp), a new part once a file holds rotate_mb or is rotate_s old, made
 // durable as [record] fsync says. Each part starts with the latest event of the channels a reader needs first (the
-// session, the operating point), so every part replays on its own.
+// session, the operating point), so every part replays on its own; they are kept between recordings too (keep_lead),
+// so a recording started by command begins with them.
 //
 // Names: <cell>_<test_point>_<YYYYmmdd-HHMMSS>_<NNN>.lcmlog in the recording's folder (without "<cell>_" when the
 // cell is unnamed), the recording's start in local time and the part number from 001; a name that exists (a
@@ -26,6 +27,11 @@ class LogFile;
 
 namespace noisemon::daemon {
 
+// A test point's name is part of the file names: letters, digits, '.', '_' or '-', not starting with '.'.
+inline constexpr const char* kTestPointRule =
+    "expected letters, digits, '.', '_' or '-', not starting with '.' (a part of file names)";
+[[nodiscard]] bool valid_test_point(std::string_view name);
+
 // The name of part `part` (1, 2, ...) of a recording started at `start`.
 [[nodiscard]] std::string record_file_name(const std::string& cell, const std::string& test_point, std::time_t start,
                                            int part);
@@ -36,13 +42,15 @@ struct RecordFilesOptions {
   RecordFsync fsync = RecordFsync::kRotate;
   double fsync_interval_s = 10;
   std::vector<std::string> lead_channels;  // their latest event starts every part after the first
-  // Where the next part goes, given the number of parts opened so far (tests: a device, a pipe).
+  // Where the next part goes, given the number of parts of this recording opened so far (tests: a device, a pipe).
+  // Empty: no recording until begin().
   std::function<std::filesystem::path(int opened)> next_path;
 };
 
 class RecordFiles {
  public:
-  // Opens the first part: throws std::runtime_error naming the file and the system's reason when it cannot.
+  // Opens the first part when options.next_path is given: throws std::runtime_error naming the file and the
+  // system's reason when it cannot.
   explicit RecordFiles(RecordFilesOptions options);
   ~RecordFiles();  // close(), errors ignored
   RecordFiles(const RecordFiles&) = delete;
@@ -57,9 +65,17 @@ class RecordFiles {
   void flush();
   // Flushes, fsyncs (fsync "rotate" or "interval") and closes the part. Throws as write().
   void close();
+  // Closes the recording's part, and opens the first part of a new recording whose parts go where next_path says.
+  // Throws as the constructor.
+  void begin(std::function<std::filesystem::path(int opened)> next_path);
+  // Between recordings: the event is not written, but a lead channel's is kept to start the next part with.
+  void keep_lead(std::string_view channel, const std::uint8_t* data, std::size_t size, std::int64_t utime) {
+    remember_lead(channel, data, size, utime);
+  }
+  [[nodiscard]] bool is_open() const { return log_ != nullptr; }
 
   [[nodiscard]] const std::filesystem::path& path() const { return path_; }  // the part written now
-  [[nodiscard]] int parts() const { return parts_; }
+  [[nodiscard]] int parts() const { return parts_; }                         // every recording's
   [[nodiscard]] std::uint64_t bytes_in_part() const { return bytes_in_part_; }
   [[nodiscard]] std::uint64_t bytes_written() const { return bytes_written_; }  // every part's
 
@@ -78,7 +94,7 @@ class RecordFiles {
   RecordFilesOptions options_;
   std::unique_ptr<lcm::LogFile> log_;
   std::filesystem::path path_;
-  int parts_ = 0;
+  int parts_ = 0, recording_parts_ = 0;
   std::uint64_t bytes_in_part_ = 0, bytes_written_ = 0;
   std::int64_t events_in_part_ = 0;  // beside its leads
   Clock::time_point opened_, synced_;

@@ -7,11 +7,13 @@
 #include <chrono>
 #include <cmath>
 #include <cstring>
+#include <ctime>
 #include <stdexcept>
 #include <system_error>
 #include <thread>
 
 #include "daemon/record_files.hpp"
+#include "drivers/source.hpp"
 #include "noisemon/record_loss_t.hpp"
 
 namespace noisemon::daemon {
@@ -23,14 +25,17 @@ constexpr int kWriterBatch = 256;  // events between two flushes while the queue
 
 std::size_t bytes_of_mb(double mb) { return static_cast<std::size_t>(std::llround(mb * 1024 * 1024)); }
 
-// [record] dir, made if missing, with record_file_name's names from the recording's start; a name that exists is
-// skipped, never overwritten.
-Recorder::NextPath files_in_folder(const RecordConfig& record, const LcmConfig& lcm) {
+void make_folder(const std::string& dir) {
   std::error_code ec;
-  std::filesystem::create_directories(record.dir, ec);
-  if (ec) throw std::runtime_error("[record] dir " + record.dir + ": cannot make the folder (" + ec.message() + ")");
-  const std::time_t start = std::time(nullptr);
-  return [dir = std::filesystem::path(record.dir), cell = lcm.cell, test_point = record.test_point, start](int opened) {
+  std::filesystem::create_directories(dir, ec);
+  if (ec) throw std::runtime_error("[record] dir " + dir + ": cannot make the folder (" + ec.message() + ")");
+}
+
+// [record] dir with record_file_name's names from the recording's start (now); a name that exists is skipped, never
+// overwritten.
+Recorder::NextPath files_in_folder(const std::string& dir, const std::string& cell, const std::string& test_point) {
+  make_folder(dir);
+  return [dir = std::filesystem::path(dir), cell, test_point, start = std::time(nullptr)](int opened) {
     for (int part = opened + 1;; ++part) {
       std::filesystem::path p = dir / record_file_name(cell, test_point, start, part);
       if (!std::filesystem::exists(p)) return p;
@@ -38,15 +43,13 @@ Recorder::NextPath files_in_folder(const RecordConfig& record, const LcmConfig& 
   };
 }
 
-RecordFilesOptions files_options(const RecordConfig& record, const LcmConfig& lcm, Recorder::NextPath next_path) {
+RecordFilesOptions files_options(const RecordConfig& record, const std::vector<std::string>& lead_channels) {
   RecordFilesOptions o;
   o.rotate_bytes = bytes_of_mb(record.rotate_mb);
   o.rotate_s = record.rotate_s;
   o.fsync = record.fsync;
   o.fsync_interval_s = record.fsync_interval_s;
-  // What a reader of a part needs before its raw blocks: the session, and the operating point in force.
-  o.lead_channels = {lcm.session_channel, lcm.operating_point_channel};
-  o.next_path = next_path ? std::move(next_path) : files_in_folder(record, lcm);
+  o.lead_channels = lead_channels;
   return o;
 }
 
@@ -54,17 +57,127 @@ RecordFilesOptions files_options(const RecordConfig& record, const LcmConfig& lc
 
 Recorder::Recorder(const RecordConfig& record, const LcmConfig& lcm, const drivers::ThreadPolicy& policy,
                    NextPath next_path)
-    : loss_channel_(lcm.record_loss_channel),
+    : record_(record),
+      cell_(lcm.cell),
+      loss_channel_(lcm.record_loss_channel),
+      ack_channel_(lcm.command_ack_channel),
+      // What a reader of a part needs before its raw blocks: the session, and the operating point in force.
+      lead_channels_{lcm.session_channel, lcm.operating_point_channel},
+      next_path_(std::move(next_path)),
       queue_(std::max<std::size_t>(bytes_of_mb(record.buffer_mb), 1)),
-      files_(std::make_unique<RecordFiles>(files_options(record, lcm, std::move(next_path)))) {
-  file_ = files_->path().string();
-  parts_ = files_->parts();
+      files_(std::make_unique<RecordFiles>(files_options(record, lead_channels_))) {
+  if (record.autostart) {
+    open_recording(record.test_point);
+    recording_ = true;
+  } else if (!next_path_) {
+    make_folder(record.dir);
+  }
   writer_.start("nm-record", policy, [this](const std::atomic<bool>& stop) { run_writer(stop); });
-  spdlog::info("recording into {} ({:.3g} MiB buffer)", file_,
+  spdlog::info("{} ({:.3g} MiB buffer)", recording_ ? "recording into " + file_ : "recorder waiting for a command",
                static_cast<double>(queue_.capacity_bytes()) / (1 << 20));
 }
 
 Recorder::~Recorder() { stop(); }
+
+// The writer's (or the constructor's, before the writer starts): a new recording's first part.
+void Recorder::open_recording(const std::string& test_point) {
+  if (next_path_)
+    files_->begin([hook = next_path_, before = files_->parts()](int opened) { return hook(before + opened); });
+  else
+    files_->begin(files_in_folder(record_.dir, cell_, test_point));
+  std::lock_guard lock(mutex_);
+  file_ = files_->path().string();
+  parts_.store(files_->parts(), std::memory_order_relaxed);
+}
+
+void Recorder::close_recording() {
+  files_->close();
+  std::lock_guard lock(mutex_);
+  file_.clear();
+}
+
+void Recorder::request(RecorderRequest command) {
+  const auto refuse = [&](const std::string& why) { acknowledge(command, drivers::wall_utime(), false, why, ""); };
+  if (command.verb == CommandVerb::kRecordStart && !valid_test_point(command.test_point))
+    return refuse("test point '" + command.test_point + "': " + kTestPointRule);
+  if (!writer_running()) {
+    const std::string error = writer_.status().error;
+    return refuse(error.empty() ? "the recorder has stopped" : "the recorder stopped earlier: " + error);
+  }
+  std::lock_guard lock(commands_mutex_);
+  inbox_.push_back(std::move(command));
+  inbox_waiting_.store(true, std::memory_order_release);
+}
+
+// The producer's: the commands requested go into the queue as control events (an empty channel, which no LCM
+// channel is), in order with the messages; a full queue leaves them for the next message.
+void Recorder::take_commands(std::int64_t utime) {
+  if (!inbox_waiting_.load(std::memory_order_acquire)) return;
+  std::lock_guard lock(commands_mutex_);
+  while (!inbox_.empty()) {
+    // A stop's recording keeps its own losses: their marker goes in before it.
+    if (inbox_.front().verb != CommandVerb::kMark && pending_.messages > 0 && !push_marker(utime)) return;
+    if (!queue_.push({}, nullptr, 0, utime)) return;
+    control_.push_back(std::move(inbox_.front()));
+    inbox_.pop_front();
+    if (control_.back().verb != CommandVerb::kMark) recording_ = control_.back().verb == CommandVerb::kRecordStart;
+  }
+  inbox_waiting_.store(false, std::memory_order_release);
+  wakeup_.notify();
+}
+
+void Recorder::acknowledge(const RecorderRequest& c, std::int64_t utime, bool ok, const std::string& message,
+                           const std::string& file) {
+  noisemon::command_ack_t ack;
+  ack.utime = utime;
+  ack.id = c.id;
+  ack.verb = std::string(command_verb_name(c.verb));
+  ack.test_point = c.test_point;
+  ack.text = c.text;
+  ack.ok = ok;
+  ack.message = message;
+  ack.file = file;
+  if (ok && files_->is_open()) write_ack(ack);
+  std::lock_guard lock(sink_mutex_);
+  if (ack_sink_) ack_sink_(ack);
+}
+
+void Recorder::write_ack(const noisemon::command_ack_t& ack) {
+  std::vector<std::uint8_t> bytes(static_cast<std::size_t>(ack.getEncodedSize()));
+  ack.encode(bytes.data(), 0, static_cast<int>(bytes.size()));
+  files_->write(ack_channel_, bytes.data(), bytes.size(), ack.utime);
+}
+
+// The writer's: the next control event's command, where it sits among the messages.
+void Recorder::carry_out(std::int64_t utime) {
+  RecorderRequest c;
+  {
+    std::lock_guard lock(commands_mutex_);
+    c = std::move(control_.front());
+    control_.pop_front();
+  }
+  try {
+    if (c.verb == CommandVerb::kRecordStart) {
+      close_recording();
+      open_recording(c.test_point);
+      spdlog::info("recording test point {} into {}", c.test_point, files_->path().string());
+      acknowledge(c, utime, true, "recording test point " + c.test_point, files_->path().string());
+    } else if (c.verb == CommandVerb::kRecordStop && files_->is_open()) {
+      const std::string file = files_->path().string();
+      acknowledge(c, utime, true, "recording stopped: " + file, file);
+      close_recording();
+      spdlog::info("recording stopped by command: {}", file);
+    } else if (c.verb == CommandVerb::kRecordStop) {
+      acknowledge(c, utime, true, "no recording was running", "");
+    } else {
+      const std::string file = files_->is_open() ? files_->path().string() : "";
+      acknowledge(c, utime, true, file.empty() ? "marked; no recording is running" : "marked in " + file, file);
+    }
+  } catch (const std::exception& ex) {
+    acknowledge(c, utime, false, ex.what(), "");
+    throw;
+  }
+}
 
 void Recorder::count_loss(const std::string& channel, std::size_t size, std::int64_t utime) {
   if (pending_.messages == 0) pending_.first_utime = utime;
@@ -109,6 +222,14 @@ bool Recorder::push_marker(std::int64_t utime) {
 void Recorder::publish_bytes(const std::string& channel, const std::uint8_t* data, std::size_t size,
                              std::int64_t utime) {
   if (!writer_running()) return;  // stopped, or failed: the error is in the state
+  take_commands(utime);
+  if (!recording_) {
+    // Between recordings only the leads go to the writer, to start the next recording with; none is counted.
+    if (std::find(lead_channels_.begin(), lead_channels_.end(), channel) != lead_channels_.end() &&
+        queue_.push(channel, data, size, utime))
+      wakeup_.notify();
+    return;
+  }
   sent_.fetch_add(1, std::memory_order_relaxed);
   // The marker goes first, so it sits where the loss was: when it does not fit, neither does this message.
   if ((pending_.messages > 0 && !push_marker(utime)) || !queue_.push(channel, data, size, utime)) {
@@ -139,12 +260,23 @@ void Recorder::stop() {
   writer_.request_stop();
   wakeup_.notify();
   writer_.join();
+  std::deque<RecorderRequest> left;
+  {
+    std::lock_guard lock(commands_mutex_);
+    left.swap(control_);
+    for (RecorderRequest& c : inbox_) left.push_back(std::move(c));
+    inbox_.clear();
+  }
+  for (const RecorderRequest& c : left)
+    acknowledge(c, drivers::wall_utime(), false, "the recorder stopped before carrying it out", "");
   const RecorderState s = state();
   if (s.error.empty())
     spdlog::info("recording stopped: {} messages in {} file(s), {} lost", s.messages_written, s.files, s.messages_lost);
 }
 
 void Recorder::write_event(const QueuedEvent& e) {
+  if (e.channel.empty()) return carry_out(e.utime);
+  if (!files_->is_open()) return files_->keep_lead(e.channel, e.data.data(), e.data.size(), e.utime);
   files_->write(e.channel, e.data.data(), e.data.size(), e.utime);
   if (e.channel != loss_channel_) written_.fetch_add(1, std::memory_order_relaxed);
   bytes_written_.store(static_cast<std::int64_t>(files_->bytes_written()), std::memory_order_relaxed);
@@ -174,7 +306,7 @@ void Recorder::run_writer(const std::atomic<bool>& stop) {
       if (stopping) break;
       wakeup_.wait_for(kWriterIdle);
     }
-    files_->close();
+    close_recording();
   } catch (const std::exception& ex) {
     spdlog::error("recording stopped: {}; the daemon goes on without it", ex.what());
     throw;
@@ -184,7 +316,7 @@ void Recorder::run_writer(const std::atomic<bool>& stop) {
 RecorderState Recorder::state() const {
   RecorderState s;
   const drivers::DriverThreadStatus t = writer_.status();
-  s.recording = t.state == drivers::ThreadState::kRunning;
+  s.recording = t.state == drivers::ThreadState::kRunning;  // and a file open: below
   s.error = t.error;
   s.files = parts_.load(std::memory_order_relaxed);
   s.messages_sent = sent_.load(std::memory_order_relaxed);
@@ -193,6 +325,7 @@ RecorderState Recorder::state() const {
   s.bytes_written = bytes_written_.load(std::memory_order_relaxed);
   s.bytes_lost = bytes_lost_.load(std::memory_order_relaxed);
   std::lock_guard lock(mutex_);
+  s.recording = s.recording && !file_.empty();
   if (s.recording) s.file = file_;
   s.lost_by_channel = lost_by_channel_;
   return s;

@@ -4,10 +4,16 @@
 // full the message is dropped and counted, per channel, and a loss marker (record_loss_t on
 // [lcm] record_loss_channel) goes into the file where the loss happened. A file that cannot be written (disk full,
 // I/O error) stops the recording with the error kept in its state and in the daemon's status; the pipeline goes on.
+//
+// Recordings start with the daemon ([record] autostart) or by command (request: `noisemon record`, the dashboard,
+// through command_listener.hpp): a command goes into the buffer as a control event between the messages, so it
+// takes effect exactly there; the writer carries it out (a new recording of a test point, the end of one, a mark)
+// and acknowledges it (command_ack_t) to the sink and, when a file is open, into the file itself.
 #pragma once
 
 #include <atomic>
 #include <cstdint>
+#include <deque>
 #include <filesystem>
 #include <functional>
 #include <memory>
@@ -18,15 +24,17 @@
 #include "daemon/config.hpp"
 #include "daemon/event_queue.hpp"
 #include "daemon/publisher.hpp"
+#include "daemon/record_command.hpp"
 #include "daemon/wakeup.hpp"
 #include "drivers/worker_thread.hpp"
+#include "noisemon/command_ack_t.hpp"
 
 namespace noisemon::daemon {
 
 class RecordFiles;
 
 struct RecorderState {
-  bool recording = false;             // the writer runs
+  bool recording = false;             // the writer runs and a file is open
   std::string file;                   // the part written now ("" once stopped)
   std::string error;                  // why the recording stopped, when it failed
   int files = 0;                      // parts opened
@@ -43,8 +51,11 @@ class Recorder final : public Publisher {
   // Where part n goes given the number of parts opened so far; empty: [record] dir with record_file_name's names.
   using NextPath = std::function<std::filesystem::path(int opened)>;
 
-  // Makes the folder and the first file and starts the writer. Throws std::runtime_error naming the folder or
-  // file (and the system's reason) when it cannot: an unwritable folder is an error at start, not later.
+  using AckSink = std::function<void(const noisemon::command_ack_t&)>;
+
+  // Makes the folder and (autostart) the first file, and starts the writer. Throws std::runtime_error naming the
+  // folder or file (and the system's reason) when it cannot: an unwritable folder is an error at start, not later.
+  // next_path (tests): where part n of any recording goes, n counted over all of them.
   Recorder(const RecordConfig& record, const LcmConfig& lcm, const drivers::ThreadPolicy& policy = {},
            NextPath next_path = {});
   ~Recorder() override;  // stop()
@@ -57,6 +68,16 @@ class Recorder final : public Publisher {
   void flush() override;
   void add_status(noisemon::status_t& status) const override;
 
+  // Where the acknowledgements go (called from the writer thread, or request's); empty: nowhere. Once this returns,
+  // the previous sink is not being called and will not be.
+  void set_ack_sink(AckSink sink) {
+    std::lock_guard lock(sink_mutex_);
+    ack_sink_ = std::move(sink);
+  }
+  // Any thread: carried out between the messages at the next one the publishing thread hands over, then
+  // acknowledged. Refused at once (acknowledged, not ok) when the recorder has failed or a test point is no name.
+  void request(RecorderRequest command);
+
   // Writes out what is queued, closes the file (fsync as configured) and joins the writer. Idempotent.
   void stop();
   // Any thread.
@@ -68,13 +89,23 @@ class Recorder final : public Publisher {
     std::vector<std::pair<std::string, std::int64_t>> by_channel;
   };
   void count_loss(const std::string& channel, std::size_t size, std::int64_t utime);
+  void take_commands(std::int64_t utime);
+  void carry_out(std::int64_t utime);
+  void open_recording(const std::string& test_point);
+  void close_recording();
+  void write_ack(const noisemon::command_ack_t& ack);
+  void acknowledge(const RecorderRequest& c, std::int64_t utime, bool ok, const std::string& message,
+                   const std::string& file);
   [[nodiscard]] bool push_marker(std::int64_t utime);
   void run_writer(const std::atomic<bool>& stop);
   void write_event(const QueuedEvent& e);
   void wait_for_room_and_mark();
   [[nodiscard]] bool writer_running() const { return writer_.state() == drivers::ThreadState::kRunning; }
 
-  const std::string loss_channel_;
+  const RecordConfig record_;
+  const std::string cell_, loss_channel_, ack_channel_;
+  const std::vector<std::string> lead_channels_;
+  const NextPath next_path_;  // tests'; empty: [record] dir
   EventQueue queue_;
   Wakeup wakeup_;  // an event is queued, or a flush is asked for
   // The producer's: losses not yet marked in the file, and a reused encoding of the marker.
@@ -86,7 +117,15 @@ class Recorder final : public Publisher {
   mutable std::mutex mutex_;  // guards file_ and lost_by_channel_ (written on a new part and on a loss only)
   std::string file_;
   std::vector<std::pair<std::string, std::int64_t>> lost_by_channel_;
-  std::unique_ptr<RecordFiles> files_;      // the writer's once it runs
+  // Commands: requested (inbox_), then taken by the producer into the queue as control events (control_, in their
+  // order there) for the writer. The producer's own: whether messages go into the queue (a recording is on).
+  std::mutex commands_mutex_;
+  std::deque<RecorderRequest> inbox_, control_;
+  std::atomic<bool> inbox_waiting_{false};
+  bool recording_ = false;
+  std::mutex sink_mutex_;  // held while the sink is called
+  AckSink ack_sink_;
+  std::unique_ptr<RecordFiles> files_;      // the writer's once it runs; closed between recordings
   drivers::WorkerThread writer_{"record"};  // last: stopped first
 };
 

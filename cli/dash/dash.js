@@ -186,7 +186,27 @@ function showStatus(s) {
     + `<td id="ring-${escapeHtml(r.name)}-fill">${fmt(100 * r.fill, 1)}</td>`
     + `<td id="ring-${escapeHtml(r.name)}-overruns" class="${r.overruns > 0 ? 'warn' : ''}">${r.overruns}</td></tr>`).join('');
   $('counters').innerHTML = s.counters.map((c) => `<tr><th>${escapeHtml(c.name)}</th><td>${c.value}</td></tr>`).join('');
+  setText('record-file', s.record_file || 'none');
 }
+
+// ---------------------------------------------------------------------------------------------- the recording
+
+// A command to the daemon's recorder (POST /api/record); its answer, or why none came, under the buttons.
+async function recordCommand(action, argument) {
+  setText('record-answer', `${action}: waiting for the daemon…`, '');
+  try {
+    const response = await fetch('/api/record', { method: 'POST', body: JSON.stringify({ action, argument }) });
+    const a = await response.json();
+    const text = a.error || (a.ok ? 'done: ' : a.answered ? 'refused: ' : '') + (a.message || '') + (a.file ? ` (${a.file})` : '');
+    setText('record-answer', text, a.ok ? 'ok' : 'bad');
+  } catch (e) {
+    setText('record-answer', `${action}: ${e}`, 'bad');
+  }
+}
+
+$('record-start').onclick = () => recordCommand('start', $('record-test-point').value.trim());
+$('record-stop').onclick = () => recordCommand('stop', '');
+$('record-mark').onclick = () => recordCommand('mark', $('record-note').value.trim());
 
 // ---------------------------------------------------------------------------------------------- the gap watch
 

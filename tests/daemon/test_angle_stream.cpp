@@ -49,11 +49,11 @@ double with_ripple(double theta_deg, double frames) {
 }
 
 struct Feed {
-  bool angle_stream = true;                   // the stream's info says it may come
-  bool edges_sent = true;                     // and it does
-  bool angle_first = true;                    // each second's edge blocks before (true) or after its 40 kHz blocks
-  std::int64_t edges_lead_frames = 0;         // and this far ahead of them (a processing thread behind its drivers)
-  std::function<bool(std::int64_t)> dropped;  // edges the encoder missed
+  bool angle_stream = true;            // the stream's info says it may come
+  bool edges_sent = true;              // and it does
+  bool angle_first = true;             // each second's edge blocks before (true) or after its 40 kHz blocks
+  std::int64_t edges_lead_frames = 0;  // and this far ahead of them (a processing thread behind its drivers)
+  std::function<bool(std::int64_t)> dropped = nullptr;  // edges the encoder missed
 };
 
 std::vector<daemon::CycleReport> run(const Feed& feed) {
@@ -162,7 +162,9 @@ TEST(AngleStream, MissingEdgesVoidOnlyTheirCycleAndAreFlagged) {
     const bool gap = r.cycle + 1 == gap_cycle;
     EXPECT_EQ((r.flags & daemon::kCycleAngleGap) != 0, gap) << r.cycle;
     EXPECT_EQ(std::isnan(r.combustion.imep_net_pa), gap) << r.cycle;
-    if (!gap) EXPECT_NEAR(r.combustion.imep_gross_pa, 0.0, 0.005e5) << r.cycle;
+    if (!gap) {
+      EXPECT_NEAR(r.combustion.imep_gross_pa, 0.0, 0.005e5) << r.cycle;
+    }
   }
 }
 

@@ -236,7 +236,7 @@ TEST(Recorder, RotationBySizeGivesNumberedPartsThatHoldWhatWasPublishedEachStart
   ASSERT_GE(files.size(), 6u);
   std::vector<RecEvent> joined;
   for (std::size_t k = 0; k < files.size(); ++k) {
-    char part[16];
+    char part[32];
     std::snprintf(part, sizeof part, "_%03zu.lcmlog", k + 1);
     EXPECT_TRUE(files[k].filename().string().ends_with(part)) << files[k];
     EXPECT_LE(fs::file_size(files[k]), 51200u) << files[k];

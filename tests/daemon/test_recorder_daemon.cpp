@@ -135,7 +135,9 @@ TEST(Noisemond, ARecordingWithoutRawStreamsOnTheBusReplaysToTheReportsItPublishe
   std::size_t recorded_events = 0;
   for (const auto& [channel, events] : recorded) {
     recorded_events += events.size();
-    if (channel != "NOISEMON_RAW") EXPECT_EQ(events, on_bus[channel]) << channel;
+    if (channel != "NOISEMON_RAW") {
+      EXPECT_EQ(events, on_bus[channel]) << channel;
+    }
   }
   EXPECT_EQ(recorded.size(), on_bus.size() + 1);  // the channels: the bus's and the raw streams
 
@@ -182,7 +184,9 @@ TEST(Noisemond, SigintClosesTheRecordingWholeAndSigkillLeavesOneThatReplaysToIts
     ASSERT_EQ(files.size(), 1u);
     std::int64_t damaged = -1;
     const std::size_t reports = recd_events(files[0], &damaged)["NOISEMON_CYCLE"].size();
-    if (signal == SIGINT) EXPECT_EQ(damaged, 0) << "SIGINT left a partial event";
+    if (signal == SIGINT) {
+      EXPECT_EQ(damaged, 0) << "SIGINT left a partial event";
+    }
     EXPECT_LE(damaged, 1);  // a killed writer: at most the event it was writing, cut
     const std::string csv = dir + "/replayed.csv";
     const pid_t replay = noisemon::test::spawn({kNoisemon, "replay", files[0].string(), "--csv", csv, "--no-progress"},

@@ -265,10 +265,14 @@ TEST(SoundPower, MicrophonesThatAreNotEqualAreaAreWeightedByTheirShareOfTheHemis
   const std::size_t b1k = res.band(1000);
   const double tone_db = level_of_ms(0.5 * 0.5 / 2) + a_weight(res.bands[b1k].exact_mid_hz);
   for (const auto& c : res.reports)
-    if (c.cycle >= 5) EXPECT_NEAR(c.spl_a_measured_db[b1k], tone_db + 10 * std::log10(weighted), 0.15);
+    if (c.cycle >= 5) {
+      EXPECT_NEAR(c.spl_a_measured_db[b1k], tone_db + 10 * std::log10(weighted), 0.15);
+    }
   // By default the shares are equal: the plain energy mean, (4 + 1 + 1 + 1) / 4.
   for (const auto& c : equal.reports)
-    if (c.cycle >= 5) EXPECT_NEAR(c.spl_a_measured_db[b1k], tone_db + 10 * std::log10(7.0 / 4), 0.15);
+    if (c.cycle >= 5) {
+      EXPECT_NEAR(c.spl_a_measured_db[b1k], tone_db + 10 * std::log10(7.0 / 4), 0.15);
+    }
 }
 
 TEST(SoundPower, ConfiguredSharesMustMatchTheMicrophones) {
@@ -280,7 +284,9 @@ TEST(SoundPower, ConfiguredSharesMustMatchTheMicrophones) {
   const std::size_t b1k = res.band(1000);
   const double tone_db = level_of_ms(0.5 * 0.5 / 2) + a_weight(res.bands[b1k].exact_mid_hz);
   for (const auto& c : res.reports)
-    if (c.cycle >= 5) EXPECT_NEAR(c.spl_a_measured_db[b1k], tone_db + 10 * std::log10(0.5 * 1 + 0.5 * 4), 0.15);
+    if (c.cycle >= 5) {
+      EXPECT_NEAR(c.spl_a_measured_db[b1k], tone_db + 10 * std::log10(0.5 * 1 + 0.5 * 4), 0.15);
+    }
 }
 
 TEST(SoundPowerSetup, PresetPositionsAreEqualAreaAndOnTheirHemisphere) {

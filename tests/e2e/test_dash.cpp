@@ -8,8 +8,10 @@
 
 #include <chrono>
 #include <cmath>
+#include <filesystem>
 #include <fstream>
 #include <functional>
+#include <lcm/lcm-cpp.hpp>
 #include <regex>
 #include <sstream>
 #include <thread>
@@ -445,4 +447,62 @@ TEST(Dash, PreTestCheckPanelShowsThePublishedTableWithNoEngineRunning) {
   EXPECT_EQ(metrics.at("noisemon_check_failed{cell=\"\",item=\"microphone 4\"}"), 1.0);
   EXPECT_EQ(metrics.at("noisemon_check_failed{cell=\"\",item=\"microphone 3\"}"), 0.0);
   EXPECT_EQ(dash.stop(), 0);
+}
+
+// The recording's buttons: a daemon that records only by command, the page's Start with a test point typed in, then
+// Mark and Stop. Each answer the daemon gave shows under the buttons, the file it names is the one the recorder wrote
+// (its test point in the name, the three acknowledgements in it), and a name that is no file name is refused by the
+// page's server without reaching the daemon.
+TEST(Dash, RecordingButtonsStartMarkAndStopTheDaemonsRecording) {
+  NOISEMON_REQUIRE_NAMESPACE();
+  REQUIRE_CHROMIUM();
+  constexpr int port = 18084;
+  const std::string records = temp("records");
+  std::filesystem::remove_all(records);
+  const std::string config = temp("record.toml");
+  std::ofstream(config) << noisemon::test::sim_pacing_toml() << "[record]\nenabled = true\nautostart = false\ndir = \""
+                        << records << "\"\n";
+  Process daemon = start_daemon({"--config", config}, "daemon");
+  Process dash = start_dash(port, {}, "dash");
+  noisemon::test::Chromium browser("http://127.0.0.1:" + std::to_string(port) + "/", temp("chromium-profile"),
+                                   temp("chromium.log"));
+  const auto press = [&](const std::string& script) {
+    const std::string js =
+        "(() => { const $ = (id) => document.getElementById(id); if (!$('record-start') || !$('record-start').onclick) "
+        "return '';"
+        " $('record-answer').textContent = ''; " +
+        script + "; return 'pressed'; })()";
+    EXPECT_TRUE(eventually(noisemon::test::allowance_s(10.0), [&] { return browser.evaluate(js) == "pressed"; }));
+    json answer;
+    const char* const read = "document.getElementById('record-answer').textContent";
+    EXPECT_TRUE(eventually(noisemon::test::allowance_s(15.0),
+                           [&] {
+                             answer = browser.evaluate(read);
+                             return answer.is_string() && !answer.get<std::string>().empty() &&
+                                    answer.get<std::string>().find("waiting") == std::string::npos;
+                           }))
+        << answer.dump() << slurp(temp("daemon.err"));
+    return answer.is_string() ? answer.get<std::string>() : std::string();
+  };
+  const std::string started = press("$('record-test-point').value = 'dash-tp'; $('record-start').click()");
+  EXPECT_EQ(started.rfind("done: recording test point dash-tp", 0), 0u) << started;
+  const std::string refused = press("$('record-test-point').value = '../escape'; $('record-start').click()");
+  EXPECT_NE(refused.find("test point '../escape'"), std::string::npos) << refused;
+  const std::string marked = press("$('record-note').value = 'door opened'; $('record-mark').click()");
+  EXPECT_EQ(marked.rfind("done: marked in ", 0), 0u) << marked;
+  const std::string stopped = press("$('record-stop').click()");
+  EXPECT_EQ(stopped.rfind("done: recording stopped", 0), 0u) << stopped;
+  EXPECT_EQ(daemon.stop(), 0);
+  EXPECT_EQ(dash.stop(), 0);
+
+  std::vector<std::filesystem::path> files;
+  for (const auto& f : std::filesystem::directory_iterator(records)) files.push_back(f.path());
+  ASSERT_EQ(files.size(), 1u);
+  EXPECT_TRUE(files[0].filename().string().starts_with("dash-tp_")) << files[0];
+  EXPECT_NE(started.find(files[0].string()), std::string::npos) << started;
+  int acks = 0;
+  lcm::LogFile log(files[0].string(), "r");
+  ASSERT_TRUE(log.good());
+  while (const lcm::LogEvent* e = log.readNextEvent()) acks += e->channel == "NOISEMON_CMD_ACK" ? 1 : 0;
+  EXPECT_EQ(acks, 3);
 }
