@@ -18,6 +18,8 @@
 #include <string>
 #include <vector>
 
+#include "tests/sanitizer.hpp"
+
 namespace noisemon::test {
 
 inline const char* const kChromium = "/usr/bin/chromium";
@@ -105,7 +107,9 @@ class Chromium {
   }
 
   std::string read_message() {
-    const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(20);
+    // A reply is work of seconds for the browser (a page's load, a screenshot): stretched as every wait of the tests,
+    // since several browsers, daemons and dashes share the cores while the end-to-end tests run side by side.
+    const auto deadline = std::chrono::steady_clock::now() + allowance(std::chrono::seconds(20));
     for (;;) {
       if (const auto end = buffer_.find('\0'); end != std::string::npos) {
         std::string message = buffer_.substr(0, end);
